@@ -1,0 +1,175 @@
+"""Configuration files: pydantic models, reading, writing and rule validation.
+
+The file format (``schema_version`` 1) is documented by the JSON Schema generated
+from :class:`ConfigurationFile` and shipped as ``docs/configuration.schema.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from .configuration import Configuration
+from .errors import ConfigurationError, DockingRuleError
+from .files import atomic_write_text, parse_model, read_json
+from .robot import check_structure
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "ConfigurationFile",
+    "ConnectionModel",
+    "ModuleModel",
+    "check_configuration",
+    "configuration_from_model",
+    "configuration_to_model",
+    "dump_configuration",
+    "load_configuration",
+    "parse_configuration",
+    "save_configuration",
+]
+
+SCHEMA_VERSION = 1
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", coerce_numbers_to_str=True)
+
+
+class ModuleModel(_Strict):
+    """A vertex: a module, or a virtual vertex (``kind: "virtual"``) for a free connector."""
+
+    id: str = Field(min_length=1, description="Module id, unique in the file.")
+    kind: str = Field(min_length=1, description="Module kind of the robot, or 'virtual'.")
+    position: Vec3 | None = Field(None, description="Optional position [m].")
+
+
+class ConnectionModel(_Strict):
+    """An edge: a connection between two vertices (for FreeSN, a strut module)."""
+
+    id: str | None = Field(None, min_length=1,
+                           description="Edge id (module id for edge modules); generated if omitted.")
+    source: str = Field(min_length=1, description="Vertex the connection leaves (parent).")
+    target: str = Field(min_length=1, description="Vertex the connection reaches (child).")
+    kind: str | None = Field(None, description="Module kind when the edge is a module.")
+    z: Vec3 | None = Field(None, description="Unit connection direction, root horizontal frame.")
+    x: Vec3 | None = Field(None, description="Unit forward direction, root horizontal frame.")
+    ports: tuple[str, str] | None = Field(None, description="(source port, target port).")
+
+    @field_validator("z", "x")
+    @classmethod
+    def _unit(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None:
+            norm = sum(c * c for c in value) ** 0.5
+            if abs(norm - 1.0) > 1e-6:
+                raise ValueError(f"must be a unit vector, its norm is {norm:.6g}")
+        return value
+
+
+class ConfigurationFile(_Strict):
+    """A configuration file: one robot configuration in its own module ids."""
+
+    schema_version: Literal[1] = Field(description="File format version.")
+    robot: str = Field(min_length=1, description="Name of the robot plugin.")
+    name: str = ""
+    description: str = ""
+    modules: list[ModuleModel]
+    connections: list[ConnectionModel] = []
+
+
+def configuration_from_model(model: ConfigurationFile, source: str | None = None) -> Configuration:
+    """Build a :class:`Configuration`; structural errors name the offending field."""
+    config = Configuration(model.robot, name=model.name, description=model.description)
+    for i, module in enumerate(model.modules):
+        try:
+            config.add_module(module.id, module.kind, position=module.position)
+        except ConfigurationError as exc:
+            raise ConfigurationError(exc.message, source=source, field=f"modules[{i}].id") from None
+    for i, conn in enumerate(model.connections):
+        try:
+            config.connect(conn.source, conn.target, id=conn.id, kind=conn.kind, z=conn.z,
+                           x=conn.x, ports=conn.ports)
+        except ConfigurationError as exc:
+            raise ConfigurationError(exc.message, source=source,
+                                     field=f"connections[{i}]") from None
+    return config
+
+
+def configuration_to_model(config: Configuration) -> ConfigurationFile:
+    """The file model of ``config`` (exact floats, so a round trip is lossless)."""
+
+    def vec(v):
+        return None if v is None else [float(c) for c in v]
+
+    return ConfigurationFile(
+        schema_version=SCHEMA_VERSION,
+        robot=config.robot,
+        name=config.name,
+        description=config.description,
+        modules=[ModuleModel(id=v, kind=config.kind_of(v), position=vec(config.position(v)))
+                 for v in config.vertices()],
+        connections=[ConnectionModel(id=e.id, source=e.source, target=e.target, kind=e.kind,
+                                     z=vec(e.z), x=vec(e.x), ports=e.ports)
+                     for e in config.edges()],
+    )
+
+
+def parse_configuration(data: object, source: str | None = None) -> Configuration:
+    """A :class:`Configuration` from already-parsed JSON data."""
+    return configuration_from_model(parse_model(ConfigurationFile, data, source), source)
+
+
+def load_configuration(path: str | os.PathLike[str], *, check: bool = True) -> Configuration:
+    """Read a configuration file and, unless ``check=False``, validate it against its robot.
+
+    Raises:
+        ConfigurationError: missing file, bad JSON, a wrong field, or a broken rule;
+            the message names the file and the field.
+        UnknownRobotError: the file names a robot no installed plugin describes.
+    """
+    config = parse_configuration(read_json(path), str(path))
+    if check:
+        try:
+            check_configuration(config)
+        except ConfigurationError as exc:
+            raise exc.at(str(path)) from None
+    return config
+
+
+def dump_configuration(config: Configuration) -> str:
+    """The JSON text of ``config``."""
+    return json.dumps(configuration_to_model(config).model_dump(mode="json", exclude_none=True),
+                      indent=2) + "\n"
+
+
+def save_configuration(config: Configuration, path: str | os.PathLike[str]) -> None:
+    """Write ``config`` to ``path`` atomically."""
+    atomic_write_text(path, dump_configuration(config))
+
+
+def check_configuration(config: Configuration) -> None:
+    """Validate ``config`` against its robot's module kinds and docking rules.
+
+    Core checks: every vertex kind is a vertex kind of the robot (or virtual), every
+    edge kind an edge kind, every port a port of its module kind, virtual vertices have
+    exactly one connection. Then the robot's :class:`~msrr.core.robot.DockingRules`.
+
+    Raises:
+        DockingRuleError: naming the first violation (and how many more there are).
+        UnknownRobotError: no plugin describes ``config.robot``.
+    """
+    from . import plugins
+
+    spec = plugins.robot(config.robot)
+    violations = check_structure(config, spec)
+    if not violations:
+        violations = plugins.docking_rules(config.robot).check(config)
+    if violations:
+        first = violations[0]
+        more = f" (and {len(violations) - 1} more)" if len(violations) > 1 else ""
+        raise DockingRuleError(f"{first.message}{more}", field=first.where)
+

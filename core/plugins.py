@@ -1,0 +1,263 @@
+"""The plugin host: one pluggy manager and a typed facade over its hooks.
+
+Plugins load from the entry-point group ``msrr.plugins`` (the built-in robots
+too). A plugin that fails to import, or implements a hook that does not exist or
+with a wrong signature, is left out and reported with its entry-point name and
+the reason; the others still load.
+
+Environment:
+    ``MSRR_LOAD_PLUGINS``: comma-separated entry-point names; only these load
+        (empty string: none).
+    ``MSRR_TRACE_PLUGINS``: when set, every hook call is traced to stderr.
+
+Core code calls the functions of this module (``robots()``, ``planners(robot)``,
+``emit.run_start(run)``...), never ``pm.hook`` directly.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import Any
+
+import pluggy
+
+from . import hookspecs
+from .errors import PluginError, UnknownNameError, UnknownRobotError
+from .robot import DockingRules, RobotSpec
+
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "LoadError",
+    "controllers",
+    "docking_rules",
+    "drivers",
+    "emit",
+    "get_plugin_manager",
+    "kinematic_nodes",
+    "load_errors",
+    "planners",
+    "plugin_rows",
+    "recognizers",
+    "register",
+    "robot",
+    "robots",
+    "scenarios",
+    "temporary",
+]
+
+ENTRY_POINT_GROUP = "msrr.plugins"
+
+
+@dataclass(frozen=True)
+class LoadError:
+    """A plugin that was left out, and why."""
+
+    entry_point: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"plugin {self.entry_point!r} not loaded: {self.reason}"
+
+
+_pm: pluggy.PluginManager | None = None
+_load_errors: list[LoadError] = []
+
+
+def get_plugin_manager() -> pluggy.PluginManager:
+    """The process-wide plugin manager, loading entry points on first use."""
+    global _pm
+    if _pm is None:
+        pm = pluggy.PluginManager("msrr")
+        pm.add_hookspecs(hookspecs)
+        _load_entry_points(pm)
+        if os.environ.get("MSRR_TRACE_PLUGINS"):
+            pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
+            pm.enable_tracing()
+        _pm = pm
+    return _pm
+
+
+def _load_entry_points(pm: pluggy.PluginManager) -> None:
+    wanted = os.environ.get("MSRR_LOAD_PLUGINS")
+    allowed = None if wanted is None else {n.strip() for n in wanted.split(",") if n.strip()}
+    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        if allowed is not None and ep.name not in allowed:
+            continue
+        if pm.get_plugin(ep.name) is not None:
+            continue
+        try:
+            plugin = ep.load()
+        except Exception as exc:  # noqa: BLE001 - any import failure is reported, not raised
+            _load_errors.append(LoadError(ep.name, f"import of {ep.value} failed: "
+                                          f"{type(exc).__name__}: {exc}"))
+            continue
+        try:
+            register(plugin, ep.name, pm)
+        except PluginError as exc:
+            _load_errors.append(LoadError(ep.name, str(exc)))
+
+
+def register(plugin: Any, name: str | None = None, pm: pluggy.PluginManager | None = None) -> None:
+    """Register ``plugin`` and check it against the hookspecs at once.
+
+    Raises:
+        PluginError: a hookimpl has a wrong signature or names no hook; the plugin is
+            not left half-registered.
+    """
+    pm = pm or get_plugin_manager()
+    try:
+        pm.register(plugin, name=name)
+    except (pluggy.PluginValidationError, ValueError) as exc:
+        raise PluginError(str(exc).splitlines()[0]) from None
+    unknown = [caller.name for caller in pm.get_hookcallers(plugin) or []
+               if not caller.has_spec()]
+    if unknown:
+        pm.unregister(plugin)
+        raise PluginError(f"implements unknown hook(s) {', '.join(sorted(unknown))}")
+
+
+@contextmanager
+def temporary(plugin: Any, name: str | None = None) -> Iterator[Any]:
+    """Register ``plugin`` for the duration of a ``with`` block (tests, notebooks)."""
+    register(plugin, name)
+    try:
+        yield plugin
+    finally:
+        get_plugin_manager().unregister(plugin)
+
+
+def load_errors() -> list[LoadError]:
+    """Plugins that were left out at load time."""
+    get_plugin_manager()
+    return list(_load_errors)
+
+
+# -- robots ---------------------------------------------------------------------------
+
+
+def robots() -> dict[str, RobotSpec]:
+    """Every robot described by a loaded plugin, by name (sorted)."""
+    found: dict[str, RobotSpec] = {}
+    for answer in get_plugin_manager().hook.msrr_robot():
+        for spec in answer if isinstance(answer, list | tuple) else [answer]:
+            if spec is None:
+                continue
+            if spec.name in found:
+                raise PluginError(f"two plugins describe robot {spec.name!r}")
+            found[spec.name] = spec
+    return dict(sorted(found.items()))
+
+
+def robot(name: str) -> RobotSpec:
+    """The robot called ``name``; raises :class:`UnknownRobotError` listing the known ones."""
+    known = robots()
+    try:
+        return known[name]
+    except KeyError:
+        raise UnknownRobotError(name, known) from None
+
+
+def docking_rules(name: str) -> DockingRules:
+    """Docking rules of robot ``name`` (permissive defaults if no plugin defines them)."""
+    robot(name)
+    rules = get_plugin_manager().hook.msrr_docking_rules(robot=name)
+    return rules if rules is not None else DockingRules()
+
+
+# -- capabilities ---------------------------------------------------------------------
+
+
+def _collect(hook_name: str, robot_name: str, what: str) -> dict[str, Any]:
+    robot(robot_name)
+    found: dict[str, Any] = {}
+
+    def register_item(item: Any) -> None:
+        name = getattr(item, "name", None)
+        if not isinstance(name, str) or not name:
+            raise PluginError(f"{hook_name}: registered {what} {item!r} has no name")
+        if name in found:
+            raise PluginError(f"{hook_name}: two {what}s named {name!r} for robot {robot_name!r}")
+        found[name] = item
+
+    getattr(get_plugin_manager().hook, hook_name)(robot=robot_name, register=register_item)
+    return found
+
+
+class _Capability:
+    """A lookup table of one capability of one robot, raising helpful errors."""
+
+    def __init__(self, hook_name: str, what: str):
+        self.hook_name = hook_name
+        self.what = what
+
+    def __call__(self, robot_name: str) -> dict[str, Any]:
+        """Everything registered for ``robot_name``, by name, in registration order."""
+        return _collect(self.hook_name, robot_name, self.what)
+
+    def get(self, robot_name: str, name: str | None = None) -> Any:
+        """One item by name, or the first registered (the default) when ``name`` is None."""
+        items = self(robot_name)
+        if name is None:
+            if not items:
+                raise UnknownNameError(f"{self.what} for robot {robot_name!r}", "(default)", ())
+            return next(iter(items.values()))
+        try:
+            return items[name]
+        except KeyError:
+            raise UnknownNameError(f"{self.what} for robot {robot_name!r}", name, items) from None
+
+
+kinematic_nodes = _Capability("msrr_kinematic_nodes", "joint mode")
+controllers = _Capability("msrr_controllers", "controller")
+recognizers = _Capability("msrr_recognizers", "recognizer")
+planners = _Capability("msrr_planners", "planner")
+drivers = _Capability("msrr_drivers", "driver")
+scenarios = _Capability("msrr_scenarios", "scenario")
+
+
+def register_commands(cli: Any) -> None:
+    """Let plugins add subcommands to ``cli``."""
+    get_plugin_manager().hook.msrr_register_commands(cli=cli)
+
+
+# -- events ---------------------------------------------------------------------------
+
+
+class _Events:
+    """Typed calls of the event hooks; every listener plugin receives each event."""
+
+    def run_start(self, run: Any) -> None:
+        get_plugin_manager().hook.msrr_on_run_start(run=run)
+
+    def tick(self, run: Any, tick: Any) -> None:
+        get_plugin_manager().hook.msrr_on_tick(run=run, tick=tick)
+
+    def action(self, run: Any, action: Any, status: str) -> None:
+        get_plugin_manager().hook.msrr_on_action(run=run, action=action, status=status)
+
+    def topology_change(self, run: Any, change: Any) -> None:
+        get_plugin_manager().hook.msrr_on_topology_change(run=run, change=change)
+
+    def run_end(self, run: Any, result: Any) -> None:
+        get_plugin_manager().hook.msrr_on_run_end(run=run, result=result)
+
+
+emit = _Events()
+
+
+# -- introspection --------------------------------------------------------------------
+
+
+def plugin_rows() -> list[tuple[str, str, list[str]]]:
+    """``(plugin name, module, hooks it implements)`` for every loaded plugin."""
+    pm = get_plugin_manager()
+    rows = []
+    for name, plugin in sorted(pm.list_name_plugin(), key=lambda item: str(item[0])):
+        hooks = sorted(caller.name for caller in pm.get_hookcallers(plugin) or [])
+        rows.append((str(name), getattr(plugin, "__name__", type(plugin).__name__), hooks))
+    return rows

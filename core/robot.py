@@ -1,0 +1,271 @@
+"""Robot descriptions: module kinds, their ports and geometry, and docking rules.
+
+A robot plugin answers ``msrr_robot()`` with a :class:`RobotSpec` and
+``msrr_docking_rules(robot)`` with a :class:`DockingRules`. The core reads both
+to validate configurations, name sub-libraries and build simulations, and never
+imports a plugin by name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Literal
+
+from .errors import UnknownNameError
+
+if TYPE_CHECKING:
+    from .configuration import Configuration
+
+__all__ = [
+    "DockingRules",
+    "MisoRules",
+    "ModuleKind",
+    "PortSpec",
+    "RobotSpec",
+    "Violation",
+    "check_structure",
+    "out_degree_violations",
+    "port_reuse_violations",
+    "tree_violations",
+    "vector_violations",
+]
+
+PortRole = Literal["active", "passive", "neutral"]
+
+
+@dataclass(frozen=True)
+class PortSpec:
+    """A discrete docking port of a module kind (MMRP faces T/B/L/R, a FreeBOT magnet).
+
+    Attributes:
+        name: the label used in configuration files (``"T"``).
+        role: ``"active"`` ports drive the latch, ``"passive"`` ones receive it;
+            ``"neutral"`` ports (freeform connectors) have no gender.
+        normal: outward unit normal in the module frame, shape (3,), if fixed.
+    """
+
+    name: str
+    role: PortRole = "neutral"
+    normal: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class ModuleKind:
+    """A kind of module a robot is built from.
+
+    Attributes:
+        name: identifier used in configuration files (``"node"``, ``"strut"``).
+        symbol: one letter used in sub-library names (``"N"`` in ``S6N3``).
+        role: ``"vertex"`` kinds are topology-graph vertices; ``"edge"`` kinds are
+            modules drawn as edges (a FreeSN strut joins two node modules).
+        ports: the discrete docking ports, empty for freeform surfaces.
+        geometry: nominal dimensions in SI units (``radius`` [m], ``mass`` [kg], ...).
+        description: one sentence for tables.
+    """
+
+    name: str
+    symbol: str
+    role: Literal["vertex", "edge"]
+    ports: tuple[PortSpec, ...] = ()
+    geometry: Mapping[str, float] = field(default_factory=dict)
+    description: str = ""
+
+    def port(self, name: str) -> PortSpec:
+        """The port called ``name``; raises listing the known ports."""
+        for port in self.ports:
+            if port.name == name:
+                return port
+        raise UnknownNameError(f"port of module kind {self.name!r}", name, (p.name for p in self.ports))
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """What a robot is made of: the answer to ``msrr_robot()``.
+
+    Attributes:
+        name: the robot's identifier (``"mmrp"``), used on the command line.
+        title: human-readable name.
+        module_kinds: kinds in the order used for sub-library names.
+        description: one paragraph.
+        reference: the paper or page the description follows.
+        defaults: robot-wide defaults (control rate [Hz], default joint mode, ...).
+    """
+
+    name: str
+    title: str
+    module_kinds: tuple[ModuleKind, ...]
+    description: str = ""
+    reference: str = ""
+    defaults: Mapping[str, object] = field(default_factory=dict)
+
+    def kind(self, name: str) -> ModuleKind:
+        """The module kind called ``name``; raises listing the known kinds."""
+        for kind in self.module_kinds:
+            if kind.name == name:
+                return kind
+        raise UnknownNameError(f"module kind of robot {self.name!r}", name, self.kind_names)
+
+    @property
+    def kind_names(self) -> tuple[str, ...]:
+        return tuple(k.name for k in self.module_kinds)
+
+    def kinds_with_role(self, role: str) -> tuple[ModuleKind, ...]:
+        return tuple(k for k in self.module_kinds if k.role == role)
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One broken rule: where (a field path or module id) and what."""
+
+    where: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.where}: {self.message}"
+
+
+class DockingRules:
+    """Which ports may connect and which topologies and actions are legal.
+
+    Subclasses override :meth:`ports_compatible` and :meth:`check_topology`; the
+    defaults allow everything. :meth:`check` runs both over a configuration.
+    """
+
+    robot: str = ""
+
+    def ports_compatible(self, source_kind: str, source_port: str | None,
+                         target_kind: str, target_port: str | None) -> bool:
+        """Whether a connection from ``source_port`` to ``target_port`` may exist."""
+        return True
+
+    def check_topology(self, config: Configuration) -> list[Violation]:
+        """Robot-specific topology rules (trees only, out-degree limits, ...)."""
+        return []
+
+    def check(self, config: Configuration) -> list[Violation]:
+        """Every violation of these rules in ``config``, port pairs first."""
+        found: list[Violation] = []
+        for edge in config.edges():
+            source_port, target_port = edge.ports if edge.ports else (None, None)
+            if not self.ports_compatible(config.kind_of(edge.source), source_port,
+                                         config.kind_of(edge.target), target_port):
+                pair = f"{edge.source}{source_port or ''}-{edge.target}{target_port or ''}"
+                found.append(Violation(f"connection {edge.id}",
+                                       f"illegal port pair {pair}"))
+        return found + self.check_topology(config)
+
+    def check_action(self, before: Configuration, after: Configuration) -> list[Violation]:
+        """Violations caused by going from ``before`` to ``after`` in one action."""
+        return self.check(after)
+
+
+def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:
+    """Violations of the robot's module kinds, independent of its docking rules.
+
+    Every vertex kind must be a vertex kind of ``spec`` (or virtual); every edge kind
+    an edge kind; robots with edge kinds need a kind on every edge; every port must
+    exist on its module kind; a virtual vertex has exactly one connection.
+    """
+    from .configuration import VIRTUAL
+
+    found: list[Violation] = []
+    vertex_kinds = {k.name for k in spec.kinds_with_role("vertex")}
+    edge_kinds = {k.name for k in spec.kinds_with_role("edge")}
+    if config.robot != spec.name:
+        found.append(Violation("robot", f"is {config.robot!r}, expected {spec.name!r}"))
+    for vertex in config.vertices():
+        kind = config.kind_of(vertex)
+        if kind == VIRTUAL:
+            if config.degree(vertex) != 1:
+                found.append(Violation(f"module {vertex}", "a virtual vertex needs exactly one "
+                                       f"connection, it has {config.degree(vertex)}"))
+        elif kind not in vertex_kinds:
+            found.append(Violation(f"module {vertex}", f"unknown module kind {kind!r} for "
+                                   f"{spec.name} (known: {', '.join(sorted(vertex_kinds))})"))
+    for edge in config.edges():
+        where = f"connection {edge.id}"
+        if edge_kinds and edge.kind is None:
+            found.append(Violation(where, f"needs a module kind ({', '.join(sorted(edge_kinds))})"))
+        elif edge.kind is not None and edge.kind not in edge_kinds:
+            known = ", ".join(sorted(edge_kinds)) or "none: this robot's connections are not modules"
+            found.append(Violation(where, f"unknown connection module kind {edge.kind!r} "
+                                   f"(known: {known})"))
+        if edge.ports is None:
+            continue
+        for end, port in zip((edge.source, edge.target), edge.ports, strict=True):
+            kind = config.kind_of(end)
+            if kind == VIRTUAL or kind not in vertex_kinds:
+                continue
+            names = {p.name for p in spec.kind(kind).ports}
+            if port not in names:
+                found.append(Violation(where, f"module {end} has no port {port!r} "
+                                       f"(ports of {kind}: {', '.join(sorted(names)) or 'none'})"))
+    return found
+
+
+def tree_violations(config: Configuration) -> list[Violation]:
+    """Violations of "the topology is one tree" (connected, no cycle, no parallel edge)."""
+    import networkx as nx
+
+    if len(config) == 0:
+        return [Violation("modules", "a configuration needs at least one module")]
+    found = []
+    if not config.is_connected():
+        parts = sorted(sorted(c) for c in nx.weakly_connected_components(config.graph))
+        found.append(Violation("connections", f"the modules form {len(parts)} separate groups "
+                               f"({'; '.join(' '.join(p) for p in parts)}), expected one tree"))
+    elif len(config.edges()) != len(config) - 1:
+        cycle = nx.find_cycle(config.undirected())
+        loop = " - ".join(str(step[0]) for step in cycle)
+        found.append(Violation("connections", f"closed loop {loop}: the topology must be a tree "
+                               "(make one loop edge a virtual connection)"))
+    return found
+
+
+def out_degree_violations(config: Configuration, limit: int) -> list[Violation]:
+    """Modules with more than ``limit`` outgoing connections (one connector each)."""
+    return [Violation(f"module {v}", f"has {config.graph.out_degree(v)} out-connections, at most "
+                      f"{limit} allowed (it has {limit} connector{'s' if limit > 1 else ''})")
+            for v in config.vertices(virtual=False) if config.graph.out_degree(v) > limit]
+
+
+def port_reuse_violations(config: Configuration) -> list[Violation]:
+    """Ports used by more than one connection of the same module."""
+    used: dict[tuple[str, str], str] = {}
+    found = []
+    for edge in config.edges():
+        if edge.ports is None:
+            continue
+        for end, port in zip((edge.source, edge.target), edge.ports, strict=True):
+            if (end, port) in used:
+                found.append(Violation(f"connection {edge.id}", f"port {port} of module {end} is "
+                                       f"already used by connection {used[end, port]}"))
+            used[end, port] = edge.id
+    return found
+
+
+def vector_violations(config: Configuration, attribute: str = "z") -> list[Violation]:
+    """Connections that lack the ``z`` (or ``x``) vector a freeform robot needs."""
+    return [Violation(f"connection {e.id}", f"needs a unit {attribute} vector")
+            for e in config.edges() if getattr(e, attribute) is None]
+
+
+class MisoRules(DockingRules):
+    """Rules of MISO robots (multiple in-degree, single out-degree: FreeBOT, SnailBot).
+
+    Each module has one freeform connector: it makes at most one out-connection,
+    onto any point of another module's surface (so no discrete ports), and every
+    connection carries its vector ``z``. The topology therefore holds at most one
+    cycle per connected group.
+    """
+
+    def __init__(self, robot: str):
+        self.robot = robot
+
+    def ports_compatible(self, source_kind: str, source_port: str | None,
+                         target_kind: str, target_port: str | None) -> bool:
+        return source_port is None and target_port is None
+
+    def check_topology(self, config: Configuration) -> list[Violation]:
+        return out_degree_violations(config, 1) + vector_violations(config, "z")

@@ -1,0 +1,9 @@
+"""FreeBOT: spherical freeform modules with one internal magnet connector.
+
+Liang et al., "FreeBOT: A Freeform Modular Self-Reconfigurable Robot with Arbitrary
+Connection Point", IROS 2020; kinematics as in the freeform autonomy framework.
+"""
+
+from .robot import SPEC
+
+__all__ = ["SPEC"]

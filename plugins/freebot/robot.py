@@ -1,0 +1,32 @@
+"""The FreeBOT module (freeform paper section 2.1, Fig. 1a, Fig. 4a).
+
+A low-carbon-steel spherical shell with an internal magnet and driving mechanism:
+the magnet connects to any point of another module's surface and rolls on it (a
+spherical rolling-contact joint). One connector, so at most one out-connection.
+Geometry is nominal; set per lab in ``geometry``.
+"""
+
+from __future__ import annotations
+
+from msrr.core import ModuleKind, PortSpec, RobotSpec
+
+MODULE = ModuleKind(
+    name="freebot",
+    symbol="F",
+    role="vertex",
+    ports=(PortSpec("magnet"),),
+    geometry={"radius": 0.05, "mass": 0.25, "max_speed": 0.5},  # [m], [kg], [rad/s]
+    description="steel sphere; internal magnet rolls on any point of another module",
+)
+
+SPEC = RobotSpec(
+    name="freebot",
+    title="FreeBOT",
+    module_kinds=(MODULE,),
+    description=(
+        "Spherical freeform modules whose internal magnet connects anywhere on another "
+        "module and rolls on it; topologies hold at most one cycle."
+    ),
+    reference="Liang et al., IROS 2020",
+    defaults={"control_rate": 10.0, "simulator": "mujoco", "joint_mode": "rolling_contact"},
+)

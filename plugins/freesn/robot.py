@@ -1,0 +1,49 @@
+"""FreeSN modules (paper section 2.1, Fig. 2).
+
+A node module is a low-carbon-steel sphere; a strut module has two symmetric
+magnetic connectors, each a magnet array with two wheels forming a differential
+drive that moves on a node's surface (a spherical joint). In the topology graph
+node modules are vertices and struts are edges; a free strut end is a virtual
+vertex. Geometry is nominal; set per lab in ``geometry``.
+"""
+
+from __future__ import annotations
+
+from msrr.core import ModuleKind, PortSpec, RobotSpec
+
+STRUT = ModuleKind(
+    name="strut",
+    symbol="S",
+    role="edge",
+    ports=(PortSpec("a"), PortSpec("b")),
+    geometry={
+        "length": 0.20,          # node centre to node centre when both ends dock [m]
+        "radius": 0.02,          # body radius [m]
+        "mass": 0.30,            # [kg]
+        "wheel_radius": 0.012,   # connector wheel radius [m]
+        "wheel_base": 0.03,      # distance between a connector's two wheels [m]
+        "max_wheel_speed": 6.0,  # [rad/s]
+    },
+    description="two magnetic differential-drive connectors, one at each end",
+)
+
+NODE = ModuleKind(
+    name="node",
+    symbol="N",
+    role="vertex",
+    geometry={"radius": 0.05, "mass": 0.20},
+    description="steel sphere that struts connect to anywhere on its surface",
+)
+
+SPEC = RobotSpec(
+    name="freesn",
+    title="FreeSN",
+    module_kinds=(STRUT, NODE),
+    description=(
+        "Freeform truss robot: struts whose magnetic connectors roll on spherical node "
+        "modules as spherical joints; skeletal kinematics, library-driven locomotion "
+        "and self-reconfiguration."
+    ),
+    reference="Tu, Liang, Wu, Li and Lam (2025), freeform autonomy framework",
+    defaults={"control_rate": 10.0, "simulator": "mujoco", "joint_mode": "opposite_steering"},
+)

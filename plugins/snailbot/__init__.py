@@ -1,0 +1,8 @@
+"""SnailBot: freeform modules that crawl on each other with one magnetic connector.
+
+Zhao and Lam 2022; Zhao et al. 2024; kinematics as in the freeform autonomy framework.
+"""
+
+from .robot import SPEC
+
+__all__ = ["SPEC"]
