@@ -1,0 +1,200 @@
+"""Plans: the sequence of actions a planner hands to the executor.
+
+Everything in a plan is in the *system's own* module ids (mappings are applied once,
+by the planner or at library retrieval), so the executor never sees a reference id.
+
+Action types follow the FreeSN paper, section 4.1: *moving* (vectors change, the
+topology does not), *connection* and *disconnection* (one connection made or
+broken; MMRP's dock and undock), *flow* (a connector slides from one module to
+another), and *parallel* connection/disconnection (several at once).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from .configuration import Configuration
+from .files import atomic_write_text, parse_model, read_json
+from .io import ConfigurationFile, configuration_from_model, configuration_to_model
+
+__all__ = ["Action", "ActionType", "ConnectionChange", "Plan", "load_plan", "save_plan"]
+
+
+class ActionType(StrEnum):
+    """Kinds of action (FreeSN paper section 4.1)."""
+
+    MOVING = "moving"
+    CONNECTION = "connection"
+    DISCONNECTION = "disconnection"
+    FLOW = "flow"
+    PARALLEL_CONNECTION = "parallel_connection"
+    PARALLEL_DISCONNECTION = "parallel_disconnection"
+
+
+@dataclass(frozen=True)
+class ConnectionChange:
+    """One connection made or broken: ``connect(source source_port, target target_port)``."""
+
+    source: str
+    target: str
+    source_port: str | None = None
+    target_port: str | None = None
+    edge_id: str | None = None
+
+    def __str__(self) -> str:
+        return f"{self.source}{self.source_port or ''}-{self.target}{self.target_port or ''}"
+
+
+@dataclass
+class Action:
+    """One step of a plan.
+
+    Attributes:
+        type: the action type.
+        target: the configuration the system should be in when the action is done.
+        modules: ids of the modules that act.
+        changes: connections made (connection types) or broken (disconnection types).
+        goals: per-module goal pose for moving actions, ``{id: [x, y, yaw]}`` in
+            [m, m, rad] for planar robots (MMRP), empty when ``target`` says it all.
+        cost: motion cost of the step (library edge cost, or path length [m]).
+        kinematic_tree: the tree that executes the step (freeform robots), if any.
+        note: one line for logs ("free module 7 to the slot of 5").
+    """
+
+    type: ActionType
+    target: Configuration
+    modules: tuple[str, ...] = ()
+    changes: tuple[ConnectionChange, ...] = ()
+    goals: dict[str, list[float]] = field(default_factory=dict)
+    cost: float = 0.0
+    kinematic_tree: Any | None = None
+    note: str = ""
+
+    def __str__(self) -> str:
+        what = ", ".join(str(c) for c in self.changes) or ", ".join(self.modules)
+        return f"{self.type.value} {what}".strip()
+
+
+@dataclass
+class Plan:
+    """The actions that take ``start`` to ``goal``, and what the planner knows about them.
+
+    Attributes:
+        robot: the robot's name.
+        planner: name of the planner that made it.
+        start: the configuration the plan starts from.
+        goal: the configuration it reaches (in the system's ids).
+        actions: the steps, in executable order.
+        mapping: module mapping from the start's ids to the goal file's ids, if any.
+        notes: remarks a user should read (fallbacks taken, approximations).
+        stats: numbers the planner measured (time [ms], counts).
+    """
+
+    robot: str
+    planner: str
+    start: Configuration
+    goal: Configuration
+    actions: list[Action]
+    mapping: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    stats: dict[str, float] = field(default_factory=dict)
+
+    def count(self, *types: ActionType) -> int:
+        """Number of connection changes made by actions of the given types."""
+        return sum(len(a.changes) for a in self.actions if a.type in types)
+
+    @property
+    def docks(self) -> int:
+        return self.count(ActionType.CONNECTION, ActionType.PARALLEL_CONNECTION)
+
+    @property
+    def undocks(self) -> int:
+        return self.count(ActionType.DISCONNECTION, ActionType.PARALLEL_DISCONNECTION)
+
+
+# -- file format ------------------------------------------------------------------------
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ChangeModel(_Strict):
+    source: str
+    target: str
+    source_port: str | None = None
+    target_port: str | None = None
+    edge_id: str | None = None
+
+
+class ActionModel(_Strict):
+    type: ActionType
+    target: ConfigurationFile
+    modules: list[str] = []
+    changes: list[ChangeModel] = []
+    goals: dict[str, list[float]] = {}
+    cost: float = 0.0
+    kinematic_tree: Any | None = None
+    note: str = ""
+
+
+class PlanFile(_Strict):
+    """A plan file (``platform plan --json``), accepted by ``platform run --plan``."""
+
+    schema_version: int = Field(1, ge=1, le=1)
+    robot: str
+    planner: str
+    start: ConfigurationFile
+    goal: ConfigurationFile
+    actions: list[ActionModel]
+    mapping: dict[str, str] = {}
+    notes: list[str] = []
+    stats: dict[str, float] = {}
+
+
+def plan_to_model(plan: Plan) -> PlanFile:
+    def tree(action: Action) -> Any:
+        t = action.kinematic_tree
+        return t.to_dict() if hasattr(t, "to_dict") else t
+
+    return PlanFile(
+        robot=plan.robot, planner=plan.planner,
+        start=configuration_to_model(plan.start), goal=configuration_to_model(plan.goal),
+        actions=[ActionModel(type=a.type, target=configuration_to_model(a.target),
+                             modules=list(a.modules),
+                             changes=[ChangeModel(**c.__dict__) for c in a.changes],
+                             goals=a.goals, cost=a.cost, kinematic_tree=tree(a), note=a.note)
+                 for a in plan.actions],
+        mapping=plan.mapping, notes=plan.notes, stats=plan.stats,
+    )
+
+
+def plan_from_model(model: PlanFile, source: str | None = None) -> Plan:
+    return Plan(
+        robot=model.robot, planner=model.planner,
+        start=configuration_from_model(model.start, source),
+        goal=configuration_from_model(model.goal, source),
+        actions=[Action(type=a.type, target=configuration_from_model(a.target, source),
+                        modules=tuple(a.modules),
+                        changes=tuple(ConnectionChange(**c.model_dump()) for c in a.changes),
+                        goals=a.goals, cost=a.cost, kinematic_tree=a.kinematic_tree, note=a.note)
+                 for a in model.actions],
+        mapping=model.mapping, notes=model.notes, stats=model.stats,
+    )
+
+
+def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:
+    """Write ``plan`` as JSON, atomically."""
+    data = plan_to_model(plan).model_dump(mode="json", exclude_none=True)
+    atomic_write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def load_plan(path: str | os.PathLike[str]) -> Plan:
+    """Read a plan file; errors name the file and the field."""
+    return plan_from_model(parse_model(PlanFile, read_json(path), str(path)), str(path))
