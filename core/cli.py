@@ -20,7 +20,7 @@ from rich.table import Table
 from . import plugins
 from .configuration import Configuration
 from .errors import MsrrError
-from .io import load_configuration
+from .io import check_configuration, load_configuration
 
 __all__ = ["cli", "get_cli", "main", "console", "err_console", "table"]
 
@@ -130,8 +130,6 @@ def show(file: Path) -> None:
     show_configuration(config, title=f"{file}")
     console.print(f"signature: {config.signature().label(spec)}  degrees: "
                   + "; ".join(f"{k} {list(d)}" for k, d in config.signature().degrees))
-    from .io import check_configuration
-
     try:
         check_configuration(config)
         console.print("[green]valid[/green] for " + spec.title)
@@ -157,7 +155,10 @@ def show_configuration(config: Configuration, title: str = "") -> None:
 
 @functools.cache
 def get_cli() -> click.Group:
-    """The CLI with plugin commands added (once)."""
+    """The CLI with the built-in commands of :mod:`msrr.core.commands` and plugin commands."""
+    from .commands import add_builtin_commands
+
+    add_builtin_commands(cli)
     plugins.register_commands(cli)
     return cli
 
