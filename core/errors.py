@@ -12,7 +12,9 @@ from collections.abc import Iterable
 __all__ = [
     "ConfigurationError",
     "DockingRuleError",
+    "ExecutionError",
     "MsrrError",
+    "PlanningError",
     "PluginError",
     "UnknownNameError",
     "UnknownRobotError",
@@ -77,3 +79,11 @@ class UnknownRobotError(UnknownNameError):
 
 class PluginError(MsrrError):
     """A plugin could not be loaded or broke the plugin contract."""
+
+
+class PlanningError(MsrrError):
+    """No plan exists (different module counts, an illegal goal) or the planner gave up."""
+
+
+class ExecutionError(MsrrError):
+    """A plan could not be carried out: an action timed out or a module stopped answering."""
