@@ -173,3 +173,4 @@ def check_configuration(config: Configuration) -> None:
         more = f" (and {len(violations) - 1} more)" if len(violations) > 1 else ""
         raise DockingRuleError(f"{first.message}{more}", field=first.where)
 
+

@@ -34,6 +34,7 @@ __all__ = [
     "ENTRY_POINT_GROUP",
     "LoadError",
     "controllers",
+    "create_plugin_manager",
     "docking_rules",
     "drivers",
     "emit",
@@ -68,21 +69,27 @@ _pm: pluggy.PluginManager | None = None
 _load_errors: list[LoadError] = []
 
 
+def create_plugin_manager() -> tuple[pluggy.PluginManager, list[LoadError]]:
+    """A new manager with every ``msrr.plugins`` entry point loaded, and the load errors."""
+    pm = pluggy.PluginManager("msrr")
+    pm.add_hookspecs(hookspecs)
+    errors = _load_entry_points(pm)
+    if os.environ.get("MSRR_TRACE_PLUGINS"):
+        pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
+        pm.enable_tracing()
+    return pm, errors
+
+
 def get_plugin_manager() -> pluggy.PluginManager:
     """The process-wide plugin manager, loading entry points on first use."""
-    global _pm
+    global _pm, _load_errors
     if _pm is None:
-        pm = pluggy.PluginManager("msrr")
-        pm.add_hookspecs(hookspecs)
-        _load_entry_points(pm)
-        if os.environ.get("MSRR_TRACE_PLUGINS"):
-            pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
-            pm.enable_tracing()
-        _pm = pm
+        _pm, _load_errors = create_plugin_manager()
     return _pm
 
 
-def _load_entry_points(pm: pluggy.PluginManager) -> None:
+def _load_entry_points(pm: pluggy.PluginManager) -> list[LoadError]:
+    errors: list[LoadError] = []
     wanted = os.environ.get("MSRR_LOAD_PLUGINS")
     allowed = None if wanted is None else {n.strip() for n in wanted.split(",") if n.strip()}
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
@@ -93,13 +100,14 @@ def _load_entry_points(pm: pluggy.PluginManager) -> None:
         try:
             plugin = ep.load()
         except Exception as exc:  # noqa: BLE001 - any import failure is reported, not raised
-            _load_errors.append(LoadError(ep.name, f"import of {ep.value} failed: "
-                                          f"{type(exc).__name__}: {exc}"))
+            errors.append(LoadError(ep.name, f"import of {ep.value} failed: "
+                                    f"{type(exc).__name__}: {exc}"))
             continue
         try:
             register(plugin, ep.name, pm)
         except PluginError as exc:
-            _load_errors.append(LoadError(ep.name, str(exc)))
+            errors.append(LoadError(ep.name, str(exc)))
+    return errors
 
 
 def register(plugin: Any, name: str | None = None, pm: pluggy.PluginManager | None = None) -> None:

@@ -1,0 +1,109 @@
+"""Random legal configurations of any robot, from its description and docking rules.
+
+Used by property tests (the same tests run over every installed robot, built-in or
+third-party) and by benchmarks. Deterministic for a given ``numpy`` generator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .configuration import Configuration
+from .robot import DockingRules, RobotSpec
+
+__all__ = ["random_configuration", "random_unit"]
+
+
+def random_unit(rng: np.random.Generator) -> np.ndarray:
+    """A uniformly random unit vector, shape (3,)."""
+    while True:
+        v = rng.normal(size=3)
+        norm = float(np.linalg.norm(v))
+        if norm > 1e-9:
+            return v / norm
+
+
+def _port_pair(rules: DockingRules, spec: RobotSpec, config: Configuration, child: str,
+               parent: str, used: set[tuple[str, str]], rng: np.random.Generator
+               ) -> tuple[str, str] | None:
+    """A compatible free (child port, parent port) pair, chosen at random, or None."""
+    child_kind, parent_kind = config.kind_of(child), config.kind_of(parent)
+    pairs = [(a.name, b.name) for a in spec.kind(child_kind).ports
+             for b in spec.kind(parent_kind).ports
+             if (child, a.name) not in used and (parent, b.name) not in used
+             and rules.ports_compatible(child_kind, a.name, parent_kind, b.name)]
+    return pairs[int(rng.integers(len(pairs)))] if pairs else None
+
+
+def random_configuration(spec: RobotSpec, rules: DockingRules, n_vertices: int,
+                         rng: np.random.Generator, *, extra_edges: int = 0,
+                         free_connectors: int = 0, positions: bool = False) -> Configuration:
+    """A random configuration of ``spec`` that its docking rules accept.
+
+    The base is a random tree whose every edge points from child to parent, so each
+    module makes at most one out-connection (legal for MISO robots too). Robots with
+    discrete ports get a random compatible free port pair per edge (a child whose
+    ports cannot meet any earlier vertex is re-attached elsewhere); freeform robots get
+    random unit ``z`` (and sometimes ``x``) vectors. Robots whose connections are
+    modules (FreeSN struts) can also get ``extra_edges`` closing cycles or doubling
+    edges, and ``free_connectors`` struts ending on virtual vertices.
+
+    Args:
+        spec: the robot's description.
+        rules: its docking rules.
+        n_vertices: number of vertex modules, at least 1.
+        rng: the random generator (seed it).
+        extra_edges: edge-module robots only: extra connections between random modules.
+        free_connectors: edge-module robots only: struts with one free end.
+        positions: give every module a random position [m].
+    """
+    vertex_kinds = spec.kinds_with_role("vertex")
+    edge_kinds = spec.kinds_with_role("edge")
+    ported = not edge_kinds and any(
+        rules.ports_compatible(a.name, pa.name, b.name, pb.name)
+        for a in vertex_kinds for b in vertex_kinds for pa in a.ports for pb in b.ports)
+    config = Configuration(spec.name, name=f"random-{n_vertices}")
+    used: set[tuple[str, str]] = set()
+
+    def add_vertex(i: int) -> str:
+        vid = f"{vertex_kinds[0].symbol}{i + 1}"
+        kind = vertex_kinds[int(rng.integers(len(vertex_kinds)))].name
+        config.add_module(vid, kind, position=rng.normal(size=3) if positions else None)
+        return vid
+
+    def edge_attrs() -> dict:
+        attrs: dict = {}
+        if edge_kinds:
+            attrs["kind"] = edge_kinds[int(rng.integers(len(edge_kinds)))].name
+            attrs["id"] = f"{edge_kinds[0].symbol}{len(config.edges()) + 1}"
+        if not ported:
+            attrs["z"] = random_unit(rng)
+            if rng.random() < 0.5:
+                attrs["x"] = random_unit(rng)
+        return attrs
+
+    vertices = [add_vertex(0)]
+    for i in range(1, n_vertices):
+        child = add_vertex(i)
+        for parent in rng.permutation(vertices):
+            ports = None
+            if ported:
+                ports = _port_pair(rules, spec, config, child, str(parent), used, rng)
+                if ports is None:
+                    continue
+                used.update({(child, ports[0]), (str(parent), ports[1])})
+            config.connect(child, str(parent), ports=ports, **edge_attrs())
+            break
+        else:
+            config.remove_module(child)
+            continue
+        vertices.append(child)
+    if edge_kinds:
+        for _ in range(extra_edges if len(vertices) > 1 else 0):
+            a, b = rng.choice(len(vertices), size=2, replace=False)
+            config.connect(vertices[a], vertices[b], **edge_attrs())
+        for j in range(free_connectors):
+            free = f"v{j + 1}"
+            config.add_virtual(free)
+            config.connect(vertices[int(rng.integers(len(vertices)))], free, **edge_attrs())
+    return config
