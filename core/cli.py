@@ -8,6 +8,7 @@ through ``msrr_register_commands(cli)``.
 from __future__ import annotations
 
 import functools
+import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -24,8 +25,10 @@ from .io import check_configuration, load_configuration
 
 __all__ = ["cli", "get_cli", "main", "console", "err_console", "table"]
 
-console = Console(highlight=False)
-err_console = Console(stderr=True, highlight=False)
+# Piped output (files, CI logs, tests) gets wide tables instead of rich's 80 columns.
+_WIDTH = None if sys.stdout.isatty() else 160
+console = Console(highlight=False, soft_wrap=True, width=_WIDTH)
+err_console = Console(stderr=True, highlight=False, soft_wrap=True, width=_WIDTH)
 
 NONE = "[dim]none[/dim]"
 

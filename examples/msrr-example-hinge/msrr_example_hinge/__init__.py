@@ -1,0 +1,1 @@
+"""A minimal third-party msrr robot plugin: hinge modules that form chains."""

@@ -1,0 +1,64 @@
+"""The hinge robot: modules with a head and a tail port that dock head-to-tail into chains."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from msrr.core import (
+    Configuration,
+    DockingRules,
+    ModuleKind,
+    PortSpec,
+    RobotSpec,
+    Scenario,
+    Violation,
+    hookimpl,
+)
+from msrr.core.robot import port_reuse_violations, tree_violations
+
+CONFIGS = Path(__file__).parent / "configs"
+
+HINGE = ModuleKind(
+    name="hinge",
+    symbol="H",
+    role="vertex",
+    ports=(PortSpec("head", "active", (1.0, 0.0, 0.0)), PortSpec("tail", "passive", (-1.0, 0.0, 0.0))),
+    geometry={"length": 0.1, "mass": 0.2},
+    description="one revolute hinge between a head port and a tail port",
+)
+
+SPEC = RobotSpec(
+    name="hinge",
+    title="Hinge chain (example)",
+    module_kinds=(HINGE,),
+    description="Example third-party robot: hinge modules dock head-to-tail into chains.",
+)
+
+
+class HingeRules(DockingRules):
+    """A head docks only to a tail; each port once; one chain."""
+
+    robot = "hinge"
+
+    def ports_compatible(self, source_kind, source_port, target_kind, target_port) -> bool:
+        return {source_port, target_port} == {"head", "tail"}
+
+    def check_topology(self, config: Configuration) -> list[Violation]:
+        return port_reuse_violations(config) + tree_violations(config)
+
+
+@hookimpl
+def msrr_robot():
+    return SPEC
+
+
+@hookimpl
+def msrr_docking_rules(robot: str):
+    return HingeRules() if robot == SPEC.name else None
+
+
+@hookimpl
+def msrr_scenarios(robot: str, register):
+    if robot == SPEC.name:
+        register(Scenario("reverse", "reverse a chain of three hinges",
+                          CONFIGS / "chain3.json", CONFIGS / "chain3-reversed.json"))

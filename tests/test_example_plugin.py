@@ -1,0 +1,42 @@
+"""The third-party example plugin in examples/ installs and works like a built-in robot."""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, distribution
+
+from click.testing import CliRunner
+
+from msrr.core import load_configuration, plugins
+from msrr.core.cli import get_cli
+
+from conftest import ROOT
+
+EXAMPLE = ROOT / "examples/msrr-example-hinge"
+
+
+def test_example_is_installed_as_its_own_distribution() -> None:
+    try:
+        dist = distribution("msrr-example-hinge")
+    except PackageNotFoundError as exc:
+        raise AssertionError("install it with the README's install command") from exc
+    assert any(ep.group == "msrr.plugins" and ep.name == "hinge" for ep in dist.entry_points)
+
+
+def test_platform_robots_lists_the_example_robot() -> None:
+    result = CliRunner().invoke(get_cli(), ["robots"])
+    assert result.exit_code == 0
+    assert "hinge" in result.output and "Hinge chain (example)" in result.output
+
+
+def test_example_configurations_validate() -> None:
+    files = sorted(EXAMPLE.glob("msrr_example_hinge/configs/*.json"))
+    assert len(files) == 2
+    for path in files:
+        assert load_configuration(path).robot == "hinge"
+    result = CliRunner().invoke(get_cli(), ["validate", *map(str, files)])
+    assert result.exit_code == 0, result.output
+
+
+def test_example_scenario_points_at_shipped_files() -> None:
+    scenario = plugins.scenarios("hinge")["reverse"]
+    assert load_configuration(scenario.start).signature() == load_configuration(scenario.goal).signature()
