@@ -1,0 +1,51 @@
+"""The controller interface: from an action and an observation to module commands.
+
+Controllers are registered through ``msrr_controllers(robot, register)``. The
+executor calls :meth:`Controller.begin` when an action (or a retry) enters a phase
+and :meth:`Controller.control` once per tick; the controller answers with the
+commands, per-module errors and whether the phase's configuration is reached
+(reaching detection, FreeSN section 4.1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+from .driver import ModuleCommand, Observation
+from .events import Phase
+from .plan import Action
+
+__all__ = ["Control", "Controller"]
+
+
+@dataclass(frozen=True)
+class Control:
+    """One tick of control.
+
+    Attributes:
+        commands: per-module commands (modules not named stop).
+        errors: per-module distance to the goal [m].
+        reached: the configuration of this phase is reached.
+    """
+
+    commands: Mapping[str, ModuleCommand] = field(default_factory=dict)
+    errors: Mapping[str, float] = field(default_factory=dict)
+    reached: bool = False
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """Turns actions into module commands, closed-loop."""
+
+    name: str
+    description: str
+
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+        """Prepare ``phase`` of ``action`` (plan a path, pick an approach side)."""
+        ...
+
+    def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
+        """The commands for this tick of ``phase``."""
+        ...

@@ -1,0 +1,175 @@
+"""The payloads of the run event hooks (DESIGN section 5).
+
+The executor builds these and fires them through :data:`msrr.core.plugins.emit`;
+listeners (the rerun timeline, progress bars, loggers) read them and never change
+them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from enum import StrEnum
+from pathlib import Path
+
+from .configuration import Configuration
+from .driver import ModuleCommand, Observation
+from .plan import Action, ConnectionChange, Plan
+
+__all__ = ["ActionStatus", "Phase", "Run", "RunResult", "Tick", "TopologyEvent"]
+
+
+class ActionStatus(StrEnum):
+    """Statuses an action goes through, in ``msrr_on_action(run, action, status)``."""
+
+    STARTED = "started"
+    SUCCEEDED = "succeeded"
+    RETRYING = "retrying"
+    FAILED = "failed"
+
+
+class Phase(StrEnum):
+    """Stage of an action's execution (FreeSN paper, Figs. 9-10).
+
+    ``release``: undock commands sent, waiting for the disconnection to be detected;
+    ``move``: moving to the target without topology change;
+    ``approach``: moving to the pre-connection configuration S_conn;
+    ``connect``: dock commands armed while pushing to the extruded S_extr;
+    ``flow``: undock and dock at once.
+    """
+
+    RELEASE = "release"
+    MOVE = "move"
+    APPROACH = "approach"
+    CONNECT = "connect"
+    FLOW = "flow"
+
+
+@dataclass
+class Run:
+    """One execution of a plan: what listeners need to know about it.
+
+    Attributes:
+        robot: the robot's name.
+        scenario: scenario name, or ``"custom"`` for ``--from/--to`` runs.
+        plan: the plan being executed (start, goal, actions in the start's ids).
+        driver: name of the driver.
+        rate: control rate [Hz].
+        seed: seed of the run.
+        out_dir: folder the run writes to, or ``None``.
+        recording: path of the rerun recording to write, or ``None`` for no log.
+        module_size: body size ``(length, width, height)`` [m] for visualisation.
+        ports: per module kind, ``{port: (normal (3,), polarity)}`` for visualisation.
+    """
+
+    robot: str
+    scenario: str
+    plan: Plan
+    driver: str = ""
+    rate: float = 10.0
+    seed: int = 0
+    out_dir: Path | None = None
+    recording: Path | None = None
+    module_size: tuple[float, float, float] = (0.2, 0.2, 0.1)
+    ports: Mapping[str, Mapping[str, tuple[tuple[float, float, float], str]]] = field(
+        default_factory=dict)
+
+    @property
+    def start(self) -> Configuration:
+        return self.plan.start
+
+    @property
+    def goal(self) -> Configuration:
+        return self.plan.goal
+
+
+@dataclass(frozen=True)
+class Tick:
+    """The state of one executed control tick.
+
+    Attributes:
+        index: tick number from 0.
+        time: driver time after the tick [s].
+        action_index: index of the action in the plan.
+        action: the action being executed.
+        phase: its stage.
+        observation: what the driver reported at the start of the tick.
+        configuration: the recognized configuration.
+        commands: the module commands sent.
+        errors: per-module distance to its goal [m] as the controller measures it.
+    """
+
+    index: int
+    time: float
+    action_index: int
+    action: Action
+    phase: Phase
+    observation: Observation
+    configuration: Configuration
+    commands: Mapping[str, ModuleCommand]
+    errors: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class TopologyEvent:
+    """A connection made (``"dock"``) or broken (``"undock"``), as recognized.
+
+    Attributes:
+        kind: ``"dock"`` or ``"undock"``.
+        change: the connection, with its ports.
+        tick: tick index at which it was detected.
+        time: driver time [s].
+        action_index: the action running then (``-1`` outside any action).
+        expected: whether the running action asked for it.
+    """
+
+    kind: str
+    change: ConnectionChange
+    tick: int
+    time: float
+    action_index: int
+    expected: bool
+
+    def __str__(self) -> str:
+        return f"{self.kind} {self.change}"
+
+
+@dataclass
+class RunResult:
+    """The summary of a run.
+
+    Attributes:
+        success: every action finished and the final topology is the goal's.
+        reason: one line on failure ("action 4 (connection 4T-5B) timed out ...").
+        failed_action: index of the failing action, if one failed.
+        actions_done: actions that succeeded.
+        actions_total: actions in the plan.
+        docks: connections made, counted from what the driver reported.
+        undocks: connections broken, likewise.
+        retries: action attempts repeated after a timeout.
+        ticks: control ticks executed.
+        sim_time: driver time at the end [s].
+        wall_time: wall-clock duration of the execution [s].
+        final: the configuration recognized at the end.
+    """
+
+    success: bool
+    reason: str = ""
+    failed_action: int | None = None
+    actions_done: int = 0
+    actions_total: int = 0
+    docks: int = 0
+    undocks: int = 0
+    retries: int = 0
+    ticks: int = 0
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    final: Configuration | None = None
+
+    def summary(self) -> dict[str, object]:
+        """JSON-ready numbers (for ``summary.json``)."""
+        return {"success": self.success, "reason": self.reason,
+                "failed_action": self.failed_action, "actions_done": self.actions_done,
+                "actions_total": self.actions_total, "docks": self.docks,
+                "undocks": self.undocks, "retries": self.retries, "ticks": self.ticks,
+                "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3)}

@@ -1,0 +1,274 @@
+"""The executor: runs a plan action by action in a closed loop (FreeSN section 4.1).
+
+Every tick, at a fixed rate (default 10 Hz of driver time): read the driver's
+observation, recognize the configuration, detect topology changes against the
+previous tick, ask the controller for commands, send them and advance the driver.
+
+Per action type:
+
+* moving: ``move`` until the controller reports the target reached;
+* disconnection (also parallel): ``release`` (undock commands) until every planned
+  disconnection is detected, then ``move`` if the action has goals;
+* connection (also parallel): ``release`` first if the action also breaks
+  connections, ``approach`` S_conn until reached, then ``connect`` (dock commands
+  armed while pushing toward S_extr) until every planned connection is detected;
+* flow: undock and dock at once until both changes are detected.
+
+A phase that does not finish within ``action_timeout`` seconds of driver time is
+retried (the controller is restarted) up to ``retries`` times, then the action and
+the run fail with a one-line reason naming the action. Events go to every plugin
+through :data:`msrr.core.plugins.emit`.
+"""
+
+from __future__ import annotations
+
+import time as wallclock
+from dataclasses import dataclass
+
+from . import plugins
+from .actions import TopologyDiff, connection_key, topology_diff
+from .capabilities import Recognizer
+from .configuration import Configuration
+from .control import Control, Controller
+from .driver import Driver, ModuleCommand, Observation
+from .errors import ExecutionError
+from .events import ActionStatus, Phase, Run, RunResult, Tick, TopologyEvent
+from .plan import Action, ActionType, ConnectionChange
+
+__all__ = ["Executor", "ExecutorOptions", "phases_of"]
+
+
+@dataclass(frozen=True)
+class ExecutorOptions:
+    """How the executor runs.
+
+    Attributes:
+        rate: control rate [Hz] of driver time.
+        action_timeout: driver time one phase attempt may take [s].
+        retries: attempts repeated after a timeout before the action fails.
+    """
+
+    rate: float = 10.0
+    action_timeout: float = 60.0
+    retries: int = 1
+
+    def __post_init__(self) -> None:
+        if not self.rate > 0:
+            raise ExecutionError(f"control rate must be positive, got {self.rate} Hz")
+        if not self.action_timeout > 0:
+            raise ExecutionError(f"action timeout must be positive, got {self.action_timeout} s")
+        if self.retries < 0:
+            raise ExecutionError(f"retries must be >= 0, got {self.retries}")
+
+
+def phases_of(action: Action, diff: TopologyDiff) -> list[Phase]:
+    """The phases that execute ``action`` given the topology change it needs."""
+    if action.type is ActionType.FLOW:
+        return [Phase.FLOW]
+    out: list[Phase] = []
+    if diff.broken:
+        out.append(Phase.RELEASE)
+    if diff.made:
+        out += [Phase.APPROACH, Phase.CONNECT]
+    elif action.goals or not diff.broken:
+        out.append(Phase.MOVE)
+    return out
+
+
+def _port_commands(changes: tuple[ConnectionChange, ...], attribute: str
+                   ) -> dict[str, ModuleCommand]:
+    ports: dict[str, list[str]] = {}
+    for change in changes:
+        for module, port in ((change.source, change.source_port),
+                             (change.target, change.target_port)):
+            if port is not None:
+                ports.setdefault(module, []).append(port)
+    return {m: ModuleCommand(**{attribute: tuple(p)}) for m, p in ports.items()}
+
+
+def _merge(control: Control, extra: dict[str, ModuleCommand]) -> dict[str, ModuleCommand]:
+    merged = dict(control.commands)
+    for module, cmd in extra.items():
+        base = merged.get(module, ModuleCommand())
+        merged[module] = ModuleCommand(joints=base.joints, wheels=base.wheels,
+                                       dock=base.dock + cmd.dock, undock=base.undock + cmd.undock)
+    return merged
+
+
+class _ActionFailed(Exception):
+    def __init__(self, reason: str):
+        self.reason = reason
+
+
+class Executor:
+    """Runs one plan on one driver.
+
+    Args:
+        run: the run (its ``plan`` is executed); passed to every event.
+        driver: a connected driver, already reset to the plan's start.
+        recognizer: turns ``observation.sensors`` into a configuration.
+        controller: turns actions into module commands.
+        options: rate, timeout, retries.
+    """
+
+    def __init__(self, run: Run, driver: Driver, recognizer: Recognizer, controller: Controller,
+                 options: ExecutorOptions | None = None):
+        self.run = run
+        self.driver = driver
+        self.recognizer = recognizer
+        self.controller = controller
+        self.options = options or ExecutorOptions(rate=run.rate)
+        self.dt = 1.0 / self.options.rate
+        self.tick_index = 0
+        self.events: list[TopologyEvent] = []
+        self.retries = 0
+        self._current: Configuration | None = None
+        self._expected: set = set()
+
+    # -- public -----------------------------------------------------------------------
+
+    def execute(self) -> RunResult:
+        """Execute every action of the plan; never raises for a failed action."""
+        self.driver.require_connected()
+        plan = self.run.plan
+        started = wallclock.perf_counter()
+        result = RunResult(success=False, actions_total=len(plan.actions))
+        self._current = self._recognize(self.driver.get_observation())
+        done = 0
+        try:
+            for index, action in enumerate(plan.actions):
+                self._execute_action(index, action)
+                done += 1
+            final = self._current
+            remaining = topology_diff(final, plan.goal)
+            if remaining:
+                raise _ActionFailed(f"final topology differs from the goal: {remaining}")
+            result.success = True
+        except _ActionFailed as failure:
+            result.reason = failure.reason
+            result.failed_action = done if done < len(plan.actions) else None
+        finally:
+            self.driver.send_action({})
+        result.actions_done = done
+        result.docks = sum(1 for e in self.events if e.kind == "dock")
+        result.undocks = sum(1 for e in self.events if e.kind == "undock")
+        result.retries = self.retries
+        result.ticks = self.tick_index
+        result.sim_time = self.driver.time
+        result.wall_time = wallclock.perf_counter() - started
+        result.final = self._current
+        return result
+
+    # -- actions ----------------------------------------------------------------------
+
+    def _execute_action(self, index: int, action: Action) -> None:
+        assert self._current is not None
+        diff = topology_diff(self._current, action.target)
+        self._check_plan_consistency(index, action, diff)
+        plugins.emit.action(self.run, action, ActionStatus.STARTED)
+        self._expected = ({connection_key(c.source, c.target, c.source_port, c.target_port)
+                           for c in diff.made + diff.broken})
+        try:
+            for phase in phases_of(action, diff):
+                self._run_phase(index, action, phase, diff)
+        except _ActionFailed:
+            plugins.emit.action(self.run, action, ActionStatus.FAILED)
+            raise
+        finally:
+            self._expected = set()
+        plugins.emit.action(self.run, action, ActionStatus.SUCCEEDED)
+
+    def _check_plan_consistency(self, index: int, action: Action, diff: TopologyDiff) -> None:
+        planned = {connection_key(c.source, c.target, c.source_port, c.target_port)
+                   for c in action.changes}
+        needed = {connection_key(c.source, c.target, c.source_port, c.target_port)
+                  for c in diff.made + diff.broken}
+        if action.type is ActionType.MOVING and diff:
+            raise _ActionFailed(f"action {index} ({action}): a moving action cannot change "
+                                f"the topology ({diff})")
+        if planned and not needed <= planned:
+            raise _ActionFailed(f"action {index} ({action}): the current topology needs "
+                                f"{diff}, not what the action plans")
+
+    def _run_phase(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> None:
+        attempts = self.options.retries + 1
+        for attempt in range(attempts):
+            if attempt:
+                self.retries += 1
+                plugins.emit.action(self.run, action, ActionStatus.RETRYING)
+            observation = self.driver.get_observation()
+            self.controller.begin(action, phase, observation)
+            deadline = self.driver.time + self.options.action_timeout
+            while self.driver.time < deadline - 1e-9:
+                if self._tick(index, action, phase, diff):
+                    return
+        raise _ActionFailed(
+            f"action {index} ({action}) failed: phase {phase.value} did not finish within "
+            f"{self.options.action_timeout:g} s of driver time after {attempts} attempt(s)"
+            + self._pending(phase, diff))
+
+    def _pending(self, phase: Phase, diff: TopologyDiff) -> str:
+        assert self._current is not None
+        left = topology_diff(self._current, self._phase_goal(phase, diff))
+        return f"; still missing: {left}" if left else "; target not reached"
+
+    def _phase_goal(self, phase: Phase, diff: TopologyDiff) -> Configuration:
+        """The topology expected at the end of ``phase``."""
+        assert self._current is not None
+        goal = self._current.copy()
+        broken = {connection_key(c.source, c.target, c.source_port, c.target_port)
+                  for c in diff.broken}
+        for edge in goal.edges():
+            ports = edge.ports or (None, None)
+            if connection_key(edge.source, edge.target, *ports) in broken:
+                goal.disconnect(edge.id)
+        if phase in (Phase.CONNECT, Phase.FLOW):
+            for c in diff.made:
+                key = connection_key(c.source, c.target, c.source_port, c.target_port)
+                present = {connection_key(e.source, e.target, *(e.ports or (None, None)))
+                           for e in goal.edges()}
+                if key not in present:
+                    ports = None if c.source_port is None else (c.source_port, c.target_port)
+                    goal.connect(c.source, c.target, ports=ports)
+        return goal
+
+    # -- one tick ---------------------------------------------------------------------
+
+    def _tick(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> bool:
+        """Run one control tick; whether the phase is finished."""
+        observation = self.driver.get_observation()
+        configuration = self._recognize(observation)
+        self._detect_changes(index, configuration)
+        control = self.controller.control(action, phase, observation)
+        extra: dict[str, ModuleCommand] = {}
+        if phase in (Phase.RELEASE, Phase.FLOW):
+            extra.update(_port_commands(diff.broken, "undock"))
+        if phase in (Phase.CONNECT, Phase.FLOW):
+            extra = _merge(Control(commands=extra), _port_commands(diff.made, "dock"))
+        commands = _merge(control, extra)
+        self.driver.send_action(commands)
+        self.driver.step(self.dt)
+        plugins.emit.tick(self.run, Tick(self.tick_index, self.driver.time, index, action, phase,
+                                         observation, configuration, commands, control.errors))
+        self.tick_index += 1
+        if phase is Phase.APPROACH or phase is Phase.MOVE:
+            return control.reached
+        return not topology_diff(configuration, self._phase_goal(phase, diff))
+
+    def _recognize(self, observation: Observation) -> Configuration:
+        return self.recognizer.recognize(observation.sensors, seed=self.run.seed)
+
+    def _detect_changes(self, index: int, configuration: Configuration) -> None:
+        assert self._current is not None
+        change = topology_diff(self._current, configuration)
+        self._current = configuration
+        for kind, items in (("undock", change.broken), ("dock", change.made)):
+            for c in items:
+                key = connection_key(c.source, c.target, c.source_port, c.target_port)
+                event = TopologyEvent(kind, c, self.tick_index, self.driver.time, index,
+                                      key in self._expected)
+                self.events.append(event)
+                plugins.emit.topology_change(self.run, event)
+                if not event.expected:
+                    raise _ActionFailed(f"action {index}: unexpected {event} detected at "
+                                        f"t={event.time:.1f} s")
