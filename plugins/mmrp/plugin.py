@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
-from msrr.core import hookimpl
+from pathlib import Path
 
+from msrr.core import hookimpl
+from msrr.core.scenario import Scenario
+
+from .planner import McsHybridPlanner
+from .recognition import DistributedRecognizer
 from .robot import SPEC
 from .rules import MmrpRules
 
@@ -16,3 +21,30 @@ def msrr_robot():
 @hookimpl
 def msrr_docking_rules(robot: str):
     return MmrpRules() if robot == SPEC.name else None
+
+
+CONFIGS = Path(__file__).parent / "configs"
+
+
+@hookimpl
+def msrr_planners(robot: str, register):
+    if robot == SPEC.name:
+        register(McsHybridPlanner())
+
+
+@hookimpl
+def msrr_recognizers(robot: str, register):
+    if robot == SPEC.name:
+        register(DistributedRecognizer())
+
+
+@hookimpl
+def msrr_scenarios(robot: str, register):
+    if robot == SPEC.name:
+        register(Scenario(name="cross-probe",
+                          description="cross to probe, 9 modules (paper Figs. 11-15)",
+                          start=CONFIGS / "cross.json", goal=CONFIGS / "probe.json",
+                          default=True))
+        register(Scenario(name="series-t",
+                          description="series to T, 4 modules (paper Figs. 17-18)",
+                          start=CONFIGS / "series.json", goal=CONFIGS / "t.json"))

@@ -1,0 +1,187 @@
+"""The MCS hybrid reconfiguration planner (paper section 4).
+
+1. Decompose (section 4.1): the largest common subconfiguration of G_c and G_g (the
+   MCS over root pairs, the centres tau_c, tau_g winning ties) and the remaining
+   subconfigurations and free vertices, ``CS(G_c, tau_c, G_g, tau_g)``.
+2. Match subconfigurations by the height-adjacent rule, decomposing again (4.2).
+3. Map the free vertices by the artificial potential field of eqs. 2-5 (4.3),
+   with a minimum-total-distance fallback if the field stalls.
+4. Generate undock, move and dock actions from the mapping (4.4).
+
+Poses are in the start's root frame: tau_c at the origin with heading 0. The goal is
+placed so that the modules of the first common subconfiguration do not move.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from msrr.core import Configuration
+from msrr.core.errors import ConfigurationError, PlanningError
+from msrr.core.io import check_configuration
+from msrr.core.plan import Plan
+
+from .actions import Pose, generate_actions, kept_edge_ids
+from .centre import root_of
+from .matching import HEIGHT_WINDOW, SubconfigurationMatching, match_subconfigurations
+from .mcs import Decomposition, decompose, largest_common
+from .potential_field import FieldParameters, FieldResult, map_free_vertices
+from .representation import (
+    Link,
+    face_links,
+    grid_cells,
+    layout,
+    overlapping_cells,
+    pitch,
+    to_tree,
+)
+from .robot import SPEC
+
+__all__ = ["HybridResult", "McsHybridPlanner", "plan_hybrid"]
+
+
+@dataclass(frozen=True)
+class HybridResult:
+    """Everything the hybrid planner found, for the CLI and for tests.
+
+    Attributes:
+        plan: the plan (start ids).
+        roots: (tau_c, tau_g), the centres of start and goal.
+        virtual: loop edges of the start made virtual (section 3.1); undocked unless kept.
+        decomposition: CS(G_c, tau_c, G_g, tau_g).
+        matching: the subconfiguration matching of section 4.2.
+        field: the potential-field mapping of the free vertices (section 4.3).
+        mapping: the bijection f, start id -> goal id.
+        kept: start connections kept.
+        pairs: dock/undock pairs (docks; equal to undocks for trees).
+        goal_poses: goal pose of every start module in the start's root frame.
+    """
+
+    plan: Plan
+    roots: tuple[str, str]
+    virtual: tuple[Link, ...]
+    decomposition: Decomposition
+    matching: SubconfigurationMatching
+    field: FieldResult
+    mapping: dict[str, str]
+    kept: int
+    pairs: int
+    goal_poses: dict[str, Pose]
+
+
+def _checked(start: Configuration, goal: Configuration) -> Configuration:
+    """The start as a tree (loops made virtual); raises PlanningError for unreachable goals."""
+    if start.robot != SPEC.name or goal.robot != SPEC.name:
+        raise PlanningError(f"the mcs-hybrid planner plans for robot {SPEC.name!r}, got "
+                            f"{start.robot!r} -> {goal.robot!r}")
+    if len(start) != len(goal):
+        raise PlanningError(f"start has {len(start)} modules and goal {len(goal)}: "
+                            "MMRP keeps its module count")
+    try:
+        check_configuration(goal)
+        cells = grid_cells(goal)
+    except ConfigurationError as exc:
+        raise PlanningError(f"goal {goal.name or '(unnamed)'}: {exc}") from None
+    clash = overlapping_cells(cells)
+    if clash:
+        raise PlanningError(f"goal {goal.name or '(unnamed)'}: modules {clash[0][0]} and "
+                            f"{clash[0][1]} would occupy the same place")
+    try:
+        return to_tree(start).tree
+    except ConfigurationError as exc:
+        raise PlanningError(f"start {start.name or '(unnamed)'}: {exc}") from None
+
+
+def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
+                window: int = HEIGHT_WINDOW, field: FieldParameters | None = None
+                ) -> HybridResult:
+    """Plan the reconfiguration from ``start`` to ``goal`` (section 4).
+
+    Args:
+        start: current configuration, its own ids (loops allowed: made virtual).
+        goal: goal configuration, its own ids; must be a legal MMRP tree.
+        seed: seed of the potential-field start perturbation.
+        window: the height-adjacent rule's largest height difference.
+        field: potential-field gains and distances.
+
+    Raises:
+        PlanningError: different module counts, or an illegal goal.
+    """
+    began = time.perf_counter()
+    tree = _checked(start, goal)
+    virtual = to_tree(start).virtual
+    links_c, links_g = face_links(tree), face_links(goal)
+    tau_c, tau_g = root_of(tree), root_of(goal)
+    all_c, all_g = tree.vertices(), goal.vertices()
+    common = largest_common(links_c, links_g, all_c, all_g, prefer=(tau_c, tau_g))
+    decomposition = decompose(links_c, links_g, all_c, all_g, common)
+    matching = match_subconfigurations(links_c, links_g, decomposition.current,
+                                       decomposition.goal, decomposition.free_current,
+                                       decomposition.free_goal, window=window)
+    matched = dict(common)
+    for pair in matching.pairs:
+        matched.update(pair.mapping)
+
+    start_poses = layout(tree, tau_c)
+    goal_layout = layout(goal, tau_g)
+    anchor_c, anchor_g = next(iter(common.items()))
+    dx = start_poses[anchor_c][0] - goal_layout[anchor_g][0]
+    dy = start_poses[anchor_c][1] - goal_layout[anchor_g][1]
+    placed = {g: (x + dx, y + dy, yaw) for g, (x, y, yaw) in goal_layout.items()}
+    result = map_free_vertices(
+        {m: start_poses[m][:2] for m in matching.free_current},
+        {g: placed[g][:2] for g in matching.free_goal},
+        [placed[g][:2] for g in matched.values()], unit=pitch(), params=field, seed=seed)
+    mapping = {**matched, **result.mapping}
+    if sorted(mapping) != sorted(all_c) or sorted(mapping.values()) != sorted(all_g):
+        raise AssertionError("the hybrid mapping is not a bijection")  # an internal bug
+    goal_poses = {m: placed[mapping[m]] for m in all_c}
+    priority = [*common, *(m for p in matching.pairs for m in p.mapping), *result.arrival,
+                *result.fallback]
+    actions = generate_actions(start, goal, mapping, start_poses, goal_poses,
+                               start_root=tau_c, goal_root=tau_g, priority=priority)
+    kept = len(kept_edge_ids(start, links_g, mapping))
+    pairs = len(goal.edges()) - kept
+    elapsed = (time.perf_counter() - began) * 1e3
+    notes = [
+        f"MCS({tau_c}, {tau_g}) rooted at {decomposition.roots[0]}->{decomposition.roots[1]}: "
+        f"{len(common)} modules, {decomposition.kept} connections kept",
+        f"subconfigurations: {len(decomposition.current)} current, {len(decomposition.goal)} "
+        f"goal; {len(matching.pairs)} matched, free vertices {len(matching.free_current)}",
+    ]
+    if virtual:
+        notes.append("loop edges made virtual connections: "
+                     + ", ".join(f"connect({u}{fu}, {v}{fv})" for u, fu, v, fv in virtual))
+    if result.stalled:
+        notes.append(f"potential field stalled; modules {', '.join(result.fallback)} assigned "
+                     "by minimum total distance")
+    else:
+        notes.append("potential field mapped every free vertex")
+    final = actions[-1].target.copy() if actions else start.copy()
+    final.name, final.description = goal.name, goal.description
+    plan = Plan(
+        robot=SPEC.name, planner=McsHybridPlanner.name, start=start.copy(), goal=final,
+        actions=actions, mapping=mapping, notes=notes,
+        stats={"pairs": float(pairs), "kept": float(kept), "docks": float(pairs),
+               "undocks": float(len(start.edges()) - kept),
+               "mcs_modules": float(len(common)), "matched_pairs": float(len(matching.pairs)),
+               "free_vertices": float(len(matching.free_current)),
+               "fallback_modules": float(len(result.fallback)),
+               "field_steps": float(result.steps), "matching_attempts": float(matching.attempts),
+               "plan_ms": elapsed},
+    )
+    return HybridResult(plan, (tau_c, tau_g), virtual, decomposition, matching, result,
+                        mapping, kept, pairs, goal_poses)
+
+
+class McsHybridPlanner:
+    """The graph-based hybrid planner of Wei et al. (2023), section 4."""
+
+    name = "mcs-hybrid"
+    description = ("MCS decomposition, height-adjacent subconfiguration matching and "
+                   "potential-field mapping of free modules (Wei et al. 2023)")
+
+    def plan(self, start: Configuration, goal: Configuration, *, seed: int = 0) -> Plan:
+        """Plan from ``start`` to ``goal``; see :func:`plan_hybrid`."""
+        return plan_hybrid(start, goal, seed=seed).plan
