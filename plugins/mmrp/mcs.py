@@ -21,6 +21,7 @@ from .representation import FaceLinks
 __all__ = [
     "Decomposition",
     "Subconfiguration",
+    "common_candidates",
     "components",
     "decompose",
     "largest_common",
@@ -66,10 +67,10 @@ def mcs(links_c: FaceLinks, links_g: FaceLinks, v_c: str, v_g: str, *,
     return mapping
 
 
-def largest_common(links_c: FaceLinks, links_g: FaceLinks, within_c: Collection[str],
-                   within_g: Collection[str], *, prefer: tuple[str, str] | None = None
-                   ) -> dict[str, str]:
-    """The largest ``MCS(v_c, v_g)`` over all root pairs of two subconfigurations.
+def common_candidates(links_c: FaceLinks, links_g: FaceLinks, within_c: Collection[str],
+                      within_g: Collection[str], *, prefer: tuple[str, str] | None = None,
+                      limit: int = 1) -> list[dict[str, str]]:
+    """The ``limit`` largest distinct ``MCS(v_c, v_g)`` over all root pairs, largest first.
 
     The pairs of a common subconfiguration form one component of the face-product
     graph, so every pair is visited once: O(|V_c| |V_g|). Ties go to the component
@@ -77,20 +78,28 @@ def largest_common(links_c: FaceLinks, links_g: FaceLinks, within_c: Collection[
     then to the first found.
     """
     order_c, order_g = list(within_c), list(within_g)
-    within_c, within_g = set(order_c), set(order_g)
-    best: dict[str, str] = {}
-    if prefer is not None and prefer[0] in within_c and prefer[1] in within_g:
-        best = mcs(links_c, links_g, *prefer, within_c=within_c, within_g=within_g)
-    seen = {(a, b) for a, b in best.items()}
+    set_c, set_g = set(order_c), set(order_g)
+    found: list[dict[str, str]] = []
+    seen: set[tuple[str, str]] = set()
+    if prefer is not None and prefer[0] in set_c and prefer[1] in set_g:
+        first = mcs(links_c, links_g, *prefer, within_c=set_c, within_g=set_g)
+        found.append(first)
+        seen.update(first.items())
     for a in order_c:
         for b in order_g:
-            if (a, b) in seen:
-                continue
-            found = mcs(links_c, links_g, a, b, within_c=within_c, within_g=within_g)
-            seen.update(found.items())
-            if len(found) > len(best):
-                best = found
-    return best
+            if (a, b) not in seen:
+                part = mcs(links_c, links_g, a, b, within_c=set_c, within_g=set_g)
+                seen.update(part.items())
+                found.append(part)
+    found.sort(key=len, reverse=True)  # stable: the preferred pair wins ties
+    return found[:limit]
+
+
+def largest_common(links_c: FaceLinks, links_g: FaceLinks, within_c: Collection[str],
+                   within_g: Collection[str], *, prefer: tuple[str, str] | None = None
+                   ) -> dict[str, str]:
+    """The largest ``MCS(v_c, v_g)`` over all root pairs; see :func:`common_candidates`."""
+    return common_candidates(links_c, links_g, within_c, within_g, prefer=prefer)[0]
 
 
 def components(links: FaceLinks, vertices: Iterable[str]) -> list[list[str]]:

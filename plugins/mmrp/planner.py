@@ -25,7 +25,7 @@ from msrr.core.plan import Plan
 from .actions import Pose, generate_actions, kept_edge_ids
 from .centre import root_of
 from .matching import HEIGHT_WINDOW, SubconfigurationMatching, match_subconfigurations
-from .mcs import Decomposition, decompose, largest_common
+from .mcs import Decomposition, common_candidates, decompose
 from .potential_field import FieldParameters, FieldResult, map_free_vertices
 from .representation import (
     Link,
@@ -38,7 +38,10 @@ from .representation import (
 )
 from .robot import SPEC
 
-__all__ = ["HybridResult", "McsHybridPlanner", "plan_hybrid"]
+__all__ = ["LOOKAHEAD", "HybridResult", "McsHybridPlanner", "plan_hybrid"]
+
+LOOKAHEAD = 4
+"""Common subconfigurations tried as the first decomposition (see :func:`plan_hybrid`)."""
 
 
 @dataclass(frozen=True)
@@ -94,8 +97,8 @@ def _checked(start: Configuration, goal: Configuration) -> Configuration:
 
 
 def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
-                window: int = HEIGHT_WINDOW, field: FieldParameters | None = None
-                ) -> HybridResult:
+                window: int = HEIGHT_WINDOW, lookahead: int = LOOKAHEAD,
+                field: FieldParameters | None = None) -> HybridResult:
     """Plan the reconfiguration from ``start`` to ``goal`` (section 4).
 
     Args:
@@ -103,6 +106,9 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
         goal: goal configuration, its own ids; must be a legal MMRP tree.
         seed: seed of the potential-field start perturbation.
         window: the height-adjacent rule's largest height difference.
+        lookahead: how many of the largest common subconfigurations to try as the
+            first decomposition (1 = the paper's single MCS); the one whose matching
+            keeps the most connections wins, the paper's choice on ties.
         field: potential-field gains and distances.
 
     Raises:
@@ -114,11 +120,18 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     links_c, links_g = face_links(tree), face_links(goal)
     tau_c, tau_g = root_of(tree), root_of(goal)
     all_c, all_g = tree.vertices(), goal.vertices()
-    common = largest_common(links_c, links_g, all_c, all_g, prefer=(tau_c, tau_g))
-    decomposition = decompose(links_c, links_g, all_c, all_g, common)
-    matching = match_subconfigurations(links_c, links_g, decomposition.current,
-                                       decomposition.goal, decomposition.free_current,
-                                       decomposition.free_goal, window=window)
+    best: tuple[int, Decomposition, SubconfigurationMatching] | None = None
+    for common in common_candidates(links_c, links_g, all_c, all_g, prefer=(tau_c, tau_g),
+                                    limit=lookahead):
+        split = decompose(links_c, links_g, all_c, all_g, common)
+        matched_subs = match_subconfigurations(links_c, links_g, split.current, split.goal,
+                                               split.free_current, split.free_goal,
+                                               window=window)
+        kept_here = split.kept + sum(len(p.mapping) - 1 for p in matched_subs.pairs)
+        if best is None or kept_here > best[0]:
+            best = (kept_here, split, matched_subs)
+    _, decomposition, matching = best
+    common = decomposition.common
     matched = dict(common)
     for pair in matching.pairs:
         matched.update(pair.mapping)
