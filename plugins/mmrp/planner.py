@@ -25,8 +25,9 @@ from msrr.core.plan import Plan
 from .actions import Pose, generate_actions, kept_edge_ids
 from .centre import root_of
 from .matching import HEIGHT_WINDOW, SubconfigurationMatching, match_subconfigurations
-from .mcs import Decomposition, common_candidates, decompose
+from .mcs import Decomposition, Subconfiguration, common_candidates, decompose
 from .potential_field import FieldParameters, FieldResult, map_free_vertices
+from .recognition import observe, recognize_with_stats
 from .representation import (
     Link,
     face_links,
@@ -71,6 +72,15 @@ class HybridResult:
     kept: int
     pairs: int
     goal_poses: dict[str, Pose]
+
+
+def _arrows(mapping: dict[str, str]) -> str:
+    return ", ".join(f"{a}->{b}" for a, b in mapping.items())
+
+
+def _subs(subs: tuple[Subconfiguration, ...]) -> str:
+    return ", ".join(f"{{{','.join(s.vertices)}}} root {s.root} h={s.height}"
+                     for s in subs) or "none"
 
 
 def _checked(start: Configuration, goal: Configuration) -> Configuration:
@@ -157,12 +167,25 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     kept = len(kept_edge_ids(start, links_g, mapping))
     pairs = len(goal.edges()) - kept
     elapsed = (time.perf_counter() - began) * 1e3
+    recognition = recognize_with_stats(observe(start), seed=seed)
     notes = [
-        f"MCS({tau_c}, {tau_g}) rooted at {decomposition.roots[0]}->{decomposition.roots[1]}: "
-        f"{len(common)} modules, {decomposition.kept} connections kept",
-        f"subconfigurations: {len(decomposition.current)} current, {len(decomposition.goal)} "
-        f"goal; {len(matching.pairs)} matched, free vertices {len(matching.free_current)}",
+        f"recognition (section 3.2): started at {recognition.starter}, "
+        f"{recognition.rounds} message rounds, {recognition.messages} messages",
+        f"roots: tau_c={tau_c}, tau_g={tau_g}",
+        f"MCS({decomposition.roots[0]}, {decomposition.roots[1]}): {_arrows(common)} "
+        f"({decomposition.kept} connections kept)",
+        "CS subconfigurations: current " + _subs(decomposition.current) + "; goal "
+        + _subs(decomposition.goal) + "; free vertices: current "
+        + (", ".join(decomposition.free_current) or "none") + "; goal "
+        + (", ".join(decomposition.free_goal) or "none"),
     ]
+    notes += [f"matched MCS({p.current.root}, {p.goal.root}) under the height-adjacent rule: "
+              f"{_arrows(p.mapping)}" for p in matching.pairs]
+    if matching.dissolved_current or matching.dissolved_goal:
+        notes.append("unmatched subconfigurations disconnected into free vertices: current "
+                     + _subs(matching.dissolved_current) + "; goal "
+                     + _subs(matching.dissolved_goal))
+    notes.append("free vertices mapped: " + (_arrows(result.mapping) or "none"))
     if virtual:
         notes.append("loop edges made virtual connections: "
                      + ", ".join(f"connect({u}{fu}, {v}{fv})" for u, fu, v, fv in virtual))
@@ -182,6 +205,8 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
                "free_vertices": float(len(matching.free_current)),
                "fallback_modules": float(len(result.fallback)),
                "field_steps": float(result.steps), "matching_attempts": float(matching.attempts),
+               "recognition_rounds": float(recognition.rounds),
+               "recognition_messages": float(recognition.messages),
                "plan_ms": elapsed},
     )
     return HybridResult(plan, (tau_c, tau_g), virtual, decomposition, matching, result,

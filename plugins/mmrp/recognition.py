@@ -34,7 +34,13 @@ from msrr.core.errors import ConfigurationError
 
 from .representation import Link, from_links, to_tree
 
-__all__ = ["DistributedRecognizer", "Observation", "Recognition", "recognize_with_stats"]
+__all__ = [
+    "DistributedRecognizer",
+    "Observation",
+    "Recognition",
+    "observe",
+    "recognize_with_stats",
+]
 
 Observation = Mapping[str, Mapping[str, "tuple[str, str] | None"]]
 """Per module, per face: ``(other module, other face)`` if a link is physically made."""
@@ -76,6 +82,14 @@ class Recognition:
     leaves: tuple[str, ...]
     rounds: int
     messages: int
+
+
+def observe(config: Configuration) -> dict[str, dict[str, tuple[str, str] | None]]:
+    """The observation a simulator would report for ``config``: every face's link or None."""
+    from .representation import GRID_STEP, face_links
+
+    links = face_links(config)
+    return {v: {face: links[v].get(face) for face in GRID_STEP} for v in config.vertices()}
 
 
 def _check(observation: Observation) -> None:
