@@ -1,0 +1,145 @@
+"""The library's only door to the kinematics and the matcher.
+
+Library creation and retrieval need four things from the rest of the core: a
+kinematic tree for a designed topology, the inverse-kinematics motion cost between
+two configurations of one topology (section 3.4), the configuration matcher
+(Alg. 4) and a tree expressed in another set of ids. They are gathered here so the
+library code stays pure data handling, and so a test can count or replace them.
+
+Matching and inverse kinematics run with fixed seeds and iteration-bounded options,
+so building the same sources twice gives the same library.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..configuration import Configuration
+from .mapping import ModuleMap
+from .model import LibraryError
+from .sources import DesignedTree
+
+__all__ = [
+    "MATCH_CONFIDENCE",
+    "MatchOutcome",
+    "best_match",
+    "design_tree",
+    "ik_cost",
+    "load_tree",
+    "rename_tree",
+    "tree_in_ids",
+]
+
+MATCH_CONFIDENCE = 4.0
+"""Confidence factor sigma of Alg. 4: stop a candidate's search past sigma * best cost."""
+
+MATCH_TIME_BUDGET = 30.0
+"""Time budget [s] of one match; generous, so results do not depend on machine load."""
+
+IK_SEED = 0
+
+
+@dataclass(frozen=True)
+class MatchOutcome:
+    """The best library candidate for a configuration.
+
+    Attributes:
+        key: the candidate's key (a library configuration id).
+        mapping: system ids -> candidate ids (every vertex and edge).
+        cost: inverse-kinematics cost from the system to the candidate.
+        yaw: yaw [rad] that aligns the candidate with the system.
+    """
+
+    key: str
+    mapping: ModuleMap
+    cost: float
+    yaw: float = 0.0
+
+
+def design_tree(reference: Configuration, designed: DesignedTree) -> dict:
+    """The serialised kinematic tree of a designed group tree (Fig. 14(a)).
+
+    A designed tree is a serialised tree (checked by loading it on ``reference``) or a
+    joint mode for the default tree of ``reference``.
+    """
+    from ..kinematics import KinematicTree, default_tree
+
+    try:
+        if designed.tree is not None:
+            return KinematicTree.from_dict(designed.tree, reference).to_dict()
+        return default_tree(reference, joint_mode=designed.joint_mode).to_dict()
+    except LibraryError:
+        raise
+    except Exception as exc:  # the kinematics' own errors name the problem
+        raise LibraryError(f"kinematic tree {designed.name!r}: {exc}") from None
+
+
+def load_tree(tree: dict, config: Configuration) -> Any:
+    """A :class:`~msrr.core.kinematics.KinematicTree` from its serialised form."""
+    from ..kinematics import KinematicTree
+
+    return KinematicTree.from_dict(tree, config)
+
+
+def tree_in_ids(tree: dict, mapping: ModuleMap, config: Configuration) -> Any:
+    """A serialised tree renamed by ``mapping`` and loaded on ``config`` (Fig. 15(c)).
+
+    Vertex and edge ids of the stored topology and of every node are renamed; an edge
+    mapped with ``inv`` has its ends swapped. Loading checks the renamed topology
+    against ``config``.
+    """
+    from ..kinematics import KinematicTree
+
+    return KinematicTree.from_dict(rename_tree(tree, mapping), config)
+
+
+def rename_tree(tree: dict, mapping: ModuleMap) -> dict:
+    """A serialised tree (``KinematicTree.to_dict()``) with its ids renamed by ``mapping``."""
+    nodes, edges = mapping.nodes, mapping.edges
+    out = dict(tree)
+    out["modules"] = [{**m, "id": nodes[m["id"]]} for m in tree["modules"]]
+    connections = []
+    for c in tree["connections"]:
+        image, inv = edges[c["id"]]
+        source, target = nodes[c["source"]], nodes[c["target"]]
+        renamed = {**c, "id": image, "source": target if inv else source,
+                   "target": source if inv else target}
+        if inv and c.get("ports"):
+            renamed["ports"] = list(reversed(c["ports"]))
+        connections.append(renamed)
+    out["connections"] = connections
+    out["nodes"] = [{**n, "edges": [edges[e][0] for e in n.get("edges", [])],
+                     "vertices": [nodes[v] for v in n.get("vertices", [])]}
+                    for n in tree["nodes"]]
+    return out
+
+
+def ik_cost(tree: dict, current: Configuration, target: Configuration) -> float:
+    """Inverse-kinematics motion cost from ``current`` to ``target`` (same ids and topology)."""
+    from ..kinematics import IKOptions, solve_ik
+
+    solution = solve_ik(load_tree(tree, target), current, target,
+                        options=IKOptions(seed=IK_SEED))
+    return float(solution.cost)
+
+
+def best_match(system: Configuration, candidates: Sequence[tuple[str, Configuration, dict]]
+               ) -> MatchOutcome | None:
+    """The candidate the system matches best (Alg. 4), or ``None`` if none is isomorphic.
+
+    Args:
+        system: the configuration to match, in its own ids.
+        candidates: ``(key, configuration, serialised tree)`` triples.
+    """
+    from ..matching import Candidate, match
+
+    pool = [Candidate(config, load_tree(tree, config), key=key)
+            for key, config, tree in candidates]
+    result = match(system, pool, confidence=MATCH_CONFIDENCE, time_budget=MATCH_TIME_BUDGET)
+    if result is None:
+        return None
+    mapping = ModuleMap(dict(result.mapping.nodes), dict(result.mapping.edges))
+    return MatchOutcome(str(result.candidate.key), mapping, float(result.cost),
+                        float(getattr(result.mapping, "yaw", 0.0)))

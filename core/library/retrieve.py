@@ -1,0 +1,242 @@
+"""Behavior retrieval (FreeSN paper, section 6.3, Fig. 15).
+
+Given the system configuration and a target (a library configuration or a behavior),
+the system is matched into its sub-library with the configuration matcher (Alg. 4,
+Fig. 15(a)), the cheapest action path by motion cost is found in the action graph
+(Dijkstra), and every configuration and kinematic tree of the path is mapped into the
+system's own ids by composing the match mapping with the edges' module mappings
+(Fig. 15(b), (c)). The result is ready for the executor (section 4, Fig. 15(d)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import pairwise
+from typing import Any
+
+import networkx as nx
+
+from .. import plugins
+from ..alignment import rot_z
+from ..configuration import Configuration
+from ..plan import Action, ActionType, ConnectionChange
+from . import engine
+from .mapping import ModuleMap
+from .model import (
+    ActionEdge,
+    Behavior,
+    CommandGain,
+    Library,
+    LibraryError,
+    RetrievalError,
+    SubLibrary,
+    TreeRef,
+)
+from .transitions import topology_changes
+
+__all__ = ["Retrieval", "RetrievedStep", "retrieve", "shortest_path"]
+
+
+@dataclass(frozen=True)
+class RetrievedStep:
+    """One step of a retrieved sequence, in the system's ids.
+
+    Attributes:
+        library_id: the library configuration this step reaches.
+        target: that configuration in the system's ids (vectors turned by the match yaw).
+        tree: the kinematic tree that executes the step, in the system's ids.
+        tree_ref: which library tree it is.
+        action: the action type (section 4.1).
+        cost: motion cost of the step (the match cost for the first, approach step).
+    """
+
+    library_id: str
+    target: Configuration
+    tree: Any
+    tree_ref: TreeRef
+    action: ActionType
+    cost: float
+
+
+@dataclass
+class Retrieval:
+    """A retrieved sequence (Fig. 15(b)-(c)).
+
+    Attributes:
+        sublibrary: the sub-library searched.
+        start: the library configuration the system matched.
+        match_cost: inverse-kinematics cost from the system to ``start``.
+        mapping: system ids -> ids of ``start``'s group.
+        steps: the approach step to ``start``, then one step per action edge.
+        behavior: the behavior asked for, if any.
+        behavior_steps: a sequence behavior's steps after the target, in system ids
+            (for a looping behavior, ending back at its start).
+        commands: a mapping behavior's commands, in system ids.
+    """
+
+    sublibrary: str
+    start: str
+    match_cost: float
+    mapping: ModuleMap
+    steps: list[RetrievedStep]
+    behavior: Behavior | None = None
+    behavior_steps: list[RetrievedStep] = field(default_factory=list)
+    commands: tuple[CommandGain, ...] = ()
+
+    @property
+    def cost(self) -> float:
+        """Total motion cost of :attr:`steps`."""
+        return float(sum(s.cost for s in self.steps))
+
+    def actions(self, system: Configuration) -> list[Action]:
+        """The steps (then the behavior's steps) as executor actions starting at ``system``."""
+        out, before = [], system
+        for step in [*self.steps, *self.behavior_steps]:
+            out.append(_action(before, step))
+            before = step.target
+        return out
+
+
+def _action(before: Configuration, step: RetrievedStep) -> Action:
+    changes = topology_changes(before, step.target)
+    made = [(step.target, e) for e, _ in changes.connections if e in step.target.edge_ids()]
+    broken = [(before, e) for e, _ in changes.disconnections]
+    listed = tuple(ConnectionChange(c.edge(e).source, c.edge(e).target, edge_id=e)
+                   for c, e in broken + made)
+    modules = tuple(dict.fromkeys(c.edge_id for c in listed if c.edge_id))
+    return Action(type=step.action, target=step.target, modules=modules, changes=listed,
+                  cost=step.cost, kinematic_tree=step.tree, note=f"library {step.library_id}")
+
+
+def shortest_path(sub: SubLibrary, start: str, target: str) -> list[str]:
+    """Configuration ids of the cheapest action path from ``start`` to ``target``.
+
+    Raises:
+        RetrievalError: ``target`` is unreachable; names the groups that are reachable.
+    """
+    graph = sub.graph()
+    try:
+        return nx.dijkstra_path(graph, start, target, weight="cost")
+    except nx.NetworkXNoPath:
+        reachable = nx.descendants(graph, start) | {start}
+        groups = sorted({graph.nodes[n]["group"] for n in reachable})
+        names = ", ".join(f"{g} ({sub.groups[g].name})" for g in groups)
+        raise RetrievalError(
+            f"{target} (group {sub.configurations[target].group}) cannot be reached from "
+            f"{start} in sub-library {sub.name}; reachable groups: {names}") from None
+
+
+class _Mapper:
+    """Expresses library configurations and trees in the system's ids, step by step."""
+
+    def __init__(self, sub: SubLibrary, yaw: float):
+        self.sub = sub
+        self.rotation = rot_z(yaw)
+
+    def express(self, config_id: str, to_system: ModuleMap) -> tuple[Configuration, ModuleMap]:
+        config = self.sub.configurations[config_id].configuration
+        renamed, used = to_system.apply(config, name=self.sub.configurations[config_id].name
+                                        or config_id)
+        z = {e.id: self.rotation @ e.z for e in renamed.edges() if e.z is not None}
+        turned = renamed.with_vectors(z=z, x={})
+        return turned, used
+
+    def tree(self, ref: TreeRef, config: Configuration, to_system: ModuleMap) -> Any:
+        return engine.tree_in_ids(self.sub.groups[ref.group].trees[ref.name], to_system, config)
+
+    def follow(self, path: list[str], to_system: ModuleMap, config: Configuration
+               ) -> tuple[list[RetrievedStep], ModuleMap]:
+        """Steps along ``path`` (ids) from its first configuration (``config`` in system
+        ids, ``to_system`` its ids -> system ids), and the last one's map to system ids."""
+        graph = self.sub.graph()
+        steps = []
+        for u, v in pairwise(path):
+            if not graph.has_edge(u, v):
+                raise LibraryError(f"no action edge {u} -> {v} in sub-library {self.sub.name}")
+            edge: ActionEdge = graph[u][v]["edge"]
+            before = self.sub.configurations[u].configuration
+            forward = edge.module_map(before)
+            next_map = forward.inverse().then(to_system)
+            target, used = self.express(v, next_map)
+            if edge.tree.group == self.sub.configurations[u].group:
+                tree = self.tree(edge.tree, config, to_system)
+            else:
+                tree = self.tree(edge.tree, target, used)
+            steps.append(RetrievedStep(v, target, tree, edge.tree, edge.action, edge.cost))
+            to_system, config = used, target
+        return steps, to_system
+
+
+def _commands(behavior: Behavior, to_system: ModuleMap) -> tuple[CommandGain, ...]:
+    out = []
+    for command in behavior.commands:
+        if command.module in to_system.edges:
+            module, inv = to_system.edges[command.module]
+            connector = command.connector
+            if inv and connector is not None:
+                connector = "target" if connector == "source" else "source"
+        else:
+            module, connector = to_system.nodes[command.module], command.connector
+        out.append(CommandGain(module, command.command, command.gains, connector))
+    return tuple(out)
+
+
+def retrieve(library: Library, system: Configuration, *, to: str | None = None,
+             behavior: str | None = None) -> Retrieval:
+    """The cheapest action sequence from ``system`` to a target, in the system's ids.
+
+    Args:
+        library: the behavior library.
+        system: the current system configuration, in its own ids.
+        to: a library configuration id or name.
+        behavior: a behavior name; the path leads to its start configuration.
+
+    Raises:
+        LibraryError: neither or both targets, an unknown target or sub-library.
+        RetrievalError: the system matches no configuration of its sub-library, or the
+            target cannot be reached (the message names the reachable groups).
+    """
+    if (to is None) == (behavior is None):
+        raise LibraryError("give exactly one target: a configuration or a behavior")
+    if system.robot != library.robot:
+        raise LibraryError(f"the system is a {system.robot} configuration, library "
+                           f"{library.name} is for {library.robot}")
+    label = system.signature().label(plugins.robot(system.robot))
+    sub = library.sublibrary(label)
+    chosen: Behavior | None = None
+    if behavior is not None:
+        if behavior not in sub.behaviors:
+            raise LibraryError(f"no behavior {behavior!r} in sub-library {label} (known: "
+                               f"{', '.join(sub.behaviors) or 'none'})")
+        chosen = sub.behaviors[behavior]
+        target = chosen.start
+    else:
+        assert to is not None
+        target = sub.configuration(to).id
+    signature = system.signature()
+    candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
+                  for c in sub.configurations.values()
+                  if sub.groups[c.group].reference.signature() == signature]
+    outcome = engine.best_match(system, candidates) if candidates else None
+    if outcome is None:
+        raise RetrievalError(f"the system is not isomorphic to any group of sub-library {label} "
+                             f"(groups: {', '.join(f'{g.id} ({g.name})' for g in sub.groups.values())})")
+    path = shortest_path(sub, outcome.key, target)
+    mapper = _Mapper(sub, outcome.yaw)
+    start_config, to_system = mapper.express(outcome.key, outcome.mapping.inverse())
+    group = sub.groups[sub.configurations[outcome.key].group]
+    first_tree = TreeRef(group.id, next(iter(group.trees)))
+    steps = [RetrievedStep(outcome.key, start_config, mapper.tree(first_tree, start_config,
+                                                                   to_system),
+                           first_tree, ActionType.MOVING, outcome.cost)]
+    path_steps, final_map = mapper.follow(path, to_system, start_config)
+    steps += path_steps
+    retrieval = Retrieval(sub.name, outcome.key, outcome.cost, outcome.mapping, steps, chosen)
+    if chosen is not None:
+        if chosen.kind == "sequence":
+            loop = [chosen.start, *chosen.steps] + ([chosen.start] if chosen.loop else [])
+            retrieval.behavior_steps, _ = mapper.follow(loop, final_map, steps[-1].target)
+        else:
+            retrieval.commands = _commands(chosen, final_map)
+    return retrieval
+

@@ -1,0 +1,257 @@
+"""Library source files: designed groups and trees, recorded sequences, parameter behaviors.
+
+These are the inputs of automatic library creation (FreeSN paper, section 6.2,
+Fig. 14(a)-(c)). One source file (``schema_version`` 1) may hold any of:
+
+* ``groups`` -- designed topology groups: a reference skeletal configuration, one or
+  more kinematic trees (a joint mode for the default tree, or a serialised tree)
+  and optional extra designed configurations (Fig. 14(a));
+* ``sequences`` -- recorded configuration sequences in the recording's own ids,
+  with the intermediate configurations at topology changes (Fig. 14(b), (c)); a
+  sequence may be labelled as a behavior and may loop (squirm, crawl);
+* ``behaviors`` -- mappings from low-dimensional behavior parameters to module
+  commands, starting from a named configuration of a sequence or a group.
+
+Every configuration is checked against its robot's docking rules when read; a bad
+file is refused with one line naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..configuration import Configuration
+from ..errors import ConfigurationError
+from ..files import parse_model, read_json
+from ..io import ConfigurationFile, check_configuration, configuration_from_model
+from .model import CommandGain, LibraryError
+
+__all__ = [
+    "DesignedGroup",
+    "DesignedTree",
+    "LibrarySourceFile",
+    "LibrarySources",
+    "MappingBehaviorSource",
+    "RecordedSequence",
+    "SequenceStep",
+    "load_sources",
+]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class TreeSourceModel(_Strict):
+    name: str = Field(min_length=1, description="Tree name, unique in its group.")
+    joint_mode: str | None = Field(None, description="Joint mode of the default tree.")
+    tree: dict | None = Field(None, description="A serialised tree (KinematicTree.to_dict()).")
+
+
+class GroupSourceModel(_Strict):
+    name: str = Field(min_length=1)
+    description: str = ""
+    reference: ConfigurationFile
+    trees: list[TreeSourceModel] = Field(min_length=1)
+    configurations: list[ConfigurationFile] = []
+
+
+class StepModel(_Strict):
+    configuration: ConfigurationFile
+    tree: str | None = Field(None, description="Tree of the target group that executes the "
+                             "step into this configuration; the group's first by default.")
+
+
+class SequenceSourceModel(_Strict):
+    name: str = Field(min_length=1)
+    description: str = ""
+    behavior: str | None = Field(None, description="Label the sequence as this behavior.")
+    loop: bool = Field(False, description="The last step returns to the first and repeats.")
+    steps: list[StepModel] = Field(min_length=1)
+
+
+class CommandSourceModel(_Strict):
+    module: str = Field(min_length=1)
+    command: str = Field(min_length=1)
+    connector: Literal["source", "target"] | None = None
+    gains: dict[str, float]
+
+
+class MappingBehaviorModel(_Strict):
+    name: str = Field(min_length=1)
+    description: str = ""
+    start: str = Field(min_length=1, description="Name of a configuration of these sources.")
+    parameters: list[str] = Field(min_length=1)
+    commands: list[CommandSourceModel] = Field(min_length=1)
+
+
+class LibrarySourceFile(_Strict):
+    """A library source file (FreeSN paper, section 6.2)."""
+
+    schema_version: Literal[1]
+    robot: str = Field(min_length=1)
+    library: str | None = Field(None, description="Name of the library these sources build.")
+    description: str = ""
+    groups: list[GroupSourceModel] = []
+    sequences: list[SequenceSourceModel] = []
+    behaviors: list[MappingBehaviorModel] = []
+
+
+@dataclass(frozen=True)
+class DesignedTree:
+    """A designed kinematic tree: a joint mode for the default tree, or a serialised tree."""
+
+    name: str
+    joint_mode: str | None = None
+    tree: dict | None = None
+
+
+@dataclass(frozen=True)
+class DesignedGroup:
+    """A designed topology group (Fig. 14(a)) and where it was read from."""
+
+    name: str
+    reference: Configuration
+    trees: tuple[DesignedTree, ...]
+    configurations: tuple[Configuration, ...] = ()
+    description: str = ""
+    origin: str = ""
+
+
+@dataclass(frozen=True)
+class SequenceStep:
+    configuration: Configuration
+    tree: str | None = None
+
+
+@dataclass(frozen=True)
+class RecordedSequence:
+    """A recorded configuration sequence in the recording's ids (Fig. 14(b))."""
+
+    name: str
+    steps: tuple[SequenceStep, ...]
+    loop: bool = False
+    behavior: str | None = None
+    description: str = ""
+    origin: str = ""
+
+
+@dataclass(frozen=True)
+class MappingBehaviorSource:
+    """A parameter-to-command behavior in the ids of its start configuration."""
+
+    name: str
+    start: str
+    parameters: tuple[str, ...]
+    commands: tuple[CommandGain, ...]
+    description: str = ""
+    origin: str = ""
+
+
+@dataclass(frozen=True)
+class LibrarySources:
+    """Every input of one library build, in file order.
+
+    Attributes:
+        robot: the robot all sources describe.
+        name: the library name (from the first source that gives one).
+        files: ``(file name, sha256)`` of every source, recorded in the library.
+    """
+
+    robot: str
+    name: str
+    groups: tuple[DesignedGroup, ...]
+    sequences: tuple[RecordedSequence, ...]
+    behaviors: tuple[MappingBehaviorSource, ...]
+    files: tuple[tuple[str, str], ...]
+    description: str = ""
+
+
+def _configuration(model: ConfigurationFile, source: str, field: str, robot: str
+                   ) -> Configuration:
+    try:
+        config = configuration_from_model(model)
+        if config.robot != robot:
+            raise ConfigurationError(f"robot is {config.robot!r}, the file is for {robot!r}",
+                                     field="robot")
+        check_configuration(config)
+    except ConfigurationError as exc:
+        inner = f".{exc.field}" if exc.field else ""
+        raise LibraryError(exc.message, source=source, field=f"{field}{inner}") from None
+    return config
+
+
+def _read(path: Path, robot: str | None) -> tuple[LibrarySourceFile, str]:
+    source = str(path)
+    try:
+        model = parse_model(LibrarySourceFile, read_json(path), source)
+    except LibraryError:
+        raise
+    except ConfigurationError as exc:
+        raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
+    if robot is not None and model.robot != robot:
+        raise LibraryError(f"is for robot {model.robot!r}, the other sources for {robot!r}",
+                           source=source, field="robot")
+    return model, source
+
+
+def load_sources(paths: Iterable[str | os.PathLike[str]]) -> LibrarySources:
+    """Read library source files (designs, sequences, behaviors) in the given order.
+
+    Raises:
+        LibraryError: no file, a bad file, sources for different robots, or a
+            configuration that breaks its robot's docking rules; names file and field.
+    """
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise LibraryError("no library source files given")
+    robot: str | None = None
+    name = description = ""
+    groups: list[DesignedGroup] = []
+    sequences: list[RecordedSequence] = []
+    behaviors: list[MappingBehaviorSource] = []
+    files = []
+    for path in paths:
+        model, source = _read(path, robot)
+        robot = model.robot
+        name = name or (model.library or "")
+        description = description or model.description
+        files.append((path.name, hashlib.sha256(path.read_bytes()).hexdigest()))
+        for i, g in enumerate(model.groups):
+            where = f"groups[{i}]"
+            groups.append(DesignedGroup(
+                name=g.name, description=g.description,
+                reference=_configuration(g.reference, source, f"{where}.reference", robot),
+                trees=tuple(DesignedTree(t.name, t.joint_mode, t.tree) for t in g.trees),
+                configurations=tuple(
+                    _configuration(c, source, f"{where}.configurations[{j}]", robot)
+                    for j, c in enumerate(g.configurations)),
+                origin=path.name))
+        for i, s in enumerate(model.sequences):
+            steps = tuple(SequenceStep(_configuration(st.configuration, source,
+                                                      f"sequences[{i}].steps[{j}].configuration",
+                                                      robot), st.tree)
+                          for j, st in enumerate(s.steps))
+            modules = set(steps[0].configuration.modules())
+            for j, step in enumerate(steps):
+                if set(step.configuration.modules()) != modules:
+                    raise LibraryError("every step of a sequence needs the same modules "
+                                       "(identical module ids, section 6.2)", source=source,
+                                       field=f"sequences[{i}].steps[{j}]")
+            sequences.append(RecordedSequence(s.name, steps, s.loop, s.behavior, s.description,
+                                              path.name))
+        for b in model.behaviors:
+            commands = tuple(CommandGain(c.module, c.command, tuple(sorted(c.gains.items())),
+                                         c.connector) for c in b.commands)
+            behaviors.append(MappingBehaviorSource(b.name, b.start, tuple(b.parameters), commands,
+                                                   b.description, path.name))
+    assert robot is not None
+    return LibrarySources(robot, name or paths[0].stem, tuple(groups), tuple(sequences),
+                          tuple(behaviors), tuple(files), description)

@@ -1,0 +1,295 @@
+"""Library files: one JSON file per library, pydantic-validated, written atomically.
+
+The format (``schema_version`` 1) mirrors :mod:`msrr.core.library.model`. A group
+stores its reference topology once, as a configuration file model; each of its
+configurations stores only its ``z`` vector per edge id, so every configuration of
+a group has the group's topology by construction. Loading checks the schema and
+then every cross-reference (groups, trees, configuration ids, mapped ids); the first
+problem is reported as one line naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from ..errors import ConfigurationError
+from ..files import atomic_write_text, parse_model, read_json
+from ..io import ConfigurationFile, configuration_from_model, configuration_to_model
+from ..plan import ActionType
+from .mapping import ModuleMap
+from .model import (
+    ActionEdge,
+    Behavior,
+    CommandGain,
+    Group,
+    Library,
+    LibraryConfiguration,
+    LibraryError,
+    SubLibrary,
+    TreeRef,
+)
+
+__all__ = [
+    "LIBRARY_SCHEMA_VERSION",
+    "LibraryFile",
+    "dump_library",
+    "library_from_model",
+    "library_to_model",
+    "load_library",
+    "save_library",
+]
+
+LIBRARY_SCHEMA_VERSION = 1
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class TreeModel(_Strict):
+    name: str = Field(min_length=1, description="Tree name, unique in its group.")
+    tree: dict = Field(description="Serialised kinematic tree (KinematicTree.to_dict()).")
+
+
+class GroupModel(_Strict):
+    id: str = Field(min_length=1, description="Group id, '<sub-library>-<n>'.")
+    name: str = ""
+    description: str = ""
+    reference: ConfigurationFile
+    trees: list[TreeModel] = Field(min_length=1)
+
+
+class ConfigurationModel(_Strict):
+    id: str = Field(min_length=1)
+    group: str = Field(min_length=1)
+    names: list[str] = []
+    origins: list[str] = []
+    z: dict[str, Vec3] = Field(description="Unit connection vector per reference edge id.")
+
+    @field_validator("z")
+    @classmethod
+    def _unit(cls, value: dict[str, list[float]]) -> dict[str, list[float]]:
+        for key, vector in value.items():
+            norm = math.sqrt(sum(c * c for c in vector))
+            if not abs(norm - 1.0) <= 1e-6:
+                raise ValueError(f"z of {key!r} must be a unit vector, its norm is {norm:.6g}")
+        return value
+
+
+class CommandModel(_Strict):
+    module: str = Field(min_length=1)
+    command: str = Field(min_length=1)
+    connector: Literal["source", "target"] | None = None
+    gains: dict[str, float]
+
+
+class BehaviorModel(_Strict):
+    name: str = Field(min_length=1)
+    kind: Literal["sequence", "mapping"]
+    description: str = ""
+    start: str = Field(min_length=1)
+    steps: list[str] = []
+    loop: bool = False
+    parameters: list[str] = []
+    commands: list[CommandModel] = []
+
+
+class TreeRefModel(_Strict):
+    group: str
+    name: str
+
+
+class MappingModel(_Strict):
+    nodes: dict[str, str] = {}
+    edges: dict[str, tuple[str, bool]] = {}
+
+
+class EdgeModel(_Strict):
+    source: str
+    target: str
+    action: ActionType
+    tree: TreeRefModel
+    cost: float = Field(ge=0.0)
+    mapping: MappingModel | None = None
+    feasible: bool | None = None
+
+
+class SubLibraryModel(_Strict):
+    name: str = Field(min_length=1)
+    groups: list[GroupModel]
+    configurations: list[ConfigurationModel]
+    behaviors: list[BehaviorModel] = []
+    edges: list[EdgeModel] = []
+
+
+class LibraryFile(_Strict):
+    """A behavior library file (FreeSN paper, section 6.1)."""
+
+    schema_version: Literal[1] = Field(description="File format version.")
+    robot: str = Field(min_length=1)
+    name: str = Field(min_length=1)
+    description: str = ""
+    build: dict = {}
+    sublibraries: list[SubLibraryModel]
+
+
+# -- model -> library -----------------------------------------------------------------
+
+
+def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | None) -> SubLibrary:
+    def fail(field: str, message: str) -> LibraryError:
+        return LibraryError(message, source=source, field=f"{where}.{field}")
+
+    sub = SubLibrary(model.name)
+    for i, gm in enumerate(model.groups):
+        if gm.id in sub.groups:
+            raise fail(f"groups[{i}].id", f"duplicate group id {gm.id!r}")
+        try:
+            reference = configuration_from_model(gm.reference)
+        except ConfigurationError as exc:
+            raise fail(f"groups[{i}].reference.{exc.field or ''}".rstrip("."),
+                       exc.message) from None
+        names = [t.name for t in gm.trees]
+        if len(set(names)) != len(names):
+            raise fail(f"groups[{i}].trees", "duplicate tree names")
+        sub.groups[gm.id] = Group(gm.id, gm.name, reference, {t.name: t.tree for t in gm.trees},
+                                  gm.description)
+    for i, cm in enumerate(model.configurations):
+        if cm.id in sub.configurations:
+            raise fail(f"configurations[{i}].id", f"duplicate configuration id {cm.id!r}")
+        if cm.group not in sub.groups:
+            raise fail(f"configurations[{i}].group", f"unknown group {cm.group!r} (known: "
+                       f"{', '.join(sub.groups)})")
+        reference = sub.groups[cm.group].reference
+        if set(cm.z) != set(reference.edge_ids()):
+            raise fail(f"configurations[{i}].z", "needs exactly the edges of group "
+                       f"{cm.group} ({', '.join(reference.edge_ids())})")
+        config = reference.with_vectors(z=cm.z, x={})
+        config.name = cm.names[0] if cm.names else cm.id
+        sub.configurations[cm.id] = LibraryConfiguration(cm.id, cm.group, config,
+                                                         tuple(cm.names), tuple(cm.origins))
+    for i, em in enumerate(model.edges):
+        for end in ("source", "target"):
+            if getattr(em, end) not in sub.configurations:
+                raise fail(f"edges[{i}].{end}", f"unknown configuration {getattr(em, end)!r}")
+        group = sub.groups.get(em.tree.group)
+        if group is None or em.tree.name not in group.trees:
+            raise fail(f"edges[{i}].tree", f"unknown kinematic tree {em.tree.group}/"
+                       f"{em.tree.name}")
+        mapping = None
+        if em.mapping is not None:
+            mapping = ModuleMap(dict(em.mapping.nodes), dict(em.mapping.edges))
+            src = sub.configurations[em.source].configuration
+            dst = sub.configurations[em.target].configuration
+            bad = [e for e, (image, _) in mapping.edges.items()
+                   if e not in src.edge_ids() or image not in dst.edge_ids()]
+            bad += [v for v, image in mapping.nodes.items() if v not in src or image not in dst]
+            if bad:
+                raise fail(f"edges[{i}].mapping", f"maps ids that are not in its configurations: "
+                           f"{', '.join(sorted(bad))}")
+        elif sub.configurations[em.source].group != sub.configurations[em.target].group:
+            raise fail(f"edges[{i}].mapping", "an edge across groups needs a module mapping")
+        sub.edges.append(ActionEdge(em.source, em.target, em.action,
+                                    TreeRef(em.tree.group, em.tree.name), em.cost, mapping,
+                                    em.feasible))
+    for i, bm in enumerate(model.behaviors):
+        if bm.name in sub.behaviors:
+            raise fail(f"behaviors[{i}].name", f"duplicate behavior {bm.name!r}")
+        for j, step in enumerate([bm.start, *bm.steps]):
+            if step not in sub.configurations:
+                field = "start" if j == 0 else f"steps[{j - 1}]"
+                raise fail(f"behaviors[{i}].{field}", f"unknown configuration {step!r}")
+        commands = tuple(CommandGain(c.module, c.command, tuple(sorted(c.gains.items())),
+                                     c.connector) for c in bm.commands)
+        sub.behaviors[bm.name] = Behavior(bm.name, bm.kind, bm.start, tuple(bm.steps), bm.loop,
+                                          tuple(bm.parameters), commands, bm.description)
+    return sub
+
+
+def library_from_model(model: LibraryFile, source: str | None = None) -> Library:
+    """A :class:`Library` from its file model; broken cross-references name their field."""
+    library = Library(model.robot, model.name, build=dict(model.build),
+                      description=model.description)
+    for i, sm in enumerate(model.sublibraries):
+        if sm.name in library.sublibraries:
+            raise LibraryError(f"duplicate sub-library {sm.name!r}", source=source,
+                               field=f"sublibraries[{i}].name")
+        library.sublibraries[sm.name] = _sublibrary_from_model(sm, f"sublibraries[{i}]", source)
+    return library
+
+
+# -- library -> model -----------------------------------------------------------------
+
+
+def _vec(v) -> list[float]:
+    return [float(c) for c in v]
+
+
+def _sublibrary_to_model(sub: SubLibrary) -> SubLibraryModel:
+    return SubLibraryModel(
+        name=sub.name,
+        groups=[GroupModel(id=g.id, name=g.name, description=g.description,
+                           reference=configuration_to_model(g.reference.skeletal()),
+                           trees=[TreeModel(name=n, tree=t) for n, t in g.trees.items()])
+                for g in sub.groups.values()],
+        configurations=[ConfigurationModel(
+            id=c.id, group=c.group, names=list(c.names), origins=list(c.origins),
+            z={e.id: _vec(e.z) for e in c.configuration.edges()})
+            for c in sub.configurations.values()],
+        behaviors=[BehaviorModel(
+            name=b.name, kind=b.kind, description=b.description, start=b.start,
+            steps=list(b.steps), loop=b.loop, parameters=list(b.parameters),
+            commands=[CommandModel(module=c.module, command=c.command, connector=c.connector,
+                                   gains=dict(c.gains)) for c in b.commands])
+            for b in sub.behaviors.values()],
+        edges=[EdgeModel(
+            source=e.source, target=e.target, action=e.action,
+            tree=TreeRefModel(group=e.tree.group, name=e.tree.name), cost=e.cost,
+            mapping=None if e.mapping is None else MappingModel(**e.mapping.to_dict()),
+            feasible=e.feasible) for e in sub.edges],
+    )
+
+
+def library_to_model(library: Library) -> LibraryFile:
+    """The file model of ``library``."""
+    return LibraryFile(schema_version=LIBRARY_SCHEMA_VERSION, robot=library.robot,
+                       name=library.name, description=library.description,
+                       build=library.build,
+                       sublibraries=[_sublibrary_to_model(s)
+                                     for s in library.sublibraries.values()])
+
+
+def dump_library(library: Library) -> str:
+    """The JSON text of ``library`` (stable: the same library gives the same text)."""
+    data = library_to_model(library).model_dump(mode="json")
+    return json.dumps(data, indent=1) + "\n"
+
+
+def save_library(library: Library, path: str | os.PathLike[str]) -> None:
+    """Write ``library`` to ``path`` atomically (temporary file, then rename)."""
+    atomic_write_text(path, dump_library(library))
+
+
+def load_library(path: str | os.PathLike[str]) -> Library:
+    """Read and validate a library file.
+
+    Raises:
+        LibraryError: missing file, bad or truncated JSON, a wrong field or a broken
+            cross-reference; the message names the file and the field.
+    """
+    source = str(path)
+    try:
+        model = parse_model(LibraryFile, read_json(path), source)
+    except LibraryError:
+        raise
+    except ConfigurationError as exc:
+        raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
+    return library_from_model(model, source)
+

@@ -1,0 +1,424 @@
+"""Design of the shipped FreeSN library sources (FreeSN paper, sections 6-7, Figs. 14-22).
+
+This script plays the part of the paper's library design tool (Fig. 13(a)): it lays
+out node positions [m] for every designed and recorded configuration, derives each
+strut's unit connection vector ``z`` from them (free struts get a designed
+direction), and writes the source files that ``platform library build`` turns
+into the shipped libraries::
+
+    python plugins/freesn/library_sources/design.py        # rewrite the sources
+    platform library build plugins/freesn/library_sources/S6N3/*.json \
+        -o plugins/freesn/libraries/S6N3.json              # and so on per sub-library
+
+Strut length is the FreeSN nominal 0.20 m; every closed loop therefore closes
+geometrically. Sequences record the intermediate configurations at topology
+changes (section 6.2): the system first reaches ``S_conn`` (the free connector
+pointing at the node it docks to) and then connects with unchanged vectors; a
+disconnection keeps the vectors and the following moving step swings the strut.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+L = 0.20                 # strut length, node centre to node centre [m]
+R_NODE = 0.05            # node radius [m]
+R_WHEEL = 0.012          # connector wheel radius [m]
+UP = np.array([0.0, 0.0, 1.0])
+HERE = Path(__file__).parent
+
+
+def unit(v) -> list[float]:
+    v = np.asarray(v, dtype=float)
+    return [round(float(c), 12) for c in v / np.linalg.norm(v)]
+
+
+def horizontal(angle: float, down: float = 0.0) -> np.ndarray:
+    """A direction at azimuth ``angle`` [rad], tilted ``down`` [rad] below the horizon."""
+    return np.array([math.cos(angle) * math.cos(down), math.sin(angle) * math.cos(down),
+                     -math.sin(down)])
+
+
+def configuration(name: str, nodes: dict[str, np.ndarray], struts: list[tuple],
+                  description: str = "") -> dict:
+    """A configuration file model.
+
+    Args:
+        nodes: node id -> centre position [m].
+        struts: ``(id, source node, target node)`` for docked struts (z from positions)
+            or ``(id, source node, None, direction)`` for a strut with a free end.
+    """
+    modules = [{"id": n, "kind": "node", "position": [round(float(c), 12) for c in p]}
+               for n, p in nodes.items()]
+    connections = []
+    for strut in struts:
+        sid, source, target = strut[:3]
+        if target is None:
+            free = f"{sid}:b"
+            modules.append({"id": free, "kind": "virtual"})
+            z = unit(strut[3])
+            target = free
+        else:
+            z = unit(nodes[target] - nodes[source])
+        connections.append({"id": sid, "kind": "strut", "source": source, "target": target,
+                            "z": z})
+    return {"schema_version": 1, "robot": "freesn", "name": name, "description": description,
+            "modules": modules, "connections": connections}
+
+
+def step(config: dict, tree: str | None = None) -> dict:
+    return {"configuration": config} if tree is None else {"configuration": config,
+                                                           "tree": tree}
+
+
+def write(path: Path, data: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+
+
+def source(library: str, description: str, **parts) -> dict:
+    return {"schema_version": 1, "robot": "freesn", "library": library,
+            "description": description, **parts}
+
+
+def tree(name: str, joint_mode: str = "opposite_steering") -> dict:
+    return {"name": name, "joint_mode": joint_mode}
+
+
+# -- S6N3: triangle with three legs (Figs. 14, 15, 20) ----------------------------------
+
+
+def triangle(height: float = 0.0) -> dict[str, np.ndarray]:
+    r = L / math.sqrt(3.0)
+    return {f"N{i + 1}": np.array([r * math.cos(a), r * math.sin(a), height])
+            for i, a in enumerate(np.deg2rad([90.0, 210.0, 330.0]))}
+
+
+RING = [("S1", "N1", "N2"), ("S2", "N2", "N3"), ("S3", "N3", "N1")]
+LEGS = [("S4", "N1"), ("S5", "N2"), ("S6", "N3")]
+DOCK = {"S4": "N2", "S5": "N3", "S6": "N1"}   # each leg docks to the next node
+
+
+def s6n3_state(name: str, docked: set[str], aimed: set[str], *, standing: bool = False,
+               description: str = "") -> dict:
+    """Triangle N1 N2 N3 (struts S1-S3) with legs S4-S6 on N1-N3.
+
+    Legs in ``docked`` are connected to the next node; legs in ``aimed`` point at it
+    (``S_conn``); the others point outward, down to the floor when ``standing``.
+    """
+    nodes = triangle(height=L * 0.7 if standing else 0.0)
+    struts: list[tuple] = list(RING)
+    for leg, at in LEGS:
+        out = math.atan2(nodes[at][1], nodes[at][0])
+        if leg in docked:
+            struts.append((leg, at, DOCK[leg]))
+        elif leg in aimed:
+            struts.append((leg, at, None, nodes[DOCK[leg]] - nodes[at]))
+        else:
+            struts.append((leg, at, None, horizontal(out, math.radians(45 if standing else 0))))
+    return configuration(name, nodes, struts, description)
+
+
+def s6n3() -> None:
+    out = HERE / "S6N3"
+    a = s6n3_state("fig20a", set(), set(), standing=True,
+                   description="Fig. 20(a): triangle standing on three legs")
+    flat = s6n3_state("flat", set(), set(), description="triangle lying flat, legs outward")
+    groups = [
+        {"name": "triangle-three-legs", "description": "Fig. 14(a) group 1: a triangle, one "
+         "free leg per node", "reference": a, "trees": [tree("K1")]},
+        {"name": "one-leg-docked", "description": "group 2: one leg docked to the next node",
+         "reference": s6n3_state("ref2", {"S4"}, set()), "trees": [tree("K1")]},
+        {"name": "two-legs-docked", "description": "group 3: two legs docked",
+         "reference": s6n3_state("ref3", {"S4", "S5"}, set()), "trees": [tree("K1")]},
+        {"name": "double-triangle", "description": "group 4: every leg docked, a doubled "
+         "triangle (Fig. 20(d))", "reference": s6n3_state("fig20d", {"S4", "S5", "S6"}, set()),
+         "trees": [tree("K1")]},
+    ]
+    write(out / "designs.json", source("S6N3", "FreeSN sub-library S6N3 (paper Figs. 14, 15, "
+                                       "20): six struts, three nodes", groups=groups))
+    forward = [a, flat,
+               s6n3_state("aim-S4", set(), {"S4"}), s6n3_state("dock-S4", {"S4"}, set()),
+               s6n3_state("aim-S5", {"S4"}, {"S5"}), s6n3_state("dock-S5", {"S4", "S5"}, set()),
+               s6n3_state("aim-S6", {"S4", "S5"}, {"S6"}),
+               s6n3_state("fig20d", {"S4", "S5", "S6"}, set())]
+    back = [s6n3_state("fig20d", {"S4", "S5", "S6"}, set()),
+            s6n3_state("aim-S6", {"S4", "S5"}, {"S6"}), s6n3_state("free-S6", {"S4", "S5"}, set()),
+            s6n3_state("aim-S5", {"S4"}, {"S5"}), s6n3_state("free-S5", {"S4"}, set()),
+            s6n3_state("aim-S4", set(), {"S4"}), flat, a]
+    sequences = [
+        {"name": "fig20-a-to-d", "description": "Fig. 20(a)-(d): dock the three legs one by one",
+         "steps": [step(c) for c in forward]},
+        {"name": "fig20-d-to-h", "description": "Fig. 20(d)-(h): undock back to the legs",
+         "steps": [step(c) for c in back]},
+    ]
+    # wheeled move on the doubled triangle: the outer struts' wheels roll on the floor
+    behaviors = [{
+        "name": "wheeled-move", "start": "fig20d",
+        "description": "Fig. 15: system speed [m/s] and yaw rate [rad/s] to wheel speeds [rad/s]",
+        "parameters": ["speed", "yaw_rate"],
+        "commands": wheel_commands(triangle(), DOCK_STRUTS),
+    }]
+    write(out / "sequences.json", source("S6N3", "recorded sequences of S6N3",
+                                         sequences=sequences, behaviors=behaviors))
+
+
+DOCK_STRUTS = {"S4": ("N1", "N2"), "S5": ("N2", "N3"), "S6": ("N3", "N1")}
+
+
+def wheel_commands(nodes: dict[str, np.ndarray], struts: dict[str, tuple[str, str]]
+                   ) -> list[dict]:
+    """Differential-drive gains of strut wheels rolling on the floor (Fig. 18(d)-(f)).
+
+    A strut whose axis makes angle ``phi`` with the driving direction x rolls its
+    wheels along its normal; its wheel speed for body speed ``v`` and yaw rate ``w``
+    is ``(v sin(phi) + w d) / r`` with ``d`` the lever arm of its middle about the
+    centre.
+    """
+    centre = np.mean(list(nodes.values()), axis=0)
+    commands = []
+    for sid, (s, t) in struts.items():
+        axis = nodes[t] - nodes[s]
+        axis = axis / np.linalg.norm(axis)
+        middle = (nodes[s] + nodes[t]) / 2 - centre
+        lever = float(np.cross(axis, middle)[2])
+        for end in ("source", "target"):
+            commands.append({"module": sid, "command": "wheel_speed", "connector": end,
+                             "gains": {"speed": round(float(axis[1]) / R_WHEEL, 9) or 0.0,
+                                       "yaw_rate": round(lever / R_WHEEL, 9) or 0.0}})
+    return commands
+
+
+# -- S4N5: standup and wheels (Fig. 18(a)-(c)), squirm and crawl (Fig. 19) --------------
+
+
+def star(name: str, centre_height: float, azimuths: list[float], description: str = "") -> dict:
+    """Centre N0, struts S1-S4 to leaf nodes N1-N4 at the given azimuths [deg]."""
+    nodes = {"N0": np.array([0.0, 0.0, centre_height])}
+    horizontal_reach = math.sqrt(max(L * L - centre_height * centre_height, 0.0))
+    for i, az in enumerate(azimuths):
+        a = math.radians(az)
+        nodes[f"N{i + 1}"] = np.array([horizontal_reach * math.cos(a),
+                                       horizontal_reach * math.sin(a), 0.0])
+    struts = [(f"S{i + 1}", "N0", f"N{i + 1}") for i in range(len(azimuths))]
+    return configuration(name, nodes, struts, description)
+
+
+def chain(name: str, hump: float, description: str = "") -> dict:
+    """Nodes N1-N5 along x, struts S1-S4; the middle node N3 raised by ``hump`` [m]."""
+    rise = min(hump, L * 0.9)
+    run = math.sqrt(L * L - rise * rise)
+    xs = [0.0, L, L + run, L + 2 * run, 2 * L + 2 * run]
+    zs = [0.0, 0.0, rise, 0.0, 0.0]
+    nodes = {f"N{i + 1}": np.array([x, 0.0, z]) for i, (x, z) in enumerate(zip(xs, zs,
+                                                                               strict=True))}
+    struts = [(f"S{i + 1}", f"N{i + 1}", f"N{i + 2}") for i in range(4)]
+    return configuration(name, nodes, struts, description)
+
+
+def s4n5() -> None:
+    out = HERE / "S4N5"
+    square = [45.0, 135.0, 225.0, 315.0]
+    flat = star("star-flat", 0.0, square, "four struts lying flat around the centre node")
+    stand = star("standup", L * math.sin(math.radians(40)), square,
+                 "Fig. 18(a)-(c): standing on the four leaf nodes")
+    groups = [
+        {"name": "star", "description": "a centre node with four struts to leaf nodes",
+         "reference": flat, "trees": [tree("K1")]},
+        {"name": "chain", "description": "five nodes in a row, squirming (Fig. 19(a)-(e))",
+         "reference": chain("chain-flat", 0.0), "trees": [tree("K1"), tree("K2")]},
+    ]
+    write(out / "designs.json", source("S4N5", "FreeSN sub-library S4N5 (paper Figs. 18, 19): "
+                                       "four struts, five nodes", groups=groups))
+    h = L * math.sin(math.radians(40))
+    crawl = [stand,
+             star("crawl-reach", h, [30.0, 150.0, 225.0, 315.0], "front legs reach forward"),
+             star("crawl-pull", h * 0.9, [60.0, 120.0, 210.0, 330.0], "pull, rear legs push")]
+    sequences = [
+        {"name": "standup", "description": "Fig. 18(a): stand up from lying flat",
+         "steps": [step(flat), step(stand)]},
+        {"name": "crawl", "behavior": "crawl", "loop": True,
+         "description": "Fig. 19(f)-(j): crawl with the four leaf struts as legs",
+         "steps": [step(c) for c in crawl]},
+        {"name": "squirm", "behavior": "squirm", "loop": True,
+         "description": "Fig. 19(a)-(e): squirm up and down with alternating trees",
+         "steps": [step(chain("squirm-up", 0.08, "middle node raised"), "K1"),
+                   step(chain("squirm-down", 0.0, "flat"), "K2")]},
+    ]
+    nodes = {f"N{i + 1}": np.array([L * math.cos(math.radians(a)), L * math.sin(math.radians(a)),
+                                    0.0]) for i, a in enumerate(square)}
+    commands = []
+    for i in range(4):
+        leaf = nodes[f"N{i + 1}"]
+        side = 1.0 if leaf[1] > 0 else -1.0
+        # the connector on the leaf node spins the node about the strut axis
+        commands.append({"module": f"S{i + 1}", "command": "wheel_speed", "connector": "target",
+                         "gains": {"speed": round(side / R_WHEEL, 9),
+                                   "yaw_rate": round(float(np.hypot(*leaf[:2])) / R_WHEEL, 9)}})
+    behaviors = [{"name": "node-wheels", "start": "standup", "parameters": ["speed", "yaw_rate"],
+                  "description": "Fig. 18(a)-(c): the four leaf nodes driven as wheels",
+                  "commands": commands}]
+    write(out / "sequences.json", source("S4N5", "recorded sequences of S4N5",
+                                         sequences=sequences, behaviors=behaviors))
+
+
+# -- S12N6: octahedron, hexagonal star, tree (Figs. 21, 22) -----------------------------
+
+
+def octahedron_nodes() -> dict[str, np.ndarray]:
+    """Antiprism layout: bottom face B1-B3 on the floor, top face T1-T3 turned by 60 deg."""
+    r = L / math.sqrt(3.0)
+    height = L * math.sqrt(2.0 / 3.0)
+    nodes = {}
+    for i in range(3):
+        a = math.radians(90 + 120 * i)
+        nodes[f"B{i + 1}"] = np.array([r * math.cos(a), r * math.sin(a), 0.0])
+        a = math.radians(30 + 120 * i)
+        nodes[f"T{i + 1}"] = np.array([r * math.cos(a), r * math.sin(a), height])
+    return nodes
+
+
+# The Hamiltonian zig-zag cycle T1-B2-T2-B3-T3-B1 plays the hexagon ring R1-R6; chords C1-C6
+# join every other ring node (i -> i+2), so ring + chords is the octahedron.
+RING_NODES = ["T1", "B2", "T2", "B3", "T3", "B1"]
+
+
+def ring_struts() -> list[tuple]:
+    return [(f"R{i + 1}", RING_NODES[i], RING_NODES[(i + 1) % 6]) for i in range(6)]
+
+
+def chord(i: int) -> tuple[str, str, str]:
+    return (f"C{i + 1}", RING_NODES[i], RING_NODES[(i + 2) % 6])
+
+
+def octa_state(name: str, docked: set[int], description: str = "") -> dict:
+    """The octahedron layout with chords not in ``docked`` free, aimed at their node."""
+    nodes = octahedron_nodes()
+    struts = ring_struts()
+    for i in range(6):
+        cid, s, t = chord(i)
+        struts.append((cid, s, t) if i in docked else (cid, s, None, nodes[t] - nodes[s]))
+    return configuration(name, nodes, struts, description)
+
+
+def octa_legs_down(name: str, docked: set[int], description: str = "") -> dict:
+    """Octahedron layout, free chords pointing down-outward to the floor (wheels)."""
+    nodes = octahedron_nodes()
+    struts = ring_struts()
+    for i in range(6):
+        cid, s, t = chord(i)
+        if i in docked:
+            struts.append((cid, s, t))
+        else:
+            out = math.atan2(nodes[s][1], nodes[s][0])
+            struts.append((cid, s, None, horizontal(out, math.radians(60))))
+    return configuration(name, nodes, struts, description)
+
+
+def hex_nodes(open_gap: float = 0.0) -> dict[str, np.ndarray]:
+    """The ring nodes on a flat regular hexagon of side L (opened by ``open_gap`` [rad])."""
+    nodes = {}
+    for i, n in enumerate(RING_NODES):
+        a = math.radians(60 * i) + open_gap * (i / 5.0 - 0.5)
+        nodes[n] = np.array([L * math.cos(a), L * math.sin(a), 0.0])
+    return nodes
+
+
+def hex_star(name: str, description: str = "", *, aimed: bool = False,
+             open_ring: bool = False) -> dict:
+    """Flat hexagon ring R1-R6 with the chords C1-C6 as outward legs (Fig. 21(a)).
+
+    ``aimed``: the chords point at the node they dock to in the octahedron (after the
+    ring is folded, see :func:`octa_state`). ``open_ring``: R6 is undocked from T1.
+    """
+    nodes = hex_nodes()
+    struts = ring_struts()
+    if open_ring:
+        struts[5] = ("R6", RING_NODES[5], None, nodes["T1"] - nodes["B1"])
+    for i in range(6):
+        cid, s, t = chord(i)
+        out = math.atan2(nodes[s][1], nodes[s][0])
+        struts.append((cid, s, None, horizontal(out)))
+    return configuration(name, nodes, struts, description)
+
+
+def tree_state(name: str, description: str = "") -> dict:
+    """The open ring stretched into a zig-zag line with its legs (Fig. 21(e))."""
+    nodes = {}
+    for i, n in enumerate(RING_NODES):
+        nodes[n] = np.array([i * L * math.cos(math.radians(30)),
+                             (i % 2) * L * math.sin(math.radians(30)), 0.0])
+    struts: list[tuple] = ring_struts()[:5]
+    struts.append(("R6", "B1", None, [1.0, 0.0, 0.0]))
+    for i in range(6):
+        cid, s, _ = chord(i)
+        struts.append((cid, s, None, [0.0, 1.0 if i % 2 else -1.0, 0.0]))
+    return configuration(name, nodes, struts, description)
+
+
+def s12n6() -> None:
+    out = HERE / "S12N6"
+    octa = octa_state("fig22a", set(range(6)), "Fig. 22(a): octahedron")
+    star_ = hex_star("fig21a", "Fig. 21(a): hexagonal star")
+    groups = [
+        {"name": "octahedron", "description": "Fig. 22(a): twelve struts, every node degree 4",
+         "reference": octa, "trees": [tree("K1")]},
+        {"name": "hexagonal-star", "description": "Fig. 21(a): hexagon ring with six legs",
+         "reference": star_, "trees": [tree("K1")]},
+        {"name": "tree", "description": "Fig. 21(e): the opened ring, a tree",
+         "reference": tree_state("fig21e"), "trees": [tree("K1")]},
+        {"name": "open-face", "description": "Fig. 22(e): octahedron with one face's struts "
+         "free as wheels", "reference": octa_legs_down("fig22e", {1, 3, 5}),
+         "trees": [tree("K1")]},
+        {"name": "open-face-and-edge", "description": "Fig. 22(j): one more bottom strut free",
+         "reference": octa_legs_down("fig22j", {1, 3}), "trees": [tree("K1")]},
+    ]
+    write(out / "designs.json", source("S12N6", "FreeSN sub-library S12N6 (paper Figs. 18, 21, "
+                                       "22): twelve struts, six nodes", groups=groups))
+    sequences = [
+        {"name": "fig21-star-to-tree", "description": "Fig. 21(a)-(e): open the ring",
+         "steps": [step(star_), step(hex_star("ring-open", open_ring=True)),
+                   step(tree_state("fig21e"))]},
+        {"name": "fig21-tree-to-star", "description": "Fig. 21(e)-(i): close the ring again",
+         "steps": [step(tree_state("fig21e")), step(hex_star("ring-aim", open_ring=True)),
+                   step(star_)]},
+        {"name": "star-to-octahedron", "description": "fold the ring and dock the legs in "
+         "two parallel connections",
+         "steps": [step(star_), step(octa_state("folded", set())),
+                   step(octa_state("three-docked", {1, 3, 5})), step(octa)]},
+        {"name": "fig22-a-to-e", "description": "Fig. 22(a)-(e): free one face in parallel, "
+         "legs down",
+         "steps": [step(octa), step(octa_state("face-free", {1, 3, 5})),
+                   step(octa_legs_down("fig22e", {1, 3, 5}))]},
+        {"name": "fig22-e-to-j", "description": "Fig. 22(f)-(j): free one more strut",
+         "steps": [step(octa_legs_down("fig22e", {1, 3, 5})),
+                   step(octa_state("aim-j", {1, 3})), step(octa_legs_down("fig22j", {1, 3}))]},
+        {"name": "fig22-j-to-a", "description": "Fig. 22(k)-(p): back to the octahedron",
+         "steps": [step(octa_legs_down("fig22j", {1, 3})), step(octa_state("aim-j", {1, 3})),
+                   step(octa_state("three-docked-j", {1, 3, 5})), step(octa)]},
+    ]
+    nodes = octahedron_nodes()
+    wheels = {cid: (s, t) for cid, s, t in (chord(i) for i in (0, 2, 4))}
+    behaviors = [
+        {"name": "wheeled-move", "start": "fig22e", "parameters": ["speed", "yaw_rate"],
+         "description": "Fig. 18(g)-(i), 22(e): free struts rolled as wheels",
+         "commands": wheel_commands(nodes, wheels)},
+        {"name": "node-wheels", "start": "fig22j", "parameters": ["speed", "yaw_rate"],
+         "description": "Fig. 22(j): nodes driven as wheels by their ring struts",
+         "commands": [{"module": rid, "command": "wheel_speed", "connector": "target",
+                       "gains": {"speed": round(float(np.cos(k * 2.0944)) / R_WHEEL, 9),
+                                 "yaw_rate": round(L / math.sqrt(3.0) / R_WHEEL, 9)}}
+                      for k, rid in enumerate(("R1", "R3", "R5"))]},
+    ]
+    write(out / "sequences.json", source("S12N6", "recorded sequences of S12N6",
+                                         sequences=sequences, behaviors=behaviors))
+
+
+if __name__ == "__main__":
+    s6n3()
+    s4n5()
+    s12n6()
