@@ -110,7 +110,7 @@ class _Builder:
         self.threshold = threshold
         self.progress = progress or (lambda _: None)
         self.library = Library(sources.robot, sources.name, description=sources.description,
-                               build={"merge_threshold": threshold,
+                               build={"merge_threshold": threshold, "cost": engine.cost_kind(),
                                       "sources": [{"file": f, "sha256": h}
                                                   for f, h in sources.files]})
         self.named: dict[str, _Placement] = {}

@@ -25,6 +25,7 @@ __all__ = [
     "MATCH_CONFIDENCE",
     "MatchOutcome",
     "best_match",
+    "cost_kind",
     "design_tree",
     "ik_cost",
     "load_tree",
@@ -39,6 +40,9 @@ MATCH_TIME_BUDGET = 30.0
 """Time budget [s] of one match; generous, so results do not depend on machine load."""
 
 IK_SEED = 0
+
+COST_IK = "ik"
+COST_DISTANCE = "distance"
 
 
 @dataclass(frozen=True)
@@ -64,7 +68,7 @@ def design_tree(reference: Configuration, designed: DesignedTree) -> dict:
     A designed tree is a serialised tree (checked by loading it on ``reference``) or a
     joint mode for the default tree of ``reference``.
     """
-    from ..kinematics import KinematicTree, default_tree
+    from ..kinematics.tree import KinematicTree, default_tree
 
     try:
         if designed.tree is not None:
@@ -78,7 +82,7 @@ def design_tree(reference: Configuration, designed: DesignedTree) -> dict:
 
 def load_tree(tree: dict, config: Configuration) -> Any:
     """A :class:`~msrr.core.kinematics.KinematicTree` from its serialised form."""
-    from ..kinematics import KinematicTree
+    from ..kinematics.tree import KinematicTree
 
     return KinematicTree.from_dict(tree, config)
 
@@ -90,7 +94,7 @@ def tree_in_ids(tree: dict, mapping: ModuleMap, config: Configuration) -> Any:
     mapped with ``inv`` has its ends swapped. Loading checks the renamed topology
     against ``config``.
     """
-    from ..kinematics import KinematicTree
+    from ..kinematics.tree import KinematicTree
 
     return KinematicTree.from_dict(rename_tree(tree, mapping), config)
 
@@ -116,8 +120,29 @@ def rename_tree(tree: dict, mapping: ModuleMap) -> dict:
     return out
 
 
+def cost_kind() -> str:
+    """``"ik"`` when the full-body inverse kinematics is installed, else ``"distance"``.
+
+    Without the kinematics the eq. 8 aligned distance stands in for the motion cost,
+    as in the matcher; a library records which one it was built with.
+    """
+    try:
+        from ..kinematics import IKOptions, solve_ik  # noqa: F401
+    except ImportError:
+        return COST_DISTANCE
+    return COST_IK
+
+
 def ik_cost(tree: dict, current: Configuration, target: Configuration) -> float:
-    """Inverse-kinematics motion cost from ``current`` to ``target`` (same ids and topology)."""
+    """Motion cost from ``current`` to ``target`` (same ids and topology), section 3.4.
+
+    The full-body IK cost (eq. 6), or the eq. 8 aligned distance when the kinematics is
+    not installed (see :func:`cost_kind`).
+    """
+    if cost_kind() == COST_DISTANCE:
+        from ..matching import distance_cost
+
+        return float(distance_cost(target, None, current))
     from ..kinematics import IKOptions, solve_ik
 
     solution = solve_ik(load_tree(tree, target), current, target,
