@@ -137,7 +137,8 @@ def to_tree(config: Configuration) -> TreeConversion:
                                                           (e.target, e.ports[1])])):
         a, b = find(e.source), find(e.target)
         if a == b:
-            virtual.append((e.source, e.ports[0], e.target, e.ports[1]))
+            (u, fu), (v, fv) = sorted([(e.source, e.ports[0]), (e.target, e.ports[1])])
+            virtual.append((u, fu, v, fv))
             continue
         parent[a] = b
         tree.connect(e.source, e.target, id=e.id, z=e.z, x=e.x, ports=e.ports)
