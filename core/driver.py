@@ -77,12 +77,17 @@ class Observation:
         time: driver time since :meth:`Driver.reset` [s].
         poses: world pose of every module body.
         sensors: raw data for the robot's recognizer (MMRP: per module, per face,
-            the ``(other module, other face)`` it is latched to, or ``None``).
+            the ``(other module, other face)`` it is latched to, or ``None``);
+            a mapping keyed by module id when ``groups`` is given.
+        groups: module sets that are physically separate systems (connected
+            components after undocking); each is recognized on its own, with the
+            ``sensors`` entries of its modules. Empty: one system.
     """
 
     time: float
     poses: Mapping[str, Pose]
     sensors: Any
+    groups: tuple[frozenset[str], ...] = ()
 
 
 class Driver(ABC):

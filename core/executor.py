@@ -256,7 +256,14 @@ class Executor:
         return not topology_diff(configuration, self._phase_goal(phase, diff))
 
     def _recognize(self, observation: Observation) -> Configuration:
-        return self.recognizer.recognize(observation.sensors, seed=self.run.seed)
+        """The recognized configuration; separate groups recognized one by one and joined."""
+        if len(observation.groups) <= 1:
+            return self.recognizer.recognize(observation.sensors, seed=self.run.seed)
+        parts = [self.recognizer.recognize({m: observation.sensors[m] for m in sorted(group)},
+                                           seed=self.run.seed)
+                 for group in observation.groups]
+        return _union(parts, self.run.plan.start)
+
 
     def _detect_changes(self, index: int, configuration: Configuration) -> None:
         assert self._current is not None
@@ -272,3 +279,15 @@ class Executor:
                 if not event.expected:
                     raise _ActionFailed(f"action {index}: unexpected {event} detected at "
                                         f"t={event.time:.1f} s")
+
+
+def _union(parts: list[Configuration], like: Configuration) -> Configuration:
+    """The disjoint union of recognized parts, named after ``like``."""
+    whole = Configuration(like.robot, name=like.name)
+    for part in parts:
+        for vertex in part.vertices():
+            whole.add_module(vertex, part.kind_of(vertex), position=part.position(vertex))
+    for part in parts:
+        for e in part.edges():
+            whole.connect(e.source, e.target, kind=e.kind, z=e.z, x=e.x, ports=e.ports)
+    return whole

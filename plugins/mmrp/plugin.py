@@ -48,3 +48,19 @@ def msrr_scenarios(robot: str, register):
         register(Scenario(name="series-t",
                           description="series to T, 4 modules (paper Figs. 17-18)",
                           start=CONFIGS / "series.json", goal=CONFIGS / "t.json"))
+
+
+@hookimpl
+def msrr_drivers(robot: str, register):
+    if robot == SPEC.name:
+        from .sim import MmrpSimDriver
+
+        register(MmrpSimDriver)
+
+
+@hookimpl
+def msrr_controllers(robot: str, register):
+    if robot == SPEC.name:
+        from .sim import MmrpController
+
+        register(MmrpController())

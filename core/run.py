@@ -1,0 +1,166 @@
+"""Orchestration of ``platform run``: scenario -> plan -> execute -> files.
+
+Planning happens before anything is written, so an unreachable goal (different
+module counts, an illegal face pair) fails with a one-line error and leaves no
+folder and no half recording. A run writes into its folder:
+
+* ``run.rrd`` -- the rerun recording (via the timeline plugin), unless ``log=False``;
+* ``plan.json`` -- the executed plan (:func:`msrr.core.plan.save_plan`);
+* ``summary.json`` -- the :class:`~msrr.core.events.RunResult` numbers.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from . import plugins
+from .errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
+from .events import Run, RunResult
+from .executor import Executor, ExecutorOptions
+from .files import atomic_write_text
+from .io import load_configuration
+from .plan import Plan, save_plan
+from .scenario import Scenario
+
+__all__ = ["RunRequest", "default_out_dir", "execute_run", "prepare_run", "resolve_scenario",
+           "write_outputs"]
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    """What the user asked for (``platform run`` options).
+
+    Attributes:
+        robot: robot name.
+        scenario: scenario name; ``None`` for the robot's default (unless files are given).
+        start: start configuration file (with ``goal``, instead of a scenario).
+        goal: goal configuration file.
+        seed: seed of planning and recognition.
+        out: output folder; default ``runs/<timestamp>-<robot>-<scenario>``.
+        log: write the rerun recording.
+        gui: open the simulator's GUI.
+        rate: control rate [Hz].
+        action_timeout: driver time one action phase may take [s].
+        driver: driver name (default: the robot's first).
+        planner: planner name (default: the robot's first).
+    """
+
+    robot: str
+    scenario: str | None = None
+    start: Path | None = None
+    goal: Path | None = None
+    seed: int = 0
+    out: Path | None = None
+    log: bool = True
+    gui: bool = False
+    rate: float = 10.0
+    action_timeout: float = 90.0
+    driver: str | None = None
+    planner: str | None = None
+
+
+def resolve_scenario(robot: str, name: str | None) -> Scenario:
+    """The scenario ``name`` of ``robot``, or its default one."""
+    found = plugins.scenarios(robot)
+    if name is not None:
+        if name not in found:
+            raise UnknownNameError(f"scenario for robot {robot!r}", name, found)
+        return found[name]
+    for scenario in found.values():
+        if scenario.default:
+            return scenario
+    if found:
+        return next(iter(found.values()))
+    raise UnknownNameError(f"scenario for robot {robot!r}", "(default)", ())
+
+
+def default_out_dir(robot: str, scenario: str, root: Path = Path("runs")) -> Path:
+    """``runs/<YYYYmmdd-HHMMSS>-<robot>-<scenario>``."""
+    return root / f"{datetime.now():%Y%m%d-%H%M%S}-{robot}-{scenario}"
+
+
+def prepare_run(request: RunRequest) -> Run:
+    """Load the configurations and plan; nothing is written.
+
+    Raises:
+        ConfigurationError: a file is missing or invalid.
+        PlanningError: the goal cannot be reached.
+        UnknownNameError: unknown scenario, planner or driver.
+    """
+    plugins.robot(request.robot)
+    if (request.start is None) != (request.goal is None):
+        raise ConfigurationError("give both --from and --to, or neither")
+    if request.start is not None and request.goal is not None:
+        if request.scenario is not None:
+            raise ConfigurationError("give --scenario or --from/--to, not both")
+        name, start_path, goal_path = "custom", request.start, request.goal
+    else:
+        scenario = resolve_scenario(request.robot, request.scenario)
+        name, start_path, goal_path = scenario.name, scenario.start, scenario.goal
+    start, goal = load_configuration(start_path), load_configuration(goal_path)
+    for config, path in ((start, start_path), (goal, goal_path)):
+        if config.robot != request.robot:
+            raise ConfigurationError(f"is a {config.robot!r} configuration, not "
+                                     f"{request.robot!r}", source=str(path))
+    factory = plugins.drivers.get(request.robot, request.driver)
+    plugins.controllers.get(request.robot)
+    plugins.recognizers.get(request.robot)
+    planner = plugins.planners.get(request.robot, request.planner)
+    plan: Plan = planner.plan(start, goal, seed=request.seed)
+    spec = plugins.robot(request.robot)
+    kinds = {k.name: k for k in spec.module_kinds}
+    first = kinds[start.kind_of(start.vertices()[0])]
+    size = tuple(float(first.geometry.get(k, d)) for k, d in
+                 (("length", 0.2), ("width", 0.2), ("height", 0.1)))
+    ports = {k.name: {p.name: (tuple(p.normal or (0.0, 0.0, 0.0)), p.role) for p in k.ports}
+             for k in spec.module_kinds}
+    out = request.out or default_out_dir(request.robot, name)
+    return Run(robot=request.robot, scenario=name, plan=plan, driver=factory.name,
+               rate=request.rate, seed=request.seed, out_dir=out,
+               recording=out / "run.rrd" if request.log else None,
+               module_size=size, ports=ports)  # type: ignore[arg-type]
+
+
+def execute_run(run: Run, request: RunRequest) -> RunResult:
+    """Execute ``run.plan`` on a fresh driver; fires every run event.
+
+    The run always ends with ``msrr_on_run_end`` (also when interrupted), so
+    listeners close their files.
+    """
+    factory = plugins.drivers.get(run.robot, request.driver)
+    recognizer = plugins.recognizers.get(run.robot)
+    controller = plugins.controllers.get(run.robot)
+    options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
+    with factory(gui=request.gui, seed=request.seed) as driver:
+        driver.reset(run.plan.start)
+        executor = Executor(run, driver, recognizer, controller, options)
+        plugins.emit.run_start(run)
+        result = RunResult(success=False, reason="interrupted",
+                           actions_total=len(run.plan.actions))
+        try:
+            result = executor.execute()
+        except MsrrError as exc:
+            result.reason = str(exc)
+            raise
+        except BaseException as exc:
+            result.reason = f"interrupted: {type(exc).__name__}"
+            raise
+        finally:
+            plugins.emit.run_end(run, result)
+    return result
+
+
+def write_outputs(run: Run, result: RunResult) -> None:
+    """Write ``plan.json`` and ``summary.json`` into ``run.out_dir``."""
+    if run.out_dir is None:
+        raise ExecutionError("run has no output folder")
+    save_plan(run.plan, run.out_dir / "plan.json")
+    summary = {"robot": run.robot, "scenario": run.scenario, "planner": run.plan.planner,
+               "driver": run.driver, "seed": run.seed, "rate_hz": run.rate,
+               "planned_docks": run.plan.docks, "planned_undocks": run.plan.undocks,
+               "recording": None if run.recording is None else run.recording.name,
+               **result.summary()}
+    atomic_write_text(run.out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")

@@ -1,0 +1,267 @@
+"""The MMRP controller: drives module groups to goal poses and docks them.
+
+Per moving group (modules docked together), the centroid is steered like a
+tracked vehicle (forward speed and yaw rate only):
+
+1. ``path`` -- follow a grid A* path around the other modules (pure pursuit,
+   forwards or backwards) to the pre-goal point, ``approach_distance`` before the
+   goal along the goal heading;
+2. ``align`` -- turn in place to the goal heading;
+3. ``line`` -- drive straight along the goal heading onto the goal, correcting
+   lateral error; a lateral error larger than the latch tolerance near the goal
+   sends the group back to ``path``.
+
+The approach side (forwards onto the goal, or backwards) is the one whose final
+straight line keeps clear of the other modules, so L-R docks slide in alongside
+the partner and T-B docks come straight at it. In the ``approach`` and ``connect``
+phases of a connection, the goal is recomputed from the partner's *measured* pose
+(S_conn), and in ``connect`` pushed ``extrusion`` metres further (S_extr), so the
+latch sees the faces aligned even if the structure drifted.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from msrr.core.control import Control
+from msrr.core.driver import ModuleCommand, Observation
+from msrr.core.events import Phase
+from msrr.core.plan import Action
+
+from ..robot import MODULE
+from .geometry import neighbour_pose, track_speeds, wrap
+from .paths import plan_path, segment_clearance
+
+__all__ = ["MmrpController"]
+
+Pose2 = tuple[float, float, float]
+
+
+@dataclass
+class _GroupPlan:
+    """What one group is doing: its members' targets and the current stage."""
+
+    modules: list[str]
+    targets: dict[str, Pose2]
+    sign: float
+    stage: str = "path"
+    waypoints: list[tuple[float, float]] = field(default_factory=list)
+
+    @property
+    def centre(self) -> Pose2:
+        pts = np.array([self.targets[m][:2] for m in self.modules])
+        c = pts.mean(axis=0)
+        return float(c[0]), float(c[1]), self.targets[self.modules[0]][2]
+
+
+def _planar(observation: Observation) -> dict[str, Pose2]:
+    return {m: (float(p.position[0]), float(p.position[1]), p.yaw)
+            for m, p in observation.poses.items()}
+
+
+def _components(observation: Observation) -> list[set[str]]:
+    graph = nx.Graph()
+    graph.add_nodes_from(observation.poses)
+    for module, faces in observation.sensors.items():
+        for link in faces.values():
+            if link is not None:
+                graph.add_edge(module, link[0])
+    return [set(c) for c in nx.connected_components(graph)]
+
+
+class MmrpController:
+    """Closed-loop group driving and docking for MMRP (registered as ``tracks``).
+
+    Args:
+        approach_distance: length of the final straight approach [m].
+        speed: cruise speed of a group centroid [m/s].
+        turn_rate: largest yaw rate [rad/s].
+        extrusion: how far past S_conn the connect phase pushes [m].
+        tolerance: reaching tolerance in position [m].
+        yaw_tolerance: reaching tolerance in heading [rad].
+    """
+
+    name = "tracks"
+    description = "group pure pursuit on grid A* paths, straight final approach, docking"
+
+    def __init__(self, *, approach_distance: float = 0.25, speed: float = 0.12,
+                 turn_rate: float = 0.8, extrusion: float = 0.004, tolerance: float = 0.003,
+                 yaw_tolerance: float = 0.012):
+        geometry = MODULE.geometry
+        self.pitch = float(geometry["pitch"])
+        self.width = float(geometry["width"])
+        self.half_diagonal = math.hypot(geometry["length"], geometry["width"]) / 2
+        self.lateral_limit = float(geometry["dock_tolerance"]) * 0.6
+        self.approach_distance = approach_distance
+        self.speed = min(speed, float(geometry["max_speed"]) * 0.8)
+        self.turn_rate = turn_rate
+        self.extrusion = extrusion
+        self.tolerance = tolerance
+        self.yaw_tolerance = yaw_tolerance
+        self.goals: dict[str, Pose2] = {}
+        self.plan: _GroupPlan | None = None
+
+    # -- setting up a phase ------------------------------------------------------------
+
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+        for module, goal in action.goals.items():
+            self.goals[module] = (float(goal[0]), float(goal[1]), float(goal[2]))
+        self.plan = None
+        poses = _planar(observation)
+        if phase is Phase.MOVE and action.goals:
+            targets = {m: self.goals[m] for m in action.goals}
+        elif phase in (Phase.APPROACH, Phase.CONNECT):
+            targets = self._connection_targets(action, phase, observation, poses)
+        else:
+            return
+        if not targets:
+            return
+        modules = sorted(targets)
+        others = [poses[m][:2] for m in poses if m not in targets]
+        plan = _GroupPlan(modules, targets, self._approach_sign(targets, others))
+        centre = self._current_centre(plan, poses)
+        target = plan.centre
+        if phase is not Phase.MOVE and math.dist(centre[:2], target[:2]) < 0.05 \
+                and abs(wrap(centre[2] - target[2])) < 0.1:
+            plan.stage = "line"
+        else:
+            self._plan_path(plan, poses)
+        self.plan = plan
+
+    def _connection_targets(self, action: Action, phase: Phase, observation: Observation,
+                            poses: Mapping[str, Pose2]) -> dict[str, Pose2]:
+        components = _components(observation)
+        targets: dict[str, Pose2] = {}
+        for change in action.changes:
+            if change.source_port is None or change.target_port is None:
+                continue
+            a, b = change.source, change.target
+            comp_a = next(c for c in components if a in c)
+            comp_b = next(c for c in components if b in c)
+            if comp_a is comp_b:
+                continue
+            if len(comp_a) < len(comp_b):
+                mover, partner, partner_face, group = a, b, change.target_port, comp_a
+            else:
+                mover, partner, partner_face, group = b, a, change.source_port, comp_b
+            reach = self.pitch - (self.extrusion if phase is Phase.CONNECT else 0.0)
+            goal = neighbour_pose(poses[partner], partner_face, reach)
+            now = poses[mover]
+            turn = wrap(goal[2] - now[2])
+            c, s = math.cos(turn), math.sin(turn)
+            for member in group:
+                dx, dy = poses[member][0] - now[0], poses[member][1] - now[1]
+                targets[member] = (goal[0] + c * dx - s * dy, goal[1] + s * dx + c * dy,
+                                   goal[2])
+        return targets
+
+    def _approach_sign(self, targets: Mapping[str, Pose2], others: list[tuple[float, float]]
+                       ) -> float:
+        best, best_clear = 1.0, -math.inf
+        for sign in (1.0, -1.0):
+            clear = math.inf
+            for x, y, yaw in targets.values():
+                back = (x - sign * self.approach_distance * math.cos(yaw),
+                        y - sign * self.approach_distance * math.sin(yaw))
+                clear = min(clear, segment_clearance(back, (x, y), others),
+                            segment_clearance(back, back, others) - 0.05)
+            if clear >= self.pitch - 0.03:
+                return sign
+            if clear > best_clear:
+                best, best_clear = sign, clear
+        return best
+
+    def _current_centre(self, plan: _GroupPlan, poses: Mapping[str, Pose2]) -> Pose2:
+        pts = np.array([poses[m][:2] for m in plan.modules])
+        c = pts.mean(axis=0)
+        return float(c[0]), float(c[1]), poses[plan.modules[0]][2]
+
+    def _pre_goal(self, plan: _GroupPlan) -> tuple[float, float]:
+        x, y, yaw = plan.centre
+        d = plan.sign * self.approach_distance
+        return x - d * math.cos(yaw), y - d * math.sin(yaw)
+
+    def _plan_path(self, plan: _GroupPlan, poses: Mapping[str, Pose2]) -> None:
+        centre = self._current_centre(plan, poses)
+        radius = max(math.dist(poses[m][:2], centre[:2]) for m in plan.modules)
+        others = [poses[m][:2] for m in poses if m not in plan.modules]
+        clearance = radius + 2 * self.half_diagonal + 0.03
+        plan.waypoints = plan_path(centre[:2], self._pre_goal(plan), others, clearance)
+        plan.stage = "path"
+
+    # -- one tick ---------------------------------------------------------------------
+
+    def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
+        plan = self.plan
+        if plan is None:
+            return Control(reached=True)
+        poses = _planar(observation)
+        centre = self._current_centre(plan, poses)
+        v, omega, reached = self._drive(plan, centre, poses)
+        commands = {}
+        for module in plan.modules:
+            r = np.subtract(poses[module][:2], centre[:2])
+            left_offset = float(-r[0] * math.sin(centre[2]) + r[1] * math.cos(centre[2]))
+            left, right = track_speeds(v, omega, left_offset, self.width)
+            commands[module] = ModuleCommand(wheels={"left": left, "right": right})
+        errors = {m: math.dist(poses[m][:2], plan.targets[m][:2]) for m in plan.modules}
+        return Control(commands=commands, errors=errors, reached=reached)
+
+    def _drive(self, plan: _GroupPlan, centre: Pose2, poses: Mapping[str, Pose2]
+               ) -> tuple[float, float, bool]:
+        target = plan.centre
+        if plan.stage == "path":
+            goal = plan.waypoints[-1]
+            if math.dist(centre[:2], goal) < 0.02:
+                plan.stage = "align"
+            else:
+                return (*self._pursue(plan, centre), False)
+        if plan.stage == "align":
+            error = wrap(target[2] - centre[2])
+            if abs(error) < self.yaw_tolerance:
+                plan.stage = "line"
+            else:
+                return 0.0, float(np.clip(2.0 * error, -self.turn_rate, self.turn_rate)), False
+        heading = np.array([math.cos(target[2]), math.sin(target[2])])
+        left = np.array([-heading[1], heading[0]])
+        delta = np.subtract(target[:2], centre[:2])
+        along, lateral = float(delta @ heading), float(delta @ left)
+        yaw_error = wrap(target[2] - centre[2])
+        if (abs(lateral) > self.lateral_limit * 2.5 and abs(along) < 0.08) or (
+                abs(lateral) > 2 * self.tolerance and abs(along) < 0.02):
+            self._plan_path(plan, poses)
+            return 0.0, 0.0, False
+        if abs(along) < self.tolerance and abs(lateral) < self.tolerance * 2 \
+                and abs(yaw_error) < self.yaw_tolerance:
+            return 0.0, 0.0, True
+        v = float(np.clip(0.8 * along, -self.speed * 0.6, self.speed * 0.6))
+        if abs(along) > self.tolerance / 2 and abs(v) < 0.01:
+            v = math.copysign(0.01, along)
+        if abs(along) <= self.tolerance / 2:
+            v = 0.0
+        omega = 2.5 * yaw_error + (12.0 * lateral * math.copysign(1.0, v) if v else 0.0)
+        return v, float(np.clip(omega, -self.turn_rate, self.turn_rate)), False
+
+    def _pursue(self, plan: _GroupPlan, centre: Pose2) -> tuple[float, float]:
+        here = np.array(centre[:2])
+        points = [np.array(w) for w in plan.waypoints]
+        nearest = min(range(len(points)), key=lambda i: float(np.linalg.norm(points[i] - here)))
+        plan.waypoints = plan.waypoints[nearest:]
+        points = points[nearest:]
+        aim = next((p for p in points if np.linalg.norm(p - here) > 0.12), points[-1])
+        bearing = math.atan2(aim[1] - here[1], aim[0] - here[0])
+        error = wrap(bearing - centre[2])
+        direction = 1.0
+        if abs(error) > math.pi / 2:
+            direction, error = -1.0, wrap(error + math.pi)
+        omega = float(np.clip(2.0 * error, -self.turn_rate, self.turn_rate))
+        if abs(error) > 0.35:
+            return 0.0, omega
+        distance = float(np.linalg.norm(points[-1] - here))
+        speed = min(self.speed, 0.6 * distance + 0.02) * math.cos(error)
+        return direction * speed, omega

@@ -1,0 +1,103 @@
+"""The MMRP PyBullet driver (registered as ``pybullet`` for robot ``mmrp``)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+from msrr.core.configuration import Configuration
+from msrr.core.driver import Driver, ModuleCommand, Observation, Pose
+from msrr.core.errors import ExecutionError
+
+from ..representation import layout
+from ..robot import MODULE
+from .world import MmrpWorld
+
+__all__ = ["MmrpSimDriver"]
+
+
+class MmrpSimDriver(Driver):
+    """MMRP modules simulated in PyBullet, headless unless ``gui=True``.
+
+    Args:
+        gui: open the PyBullet GUI (needs a display).
+        physics_rate: physics steps per second [Hz].
+        seed: unused by the deterministic simulation; kept for the factory interface.
+
+    Commands: ``wheels={"left": m/s, "right": m/s}`` track speeds (clipped to the
+    module's ``max_speed``), ``dock=(face, ...)`` arms a connector until it latches,
+    ``undock=(face, ...)`` releases it. Sensors: per module, per face, the
+    ``(module, face)`` latched to it, or ``None``.
+    """
+
+    name: ClassVar[str] = "pybullet"
+    description: ClassVar[str] = "PyBullet: tracked modules on a plane, faces latch as constraints"
+
+    def __init__(self, *, gui: bool = False, physics_rate: float = 240.0, seed: int = 0,
+                 **_: Any):
+        self.gui = gui
+        self.physics_rate = physics_rate
+        self.seed = seed
+        self.world: MmrpWorld | None = None
+        self.max_speed = float(MODULE.geometry["max_speed"])
+
+    @property
+    def is_connected(self) -> bool:
+        return self.world is not None
+
+    def connect(self) -> None:
+        if self.world is None:
+            self.world = MmrpWorld(MODULE.geometry, gui=self.gui, physics_rate=self.physics_rate)
+
+    def disconnect(self) -> None:
+        if self.world is not None:
+            self.world.close()
+            self.world = None
+
+    def _world(self) -> MmrpWorld:
+        self.require_connected()
+        assert self.world is not None
+        return self.world
+
+    def reset(self, start: Configuration) -> None:
+        """Rebuild the world with ``start`` laid out on the grid (root at the origin)."""
+        self.disconnect()
+        self.connect()
+        world = self._world()
+        for module, pose in layout(start).items():
+            world.add_module(module, pose)
+        for edge in start.edges():
+            if edge.ports is None:
+                raise ExecutionError(f"connection {edge.id} has no faces; cannot dock it")
+            world.latch(edge.source, edge.ports[0], edge.target, edge.ports[1])
+
+    def get_observation(self) -> Observation:
+        world = self._world()
+        poses = {m: Pose(*world.pose(m)) for m in world.bodies}
+        return Observation(time=world.time, poses=poses, sensors=world.links(),
+                           groups=tuple(frozenset(g) for g in world.groups()))
+
+    def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
+        world = self._world()
+        unknown = set(commands) - set(world.bodies)
+        if unknown:
+            raise ExecutionError(f"commands for unknown module(s) {sorted(unknown)}")
+        world.armed = set()
+        for module in world.bodies:
+            command = commands.get(module, ModuleCommand())
+            left = float(command.wheels.get("left", 0.0))
+            right = float(command.wheels.get("right", 0.0))
+            scale = max(1.0, abs(left) / self.max_speed, abs(right) / self.max_speed)
+            world.tracks[module] = (left / scale, right / scale)
+            for face in command.undock:
+                world.unlatch(module, face)
+            world.armed |= {(module, face) for face in command.dock}
+
+    def step(self, dt: float) -> None:
+        world = self._world()
+        for _ in range(max(1, round(dt * self.physics_rate))):
+            world.step()
+
+    @property
+    def time(self) -> float:
+        return self._world().time

@@ -1,0 +1,176 @@
+"""The PyBullet world of MMRP modules.
+
+Each module is a box body on a ground plane. Tracks are modelled by velocity
+control: every physics step, each docked group (connected by dock constraints)
+gets the rigid planar velocity fitted to its modules' track speeds, with the
+lateral component removed (non-holonomic); modules without commands brake to
+zero. Contacts between bodies are simulated, so modules collide. A dock is a
+``JOINT_FIXED`` constraint between two bodies, created only when an armed face is
+within the latch's alignment tolerance of the opposite face of another module.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import networkx as nx
+import numpy as np
+import pybullet as p
+
+from msrr.core.errors import ExecutionError
+
+from .geometry import ACTIVE_FACES, FACE_NORMALS, OPPOSITE, alignment, group_twist
+
+__all__ = ["MmrpWorld"]
+
+Pose2 = tuple[float, float, float]
+Face = tuple[str, str]
+
+
+class MmrpWorld:
+    """Bodies, velocity control and dock constraints in one PyBullet client.
+
+    Args:
+        geometry: the module geometry of :data:`msrr.plugins.mmrp.robot.MODULE`.
+        gui: open the PyBullet GUI (needs a display) instead of DIRECT.
+        physics_rate: physics steps per second [Hz].
+        gap_tolerance: latch window along the face normal [m].
+        yaw_tolerance: latch window in heading [rad].
+    """
+
+    def __init__(self, geometry: Mapping[str, float], *, gui: bool = False,
+                 physics_rate: float = 240.0, gap_tolerance: float = 0.015,
+                 yaw_tolerance: float = 0.06):
+        self.geometry = dict(geometry)
+        self.pitch = float(geometry["pitch"])
+        self.width = float(geometry["width"])
+        self.lateral_tolerance = float(geometry["dock_tolerance"])
+        self.gap_tolerance = gap_tolerance
+        self.yaw_tolerance = yaw_tolerance
+        self.dt = 1.0 / physics_rate
+        self.client = p.connect(p.GUI if gui else p.DIRECT)
+        if self.client < 0:
+            raise ExecutionError("PyBullet could not open a GUI window; run without --gui")
+        p.setGravity(0, 0, -9.81, physicsClientId=self.client)
+        p.setTimeStep(self.dt, physicsClientId=self.client)
+        plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=self.client)
+        self.plane = p.createMultiBody(0, plane, physicsClientId=self.client)
+        p.changeDynamics(self.plane, -1, lateralFriction=0.0, physicsClientId=self.client)
+        self.bodies: dict[str, int] = {}
+        self.tracks: dict[str, tuple[float, float]] = {}
+        self.armed: set[Face] = set()
+        self.docks: dict[frozenset[Face], int] = {}
+        self.time = 0.0
+
+    def close(self) -> None:
+        """Disconnect the PyBullet client."""
+        if self.client >= 0:
+            p.disconnect(physicsClientId=self.client)
+            self.client = -1
+
+    # -- building ---------------------------------------------------------------------
+
+    def add_module(self, module: str, pose: Pose2) -> None:
+        """Add a module body at planar ``pose`` ``(x, y, yaw)`` [m, m, rad]."""
+        half = [self.geometry["length"] / 2, self.geometry["width"] / 2,
+                self.geometry["height"] / 2]
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
+        visual = p.createVisualShape(p.GEOM_BOX, halfExtents=half,
+                                     rgbaColor=[0.9, 0.6, 0.2, 1], physicsClientId=self.client)
+        body = p.createMultiBody(self.geometry["mass"], shape, visual,
+                                 basePosition=[pose[0], pose[1], half[2] + 1e-3],
+                                 baseOrientation=p.getQuaternionFromEuler([0, 0, pose[2]]),
+                                 physicsClientId=self.client)
+        p.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=self.client)
+        self.bodies[module] = body
+        self.tracks[module] = (0.0, 0.0)
+
+    def latch(self, a: str, face_a: str, b: str, face_b: str) -> None:
+        """Create the dock constraint ``a face_a`` - ``b face_b`` at the nominal geometry."""
+        nx_, ny_ = FACE_NORMALS[face_a]
+        cid = p.createConstraint(self.bodies[a], -1, self.bodies[b], -1, p.JOINT_FIXED,
+                                 [0, 0, 0], [self.pitch * nx_, self.pitch * ny_, 0], [0, 0, 0],
+                                 physicsClientId=self.client)
+        p.changeConstraint(cid, maxForce=500.0, physicsClientId=self.client)
+        self.docks[frozenset({(a, face_a), (b, face_b)})] = cid
+
+    def unlatch(self, module: str, face: str) -> None:
+        """Remove the dock constraint on ``module face``, if any."""
+        for key, cid in list(self.docks.items()):
+            if (module, face) in key:
+                p.removeConstraint(cid, physicsClientId=self.client)
+                del self.docks[key]
+
+    # -- state ------------------------------------------------------------------------
+
+    def pose(self, module: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position (3,) [m] and quaternion xyzw (4,) of ``module``."""
+        pos, quat = p.getBasePositionAndOrientation(self.bodies[module],
+                                                    physicsClientId=self.client)
+        return np.array(pos), np.array(quat)
+
+    def pose2(self, module: str) -> Pose2:
+        """Planar pose ``(x, y, yaw)`` of ``module``."""
+        pos, quat = self.pose(module)
+        x, y, z, w = quat
+        return float(pos[0]), float(pos[1]), math.atan2(2 * (w * z + x * y),
+                                                        1 - 2 * (y * y + z * z))
+
+    def links(self) -> dict[str, dict[str, tuple[str, str] | None]]:
+        """Per module, per face: the ``(module, face)`` latched to it, or ``None``."""
+        out: dict[str, dict[str, tuple[str, str] | None]] = {
+            m: dict.fromkeys(FACE_NORMALS) for m in self.bodies}
+        for key in self.docks:
+            (a, fa), (b, fb) = sorted(key)
+            out[a][fa] = (b, fb)
+            out[b][fb] = (a, fa)
+        return out
+
+    def groups(self) -> list[list[str]]:
+        """Modules held together by dock constraints."""
+        graph = nx.Graph()
+        graph.add_nodes_from(self.bodies)
+        graph.add_edges_from(tuple(m for m, _ in key) for key in self.docks)
+        return [sorted(c) for c in nx.connected_components(graph)]
+
+    # -- stepping ---------------------------------------------------------------------
+
+    def step(self) -> None:
+        """One physics step: group velocities, integration, then latch armed faces."""
+        for group in self.groups():
+            poses = np.array([self.pose2(m) for m in group])
+            tracks = np.array([self.tracks[m] for m in group])
+            v, omega = group_twist(poses[:, :2], poses[:, 2], tracks, self.width)
+            centre = poses[:, :2].mean(axis=0)
+            for module, pose in zip(group, poses, strict=True):
+                body = self.bodies[module]
+                lin, _ = p.getBaseVelocity(body, physicsClientId=self.client)
+                r = pose[:2] - centre
+                vel = v + omega * np.array([-r[1], r[0]])
+                p.resetBaseVelocity(body, [vel[0], vel[1], min(lin[2], 0.0)], [0, 0, omega],
+                                    physicsClientId=self.client)
+        p.stepSimulation(physicsClientId=self.client)
+        self.time += self.dt
+        self._latch_armed()
+
+    def _latch_armed(self) -> None:
+        links = self.links()
+        for module, face in sorted(self.armed):
+            if links[module][face] is not None:
+                continue
+            other_face = OPPOSITE[face]
+            pose = self.pose2(module)
+            for other in self.bodies:
+                if other == module or links[other][other_face] is not None:
+                    continue
+                if (module, face) not in self.armed and (other, other_face) not in self.armed:
+                    continue
+                fit = alignment(pose, face, self.pose2(other), self.pitch)
+                if fit.within(self.lateral_tolerance, self.gap_tolerance, self.yaw_tolerance):
+                    if face in ACTIVE_FACES:
+                        self.latch(module, face, other, other_face)
+                    else:
+                        self.latch(other, other_face, module, face)
+                    links = self.links()
+                    break
