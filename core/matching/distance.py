@@ -25,7 +25,7 @@ import numpy as np
 
 from ..alignment import YawAlignment, align_yaw
 
-__all__ = ["PartialBound", "bound_terms", "vector_match"]
+__all__ = ["PartialBound", "bound_terms", "elevation", "vector_match"]
 
 BOUND_SLACK = 1e-9
 """Relative slack taken off the bound so rounding never lifts it above ``d``."""
@@ -45,19 +45,30 @@ def vector_match(z_sys: np.ndarray, z_ref: np.ndarray, *, x_sys: np.ndarray | No
     return align_yaw(z_sys, z_ref, x=x_sys, x_target=x_ref, gamma=gamma)
 
 
-def bound_terms(z_sys: np.ndarray, z_ref: np.ndarray) -> tuple[float, float, float, float]:
+def elevation(z: np.ndarray | tuple[float, float, float]) -> float:
+    """Elevation [rad] of a unit vector above the horizontal plane."""
+    return math.asin(max(-1.0, min(1.0, float(z[2]))))
+
+
+def bound_terms(z_sys: tuple[float, float, float], z_ref: tuple[float, float, float],
+                elevation_sys: float, elevation_ref: float
+                ) -> tuple[float, float, float, float]:
     """Terms one mapped edge adds to a :class:`PartialBound`.
+
+    Args:
+        z_sys: system vector.
+        z_ref: mapped reference vector (negated when inverted).
+        elevation_sys: :func:`elevation` of ``z_sys``.
+        elevation_ref: :func:`elevation` of ``z_ref``.
 
     Returns:
         ``(cos, sin, vertical, elevation)``: the horizontal dot and cross products, the
         product of vertical components and the squared elevation difference [rad^2].
     """
-    cos = z_sys[0] * z_ref[0] + z_sys[1] * z_ref[1]
-    sin = z_sys[1] * z_ref[0] - z_sys[0] * z_ref[1]
-    vertical = z_sys[2] * z_ref[2]
-    elevation = (math.asin(max(-1.0, min(1.0, z_sys[2])))
-                 - math.asin(max(-1.0, min(1.0, z_ref[2])))) ** 2
-    return float(cos), float(sin), float(vertical), float(elevation)
+    return (z_sys[0] * z_ref[0] + z_sys[1] * z_ref[1],
+            z_sys[1] * z_ref[0] - z_sys[0] * z_ref[1],
+            z_sys[2] * z_ref[2],
+            (elevation_sys - elevation_ref) ** 2)
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..configuration import Configuration
-from .distance import PartialBound, bound_terms, vector_match
+from .distance import PartialBound, bound_terms, elevation, vector_match
 from .mapping import Mapping
 from .topology import Topology, edge_inversion, signatures_match, vf2pp_order
 
@@ -73,29 +73,37 @@ def mapping_from_indices(system: Topology, reference: Topology, ref_of: list[int
         distance=fit.cost, yaw=fit.theta, rms_angle=fit.rms_angle)
 
 
+def _vectors(z: np.ndarray) -> list[tuple[float, float, float] | None]:
+    """Rows of ``z`` as float tuples, None where an edge has no vector."""
+    return [None if np.isnan(row).any() else (float(row[0]), float(row[1]), float(row[2]))
+            for row in z]
+
+
 class _Search:
     """The state shared by the expansions of one search (Alg. 2 lines 1-9)."""
 
-    def __init__(self, system: Configuration, reference: Configuration, gamma: float):
-        self.sys = Topology.of(system)
-        self.ref = Topology.of(reference)
+    def __init__(self, system: Topology, reference: Topology, gamma: float):
+        self.sys, self.ref = system, reference
         self.gamma = gamma
         self.order = vf2pp_order(self.sys, self.ref)
         self.by_label: dict[tuple, list[int]] = {}
         for r, label in enumerate(self.ref.labels):
             self.by_label.setdefault(label, []).append(r)
-        has_sys = ~np.isnan(self.sys.z).any(axis=1)
-        has_ref = ~np.isnan(self.ref.z).any(axis=1)
-        self.has_z_sys, self.has_z_ref = has_sys.tolist(), has_ref.tolist()
+        self.z_sys = _vectors(self.sys.z)
+        self.z_ref = _vectors(self.ref.z)
+        self.z_ref_neg = [None if z is None else (-z[0], -z[1], -z[2]) for z in self.z_ref]
+        self.elev_sys = [None if z is None else elevation(z) for z in self.z_sys]
+        self.elev_ref = [None if z is None else elevation(z) for z in self.z_ref]
 
     def root(self) -> _Node:
         return _Node(0, (-1,) * len(self.sys.vertices), 0, (), (), PartialBound())
 
     def _with_edge(self, bound: PartialBound, e: int, f: int, inv: bool) -> PartialBound:
-        if not (self.has_z_sys[e] and self.has_z_ref[f]):
+        z_sys, z_ref = self.z_sys[e], (self.z_ref_neg if inv else self.z_ref)[f]
+        if z_sys is None or z_ref is None:
             return bound
-        zr = -self.ref.z[f] if inv else self.ref.z[f]
-        return bound.add(bound_terms(self.sys.z[e], zr))
+        elev_ref = -self.elev_ref[f] if inv else self.elev_ref[f]
+        return bound.add(bound_terms(z_sys, z_ref, self.elev_sys[e], elev_ref))
 
     def feasible_candidates(self, node: _Node, u: int) -> list[int]:
         """Reference vertices ``u`` may map to (``feasibleCandidates``, Alg. 2 line 18)."""
@@ -172,16 +180,17 @@ def iso_search(system: Configuration, reference: Configuration, *, gamma: float 
     Yields:
         :class:`Mapping` objects with non-decreasing :attr:`Mapping.distance`.
     """
-    if not signatures_match(system, reference):
+    sys_view, ref_view = Topology.of(system), Topology.of(reference)
+    if not signatures_match(sys_view, ref_view):
         return
-    search = _Search(system, reference, gamma)
+    search = _Search(sys_view, ref_view, gamma)
     tie = itertools.count()
     queue: list[tuple[float, int, _Node, Mapping | None]] = [
         (0.0, next(tie), search.root(), None)]
     pops = 0
     while queue:
         pops += 1
-        if deadline is not None and pops % DEADLINE_CHECK_EVERY == 0 \
+        if deadline is not None and (pops - 1) % DEADLINE_CHECK_EVERY == 0 \
                 and time.monotonic() > deadline:
             return
         key, _, node, mapping = heapq.heappop(queue)

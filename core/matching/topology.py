@@ -19,8 +19,18 @@ from ..configuration import Configuration
 __all__ = ["Topology", "edge_inversion", "signatures_match", "vf2pp_order"]
 
 
-def signatures_match(system: Configuration, reference: Configuration) -> bool:
-    """Whether module counts and ordered degrees agree (Alg. 2 lines 2-7)."""
+def signatures_match(system: Configuration | Topology, reference: Configuration | Topology
+                     ) -> bool:
+    """Whether module counts and ordered degrees agree (Alg. 2 lines 2-7).
+
+    Given two :class:`Topology` views it compares the stronger invariant they carry (the
+    multisets of vertex labels and of edge kinds), which implies equal signatures.
+    """
+    if isinstance(system, Topology) and isinstance(reference, Topology):
+        return (system.label_counts() == reference.label_counts()
+                and Counter(system.edge_kinds) == Counter(reference.edge_kinds))
+    if isinstance(system, Topology) or isinstance(reference, Topology):
+        raise TypeError("compare two configurations or two topologies")
     return system.signature() == reference.signature()
 
 
