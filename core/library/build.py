@@ -175,7 +175,8 @@ class _Builder:
         else:
             number = 1 + sum(1 for c in sub.configurations.values() if c.group == matched.group)
             cid = f"{matched.group}.{number}"
-            skeletal = remapped.skeletal()
+            reference = sub.groups[matched.group].reference
+            skeletal = reference.with_vectors(z={e.id: e.z for e in remapped.edges()}, x={})
             skeletal.name = config.name or cid
             sub.configurations[cid] = LibraryConfiguration(
                 cid, matched.group, skeletal, (config.name,) if config.name else (), (origin,))

@@ -241,7 +241,8 @@ def _sublibrary_to_model(sub: SubLibrary) -> SubLibraryModel:
                 for g in sub.groups.values()],
         configurations=[ConfigurationModel(
             id=c.id, group=c.group, names=list(c.names), origins=list(c.origins),
-            z={e.id: _vec(e.z) for e in c.configuration.edges()})
+            z={e: _vec(c.configuration.edge(e).z)
+               for e in sub.groups[c.group].reference.edge_ids()})
             for c in sub.configurations.values()],
         behaviors=[BehaviorModel(
             name=b.name, kind=b.kind, description=b.description, start=b.start,
