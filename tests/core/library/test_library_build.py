@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
-from conftest import source_files
+from library_helpers import source_files
 
 from msrr.core import plugins
 from msrr.core.library import (

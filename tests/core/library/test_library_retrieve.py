@@ -6,7 +6,7 @@ import itertools
 
 import networkx as nx
 import pytest
-from conftest import ROOT, relabelled
+from library_helpers import LIBRARIES, relabelled
 
 from msrr.core import plugins
 from msrr.core.library import (
@@ -17,8 +17,6 @@ from msrr.core.library import (
     shortest_path,
 )
 from msrr.core.plan import ActionType
-
-LIBRARIES = ROOT / "plugins" / "freesn" / "libraries"
 
 
 @pytest.fixture(scope="module")
