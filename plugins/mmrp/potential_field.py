@@ -52,7 +52,7 @@ class FieldParameters:
     d_safe_plus: float = 6.0
     step: float = 0.05
     reach: float = 0.06
-    patience: int = 400
+    patience: int = 200
     max_steps: int = 20000
     jitter: float = 1e-3
 
