@@ -4,7 +4,25 @@ Wei et al., "A Graph-Based Hybrid Reconfiguration Deformation Planning for Modul
 Robots", Sensors 23 (2023) 7892.
 """
 
+from .optimum import Optimum, optimum
+from .planner import HybridResult, McsHybridPlanner, plan_hybrid
+from .recognition import DistributedRecognizer, Recognition, recognize_with_stats
+from .representation import layout, to_tree
 from .robot import FACES, SPEC
 from .rules import MmrpRules
 
-__all__ = ["FACES", "SPEC", "MmrpRules"]
+__all__ = [
+    "FACES",
+    "SPEC",
+    "DistributedRecognizer",
+    "HybridResult",
+    "McsHybridPlanner",
+    "MmrpRules",
+    "Optimum",
+    "Recognition",
+    "layout",
+    "optimum",
+    "plan_hybrid",
+    "recognize_with_stats",
+    "to_tree",
+]
