@@ -64,6 +64,7 @@ class TimelineRecorder:
                                       f"{os.getpid()}-{id(run)}")
         self.rec.save(str(self.part))
         self._topology: frozenset | None = None
+        self._poses: dict[str, np.ndarray] = {}
         self._colors = {m: PALETTE[i % len(PALETTE)]
                         for i, m in enumerate(run.plan.start.vertices())}
         self._write_static()
@@ -120,6 +121,11 @@ class TimelineRecorder:
         rec = self.rec
         self._time(tick.index, tick.time)
         for module, pose in tick.observation.poses.items():
+            state = np.concatenate([pose.position, pose.orientation])
+            last = self._poses.get(module)
+            if last is not None and float(np.max(np.abs(state - last))) < 1e-4:
+                continue  # unchanged: latest-at keeps the previous transform
+            self._poses[module] = state
             rec.log(f"world/modules/{module}",
                     rr.Transform3D(translation=pose.position,
                                    quaternion=rr.Quaternion(xyzw=pose.orientation)))

@@ -105,15 +105,21 @@ def group_twist(positions: np.ndarray, headings: np.ndarray, tracks: np.ndarray,
     Returns:
         ``(centroid velocity (2,) [m/s], yaw rate [rad/s])``.
     """
-    forward = tracks.mean(axis=1)
-    omega = float(np.mean((tracks[:, 1] - tracks[:, 0]) / width))
-    centre = positions.mean(axis=0)
-    r = positions - centre
-    h = np.stack([np.cos(headings), np.sin(headings)], axis=1)
-    v = (forward[:, None] * h - omega * np.stack([-r[:, 1], r[:, 0]], axis=1)).mean(axis=0)
-    heading = h.mean(axis=0)
-    norm = np.linalg.norm(heading)
+    n = len(positions)
+    forward = [(left + right) / 2.0 for left, right in tracks]
+    omega = sum((right - left) / width for left, right in tracks) / n
+    cx = sum(float(q[0]) for q in positions) / n
+    cy = sum(float(q[1]) for q in positions) / n
+    vx = vy = hx = hy = 0.0
+    for (px, py), yaw, f in zip(positions, headings, forward, strict=True):
+        c, s = math.cos(yaw), math.sin(yaw)
+        vx += f * c + omega * (py - cy)
+        vy += f * s - omega * (px - cx)
+        hx, hy = hx + c, hy + s
+    vx, vy = vx / n, vy / n
+    norm = math.hypot(hx, hy)
     if norm > 1e-9:
-        heading /= norm
-        v = heading * float(v @ heading)
-    return v, omega
+        hx, hy = hx / norm, hy / norm
+        along = vx * hx + vy * hy
+        vx, vy = along * hx, along * hy
+    return np.array([vx, vy]), float(omega)

@@ -61,6 +61,7 @@ class MmrpWorld:
         self.tracks: dict[str, tuple[float, float]] = {}
         self.armed: set[Face] = set()
         self.docks: dict[frozenset[Face], int] = {}
+        self._groups: list[list[str]] | None = None
         self.time = 0.0
 
     def close(self) -> None:
@@ -85,6 +86,7 @@ class MmrpWorld:
         p.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=self.client)
         self.bodies[module] = body
         self.tracks[module] = (0.0, 0.0)
+        self._groups = None
 
     def latch(self, a: str, face_a: str, b: str, face_b: str) -> None:
         """Create the dock constraint ``a face_a`` - ``b face_b`` at the nominal geometry."""
@@ -94,6 +96,7 @@ class MmrpWorld:
                                  physicsClientId=self.client)
         p.changeConstraint(cid, maxForce=500.0, physicsClientId=self.client)
         self.docks[frozenset({(a, face_a), (b, face_b)})] = cid
+        self._groups = None
 
     def unlatch(self, module: str, face: str) -> None:
         """Remove the dock constraint on ``module face``, if any."""
@@ -101,6 +104,7 @@ class MmrpWorld:
             if (module, face) in key:
                 p.removeConstraint(cid, physicsClientId=self.client)
                 del self.docks[key]
+                self._groups = None
 
     # -- state ------------------------------------------------------------------------
 
@@ -138,9 +142,17 @@ class MmrpWorld:
 
     def step(self) -> None:
         """One physics step: group velocities, integration, then latch armed faces."""
-        for group in self.groups():
-            poses = np.array([self.pose2(m) for m in group])
+        if self._groups is None:
+            self._groups = self.groups()
+        for group in self._groups:
             tracks = np.array([self.tracks[m] for m in group])
+            if not tracks.any():
+                for module in group:
+                    lin, _ = p.getBaseVelocity(self.bodies[module], physicsClientId=self.client)
+                    p.resetBaseVelocity(self.bodies[module], [0, 0, min(lin[2], 0.0)], [0, 0, 0],
+                                        physicsClientId=self.client)
+                continue
+            poses = np.array([self.pose2(m) for m in group])
             v, omega = group_twist(poses[:, :2], poses[:, 2], tracks, self.width)
             centre = poses[:, :2].mean(axis=0)
             for module, pose in zip(group, poses, strict=True):
@@ -152,7 +164,8 @@ class MmrpWorld:
                                     physicsClientId=self.client)
         p.stepSimulation(physicsClientId=self.client)
         self.time += self.dt
-        self._latch_armed()
+        if self.armed:
+            self._latch_armed()
 
     def _latch_armed(self) -> None:
         links = self.links()
