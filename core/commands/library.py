@@ -35,14 +35,17 @@ def command() -> None:
               help="Library file to write (atomically).")
 @click.option("--merge-threshold", type=float, default=DEFAULT_MERGE_THRESHOLD, show_default=True,
               help="Largest IK cost at which two configurations are merged.")
-def build(sources: tuple[Path, ...], output: Path, merge_threshold: float) -> None:
+@click.option("--cost", type=click.Choice(["ik", "distance"]), default=None,
+              help="Motion cost: full-body IK (default when installed) or eq. 8 distance.")
+def build(sources: tuple[Path, ...], output: Path, merge_threshold: float,
+          cost: str | None) -> None:
     """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14)."""
     inputs = load_sources(sources)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as bar:
         task = bar.add_task(f"building {inputs.name}", total=build_steps(inputs))
-        library = build_library(inputs, merge_threshold=merge_threshold,
+        library = build_library(inputs, merge_threshold=merge_threshold, cost=cost,
                                 progress=lambda _: bar.advance(task))
     save_library(library, output)
     for sub in library.sublibraries.values():

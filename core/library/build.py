@@ -46,7 +46,7 @@ from .transitions import action_type
 __all__ = ["DEFAULT_MERGE_THRESHOLD", "Progress", "build_library", "build_steps",
            "vectors_on"]
 
-DEFAULT_MERGE_THRESHOLD = 1e-3
+DEFAULT_MERGE_THRESHOLD = 1e-5
 """Largest inverse-kinematics cost at which two configurations are merged (Fig. 14(e))."""
 
 COST_DIGITS = 9
@@ -105,12 +105,14 @@ def _modules_only(mapping: ModuleMap, source: Configuration) -> ModuleMap:
 class _Builder:
     """State of one build: the library so far and where each named configuration landed."""
 
-    def __init__(self, sources: LibrarySources, threshold: float, progress: Progress | None):
+    def __init__(self, sources: LibrarySources, threshold: float, cost: str,
+                 progress: Progress | None):
         self.spec = plugins.robot(sources.robot)
+        self.cost = engine.check_cost(cost)
         self.threshold = threshold
         self.progress = progress or (lambda _: None)
         self.library = Library(sources.robot, sources.name, description=sources.description,
-                               build={"merge_threshold": threshold, "cost": engine.cost_kind(),
+                               build={"merge_threshold": threshold, "cost": cost,
                                       "sources": [{"file": f, "sha256": h}
                                                   for f, h in sources.files]})
         self.named: dict[str, _Placement] = {}
@@ -160,7 +162,7 @@ class _Builder:
         candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
                       for c in sub.configurations.values()
                       if sub.groups[c.group].reference.signature() == signature]
-        outcome = engine.best_match(config, candidates) if candidates else None
+        outcome = engine.best_match(config, candidates, self.cost) if candidates else None
         if outcome is None:
             raise LibraryError(f"{origin}: configuration {config.name!r} is not isomorphic to "
                                f"any designed group of {sub.name} (groups: "
@@ -206,9 +208,9 @@ class _Builder:
         name = tree_name if tree_name in group.trees else next(iter(group.trees))
         tree = group.trees[name]
         if in_source:
-            cost = engine.ik_cost(tree, ca, vectors_on(ca, cb, mapping))
+            cost = engine.motion_cost(self.cost, tree, ca, vectors_on(ca, cb, mapping))
         else:
-            cost = engine.ik_cost(tree, vectors_on(cb, ca, mapping.inverse()), cb)
+            cost = engine.motion_cost(self.cost, tree, vectors_on(cb, ca, mapping.inverse()), cb)
         edge = ActionEdge(a.config_id, b.config_id, action, TreeRef(group.id, name),
                           round(max(cost, 0.0), COST_DIGITS), None if identity else mapping)
         key = json.dumps([edge.source, edge.target, edge.action.value, str(edge.tree),
@@ -264,20 +266,22 @@ class _Builder:
 
 
 def build_library(sources: LibrarySources, *, merge_threshold: float = DEFAULT_MERGE_THRESHOLD,
-                  progress: Progress | None = None) -> Library:
+                  cost: str | None = None, progress: Progress | None = None) -> Library:
     """Build a library from designed groups and recorded sequences (section 6.2, Fig. 14).
 
     Args:
         sources: the inputs, see :func:`~msrr.core.library.sources.load_sources`.
         merge_threshold: configurations whose inverse-kinematics cost to an existing
             library configuration is at most this are merged into it.
+        cost: motion cost, ``"ik"`` (eq. 6) or ``"distance"`` (eq. 8); ``"ik"`` when the
+            kinematics is installed by default.
         progress: called once per configuration placed.
 
     Raises:
         LibraryError: a sequence configuration without a designed group, isomorphic
             designed groups, an action that both connects and disconnects, unknown names.
     """
-    builder = _Builder(sources, merge_threshold, progress)
+    builder = _Builder(sources, merge_threshold, cost or engine.available_cost(), progress)
     for group in sources.groups:
         builder.add_group(group)
     for sequence in sources.sequences:

@@ -6,8 +6,11 @@ two configurations of one topology (section 3.4), the configuration matcher
 (Alg. 4) and a tree expressed in another set of ids. They are gathered here so the
 library code stays pure data handling, and so a test can count or replace them.
 
-Matching and inverse kinematics run with fixed seeds and iteration-bounded options,
-so building the same sources twice gives the same library.
+Matching and inverse kinematics run with fixed seeds and restart-bounded options
+(no clock decides a result), so building the same sources twice gives the same
+library. The motion cost is the full-body IK cost, or the eq. 8 aligned distance
+where the kinematics is not installed; a library records which one it was built
+with and retrieval matches with the same one.
 """
 
 from __future__ import annotations
@@ -25,9 +28,10 @@ __all__ = [
     "MATCH_CONFIDENCE",
     "MatchOutcome",
     "best_match",
-    "cost_kind",
+    "available_cost",
+    "check_cost",
+    "motion_cost",
     "design_tree",
-    "ik_cost",
     "load_tree",
     "rename_tree",
     "tree_in_ids",
@@ -36,13 +40,14 @@ __all__ = [
 MATCH_CONFIDENCE = 4.0
 """Confidence factor sigma of Alg. 4: stop a candidate's search past sigma * best cost."""
 
-MATCH_TIME_BUDGET = 30.0
-"""Time budget [s] of one match; generous, so results do not depend on machine load."""
-
-IK_SEED = 0
-
 COST_IK = "ik"
 COST_DISTANCE = "distance"
+COST_KINDS = (COST_IK, COST_DISTANCE)
+
+IK_SEED = 0
+IK_RESTARTS = 2
+IK_TIME_BUDGET = 120.0
+"""IK solves end on tolerance or restarts, never on this generous clock, so they repeat."""
 
 
 @dataclass(frozen=True)
@@ -120,49 +125,58 @@ def rename_tree(tree: dict, mapping: ModuleMap) -> dict:
     return out
 
 
-def cost_kind() -> str:
-    """``"ik"`` when the full-body inverse kinematics is installed, else ``"distance"``.
-
-    Without the kinematics the eq. 8 aligned distance stands in for the motion cost,
-    as in the matcher; a library records which one it was built with.
-    """
+def available_cost() -> str:
+    """``"ik"`` when the full-body inverse kinematics is installed, else ``"distance"``."""
     try:
-        from ..kinematics import IKOptions, solve_ik  # noqa: F401
+        from ..kinematics.ik import solve_ik  # noqa: F401
     except ImportError:
         return COST_DISTANCE
     return COST_IK
 
 
-def ik_cost(tree: dict, current: Configuration, target: Configuration) -> float:
-    """Motion cost from ``current`` to ``target`` (same ids and topology), section 3.4.
+def check_cost(kind: str) -> str:
+    if kind not in COST_KINDS:
+        raise LibraryError(f"unknown motion cost {kind!r} (known: {', '.join(COST_KINDS)})")
+    return kind
 
-    The full-body IK cost (eq. 6), or the eq. 8 aligned distance when the kinematics is
-    not installed (see :func:`cost_kind`).
+
+def motion_cost(kind: str, tree: Any, current: Configuration, target: Configuration) -> float:
+    """Motion cost from ``current`` to ``target`` (same ids and topology).
+
+    ``"ik"``: the full-body IK objective (eq. 6) with a fixed seed and a bounded number
+    of restarts; ``"distance"``: the eq. 8 aligned distance, the matcher's stand-in
+    when the kinematics is not installed.
+
+    Args:
+        tree: a :class:`KinematicTree` or its serialised form.
     """
-    if cost_kind() == COST_DISTANCE:
+    if check_cost(kind) == COST_DISTANCE:
         from ..matching import distance_cost
 
         return float(distance_cost(target, None, current))
-    from ..kinematics import IKOptions, solve_ik
+    from ..kinematics.ik import IKOptions, solve_ik
 
-    solution = solve_ik(load_tree(tree, target), current, target,
-                        options=IKOptions(seed=IK_SEED))
-    return float(solution.cost)
+    if isinstance(tree, dict):
+        tree = load_tree(tree, target)
+    options = IKOptions(seed=IK_SEED, max_restarts=IK_RESTARTS, time_budget=IK_TIME_BUDGET)
+    return float(solve_ik(tree, current, target, options=options).cost)
 
 
-def best_match(system: Configuration, candidates: Sequence[tuple[str, Configuration, dict]]
-               ) -> MatchOutcome | None:
+def best_match(system: Configuration, candidates: Sequence[tuple[str, Configuration, dict]],
+               cost: str) -> MatchOutcome | None:
     """The candidate the system matches best (Alg. 4), or ``None`` if none is isomorphic.
 
     Args:
         system: the configuration to match, in its own ids.
         candidates: ``(key, configuration, serialised tree)`` triples.
+        cost: the motion cost kind (see :func:`motion_cost`).
     """
     from ..matching import Candidate, match
 
     pool = [Candidate(config, load_tree(tree, config), key=key)
             for key, config, tree in candidates]
-    result = match(system, pool, confidence=MATCH_CONFIDENCE, time_budget=MATCH_TIME_BUDGET)
+    result = match(system, pool, confidence=MATCH_CONFIDENCE,
+                   cost_fn=lambda ref, tree, sys: motion_cost(check_cost(cost), tree, sys, ref))
     if result is None:
         return None
     mapping = ModuleMap(dict(result.mapping.nodes), dict(result.mapping.edges))

@@ -181,6 +181,11 @@ def _commands(behavior: Behavior, to_system: ModuleMap) -> tuple[CommandGain, ..
     return tuple(out)
 
 
+def library_cost(library: Library) -> str:
+    """The motion cost a library was built with (``build.cost``; IK when not recorded)."""
+    return engine.check_cost(str(library.build.get("cost", engine.COST_IK)))
+
+
 def retrieve(library: Library, system: Configuration, *, to: str | None = None,
              behavior: str | None = None) -> Retrieval:
     """The cheapest action sequence from ``system`` to a target, in the system's ids.
@@ -217,7 +222,7 @@ def retrieve(library: Library, system: Configuration, *, to: str | None = None,
     candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
                   for c in sub.configurations.values()
                   if sub.groups[c.group].reference.signature() == signature]
-    outcome = engine.best_match(system, candidates) if candidates else None
+    outcome = engine.best_match(system, candidates, library_cost(library)) if candidates else None
     if outcome is None:
         raise RetrievalError(f"the system is not isomorphic to any group of sub-library {label} "
                              f"(groups: {', '.join(f'{g.id} ({g.name})' for g in sub.groups.values())})")

@@ -10,4 +10,4 @@ from msrr.core.library import Library, build_library, load_sources
 
 @pytest.fixture(scope="session")
 def s6n3() -> Library:
-    return build_library(load_sources(source_files("S6N3")))
+    return build_library(load_sources(source_files("S6N3")), cost="distance")
