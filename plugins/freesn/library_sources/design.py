@@ -220,6 +220,26 @@ def chain(name: str, hump: float, description: str = "") -> dict:
     return configuration(name, nodes, struts, description)
 
 
+def chain_tree(name: str, held: str) -> dict:
+    """A chain tree whose root fixed node holds strut ``held`` still (Fig. 19(a)-(e)).
+
+    The root owns N3 and, through ``held`` (S2 or S3), its neighbour; the other struts
+    are opposite-steering module joints. Holding one stem strut steers the squirm.
+    """
+    neighbour = {"S2": "N2", "S3": "N4"}[held]
+    topology = chain("chain-flat", 0.0)
+    joints = [("S2", "N2"), ("S3", "N4"), ("S1", "N1"), ("S4", "N5")]
+    nodes = [{"type": "fixed", "edges": [held], "vertices": ["N3", neighbour]}]
+    nodes += [{"type": "opposite_steering", "edges": [e], "vertices": [v]}
+              for e, v in joints if e != held]
+    return {"name": name, "tree": {
+        "schema_version": 1, "robot": "freesn", "configuration": "chain-flat",
+        "modules": [{"id": m["id"], "kind": m["kind"]} for m in topology["modules"]],
+        "connections": [{k: c[k] for k in ("id", "source", "target", "kind")}
+                        for c in topology["connections"]],
+        "nodes": nodes}}
+
+
 def s4n5() -> None:
     out = HERE / "S4N5"
     square = [45.0, 135.0, 225.0, 315.0]
@@ -230,7 +250,8 @@ def s4n5() -> None:
         {"name": "star", "description": "a centre node with four struts to leaf nodes",
          "reference": flat, "trees": [tree("K1")]},
         {"name": "chain", "description": "five nodes in a row, squirming (Fig. 19(a)-(e))",
-         "reference": chain("chain-flat", 0.0), "trees": [tree("K1"), tree("K2")]},
+         "reference": chain("chain-flat", 0.0),
+         "trees": [tree("K1"), chain_tree("K-hold-front", "S3"), chain_tree("K-hold-rear", "S2")]},
     ]
     write(out / "designs.json", source("S4N5", "FreeSN sub-library S4N5 (paper Figs. 18, 19): "
                                        "four struts, five nodes", groups=groups))
@@ -246,8 +267,8 @@ def s4n5() -> None:
          "steps": [step(c) for c in crawl]},
         {"name": "squirm", "behavior": "squirm", "loop": True,
          "description": "Fig. 19(a)-(e): squirm up and down with alternating trees",
-         "steps": [step(chain("squirm-up", 0.08, "middle node raised"), "K1"),
-                   step(chain("squirm-down", 0.0, "flat"), "K2")]},
+         "steps": [step(chain("squirm-up", 0.08, "middle node raised"), "K-hold-front"),
+                   step(chain("squirm-down", 0.0, "flat"), "K-hold-rear")]},
     ]
     nodes = {f"N{i + 1}": np.array([L * math.cos(math.radians(a)), L * math.sin(math.radians(a)),
                                     0.0]) for i, a in enumerate(square)}
