@@ -1,0 +1,72 @@
+"""``platform match``: the best reference, cost and module mapping for a system (Alg. 4)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import click
+import numpy as np
+
+from ..cli import console, table
+from ..io import load_configuration
+from ..matching import (
+    Candidate,
+    MatchingError,
+    MatchResult,
+    RankedMatch,
+    distance_cost,
+    match,
+)
+
+__all__ = ["command"]
+
+
+def _mapping_table(system_name: str, ranked: RankedMatch, title: str):
+    mapping = ranked.mapping
+    rows = [["node", v, r, ""] for v, r in mapping.nodes.items()]
+    rows += [["edge", e, f, "inv" if inv else ""] for e, (f, inv) in mapping.edges.items()]
+    return table(title, ["", f"system ({system_name})", f"reference ({ranked.candidate.key})",
+                         "direction"], rows)
+
+
+def _summary(result: MatchResult, ranked: RankedMatch, rank: int) -> str:
+    m = ranked.mapping
+    return (f"#{rank} {ranked.candidate.key}: cost {ranked.cost:.6g} ({result.cost_kind}), "
+            f"distance {m.distance:.6g} rad^2, RMS angle {np.rad2deg(m.rms_angle):.2f} deg, "
+            f"yaw {np.rad2deg(m.yaw):.2f} deg")
+
+
+@click.command("match")
+@click.argument("system", type=click.Path(path_type=Path))
+@click.argument("references", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--top", type=int, default=1, show_default=True,
+              help="Print the K best mappings.")
+@click.option("--confidence", type=float, default=2.0, show_default=True,
+              help="Stop a reference's search when distance > best cost * confidence.")
+@click.option("--time-budget", type=float, default=None, help="Wall-clock limit [s].")
+@click.option("--cost", type=click.Choice(["ik", "distance"]), default=None,
+              help="Motion cost: full-body IK (default when installed) or eq. 8 distance.")
+def command(system: Path, references: tuple[Path, ...], top: int, confidence: float,
+            time_budget: float | None, cost: str | None) -> None:
+    """Match SYSTEM.json against REFERENCE.json files: best reference, cost and mapping."""
+    current = load_configuration(system)
+    candidates = [Candidate(load_configuration(path), None, str(path)) for path in references]
+    cost_fn = distance_cost if cost == "distance" else None
+    if cost == "ik":
+        from ..matching import ik_cost
+
+        cost_fn = ik_cost
+    result = match(current, candidates, confidence=confidence, time_budget=time_budget,
+                   cost_fn=cost_fn, top=top)
+    if result is None:
+        raise MatchingError(f"{system}: no reference is isomorphic to this configuration "
+                            f"(signature {current.signature().degrees})")
+    if cost is not None:
+        result = replace(result, cost_kind=cost)
+    console.print(f"best match of {system}: {result.candidate.key}")
+    for rank, ranked in enumerate(result.ranked, start=1):
+        console.print(_summary(result, ranked, rank))
+        console.print(_mapping_table(str(system), ranked, f"Module mapping #{rank}"))
+    note = "" if result.complete else " (time budget reached: best so far)"
+    console.print(f"{result.evaluated} mappings evaluated{note}")
