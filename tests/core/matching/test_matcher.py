@@ -127,3 +127,16 @@ def test_cli_match_without_isomorphic_reference_is_one_line(tmp_path):
                                          "--cost", "distance"])
     assert out.exit_code == 1
     assert "no reference is isomorphic" in out.output and "Traceback" not in out.output
+
+
+def test_default_cost_is_the_ik_cost_when_kinematics_is_installed():
+    try:
+        from msrr.core.kinematics import default_tree, solve_ik  # noqa: F401
+    except ImportError:
+        pytest.skip("msrr.core.kinematics does not export the IK yet")
+    config = load_configuration(ROOT / "plugins" / "freesn" / "configs" / "triangle-leg.json")
+    reference = scrambled(config, np.random.default_rng(0), noise=0.1)
+    result = match(config, [Candidate(reference, None, "ref")], time_budget=60)
+    assert result is not None and result.cost_kind == "ik"
+    assert_isomorphism(config, reference, result.mapping)
+    assert result.mapping.distance < 0.1
