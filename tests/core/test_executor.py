@@ -1,0 +1,73 @@
+"""The executor on a hand-made plan and an in-memory driver."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from fake_run import GoalController, LinkRecognizer, PointDriver, make_run, swap_plan
+
+from msrr.core import hookimpl, plugins
+from msrr.core.errors import ExecutionError
+from msrr.core.executor import Executor, ExecutorOptions
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.events: list[tuple[str, Any]] = []
+
+    @hookimpl
+    def msrr_on_action(self, run: Any, action: Any, status: str) -> None:
+        self.events.append(("action", f"{action} {status}"))
+
+    @hookimpl
+    def msrr_on_topology_change(self, run: Any, change: Any) -> None:
+        self.events.append(("topology", str(change)))
+
+    @hookimpl
+    def msrr_on_tick(self, run: Any, tick: Any) -> None:
+        self.events.append(("tick", tick.index))
+
+
+def execute(plan, options=None, reach=1.05):
+    run = make_run(plan)
+    with PointDriver(reach) as driver, plugins.temporary(Recorder()) as listener:
+        driver.reset(plan.start)
+        result = Executor(run, driver, LinkRecognizer(), GoalController(),
+                          options or ExecutorOptions()).execute()
+    return result, listener.events
+
+
+def test_plan_runs_closed_loop_and_counts_what_the_driver_did() -> None:
+    result, events = execute(swap_plan())
+    assert result.success, result.reason
+    assert (result.docks, result.undocks, result.actions_done) == (1, 1, 3)
+    assert [e for k, e in events if k == "topology"] == ["undock aT-bB", "dock bT-cB"]
+    statuses = [e for k, e in events if k == "action"]
+    assert statuses[0] == "disconnection aT-bB started" and statuses[-1].endswith("succeeded")
+    ticks = [e for k, e in events if k == "tick"]
+    assert ticks == list(range(result.ticks)) and result.sim_time == pytest.approx(
+        result.ticks * 0.1)
+
+
+def test_unreachable_dock_times_out_retries_and_names_the_action() -> None:
+    result, events = execute(swap_plan(goal_x=9.0), ExecutorOptions(action_timeout=2.0),
+                             reach=1.05)
+    assert not result.success
+    assert result.failed_action == 1 and result.retries == 1
+    assert "action 1 (moving c)" in result.reason and "within 2 s" in result.reason
+    assert ("action", "moving c retrying") in events and ("action", "moving c failed") in events
+
+
+def test_dock_out_of_reach_fails_with_missing_change() -> None:
+    result, _ = execute(swap_plan(goal_x=2.5), ExecutorOptions(action_timeout=1.0), reach=0.2)
+    assert not result.success and result.failed_action == 2
+    assert "still missing: +bT-cB" in result.reason
+
+
+def test_options_are_checked() -> None:
+    with pytest.raises(ExecutionError, match="rate"):
+        ExecutorOptions(rate=0)
+    with pytest.raises(ExecutionError, match="not connected"):
+        Executor(make_run(swap_plan()), PointDriver(), LinkRecognizer(),
+                 GoalController()).execute()
