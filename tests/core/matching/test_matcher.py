@@ -86,12 +86,13 @@ def test_time_budget_returns_best_so_far():
     def slow(reference, tree, moved):
         import time
 
-        time.sleep(0.02)
+        time.sleep(0.3)
         return distance_cost(reference, tree, moved)
 
-    result = match(system, [Candidate(reference)] * 3, cost_fn=slow, time_budget=0.01,
+    total = 3 * sum(1 for _ in iso_search(system, reference))
+    result = match(system, [Candidate(reference)] * 3, cost_fn=slow, time_budget=0.5,
                    confidence=1e9)
-    assert result is not None and not result.complete and result.evaluated == 1
+    assert result is not None and not result.complete and 1 <= result.evaluated < total
 
 
 def test_no_isomorphic_candidate_and_bad_arguments():
