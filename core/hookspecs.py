@@ -153,7 +153,8 @@ def msrr_register_commands(cli: click.Group) -> None:
 def msrr_on_run_start(run: Any) -> None:
     """A run starts: the plan is made and the driver is connected.
 
-    :param run: the run (robot, scenario, start and goal configurations, plan, output folder).
+    :param run: the :class:`~msrr.core.events.Run` (robot, scenario, plan, output folder,
+        recording path).
     """
 
 
@@ -162,8 +163,8 @@ def msrr_on_tick(run: Any, tick: Any) -> None:
     """One control tick has been executed.
 
     :param run: the run.
-    :param tick: the tick's state (index, simulated time, module poses, recognized
-        configuration, commands, errors).
+    :param tick: the :class:`~msrr.core.events.Tick` (index, simulated time, observation
+        with module poses, recognized configuration, commands, errors).
     """
 
 
@@ -172,8 +173,9 @@ def msrr_on_action(run: Any, action: Any, status: str) -> None:
     """An action changes status.
 
     :param run: the run.
-    :param action: the action.
-    :param status: ``"started"``, ``"succeeded"``, ``"retrying"`` or ``"failed"``.
+    :param action: the :class:`~msrr.core.plan.Action`.
+    :param status: an :class:`~msrr.core.events.ActionStatus`: ``"started"``,
+        ``"succeeded"``, ``"retrying"`` or ``"failed"``.
     """
 
 
@@ -182,7 +184,8 @@ def msrr_on_topology_change(run: Any, change: Any) -> None:
     """A connection was made or broken (dock, undock, connection, disconnection).
 
     :param run: the run.
-    :param change: what changed (kind, modules, ports, simulated time).
+    :param change: the :class:`~msrr.core.events.TopologyEvent` (``"dock"`` or
+        ``"undock"``, the connection with its ports, tick, simulated time).
     """
 
 
@@ -191,5 +194,6 @@ def msrr_on_run_end(run: Any, result: Any) -> None:
     """A run ended, successfully or not.
 
     :param run: the run.
-    :param result: the run's summary (success, counts, times, reason on failure).
+    :param result: the :class:`~msrr.core.events.RunResult` (success, counts, times,
+        reason on failure).
     """
