@@ -16,3 +16,12 @@ def msrr_robot():
 @hookimpl
 def msrr_docking_rules(robot: str):
     return FreeSNRules() if robot == SPEC.name else None
+
+
+@hookimpl
+def msrr_kinematic_nodes(robot: str, register):
+    if robot == SPEC.name:
+        from .joints import JOINT_MODES
+
+        for node_type in JOINT_MODES:
+            register(node_type)

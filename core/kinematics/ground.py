@@ -1,0 +1,248 @@
+"""Three-point ground contact for floating bases (FreeSN paper, section 3.4, "Ground Model").
+
+The forward kinematics rotates a configuration about its root; a robot standing on
+the ground then tips until it rests on three contact points with its centre of mass
+above the support triangle. :class:`GroundOp` finds that pose: vertex positions
+follow from the vectors and the module lengths along a spanning tree of the
+topology, the support face is the face of their convex hull whose centre-of-mass
+projection falls inside it and whose outward normal is closest to straight down,
+and the minimal rotation that turns the face's normal to ``-z`` is applied to
+every vector. Its derivative (for a fixed face) flows back to the vectors, so the
+inverse kinematics keeps an analytic gradient.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from ..configuration import Configuration
+from .rotations import cross, rotation_between, rotation_between_omega
+from .tree import KinematicTree
+
+__all__ = ["GroundContact", "GroundModel", "GroundOp"]
+
+_DOWN = np.array([0.0, 0.0, -1.0])
+
+
+@dataclass(frozen=True)
+class GroundModel:
+    """Lengths and masses the ground model needs.
+
+    Attributes:
+        lengths: centre-to-centre length [m] of each edge, by id; ``default_length``
+            for edges not listed.
+        masses: mass [kg] of each module (vertex or edge) by id; ``default_vertex_mass``
+            and ``default_edge_mass`` for modules not listed. An edge module's mass
+            sits at its midpoint; virtual vertices weigh nothing.
+    """
+
+    lengths: Mapping[str, float] = field(default_factory=dict)
+    masses: Mapping[str, float] = field(default_factory=dict)
+    default_length: float = 1.0
+    default_vertex_mass: float = 1.0
+    default_edge_mass: float = 0.0
+
+    @classmethod
+    def for_configuration(cls, config: Configuration) -> GroundModel:
+        """Lengths and masses from the robot's module kinds (``geometry`` entries
+        ``length`` and ``mass``); unit lengths and masses where the robot gives none."""
+        from .. import plugins
+        from ..errors import MsrrError
+
+        try:
+            spec = plugins.robot(config.robot)
+        except MsrrError:
+            return cls()
+        geometry = {k.name: k.geometry for k in spec.module_kinds}
+        lengths, masses = {}, {}
+        for e in config.edges():
+            geo = geometry.get(e.kind or "", {})
+            if "length" in geo:
+                lengths[e.id] = float(geo["length"])
+            if "mass" in geo:
+                masses[e.id] = float(geo["mass"])
+        for v in config.vertices(virtual=False):
+            geo = geometry.get(config.kind_of(v), {})
+            if "mass" in geo:
+                masses[v] = float(geo["mass"])
+        return cls(lengths, masses)
+
+
+@dataclass(frozen=True)
+class GroundContact:
+    """The resting pose found by the ground model.
+
+    Attributes:
+        rotation: rotation applied to every vector, shape (3, 3).
+        contacts: the three contact vertices (empty when no support face exists).
+        normal: outward normal of the support face before the rotation, shape (3,).
+        com: centre of mass before the rotation [m], shape (3,).
+        stable: whether the centre of mass projects inside the support triangle.
+    """
+
+    rotation: np.ndarray
+    contacts: tuple[str, ...]
+    normal: np.ndarray
+    com: np.ndarray
+    stable: bool
+
+
+@dataclass
+class _Cache:
+    rotation: np.ndarray
+    points: np.ndarray | None = None   # positions (n_vertices, 3)
+    face: tuple[int, int, int] | None = None
+    normal_raw: np.ndarray | None = None
+
+
+class GroundOp:
+    """The ground model compiled for one tree: positions and centre of mass as matrices.
+
+    Args:
+        tree: the kinematic tree (its configuration gives the topology).
+        model: lengths and masses.
+    """
+
+    def __init__(self, tree: KinematicTree, model: GroundModel):
+        config = tree.configuration
+        self.vertices = config.vertices()
+        index = {v: i for i, v in enumerate(self.vertices)}
+        n = len(tree.edges)
+        column = {e: j for j, e in enumerate(tree.edges)}
+        graph = nx.Graph()
+        graph.add_nodes_from(self.vertices)
+        for e in config.edges():
+            if not graph.has_edge(e.source, e.target):
+                graph.add_edge(e.source, e.target, id=e.id)
+        start = tree.root.vertices[0] if tree.root.vertices else self.vertices[0]
+        # positions = paths @ Z_rows: sum of +-length * z along the spanning tree
+        paths = np.zeros((len(self.vertices), n))
+        for parent, child in nx.bfs_edges(graph, start):
+            edge = config.edge(graph.edges[parent, child]["id"])
+            sign = 1.0 if edge.source == parent else -1.0
+            paths[index[child]] = paths[index[parent]]
+            paths[index[child], column[edge.id]] += sign * model.lengths.get(
+                edge.id, model.default_length)
+        self.paths = paths
+        masses = np.array([0.0 if config.is_virtual(v) else model.masses.get(
+            v, model.default_vertex_mass) for v in self.vertices])
+        com = masses @ paths
+        total = masses.sum()
+        for e in config.edges():
+            m = model.masses.get(e.id, model.default_edge_mass)
+            com = com + m * 0.5 * (paths[index[e.source]] + paths[index[e.target]])
+            total += m
+        self.com_weights = com / total if total > 0 else np.full(n, 0.0)
+
+    def contact(self, z: np.ndarray) -> tuple[GroundContact, _Cache]:
+        """The resting pose for world-frame vectors ``z`` (rows, (n, 3))."""
+        points = self.paths @ z
+        com = self.com_weights @ z
+        face = self._support(points, com)
+        if face is None:
+            eye = np.eye(3)
+            return GroundContact(eye, (), _DOWN.copy(), com, False), _Cache(eye)
+        (a, b, c), stable = face
+        raw = cross(points[b] - points[a], points[c] - points[a])
+        normal = raw / np.linalg.norm(raw)
+        rot = rotation_between(normal, _DOWN)
+        contact = GroundContact(rot, tuple(self.vertices[i] for i in (a, b, c)), normal, com,
+                                stable)
+        return contact, _Cache(rot, points, (a, b, c), raw)
+
+    def backward(self, cache: _Cache, z: np.ndarray, grad_z: np.ndarray,
+                 x: np.ndarray | None = None, grad_x: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Pull gradients on the grounded vectors ``R z`` back to ``z`` (rows (n, 3)).
+
+        Args:
+            cache: from :meth:`contact`.
+            z: the vectors before grounding (rows).
+            grad_z: ``dL/d(R z)`` (rows).
+            x, grad_x: the same for forward vectors, optional.
+        """
+        rot = cache.rotation
+        gz = grad_z @ rot
+        gx = None if grad_x is None else grad_x @ rot
+        if cache.face is None:
+            return gz, gx
+        assert cache.points is not None and cache.normal_raw is not None
+        # torque of the gradients on the grounded vectors
+        tau = np.sum(cross(z @ rot.T, grad_z), axis=0)
+        if x is not None and grad_x is not None:
+            tau += np.sum(cross(x @ rot.T, grad_x), axis=0)
+        raw = cache.normal_raw
+        norm = np.linalg.norm(raw)
+        normal = raw / norm
+        # R = Q^T with Q = rotation_between(down, n); dR = hat(-R omega_Q) R
+        dn = (np.eye(3) - np.outer(normal, normal)) / norm
+        omega_q = rotation_between_omega(_DOWN, normal, dn)      # (3, 3): d omega_Q / d raw
+        g_raw = -(omega_q.T @ (rot.T @ tau))
+        a, b, c = cache.face
+        pts = cache.points
+        u, v = pts[b] - pts[a], pts[c] - pts[a]
+        g_u = cross(v, g_raw)
+        g_v = cross(g_raw, u)
+        g_points = np.zeros_like(pts)
+        g_points[b] += g_u
+        g_points[c] += g_v
+        g_points[a] -= g_u + g_v
+        return gz + self.paths.T @ g_points, gx
+
+    def _support(self, points: np.ndarray, com: np.ndarray
+                 ) -> tuple[tuple[int, int, int], bool] | None:
+        """Support triangle (vertex indices, outward normal order) and its stability."""
+        if len(points) < 3:
+            return None
+        try:
+            hull = ConvexHull(points)
+            faces = hull.simplices
+            normals = hull.equations[:, :3]
+        except (QhullError, ValueError):
+            return self._planar_support(points, com)
+        best, best_key = None, None
+        for simplex, normal in zip(faces, normals, strict=True):
+            a, b, c = (int(i) for i in simplex)
+            if np.dot(cross(points[b] - points[a], points[c] - points[a]), normal) < 0:
+                b, c = c, b
+            stable = _inside(points[a], points[b], points[c], com, normal)
+            key = (not stable, float(normal[2]))   # stable first, then most downward
+            if best_key is None or key < best_key:
+                best, best_key = ((a, b, c), stable), key
+        return best
+
+    def _planar_support(self, points: np.ndarray, com: np.ndarray
+                        ) -> tuple[tuple[int, int, int], bool] | None:
+        """All points in one plane: the fan triangle of its outline under the centre of mass."""
+        centred = points - points.mean(axis=0)
+        _, sv, vt = np.linalg.svd(centred)
+        if sv[1] < 1e-9 * max(sv[0], 1e-300):
+            return None  # collinear: no support plane
+        normal = vt[2] if vt[2][2] <= 0 else -vt[2]
+        flat = centred @ vt[:2].T
+        try:
+            outline = [int(i) for i in ConvexHull(flat).vertices]
+        except (QhullError, ValueError):
+            return None
+        fans = []
+        for i in range(1, len(outline) - 1):
+            a, b, c = outline[0], outline[i], outline[i + 1]
+            if np.dot(cross(points[b] - points[a], points[c] - points[a]), normal) < 0:
+                b, c = c, b
+            fans.append((a, b, c))
+        for a, b, c in fans:
+            if _inside(points[a], points[b], points[c], com, normal):
+                return (a, b, c), True
+        return (fans[0], False) if fans else None
+
+
+def _inside(a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray,
+            normal: np.ndarray) -> bool:
+    """Whether ``p`` projected along ``normal`` falls inside triangle ``abc``."""
+    return all(np.dot(cross(v - u, p - u), normal) >= -1e-12
+               for u, v in ((a, b), (b, c), (c, a)))

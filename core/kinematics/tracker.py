@@ -1,0 +1,166 @@
+"""Iterative inverse kinematics for the executor (FreeSN paper, section 3.4, last part).
+
+In a moving action the IK runs every control tick while the robot moves, so an
+optimal solution is not needed at each tick. :class:`IKTracker` follows the paper:
+
+* the first :meth:`~IKTracker.step` is the initial phase: :func:`~.ik.solve_ik` with
+  sampled restarts until a solution under the tolerance is found (or the budget ends);
+* later steps *track*: one L-BFGS-B run warm-started from the previous solution, within
+  ``tick_budget``;
+* meanwhile an *exploration* thread keeps optimising starts sampled globally from the
+  joint space on the latest configuration; when one of its solutions is better than
+  the tracked one (compared on the current configuration), the next tracking step
+  starts from it instead.
+
+The tracker holds state; the solver functions it calls stay pure.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from ..configuration import Configuration
+from .fk import _layout
+from .ik import IKOptions, IKProblem, IKSolution, solve_ik
+from .tree import KinematicTree
+
+__all__ = ["IKTracker"]
+
+
+class IKTracker:
+    """Tracking IK with a background exploration worker.
+
+    Args:
+        tree: kinematic tree of the moving configuration.
+        target: the target configuration (same ids; its yaw is solved).
+        options: solver options; ``time_budget`` bounds the initial phase and each
+            exploration run, ``seed`` seeds both the solver and the explorer.
+        tick_budget: time limit of one tracking step [s].
+        explore: run the exploration thread (``False``: deterministic tracking only).
+        explore_pause: pause between two exploration runs [s], to leave the cores to
+            the control loop.
+
+    Use as a context manager, or call :meth:`close`, to stop the exploration thread.
+    """
+
+    def __init__(self, tree: KinematicTree, target: Configuration,
+                 options: IKOptions | None = None, *, tick_budget: float = 0.05,
+                 explore: bool = True, explore_pause: float = 0.0):
+        self.tree = tree
+        self.options = options or IKOptions()
+        self.tick_budget = tick_budget
+        self.explore = explore and tree.dim > 0
+        self.explore_pause = explore_pause
+        self.last: IKSolution | None = None
+        self.handovers = 0
+        self._target = target
+        self._lock = threading.Lock()
+        self._snapshot: tuple[Configuration, Configuration] | None = None
+        self._offer: tuple[np.ndarray, float] | None = None
+        self._offer_cost = np.inf
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._thread: threading.Thread | None = None
+        _layout(tree)  # built once here, shared read-only by both threads
+
+    # -- the control loop's side --------------------------------------------------------
+
+    @property
+    def target(self) -> Configuration:
+        return self._target
+
+    def set_target(self, target: Configuration) -> None:
+        """Track a new target; the warm start is kept, the exploration offer dropped."""
+        with self._lock:
+            self._target = target
+            self._offer, self._offer_cost = None, np.inf
+
+    def step(self, current: Configuration) -> IKSolution:
+        """Solve for this tick: joint values that move ``current`` onto the target."""
+        target = self._target
+        if self.last is None:
+            solution = solve_ik(self.tree, current, target, self.options)
+        else:
+            solution = self._track(current, target)
+        self.last = solution
+        with self._lock:
+            self._snapshot = (current, target)
+        if self.explore:
+            self._ensure_explorer()
+            self._wake.set()
+        return solution
+
+    def _track(self, current: Configuration, target: Configuration) -> IKSolution:
+        assert self.last is not None
+        options = replace(self.options, time_budget=self.tick_budget, max_restarts=0)
+        problem = IKProblem(self.tree, current, target, options)
+        starts = [(self.last.sigma, self.last.yaw)]
+        with self._lock:
+            offer, self._offer, self._offer_cost = self._offer, None, np.inf
+        if offer is not None:
+            starts.append(offer)
+        costs = [problem.evaluate(sigma, yaw)[0] for sigma, yaw in starts]
+        best = int(np.argmin(costs))
+        if best == 1:
+            self.handovers += 1
+        sigma, yaw = starts[best]
+        return solve_ik(self.tree, current, target,
+                        replace(options, initial_sigma=sigma, initial_yaw=yaw))
+
+    # -- exploration --------------------------------------------------------------------
+
+    def _ensure_explorer(self) -> None:
+        if self._thread is None or not self._thread.is_alive():
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._explore, name="msrr-ik-explore",
+                                            daemon=True)
+            self._thread.start()
+
+    def _explore(self) -> None:
+        seed = None if self.options.seed is None else self.options.seed + 1
+        rng = np.random.default_rng(seed)
+        lo, hi = self.tree.bounds
+        lo = np.where(np.isfinite(lo), lo, -np.pi)
+        hi = np.where(np.isfinite(hi), hi, np.pi)
+        scale = self.options.sample_scale
+        while not self._stop.is_set():
+            with self._lock:
+                snapshot = self._snapshot
+            if snapshot is None:
+                self._wake.wait(0.1)
+                self._wake.clear()
+                continue
+            current, target = snapshot
+            problem = IKProblem(self.tree, current, target, self.options)
+            start = 0.5 * (lo + hi) + scale * (rng.random(self.tree.dim) - 0.5) * (hi - lo)
+            deadline = time.perf_counter() + self.options.time_budget
+            sigma, yaw, _ = problem.local_solve(start, problem.yaw_estimate(start), deadline)
+            cost = problem.evaluate(sigma, yaw)[0]
+            last = self.last
+            reference = problem.evaluate(last.sigma, last.yaw)[0] if last is not None else np.inf
+            with self._lock:
+                if self._snapshot is snapshot and cost < min(reference, self._offer_cost):
+                    self._offer, self._offer_cost = (sigma, yaw), cost
+            if self.explore_pause:
+                self._stop.wait(self.explore_pause)
+
+    def close(self) -> None:
+        """Stop the exploration thread (waits for its current run to end)."""
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    def __enter__(self) -> IKTracker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # pragma: no cover - best effort at interpreter exit
+        self._stop.set()

@@ -1,0 +1,590 @@
+"""Kinematic trees: kinematic nodes connected by ports (paper section 3.2).
+
+A :class:`KinematicTree` partitions a configuration's edges and vertices among
+kinematic nodes. Each non-root node hangs from its parent through the ends of its
+edges that it does not own (its *attachments*; the first is its *input port*). The
+root is a fixed node. Breadth-first order of the nodes fixes the layout of ``Z``,
+``X`` (one column per edge, node by node) and ``sigma`` (node by node).
+
+Every cycle of the topology must lie inside one fixed or parallel node (closing, at
+most, through ports of that node's parent); anything else is refused with a
+:class:`KinematicTreeError` that names the cycle.
+
+:func:`default_tree` builds the paper's default: a fixed root at the topology's
+centre and one module joint of the robot's default mode per edge. Trees serialise
+to JSON (``schema_version`` 1) with :meth:`KinematicTree.to_dict`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections import deque
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, Literal
+
+import networkx as nx
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..configuration import Configuration
+from ..errors import ConfigurationError, UnknownNameError
+from ..files import atomic_write_text, parse_model, read_json
+from .node import FixedNode, KinematicNode, KinematicTreeError, ModuleJointNode
+
+__all__ = [
+    "TREE_SCHEMA_VERSION",
+    "KinematicTree",
+    "KinematicTreeError",
+    "KinematicTreeFile",
+    "default_joint_mode",
+    "default_tree",
+    "joint_modes",
+    "load_tree",
+    "save_tree",
+]
+
+TREE_SCHEMA_VERSION = 1
+
+
+NodeTypes = Mapping[str, type[KinematicNode]]
+
+
+def joint_modes(robot: str) -> dict[str, type[KinematicNode]]:
+    """Node types available for ``robot``: ``"fixed"`` plus every registered joint mode."""
+    from .. import plugins
+
+    found: dict[str, type[KinematicNode]] = {"fixed": FixedNode}
+    found.update(plugins.kinematic_nodes(robot))
+    return found
+
+
+def default_joint_mode(robot: str) -> type[KinematicNode]:
+    """The robot's default module joint: ``defaults["joint_mode"]`` of its description,
+    else the first registered module-joint type."""
+    from .. import plugins
+
+    types = joint_modes(robot)
+    name = plugins.robot(robot).defaults.get("joint_mode")
+    if isinstance(name, str):
+        if name not in types:
+            raise UnknownNameError(f"joint mode for robot {robot!r}", name, types)
+        return types[name]
+    for cls in types.values():
+        if cls.family == "module_joint":
+            return cls
+    raise UnknownNameError(f"module joint mode for robot {robot!r}", "(default)",
+                           [n for n, c in types.items() if c.family == "module_joint"])
+
+
+def _label(node: KinematicNode) -> str:
+    inside = ",".join(node.edges) if node.edges else ",".join(node.vertices)
+    return f"{node.name}[{inside}]"
+
+
+class KinematicTree:
+    """Kinematic nodes over one configuration's topology, in breadth-first order.
+
+    Args:
+        config: the configuration whose topology the nodes cover (its vectors are not
+            used; a copy of the topology is kept).
+        nodes: the nodes, in any order; exactly one of them, the root, has no
+            attachment, and it must be a fixed node.
+
+    Attributes:
+        configuration: the topology (a copy of ``config``).
+        nodes: nodes in BFS order; ``nodes[0]`` is the root.
+        parents: index of each node's parent in ``nodes`` (-1 for the root).
+        input_ports: the parent vertex each node hangs from (``None`` for the root).
+        edges: edge ids in layout order: the columns of ``Z`` and ``X``.
+        slices: each node's slice of ``sigma``.
+        dim: total joint-space dimension, the length of ``sigma``.
+
+    Raises:
+        KinematicTreeError: the nodes do not partition the topology, or a cycle
+            crosses nodes or runs through a module joint.
+    """
+
+    def __init__(self, config: Configuration, nodes: Iterable[KinematicNode]):
+        self.configuration = config.skeletal().with_vectors(z={}, x={})
+        self.configuration.name, self.configuration.description = config.name, config.description
+        nodes = list(nodes)
+        owner_edge, owner_vertex = self._partition(nodes)
+        attachments = [self._attachments(node, owner_vertex) for node in nodes]
+        roots = [i for i, a in enumerate(attachments) if not a]
+        if len(roots) != 1:
+            listed = ", ".join(_label(nodes[i]) for i in roots) or "none"
+            raise KinematicTreeError(f"a kinematic tree needs exactly one root node (a node "
+                                     f"none of whose edges reach another node); found {listed}")
+        root = roots[0]
+        if nodes[root].family != "fixed":
+            raise KinematicTreeError(f"the root node {_label(nodes[root])} must be a fixed node")
+        parent_of: list[int] = []
+        for i, node in enumerate(nodes):
+            owners = sorted({owner_vertex[v] for v in attachments[i]})
+            if i == root:
+                parent_of.append(-1)
+                continue
+            if len(owners) > 1 or (len(attachments[i]) > 1 and node.family == "module_joint"):
+                self._cycle_error(node.edges, nodes, owner_edge)
+            parent = owners[0]
+            distinct_ports = len(set(attachments[i])) > 1
+            if distinct_ports and nodes[parent].family != "fixed":
+                raise KinematicTreeError(
+                    f"{_label(node)} closes a cycle through ports "
+                    f"{', '.join(attachments[i])} of {_label(nodes[parent])}; only a fixed "
+                    "parent keeps its ports rigid")
+            if node.family == "module_joint" and self._has_cycle(node, attachments[i]):
+                self._cycle_error(node.edges, nodes, owner_edge)
+            self._check_connected(node, attachments[i])
+            parent_of.append(parent)
+        order = self._bfs(nodes, root, parent_of, attachments, owner_edge)
+        index = {old: new for new, old in enumerate(order)}
+        self.nodes: tuple[KinematicNode, ...] = tuple(nodes[i] for i in order)
+        self.parents: tuple[int, ...] = tuple(
+            -1 if parent_of[i] < 0 else index[parent_of[i]] for i in order)
+        self.input_ports: tuple[str | None, ...] = tuple(
+            attachments[i][0] if attachments[i] else None for i in order)
+        self.attachments: tuple[tuple[str, ...], ...] = tuple(attachments[i] for i in order)
+        self.edges: tuple[str, ...] = tuple(e for node in self.nodes for e in node.edges)
+        slices, start = [], 0
+        for node in self.nodes:
+            slices.append(slice(start, start + node.dim))
+            start += node.dim
+        self.slices: tuple[slice, ...] = tuple(slices)
+        self.dim = start
+        self._column = {e: j for j, e in enumerate(self.edges)}
+        self._node_of_vertex = {v: index[owner_vertex[v]] for v in owner_vertex}
+        self._engine: Any = None
+
+    # -- validation -----------------------------------------------------------------------
+
+    def _partition(self, nodes: list[KinematicNode]) -> tuple[dict[str, int], dict[str, int]]:
+        config = self.configuration
+        owner_edge: dict[str, int] = {}
+        owner_vertex: dict[str, int] = {}
+        known_edges, known_vertices = set(config.edge_ids()), set(config.vertices())
+        for i, node in enumerate(nodes):
+            if not isinstance(node, KinematicNode):
+                raise KinematicTreeError(f"nodes[{i}] is {node!r}, not a KinematicNode")
+            for e in node.edges:
+                if e not in known_edges:
+                    raise KinematicTreeError(f"{_label(node)}: no edge {e!r} in configuration "
+                                             f"{config.name or '(unnamed)'}")
+                if e in owner_edge:
+                    raise KinematicTreeError(f"edge {e} is in two nodes: "
+                                             f"{_label(nodes[owner_edge[e]])} and {_label(node)}")
+                owner_edge[e] = i
+            for v in node.vertices:
+                if v not in known_vertices:
+                    raise KinematicTreeError(f"{_label(node)}: no vertex {v!r} in the "
+                                             "configuration")
+                if v in owner_vertex:
+                    raise KinematicTreeError(
+                        f"vertex {v} is owned by two nodes: {_label(nodes[owner_vertex[v]])} "
+                        f"and {_label(node)}")
+                owner_vertex[v] = i
+        missing_e = [e for e in config.edge_ids() if e not in owner_edge]
+        missing_v = [v for v in config.vertices() if v not in owner_vertex]
+        if missing_e:
+            raise KinematicTreeError(f"edge(s) {', '.join(missing_e)} belong to no kinematic node")
+        if missing_v:
+            raise KinematicTreeError(f"vertex(es) {', '.join(missing_v)} belong to no kinematic "
+                                     "node")
+        return owner_edge, owner_vertex
+
+    def _attachments(self, node: KinematicNode, owner_vertex: dict[str, int]) -> tuple[str, ...]:
+        own = set(node.vertices)
+        found: list[str] = []
+        for e in node.edges:
+            edge = self.configuration.edge(e)
+            for end in (edge.source, edge.target):
+                if end not in own:
+                    found.append(end)
+        return tuple(found)
+
+    def _has_cycle(self, node: KinematicNode, attachments: tuple[str, ...]) -> bool:
+        graph = nx.MultiGraph()
+        for e in node.edges:
+            edge = self.configuration.edge(e)
+            graph.add_edge(*("^" if v in attachments else v for v in (edge.source, edge.target)))
+        return len(node.edges) >= graph.number_of_nodes()
+
+    def _check_connected(self, node: KinematicNode, attachments: tuple[str, ...]) -> None:
+        graph = nx.Graph()
+        graph.add_node("^")
+        graph.add_nodes_from(node.vertices)
+        for e in node.edges:
+            edge = self.configuration.edge(e)
+            graph.add_edge(*("^" if v in attachments else v for v in (edge.source, edge.target)))
+        loose = [v for v in node.vertices if not nx.has_path(graph, "^", v)]
+        if loose:
+            raise KinematicTreeError(f"{_label(node)}: vertex(es) {', '.join(loose)} are not "
+                                     "connected to the parent through the node's own edges")
+
+    def _cycle_error(self, edges: Sequence[str], nodes: list[KinematicNode],
+                     owner_edge: dict[str, int]) -> None:
+        cycle = find_cycle_through(self.configuration, edges)
+        if cycle is None:  # pragma: no cover - a cross-node attachment always closes a cycle
+            raise KinematicTreeError(f"edges {', '.join(edges)} attach to several nodes")
+        vertices, cycle_edges = cycle
+        through = []
+        for e in cycle_edges:
+            label = _label(nodes[owner_edge[e]])
+            if label not in through:
+                through.append(label)
+        loop = " - ".join([*vertices, vertices[0]])
+        raise KinematicTreeError(
+            f"cycle {loop} (edges {', '.join(cycle_edges)}) is not inside one fixed or "
+            f"parallel node: it runs through {', '.join(through)}")
+
+    def _bfs(self, nodes: list[KinematicNode], root: int, parent_of: list[int],
+             attachments: list[tuple[str, ...]], owner_edge: dict[str, int]) -> list[int]:
+        edge_rank = {e: i for i, e in enumerate(self.configuration.edge_ids())}
+        children: dict[int, list[int]] = {}
+        for i, p in enumerate(parent_of):
+            if p >= 0:
+                children.setdefault(p, []).append(i)
+
+        def key(i: int) -> tuple[int, int]:
+            parent = nodes[parent_of[i]]
+            return (parent.vertices.index(attachments[i][0]),
+                    min((edge_rank[e] for e in nodes[i].edges), default=0))
+
+        order, queue = [], deque([root])
+        while queue:
+            i = queue.popleft()
+            order.append(i)
+            queue.extend(sorted(children.get(i, []), key=key))
+        if len(order) != len(nodes):
+            stray = [i for i in range(len(nodes)) if i not in set(order)]
+            self._cycle_error([e for i in stray for e in nodes[i].edges], nodes, owner_edge)
+        return order
+
+    # -- reading -----------------------------------------------------------------------------
+
+    @property
+    def root(self) -> KinematicNode:
+        return self.nodes[0]
+
+    @property
+    def robot(self) -> str:
+        return self.configuration.robot
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint bounds in ``sigma`` layout, each shape (dim,)."""
+        lo = np.concatenate([n.bounds[0] for n in self.nodes]) if self.dim else np.zeros(0)
+        hi = np.concatenate([n.bounds[1] for n in self.nodes]) if self.dim else np.zeros(0)
+        return lo, hi
+
+    def column(self, edge_id: str) -> int:
+        """Column of edge ``edge_id`` in ``Z`` and ``X``."""
+        try:
+            return self._column[edge_id]
+        except KeyError:
+            raise UnknownNameError("edge of this kinematic tree", edge_id, self.edges) from None
+
+    def node_of_edge(self, edge_id: str) -> KinematicNode:
+        return next(n for n in self.nodes if edge_id in n.edges)
+
+    def node_of_vertex(self, vertex: str) -> KinematicNode:
+        return self.nodes[self._node_of_vertex[vertex]]
+
+    def split(self, sigma: np.ndarray) -> list[np.ndarray]:
+        """``sigma`` cut into one array per node, in :attr:`nodes` order."""
+        sigma = np.asarray(sigma, dtype=np.float64)
+        return [sigma[s] for s in self.slices]
+
+    def check_configuration(self, config: Configuration) -> None:
+        """Raise unless ``config`` has this tree's topology (same ids, same ends)."""
+        mine = {e.id: (e.source, e.target) for e in self.configuration.edges()}
+        theirs = {e.id: (e.source, e.target) for e in config.edges()}
+        if mine != theirs or set(config.vertices()) != set(self.configuration.vertices()):
+            extra = sorted(set(theirs) - set(mine))
+            missing = sorted(set(mine) - set(theirs))
+            moved = sorted(e for e in set(mine) & set(theirs) if mine[e] != theirs[e])
+            parts = [f"{what} {', '.join(ids)}" for what, ids in
+                     (("unknown edges", extra), ("missing edges", missing),
+                      ("edges with other ends", moved)) if ids]
+            raise KinematicTreeError("configuration does not have the tree's topology"
+                                     + (f" ({'; '.join(parts)})" if parts else
+                                        " (different vertices)"))
+
+    def __len__(self) -> int:
+        return len(self.nodes)
+
+    def __repr__(self) -> str:
+        return (f"<KinematicTree robot={self.robot} nodes={len(self.nodes)} "
+                f"edges={len(self.edges)} dim={self.dim}>")
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, KinematicTree):
+            return NotImplemented
+        return self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # -- files -------------------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary: topology and nodes in BFS order (schema_version 1)."""
+        from ..io import configuration_to_model
+
+        topology = configuration_to_model(self.configuration).model_dump(
+            mode="json", exclude_none=True)
+        return {"schema_version": TREE_SCHEMA_VERSION, "robot": self.robot,
+                "configuration": self.configuration.name,
+                "modules": topology["modules"], "connections": topology["connections"],
+                "nodes": [node.to_dict() for node in self.nodes]}
+
+    @classmethod
+    def from_dict(cls, data: Any, config: Configuration | None = None, *,
+                  node_types: NodeTypes | None = None, source: str | None = None
+                  ) -> KinematicTree:
+        """A tree from :meth:`to_dict` output.
+
+        Args:
+            data: the parsed JSON.
+            config: the configuration the tree belongs to; its topology must match the
+                stored one. Without it the stored topology is used.
+            node_types: node types by name; the robot's registered joint modes by default.
+            source: file name for error messages.
+
+        Raises:
+            KinematicTreeError: a malformed document, an unknown node type (listing the
+                known ones), or a topology mismatch.
+        """
+        from ..io import ConfigurationFile, configuration_from_model
+
+        model = _parse(KinematicTreeFile, data, source)
+        topology = configuration_from_model(ConfigurationFile(
+            schema_version=1, robot=model.robot, name=model.configuration,
+            modules=model.modules, connections=model.connections), source)
+        types = dict(node_types) if node_types is not None else joint_modes(model.robot)
+        types.setdefault("fixed", FixedNode)
+        nodes = []
+        for i, spec in enumerate(model.nodes):
+            if spec.type not in types:
+                raise KinematicTreeError(str(UnknownNameError(
+                    f"node type for robot {model.robot!r}", spec.type, types)),
+                    source=source, field=f"nodes[{i}].type")
+            try:
+                nodes.append(types[spec.type](spec.edges, spec.vertices, **spec.params))
+            except ConfigurationError as exc:
+                raise KinematicTreeError(exc.message, source=source,
+                                         field=f"nodes[{i}]") from None
+        tree = cls(config if config is not None else topology, nodes)
+        if config is not None:
+            tree.check_configuration(topology)
+        return tree
+
+
+# -- serialisation models -----------------------------------------------------------------------
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class NodeModel(_Strict):
+    """One kinematic node of a tree file."""
+
+    type: str = Field(min_length=1, description="Node type (joint mode) name, or 'fixed'.")
+    edges: list[str] = Field(default_factory=list, description="Edge ids, in the node's order.")
+    vertices: list[str] = Field(default_factory=list, description="Owned vertex ids (ports).")
+    params: dict[str, float] = Field(default_factory=dict,
+                                     description="Node-type parameters that differ from defaults.")
+
+
+def _tree_file_model() -> type[BaseModel]:
+    from ..io import ConnectionModel, ModuleModel
+
+    class KinematicTreeFile(_Strict):
+        """A kinematic tree file: the topology it covers and its nodes in BFS order."""
+
+        schema_version: Literal[1] = Field(description="File format version.")
+        robot: str = Field(min_length=1)
+        configuration: str = Field("", description="Name of the configuration.")
+        modules: list[ModuleModel]
+        connections: list[ConnectionModel] = []
+        nodes: list[NodeModel] = Field(min_length=1)
+
+    return KinematicTreeFile
+
+
+KinematicTreeFile: Any = _tree_file_model()
+
+
+def _parse(model: Any, data: Any, source: str | None) -> Any:
+    try:
+        return parse_model(model, data, source)
+    except ConfigurationError as exc:
+        raise KinematicTreeError(exc.message, source=exc.source, field=exc.field) from None
+
+
+def save_tree(tree: KinematicTree, path: str | os.PathLike[str]) -> None:
+    """Write ``tree`` as JSON to ``path`` atomically."""
+    atomic_write_text(path, json.dumps(tree.to_dict(), indent=2) + "\n")
+
+
+def load_tree(path: str | os.PathLike[str], config: Configuration | None = None) -> KinematicTree:
+    """Read a tree file written by :func:`save_tree`."""
+    return KinematicTree.from_dict(read_json(path), config, source=str(path))
+
+
+# -- cycles and the default tree --------------------------------------------------------------
+
+
+def find_cycle_through(config: Configuration, edges: Iterable[str]
+                       ) -> tuple[list[str], list[str]] | None:
+    """The shortest cycle of the topology through one of ``edges``: (vertices, edge ids)."""
+    graph = nx.MultiGraph()
+    graph.add_nodes_from(config.vertices())
+    for e in config.edges():
+        graph.add_edge(e.source, e.target, key=e.id)
+    best: tuple[list[str], list[str]] | None = None
+    for edge_id in edges:
+        edge = config.edge(edge_id)
+        graph.remove_edge(edge.source, edge.target, key=edge_id)
+        try:
+            path = nx.shortest_path(graph, edge.target, edge.source)
+        except nx.NetworkXNoPath:
+            path = None
+        if path is not None and (best is None or len(path) < len(best[0])):
+            ids = [next(iter(graph.get_edge_data(a, b)))
+                   for a, b in zip(path, path[1:], strict=False)]
+            best = (path, [*ids, edge_id])  # target ... source, then back along edge_id
+        graph.add_edge(edge.source, edge.target, key=edge_id)
+    return best
+
+
+def _centre(graph: nx.Graph, rank: Mapping[Any, tuple]) -> Any:
+    """The tree centre of ``graph``; ties broken by ``rank`` (smaller first)."""
+    if graph.number_of_nodes() == 1:
+        return next(iter(graph.nodes))
+    return min(nx.center(graph), key=lambda v: rank[v])
+
+
+def default_tree(config: Configuration, joint_mode: str | type[KinematicNode] | None = None,
+                 *, cycles: Literal["fixed", "error"] = "fixed") -> KinematicTree:
+    """The default kinematic tree of ``config`` (paper section 3.2).
+
+    A fixed root at the topology's centre (vertex of smallest eccentricity; ties go to
+    a real module before a virtual one, then to the larger degree, then to the first
+    listed) and one module joint of ``joint_mode`` per edge, owning the edge's end
+    away from the root.
+
+    Args:
+        config: a connected configuration.
+        joint_mode: a joint mode name of the robot, or a node class; the robot's
+            default (``defaults["joint_mode"]``, FreeSN ``"opposite_steering"``) if None.
+        cycles: ``"fixed"`` holds every cyclic block of the topology rigid in a fixed
+            node (the root, if the block holds the centre); ``"error"`` refuses a
+            topology with cycles and names one.
+
+    Raises:
+        KinematicTreeError: the topology is not connected, or has a cycle and
+            ``cycles="error"``.
+        UnknownNameError: ``joint_mode`` is not a joint mode of the robot (lists them).
+    """
+    if isinstance(joint_mode, type):
+        joint_cls = joint_mode
+    elif joint_mode is None:
+        joint_cls = default_joint_mode(config.robot)
+    else:
+        types = joint_modes(config.robot)
+        modules = {n: c for n, c in types.items() if c.family == "module_joint"}
+        if joint_mode not in modules:
+            raise UnknownNameError(f"module joint mode for robot {config.robot!r}",
+                                   joint_mode, modules)
+        joint_cls = modules[joint_mode]
+    if not issubclass(joint_cls, ModuleJointNode):
+        raise KinematicTreeError(f"joint mode {joint_cls.name!r} is not a module joint")
+    if len(config) == 0 or not config.is_connected():
+        raise KinematicTreeError("a kinematic tree needs one connected configuration")
+
+    # cyclic blocks (biconnected components with a cycle, and doubled edges) -> groups
+    simple = nx.Graph()
+    simple.add_nodes_from(config.vertices())
+    pair_edges: dict[frozenset[str], list[str]] = {}
+    for e in config.edges():
+        simple.add_edge(e.source, e.target)
+        pair_edges.setdefault(frozenset((e.source, e.target)), []).append(e.id)
+    group_of: dict[str, int] = {}
+    groups: list[set[str]] = []
+
+    def merge(vertices: set[str]) -> None:
+        hit = sorted({group_of[v] for v in vertices if v in group_of})
+        merged = set(vertices)
+        for g in hit:
+            merged |= groups[g]
+            groups[g] = set()
+        groups.append(merged)
+        for v in merged:
+            group_of[v] = len(groups) - 1
+
+    for block in nx.biconnected_component_edges(simple):
+        block = list(block)
+        if len(block) > 1:
+            merge({v for pair in block for v in pair})
+    for pair, ids in pair_edges.items():
+        if len(ids) > 1:
+            merge(set(pair))
+    if any(groups) and cycles == "error":
+        group_edges = [e.id for e in config.edges()
+                       if e.source in group_of and group_of[e.source] == group_of.get(e.target)]
+        cycle = find_cycle_through(config, group_edges)
+        assert cycle is not None
+        loop = " - ".join([*cycle[0], cycle[0][0]])
+        raise KinematicTreeError(f"cycle {loop} (edges {', '.join(cycle[1])}): the topology is "
+                                 "not a tree; use cycles='fixed' or build the tree with a fixed "
+                                 "or parallel node around it")
+
+    def super_vertex(v: str) -> str:
+        return f"#group{group_of[v]}" if v in group_of else v
+
+    contracted = nx.Graph()
+    order = {v: i for i, v in enumerate(config.vertices())}
+    rank: dict[str, tuple] = {}
+    for v in config.vertices():
+        s = super_vertex(v)
+        contracted.add_node(s)
+        real = not config.is_virtual(v)
+        candidate = (0 if real else 1, -config.degree(v), order[v])
+        rank[s] = min(rank.get(s, candidate), candidate)
+    bridge_edges = [e for e in config.edges() if super_vertex(e.source) != super_vertex(e.target)]
+    for e in bridge_edges:
+        contracted.add_edge(super_vertex(e.source), super_vertex(e.target))
+    centre = _centre(contracted, rank)
+
+    def members(s: str) -> list[str]:
+        return [v for v in config.vertices() if super_vertex(v) == s]
+
+    def inner_edges(s: str) -> list[str]:
+        return [e.id for e in config.edges()
+                if super_vertex(e.source) == s and super_vertex(e.target) == s]
+
+    nodes: list[KinematicNode] = [FixedNode(inner_edges(centre), members(centre))]
+    owned = set(members(centre))
+    by_super: dict[str, list] = {}
+    for e in bridge_edges:
+        by_super.setdefault(super_vertex(e.source), []).append(e)
+        by_super.setdefault(super_vertex(e.target), []).append(e)
+    queue, seen = deque([centre]), {centre}
+    while queue:
+        s = queue.popleft()
+        for e in by_super.get(s, []):
+            far = e.target if super_vertex(e.source) == s else e.source
+            sf = super_vertex(far)
+            if sf in seen:
+                continue
+            seen.add(sf)
+            nodes.append(joint_cls([e.id], [far]))
+            owned.add(far)
+            rest = [v for v in members(sf) if v != far]
+            if rest or inner_edges(sf):
+                nodes.append(FixedNode(inner_edges(sf), rest))
+            owned.update(rest)
+            queue.append(sf)
+    return KinematicTree(config, nodes)
