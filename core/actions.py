@@ -8,7 +8,11 @@ a *parallel* connection (if anything is made) or disconnection.
 
 Connections are compared by their ends, ``(module, port)`` pairs, regardless of
 edge direction and id, so a recognized configuration compares equal to a planned
-one with the same physical links.
+one with the same physical links. A connection that is itself a module (a FreeSN
+strut) is compared end by end instead: each strut end resting on a module is one
+link ``{(strut, end), (module, None)}``, and a free end (a virtual vertex) is none,
+so a strut whose free end docks is one connection, and an end that moves from one
+node to another is a flow.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from .configuration import Configuration, Edge
+from .configuration import Configuration
 from .errors import PlanningError
 from .plan import Action, ActionType, ConnectionChange
 
@@ -40,18 +44,29 @@ def connection_key(source: str, target: str, source_port: str | None = None,
     return frozenset({(source, source_port), (target, target_port)})
 
 
-def _edge_key(edge: Edge) -> Key:
-    ports = edge.ports or (None, None)
-    return connection_key(edge.source, edge.target, ports[0], ports[1])
+STRUT_ENDS = ("a", "b")
+"""Names of the source and target end of a connection that is a module."""
 
 
-def _change(edge: Edge) -> ConnectionChange:
-    ports = edge.ports or (None, None)
-    return ConnectionChange(edge.source, edge.target, ports[0], ports[1], edge.id)
+def _links(config: Configuration) -> list[tuple[Key, ConnectionChange]]:
+    """Every physical link of ``config`` with its direction-free key."""
+    links = []
+    for edge in config.edges():
+        ports = edge.ports or (None, None)
+        if edge.kind is None:
+            links.append((connection_key(edge.source, edge.target, ports[0], ports[1]),
+                          ConnectionChange(edge.source, edge.target, ports[0], ports[1],
+                                           edge.id)))
+            continue
+        for end, vertex, port in zip(STRUT_ENDS, (edge.source, edge.target), ports, strict=True):
+            if not config.is_virtual(vertex):
+                links.append((connection_key(edge.id, vertex, end, port),
+                              ConnectionChange(edge.id, vertex, end, port, edge.id)))
+    return links
 
 
 def _keyed(config: Configuration) -> Counter[Key]:
-    return Counter(_edge_key(e) for e in config.edges())
+    return Counter(key for key, _ in _links(config))
 
 
 @dataclass(frozen=True)
@@ -77,19 +92,19 @@ class TopologyDiff:
 def topology_diff(current: Configuration, target: Configuration) -> TopologyDiff:
     """What connections must be made and broken to turn ``current`` into ``target``."""
     have, want = _keyed(current), _keyed(target)
-    made = _pick(target.edges(), want - have)
-    broken = _pick(current.edges(), have - want)
+    made = _pick(_links(target), want - have)
+    broken = _pick(_links(current), have - want)
     return TopologyDiff(made, broken)
 
 
-def _pick(edges: Iterable[Edge], surplus: Counter[Key]) -> tuple[ConnectionChange, ...]:
+def _pick(links: Iterable[tuple[Key, ConnectionChange]], surplus: Counter[Key]
+          ) -> tuple[ConnectionChange, ...]:
     left = Counter(surplus)
     picked = []
-    for edge in edges:
-        key = _edge_key(edge)
+    for key, change in links:
         if left[key] > 0:
             left[key] -= 1
-            picked.append(_change(edge))
+            picked.append(change)
     return tuple(picked)
 
 
@@ -97,6 +112,9 @@ def _is_flow(current: Configuration, diff: TopologyDiff) -> bool:
     if len(diff.made) != 1 or len(diff.broken) != 1:
         return False
     made, broken = diff.made[0], diff.broken[0]
+    if made.source_port in STRUT_ENDS and (made.source, made.source_port) == (
+            broken.source, broken.source_port):
+        return True  # a strut end slides from one node to another
     mover = {made.source, made.target} & {broken.source, broken.target}
     if len(mover) != 1:
         return False
