@@ -52,7 +52,6 @@ Family = Literal["fixed", "module_joint", "parallel"]
 FAMILIES: tuple[str, ...] = ("fixed", "module_joint", "parallel")
 
 
-@dataclass
 class KinematicTreeError(ConfigurationError):
     """A kinematic node or tree is malformed or does not fit its configuration."""
 
@@ -161,7 +160,7 @@ class KinematicNode:
     # -- what a subclass defines --------------------------------------------------------
 
     def validate(self) -> None:
-        """Check the node's shape (edge and vertex counts); raise ConfigurationError."""
+        """Check the node's shape (edge and vertex counts); raise KinematicTreeError."""
 
     @classmethod
     def evaluate(cls, z: np.ndarray, x: np.ndarray, sigma: np.ndarray,

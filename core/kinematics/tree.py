@@ -298,18 +298,7 @@ class KinematicTree:
 
     def check_configuration(self, config: Configuration) -> None:
         """Raise unless ``config`` has this tree's topology (same ids, same ends)."""
-        mine = {e.id: (e.source, e.target) for e in self.configuration.edges()}
-        theirs = {e.id: (e.source, e.target) for e in config.edges()}
-        if mine != theirs or set(config.vertices()) != set(self.configuration.vertices()):
-            extra = sorted(set(theirs) - set(mine))
-            missing = sorted(set(mine) - set(theirs))
-            moved = sorted(e for e in set(mine) & set(theirs) if mine[e] != theirs[e])
-            parts = [f"{what} {', '.join(ids)}" for what, ids in
-                     (("unknown edges", extra), ("missing edges", missing),
-                      ("edges with other ends", moved)) if ids]
-            raise KinematicTreeError("configuration does not have the tree's topology"
-                                     + (f" ({'; '.join(parts)})" if parts else
-                                        " (different vertices)"))
+        check_same_topology(self.configuration, config)
 
     def __len__(self) -> int:
         return len(self.nodes)
@@ -374,10 +363,23 @@ class KinematicTree:
             except ConfigurationError as exc:
                 raise KinematicTreeError(exc.message, source=source,
                                          field=f"nodes[{i}]") from None
-        tree = cls(config if config is not None else topology, nodes)
         if config is not None:
-            tree.check_configuration(topology)
-        return tree
+            check_same_topology(topology, config)
+        return cls(config if config is not None else topology, nodes)
+
+
+def check_same_topology(mine: Configuration, theirs: Configuration) -> None:
+    """Raise :class:`KinematicTreeError` unless both have the same vertices and edges."""
+    a = {e.id: (e.source, e.target) for e in mine.edges()}
+    b = {e.id: (e.source, e.target) for e in theirs.edges()}
+    if a == b and set(mine.vertices()) == set(theirs.vertices()):
+        return
+    parts = [f"{what} {', '.join(ids)}" for what, ids in (
+        ("unknown edges", sorted(set(b) - set(a))), ("missing edges", sorted(set(a) - set(b))),
+        ("edges with other ends", sorted(e for e in set(a) & set(b) if a[e] != b[e])),
+        ("unknown vertices", sorted(set(theirs.vertices()) - set(mine.vertices()))),
+        ("missing vertices", sorted(set(mine.vertices()) - set(theirs.vertices())))) if ids]
+    raise KinematicTreeError(f"configuration does not have the tree's topology ({'; '.join(parts)})")
 
 
 # -- serialisation models -----------------------------------------------------------------------
