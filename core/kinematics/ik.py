@@ -105,7 +105,7 @@ class IKOptions:
     ground: bool | GroundModel = False
     gradient: Literal["analytic", "finite_difference"] = "analytic"
     sample_scale: float = 0.5
-    polish: int = 5
+    polish: int = 0
     memory: int = 20
     ftol: float = 1e-12
     gtol: float = 1e-7
