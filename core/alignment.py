@@ -45,13 +45,22 @@ class YawAlignment:
     rms_angle: float
 
 
-def _objective(theta: float, z: np.ndarray, zt: np.ndarray, w: np.ndarray,
-               x: np.ndarray | None, xt: np.ndarray | None, gamma: float) -> float:
-    r = rot_z(theta)
-    cost = float(np.sum(w * angles_between(z, r @ zt) ** 2))
-    if x is not None and xt is not None and gamma:
-        cost += gamma * float(np.sum(w * angles_between(x, r @ xt) ** 2))
-    return cost
+def _dot_terms(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coefficients with ``a_j . rot_z(theta) b_j = p_j cos(theta) + q_j sin(theta) + r_j``."""
+    p = a[0] * b[0] + a[1] * b[1]
+    q = a[1] * b[0] - a[0] * b[1]
+    return p, q, a[2] * b[2]
+
+
+def _costs(thetas: np.ndarray, p: np.ndarray, q: np.ndarray, r: np.ndarray, w: np.ndarray
+           ) -> np.ndarray:
+    """The eq. 8 objective at each yaw of ``thetas``, shape (k,)."""
+    dots = np.cos(thetas)[:, None] * p + np.sin(thetas)[:, None] * q + r
+    return (np.arccos(np.clip(dots, -1.0, 1.0)) ** 2) @ w
+
+
+GRID = np.linspace(-np.pi, np.pi, 72, endpoint=False)
+"""Coarse yaw grid (5 degree steps) that brackets the global minimum before refinement."""
 
 
 def align_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None = None,
@@ -59,9 +68,10 @@ def align_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None
               gamma: float = 0.0) -> YawAlignment:
     """Yaw that best aligns ``z_target`` (and ``x_target``) with ``z`` (and ``x``), eq. 8.
 
-    A closed-form start (the yaw that maximises the weighted sum of horizontal dot
-    products, a 2-D Procrustes problem) is refined by bounded Brent search on the
-    arccos-squared objective within +-pi of it.
+    The objective is a sum of squared arc lengths, each a function of
+    ``p cos(theta) + q sin(theta) + r``; it is evaluated on a 5-degree grid (vectorised),
+    and the two best grid cells are refined by bounded Brent search, so the global
+    minimum is found unless two minima lie within one cell of each other.
 
     Args:
         z: current unit vectors, shape (3, n).
@@ -83,20 +93,19 @@ def align_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None
     use_x = x is not None and x_target is not None and gamma > 0.0
     a, b = (np.hstack([z, x]), np.hstack([zt, x_target])) if use_x else (z, zt)
     wa = np.concatenate([w, gamma * w]) if use_x else w
-    # maximise sum w (a . Rz b) over the horizontal components: atan2 of cross and dot sums
-    sin_sum = float(np.sum(wa * (b[0] * a[1] - b[1] * a[0])))
-    cos_sum = float(np.sum(wa * (b[0] * a[0] + b[1] * a[1])))
-    start = float(np.arctan2(sin_sum, cos_sum))
-    args = (z, zt, w, x if use_x else None, x_target if use_x else None, gamma)
-    best = minimize_scalar(_objective, bounds=(start - np.pi, start + np.pi), args=args,
-                           method="bounded", options={"xatol": 1e-9})
-    theta, cost = float(best.x), float(best.fun)
-    start_cost = _objective(start, *args)
-    if start_cost <= cost:
-        theta, cost = start, start_cost
-    theta = float(np.arctan2(np.sin(theta), np.cos(theta)))
-    r = rot_z(theta)
-    angles = angles_between(z, r @ zt)
-    if use_x:
-        angles = np.concatenate([angles, angles_between(x, r @ x_target)])
-    return YawAlignment(theta, cost, float(np.sqrt(np.mean(angles ** 2))))
+    p, q, r = _dot_terms(a, b)
+    grid_costs = _costs(GRID, p, q, r, wa)
+    step = GRID[1] - GRID[0]
+    best_theta, best_cost = 0.0, np.inf
+    for i in np.argsort(grid_costs)[:2]:
+        result = minimize_scalar(lambda t: float(_costs(np.array([t]), p, q, r, wa)[0]),
+                                 bounds=(GRID[i] - step, GRID[i] + step), method="bounded",
+                                 options={"xatol": 1e-10})
+        theta, cost = (float(result.x), float(result.fun))
+        if grid_costs[i] < cost:
+            theta, cost = float(GRID[i]), float(grid_costs[i])
+        if cost < best_cost:
+            best_theta, best_cost = theta, cost
+    theta = float(np.arctan2(np.sin(best_theta), np.cos(best_theta)))
+    angles = np.arccos(np.clip(p * np.cos(theta) + q * np.sin(theta) + r, -1.0, 1.0))
+    return YawAlignment(theta, best_cost, float(np.sqrt(np.mean(angles ** 2))))
