@@ -1,24 +1,10 @@
-"""Shared fixtures: every installed robot, and their shipped configuration files."""
+"""Fixtures for the whole suite: the same tests run once per installed robot."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
-from msrr.core import plugins
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def installed_robots() -> list[str]:
-    return list(plugins.robots())
-
-
-def shipped_configurations() -> list[Path]:
-    """Every configuration file shipped with a built-in robot plugin or the example."""
-    files = sorted((ROOT / "plugins").glob("*/configs/*.json"))
-    return files + sorted((ROOT / "examples").glob("*/*/configs/*.json"))
+from msrr_test_support import installed_robots
 
 
 @pytest.fixture(params=installed_robots())

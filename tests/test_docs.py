@@ -9,7 +9,7 @@ import pytest
 
 from msrr.core import hookspecs
 
-from conftest import ROOT
+from msrr_test_support import ROOT
 
 HOOKS = sorted(name for name in dir(hookspecs) if name.startswith("msrr_"))
 

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from msrr.core import load_configuration, plugins
 from msrr.core.cli import get_cli
 
-from conftest import ROOT
+from msrr_test_support import ROOT
 
 EXAMPLE = ROOT / "examples/msrr-example-hinge"
 

@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from msrr.core.cli import get_cli
 
-from conftest import ROOT, shipped_configurations
+from msrr_test_support import ROOT, shipped_configurations
 
 MMRP = ROOT / "plugins/mmrp/configs"
 

@@ -24,7 +24,7 @@ from msrr.core import (
 from msrr.core.io import ConfigurationFile
 from msrr.core.random_configurations import random_configuration
 
-from conftest import ROOT, installed_robots, shipped_configurations
+from msrr_test_support import ROOT, installed_robots, shipped_configurations
 
 
 def _random(robot: str, seed: int, size: int):

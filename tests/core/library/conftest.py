@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import pytest
-from library_helpers import source_files
 
 from msrr.core.library import Library, build_library, load_sources
+
+from library_helpers import source_files
 
 
 @pytest.fixture(scope="session")

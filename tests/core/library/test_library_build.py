@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
-from library_helpers import source_files
 
 from msrr.core import plugins
 from msrr.core.library import (
@@ -18,6 +17,8 @@ from msrr.core.library import (
     load_sources,
 )
 from msrr.core.library.sources import RecordedSequence, SequenceStep
+
+from library_helpers import source_files
 
 
 @pytest.fixture(scope="module")

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from click.testing import CliRunner
-from library_helpers import relabelled, source_files
 
 from msrr.core.cli import get_cli
 from msrr.core.io import save_configuration
 from msrr.core.library import load_library
+
+from library_helpers import relabelled, source_files
 
 
 def test_build_show_retrieve(tmp_path):

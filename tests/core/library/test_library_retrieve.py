@@ -6,7 +6,6 @@ import itertools
 
 import networkx as nx
 import pytest
-from library_helpers import LIBRARIES, relabelled
 
 from msrr.core import plugins
 from msrr.core.library import (
@@ -17,6 +16,8 @@ from msrr.core.library import (
     shortest_path,
 )
 from msrr.core.plan import ActionType
+
+from library_helpers import LIBRARIES, relabelled
 
 
 @pytest.fixture(scope="module")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -23,9 +25,26 @@ def test_shipped_library_is_exactly_what_its_sources_build(name):
     sources = load_sources(sorted((FREESN / "library_sources" / name).glob("*.json")))
     rebuilt = build_library(sources, merge_threshold=library.build["merge_threshold"],
                             cost=library.build["cost"])
-    assert dump_library(rebuilt) == shipped.read_text(), (
-        f"{shipped} is stale: rebuild it with `platform library build "
+    mismatch = _first_difference(json.loads(dump_library(rebuilt)), json.loads(shipped.read_text()))
+    assert mismatch is None, (
+        f"{shipped} is stale at {mismatch}: rebuild it with `platform library build "
         f"plugins/freesn/library_sources/{name}/*.json -o {shipped}`")
+
+
+def _first_difference(a, b, where: str = "") -> str | None:
+    """Where two JSON documents differ; numbers may differ by IK round-off (1e-4 relative)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        if a.keys() != b.keys():
+            return f"{where or '(top)'} keys {sorted(a.keys() ^ b.keys())}"
+        return next((d for k in a if (d := _first_difference(a[k], b[k], f"{where}.{k}"))), None)
+    if isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            return f"{where} length {len(a)} != {len(b)}"
+        return next((d for i, (x, y) in enumerate(zip(a, b, strict=True))
+                     if (d := _first_difference(x, y, f"{where}[{i}]"))), None)
+    if isinstance(a, float | int) and isinstance(b, float | int) and not isinstance(a, bool):
+        return None if math.isclose(a, b, rel_tol=1e-4, abs_tol=1e-7) else f"{where}: {a} != {b}"
+    return None if a == b else f"{where}: {a!r} != {b!r}"
 
 
 def test_shipped_libraries_cover_the_paper_figures():
