@@ -192,13 +192,15 @@ class Evaluator:
         self._cost = np.zeros(layout.n)
         self._rel = np.broadcast_to(_EYE, (layout.n_ports, 3, 3)).copy()
         for g in layout.static:
-            out = g.cls.evaluate(z0[g.cols], x0[g.cols], np.zeros((len(g.nodes), 0)), g.params,
-                                 g.n_ports, False)
+            gz, gx = z0[g.cols], x0[g.cols]
+            out = g.cls.evaluate(gz, gx, np.zeros((len(g.nodes), 0)), g.params, g.n_ports, False,
+                                 g.cls.prepare(gz, gx, g.params))
             self._z_joint[g.cols] = out.z
             self._x_joint[g.cols] = out.x
             self._cost[g.cols] = out.cost
             self._rel[g.ports] = out.rot
-        self._inputs = [(g, z0[g.cols], x0[g.cols]) for g in layout.moving]
+        self._inputs = [(g, z0[g.cols], x0[g.cols],
+                         g.cls.prepare(z0[g.cols], x0[g.cols], g.params)) for g in layout.moving]
         # one batch covering every column in order: its outputs are the arrays themselves
         self._whole = (len(layout.moving) == 1 and layout.moving[0].cols.shape[1] == 1
                        and np.array_equal(layout.moving[0].cols[:, 0], np.arange(layout.n)))
@@ -210,8 +212,8 @@ class Evaluator:
         rel = self._rel.copy()
         batches = []
         if self._whole:
-            g, gz, gx = self._inputs[0]
-            out = g.cls.evaluate(gz, gx, sigma[g.sig], g.params, g.n_ports, derivatives)
+            g, gz, gx, context = self._inputs[0]
+            out = g.cls.evaluate(gz, gx, sigma[g.sig], g.params, g.n_ports, derivatives, context)
             z_joint, x_joint, cost = out.z[:, 0], out.x[:, 0], out.cost[:, 0]
             rel[g.ports] = out.rot
             batches.append(out)
@@ -219,8 +221,9 @@ class Evaluator:
             z_joint = self._z_joint.copy()
             x_joint = self._x_joint.copy()
             cost = self._cost.copy()
-            for g, gz, gx in self._inputs:
-                out = g.cls.evaluate(gz, gx, sigma[g.sig], g.params, g.n_ports, derivatives)
+            for g, gz, gx, context in self._inputs:
+                out = g.cls.evaluate(gz, gx, sigma[g.sig], g.params, g.n_ports, derivatives,
+                                     context)
                 z_joint[g.cols] = out.z
                 x_joint[g.cols] = out.x
                 cost[g.cols] = out.cost
@@ -253,7 +256,7 @@ class Evaluator:
         gz_local = np.einsum("nba,nb->na", carried, grad_z)
         gx_local = None if grad_x is None else np.einsum("nba,nb->na", carried, grad_x)
         tau_local = np.einsum("qba,qb->qa", state.port_rotations[layout.port_slot], tau)
-        for (g, _, _), out in zip(self._inputs, state.batches, strict=True):
+        for (g, _, _, _), out in zip(self._inputs, state.batches, strict=True):
             assert out.dz is not None and out.dcost is not None and out.omega is not None
             part = np.einsum("nmad,nma->nd", out.dz, gz_local[g.cols])
             if gx_local is not None:

@@ -27,6 +27,7 @@ three-point contact model (``IKOptions.ground``, :mod:`.ground`).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -163,6 +164,19 @@ class IKSolution:
         return self.problem.configuration(self.sigma)
 
 
+class _Term:
+    """Angles between transformed vectors ``a`` and yaw-rotated targets ``b`` (rows)."""
+
+    __slots__ = ("angle", "cross", "sin", "target", "weights")
+
+    def __init__(self, target: np.ndarray, vectors: np.ndarray, weights: np.ndarray):
+        self.target = target
+        self.weights = weights
+        self.cross = cross(vectors, target)
+        self.sin = np.sqrt(np.einsum("ni,ni->n", self.cross, self.cross))
+        self.angle = np.arctan2(self.sin, np.einsum("ni,ni->n", vectors, target))
+
+
 class IKProblem:
     """Eq. 6 for one tree, current configuration and target: value, gradient, residuals.
 
@@ -199,6 +213,8 @@ class IKProblem:
         self.evaluations = 0
         self._last: tuple[np.ndarray, float] | None = None
         self._count = n + int(self.use_x.sum())
+        self._with_x = bool(self.x_weights.any())
+        self._rz = np.eye(3)
 
     def _weights(self, weights: Mapping[str, float] | Sequence[float] | np.ndarray | None
                  ) -> np.ndarray:
@@ -223,55 +239,50 @@ class IKProblem:
         rot = contact.rotation
         return state.z @ rot.T, state.x @ rot.T, cache
 
-    def _terms(self, yaw: float, z: np.ndarray, x: np.ndarray):
-        c, s = np.cos(yaw), np.sin(yaw)
-        rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        tz = self.z_target @ rz.T
-        crz = cross(z, tz)
-        sin_z = np.sqrt(np.einsum("ni,ni->n", crz, crz))
-        ang_z = np.arctan2(sin_z, np.einsum("ni,ni->n", z, tz))
-        out = [(tz, crz, sin_z, ang_z)]
-        if self.x_weights.any():
-            tx = self.x_target @ rz.T
-            crx = cross(x, tx)
-            sin_x = np.sqrt(np.einsum("ni,ni->n", crx, crx))
-            ang_x = np.arctan2(sin_x, np.einsum("ni,ni->n", x, tx))
-            out.append((tx, crx, sin_x, ang_x))
+    def _angles(self, yaw: float, z: np.ndarray, x: np.ndarray) -> list[_Term]:
+        """Angle terms of eq. 6: z always, x when ``gamma > 0`` and both sides have x."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        rz = self._rz
+        rz[0, 0] = rz[1, 1] = c
+        rz[0, 1], rz[1, 0] = s, -s   # rz is Rz(yaw)^T: rows @ rz rotates by yaw
+        out = [_Term(self.z_target @ rz, z, self.weights)]
+        if self._with_x:
+            out.append(_Term(self.x_target @ rz, x, self.x_weights))
         return out
+
+    def _squares(self, terms: list[_Term]) -> float:
+        squares = float(terms[0].angle @ terms[0].angle)
+        if len(terms) > 1:
+            angle = terms[1].angle[self.use_x]
+            squares += float(angle @ angle)
+        return squares
 
     def value(self, params: np.ndarray) -> float:
         """Eq. 6 at ``params = [theta, *sigma]``."""
         self.evaluations += 1
         state = self.evaluator.evaluate(params[1:])
         z, x, _ = self._vectors(state)
-        terms = self._terms(float(params[0]), z, x)
-        total = float(self.weights @ terms[0][3] ** 2)
-        if len(terms) > 1:
-            total += float(self.x_weights @ terms[1][3] ** 2)
-        return total + self.zeta * float(self.weights @ state.cost ** 2)
+        total = sum(float(t.weights @ (t.angle * t.angle)) for t in self._angles(params[0], z, x))
+        return total + self.zeta * float(self.weights @ (state.cost * state.cost))
 
     def value_and_grad(self, params: np.ndarray) -> tuple[float, np.ndarray]:
         """Eq. 6 and its analytic gradient with respect to ``[theta, *sigma]``."""
         self.evaluations += 1
         state = self.evaluator.evaluate(params[1:], derivatives=True)
         z, x, cache = self._vectors(state)
-        terms = self._terms(float(params[0]), z, x)
+        terms = self._angles(params[0], z, x)
         grad = np.empty(len(params))
-        total = 0.0
+        total, d_yaw = 0.0, 0.0
         grads = []
-        d_yaw = 0.0
-        for (t, cr, sin, ang), w in zip(terms, (self.weights, self.x_weights), strict=False):
-            total += float(w @ ang ** 2)
-            # d angle^2 / d a = -2 angle / sin(angle) * b  (a: transformed, b: target)
-            ratio = np.where(sin > _TINY, ang / np.maximum(sin, _TINY), 1.0)
-            factor = 2.0 * w * ratio
-            grads.append(-factor[:, None] * t)
-            d_yaw += float(factor @ cr[:, 2])   # d b / d theta = e_z x b
+        for t in terms:
+            total += float(t.weights @ (t.angle * t.angle))
+            # d angle^2 / d a = -2 angle / sin(angle) * b  (a: transformed, b: target);
+            # angle / sin(angle) -> 1 as the angle -> 0
+            factor = (2.0 * t.weights) * (t.angle / np.maximum(t.sin, _TINY))
+            grads.append(t.target * -factor[:, None])
+            d_yaw += float(factor @ t.cross[:, 2])   # d b / d theta = e_z x b
         grad[0] = d_yaw
-        squares = float(terms[0][3] @ terms[0][3])
-        if len(terms) > 1:
-            squares += float(terms[1][3][self.use_x] @ terms[1][3][self.use_x])
-        self._last = (params.copy(), float(np.sqrt(squares / max(self._count, 1))))
+        self._last = (params.copy(), math.sqrt(self._squares(terms) / max(self._count, 1)))
         gz = grads[0]
         gx = grads[1] if len(grads) > 1 else None
         if cache is not None:
@@ -279,7 +290,7 @@ class IKProblem:
             gz, gx = self.ground.backward(cache, state.z, gz, state.x, gx)
         cost_w = self.weights * state.cost
         total += self.zeta * float(cost_w @ state.cost)
-        grad[1:] = self.evaluator.gradient(state, gz, gx, 2.0 * self.zeta * cost_w)
+        grad[1:] = self.evaluator.gradient(state, gz, gx, (2.0 * self.zeta) * cost_w)
         return total, grad
 
     # -- reading a solution ------------------------------------------------------------
@@ -294,21 +305,17 @@ class IKProblem:
         else:
             contact = self.ground.contact(state.z)[0]
             z, x = state.z @ contact.rotation.T, state.x @ contact.rotation.T
-        terms = self._terms(yaw, z, x)
-        cost = float(self.weights @ terms[0][3] ** 2)
-        squares = float(terms[0][3] @ terms[0][3])
-        if len(terms) > 1:
-            cost += float(self.x_weights @ terms[1][3] ** 2)
-            squares += float(terms[1][3][self.use_x] @ terms[1][3][self.use_x])
-        cost += self.zeta * float(self.weights @ state.cost ** 2)
-        rms = float(np.sqrt(squares / self._count)) if self._count else 0.0
+        terms = self._angles(yaw, z, x)
+        cost = sum(float(t.weights @ (t.angle * t.angle)) for t in terms)
+        cost += self.zeta * float(self.weights @ (state.cost * state.cost))
+        rms = math.sqrt(self._squares(terms) / self._count) if self._count else 0.0
         return cost, float(state.cost.sum()), rms, contact
 
     def yaw_estimate(self, sigma: np.ndarray) -> float:
         """Eq. 8: the yaw aligning the target with the forward kinematics at ``sigma``."""
         state = self.evaluator.evaluate(sigma)
         z, x, _ = self._vectors(state)
-        use_x = self.x_weights.any()
+        use_x = self._with_x
         return align_yaw(z.T, self.z_target.T, weights=self.weights,
                          x=x.T if use_x else None,
                          x_target=self.x_target.T if use_x else None,

@@ -163,8 +163,18 @@ class KinematicNode:
         """Check the node's shape (edge and vertex counts); raise KinematicTreeError."""
 
     @classmethod
+    def prepare(cls, z: np.ndarray, x: np.ndarray, params: Mapping[str, float]) -> Any:
+        """Anything :meth:`evaluate` can reuse while ``Z^init`` and ``X^init`` stay the same.
+
+        Called once per batch and set of initial vectors (the IK evaluates the same
+        initial vectors many times); the result is passed as ``context``.
+        """
+        return None
+
+    @classmethod
     def evaluate(cls, z: np.ndarray, x: np.ndarray, sigma: np.ndarray,
-                 params: Mapping[str, float], n_ports: int, derivatives: bool) -> NodeBatch:
+                 params: Mapping[str, float], n_ports: int, derivatives: bool,
+                 context: Any = None) -> NodeBatch:
         """Forward kinematics of ``N`` nodes of this type with equal shapes and parameters.
 
         Args:
@@ -174,6 +184,7 @@ class KinematicNode:
             params: the nodes' shared parameters.
             n_ports: ports per node ``P``.
             derivatives: also fill ``dz``, ``dx``, ``dcost`` and ``omega``.
+            context: what :meth:`prepare` returned for these ``z`` and ``x``.
         """
         raise NotImplementedError
 
@@ -222,7 +233,8 @@ class KinematicNode:
         z = np.asarray(z_init, dtype=np.float64).reshape(3, -1).T[None]
         x = np.asarray(x_init, dtype=np.float64).reshape(3, -1).T[None]
         s = np.asarray(sigma, dtype=np.float64).reshape(1, self.dim)
-        return self.evaluate(z, x, s, self.params, len(self.vertices), derivatives)
+        return self.evaluate(z, x, s, self.params, len(self.vertices), derivatives,
+                             self.prepare(z, x, self.params))
 
     def to_dict(self) -> dict[str, Any]:
         """``{"type", "edges", "vertices", "params"}``; params only where not default."""
@@ -274,7 +286,7 @@ class FixedNode(KinematicNode):
     description = "modules held still relative to their parent; cycles allowed"
 
     @classmethod
-    def evaluate(cls, z, x, sigma, params, n_ports, derivatives):
+    def evaluate(cls, z, x, sigma, params, n_ports, derivatives, context=None):
         return constant_batch(z, x, n_ports, 0, derivatives)
 
 

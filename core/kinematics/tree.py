@@ -21,6 +21,7 @@ import json
 import os
 from collections import deque
 from collections.abc import Iterable, Mapping, Sequence
+from functools import cached_property
 from typing import Any, Literal
 
 import networkx as nx
@@ -271,11 +272,12 @@ class KinematicTree:
     def robot(self) -> str:
         return self.configuration.robot
 
-    @property
+    @cached_property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint bounds in ``sigma`` layout, each shape (dim,)."""
+        """Joint bounds in ``sigma`` layout, each shape (dim,) (read-only arrays)."""
         lo = np.concatenate([n.bounds[0] for n in self.nodes]) if self.dim else np.zeros(0)
         hi = np.concatenate([n.bounds[1] for n in self.nodes]) if self.dim else np.zeros(0)
+        lo.flags.writeable = hi.flags.writeable = False
         return lo, hi
 
     def column(self, edge_id: str) -> int:

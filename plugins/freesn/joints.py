@@ -79,7 +79,8 @@ class _Spherical:
     """
 
     def __init__(self, z: np.ndarray, x: np.ndarray, s: np.ndarray, eps: float,
-                 derivatives: bool):
+                 derivatives: bool, context: tuple[np.ndarray, np.ndarray] | None = None):
+        zx, xp = context if context is not None else self.prepare(z, x)
         self.z = z
         still = ~s.any(axis=1)
         any_still = bool(still.any())
@@ -95,12 +96,15 @@ class _Spherical:
         w = cross(z, zj)
         sw = np.sqrt(_dot(w, w))
         one_plus_c = 1.0 + c
-        regular = one_plus_c > ANTIPARALLEL_TOLERANCE
-        wk = w * (regular / np.maximum(one_plus_c, ANTIPARALLEL_TOLERANCE))[:, None]
+        flip = one_plus_c.min() < ANTIPARALLEL_TOLERANCE
+        if flip:  # antiparallel: a half turn (rotation_between), no derivative
+            bad = one_plus_c < ANTIPARALLEL_TOLERANCE
+            one_plus_c[bad] = np.inf
+        wk = w / one_plus_c[:, None]
         rot = skew(w) + w[:, :, None] * wk[:, None, :]
         rot += c[:, None, None] * _EYE
-        if not regular.all():
-            rot[~regular] = rotation_between(z[~regular], zj[~regular])
+        if flip:
+            rot[bad] = rotation_between(z[bad], zj[bad])
         if any_still:
             rot[still] = _EYE
         self.still, self.zj, self.rot = still, zj, rot
@@ -111,7 +115,6 @@ class _Spherical:
         moving = r2 > _TINY * _TINY
         inv_r = moving / np.sqrt(np.maximum(r2, _TINY * _TINY))
         xs = sp * inv_r[:, None]
-        zx = cross(z, x)
         a_ = _dot(zx, xs)
         b_ = _dot(x, xs)
         self.phi = np.arctan2(a_, b_)  # signed steering angle about z, from x to x^steer
@@ -125,11 +128,16 @@ class _Spherical:
         ok = sw > _TINY
         self.dangle = (c[:, None] * zj - z) * (ok * inv_nu / np.maximum(sw, _TINY))[:, None]
         da_ = (zx - a_[:, None] * xs) * inv_r[:, None]
-        db_ = (x - _dot(x, z)[:, None] * z - b_[:, None] * xs) * inv_r[:, None]
+        db_ = (xp - b_[:, None] * xs) * inv_r[:, None]
         h2 = a_ * a_ + b_ * b_
         ih2 = (h2 > _TINY) / np.maximum(h2, _TINY)
         self.dphi = (b_[:, None] * da_ - a_[:, None] * db_) * ih2[:, None]
         self.dfade = (2.0 * e2 * inv_den * inv_den)[:, None] * sp  # zero at sigma = 0
+
+    @staticmethod
+    def prepare(z: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``z x x`` and ``x`` projected off ``z``: constants of the steering angle."""
+        return cross(z, x), x - _dot(x, z)[:, None] * z
 
     def steer_cost(self) -> tuple[np.ndarray, np.ndarray | None]:
         """``|phi| * fade`` and, when derivatives were computed, its gradient (N, 3)."""
@@ -150,9 +158,13 @@ class _SphericalJoint(ModuleJointNode):
     cost_factor = 1.0    # multiple of the whole cost
 
     @classmethod
-    def evaluate(cls, z, x, sigma, params, n_ports, derivatives):
+    def prepare(cls, z, x, params):
+        return _Spherical.prepare(z[:, 0], x[:, 0])
+
+    @classmethod
+    def evaluate(cls, z, x, sigma, params, n_ports, derivatives, context=None):
         z1, x1 = z[:, 0], x[:, 0]
-        sph = _Spherical(z1, x1, sigma, params["steer_epsilon"], derivatives)
+        sph = _Spherical(z1, x1, sigma, params["steer_epsilon"], derivatives, context)
         steer, dsteer = sph.steer_cost()
         alpha = params["alpha"] * cls.steer_factor
         cost = cls.cost_factor * (sph.angle + alpha * steer)
@@ -255,7 +267,7 @@ class RevoluteJoint(ModuleJointNode):
     defaults = {"bound": float(np.pi)}
 
     @classmethod
-    def evaluate(cls, z, x, sigma, params, n_ports, derivatives):
+    def evaluate(cls, z, x, sigma, params, n_ports, derivatives, context=None):
         z1, x1, s = z[:, 0], x[:, 0], sigma[:, 0]
         rot = rodrigues(z1, s)
         xj = np.einsum("nab,nb->na", rot, x1)
@@ -291,7 +303,7 @@ class ParallelStrutNode(ParallelNode):
                 f"{list(self.edges)} and vertices {list(self.vertices)}")
 
     @classmethod
-    def evaluate(cls, z, x, sigma, params, n_ports, derivatives):
+    def evaluate(cls, z, x, sigma, params, n_ports, derivatives, context=None):
         n = len(z)
         z1, z2 = z[:, 0], z[:, 1]
         axis, norm = normalize(z1 - z2)
