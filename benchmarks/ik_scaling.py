@@ -125,6 +125,9 @@ def plot(by_size: dict[int, list[Run]], by_distance: dict[float, list[Run]], exp
               label=f"fit: time ~ edges^{exponent:.2f}")
     left.set_xscale("log")
     left.set_yscale("log")
+    ticks = [n for n in (2, 3, 5, 10, 20, 30) if sizes[0] <= n <= sizes[-1]]
+    left.set_xticks(ticks, [str(n) for n in ticks])
+    left.minorticks_off()
     left.set_xlabel("edges (struts)")
     left.set_ylabel("IK time [ms]")
     left.set_title(f"near-random pairs, RMS {NEAR_RMS_DEG:.0f} deg")

@@ -141,6 +141,7 @@ class IKSolution:
             ``"no_joints"`` (a tree without joints: only the yaw was solved).
         elapsed: wall-clock time of the solve [s].
         ground: the ground contact of the solution when the ground model was used.
+        problem: the :class:`IKProblem` that was solved (rebuilds :attr:`configuration`).
     """
 
     sigma: np.ndarray

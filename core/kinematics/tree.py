@@ -31,6 +31,13 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..configuration import Configuration
 from ..errors import ConfigurationError, UnknownNameError
 from ..files import atomic_write_text, parse_model, read_json
+from ..io import (
+    ConfigurationFile,
+    ConnectionModel,
+    ModuleModel,
+    configuration_from_model,
+    configuration_to_model,
+)
 from .node import FixedNode, KinematicNode, KinematicTreeError, ModuleJointNode
 
 __all__ = [
@@ -107,7 +114,7 @@ class KinematicTree:
     """
 
     def __init__(self, config: Configuration, nodes: Iterable[KinematicNode]):
-        self.configuration = config.skeletal().with_vectors(z={}, x={})
+        self.configuration = config.with_vectors(z={}, x={})
         self.configuration.name, self.configuration.description = config.name, config.description
         nodes = list(nodes)
         owner_edge, owner_vertex = self._partition(nodes)
@@ -320,8 +327,6 @@ class KinematicTree:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary: topology and nodes in BFS order (schema_version 1)."""
-        from ..io import configuration_to_model
-
         topology = configuration_to_model(self.configuration).model_dump(
             mode="json", exclude_none=True)
         return {"schema_version": TREE_SCHEMA_VERSION, "robot": self.robot,
@@ -346,8 +351,6 @@ class KinematicTree:
             KinematicTreeError: a malformed document, an unknown node type (listing the
                 known ones), or a topology mismatch.
         """
-        from ..io import ConfigurationFile, configuration_from_model
-
         model = _parse(KinematicTreeFile, data, source)
         topology = configuration_from_model(ConfigurationFile(
             schema_version=1, robot=model.robot, name=model.configuration,
@@ -401,23 +404,15 @@ class NodeModel(_Strict):
                                      description="Node-type parameters that differ from defaults.")
 
 
-def _tree_file_model() -> type[BaseModel]:
-    from ..io import ConnectionModel, ModuleModel
+class KinematicTreeFile(_Strict):
+    """A kinematic tree file: the topology it covers and its nodes in BFS order."""
 
-    class KinematicTreeFile(_Strict):
-        """A kinematic tree file: the topology it covers and its nodes in BFS order."""
-
-        schema_version: Literal[1] = Field(description="File format version.")
-        robot: str = Field(min_length=1)
-        configuration: str = Field("", description="Name of the configuration.")
-        modules: list[ModuleModel]
-        connections: list[ConnectionModel] = []
-        nodes: list[NodeModel] = Field(min_length=1)
-
-    return KinematicTreeFile
-
-
-KinematicTreeFile: Any = _tree_file_model()
+    schema_version: Literal[1] = Field(description="File format version.")
+    robot: str = Field(min_length=1)
+    configuration: str = Field("", description="Name of the configuration.")
+    modules: list[ModuleModel]
+    connections: list[ConnectionModel] = []
+    nodes: list[NodeModel] = Field(min_length=1)
 
 
 def _parse(model: Any, data: Any, source: str | None) -> Any:
