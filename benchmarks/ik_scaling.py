@@ -127,6 +127,9 @@ def plot(by_size: dict[int, list[Run]], by_distance: dict[float, list[Run]], exp
     left.set_yscale("log")
     ticks = [n for n in (2, 3, 5, 10, 20, 30) if sizes[0] <= n <= sizes[-1]]
     left.set_xticks(ticks, [str(n) for n in ticks])
+    top = max(p95)
+    yticks = [t for t in (1, 2, 3, 5, 10, 20, 30, 50, 100, 200) if min(medians) / 1.5 <= t <= top * 1.5]
+    left.set_yticks(yticks, [str(t) for t in yticks])
     left.minorticks_off()
     left.set_xlabel("edges (struts)")
     left.set_ylabel("IK time [ms]")
