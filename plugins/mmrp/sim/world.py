@@ -16,9 +16,13 @@ from collections.abc import Mapping
 
 import networkx as nx
 import numpy as np
-import pybullet as p
 
 from msrr.core.errors import ExecutionError
+
+from ._quiet import quiet_output
+
+with quiet_output():  # pybullet prints its build time on import, into every command's output
+    import pybullet as p
 
 from .geometry import ACTIVE_FACES, FACE_NORMALS, OPPOSITE, alignment, group_twist
 
