@@ -8,13 +8,19 @@ import tempfile
 from pathlib import Path
 from typing import Any, TypeVar
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from .errors import ConfigurationError
 
-__all__ = ["atomic_write_text", "parse_model", "read_json", "validation_field"]
+__all__ = ["StrictModel", "atomic_write_text", "parse_model", "read_json", "validation_field"]
 
 M = TypeVar("M", bound=BaseModel)
+
+
+class StrictModel(BaseModel):
+    """Base of every file model: unknown fields are errors, not silently dropped."""
+
+    model_config = ConfigDict(extra="forbid")
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:

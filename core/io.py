@@ -10,11 +10,11 @@ import json
 import os
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import ConfigDict, Field, field_validator
 
 from .configuration import Configuration
 from .errors import ConfigurationError, DockingRuleError
-from .files import atomic_write_text, parse_model, read_json
+from .files import StrictModel, atomic_write_text, parse_model, read_json
 from .robot import check_structure
 
 __all__ = [
@@ -36,7 +36,9 @@ SCHEMA_VERSION = 1
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
-class _Strict(BaseModel):
+class _Strict(StrictModel):
+    """Module ids may be written as numbers (MMRP modules 1..9); they are read as strings."""
+
     model_config = ConfigDict(extra="forbid", coerce_numbers_to_str=True)
 
 

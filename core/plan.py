@@ -17,10 +17,10 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from .configuration import Configuration
-from .files import atomic_write_text, parse_model, read_json
+from .files import StrictModel, atomic_write_text, parse_model, read_json
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
 
 __all__ = ["Action", "ActionType", "ConnectionChange", "Plan", "load_plan", "save_plan"]
@@ -121,11 +121,7 @@ class Plan:
 # -- file format ------------------------------------------------------------------------
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class ChangeModel(_Strict):
+class ChangeModel(StrictModel):
     source: str
     target: str
     source_port: str | None = None
@@ -133,7 +129,7 @@ class ChangeModel(_Strict):
     edge_id: str | None = None
 
 
-class ActionModel(_Strict):
+class ActionModel(StrictModel):
     type: ActionType
     target: ConfigurationFile
     modules: list[str] = []
@@ -144,7 +140,7 @@ class ActionModel(_Strict):
     note: str = ""
 
 
-class PlanFile(_Strict):
+class PlanFile(StrictModel):
     """A plan file (``platform plan --json``), accepted by ``platform run --plan``."""
 
     schema_version: int = Field(1, ge=1, le=1)

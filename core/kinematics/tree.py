@@ -26,11 +26,11 @@ from typing import Any, Literal
 
 import networkx as nx
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from ..configuration import Configuration
 from ..errors import ConfigurationError, UnknownNameError
-from ..files import atomic_write_text, parse_model, read_json
+from ..files import StrictModel, atomic_write_text, parse_model, read_json
 from ..io import (
     ConfigurationFile,
     ConnectionModel,
@@ -390,11 +390,7 @@ def check_same_topology(mine: Configuration, theirs: Configuration) -> None:
 # -- serialisation models -----------------------------------------------------------------------
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class NodeModel(_Strict):
+class NodeModel(StrictModel):
     """One kinematic node of a tree file."""
 
     type: str = Field(min_length=1, description="Node type (joint mode) name, or 'fixed'.")
@@ -404,7 +400,7 @@ class NodeModel(_Strict):
                                      description="Node-type parameters that differ from defaults.")
 
 
-class KinematicTreeFile(_Strict):
+class KinematicTreeFile(StrictModel):
     """A kinematic tree file: the topology it covers and its nodes in BFS order."""
 
     schema_version: Literal[1] = Field(description="File format version.")

@@ -25,11 +25,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from ..configuration import Configuration
 from ..errors import ConfigurationError
-from ..files import parse_model, read_json
+from ..files import StrictModel, parse_model, read_json
 from ..io import ConfigurationFile, check_configuration, configuration_from_model
 from .model import CommandGain, LibraryError
 
@@ -45,17 +45,13 @@ __all__ = [
 ]
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class TreeSourceModel(_Strict):
+class TreeSourceModel(StrictModel):
     name: str = Field(min_length=1, description="Tree name, unique in its group.")
     joint_mode: str | None = Field(None, description="Joint mode of the default tree.")
     tree: dict | None = Field(None, description="A serialised tree (KinematicTree.to_dict()).")
 
 
-class GroupSourceModel(_Strict):
+class GroupSourceModel(StrictModel):
     name: str = Field(min_length=1)
     description: str = ""
     reference: ConfigurationFile
@@ -63,13 +59,13 @@ class GroupSourceModel(_Strict):
     configurations: list[ConfigurationFile] = []
 
 
-class StepModel(_Strict):
+class StepModel(StrictModel):
     configuration: ConfigurationFile
     tree: str | None = Field(None, description="Tree of the target group that executes the "
                              "step into this configuration; the group's first by default.")
 
 
-class SequenceSourceModel(_Strict):
+class SequenceSourceModel(StrictModel):
     name: str = Field(min_length=1)
     description: str = ""
     behavior: str | None = Field(None, description="Label the sequence as this behavior.")
@@ -77,14 +73,14 @@ class SequenceSourceModel(_Strict):
     steps: list[StepModel] = Field(min_length=1)
 
 
-class CommandSourceModel(_Strict):
+class CommandSourceModel(StrictModel):
     module: str = Field(min_length=1)
     command: str = Field(min_length=1)
     connector: Literal["source", "target"] | None = None
     gains: dict[str, float]
 
 
-class MappingBehaviorModel(_Strict):
+class MappingBehaviorModel(StrictModel):
     name: str = Field(min_length=1)
     description: str = ""
     start: str = Field(min_length=1, description="Name of a configuration of these sources.")
@@ -92,7 +88,7 @@ class MappingBehaviorModel(_Strict):
     commands: list[CommandSourceModel] = Field(min_length=1)
 
 
-class LibrarySourceFile(_Strict):
+class LibrarySourceFile(StrictModel):
     """A library source file (FreeSN paper, section 6.2)."""
 
     schema_version: Literal[1]

@@ -15,10 +15,10 @@ import math
 import os
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from ..errors import ConfigurationError
-from ..files import atomic_write_text, parse_model, read_json
+from ..files import StrictModel, atomic_write_text, parse_model, read_json
 from ..io import ConfigurationFile, configuration_from_model, configuration_to_model
 from ..plan import ActionType
 from .mapping import ModuleMap
@@ -33,6 +33,7 @@ from .model import (
     SubLibrary,
     TreeRef,
 )
+from .sources import CommandSourceModel
 
 __all__ = [
     "LIBRARY_SCHEMA_VERSION",
@@ -49,16 +50,12 @@ LIBRARY_SCHEMA_VERSION = 1
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class TreeModel(_Strict):
+class TreeModel(StrictModel):
     name: str = Field(min_length=1, description="Tree name, unique in its group.")
     tree: dict = Field(description="Serialised kinematic tree (KinematicTree.to_dict()).")
 
 
-class GroupModel(_Strict):
+class GroupModel(StrictModel):
     id: str = Field(min_length=1, description="Group id, '<sub-library>-<n>'.")
     name: str = ""
     description: str = ""
@@ -66,7 +63,7 @@ class GroupModel(_Strict):
     trees: list[TreeModel] = Field(min_length=1)
 
 
-class ConfigurationModel(_Strict):
+class ConfigurationModel(StrictModel):
     id: str = Field(min_length=1)
     group: str = Field(min_length=1)
     names: list[str] = []
@@ -83,14 +80,7 @@ class ConfigurationModel(_Strict):
         return value
 
 
-class CommandModel(_Strict):
-    module: str = Field(min_length=1)
-    command: str = Field(min_length=1)
-    connector: Literal["source", "target"] | None = None
-    gains: dict[str, float]
-
-
-class BehaviorModel(_Strict):
+class BehaviorModel(StrictModel):
     name: str = Field(min_length=1)
     kind: Literal["sequence", "mapping"]
     description: str = ""
@@ -98,20 +88,20 @@ class BehaviorModel(_Strict):
     steps: list[str] = []
     loop: bool = False
     parameters: list[str] = []
-    commands: list[CommandModel] = []
+    commands: list[CommandSourceModel] = []
 
 
-class TreeRefModel(_Strict):
+class TreeRefModel(StrictModel):
     group: str
     name: str
 
 
-class MappingModel(_Strict):
+class MappingModel(StrictModel):
     nodes: dict[str, str] = {}
     edges: dict[str, tuple[str, bool]] = {}
 
 
-class EdgeModel(_Strict):
+class EdgeModel(StrictModel):
     source: str
     target: str
     action: ActionType
@@ -121,7 +111,7 @@ class EdgeModel(_Strict):
     feasible: bool | None = None
 
 
-class SubLibraryModel(_Strict):
+class SubLibraryModel(StrictModel):
     name: str = Field(min_length=1)
     groups: list[GroupModel]
     configurations: list[ConfigurationModel]
@@ -129,7 +119,7 @@ class SubLibraryModel(_Strict):
     edges: list[EdgeModel] = []
 
 
-class LibraryFile(_Strict):
+class LibraryFile(StrictModel):
     """A behavior library file (FreeSN paper, section 6.1)."""
 
     schema_version: Literal[1] = Field(description="File format version.")
@@ -247,7 +237,7 @@ def _sublibrary_to_model(sub: SubLibrary) -> SubLibraryModel:
         behaviors=[BehaviorModel(
             name=b.name, kind=b.kind, description=b.description, start=b.start,
             steps=list(b.steps), loop=b.loop, parameters=list(b.parameters),
-            commands=[CommandModel(module=c.module, command=c.command, connector=c.connector,
+            commands=[CommandSourceModel(module=c.module, command=c.command, connector=c.connector,
                                    gains=dict(c.gains)) for c in b.commands])
             for b in sub.behaviors.values()],
         edges=[EdgeModel(
