@@ -28,7 +28,8 @@ import pluggy
 
 from . import hookspecs
 from .errors import PluginError, UnknownNameError, UnknownRobotError
-from .robot import DockingRules, RobotSpec
+from .kinematics.node import FixedNode
+from .robot import DockingRules, Robot, RobotSpec
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -45,6 +46,7 @@ __all__ = [
     "plugin_rows",
     "recognizers",
     "register",
+    "resolve",
     "robot",
     "robots",
     "scenarios",
@@ -175,6 +177,13 @@ def docking_rules(name: str) -> DockingRules:
     robot(name)
     rules = get_plugin_manager().hook.msrr_docking_rules(robot=name)
     return rules if rules is not None else DockingRules()
+
+
+def resolve(name: str) -> Robot:
+    """Everything the pure layers need of robot ``name``: spec, rules, joint modes."""
+    modes: dict[str, type] = {"fixed": FixedNode}
+    modes.update(kinematic_nodes(name))
+    return Robot(robot(name), docking_rules(name), modes)
 
 
 # -- capabilities ---------------------------------------------------------------------

@@ -19,6 +19,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DockingRules",
+    "Robot",
     "MisoRules",
     "ModuleKind",
     "PortSpec",
@@ -158,6 +159,34 @@ class DockingRules:
     def check_action(self, before: Configuration, after: Configuration) -> list[Violation]:
         """Violations caused by going from ``before`` to ``after`` in one action."""
         return self.check(after)
+
+
+@dataclass(frozen=True)
+class Robot:
+    """One robot as the core's pure layers need it, resolved from the plugins once.
+
+    Kinematics, matching, library and file code receive this (or one of its fields)
+    as an argument and never ask the plugin host; :func:`msrr.core.plugins.resolve`
+    builds it from every installed plugin.
+
+    Attributes:
+        spec: module kinds, geometry and defaults (``msrr_robot``).
+        rules: docking rules (``msrr_docking_rules``; permissive if none).
+        joint_modes: kinematic node types by name (``msrr_kinematic_nodes``), always
+            including ``"fixed"``; values are ``KinematicNode`` subclasses.
+    """
+
+    spec: RobotSpec
+    rules: DockingRules = field(default_factory=lambda: DockingRules())
+    joint_modes: Mapping[str, type] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def violations(self, config: Configuration) -> list[Violation]:
+        """Structural violations (:func:`check_structure`), else the docking rules'."""
+        return check_structure(config, self.spec) or self.rules.check(config)
 
 
 def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:
