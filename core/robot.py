@@ -184,6 +184,22 @@ class Robot:
     def name(self) -> str:
         return self.spec.name
 
+    def default_joint_mode(self) -> type:
+        """The module joint used where a tree names none: ``spec.defaults["joint_mode"]``,
+        else the first registered node type of the ``module_joint`` family."""
+        name = self.spec.defaults.get("joint_mode")
+        if isinstance(name, str):
+            if name not in self.joint_modes:
+                raise UnknownNameError(f"joint mode for robot {self.name!r}", name,
+                                       self.joint_modes)
+            return self.joint_modes[name]
+        for cls in self.joint_modes.values():
+            if getattr(cls, "family", None) == "module_joint":
+                return cls
+        raise UnknownNameError(f"module joint mode for robot {self.name!r}", "(default)",
+                               [n for n, c in self.joint_modes.items()
+                                if getattr(c, "family", None) == "module_joint"])
+
     def violations(self, config: Configuration) -> list[Violation]:
         """Structural violations (:func:`check_structure`), else the docking rules'."""
         return check_structure(config, self.spec) or self.rules.check(config)
