@@ -69,9 +69,9 @@ class Run:
 
 def make_pair(n_edges: int, rng: np.random.Generator, rms_deg: float) -> Pair:
     """A random tree with ``n_edges`` struts and a target at RMS angle ``rms_deg``."""
-    spec, rules = plugins.robot("freesn"), plugins.docking_rules("freesn")
-    start = random_configuration(spec, rules, n_edges + 1, rng)
-    tree = default_tree(start)
+    robot = plugins.resolve("freesn")
+    start = random_configuration(robot.spec, robot.rules, n_edges + 1, rng)
+    tree = default_tree(start, robot.default_joint_mode())
     direction = rng.normal(size=tree.dim)
     z0 = tree_vectors(tree, start)[0]
 

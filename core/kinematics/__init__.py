@@ -42,10 +42,8 @@ from .tracker import IKTracker
 from .tree import (
     TREE_SCHEMA_VERSION,
     KinematicTree,
-    default_joint_mode,
     default_tree,
     find_cycle_through,
-    joint_modes,
     load_tree,
     save_tree,
 )
@@ -73,11 +71,9 @@ __all__ = [
     "NodeJacobian",
     "ParallelNode",
     "canonical_perpendicular",
-    "default_joint_mode",
     "default_tree",
     "find_cycle_through",
     "forward",
-    "joint_modes",
     "load_tree",
     "rodrigues",
     "rotation_between",

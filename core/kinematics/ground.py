@@ -21,6 +21,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from ..configuration import Configuration
+from ..robot import RobotSpec
 from .rotations import cross, rotation_between, rotation_between_omega
 from .tree import KinematicTree
 
@@ -48,16 +49,10 @@ class GroundModel:
     default_edge_mass: float = 0.0
 
     @classmethod
-    def for_configuration(cls, config: Configuration) -> GroundModel:
-        """Lengths and masses from the robot's module kinds (``geometry`` entries
-        ``length`` and ``mass``); unit lengths and masses where the robot gives none."""
-        from .. import plugins
-        from ..errors import MsrrError
-
-        try:
-            spec = plugins.robot(config.robot)
-        except MsrrError:
-            return cls()
+    def for_configuration(cls, config: Configuration, spec: RobotSpec) -> GroundModel:
+        """Lengths and masses of ``config``'s modules from ``spec``'s module kinds
+        (``geometry`` entries ``length`` [m] and ``mass`` [kg]); the defaults where a
+        kind gives none."""
         geometry = {k.name: k.geometry for k in spec.module_kinds}
         lengths, masses = {}, {}
         for e in config.edges():

@@ -80,8 +80,9 @@ class IKOptions:
         initial_yaw: yaw of the first start [rad]; eq. 8 by default.
         solve_yaw: optimise the yaw; ``False`` keeps ``initial_yaw`` (or eq. 8's).
         ground: put the floating base on the ground (three-point contact) after the
-            forward kinematics: ``True`` for the robot's geometry, or a
-            :class:`~.ground.GroundModel`.
+            forward kinematics with this :class:`~.ground.GroundModel`
+            (``GroundModel.for_configuration(config, robot.spec)`` for the robot's
+            geometry); ``None`` leaves the base where the root holds it.
         gradient: ``"analytic"`` (reverse mode) or ``"finite_difference"`` (scipy's
             two-point differences; a reference for benchmarks).
         sample_scale: global samples are drawn from this fraction of the joint bounds.
@@ -103,7 +104,7 @@ class IKOptions:
     initial_sigma: np.ndarray | None = None
     initial_yaw: float | None = None
     solve_yaw: bool = True
-    ground: bool | GroundModel = False
+    ground: GroundModel | None = None
     gradient: Literal["analytic", "finite_difference"] = "analytic"
     sample_scale: float = 0.5
     polish: int = 0
@@ -204,10 +205,7 @@ class IKProblem:
         self.use_x = self.has_x & has_xt if options.gamma > 0 else np.zeros(n, dtype=bool)
         self.x_weights = options.gamma * self.weights * self.use_x
         self.zeta = options.zeta
-        ground = options.ground
-        if ground is True:
-            ground = GroundModel.for_configuration(current)
-        self.ground = GroundOp(tree, ground) if isinstance(ground, GroundModel) else None
+        self.ground = None if options.ground is None else GroundOp(tree, options.ground)
         lo, hi = tree.bounds
         self.lower, self.upper = lo, hi
         self.bounds = [(None, None)] + [(float(a), float(b)) for a, b in zip(lo, hi, strict=True)]

@@ -45,9 +45,7 @@ __all__ = [
     "KinematicTree",
     "KinematicTreeError",
     "KinematicTreeFile",
-    "default_joint_mode",
     "default_tree",
-    "joint_modes",
     "load_tree",
     "save_tree",
 ]
@@ -56,33 +54,6 @@ TREE_SCHEMA_VERSION = 1
 
 
 NodeTypes = Mapping[str, type[KinematicNode]]
-
-
-def joint_modes(robot: str) -> dict[str, type[KinematicNode]]:
-    """Node types available for ``robot``: ``"fixed"`` plus every registered joint mode."""
-    from .. import plugins
-
-    found: dict[str, type[KinematicNode]] = {"fixed": FixedNode}
-    found.update(plugins.kinematic_nodes(robot))
-    return found
-
-
-def default_joint_mode(robot: str) -> type[KinematicNode]:
-    """The robot's default module joint: ``defaults["joint_mode"]`` of its description,
-    else the first registered module-joint type."""
-    from .. import plugins
-
-    types = joint_modes(robot)
-    name = plugins.robot(robot).defaults.get("joint_mode")
-    if isinstance(name, str):
-        if name not in types:
-            raise UnknownNameError(f"joint mode for robot {robot!r}", name, types)
-        return types[name]
-    for cls in types.values():
-        if cls.family == "module_joint":
-            return cls
-    raise UnknownNameError(f"module joint mode for robot {robot!r}", "(default)",
-                           [n for n, c in types.items() if c.family == "module_joint"])
 
 
 def _label(node: KinematicNode) -> str:
@@ -336,15 +307,15 @@ class KinematicTree:
 
     @classmethod
     def from_dict(cls, data: Any, config: Configuration | None = None, *,
-                  node_types: NodeTypes | None = None, source: str | None = None
-                  ) -> KinematicTree:
+                  modes: NodeTypes, source: str | None = None) -> KinematicTree:
         """A tree from :meth:`to_dict` output.
 
         Args:
             data: the parsed JSON.
             config: the configuration the tree belongs to; its topology must match the
                 stored one. Without it the stored topology is used.
-            node_types: node types by name; the robot's registered joint modes by default.
+            modes: node types by name (``Robot.joint_modes``); ``"fixed"`` is
+                :class:`FixedNode` unless given.
             source: file name for error messages.
 
         Raises:
@@ -355,8 +326,7 @@ class KinematicTree:
         topology = configuration_from_model(ConfigurationFile(
             schema_version=1, robot=model.robot, name=model.configuration,
             modules=model.modules, connections=model.connections), source)
-        types = dict(node_types) if node_types is not None else joint_modes(model.robot)
-        types.setdefault("fixed", FixedNode)
+        types = {"fixed": FixedNode, **modes}
         nodes = []
         for i, spec in enumerate(model.nodes):
             if spec.type not in types:
@@ -423,9 +393,11 @@ def save_tree(tree: KinematicTree, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, json.dumps(tree.to_dict(), indent=2) + "\n")
 
 
-def load_tree(path: str | os.PathLike[str], config: Configuration | None = None) -> KinematicTree:
-    """Read a tree file written by :func:`save_tree`."""
-    return KinematicTree.from_dict(read_json(path), config, source=str(path))
+def load_tree(path: str | os.PathLike[str], config: Configuration | None = None, *,
+              modes: NodeTypes) -> KinematicTree:
+    """Read a tree file written by :func:`save_tree`; ``modes`` as in
+    :meth:`KinematicTree.from_dict`."""
+    return KinematicTree.from_dict(read_json(path), config, modes=modes, source=str(path))
 
 
 # -- cycles and the default tree --------------------------------------------------------------
@@ -461,8 +433,8 @@ def _centre(graph: nx.Graph, rank: Mapping[Any, tuple]) -> Any:
     return min(nx.center(graph), key=lambda v: rank[v])
 
 
-def default_tree(config: Configuration, joint_mode: str | type[KinematicNode] | None = None,
-                 *, cycles: Literal["fixed", "error"] = "fixed") -> KinematicTree:
+def default_tree(config: Configuration, joint_mode: type[KinematicNode], *,
+                 cycles: Literal["fixed", "error"] = "fixed") -> KinematicTree:
     """The default kinematic tree of ``config`` (paper section 3.2).
 
     A fixed root at the topology's centre (vertex of smallest eccentricity; ties go to
@@ -472,30 +444,20 @@ def default_tree(config: Configuration, joint_mode: str | type[KinematicNode] | 
 
     Args:
         config: a connected configuration.
-        joint_mode: a joint mode name of the robot, or a node class; the robot's
-            default (``defaults["joint_mode"]``, FreeSN ``"opposite_steering"``) if None.
+        joint_mode: the module-joint node class, resolved by the caller
+            (``robot.default_joint_mode()`` or ``robot.joint_modes[name]``).
         cycles: ``"fixed"`` holds every cyclic block of the topology rigid in a fixed
             node (the root, if the block holds the centre); ``"error"`` refuses a
             topology with cycles and names one.
 
     Raises:
-        KinematicTreeError: the topology is not connected, or has a cycle and
-            ``cycles="error"``.
-        UnknownNameError: ``joint_mode`` is not a joint mode of the robot (lists them).
+        KinematicTreeError: ``joint_mode`` is not a module joint, the topology is not
+            connected, or it has a cycle and ``cycles="error"``.
     """
-    if isinstance(joint_mode, type):
-        joint_cls = joint_mode
-    elif joint_mode is None:
-        joint_cls = default_joint_mode(config.robot)
-    else:
-        types = joint_modes(config.robot)
-        modules = {n: c for n, c in types.items() if c.family == "module_joint"}
-        if joint_mode not in modules:
-            raise UnknownNameError(f"module joint mode for robot {config.robot!r}",
-                                   joint_mode, modules)
-        joint_cls = modules[joint_mode]
-    if not issubclass(joint_cls, ModuleJointNode):
-        raise KinematicTreeError(f"joint mode {joint_cls.name!r} is not a module joint")
+    joint_cls = joint_mode
+    if not (isinstance(joint_cls, type) and issubclass(joint_cls, ModuleJointNode)):
+        name = getattr(joint_cls, "name", joint_cls)
+        raise KinematicTreeError(f"joint mode {name!r} is not a module joint node class")
     if len(config) == 0 or not config.is_connected():
         raise KinematicTreeError("a kinematic tree needs one connected configuration")
 

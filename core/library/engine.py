@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..configuration import Configuration
+from ..errors import UnknownNameError
 from .mapping import ModuleMap
 from .model import LibraryError
 from .sources import DesignedTree
@@ -76,9 +77,18 @@ def design_tree(reference: Configuration, designed: DesignedTree) -> dict:
     from ..kinematics.tree import KinematicTree, default_tree
 
     try:
+        robot = _robot(reference.robot)
         if designed.tree is not None:
-            return KinematicTree.from_dict(designed.tree, reference).to_dict()
-        return default_tree(reference, joint_mode=designed.joint_mode).to_dict()
+            return KinematicTree.from_dict(designed.tree, reference,
+                                           modes=robot.joint_modes).to_dict()
+        if designed.joint_mode is None:
+            joint_mode = robot.default_joint_mode()
+        elif designed.joint_mode in robot.joint_modes:
+            joint_mode = robot.joint_modes[designed.joint_mode]
+        else:
+            raise UnknownNameError(f"joint mode for robot {robot.name!r}", designed.joint_mode,
+                                   robot.joint_modes)
+        return default_tree(reference, joint_mode).to_dict()
     except LibraryError:
         raise
     except Exception as exc:  # the kinematics' own errors name the problem
@@ -89,7 +99,7 @@ def load_tree(tree: dict, config: Configuration) -> Any:
     """A :class:`~msrr.core.kinematics.KinematicTree` from its serialised form."""
     from ..kinematics.tree import KinematicTree
 
-    return KinematicTree.from_dict(tree, config)
+    return KinematicTree.from_dict(tree, config, modes=_robot(config.robot).joint_modes)
 
 
 def tree_in_ids(tree: dict, mapping: ModuleMap, config: Configuration) -> Any:
@@ -101,7 +111,16 @@ def tree_in_ids(tree: dict, mapping: ModuleMap, config: Configuration) -> Any:
     """
     from ..kinematics.tree import KinematicTree
 
-    return KinematicTree.from_dict(rename_tree(tree, mapping), config)
+    return KinematicTree.from_dict(rename_tree(tree, mapping), config,
+                                   modes=_robot(config.robot).joint_modes)
+
+
+def _robot(name: str) -> Any:
+    """Transitional: the robot's joint modes from the plugin host, until the library
+    receives its ``Robot`` as an argument (issue 10)."""
+    from ..plugins import resolve
+
+    return resolve(name)
 
 
 def rename_tree(tree: dict, mapping: ModuleMap) -> dict:

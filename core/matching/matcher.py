@@ -120,7 +120,10 @@ def ik_cost(reference: Configuration, tree: Any, system: Configuration) -> float
     """Full-body IK cost (eq. 6) of moving ``system`` (in reference ids) to ``reference``."""
     from ..kinematics import IKOptions, default_tree, solve_ik
 
-    tree = default_tree(reference) if tree is None else tree
+    if tree is None:  # transitional until matching receives its Robot (issue 10)
+        from ..plugins import resolve
+
+        tree = default_tree(reference, resolve(reference.robot).default_joint_mode())
     return float(solve_ik(tree, system, reference, options=IKOptions(seed=0)).cost)
 
 

@@ -8,7 +8,16 @@ import numpy as np
 
 from msrr.core import Configuration, plugins
 from msrr.core.alignment import rot_z
+from msrr.core.kinematics import KinematicTree, default_tree
 from msrr.core.random_configurations import random_configuration
+
+FREESN = plugins.resolve("freesn")
+
+
+def freesn_tree(config: Configuration, mode: str | None = None, **kwargs) -> KinematicTree:
+    """The default tree of a FreeSN configuration with joint mode ``mode`` (default mode if None)."""
+    cls = FREESN.default_joint_mode() if mode is None else FREESN.joint_modes[mode]
+    return default_tree(config, cls, **kwargs)
 
 
 def random_freesn(n_edges: int, seed: int, *, free: int = 0, with_x: bool = True

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from kin_helpers import central_difference, random_freesn, relative_error
+from kin_helpers import central_difference, freesn_tree, random_freesn, relative_error
 
 from msrr.core import Configuration
 from msrr.core.io import load_configuration
@@ -16,7 +16,6 @@ from msrr.core.kinematics import (
     Evaluator,
     FixedNode,
     KinematicTree,
-    default_tree,
     forward,
     tree_vectors,
 )
@@ -33,7 +32,7 @@ SETTINGS = settings(max_examples=25, deadline=None)
        free=st.integers(0, 2))
 def test_fk_at_zero_returns_the_input_exactly(n, seed, mode, free):
     config = random_freesn(n + free, seed, free=free)
-    result = forward(default_tree(config, mode), config)
+    result = forward(freesn_tree(config, mode), config)
     assert result.configuration == config
     assert np.array_equal(result.cost, np.zeros(len(config.edges())))
 
@@ -43,7 +42,7 @@ def test_fk_at_zero_returns_the_input_exactly(n, seed, mode, free):
        scale=st.floats(0.0, 2.0))
 def test_fk_keeps_vectors_unit(n, seed, mode, scale):
     config = random_freesn(n, seed)
-    tree = default_tree(config, mode)
+    tree = freesn_tree(config, mode)
     sigma = np.random.default_rng(seed).normal(size=tree.dim) * scale
     result = forward(tree, config, sigma)
     assert np.allclose(np.linalg.norm(result.Z, axis=0), 1.0, atol=1e-12)
@@ -96,7 +95,7 @@ def gradient_check(tree: KinematicTree, config, seed: int) -> float:
 def test_reverse_mode_gradient_matches_central_differences(mode):
     for seed in range(4):
         config = random_freesn(9, seed, free=1)
-        assert gradient_check(default_tree(config, mode), config, seed) < 1e-6
+        assert gradient_check(freesn_tree(config, mode), config, seed) < 1e-6
 
 
 def test_reverse_mode_gradient_through_a_parallel_node():
@@ -111,4 +110,4 @@ def test_reverse_mode_gradient_through_a_parallel_node():
 def test_forward_checks_sigma_shape():
     config = random_freesn(3, 0)
     with pytest.raises(Exception, match=r"sigma must have shape \(9,\)"):
-        forward(default_tree(config), config, np.zeros(4))
+        forward(freesn_tree(config), config, np.zeros(4))

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from kin_helpers import central_difference, random_freesn, relative_error, yawed
+from kin_helpers import (
+    FREESN,
+    central_difference,
+    freesn_tree,
+    random_freesn,
+    relative_error,
+    yawed,
+)
 
 from msrr.core import Configuration
 from msrr.core.alignment import angles_between
@@ -18,7 +25,6 @@ from msrr.core.kinematics import (
     GroundOp,
     IKOptions,
     IKProblem,
-    default_tree,
     forward,
     solve_ik,
     tree_vectors,
@@ -37,7 +43,7 @@ def wrap(angle: float) -> float:
        yaw=st.floats(-np.pi, np.pi))
 def test_ik_of_fk_recovers_the_configuration(n, seed, scale, yaw):
     config = random_freesn(n, seed, free=int(n > 3))
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     sigma = np.random.default_rng(seed).normal(size=tree.dim) * scale
     target = yawed(forward(tree, config, sigma).configuration, yaw)
     options = IKOptions(time_budget=5.0, seed=seed)
@@ -56,7 +62,7 @@ def test_ik_of_fk_recovers_the_configuration(n, seed, scale, yaw):
 @given(n=st.integers(1, 12), seed=st.integers(0, 10_000), yaw=st.floats(-3.1, 3.1))
 def test_a_yaw_rotated_target_is_matched_with_the_right_yaw(n, seed, yaw):
     config = random_freesn(n, seed)
-    sol = solve_ik(default_tree(config), config, yawed(config, yaw), IKOptions(seed=seed))
+    sol = solve_ik(freesn_tree(config), config, yawed(config, yaw), IKOptions(seed=seed))
     assert sol.success
     assert abs(wrap(sol.yaw + yaw)) < 1e-3          # Rz(theta) undoes the frame's turn
     assert sol.rms_angle < 1e-3 and sol.motion_cost < 1e-2
@@ -65,7 +71,7 @@ def test_a_yaw_rotated_target_is_matched_with_the_right_yaw(n, seed, yaw):
 def test_objective_gradient_matches_central_differences():
     for seed, (gamma, zeta) in enumerate([(0.0, 1e-3), (0.5, 0.2), (1.0, 0.0)]):
         config = random_freesn(10, seed, free=1)
-        tree = default_tree(config)
+        tree = freesn_tree(config)
         target = forward(tree, config, np.random.default_rng(seed).normal(size=tree.dim)
                          ).configuration
         problem = IKProblem(tree, config, yawed(target, 0.4),
@@ -94,7 +100,7 @@ def star(n: int) -> Configuration:
 
 def test_forward_vectors_count_when_gamma_is_positive():
     config = star(4)
-    tree = default_tree(config, "revolute")           # leaf revolute joints only turn x
+    tree = freesn_tree(config, "revolute")           # leaf revolute joints only turn x
     target = forward(tree, config, np.full(tree.dim, 0.4)).configuration
     skeletal = solve_ik(tree, config, target, IKOptions(gamma=0.0))
     morphology = solve_ik(tree, config, target, IKOptions(gamma=1.0, time_budget=5.0))
@@ -105,7 +111,7 @@ def test_forward_vectors_count_when_gamma_is_positive():
 
 def test_weights_by_module_id_and_their_errors():
     config = random_freesn(4, 1)
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     problem = IKProblem(tree, config, config, IKOptions(weights={tree.edges[0]: 3.0}))
     assert problem.weights.tolist() == [3.0, 1.0, 1.0, 1.0]
     with pytest.raises(Exception, match="unknown modules S99"):
@@ -116,7 +122,7 @@ def test_weights_by_module_id_and_their_errors():
 
 def test_an_unreachable_target_is_a_result_not_an_exception():
     config = random_freesn(5, 2)
-    tree = default_tree(config, "revolute")            # revolute cannot move any z
+    tree = freesn_tree(config, "revolute")            # revolute cannot move any z
     target = random_freesn(5, 77)
     target = target.relabel({}, {}) if target.edge_ids() == config.edge_ids() else None
     assert target is not None
@@ -128,7 +134,7 @@ def test_an_unreachable_target_is_a_result_not_an_exception():
 
 def test_finite_difference_gradient_option_solves_too():
     config = random_freesn(4, 5)
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     target = forward(tree, config, np.full(tree.dim, 0.2)).configuration
     sol = solve_ik(tree, config, target, IKOptions(gradient="finite_difference",
                                                    time_budget=5.0))
@@ -137,7 +143,7 @@ def test_finite_difference_gradient_option_solves_too():
 
 def test_yaw_can_be_held():
     config = random_freesn(3, 4)
-    sol = solve_ik(default_tree(config), config, yawed(config, 0.5),
+    sol = solve_ik(freesn_tree(config), config, yawed(config, 0.5),
                    IKOptions(solve_yaw=False, initial_yaw=0.0, time_budget=1.0))
     assert sol.yaw == 0.0
 
@@ -154,9 +160,9 @@ def test_invalid_options_are_refused(bad):
 
 def test_ground_contact_rests_on_three_points_with_the_centre_of_mass_inside():
     config = load_configuration(ROOT / "plugins/freesn/configs/triangle-leg.json")
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     z0 = tree_vectors(tree, config)[0]
-    op = GroundOp(tree, GroundModel.for_configuration(config))
+    op = GroundOp(tree, GroundModel.for_configuration(config, FREESN.spec))
     contact, _ = op.contact(z0.T)
     # the leg points down: the robot tips over onto a face through the free strut end
     assert len(contact.contacts) == 3 and contact.stable
@@ -170,7 +176,7 @@ def test_ground_contact_rests_on_three_points_with_the_centre_of_mass_inside():
 def test_ground_model_of_a_flat_triangle_is_its_own_plane():
     config = load_configuration(ROOT / "plugins/freesn/configs/triangle-leg.json")
     config.remove_module("v1")
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     op = GroundOp(tree, GroundModel())
     contact, _ = op.contact(tree_vectors(tree, config)[0].T)
     assert contact.stable and sorted(contact.contacts) == ["N1", "N2", "N3"]
@@ -180,10 +186,11 @@ def test_ground_model_of_a_flat_triangle_is_its_own_plane():
 def test_ik_gradient_through_the_ground_model_matches_central_differences():
     for seed in range(3):
         config = random_freesn(8, seed + 20, free=2)
-        tree = default_tree(config)
+        tree = freesn_tree(config)
         target = forward(tree, config, np.random.default_rng(seed).normal(size=tree.dim) * 0.3
                          ).configuration
-        problem = IKProblem(tree, config, target, IKOptions(ground=True, gamma=0.3))
+        problem = IKProblem(tree, config, target, IKOptions(ground=GroundModel.for_configuration(config, FREESN.spec),
+                                                   gamma=0.3))
         point = np.concatenate([[0.2], np.random.default_rng(seed).normal(size=tree.dim)
                                 * 0.1])
         _, grad = problem.value_and_grad(point)
@@ -192,8 +199,8 @@ def test_ik_gradient_through_the_ground_model_matches_central_differences():
 
 def test_ik_with_the_ground_model_reaches_a_grounded_target():
     config = random_freesn(7, 31, free=2)
-    tree = default_tree(config)
-    model = GroundModel.for_configuration(config)
+    tree = freesn_tree(config)
+    model = GroundModel.for_configuration(config, FREESN.spec)
     op = GroundOp(tree, model)
     grounded = forward(tree, config, np.random.default_rng(3).normal(size=tree.dim) * 0.2)
     contact, _ = op.contact(grounded.Z.T)

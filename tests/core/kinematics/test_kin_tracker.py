@@ -6,14 +6,14 @@ import time
 from dataclasses import replace
 
 import numpy as np
-from kin_helpers import random_freesn, yawed
+from kin_helpers import freesn_tree, random_freesn, yawed
 
-from msrr.core.kinematics import IKOptions, IKTracker, default_tree, forward
+from msrr.core.kinematics import IKOptions, IKTracker, forward
 
 
 def test_tracking_follows_a_robot_that_moves_towards_the_target():
     config = random_freesn(10, 4, free=1)
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     target = yawed(forward(tree, config, np.random.default_rng(4).normal(size=tree.dim) * 0.3
                            ).configuration, 0.7)
     current = config
@@ -32,7 +32,7 @@ def test_tracking_follows_a_robot_that_moves_towards_the_target():
 
 def test_exploration_hands_over_a_better_start():
     config = random_freesn(8, 6)
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     target = forward(tree, config, np.random.default_rng(6).normal(size=tree.dim) * 0.4
                      ).configuration
     tracker = IKTracker(tree, target, IKOptions(seed=2, time_budget=1.0), explore=True)
@@ -54,7 +54,7 @@ def test_exploration_hands_over_a_better_start():
 
 def test_a_new_target_keeps_the_warm_start():
     config = random_freesn(5, 8)
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     first = forward(tree, config, np.full(tree.dim, 0.1)).configuration
     second = forward(tree, config, np.full(tree.dim, 0.12)).configuration
     with IKTracker(tree, first, explore=False) as tracker:

@@ -6,9 +6,9 @@ import json
 from pathlib import Path
 
 import pytest
-from kin_helpers import random_freesn
+from kin_helpers import FREESN, freesn_tree, random_freesn
 
-from msrr.core import Configuration, UnknownNameError
+from msrr.core import Configuration
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import (
     FixedNode,
@@ -39,7 +39,7 @@ def triangle_leg() -> Configuration:
 
 
 def test_default_tree_of_a_chain_roots_at_its_centre_and_lays_out_bfs():
-    tree = default_tree(chain(4))                    # N1 .. N5, centre N3
+    tree = freesn_tree(chain(4))                    # N1 .. N5, centre N3
     assert isinstance(tree.root, FixedNode) and tree.root.vertices == ("N3",)
     assert [type(n) for n in tree.nodes[1:]] == [OppositeSteeringJoint] * 4
     assert tree.edges == ("S2", "S3", "S1", "S4")    # breadth first from N3
@@ -52,17 +52,16 @@ def test_default_tree_of_a_chain_roots_at_its_centre_and_lays_out_bfs():
 
 
 def test_default_tree_joint_mode_can_be_chosen():
-    tree = default_tree(chain(2), joint_mode="revolute")
+    tree = default_tree(chain(2), RevoluteJoint)
     assert {type(n) for n in tree.nodes[1:]} == {RevoluteJoint} and tree.dim == 2
-    assert default_tree(chain(2), RevoluteJoint) == tree
-    with pytest.raises(UnknownNameError, match="known: differential_spherical, full_opposite"):
-        default_tree(chain(2), joint_mode="wobble")
+    with pytest.raises(KinematicTreeError, match="'fixed' is not a module joint"):
+        default_tree(chain(2), FixedNode)
 
 
 def test_default_tree_of_a_single_module():
     config = Configuration("freesn")
     config.add_module("N1", "node")
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     assert len(tree) == 1 and tree.dim == 0 and tree.edges == ()
 
 
@@ -71,12 +70,12 @@ def test_default_tree_prefers_a_real_module_over_a_free_connector_as_root():
     config.add_module("N1", "node")
     config.add_virtual("v1")
     config.connect("N1", "v1", id="S1", kind="strut", z=[0, 0, -1])
-    tree = default_tree(config)
+    tree = freesn_tree(config)
     assert tree.root.vertices == ("N1",) and tree.nodes[1].vertices == ("v1",)
 
 
 def test_default_tree_holds_cycles_in_a_fixed_node():
-    tree = default_tree(triangle_leg())
+    tree = freesn_tree(triangle_leg())
     assert tree.root.edges == ("S1", "S2", "S3")
     assert tree.root.vertices == ("N1", "N2", "N3")
     assert tree.nodes[1].edges == ("S4",) and tree.dim == 3
@@ -85,7 +84,7 @@ def test_default_tree_holds_cycles_in_a_fixed_node():
 def test_default_tree_can_refuse_cycles_and_names_the_cycle():
     with pytest.raises(KinematicTreeError, match=r"cycle N\d - N\d - N\d - N\d \(edges S\d, S\d, "
                                                 r"S\d\): the topology is not a tree"):
-        default_tree(triangle_leg(), cycles="error")
+        freesn_tree(triangle_leg(), cycles="error")
 
 
 def test_a_cycle_through_module_joints_is_refused_with_its_name():
@@ -149,36 +148,37 @@ def test_trees_round_trip_through_json(tmp_path):
     assert data["schema_version"] == 1 and data["robot"] == "freesn"
     assert data["nodes"][2] == {"type": "parallel_strut", "edges": ["S2", "S3"],
                                 "vertices": ["N3"], "params": {"beta": 0.25}}
-    assert KinematicTree.from_dict(data, config) == tree
-    alone = KinematicTree.from_dict(data)            # the stored topology is enough
+    assert KinematicTree.from_dict(data, config, modes=FREESN.joint_modes) == tree
+    alone = KinematicTree.from_dict(data, modes=FREESN.joint_modes)            # the stored topology is enough
     assert alone == tree and alone.configuration.name == "triangle-leg"
     save_tree(tree, tmp_path / "tree.json")
-    assert load_tree(tmp_path / "tree.json", config) == tree
+    assert load_tree(tmp_path / "tree.json", config, modes=FREESN.joint_modes) == tree
 
 
 def test_random_default_trees_round_trip():
     for seed in range(5):
         config = random_freesn(12, seed, free=2)
-        tree = default_tree(config)
-        assert KinematicTree.from_dict(tree.to_dict(), config) == tree
+        tree = freesn_tree(config)
+        assert KinematicTree.from_dict(tree.to_dict(), config, modes=FREESN.joint_modes) == tree
         assert sorted(tree.edges) == sorted(config.edge_ids())
 
 
 def test_tree_files_with_errors_name_the_field():
-    data = default_tree(chain(2)).to_dict()
+    data = freesn_tree(chain(2)).to_dict()
     data["nodes"][1]["type"] = "teleport"
     with pytest.raises(KinematicTreeError, match=r"nodes\[1\]\.type: unknown node type .*"
                                                  r"known: differential_spherical"):
-        KinematicTree.from_dict(data)
+        KinematicTree.from_dict(data, modes=FREESN.joint_modes)
     data["nodes"][1] = {"type": "opposite_steering", "edges": "S1"}
     with pytest.raises(KinematicTreeError, match=r"nodes\[1\]\.edges"):
-        KinematicTree.from_dict(data)
+        KinematicTree.from_dict(data, modes=FREESN.joint_modes)
     with pytest.raises(KinematicTreeError, match="schema_version"):
-        KinematicTree.from_dict({**default_tree(chain(2)).to_dict(), "schema_version": 7})
+        KinematicTree.from_dict({**freesn_tree(chain(2)).to_dict(), "schema_version": 7},
+                                modes=FREESN.joint_modes)
 
 
 def test_from_dict_checks_the_configuration_topology():
-    data = default_tree(chain(2)).to_dict()
+    data = freesn_tree(chain(2)).to_dict()
     other = chain(3)
     with pytest.raises(KinematicTreeError, match="does not have the tree's topology"):
-        KinematicTree.from_dict(data, other)
+        KinematicTree.from_dict(data, other, modes=FREESN.joint_modes)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from msrr.core import plugins
-from msrr.core.kinematics import FixedNode, KinematicNode, KinematicTreeError, default_joint_mode
+from msrr.core.kinematics import FixedNode, KinematicNode, KinematicTreeError
 from msrr.core.kinematics.rotations import rodrigues, rotation_between
 from msrr.plugins.freesn.joints import (
     JOINT_MODES,
@@ -46,7 +46,7 @@ def test_freesn_registers_its_joint_modes_with_the_default_first():
     modes = plugins.kinematic_nodes("freesn")
     assert list(modes) == ["opposite_steering", "differential_spherical", "full_opposite",
                            "revolute", "parallel_strut"]
-    assert default_joint_mode("freesn") is OppositeSteeringJoint
+    assert plugins.resolve("freesn").default_joint_mode() is OppositeSteeringJoint
     assert {m.family for m in modes.values()} == {"module_joint", "parallel"}
     assert all(m.controller for m in modes.values())
 
