@@ -19,9 +19,9 @@ ordered degrees) indexes the library and rejects non-isomorphic pairs early.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import networkx as nx
 import numpy as np
@@ -31,27 +31,74 @@ from .errors import ConfigurationError
 if TYPE_CHECKING:
     from .robot import RobotSpec
 
-__all__ = ["VIRTUAL", "Configuration", "Edge", "Signature", "unit"]
+__all__ = ["VIRTUAL", "Configuration", "Edge", "Signature", "VectorLike", "unit"]
 
 VIRTUAL = "virtual"
 """Kind of the vertices that stand for free connectors (FreeSN paper, Fig. 4)."""
 
 UNIT_TOLERANCE = 1e-6
+"""Largest accepted deviation of a direction vector's norm from 1."""
+
+VectorLike = Iterable[float]
+"""Three numbers: a list, a tuple or a numpy array of shape (3,)."""
 
 
-def unit(vector: Iterable[float], *, what: str = "vector") -> np.ndarray:
-    """``vector`` as a float64 array of shape (3,), checked to be unit length.
+def unit(vector: VectorLike, *, what: str = "vector") -> np.ndarray:
+    """``vector`` as a new read-only float64 array of shape (3,), checked to be unit length.
+
+    The one unit-vector check of the platform (configuration files use it too).
 
     Raises:
         ConfigurationError: wrong shape, non-finite, or norm off 1 by more than 1e-6.
     """
-    array = np.asarray(vector, dtype=np.float64)
+    array = np.array(vector, dtype=np.float64)
     if array.shape != (3,) or not np.all(np.isfinite(array)):
         raise ConfigurationError(f"{what} must be 3 finite numbers, got {array.tolist()}")
-    norm = float(np.linalg.norm(array))
+    norm = float(np.sqrt(array @ array))
     if abs(norm - 1.0) > UNIT_TOLERANCE:
         raise ConfigurationError(f"{what} must be a unit vector, its norm is {norm:.6g}")
+    array.flags.writeable = False
     return array
+
+
+def _frozen_position(position: VectorLike | None) -> np.ndarray | None:
+    if position is None:
+        return None
+    array = np.array(position, dtype=np.float64).reshape(3)
+    array.flags.writeable = False
+    return array
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
+
+
+def _optional_unit(vector: VectorLike | None, what: str) -> np.ndarray | None:
+    """``vector`` checked by :func:`unit`; a read-only array passes through unchanged."""
+    if vector is None:
+        return None
+    if (isinstance(vector, np.ndarray) and not vector.flags.writeable
+            and vector.dtype == np.float64 and vector.shape == (3,)):
+        return vector  # already checked when it entered a configuration
+    return unit(vector, what=what)
+
+
+def _rotated(rotation: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """``rotation @ vector``, renormalised against round-off, read-only."""
+    out = rotation @ vector
+    return _read_only(out / np.sqrt(out @ out))
+
+
+def _fresh_id(source: str, target: str, ports: tuple[str, str] | None,
+              taken: Collection[str]) -> str:
+    """An edge id made from the ends (and ports), numbered ``#2``, ``#3``... when taken."""
+    base = f"{source}{ports[0]}-{target}{ports[1]}" if ports else f"{source}-{target}"
+    candidate, n = base, 1
+    while candidate in taken:
+        n += 1
+        candidate = f"{base}#{n}"
+    return candidate
 
 
 @dataclass(frozen=True)
@@ -101,7 +148,9 @@ class Configuration:
         description: optional one-line description.
 
     Build with :meth:`add_module`, :meth:`add_virtual` and :meth:`connect`, or read a
-    file with :func:`msrr.core.io.load_configuration`.
+    file with :func:`msrr.core.io.load_configuration`; derive changed configurations
+    with :meth:`derive`. Vectors and positions are stored as read-only arrays, so
+    derived configurations share them safely.
     """
 
     def __init__(self, robot: str, *, name: str = "", description: str = ""):
@@ -113,22 +162,21 @@ class Configuration:
 
     # -- building -------------------------------------------------------------------
 
-    def add_module(self, module_id: str, kind: str, *, position: Iterable[float] | None = None
+    def add_module(self, module_id: str, kind: str, *, position: VectorLike | None = None
                    ) -> None:
         """Add a vertex module of ``kind``; ``position`` [m], shape (3,), is optional."""
         module_id = str(module_id)
         if module_id in self.graph or module_id in self._edge_ends:
             raise ConfigurationError(f"duplicate module id {module_id!r}")
-        pos = None if position is None else np.asarray(position, dtype=np.float64).reshape(3)
-        self.graph.add_node(module_id, kind=kind, position=pos)
+        self.graph.add_node(module_id, kind=kind, position=_frozen_position(position))
 
     def add_virtual(self, vertex_id: str) -> None:
         """Add a virtual vertex that stands for a free connector."""
         self.add_module(vertex_id, VIRTUAL)
 
     def connect(self, source: str, target: str, *, id: str | None = None,
-                kind: str | None = None, z: Iterable[float] | None = None,
-                x: Iterable[float] | None = None,
+                kind: str | None = None, z: VectorLike | None = None,
+                x: VectorLike | None = None,
                 ports: tuple[str, str] | None = None) -> str:
         """Add a connection from ``source`` to ``target`` and return its id.
 
@@ -174,12 +222,7 @@ class Configuration:
         self.graph.remove_node(module_id)
 
     def _fresh_edge_id(self, source: str, target: str, ports: tuple[str, str] | None) -> str:
-        base = (f"{source}{ports[0]}-{target}{ports[1]}" if ports else f"{source}-{target}")
-        candidate, n = base, 1
-        while candidate in self._edge_ends:
-            n += 1
-            candidate = f"{base}#{n}"
-        return candidate
+        return _fresh_id(source, target, ports, self._edge_ends)
 
     # -- reading --------------------------------------------------------------------
 
@@ -261,51 +304,131 @@ class Configuration:
 
     # -- derived configurations -----------------------------------------------------
 
+    def derive(self, *, vertices: Mapping[str, str] | None = None,
+               edges: Mapping[str, str] | None = None, reverse: Collection[str] = (),
+               z: Mapping[str, VectorLike | None] | None = None,
+               x: Mapping[str, VectorLike | None] | None = None,
+               rotation: np.ndarray | None = None, name: str | None = None,
+               description: str | None = None) -> Configuration:
+        """A new configuration derived from this one, which stays unchanged.
+
+        The one way to build a changed configuration: copies, views, relabellings,
+        module mappings and vector updates all come through here. Vectors and positions
+        are read-only arrays, so they are shared, not copied; only what changes is new.
+        The steps, in order, all keyed by *this* configuration's ids:
+
+        1. ``z`` / ``x`` replace vectors: ``{edge id: vector or None}``; an edge missing
+           from a given mapping gets ``None`` (``x={}`` drops every forward vector),
+           ``None`` for the mapping keeps the current vectors;
+        2. every edge in ``reverse`` is turned around: ends and ports swapped, ``z``
+           negated, ``x`` kept (the connection direction runs from source to target, the
+           forward vector belongs to the module body; FreeSN paper, Alg. 3 lines 12-13);
+        3. ``rotation`` (shape (3, 3), orthonormal) rotates every vector, e.g. a yaw;
+        4. ``vertices`` / ``edges`` rename ids; unmapped ids stay as they are.
+
+        Args:
+            vertices: vertex id -> new vertex id.
+            edges: edge id -> new edge id.
+            reverse: edge ids to turn around.
+            z: replacement connection direction vectors, unit, shape (3,).
+            x: replacement forward direction vectors, unit, shape (3,).
+            rotation: rotation matrix applied to every vector, shape (3, 3).
+            name: the new configuration's name; this one's when omitted.
+            description: its description; this one's when omitted.
+
+        Raises:
+            ConfigurationError: a replacement vector is not unit, the renaming sends two
+                ids to one, or ``reverse`` names an unknown edge.
+        """
+        reverse = frozenset(reverse)
+        if not reverse <= self._edge_ends.keys():
+            unknown = sorted(reverse - self._edge_ends.keys())
+            raise ConfigurationError(f"cannot reverse unknown connection(s) {unknown}")
+        rename = vertices.get if vertices else None
+        nodes = [(rename(v, v) if rename else v, data["kind"], data["position"])
+                 for v, data in self.graph.nodes(data=True)]
+        new_edges = []
+        for edge_id, (source, target) in self._edge_ends.items():
+            data = self.graph.adj[source][target][edge_id]
+            ez = data["z"] if z is None else _optional_unit(z.get(edge_id), f"z of {edge_id}")
+            ex = data["x"] if x is None else _optional_unit(x.get(edge_id), f"x of {edge_id}")
+            ports = data["ports"]
+            if edge_id in reverse:
+                source, target = target, source
+                ports = None if ports is None else (ports[1], ports[0])
+                ez = None if ez is None else _read_only(-ez)
+            if rotation is not None:
+                ez = None if ez is None else _rotated(rotation, ez)
+                ex = None if ex is None else _rotated(rotation, ex)
+            if rename:
+                source, target = rename(source, source), rename(target, target)
+            new_edges.append((edges.get(edge_id, edge_id) if edges else edge_id, source, target,
+                              {"kind": data["kind"], "z": ez, "x": ex, "ports": ports}))
+        return Configuration._assemble(
+            self.robot, self.name if name is None else name,
+            self.description if description is None else description, nodes, new_edges)
+
+    @classmethod
+    def union(cls, parts: Iterable[Configuration], *, robot: str, name: str = "",
+              description: str = "") -> Configuration:
+        """The disjoint union of ``parts`` (say, separately recognized groups).
+
+        Edge ids are kept; one already taken by an earlier part is regenerated from its
+        ends (:meth:`connect` without ``id``).
+
+        Raises:
+            ConfigurationError: two parts share a vertex id.
+        """
+        nodes, edges, taken = [], [], set()
+        for part in parts:
+            nodes += [(v, d["kind"], d["position"]) for v, d in part.graph.nodes(data=True)]
+            for edge_id, (source, target) in part._edge_ends.items():
+                data = part.graph.adj[source][target][edge_id]
+                if edge_id in taken:
+                    edge_id = _fresh_id(source, target, data["ports"], taken)
+                taken.add(edge_id)
+                edges.append((edge_id, source, target, dict(data)))
+        return cls._assemble(robot, name, description, nodes, edges)
+
+    @classmethod
+    def _assemble(cls, robot: str, name: str, description: str,
+                  nodes: list[tuple[str, str, np.ndarray | None]],
+                  edges: list[tuple[str, str, str, dict]]) -> Configuration:
+        """A configuration from checked parts: ``(id, kind, position)`` vertices and
+        ``(id, source, target, attributes)`` edges whose vectors are read-only unit arrays."""
+        out = cls(robot, name=name, description=description)
+        out.graph.add_nodes_from((v, {"kind": kind, "position": pos}) for v, kind, pos in nodes)
+        out._edge_ends = {edge_id: (source, target) for edge_id, source, target, _ in edges}
+        if len(out.graph) != len(nodes) or len(out._edge_ends) != len(edges) or (
+                out._edge_ends.keys() & out.graph.nodes.keys()):
+            counts = Counter([v for v, _, _ in nodes] + [e[0] for e in edges])
+            raise ConfigurationError(f"duplicate module id(s) "
+                                     f"{sorted(k for k, n in counts.items() if n > 1)}")
+        out.graph.add_edges_from((source, target, edge_id, data)
+                                 for edge_id, source, target, data in edges)
+        return out
+
     def copy(self) -> Configuration:
-        """A deep copy; vectors are copied, not shared."""
-        other = Configuration(self.robot, name=self.name, description=self.description)
-        for vertex, data in self.graph.nodes(data=True):
-            other.add_module(vertex, data["kind"], position=data["position"])
-        for e in self.edges():
-            other.connect(e.source, e.target, id=e.id, kind=e.kind, z=e.z, x=e.x, ports=e.ports)
-        return other
+        """An equal configuration that can be changed independently (:meth:`derive`)."""
+        return self.derive()
 
     def skeletal(self) -> Configuration:
         """The skeletal view: the topology with ``z`` only (section 3.1)."""
-        return self.with_vectors(x={})
+        return self.derive(x={})
 
     def morphology(self) -> Configuration:
         """The morphology view: the topology with ``z`` and ``x`` (a copy)."""
-        return self.copy()
+        return self.derive()
 
-    def with_vectors(self, z: Mapping[str, Any] | None = None,
-                     x: Mapping[str, Any] | None = None) -> Configuration:
-        """A copy whose ``z``/``x`` are replaced from ``{edge id: vector}`` mappings.
-
-        ``x={}`` drops every forward vector; an edge missing from a given mapping keeps
-        ``None`` for that attribute. ``None`` for a mapping keeps the current vectors.
-        """
-        other = Configuration(self.robot, name=self.name, description=self.description)
-        for vertex, data in self.graph.nodes(data=True):
-            other.add_module(vertex, data["kind"], position=data["position"])
-        for e in self.edges():
-            new_z = e.z if z is None else z.get(e.id)
-            new_x = e.x if x is None else x.get(e.id)
-            other.connect(e.source, e.target, id=e.id, kind=e.kind, z=new_z, x=new_x,
-                          ports=e.ports)
-        return other
+    def with_vectors(self, z: Mapping[str, VectorLike | None] | None = None,
+                     x: Mapping[str, VectorLike | None] | None = None) -> Configuration:
+        """Shorthand for :meth:`derive` with ``z`` and ``x`` only."""
+        return self.derive(z=z, x=x)
 
     def relabel(self, vertices: Mapping[str, str], edges: Mapping[str, str] | None = None
                 ) -> Configuration:
-        """A copy with vertex (and edge) ids renamed; unmapped ids stay as they are."""
-        edges = edges or {}
-        other = Configuration(self.robot, name=self.name, description=self.description)
-        for vertex, data in self.graph.nodes(data=True):
-            other.add_module(vertices.get(vertex, vertex), data["kind"], position=data["position"])
-        for e in self.edges():
-            other.connect(vertices.get(e.source, e.source), vertices.get(e.target, e.target),
-                          id=edges.get(e.id, e.id), kind=e.kind, z=e.z, x=e.x, ports=e.ports)
-        return other
+        """Shorthand for :meth:`derive` with ``vertices`` and ``edges`` only."""
+        return self.derive(vertices=vertices, edges=edges)
 
     # -- comparison -----------------------------------------------------------------
 
