@@ -16,6 +16,8 @@ Example::
     sol.sigma, sol.yaw, sol.rms_angle, sol.success
 """
 
+from .build import default_tree, tree_centre
+from .cycles import cyclic_groups, find_cycle_through
 from .fk import Evaluator, FKResult, FKState, forward, tree_vectors
 from .ground import GroundContact, GroundModel, GroundOp
 from .ik import IKOptions, IKProblem, IKSolution, solve_ik
@@ -39,14 +41,8 @@ from .rotations import (
     vee,
 )
 from .tracker import IKTracker
-from .tree import (
-    TREE_SCHEMA_VERSION,
-    KinematicTree,
-    default_tree,
-    find_cycle_through,
-    load_tree,
-    save_tree,
-)
+from .tree import KinematicTree, check_same_topology, load_tree, save_tree
+from .tree_file import TREE_SCHEMA_VERSION, KinematicTreeFile, NodeTypes
 
 __all__ = [
     "FAMILIES",
@@ -65,12 +61,16 @@ __all__ = [
     "KinematicNode",
     "KinematicTree",
     "KinematicTreeError",
+    "KinematicTreeFile",
     "ModuleJointNode",
     "NodeBatch",
     "NodeForward",
     "NodeJacobian",
+    "NodeTypes",
     "ParallelNode",
     "canonical_perpendicular",
+    "check_same_topology",
+    "cyclic_groups",
     "default_tree",
     "find_cycle_through",
     "forward",
@@ -81,6 +81,7 @@ __all__ = [
     "save_tree",
     "skew",
     "solve_ik",
+    "tree_centre",
     "tree_vectors",
     "vee",
 ]

@@ -8,11 +8,11 @@ root is a fixed node. Breadth-first order of the nodes fixes the layout of ``Z``
 
 Every cycle of the topology must lie inside one fixed or parallel node (closing, at
 most, through ports of that node's parent); anything else is refused with a
-:class:`KinematicTreeError` that names the cycle.
+:class:`KinematicTreeError` that names the cycle (:func:`~.cycles.find_cycle_through`).
 
-:func:`default_tree` builds the paper's default: a fixed root at the topology's
-centre and one module joint of the robot's default mode per edge. Trees serialise
-to JSON (``schema_version`` 1) with :meth:`KinematicTree.to_dict`.
+Trees serialise to JSON (:mod:`.tree_file`) with :meth:`KinematicTree.to_dict`,
+:meth:`KinematicTree.from_dict`, :func:`save_tree` and :func:`load_tree`; the default
+tree of a configuration is built by :func:`~.build.default_tree`.
 """
 
 from __future__ import annotations
@@ -20,40 +20,26 @@ from __future__ import annotations
 import json
 import os
 from collections import deque
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from functools import cached_property
-from typing import Any, Literal
+from typing import Any
 
 import networkx as nx
 import numpy as np
-from pydantic import Field
 
 from ..configuration import Configuration
-from ..errors import ConfigurationError, UnknownNameError
-from ..files import StrictModel, atomic_write_text, parse_model, read_json
-from ..io import (
-    ConfigurationFile,
-    ConnectionModel,
-    ModuleModel,
-    configuration_from_model,
-    configuration_to_model,
-)
-from .node import FixedNode, KinematicNode, KinematicTreeError, ModuleJointNode
+from ..errors import UnknownNameError
+from ..files import atomic_write_text, read_json
+from .cycles import find_cycle_through
+from .node import KinematicNode, KinematicTreeError
+from .tree_file import NodeTypes, read_tree_document, tree_document
 
 __all__ = [
-    "TREE_SCHEMA_VERSION",
     "KinematicTree",
-    "KinematicTreeError",
-    "KinematicTreeFile",
-    "default_tree",
+    "check_same_topology",
     "load_tree",
     "save_tree",
 ]
-
-TREE_SCHEMA_VERSION = 1
-
-
-NodeTypes = Mapping[str, type[KinematicNode]]
 
 
 def _label(node: KinematicNode) -> str:
@@ -297,13 +283,8 @@ class KinematicTree:
     # -- files -------------------------------------------------------------------------------
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary: topology and nodes in BFS order (schema_version 1)."""
-        topology = configuration_to_model(self.configuration).model_dump(
-            mode="json", exclude_none=True)
-        return {"schema_version": TREE_SCHEMA_VERSION, "robot": self.robot,
-                "configuration": self.configuration.name,
-                "modules": topology["modules"], "connections": topology["connections"],
-                "nodes": [node.to_dict() for node in self.nodes]}
+        """JSON-ready dictionary: topology and nodes in BFS order (:mod:`.tree_file`)."""
+        return tree_document(self.configuration, self.nodes)
 
     @classmethod
     def from_dict(cls, data: Any, config: Configuration | None = None, *,
@@ -314,30 +295,15 @@ class KinematicTree:
             data: the parsed JSON.
             config: the configuration the tree belongs to; its topology must match the
                 stored one. Without it the stored topology is used.
-            modes: node types by name (``Robot.joint_modes``); ``"fixed"`` is
-                :class:`FixedNode` unless given.
+            modes: node classes by name (``Robot.joint_modes``); ``"fixed"`` is
+                :class:`~.node.FixedNode` unless given.
             source: file name for error messages.
 
         Raises:
             KinematicTreeError: a malformed document, an unknown node type (listing the
                 known ones), or a topology mismatch.
         """
-        model = _parse(KinematicTreeFile, data, source)
-        topology = configuration_from_model(ConfigurationFile(
-            schema_version=1, robot=model.robot, name=model.configuration,
-            modules=model.modules, connections=model.connections), source)
-        types = {"fixed": FixedNode, **modes}
-        nodes = []
-        for i, spec in enumerate(model.nodes):
-            if spec.type not in types:
-                raise KinematicTreeError(str(UnknownNameError(
-                    f"node type for robot {model.robot!r}", spec.type, types)),
-                    source=source, field=f"nodes[{i}].type")
-            try:
-                nodes.append(types[spec.type](spec.edges, spec.vertices, **spec.params))
-            except ConfigurationError as exc:
-                raise KinematicTreeError(exc.message, source=source,
-                                         field=f"nodes[{i}]") from None
+        topology, nodes = read_tree_document(data, modes, source)
         if config is not None:
             check_same_topology(topology, config)
         return cls(config if config is not None else topology, nodes)
@@ -357,37 +323,6 @@ def check_same_topology(mine: Configuration, theirs: Configuration) -> None:
     raise KinematicTreeError(f"configuration does not have the tree's topology ({'; '.join(parts)})")
 
 
-# -- serialisation models -----------------------------------------------------------------------
-
-
-class NodeModel(StrictModel):
-    """One kinematic node of a tree file."""
-
-    type: str = Field(min_length=1, description="Node type (joint mode) name, or 'fixed'.")
-    edges: list[str] = Field(default_factory=list, description="Edge ids, in the node's order.")
-    vertices: list[str] = Field(default_factory=list, description="Owned vertex ids (ports).")
-    params: dict[str, float] = Field(default_factory=dict,
-                                     description="Node-type parameters that differ from defaults.")
-
-
-class KinematicTreeFile(StrictModel):
-    """A kinematic tree file: the topology it covers and its nodes in BFS order."""
-
-    schema_version: Literal[1] = Field(description="File format version.")
-    robot: str = Field(min_length=1)
-    configuration: str = Field("", description="Name of the configuration.")
-    modules: list[ModuleModel]
-    connections: list[ConnectionModel] = []
-    nodes: list[NodeModel] = Field(min_length=1)
-
-
-def _parse(model: Any, data: Any, source: str | None) -> Any:
-    try:
-        return parse_model(model, data, source)
-    except ConfigurationError as exc:
-        raise KinematicTreeError(exc.message, source=exc.source, field=exc.field) from None
-
-
 def save_tree(tree: KinematicTree, path: str | os.PathLike[str]) -> None:
     """Write ``tree`` as JSON to ``path`` atomically."""
     atomic_write_text(path, json.dumps(tree.to_dict(), indent=2) + "\n")
@@ -398,150 +333,3 @@ def load_tree(path: str | os.PathLike[str], config: Configuration | None = None,
     """Read a tree file written by :func:`save_tree`; ``modes`` as in
     :meth:`KinematicTree.from_dict`."""
     return KinematicTree.from_dict(read_json(path), config, modes=modes, source=str(path))
-
-
-# -- cycles and the default tree --------------------------------------------------------------
-
-
-def find_cycle_through(config: Configuration, edges: Iterable[str]
-                       ) -> tuple[list[str], list[str]] | None:
-    """The shortest cycle of the topology through one of ``edges``: (vertices, edge ids)."""
-    graph = nx.MultiGraph()
-    graph.add_nodes_from(config.vertices())
-    for e in config.edges():
-        graph.add_edge(e.source, e.target, key=e.id)
-    best: tuple[list[str], list[str]] | None = None
-    for edge_id in edges:
-        edge = config.edge(edge_id)
-        graph.remove_edge(edge.source, edge.target, key=edge_id)
-        try:
-            path = nx.shortest_path(graph, edge.target, edge.source)
-        except nx.NetworkXNoPath:
-            path = None
-        if path is not None and (best is None or len(path) < len(best[0])):
-            ids = [next(iter(graph.get_edge_data(a, b)))
-                   for a, b in zip(path, path[1:], strict=False)]
-            best = (path, [*ids, edge_id])  # target ... source, then back along edge_id
-        graph.add_edge(edge.source, edge.target, key=edge_id)
-    return best
-
-
-def _centre(graph: nx.Graph, rank: Mapping[Any, tuple]) -> Any:
-    """The tree centre of ``graph``; ties broken by ``rank`` (smaller first)."""
-    if graph.number_of_nodes() == 1:
-        return next(iter(graph.nodes))
-    return min(nx.center(graph), key=lambda v: rank[v])
-
-
-def default_tree(config: Configuration, joint_mode: type[KinematicNode], *,
-                 cycles: Literal["fixed", "error"] = "fixed") -> KinematicTree:
-    """The default kinematic tree of ``config`` (paper section 3.2).
-
-    A fixed root at the topology's centre (vertex of smallest eccentricity; ties go to
-    a real module before a virtual one, then to the larger degree, then to the first
-    listed) and one module joint of ``joint_mode`` per edge, owning the edge's end
-    away from the root.
-
-    Args:
-        config: a connected configuration.
-        joint_mode: the module-joint node class, resolved by the caller
-            (``robot.default_joint_mode()`` or ``robot.joint_modes[name]``).
-        cycles: ``"fixed"`` holds every cyclic block of the topology rigid in a fixed
-            node (the root, if the block holds the centre); ``"error"`` refuses a
-            topology with cycles and names one.
-
-    Raises:
-        KinematicTreeError: ``joint_mode`` is not a module joint, the topology is not
-            connected, or it has a cycle and ``cycles="error"``.
-    """
-    joint_cls = joint_mode
-    if not (isinstance(joint_cls, type) and issubclass(joint_cls, ModuleJointNode)):
-        name = getattr(joint_cls, "name", joint_cls)
-        raise KinematicTreeError(f"joint mode {name!r} is not a module joint node class")
-    if len(config) == 0 or not config.is_connected():
-        raise KinematicTreeError("a kinematic tree needs one connected configuration")
-
-    # cyclic blocks (biconnected components with a cycle, and doubled edges) -> groups
-    simple = nx.Graph()
-    simple.add_nodes_from(config.vertices())
-    pair_edges: dict[frozenset[str], list[str]] = {}
-    for e in config.edges():
-        simple.add_edge(e.source, e.target)
-        pair_edges.setdefault(frozenset((e.source, e.target)), []).append(e.id)
-    group_of: dict[str, int] = {}
-    groups: list[set[str]] = []
-
-    def merge(vertices: set[str]) -> None:
-        hit = sorted({group_of[v] for v in vertices if v in group_of})
-        merged = set(vertices)
-        for g in hit:
-            merged |= groups[g]
-            groups[g] = set()
-        groups.append(merged)
-        for v in merged:
-            group_of[v] = len(groups) - 1
-
-    for block in nx.biconnected_component_edges(simple):
-        block = list(block)
-        if len(block) > 1:
-            merge({v for pair in block for v in pair})
-    for pair, ids in pair_edges.items():
-        if len(ids) > 1:
-            merge(set(pair))
-    if any(groups) and cycles == "error":
-        group_edges = [e.id for e in config.edges()
-                       if e.source in group_of and group_of[e.source] == group_of.get(e.target)]
-        cycle = find_cycle_through(config, group_edges)
-        assert cycle is not None
-        loop = " - ".join([*cycle[0], cycle[0][0]])
-        raise KinematicTreeError(f"cycle {loop} (edges {', '.join(cycle[1])}): the topology is "
-                                 "not a tree; use cycles='fixed' or build the tree with a fixed "
-                                 "or parallel node around it")
-
-    def super_vertex(v: str) -> str:
-        return f"#group{group_of[v]}" if v in group_of else v
-
-    contracted = nx.Graph()
-    order = {v: i for i, v in enumerate(config.vertices())}
-    rank: dict[str, tuple] = {}
-    for v in config.vertices():
-        s = super_vertex(v)
-        contracted.add_node(s)
-        real = not config.is_virtual(v)
-        candidate = (0 if real else 1, -config.degree(v), order[v])
-        rank[s] = min(rank.get(s, candidate), candidate)
-    bridge_edges = [e for e in config.edges() if super_vertex(e.source) != super_vertex(e.target)]
-    for e in bridge_edges:
-        contracted.add_edge(super_vertex(e.source), super_vertex(e.target))
-    centre = _centre(contracted, rank)
-
-    def members(s: str) -> list[str]:
-        return [v for v in config.vertices() if super_vertex(v) == s]
-
-    def inner_edges(s: str) -> list[str]:
-        return [e.id for e in config.edges()
-                if super_vertex(e.source) == s and super_vertex(e.target) == s]
-
-    nodes: list[KinematicNode] = [FixedNode(inner_edges(centre), members(centre))]
-    owned = set(members(centre))
-    by_super: dict[str, list] = {}
-    for e in bridge_edges:
-        by_super.setdefault(super_vertex(e.source), []).append(e)
-        by_super.setdefault(super_vertex(e.target), []).append(e)
-    queue, seen = deque([centre]), {centre}
-    while queue:
-        s = queue.popleft()
-        for e in by_super.get(s, []):
-            far = e.target if super_vertex(e.source) == s else e.source
-            sf = super_vertex(far)
-            if sf in seen:
-                continue
-            seen.add(sf)
-            nodes.append(joint_cls([e.id], [far]))
-            owned.add(far)
-            rest = [v for v in members(sf) if v != far]
-            if rest or inner_edges(sf):
-                nodes.append(FixedNode(inner_edges(sf), rest))
-            owned.update(rest)
-            queue.append(sf)
-    return KinematicTree(config, nodes)

@@ -74,7 +74,7 @@ def design_tree(reference: Configuration, designed: DesignedTree) -> dict:
     A designed tree is a serialised tree (checked by loading it on ``reference``) or a
     joint mode for the default tree of ``reference``.
     """
-    from ..kinematics.tree import KinematicTree, default_tree
+    from ..kinematics import KinematicTree, default_tree
 
     try:
         robot = _robot(reference.robot)
