@@ -1,17 +1,33 @@
 """Protocols of the things plugins register through the capability hooks.
 
-A planner, recognizer, controller or driver factory is any object with these
-attributes; ``name`` is its key in ``platform robots`` and on the command line.
+One place for "what does ``register(item)`` accept" per capability hook:
+
+==========================  ===================================================
+hook                        registered item
+==========================  ===================================================
+``msrr_kinematic_nodes``    a :class:`~msrr.core.kinematics.node.KinematicNode` subclass
+``msrr_controllers``        a :class:`Controller`
+``msrr_recognizers``        a :class:`Recognizer`
+``msrr_planners``           a :class:`Planner`
+``msrr_drivers``            a :class:`DriverFactory`
+``msrr_scenarios``          a :class:`~msrr.core.scenario.Scenario`
+==========================  ===================================================
+
+Each has a ``name`` (its key in ``platform robots`` and on the command line) and a
+one-line ``description``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Protocol, runtime_checkable
 
 from .configuration import Configuration
+from .control import Controller
+from .driver import DriverFactory
 from .plan import Plan
 
-__all__ = ["Planner", "Recognizer"]
+__all__ = ["Controller", "DriverFactory", "Planner", "Recognizer"]
 
 
 @runtime_checkable
@@ -32,11 +48,13 @@ class Planner(Protocol):
 
 @runtime_checkable
 class Recognizer(Protocol):
-    """Turns what a driver observes into the current :class:`Configuration`."""
+    """Turns what a driver senses into the current :class:`Configuration`."""
 
     name: str
     description: str
 
-    def recognize(self, observation: Any, *, seed: int = 0) -> Configuration:
-        """The configuration that ``observation`` shows, in the modules' own ids."""
+    def recognize(self, sensors: Mapping[str, Any], *, seed: int = 0) -> Configuration:
+        """The configuration that ``sensors`` (:attr:`Observation.sensors
+        <msrr.core.driver.Observation.sensors>`, per module id) shows, in the modules'
+        own ids."""
         ...

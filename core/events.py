@@ -8,13 +8,14 @@ them.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .plan import Action, ConnectionChange, Plan
+from .robot import RobotSpec
 
 __all__ = ["ActionStatus", "Phase", "Run", "RunResult", "Tick", "TopologyEvent"]
 
@@ -53,26 +54,24 @@ class Run:
         robot: the robot's name.
         scenario: scenario name, or ``"custom"`` for ``--from/--to`` runs.
         plan: the plan being executed (start, goal, actions in the start's ids).
+        spec: the robot's description; listeners draw modules from its module kinds'
+            ``ports`` and ``geometry``.
         driver: name of the driver.
         rate: control rate [Hz].
         seed: seed of the run.
         out_dir: folder the run writes to, or ``None``.
         recording: path of the rerun recording to write, or ``None`` for no log.
-        module_size: body size ``(length, width, height)`` [m] for visualisation.
-        ports: per module kind, ``{port: (normal (3,), polarity)}`` for visualisation.
     """
 
     robot: str
     scenario: str
     plan: Plan
+    spec: RobotSpec
     driver: str = ""
     rate: float = 10.0
     seed: int = 0
     out_dir: Path | None = None
     recording: Path | None = None
-    module_size: tuple[float, float, float] = (0.2, 0.2, 0.1)
-    ports: Mapping[str, Mapping[str, tuple[tuple[float, float, float], str]]] = field(
-        default_factory=dict)
 
     @property
     def start(self) -> Configuration:

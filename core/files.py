@@ -12,7 +12,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from .errors import ConfigurationError
 
-__all__ = ["StrictModel", "atomic_write_text", "parse_model", "read_json", "validation_field"]
+__all__ = ["StrictModel", "atomic_write_bytes", "atomic_write_text", "parse_model", "read_json", "validation_field"]
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -23,24 +23,42 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename.
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename.
 
     The rename is atomic on POSIX, so an interrupted write leaves either the old file
-    or the new one, never half of either.
+    or the new one, never half of either, and no temporary file. The file gets the
+    permissions of an ordinary new file (``0o666`` minus the umask), not the
+    temporary file's ``0o600``. Missing parent folders are created.
+
+    Returns:
+        the path written.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return target
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
+    """:func:`atomic_write_bytes` of ``text`` in UTF-8."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _umask() -> int:
+    mask = os.umask(0)  # reading the umask means setting it; put it straight back
+    os.umask(mask)
+    return mask
 
 
 def read_json(path: str | os.PathLike[str]) -> Any:

@@ -6,30 +6,49 @@ from the entry-point group ``msrr.plugins``; the built-in robots register throug
 that same group.
 
 Capability hooks receive the robot's name, so one plugin can serve a robot fully
-while another adds a joint mode, planner or simulator to any robot. Most of them
-hand the plugin a ``register`` callable instead of expecting a returned list: call
-``register(item)`` once per item; ``item.name`` must be unique for that robot.
+while another adds a joint mode, planner or simulator to any robot. They hand the
+plugin a typed registrar (:class:`Register`) instead of expecting a returned list:
+call ``register(item)`` once per item; ``item.name`` must be unique for that robot,
+and the first registered item is the default. What each capability registers is a
+protocol of :mod:`msrr.core.capabilities`.
+
+Every hook is typed with what it receives and returns; ``docs/writing-a-plugin.md``
+shows each signature (a test keeps the two in step).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import pluggy
 
-if TYPE_CHECKING:
+from .capabilities import Controller, DriverFactory, Planner, Recognizer
+from .events import ActionStatus, Run, RunResult, Tick, TopologyEvent
+from .plan import Action
+from .robot import DockingRules, RobotSpec
+from .scenario import Scenario
+
+if TYPE_CHECKING:  # click and the kinematics (scipy) are not needed to declare the hooks
     import click
 
-    from .robot import DockingRules, RobotSpec
+    from .kinematics.node import KinematicNode
 
 __all__ = ["Register", "hookimpl", "hookspec"]
 
 hookspec = pluggy.HookspecMarker("msrr")
 hookimpl = pluggy.HookimplMarker("msrr")
 
-Register = Callable[[Any], None]
-"""The registrar a capability hook receives: ``register(item)``."""
+T_contra = TypeVar("T_contra", contravariant=True)
+
+
+class Register(Protocol[T_contra]):
+    """The registrar a capability hook receives: ``register(item)``, once per item.
+
+    ``Register[Planner]`` accepts planners only; the host checks each item against
+    the capability's protocol and refuses, naming the hook, an item that does not fit.
+    """
+
+    def __call__(self, item: T_contra, /) -> None: ...
 
 
 # -------------------------------------------------------------------------------------
@@ -38,14 +57,18 @@ Register = Callable[[Any], None]
 
 
 @hookspec
-def msrr_robot() -> RobotSpec | list[RobotSpec] | None:
-    """Describe the robot(s) this plugin provides.
+def msrr_robot() -> RobotSpec | None:
+    """Describe the robot this plugin provides.
 
-    Called whenever the host lists robots (``platform robots``, ``--robot`` choices,
-    validating a file).
+    Called whenever the host lists robots (``platform robots``, resolving a robot
+    for a command, validating a file).
 
-    :return: a :class:`~msrr.core.robot.RobotSpec`, a list of them, or ``None``
-        when the plugin provides no robot (a planner-only plugin).
+    One plugin describes at most one robot. A package with several robots declares
+    one entry point per robot (as this repository does for ``freesn``, ``mmrp``,
+    ``freebot`` and ``snailbot``), so each can be listed, loaded and left out alone.
+
+    :return: a :class:`~msrr.core.robot.RobotSpec`, or ``None`` when the plugin
+        provides no robot (a planner-only or listener plugin).
     """
 
 
@@ -53,8 +76,9 @@ def msrr_robot() -> RobotSpec | list[RobotSpec] | None:
 def msrr_docking_rules(robot: str) -> DockingRules | None:
     """Return the docking rules of ``robot``: legal port pairs, topologies, actions.
 
-    Called when a configuration of ``robot`` is validated or an action is checked.
-    The first plugin that answers wins.
+    Called when the host resolves ``robot`` (:func:`msrr.core.plugins.resolve`),
+    e.g. before a configuration of it is validated. The first plugin that answers
+    wins; with no answer the permissive :class:`~msrr.core.robot.DockingRules` apply.
 
     :param robot: the robot's name.
     :return: a :class:`~msrr.core.robot.DockingRules`, or ``None`` if this plugin
@@ -68,120 +92,133 @@ def msrr_docking_rules(robot: str) -> DockingRules | None:
 
 
 @hookspec
-def msrr_kinematic_nodes(robot: str, register: Register) -> None:
+def msrr_kinematic_nodes(robot: str, register: Register[type[KinematicNode]]) -> None:
     """Register the joint modes (kinematic node types) available for ``robot``.
 
-    Called when kinematic trees are built or the robot's capabilities are listed.
+    Called when the host resolves ``robot`` (kinematic trees, libraries, matching)
+    and when ``platform robots`` lists capabilities.
 
     :param robot: the robot's name.
-    :param register: call ``register(node_type)`` for each kinematic node type.
+    :param register: call ``register(node_type)`` with each
+        :class:`~msrr.core.kinematics.node.KinematicNode` subclass; ``name`` is the
+        joint mode named in tree files.
     """
 
 
 @hookspec
-def msrr_controllers(robot: str, register: Register) -> None:
-    """Register controllers that turn kinematic-node targets into module commands.
+def msrr_controllers(robot: str, register: Register[Controller]) -> None:
+    """Register controllers that turn actions and observations into module commands.
 
-    Called when the executor prepares a run of ``robot``.
+    Called when ``platform run`` prepares a run of ``robot``; the first registered
+    controller drives it.
 
     :param robot: the robot's name.
-    :param register: call ``register(controller)``; ``controller.name`` is the
-        controller id named by kinematic node types.
+    :param register: call ``register(controller)`` with a
+        :class:`~msrr.core.control.Controller`.
     """
 
 
 @hookspec
-def msrr_recognizers(robot: str, register: Register) -> None:
-    """Register configuration recognizers: driver data to :class:`Configuration`.
+def msrr_recognizers(robot: str, register: Register[Recognizer]) -> None:
+    """Register configuration recognizers: driver sensor data to a :class:`Configuration`.
 
-    Called when a run starts and whenever the executor needs the current
-    configuration. The first registered recognizer is the default.
+    Called when ``platform run`` prepares a run of ``robot``; the executor then
+    calls the first registered recognizer on every tick.
 
     :param robot: the robot's name.
-    :param register: call ``register(recognizer)``.
+    :param register: call ``register(recognizer)`` with a
+        :class:`~msrr.core.capabilities.Recognizer`.
     """
 
 
 @hookspec
-def msrr_planners(robot: str, register: Register) -> None:
+def msrr_planners(robot: str, register: Register[Planner]) -> None:
     """Register planners (library-driven, MCS hybrid, ...) for ``robot``.
 
-    Called by ``platform plan`` and ``platform run``.
+    Called by ``platform plan`` and ``platform run`` (``--planner NAME``, default
+    the first registered) and by ``platform robots``.
 
     :param robot: the robot's name.
-    :param register: call ``register(planner)``.
+    :param register: call ``register(planner)`` with a
+        :class:`~msrr.core.capabilities.Planner`.
     """
 
 
 @hookspec
-def msrr_drivers(robot: str, register: Register) -> None:
+def msrr_drivers(robot: str, register: Register[DriverFactory]) -> None:
     """Register simulation and hardware drivers for ``robot``.
 
-    Called by ``platform run`` to pick a driver (``--driver`` or the default).
+    Called by ``platform run`` to pick a driver (``--driver NAME``, default the
+    first registered) and by ``platform robots``.
 
     :param robot: the robot's name.
-    :param register: call ``register(driver_factory)``.
+    :param register: call ``register(factory)`` with a
+        :class:`~msrr.core.driver.DriverFactory` (a :class:`~msrr.core.driver.Driver`
+        subclass works), called as ``factory(gui=..., seed=...)``.
     """
 
 
 @hookspec
-def msrr_scenarios(robot: str, register: Register) -> None:
+def msrr_scenarios(robot: str, register: Register[Scenario]) -> None:
     """Register named runs for ``platform run --robot ROBOT --scenario NAME``.
+
+    Called by ``platform run`` and ``platform robots``.
 
     :param robot: the robot's name.
     :param register: call ``register(scenario)`` with a
-        :class:`~msrr.core.scenario.Scenario`.
+        :class:`~msrr.core.scenario.Scenario`; the one with ``default=True`` (else
+        the first) runs when no scenario is named.
     """
 
 
-@hookspec
+@hookspec(historic=True)
 def msrr_register_commands(cli: click.Group) -> None:
     """Add subcommands to the ``platform`` command line.
 
-    Called once when the CLI is built, before arguments are parsed.
+    Historic: called once when the CLI is built, and again for every plugin
+    registered later, so a late plugin still gets its commands.
 
     :param cli: the top-level click group; use ``@cli.command()``.
     """
 
 
 # -------------------------------------------------------------------------------------
-# Run events (listeners such as the rerun timeline)
+# Run events (listeners such as the rerun timeline); payloads are read-only
 # -------------------------------------------------------------------------------------
 
 
 @hookspec
-def msrr_on_run_start(run: Any) -> None:
-    """A run starts: the plan is made and the driver is connected.
+def msrr_on_run_start(run: Run) -> None:
+    """A run starts: the plan is made and the driver is connected and reset.
 
-    :param run: the :class:`~msrr.core.events.Run` (robot, scenario, plan, output folder,
-        recording path).
+    :param run: the :class:`~msrr.core.events.Run` (robot, scenario, plan, output
+        folder, recording path).
     """
 
 
 @hookspec
-def msrr_on_tick(run: Any, tick: Any) -> None:
+def msrr_on_tick(run: Run, tick: Tick) -> None:
     """One control tick has been executed.
 
     :param run: the run.
-    :param tick: the :class:`~msrr.core.events.Tick` (index, simulated time, observation
-        with module poses, recognized configuration, commands, errors).
+    :param tick: the :class:`~msrr.core.events.Tick` (index, simulated time,
+        observation with module poses, recognized configuration, commands, errors).
     """
 
 
 @hookspec
-def msrr_on_action(run: Any, action: Any, status: str) -> None:
+def msrr_on_action(run: Run, action: Action, status: ActionStatus) -> None:
     """An action changes status.
 
     :param run: the run.
-    :param action: the :class:`~msrr.core.plan.Action`.
-    :param status: an :class:`~msrr.core.events.ActionStatus`: ``"started"``,
-        ``"succeeded"``, ``"retrying"`` or ``"failed"``.
+    :param action: the :class:`~msrr.core.plan.Action` (one of ``run.plan.actions``).
+    :param status: ``STARTED``, ``SUCCEEDED``, ``RETRYING`` or ``FAILED``.
     """
 
 
 @hookspec
-def msrr_on_topology_change(run: Any, change: Any) -> None:
-    """A connection was made or broken (dock, undock, connection, disconnection).
+def msrr_on_topology_change(run: Run, change: TopologyEvent) -> None:
+    """A connection was made or broken, as recognized from the driver's data.
 
     :param run: the run.
     :param change: the :class:`~msrr.core.events.TopologyEvent` (``"dock"`` or
@@ -190,8 +227,8 @@ def msrr_on_topology_change(run: Any, change: Any) -> None:
 
 
 @hookspec
-def msrr_on_run_end(run: Any, result: Any) -> None:
-    """A run ended, successfully or not.
+def msrr_on_run_end(run: Run, result: RunResult) -> None:
+    """A run ended, successfully, by failure or interrupted; always the last event.
 
     :param run: the run.
     :param result: the :class:`~msrr.core.events.RunResult` (success, counts, times,

@@ -15,7 +15,7 @@ from pydantic import ConfigDict, Field, field_validator
 from .configuration import Configuration
 from .errors import ConfigurationError, DockingRuleError
 from .files import StrictModel, atomic_write_text, parse_model, read_json
-from .robot import check_structure
+from .robot import Robot
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -125,18 +125,22 @@ def parse_configuration(data: object, source: str | None = None) -> Configuratio
     return configuration_from_model(parse_model(ConfigurationFile, data, source), source)
 
 
-def load_configuration(path: str | os.PathLike[str], *, check: bool = True) -> Configuration:
-    """Read a configuration file and, unless ``check=False``, validate it against its robot.
+def load_configuration(path: str | os.PathLike[str], robot: Robot | None = None
+                       ) -> Configuration:
+    """Read a configuration file and, when ``robot`` is given, validate it against it.
+
+    The robot is an argument: this layer never asks the plugin host. For "load and
+    check against the installed robot the file names" use
+    :func:`msrr.core.plugins.load_configuration`.
 
     Raises:
-        ConfigurationError: missing file, bad JSON, a wrong field, or a broken rule;
-            the message names the file and the field.
-        UnknownRobotError: the file names a robot no installed plugin describes.
+        ConfigurationError: missing file, bad JSON, a wrong field, or a broken rule
+            of ``robot``; the message names the file and the field.
     """
     config = parse_configuration(read_json(path), str(path))
-    if check:
+    if robot is not None:
         try:
-            check_configuration(config)
+            check_configuration(config, robot)
         except ConfigurationError as exc:
             raise exc.at(str(path)) from None
     return config
@@ -153,26 +157,19 @@ def save_configuration(config: Configuration, path: str | os.PathLike[str]) -> N
     atomic_write_text(path, dump_configuration(config))
 
 
-def check_configuration(config: Configuration) -> None:
-    """Validate ``config`` against its robot's module kinds and docking rules.
+def check_configuration(config: Configuration, robot: Robot) -> None:
+    """Validate ``config`` against ``robot``'s module kinds and docking rules.
 
-    Core checks: every vertex kind is a vertex kind of the robot (or virtual), every
-    edge kind an edge kind, every port a port of its module kind, virtual vertices have
-    exactly one connection. Then the robot's :class:`~msrr.core.robot.DockingRules`.
+    Core checks first (:func:`~msrr.core.robot.check_structure`: the file names this
+    robot, every vertex kind is a vertex kind of the robot or virtual, every edge kind
+    an edge kind, every port a port of its module kind, virtual vertices have exactly
+    one connection), then the robot's :class:`~msrr.core.robot.DockingRules`.
 
     Raises:
         DockingRuleError: naming the first violation (and how many more there are).
-        UnknownRobotError: no plugin describes ``config.robot``.
     """
-    from . import plugins
-
-    spec = plugins.robot(config.robot)
-    violations = check_structure(config, spec)
-    if not violations:
-        violations = plugins.docking_rules(config.robot).check(config)
+    violations = robot.violations(config)
     if violations:
         first = violations[0]
         more = f" (and {len(violations) - 1} more)" if len(violations) > 1 else ""
         raise DockingRuleError(f"{first.message}{more}", field=first.where)
-
-

@@ -22,17 +22,24 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.metadata import entry_points
-from typing import Any
+from typing import Any, Generic, TypeVar
 
+import click
 import pluggy
 
-from . import hookspecs
-from .errors import PluginError, UnknownNameError, UnknownRobotError
-from .kinematics.node import FixedNode
+from . import hookspecs, io
+from .capabilities import Controller, DriverFactory, Planner, Recognizer
+from .configuration import Configuration
+from .errors import ConfigurationError, PluginError, UnknownNameError, UnknownRobotError
+from .events import ActionStatus, Run, RunResult, Tick, TopologyEvent
+from .kinematics.node import FixedNode, KinematicNode
+from .plan import Action
 from .robot import DockingRules, Robot, RobotSpec
+from .scenario import Scenario
 
 __all__ = [
     "ENTRY_POINT_GROUP",
+    "Capability",
     "LoadError",
     "controllers",
     "create_plugin_manager",
@@ -41,11 +48,13 @@ __all__ = [
     "emit",
     "get_plugin_manager",
     "kinematic_nodes",
+    "load_configuration",
     "load_errors",
     "planners",
     "plugin_rows",
     "recognizers",
     "register",
+    "register_commands",
     "resolve",
     "robot",
     "robots",
@@ -54,6 +63,8 @@ __all__ = [
 ]
 
 ENTRY_POINT_GROUP = "msrr.plugins"
+
+P = TypeVar("P")
 
 
 @dataclass(frozen=True)
@@ -132,13 +143,15 @@ def register(plugin: Any, name: str | None = None, pm: pluggy.PluginManager | No
 
 
 @contextmanager
-def temporary(plugin: Any, name: str | None = None) -> Iterator[Any]:
+def temporary(plugin: P, name: str | None = None,
+              pm: pluggy.PluginManager | None = None) -> Iterator[P]:
     """Register ``plugin`` for the duration of a ``with`` block (tests, notebooks)."""
-    register(plugin, name)
+    pm = pm or get_plugin_manager()
+    register(plugin, name, pm)
     try:
         yield plugin
     finally:
-        get_plugin_manager().unregister(plugin)
+        pm.unregister(plugin)
 
 
 def load_errors() -> list[LoadError]:
@@ -151,15 +164,22 @@ def load_errors() -> list[LoadError]:
 
 
 def robots() -> dict[str, RobotSpec]:
-    """Every robot described by a loaded plugin, by name (sorted)."""
+    """Every robot described by a loaded plugin, by name (sorted).
+
+    Raises:
+        PluginError: a plugin answered ``msrr_robot`` with something other than one
+            :class:`RobotSpec` or ``None``, or two plugins describe the same robot.
+    """
     found: dict[str, RobotSpec] = {}
-    for answer in get_plugin_manager().hook.msrr_robot():
-        for spec in answer if isinstance(answer, list | tuple) else [answer]:
-            if spec is None:
-                continue
-            if spec.name in found:
-                raise PluginError(f"two plugins describe robot {spec.name!r}")
-            found[spec.name] = spec
+    for spec in get_plugin_manager().hook.msrr_robot():
+        if spec is None:
+            continue
+        if not isinstance(spec, RobotSpec):
+            raise PluginError(f"msrr_robot returned {type(spec).__name__}, expected one RobotSpec "
+                              "or None (one entry point per robot)")
+        if spec.name in found:
+            raise PluginError(f"two plugins describe robot {spec.name!r}")
+        found[spec.name] = spec
     return dict(sorted(found.items()))
 
 
@@ -186,38 +206,81 @@ def resolve(name: str) -> Robot:
     return Robot(robot(name), docking_rules(name), modes)
 
 
+def load_configuration(path: str | os.PathLike[str]) -> Configuration:
+    """Read a configuration file and validate it against the installed robot it names.
+
+    The one "load and check" of the top layer (CLI commands, ``platform run``); the
+    pure layers call :func:`msrr.core.io.load_configuration` with a :class:`Robot`.
+
+    Raises:
+        ConfigurationError: missing file, bad JSON, a wrong field or a broken rule,
+            naming the file and the field.
+        UnknownRobotError: the file names a robot no installed plugin describes.
+    """
+    config = io.load_configuration(path)
+    try:
+        io.check_configuration(config, resolve(config.robot))
+    except ConfigurationError as exc:
+        raise exc.at(str(path)) from None
+    return config
+
+
 # -- capabilities ---------------------------------------------------------------------
 
-
-def _collect(hook_name: str, robot_name: str, what: str) -> dict[str, Any]:
-    robot(robot_name)
-    found: dict[str, Any] = {}
-
-    def register_item(item: Any) -> None:
-        name = getattr(item, "name", None)
-        if not isinstance(name, str) or not name:
-            raise PluginError(f"{hook_name}: registered {what} {item!r} has no name")
-        if name in found:
-            raise PluginError(f"{hook_name}: two {what}s named {name!r} for robot {robot_name!r}")
-        found[name] = item
-
-    getattr(get_plugin_manager().hook, hook_name)(robot=robot_name, register=register_item)
-    return found
+T = TypeVar("T")
 
 
-class _Capability:
-    """A lookup table of one capability of one robot, raising helpful errors."""
+class Capability(Generic[T]):
+    """The items of one capability hook for one robot: ``planners("mmrp")`` is a
+    ``dict[str, Planner]`` in registration order, ``planners.get("mmrp")`` the default.
 
-    def __init__(self, hook_name: str, what: str):
+    Each registered item is checked against ``accepts`` (a protocol or class; for
+    joint modes a base class the item must subclass) when it is registered.
+    """
+
+    def __init__(self, hook_name: str, what: str, accepts: type, subclass: bool = False):
         self.hook_name = hook_name
         self.what = what
+        self.accepts = accepts
+        self.subclass = subclass
 
-    def __call__(self, robot_name: str) -> dict[str, Any]:
-        """Everything registered for ``robot_name``, by name, in registration order."""
-        return _collect(self.hook_name, robot_name, self.what)
+    def _fits(self, item: object) -> bool:
+        if self.subclass:
+            return isinstance(item, type) and issubclass(item, self.accepts)
+        return isinstance(item, self.accepts)
 
-    def get(self, robot_name: str, name: str | None = None) -> Any:
-        """One item by name, or the first registered (the default) when ``name`` is None."""
+    def __call__(self, robot_name: str) -> dict[str, T]:
+        """Everything registered for ``robot_name``, by name, in registration order.
+
+        Raises:
+            UnknownRobotError: no plugin describes ``robot_name``.
+            PluginError: an item without a name, of the wrong type, or a duplicate name.
+        """
+        robot(robot_name)
+        found: dict[str, T] = {}
+
+        def add(item: T, /) -> None:
+            name = getattr(item, "name", None)
+            if not isinstance(name, str) or not name:
+                raise PluginError(f"{self.hook_name}: registered {self.what} {item!r} has no name")
+            if not self._fits(item):
+                need = "a subclass of " if self.subclass else ""
+                raise PluginError(f"{self.hook_name}: {self.what} {name!r} is not "
+                                  f"{need}{self.accepts.__name__}")
+            if name in found:
+                raise PluginError(f"{self.hook_name}: two {self.what}s named {name!r} "
+                                  f"for robot {robot_name!r}")
+            found[name] = item
+
+        getattr(get_plugin_manager().hook, self.hook_name)(robot=robot_name, register=add)
+        return found
+
+    def get(self, robot_name: str, name: str | None = None) -> T:
+        """One item by name, or the first registered (the default) when ``name`` is None.
+
+        Raises:
+            UnknownNameError: no such item (listing the known ones), or none at all.
+        """
         items = self(robot_name)
         if name is None:
             if not items:
@@ -229,17 +292,19 @@ class _Capability:
             raise UnknownNameError(f"{self.what} for robot {robot_name!r}", name, items) from None
 
 
-kinematic_nodes = _Capability("msrr_kinematic_nodes", "joint mode")
-controllers = _Capability("msrr_controllers", "controller")
-recognizers = _Capability("msrr_recognizers", "recognizer")
-planners = _Capability("msrr_planners", "planner")
-drivers = _Capability("msrr_drivers", "driver")
-scenarios = _Capability("msrr_scenarios", "scenario")
+kinematic_nodes: Capability[type[KinematicNode]] = Capability(
+    "msrr_kinematic_nodes", "joint mode", KinematicNode, subclass=True)
+controllers: Capability[Controller] = Capability("msrr_controllers", "controller", Controller)
+recognizers: Capability[Recognizer] = Capability("msrr_recognizers", "recognizer", Recognizer)
+planners: Capability[Planner] = Capability("msrr_planners", "planner", Planner)
+drivers: Capability[DriverFactory] = Capability("msrr_drivers", "driver", DriverFactory)
+scenarios: Capability[Scenario] = Capability("msrr_scenarios", "scenario", Scenario)
 
 
-def register_commands(cli: Any) -> None:
-    """Let plugins add subcommands to ``cli``."""
-    get_plugin_manager().hook.msrr_register_commands(cli=cli)
+def register_commands(cli: click.Group, pm: pluggy.PluginManager | None = None) -> None:
+    """Let plugins add subcommands to ``cli``, now and whenever a plugin registers later
+    (``msrr_register_commands`` is historic)."""
+    (pm or get_plugin_manager()).hook.msrr_register_commands.call_historic(kwargs={"cli": cli})
 
 
 # -- events ---------------------------------------------------------------------------
@@ -248,19 +313,19 @@ def register_commands(cli: Any) -> None:
 class _Events:
     """Typed calls of the event hooks; every listener plugin receives each event."""
 
-    def run_start(self, run: Any) -> None:
+    def run_start(self, run: Run) -> None:
         get_plugin_manager().hook.msrr_on_run_start(run=run)
 
-    def tick(self, run: Any, tick: Any) -> None:
+    def tick(self, run: Run, tick: Tick) -> None:
         get_plugin_manager().hook.msrr_on_tick(run=run, tick=tick)
 
-    def action(self, run: Any, action: Any, status: str) -> None:
+    def action(self, run: Run, action: Action, status: ActionStatus) -> None:
         get_plugin_manager().hook.msrr_on_action(run=run, action=action, status=status)
 
-    def topology_change(self, run: Any, change: Any) -> None:
+    def topology_change(self, run: Run, change: TopologyEvent) -> None:
         get_plugin_manager().hook.msrr_on_topology_change(run=run, change=change)
 
-    def run_end(self, run: Any, result: Any) -> None:
+    def run_end(self, run: Run, result: RunResult) -> None:
         get_plugin_manager().hook.msrr_on_run_end(run=run, result=result)
 
 

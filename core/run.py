@@ -17,16 +17,16 @@ from datetime import datetime
 from pathlib import Path
 
 from . import plugins
+from .capabilities import Controller, DriverFactory, Recognizer
 from .errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
 from .events import Run, RunResult
 from .executor import Executor, ExecutorOptions
 from .files import atomic_write_text
-from .io import load_configuration
 from .plan import Plan, save_plan
 from .scenario import Scenario
 
-__all__ = ["RunRequest", "default_out_dir", "execute_run", "prepare_run", "resolve_scenario",
-           "write_outputs"]
+__all__ = ["PreparedRun", "RunRequest", "default_out_dir", "execute_run", "prepare_run",
+           "resolve_scenario", "write_outputs"]
 
 
 @dataclass(frozen=True)
@@ -82,15 +82,37 @@ def default_out_dir(robot: str, scenario: str, root: Path = Path("runs")) -> Pat
     return root / f"{datetime.now():%Y%m%d-%H%M%S}-{robot}-{scenario}"
 
 
-def prepare_run(request: RunRequest) -> Run:
-    """Load the configurations and plan; nothing is written.
+@dataclass(frozen=True)
+class PreparedRun:
+    """A planned run and the capabilities that will execute it, each resolved once.
+
+    Attributes:
+        run: the event payload (robot, scenario, plan, output paths).
+        driver: factory of the driver, called as ``driver(gui=..., seed=...)``.
+        recognizer: the robot's recognizer.
+        controller: the robot's controller.
+        options: rate and action timeout of the executor.
+        gui: open the simulator's window.
+    """
+
+    run: Run
+    driver: DriverFactory
+    recognizer: Recognizer
+    controller: Controller
+    options: ExecutorOptions
+    gui: bool = False
+
+
+def prepare_run(request: RunRequest) -> PreparedRun:
+    """Load the configurations, resolve the capabilities and plan; nothing is written.
 
     Raises:
         ConfigurationError: a file is missing or invalid.
         PlanningError: the goal cannot be reached.
-        UnknownNameError: unknown scenario, planner or driver.
+        UnknownNameError: unknown scenario, planner or driver, or the robot has no
+            recognizer or controller.
     """
-    plugins.robot(request.robot)
+    spec = plugins.robot(request.robot)
     if (request.start is None) != (request.goal is None):
         raise ConfigurationError("give both --from and --to, or neither")
     if request.start is not None and request.goal is not None:
@@ -100,43 +122,36 @@ def prepare_run(request: RunRequest) -> Run:
     else:
         scenario = resolve_scenario(request.robot, request.scenario)
         name, start_path, goal_path = scenario.name, scenario.start, scenario.goal
-    start, goal = load_configuration(start_path), load_configuration(goal_path)
+    start = plugins.load_configuration(start_path)
+    goal = plugins.load_configuration(goal_path)
     for config, path in ((start, start_path), (goal, goal_path)):
         if config.robot != request.robot:
             raise ConfigurationError(f"is a {config.robot!r} configuration, not "
                                      f"{request.robot!r}", source=str(path))
     factory = plugins.drivers.get(request.robot, request.driver)
-    plugins.controllers.get(request.robot)
-    plugins.recognizers.get(request.robot)
+    controller = plugins.controllers.get(request.robot)
+    recognizer = plugins.recognizers.get(request.robot)
     planner = plugins.planners.get(request.robot, request.planner)
+    options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
     plan: Plan = planner.plan(start, goal, seed=request.seed)
-    spec = plugins.robot(request.robot)
-    kinds = {k.name: k for k in spec.module_kinds}
-    first = kinds[start.kind_of(start.vertices()[0])]
-    size = tuple(float(first.geometry.get(k, d)) for k, d in
-                 (("length", 0.2), ("width", 0.2), ("height", 0.1)))
-    ports = {k.name: {p.name: (tuple(p.normal or (0.0, 0.0, 0.0)), p.role) for p in k.ports}
-             for k in spec.module_kinds}
     out = request.out or default_out_dir(request.robot, name)
-    return Run(robot=request.robot, scenario=name, plan=plan, driver=factory.name,
-               rate=request.rate, seed=request.seed, out_dir=out,
-               recording=out / "run.rrd" if request.log else None,
-               module_size=size, ports=ports)  # type: ignore[arg-type]
+    run = Run(robot=request.robot, scenario=name, plan=plan, spec=spec, driver=factory.name,
+              rate=request.rate, seed=request.seed, out_dir=out,
+              recording=out / "run.rrd" if request.log else None)
+    return PreparedRun(run, factory, recognizer, controller, options, request.gui)
 
 
-def execute_run(run: Run, request: RunRequest) -> RunResult:
-    """Execute ``run.plan`` on a fresh driver; fires every run event.
+def execute_run(prepared: PreparedRun) -> RunResult:
+    """Execute ``prepared.run.plan`` on a fresh driver; fires every run event.
 
     The run always ends with ``msrr_on_run_end`` (also when interrupted), so
     listeners close their files.
     """
-    factory = plugins.drivers.get(run.robot, request.driver)
-    recognizer = plugins.recognizers.get(run.robot)
-    controller = plugins.controllers.get(run.robot)
-    options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
-    with factory(gui=request.gui, seed=request.seed) as driver:
+    run = prepared.run
+    with prepared.driver(gui=prepared.gui, seed=run.seed) as driver:
         driver.reset(run.plan.start)
-        executor = Executor(run, driver, recognizer, controller, options)
+        executor = Executor(run, driver, prepared.recognizer, prepared.controller,
+                            prepared.options)
         plugins.emit.run_start(run)
         result = RunResult(success=False, reason="interrupted",
                            actions_total=len(run.plan.actions))

@@ -8,8 +8,7 @@ import click
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from ..cli import MsrrGroup, console, table
-from ..io import load_configuration
+from ..console import MsrrGroup, console, table
 from ..library import (
     DEFAULT_MERGE_THRESHOLD,
     Library,
@@ -20,6 +19,7 @@ from ..library import (
     retrieve,
     save_library,
 )
+from ..plugins import load_configuration
 
 __all__ = ["command"]
 

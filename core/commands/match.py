@@ -8,8 +8,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..cli import console, table
-from ..io import load_configuration
+from ..console import console, table
 from ..matching import (
     Candidate,
     MatchingError,
@@ -18,6 +17,7 @@ from ..matching import (
     distance_cost,
     match,
 )
+from ..plugins import load_configuration
 
 __all__ = ["command"]
 

@@ -2,7 +2,9 @@
 
 Prints the planner's notes (for MMRP the decomposition), the module mapping and the
 actions as a table in the form of the MMRP paper's Table 4 (Action | ID | Face | ID |
-Face); ``--json`` writes the plan as a file ``platform run --plan`` accepts.
+Face); ``--json`` writes the plan in the plan file format
+(:func:`msrr.core.plan.load_plan` reads it back; ``platform schema plan`` prints its
+JSON Schema).
 """
 
 from __future__ import annotations
@@ -12,10 +14,10 @@ from pathlib import Path
 import click
 
 from .. import plugins
-from ..cli import console, table
+from ..console import console, table
 from ..errors import PlanningError
-from ..io import load_configuration
 from ..plan import Action, ActionType, Plan, save_plan
+from ..plugins import load_configuration
 
 __all__ = ["action_rows", "command"]
 
@@ -69,7 +71,7 @@ def print_plan(plan: Plan) -> None:
               "robot's first registered planner.")
 @click.option("--seed", default=0, show_default=True, help="Seed of the planner.")
 @click.option("--json", "json_out", type=click.Path(path_type=Path), default=None,
-              help="Write the plan to this file (accepted by `platform run --plan`).")
+              help="Also write the plan to this file (format: `platform schema plan`).")
 def command(robot: str, start: Path, goal: Path, planner_name: str | None, seed: int,
             json_out: Path | None) -> None:
     """Plan the reconfiguration from configuration file START to GOAL."""

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import click
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
 
 from .. import plugins
-from ..cli import console, err_console, table
-from ..events import ActionStatus, RunResult
+from ..console import console, err_console, table
+from ..events import ActionStatus, Run, RunResult, TopologyEvent
 from ..hookspecs import hookimpl
+from ..plan import Action
 from ..run import RunRequest, execute_run, prepare_run, write_outputs
 
 __all__ = ["command"]
@@ -25,17 +26,17 @@ class _ProgressListener:
         self.task = progress.add_task("starting", total=total)
 
     @hookimpl
-    def msrr_on_action(self, run: Any, action: Any, status: str) -> None:
+    def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
         self.progress.update(self.task, description=f"{action} [dim]{status}[/dim]")
         if status == ActionStatus.SUCCEEDED:
             self.progress.advance(self.task)
 
     @hookimpl
-    def msrr_on_topology_change(self, run: Any, change: Any) -> None:
+    def msrr_on_topology_change(self, run: Run, change: TopologyEvent) -> None:
         self.progress.console.print(f"  {change} at t={change.time:.1f} s")
 
 
-def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Any:
+def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Table:
     rows = [["actions", f"{result.actions_done}/{result.actions_total}"],
             ["docks", f"{result.docks} (planned {planned_docks})"],
             ["undocks", f"{result.undocks} (planned {planned_undocks})"],
@@ -53,6 +54,10 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Any
               help="Start configuration file (with --to, instead of a scenario).")
 @click.option("--to", "goal", type=click.Path(path_type=Path), default=None,
               help="Goal configuration file.")
+@click.option("--planner", "planner_name", default=None,
+              help="Planner name; default the robot's first registered planner.")
+@click.option("--driver", "driver_name", default=None,
+              help="Driver name; default the robot's first registered driver.")
 @click.option("--seed", default=0, show_default=True, help="Seed of planning and recognition.")
 @click.option("--out", type=click.Path(path_type=Path), default=None,
               help="Output folder [default: runs/<timestamp>-<robot>-<scenario>].")
@@ -61,9 +66,9 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Any
 @click.option("--rate", default=10.0, show_default=True, help="Control rate [Hz].")
 @click.option("--timeout", "action_timeout", default=90.0, show_default=True,
               help="Driver time one action phase may take before a retry [s].")
-def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None, seed: int,
-            out: Path | None, no_log: bool, gui: bool, rate: float,
-            action_timeout: float) -> None:
+def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None,
+            planner_name: str | None, driver_name: str | None, seed: int, out: Path | None,
+            no_log: bool, gui: bool, rate: float, action_timeout: float) -> None:
     """Plan and execute a reconfiguration in simulation and record it.
 
     Writes DIR/run.rrd, DIR/plan.json and DIR/summary.json. Exits 1 with the failing
@@ -71,9 +76,10 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
     """
     request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
                          out=out, log=not no_log, gui=gui, rate=rate,
-                         action_timeout=action_timeout)
-    run = prepare_run(request)
-    plan = run.plan
+                         action_timeout=action_timeout, driver=driver_name,
+                         planner=planner_name)
+    prepared = prepare_run(request)
+    run, plan = prepared.run, prepared.run.plan
     console.print(f"[bold]{robot}[/bold] {run.scenario}: {plan.start.name or 'start'} -> "
                   f"{plan.goal.name or 'goal'}, {len(plan.actions)} actions by {plan.planner} "
                   f"({plan.undocks} undocks, {plan.docks} docks), driver {run.driver}")
@@ -81,7 +87,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
                         TextColumn("{task.completed}/{task.total} actions"),
                         TimeElapsedColumn(), console=console, transient=True)
     with progress, plugins.temporary(_ProgressListener(progress, len(plan.actions))):
-        result = execute_run(run, request)
+        result = execute_run(prepared)
     write_outputs(run, result)
     console.print(_summary(result, plan.docks, plan.undocks))
     assert run.out_dir is not None

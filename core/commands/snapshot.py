@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..cli import console
+from ..console import console
 
 __all__ = ["command"]
 

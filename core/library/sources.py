@@ -31,6 +31,7 @@ from ..configuration import Configuration
 from ..errors import ConfigurationError
 from ..files import StrictModel, parse_model, read_json
 from ..io import ConfigurationFile, check_configuration, configuration_from_model
+from ..plugins import resolve  # TODO(issue 10, library): receive the Robot as an argument
 from .model import CommandGain, LibraryError
 
 __all__ = [
@@ -177,7 +178,7 @@ def _configuration(model: ConfigurationFile, source: str, field: str, robot: str
         if config.robot != robot:
             raise ConfigurationError(f"robot is {config.robot!r}, the file is for {robot!r}",
                                      field="robot")
-        check_configuration(config)
+        check_configuration(config, resolve(robot))
     except ConfigurationError as exc:
         inner = f".{exc.field}" if exc.field else ""
         raise LibraryError(exc.message, source=source, field=f"{field}{inner}") from None

@@ -1,28 +1,52 @@
-"""Read a recording back with rerun's own tooling.
+"""Read a recording back with rerun's own chunk reader: the one reader of ``.rrd`` files.
 
-Used by tests and docs to check what a run wrote: which entity paths exist, how
-many rows each has, and which timelines index them (``rerun rrd print``), and the
-logged values themselves (:func:`read_rows`, rerun's chunk reader).
+:func:`read_recording` streams the chunks once and returns every logged row with its
+entity path, plus the timelines that index them; :func:`read_rows` and
+:func:`summarize_recording` are views of that one read (the rows of some entities;
+row counts per entity). Used by ``platform snapshot``, tests and docs.
+
+The rerun SDK is imported inside :func:`read_recording`: importing it costs about
+0.3 s and this module is imported with the timeline plugin by every ``platform``
+command (see :mod:`msrr.core.timeline`).
 """
 
 from __future__ import annotations
 
-import re
-import subprocess
-import sys
-from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..errors import MsrrError
 
-__all__ = ["RecordingSummary", "Row", "read_rows", "summarize_recording"]
+__all__ = ["Recording", "RecordingSummary", "Row", "read_recording", "read_rows",
+           "summarize_recording"]
 
-_CHUNK = re.compile(r"^Chunk\(\S+\) with (\d+) rows \([^)]*\) - (\S+)")
-_INDEX = re.compile(r"index_name: (\w+)")
 _ROW_ID = "rerun.controls.RowId"  # time-ordered id, orders rows logged at one tick
 _SKIP = {_ROW_ID, "log_time"}  # log_time: wall clock, not needed
+
+
+@dataclass(frozen=True)
+class Row:
+    """One logged row of an entity: its ``tick`` and ``sim_time`` [s] (``None`` when
+    static) and its non-null components by column name (``"Scalars:scalars"``...)."""
+
+    tick: int | None
+    sim_time: float | None
+    values: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Everything logged in one ``.rrd`` file.
+
+    Attributes:
+        rows: per entity path, its rows: static rows first, then in logging order
+            (by tick, then by rerun's row id).
+        timelines: names of the timelines that index any row (``"tick"``, ...).
+    """
+
+    rows: dict[str, list[Row]]
+    timelines: frozenset[str]
 
 
 @dataclass(frozen=True)
@@ -37,46 +61,13 @@ class RecordingSummary:
         return sorted(p for p in self.rows if p.startswith(prefix))
 
 
-def summarize_recording(path: str | Path) -> RecordingSummary:
-    """Summarize ``path`` by parsing ``rerun rrd print -vv``.
+def read_recording(path: str | Path, prefix: str = "/") -> Recording:
+    """The rows of every entity whose path starts with ``prefix``, and the timelines.
 
     Raises:
         MsrrError: the file is missing or rerun cannot read it.
     """
-    if not Path(path).is_file():
-        raise MsrrError(f"{path}: no such recording")
-    proc = subprocess.run([sys.executable, "-m", "rerun", "rrd", "print", "-vv", str(path)],
-                          capture_output=True, text=True, check=False)
-    if proc.returncode != 0:
-        raise MsrrError(f"{path}: rerun cannot read it: {proc.stderr.strip().splitlines()[-1:]}")
-    rows: Counter[str] = Counter()
-    timelines: set[str] = set()
-    for line in proc.stdout.splitlines():
-        match = _CHUNK.match(line)
-        if match:
-            rows[match.group(2)] += int(match.group(1))
-        timelines.update(_INDEX.findall(line))
-    return RecordingSummary(dict(rows), frozenset(timelines))
-
-
-@dataclass(frozen=True)
-class Row:
-    """One logged row of an entity: its ``tick`` and ``sim_time`` [s] (``None`` when
-    static) and its non-null components by column name (``"Scalars:scalars"``...)."""
-
-    tick: int | None
-    sim_time: float | None
-    values: dict[str, Any]
-
-
-def read_rows(path: str | Path, prefix: str = "/") -> dict[str, list[Row]]:
-    """The rows of every entity whose path starts with ``prefix``, static rows first,
-    then in logging order (by tick, then by rerun's row id).
-
-    Raises:
-        MsrrError: the file is missing or rerun cannot read it.
-    """
-    from rerun.chunk import RrdReader  # the SDK is a runtime dependency; keep import cheap
+    from rerun.chunk import RrdReader  # measured start-up cost: see the module docstring
 
     if not Path(path).is_file():
         raise MsrrError(f"{path}: no such recording")
@@ -85,10 +76,12 @@ def read_rows(path: str | Path, prefix: str = "/") -> dict[str, list[Row]]:
     except (RuntimeError, ValueError, OSError) as exc:
         raise MsrrError(f"{path}: rerun cannot read it: {exc}") from None
     out: dict[str, list[tuple[int, bytes, Row]]] = {}
+    timelines: set[str] = set()
     for chunk in chunks:
         entity = chunk.entity_path
         if not entity.startswith(prefix):
             continue
+        timelines.update(name for name in chunk.timeline_names if name not in _SKIP)
         batch = chunk.to_record_batch()
         names = [n for n in batch.schema.names if n not in _SKIP]
         columns = {n: batch.column(n).to_pylist() for n in names}
@@ -100,5 +93,26 @@ def read_rows(path: str | Path, prefix: str = "/") -> dict[str, list[Row]]:
             sim = values.pop("sim_time", None)
             row = Row(tick, sim.total_seconds() if sim is not None else None, values)
             out.setdefault(entity, []).append((-1 if tick is None else tick, ids[i], row))
-    return {entity: [r for _, _, r in sorted(rows, key=lambda t: t[:2])]
-            for entity, rows in out.items()}
+    rows = {entity: [r for _, _, r in sorted(found, key=lambda t: t[:2])]
+            for entity, found in out.items()}
+    return Recording(rows, frozenset(timelines))
+
+
+def read_rows(path: str | Path, prefix: str = "/") -> dict[str, list[Row]]:
+    """The rows of :func:`read_recording`, by entity path.
+
+    Raises:
+        MsrrError: the file is missing or rerun cannot read it.
+    """
+    return read_recording(path, prefix).rows
+
+
+def summarize_recording(path: str | Path) -> RecordingSummary:
+    """Entity paths with their row counts and the timelines of the recording at ``path``.
+
+    Raises:
+        MsrrError: the file is missing or rerun cannot read it.
+    """
+    recording = read_recording(path)
+    return RecordingSummary({entity: len(rows) for entity, rows in recording.rows.items()},
+                            recording.timelines)

@@ -4,6 +4,7 @@ Entity paths (stable, documented in ``docs/running.md``):
 
 * ``world/modules/<id>`` -- the module body (box) with its pose per tick;
   ``world/modules/<id>/faces`` -- its ports, active red, passive blue;
+  body size and ports come from the module kind in the robot spec (:func:`body_half_size`);
 * ``world/targets`` -- goal poses of the running action (wireframe boxes);
 * ``topology/current``, ``topology/target`` -- graph views (nodes and edges);
 * ``action`` -- the running action as text; ``plan``, ``mapping`` -- static text;
@@ -27,9 +28,13 @@ from ..actions import connection_key
 from ..configuration import Configuration
 from ..events import ActionStatus, Run, RunResult, Tick, TopologyEvent
 from ..plan import Action
+from ..robot import ModuleKind
 from .blueprint import build_blueprint
 
-__all__ = ["TimelineRecorder"]
+__all__ = ["DEFAULT_HALF_SIZE", "TimelineRecorder", "body_half_size"]
+
+DEFAULT_HALF_SIZE = 0.05
+"""Half edge [m] of the cube drawn for a module kind whose geometry gives no size."""
 
 ACTIVE = (220, 60, 50)
 PASSIVE = (50, 90, 220)
@@ -43,6 +48,22 @@ def _graph(config: Configuration) -> tuple[rr.GraphNodes, rr.GraphEdges]:
     labels = [f"{v}" for v in nodes]
     return (rr.GraphNodes(node_ids=nodes, labels=labels),
             rr.GraphEdges(edges=edges, graph_type="directed"))
+
+
+def body_half_size(kind: ModuleKind) -> tuple[float, float, float]:
+    """Half extents [m] of the box drawn for ``kind``, from ``kind.geometry``.
+
+    ``length``/``width``/``height`` (a box, missing ones taken from the others) or
+    ``radius`` (its bounding cube); :data:`DEFAULT_HALF_SIZE` when neither is given.
+    """
+    g = kind.geometry
+    if "length" in g or "width" in g or "height" in g:
+        length = float(g.get("length", g.get("width", g.get("height", 0.0))))
+        width = float(g.get("width", length))
+        height = float(g.get("height", min(length, width)))
+        return length / 2, width / 2, height / 2
+    r = float(g.get("radius", DEFAULT_HALF_SIZE))
+    return r, r, r
 
 
 def _topology_key(config: Configuration) -> frozenset:
@@ -67,6 +88,11 @@ class TimelineRecorder:
         self._poses: dict[str, np.ndarray] = {}
         self._colors = {m: PALETTE[i % len(PALETTE)]
                         for i, m in enumerate(run.plan.start.vertices())}
+        kinds = {k.name: k for k in run.spec.module_kinds}
+        start = run.plan.start
+        self._kinds = {m: kinds[start.kind_of(m)] for m in start.vertices()
+                       if start.kind_of(m) in kinds}  # virtual vertices have no body
+        self._half = {m: body_half_size(k) for m, k in self._kinds.items()}
         self._write_static()
 
     # -- static -----------------------------------------------------------------------
@@ -75,17 +101,16 @@ class TimelineRecorder:
         rec, run = self.rec, self.run
         rec.send_blueprint(build_blueprint())
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        length, width, height = run.module_size
-        half = [length / 2, width / 2, height / 2]
-        for module in run.plan.start.vertices():
+        for module, kind in self._kinds.items():
             path = f"world/modules/{module}"
+            half = self._half[module]
             rec.log(path, rr.Boxes3D(half_sizes=[half], colors=[self._colors[module]],
                                      fill_mode="solid", labels=[module]), static=True)
-            ports = run.ports.get(run.plan.start.kind_of(module), {})
-            if ports:
-                names = list(ports)
-                positions = [np.multiply(ports[p][0], half) * 1.05 for p in names]
-                colors = [ACTIVE if ports[p][1] == "active" else PASSIVE for p in names]
+            if kind.ports:
+                names = [p.name for p in kind.ports]
+                positions = [np.multiply(p.normal or (0.0, 0.0, 0.0), half) * 1.05
+                             for p in kind.ports]
+                colors = [ACTIVE if p.role == "active" else PASSIVE for p in kind.ports]
                 rec.log(f"{path}/faces", rr.Points3D(positions, colors=colors, labels=names,
                                                      radii=0.015), static=True)
         plan = run.plan
@@ -136,7 +161,7 @@ class TimelineRecorder:
         for module, error in tick.errors.items():
             rec.log(f"errors/{module}", rr.Scalars(float(error)))
 
-    def action(self, action: Action, status: str) -> None:
+    def action(self, action: Action, status: ActionStatus) -> None:
         rec = self.rec
         index = next((i for i, a in enumerate(self.run.plan.actions) if a is action), -1)
         total = len(self.run.plan.actions)
@@ -155,13 +180,14 @@ class TimelineRecorder:
     def _log_goals(self, action: Action) -> None:
         if not action.goals:
             return
-        length, width, height = self.run.module_size
         ids = list(action.goals)
-        centers = [[action.goals[m][0], action.goals[m][1], height / 2] for m in ids]
+        half = [self._half.get(m, (DEFAULT_HALF_SIZE,) * 3) for m in ids]
+        centers = [[action.goals[m][0], action.goals[m][1], h[2]] for m, h in zip(ids, half,
+                                                                                 strict=True)]
         quats = [rr.Quaternion(xyzw=[0, 0, np.sin(action.goals[m][2] / 2),
                                      np.cos(action.goals[m][2] / 2)]) for m in ids]
         self.rec.log("world/targets", rr.Boxes3D(
-            centers=centers, half_sizes=[[length / 2, width / 2, height / 2]] * len(ids),
+            centers=centers, half_sizes=half,
             quaternions=quats, colors=[self._colors.get(m, (200, 200, 200)) for m in ids],
             fill_mode="majorwireframe", labels=[f"goal {m}" for m in ids]))
 

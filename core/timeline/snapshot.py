@@ -5,20 +5,25 @@ the dock/undock events and the per-module errors back from a ``run.rrd``
 (:func:`msrr.core.timeline.readback.read_rows`); :func:`render_snapshot` draws them
 with matplotlib (Agg): top-down footprints at the start, two intermediate ticks and
 the end, plus connections and errors over time.
+
+matplotlib is imported inside the drawing functions: it is an optional dependency
+(the ``dev`` extra), and a missing one is reported as one line by
+:func:`write_snapshot`.
 """
 
 from __future__ import annotations
 
+import io
 import math
-import os
 import re
-import tempfile
+import textwrap
 from bisect import bisect_right
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..errors import MsrrError
+from ..files import atomic_write_bytes
 from .readback import Row, read_rows
 
 __all__ = ["Track", "load_track", "render_snapshot", "write_snapshot"]
@@ -179,8 +184,6 @@ def _footprint(ax: Any, track: Track, tick: int) -> None:
 
 
 def _wrap(text: str, width: int = 38) -> str:
-    import textwrap
-
     return "\n".join(textwrap.wrap(text, width)[:2])
 
 
@@ -249,7 +252,7 @@ def render_snapshot(track: Track, title: str = "") -> Any:
 
 
 def write_snapshot(recording: str | Path, image: str | Path, title: str = "") -> Path:
-    """Render ``recording`` to the PNG ``image`` through a temporary file and a rename.
+    """Render ``recording`` to the PNG ``image``, written atomically.
 
     Raises:
         MsrrError: unreadable recording, or matplotlib is not installed.
@@ -260,17 +263,6 @@ def write_snapshot(recording: str | Path, image: str | Path, title: str = "") ->
         raise MsrrError("install matplotlib: pip install msrr-platform[dev]") from None
     track = load_track(recording)
     fig = render_snapshot(track, title or Path(recording).name)
-    target = Path(image)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".png", dir=target.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    return atomic_write_bytes(image, buffer.getvalue())

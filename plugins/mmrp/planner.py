@@ -17,7 +17,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from msrr.core import Configuration
+from msrr.core import Configuration, plugins
 from msrr.core.errors import ConfigurationError, PlanningError
 from msrr.core.io import check_configuration
 from msrr.core.plan import Plan
@@ -26,7 +26,12 @@ from .actions import Pose, generate_actions, kept_edge_ids
 from .centre import root_of
 from .matching import HEIGHT_WINDOW, SubconfigurationMatching, match_subconfigurations
 from .mcs import Decomposition, Subconfiguration, common_candidates, decompose
-from .potential_field import FieldParameters, FieldResult, map_free_vertices
+from .potential_field import (
+    FieldParameters,
+    FieldResult,
+    assign_free_vertices,
+    map_free_vertices,
+)
 from .recognition import observe, recognize_with_stats
 from .representation import (
     Link,
@@ -38,11 +43,15 @@ from .representation import (
     to_tree,
 )
 from .robot import SPEC
+from .targets import DerivedConfiguration
 
 __all__ = ["LOOKAHEAD", "HybridResult", "McsHybridPlanner", "plan_hybrid"]
 
 LOOKAHEAD = 4
 """Common subconfigurations tried as the first decomposition (see :func:`plan_hybrid`)."""
+
+FIELD_LIMIT = 24
+"""Most free modules mapped by simulating the potential field (see :func:`plan_hybrid`)."""
 
 
 @dataclass(frozen=True)
@@ -92,7 +101,7 @@ def _checked(start: Configuration, goal: Configuration) -> Configuration:
         raise PlanningError(f"start has {len(start)} modules and goal {len(goal)}: "
                             "MMRP keeps its module count")
     try:
-        check_configuration(goal)
+        check_configuration(goal, plugins.resolve(SPEC.name))
         cells = grid_cells(goal)
     except ConfigurationError as exc:
         raise PlanningError(f"goal {goal.name or '(unnamed)'}: {exc}") from None
@@ -108,7 +117,8 @@ def _checked(start: Configuration, goal: Configuration) -> Configuration:
 
 def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
                 window: int = HEIGHT_WINDOW, lookahead: int = LOOKAHEAD,
-                field: FieldParameters | None = None) -> HybridResult:
+                field: FieldParameters | None = None,
+                field_limit: int = FIELD_LIMIT) -> HybridResult:
     """Plan the reconfiguration from ``start`` to ``goal`` (section 4).
 
     Args:
@@ -120,6 +130,8 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
             first decomposition (1 = the paper's single MCS); the one whose matching
             keeps the most connections wins, the paper's choice on ties.
         field: potential-field gains and distances.
+        field_limit: most free modules mapped by simulating the field; more are
+            mapped by :func:`assign_free_vertices` (the field's intent, no stall).
 
     Raises:
         PlanningError: different module counts, or an illegal goal.
@@ -146,24 +158,32 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     for pair in matching.pairs:
         matched.update(pair.mapping)
 
-    start_poses = layout(tree, tau_c)
-    goal_layout = layout(goal, tau_g)
+    unit = pitch()
+    start_cells = grid_cells(tree, tau_c)
+    goal_grid = grid_cells(goal, tau_g)
     anchor_c, anchor_g = next(iter(common.items()))
-    dx = start_poses[anchor_c][0] - goal_layout[anchor_g][0]
-    dy = start_poses[anchor_c][1] - goal_layout[anchor_g][1]
-    placed = {g: (x + dx, y + dy, yaw) for g, (x, y, yaw) in goal_layout.items()}
-    result = map_free_vertices(
-        {m: start_poses[m][:2] for m in matching.free_current},
-        {g: placed[g][:2] for g in matching.free_goal},
-        [placed[g][:2] for g in matched.values()], unit=pitch(), params=field, seed=seed)
+    di = start_cells[anchor_c][0] - goal_grid[anchor_g][0]
+    dj = start_cells[anchor_c][1] - goal_grid[anchor_g][1]
+    placed = {g: (i + di, j + dj) for g, (i, j) in goal_grid.items()}
+    free_c = {m: (start_cells[m][0] * unit, start_cells[m][1] * unit)
+              for m in matching.free_current}
+    free_g = {g: (placed[g][0] * unit, placed[g][1] * unit) for g in matching.free_goal}
+    if len(free_c) <= field_limit:
+        result = map_free_vertices(
+            free_c, free_g, [(placed[g][0] * unit, placed[g][1] * unit) for g in matched.values()],
+            unit=unit, params=field, seed=seed)
+    else:
+        result = assign_free_vertices(free_c, free_g)
     mapping = {**matched, **result.mapping}
     if sorted(mapping) != sorted(all_c) or sorted(mapping.values()) != sorted(all_g):
         raise AssertionError("the hybrid mapping is not a bijection")  # an internal bug
-    goal_poses = {m: placed[mapping[m]] for m in all_c}
+    goal_cells = {m: placed[mapping[m]] for m in all_c}
+    goal_poses = {m: (i * unit, j * unit, 0.0) for m, (i, j) in goal_cells.items()}
     priority = [*common, *(m for p in matching.pairs for m in p.mapping), *result.arrival,
                 *result.fallback]
-    actions = generate_actions(start, goal, mapping, start_poses, goal_poses,
-                               start_root=tau_c, goal_root=tau_g, priority=priority)
+    actions = generate_actions(start, goal, mapping, start_cells, goal_cells,
+                               start_root=tau_c, goal_root=tau_g, unit=unit,
+                               priority=priority)
     kept = len(kept_edge_ids(start, links_g, mapping))
     pairs = len(goal.edges()) - kept
     elapsed = (time.perf_counter() - began) * 1e3
@@ -194,7 +214,7 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
                      "by minimum total distance")
     else:
         notes.append("potential field mapped every free vertex")
-    final = actions[-1].target.copy() if actions else start.copy()
+    final = DerivedConfiguration(actions[-1].target if actions else start)
     final.name, final.description = goal.name, goal.description
     plan = Plan(
         robot=SPEC.name, planner=McsHybridPlanner.name, start=start.copy(), goal=final,

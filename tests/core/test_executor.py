@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from fake_run import GoalController, LinkRecognizer, PointDriver, make_run, swap_plan
+from tiny_robot import GoalController, LinkRecognizer, PointDriver, make_run, swap_plan
 
 from msrr.core import hookimpl, plugins
 from msrr.core.errors import ExecutionError

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from msrr.core import plugins
 from msrr.core.errors import ConfigurationError
 from msrr.core.io import check_configuration
 from msrr.plugins.mmrp.centre import adjacency, centre, heights, tree_centre
@@ -56,7 +57,7 @@ def test_a_loop_becomes_one_virtual_connection():
     converted = to_tree(square)
     assert len(converted.virtual) == 1
     assert len(converted.tree.edges()) == 3
-    check_configuration(converted.tree)
+    check_configuration(converted.tree, plugins.resolve("mmrp"))
 
 
 def test_cross_layout_puts_the_centre_at_the_origin():
@@ -79,7 +80,7 @@ def test_cross_layout_puts_the_centre_at_the_origin():
 @given(n=st.integers(1, 30), seed=st.integers(0, 2**32 - 1))
 def test_random_trees_are_legal_planar_and_their_centre_matches_theorem_1(n, seed):
     tree = random_tree(n, np.random.default_rng(seed))
-    check_configuration(tree)
+    check_configuration(tree, plugins.resolve("mmrp"))
     assert not overlapping_cells(grid_cells(tree))
     adj = adjacency(tree)
     found = tree_centre(adj)

@@ -1,0 +1,39 @@
+"""``platform robots``: installed robots and what each can do."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import click
+
+from .. import plugins
+from ..console import NONE, console, table
+from ..errors import MsrrError
+
+__all__ = ["command"]
+
+
+def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> str:
+    try:
+        items = lookup(robot)
+    except MsrrError as exc:  # one broken plugin must not hide the others' rows
+        return f"[red]error: {exc}[/red]"
+    return ", ".join(items) if items else NONE
+
+
+@click.command("robots")
+def command() -> None:
+    """List installed robots with their joint modes, planners, drivers and scenarios."""
+    specs = plugins.robots()
+    rows = []
+    for name, spec in specs.items():
+        kinds = ", ".join(f"{k.name} ({k.symbol})" for k in spec.module_kinds)
+        rows.append([name, spec.title, kinds,
+                     _capability(plugins.kinematic_nodes, name),
+                     _capability(plugins.planners, name),
+                     _capability(plugins.drivers, name),
+                     _capability(plugins.scenarios, name)])
+    console.print(table("Installed robots", ["robot", "title", "module kinds", "joint modes",
+                                             "planners", "drivers", "scenarios"], rows))
+    if not specs:
+        console.print("No robot plugin is installed.")
