@@ -1,26 +1,42 @@
 """Skeletal kinematics of freeform modular robots (FreeSN paper, section 3).
 
 Nouns, mink style: the *model* is a :class:`KinematicTree` of :class:`KinematicNode`
-objects over a configuration's topology; :func:`forward` is the skeletal forward
-kinematics (Alg. 1); :func:`solve_ik` is the full-body inverse kinematics (eqs. 6-8)
-returning an :class:`IKSolution`; :class:`IKTracker` runs it tick by tick for the
-executor. Robot plugins add joint modes through ``msrr_kinematic_nodes``.
+objects over a configuration's topology (:mod:`.tree`; files in :mod:`.tree_file`,
+the default tree in :mod:`.build`, cycles in :mod:`.cycles`); :func:`forward` is the
+skeletal forward kinematics (Alg. 1, :mod:`.fk`); :func:`solve_ik` is the full-body
+inverse kinematics (eqs. 6-8, :mod:`.ik`), whose objective is a sum of
+:class:`IKTerm` objects, returning an :class:`IKSolution`; :class:`IKTracker` runs it
+tick by tick. Nothing here asks the plugin host: joint modes and the robot spec come
+in as arguments (``Robot.joint_modes``, ``Robot.default_joint_mode()``,
+``Robot.spec``, see :func:`msrr.core.plugins.resolve`).
 
 Example::
 
-    from msrr.core.kinematics import default_tree, forward, solve_ik, IKOptions
+    from msrr.core.kinematics import IKOptions, default_tree, forward, solve_ik
 
-    tree = default_tree(config)            # fixed root at the centre, default joints
+    robot = plugins.resolve(config.robot)          # at the top layer
+    tree = default_tree(config, robot.default_joint_mode())
     moved = forward(tree, config, sigma).configuration
-    sol = solve_ik(tree, config, target, IKOptions(time_budget=0.1))
-    sol.sigma, sol.yaw, sol.rms_angle, sol.success
+    sol = solve_ik(tree, config, target, IKOptions(seed=0))
+    sol.sigma, sol.yaw, sol.rms_angle, sol.success, sol.reason
 """
 
 from .build import default_tree, tree_centre
 from .cycles import cyclic_groups, find_cycle_through
 from .fk import Evaluator, FKResult, FKState, forward, tree_vectors
 from .ground import GroundContact, GroundModel, GroundOp
-from .ik import IKOptions, IKProblem, IKSolution, solve_ik
+from .ik import (
+    IKOptions,
+    IKPose,
+    IKProblem,
+    IKSolution,
+    IKTerm,
+    MotionCostTerm,
+    Objective,
+    TermValue,
+    VectorAngleTerm,
+    solve_ik,
+)
 from .node import (
     FAMILIES,
     FixedNode,
@@ -55,19 +71,25 @@ __all__ = [
     "GroundModel",
     "GroundOp",
     "IKOptions",
+    "IKPose",
     "IKProblem",
     "IKSolution",
+    "IKTerm",
     "IKTracker",
     "KinematicNode",
     "KinematicTree",
     "KinematicTreeError",
     "KinematicTreeFile",
     "ModuleJointNode",
+    "MotionCostTerm",
     "NodeBatch",
     "NodeForward",
     "NodeJacobian",
     "NodeTypes",
+    "Objective",
     "ParallelNode",
+    "TermValue",
+    "VectorAngleTerm",
     "canonical_perpendicular",
     "check_same_topology",
     "cyclic_groups",

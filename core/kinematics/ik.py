@@ -10,8 +10,12 @@ minimise eq. 6:
 
 with ``Z^rot, X^rot, C`` from the skeletal forward kinematics (eq. 7, Alg. 1).
 
-The solver (mink style: the :class:`IKProblem` is the model and objective, the
-function is the solver):
+Mink style: eq. 6 is a sum of :class:`IKTerm` objects, each defining its value and
+its gradient with respect to the pose (yaw, vectors, costs) once --
+:class:`VectorAngleTerm` for the ``z`` and ``x`` angles, :class:`MotionCostTerm` for
+``zeta C^2``. :class:`IKProblem` assembles them (:meth:`IKProblem.objective`) and
+pulls the summed gradient back to ``sigma`` through the ground model and the tree.
+The function :func:`solve_ik` is the solver:
 
 1. the yaw is initialised by eq. 8 (:func:`msrr.core.alignment.align_yaw`);
 2. L-BFGS-B minimises over ``(theta, sigma)`` with the analytic gradient
@@ -19,7 +23,8 @@ function is the solver):
 3. while the residual RMS angle is above the tolerance, new starts are sampled
    (BioIK-like: alternately around the best solution so far and uniformly in the
    joint bounds), each with its own eq. 8 yaw, until a solution is under the
-   tolerance, the time budget is spent or the restarts are used up.
+   tolerance or ``max_restarts`` starts are used up (an optional time budget can
+   only cut this short, and the solution then says so).
 
 A floating base can be put on the ground after the forward kinematics with the
 three-point contact model (``IKOptions.ground``, :mod:`.ground`).
@@ -32,7 +37,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from scipy.optimize import minimize
@@ -46,7 +51,18 @@ from .ground import GroundContact, GroundModel, GroundOp
 from .rotations import cross
 from .tree import KinematicTree
 
-__all__ = ["IKOptions", "IKProblem", "IKSolution", "solve_ik"]
+__all__ = [
+    "IKOptions",
+    "IKPose",
+    "IKProblem",
+    "IKSolution",
+    "IKTerm",
+    "MotionCostTerm",
+    "Objective",
+    "TermValue",
+    "VectorAngleTerm",
+    "solve_ik",
+]
 
 _TINY = 1e-12
 _THREADPOOLS: ThreadpoolController | None = None
@@ -66,8 +82,11 @@ class IKOptions:
     """Settings of :func:`solve_ik`.
 
     Attributes:
-        time_budget: wall-clock limit of one solve [s]; the best solution so far is
-            returned when it runs out.
+        time_budget: optional wall-clock limit of one solve [s]. It can only stop the
+            search early: the best solution so far is returned with ``reason
+            "time_budget"``. ``None`` (the default): the solve is bounded by
+            ``max_restarts`` and ``max_iterations`` alone, so its answer does not
+            depend on the machine or its load.
         tolerance: a solution succeeds when its RMS angle residual is below this [rad].
         weights: ``w`` of eq. 6 per module (edge): ``{edge id: w}`` (others 1) or an
             array in tree layout; all ones by default.
@@ -93,7 +112,7 @@ class IKOptions:
         gtol: L-BFGS-B projected-gradient tolerance.
     """
 
-    time_budget: float = 0.5
+    time_budget: float | None = None
     tolerance: float = float(np.deg2rad(0.5))
     weights: Mapping[str, float] | Sequence[float] | np.ndarray | None = None
     gamma: float = 0.0
@@ -113,7 +132,7 @@ class IKOptions:
     gtol: float = 1e-7
 
     def __post_init__(self) -> None:
-        if self.time_budget <= 0 or self.tolerance <= 0:
+        if (self.time_budget is not None and not self.time_budget > 0) or not self.tolerance > 0:
             raise ConfigurationError("IKOptions: time_budget and tolerance must be positive")
         if self.gamma < 0 or self.zeta < 0:
             raise ConfigurationError("IKOptions: gamma and zeta must be non-negative")
@@ -138,8 +157,10 @@ class IKSolution:
         success: ``rms_angle < tolerance``.
         iterations: L-BFGS-B iterations over all starts.
         restarts: sampled starts used after the first.
-        reason: ``"tolerance"`` (solved), ``"time_budget"``, ``"max_restarts"`` or
-            ``"no_joints"`` (a tree without joints: only the yaw was solved).
+        reason: why the search stopped: ``"tolerance"`` (solved), ``"max_restarts"``
+            (every start used), ``"no_joints"`` (a tree without joints: only the yaw
+            was solved) or ``"time_budget"`` (``options.time_budget`` ran out first:
+            the search was cut short, more starts might have found a better answer).
         elapsed: wall-clock time of the solve [s].
         ground: the ground contact of the solution when the ground model was used.
         problem: the :class:`IKProblem` that was solved (rebuilds :attr:`configuration`).
@@ -166,27 +187,156 @@ class IKSolution:
         return self.problem.configuration(self.sigma)
 
 
-class _Term:
-    """Angles between transformed vectors ``a`` and yaw-rotated targets ``b`` (rows)."""
+@dataclass(slots=True)
+class IKPose:
+    """What the objective's terms see at one evaluation.
 
-    __slots__ = ("angle", "cross", "sin", "target", "weights")
+    Attributes:
+        yaw: ``theta`` [rad].
+        rz: ``Rz(theta)^T``, shape (3, 3): ``rows @ rz`` turns row vectors by ``theta``.
+        z: transformed connection vectors ``Z^rot`` (grounded if asked for), rows (n, 3).
+        x: transformed forward vectors ``X^rot``, rows (n, 3).
+        cost: motion cost per module ``C``, shape (n,).
+    """
 
-    def __init__(self, target: np.ndarray, vectors: np.ndarray, weights: np.ndarray):
+    yaw: float
+    rz: np.ndarray
+    z: np.ndarray
+    x: np.ndarray
+    cost: np.ndarray
+
+
+@dataclass(slots=True)
+class TermValue:
+    """One term's value at a pose and, when asked for, its gradient.
+
+    Attributes:
+        value: the term's contribution to eq. 6.
+        residual: angles [rad] this term adds to the RMS residual, or ``None``.
+        z, x: ``d value / d pose.z`` and ``d value / d pose.x`` (rows (n, 3)), or
+            ``None`` when the term does not depend on them.
+        cost: ``d value / d pose.cost`` (n,), or ``None``.
+        yaw: ``d value / d pose.yaw``.
+    """
+
+    value: float
+    residual: np.ndarray | None = None
+    z: np.ndarray | None = None
+    x: np.ndarray | None = None
+    cost: np.ndarray | None = None
+    yaw: float = 0.0
+
+
+class IKTerm:
+    """One term of the IK objective (mink style: the solver sums the terms).
+
+    A term computes its value and, if ``derivatives``, its gradient with respect to
+    the pose (:class:`IKPose`); :class:`IKProblem` adds the terms up and pulls the
+    summed gradient back through the ground model and the tree to ``sigma``. Adding
+    a term to eq. 6 is a subclass and one line in :meth:`IKProblem.default_terms`.
+    """
+
+    name: str = ""
+
+    def evaluate(self, pose: IKPose, derivatives: bool = False) -> TermValue:
+        raise NotImplementedError
+
+
+class VectorAngleTerm(IKTerm):
+    """``sum_j w_j angle(a_j, Rz(theta) b_j)^2`` over the ``z`` or ``x`` vectors (eq. 6).
+
+    With ``s = |a x b|`` and ``angle = atan2(s, a . b)``:
+    ``d angle^2 / d a = -2 angle / s * b`` (the part along ``a`` cancels on the unit
+    sphere; ``angle / s -> 1`` as the angle -> 0) and, since ``d b / d theta =
+    e_z x b``, ``d angle^2 / d theta = 2 angle / s * (a x b)_z``.
+
+    Args:
+        vector: ``"z"`` (connection vectors) or ``"x"`` (forward vectors).
+        target: target vectors ``b`` before the yaw, rows (n, 3).
+        weights: ``w_j`` (times ``gamma`` for ``x``), shape (n,).
+        counted: which angles enter the RMS residual, shape (n,); all by default.
+    """
+
+    def __init__(self, vector: Literal["z", "x"], target: np.ndarray, weights: np.ndarray,
+                 counted: np.ndarray | None = None):
+        self.name = f"{vector}_angle"
+        self.vector = vector
         self.target = target
         self.weights = weights
-        self.cross = cross(vectors, target)
-        self.sin = np.sqrt(np.einsum("ni,ni->n", self.cross, self.cross))
-        self.angle = np.arctan2(self.sin, np.einsum("ni,ni->n", vectors, target))
+        self.counted = None if counted is None or counted.all() else counted
+
+    def evaluate(self, pose: IKPose, derivatives: bool = False) -> TermValue:
+        a = pose.z if self.vector == "z" else pose.x
+        b = self.target @ pose.rz
+        axb = cross(a, b)
+        sin = np.sqrt(np.einsum("ni,ni->n", axb, axb))
+        angle = np.arctan2(sin, np.einsum("ni,ni->n", a, b))
+        out = TermValue(float(self.weights @ (angle * angle)),
+                        angle if self.counted is None else angle[self.counted])
+        if derivatives:
+            factor = (2.0 * self.weights) * (angle / np.maximum(sin, _TINY))
+            grad = b * -factor[:, None]
+            if self.vector == "z":
+                out.z = grad
+            else:
+                out.x = grad
+            out.yaw = float(factor @ axb[:, 2])
+        return out
+
+
+class MotionCostTerm(IKTerm):
+    """``zeta sum_j w_j C_j^2``: the motion-cost term of eq. 6.
+
+    Args:
+        weights: ``zeta w_j``, shape (n,).
+    """
+
+    name = "motion_cost"
+
+    def __init__(self, weights: np.ndarray):
+        self.weights = weights
+
+    def evaluate(self, pose: IKPose, derivatives: bool = False) -> TermValue:
+        weighted = self.weights * pose.cost
+        out = TermValue(float(weighted @ pose.cost))
+        if derivatives:
+            out.cost = 2.0 * weighted
+        return out
+
+
+@dataclass
+class Objective:
+    """Eq. 6 at one point: the total, each term's value, the residual and the gradient.
+
+    Attributes:
+        value: the sum of the terms.
+        terms: each term's value by name.
+        rms_angle: RMS of the terms' residual angles [rad].
+        motion_cost: ``sum_j C_j`` [rad].
+        grad: gradient with respect to ``[theta, *sigma]`` when asked for, else ``None``.
+        ground: the ground contact when the ground model is on.
+    """
+
+    value: float
+    terms: dict[str, float]
+    rms_angle: float
+    motion_cost: float
+    grad: np.ndarray | None = None
+    ground: GroundContact | None = None
 
 
 class IKProblem:
-    """Eq. 6 for one tree, current configuration and target: value, gradient, residuals.
+    """Eq. 6 for one tree, current configuration and target: the terms, their sum and
+    its gradient.
 
     Args:
         tree: the kinematic tree.
         current: the configuration now (``Z^init``, ``X^init``), the tree's ids.
         target: the target configuration, same ids, any horizontal frame.
         options: weights ``w``, ``gamma``, ``zeta`` and the ground model.
+
+    Attributes:
+        terms: the :class:`IKTerm` objects whose sum is the objective.
     """
 
     def __init__(self, tree: KinematicTree, current: Configuration, target: Configuration,
@@ -197,23 +347,30 @@ class IKProblem:
         z0, x0, self.has_x = tree_vectors(tree, current)
         zt, xt, has_xt = tree_vectors(tree, target)
         self.evaluator = Evaluator(tree, z0, x0)
-        n = len(tree.edges)
-        self.n = n
+        self.n = len(tree.edges)
         self.z_target = np.ascontiguousarray(zt.T)
         self.x_target = np.ascontiguousarray(xt.T)
         self.weights = self._weights(options.weights)
-        self.use_x = self.has_x & has_xt if options.gamma > 0 else np.zeros(n, dtype=bool)
-        self.x_weights = options.gamma * self.weights * self.use_x
-        self.zeta = options.zeta
+        self.use_x = self.has_x & has_xt if options.gamma > 0 else np.zeros(self.n, dtype=bool)
         self.ground = None if options.ground is None else GroundOp(tree, options.ground)
         lo, hi = tree.bounds
         self.lower, self.upper = lo, hi
         self.bounds = [(None, None)] + [(float(a), float(b)) for a, b in zip(lo, hi, strict=True)]
+        self.terms: list[IKTerm] = self.default_terms()
         self.evaluations = 0
         self._last: tuple[np.ndarray, float] | None = None
-        self._count = n + int(self.use_x.sum())
-        self._with_x = bool(self.x_weights.any())
-        self._rz = np.eye(3)
+
+    def default_terms(self) -> list[IKTerm]:
+        """The terms of eq. 6: ``z`` angles, ``x`` angles (``gamma > 0`` and both sides
+        have ``x``), motion costs (``zeta > 0``)."""
+        options = self.options
+        terms: list[IKTerm] = [VectorAngleTerm("z", self.z_target, self.weights)]
+        if self.use_x.any():
+            terms.append(VectorAngleTerm("x", self.x_target,
+                                         options.gamma * self.weights * self.use_x, self.use_x))
+        if options.zeta > 0:
+            terms.append(MotionCostTerm(options.zeta * self.weights))
+        return terms
 
     def _weights(self, weights: Mapping[str, float] | Sequence[float] | np.ndarray | None
                  ) -> np.ndarray:
@@ -231,90 +388,80 @@ class IKProblem:
 
     # -- the objective ---------------------------------------------------------------------
 
-    def _vectors(self, state: FKState) -> tuple[np.ndarray, np.ndarray, object]:
-        if self.ground is None:
-            return state.z, state.x, None
-        contact, cache = self.ground.contact(state.z)
-        rot = contact.rotation
-        return state.z @ rot.T, state.x @ rot.T, cache
-
-    def _angles(self, yaw: float, z: np.ndarray, x: np.ndarray) -> list[_Term]:
-        """Angle terms of eq. 6: z always, x when ``gamma > 0`` and both sides have x."""
+    def objective(self, params: np.ndarray, derivatives: bool = False) -> Objective:
+        """Eq. 6 at ``params = [theta, *sigma]``: the terms' sum, and its gradient if
+        ``derivatives`` (reverse mode: terms -> ground model -> tree)."""
+        params = np.asarray(params, dtype=np.float64)
+        yaw = float(params[0])
+        state = self.evaluator.evaluate(params[1:], derivatives)
+        z, x, contact, cache = self._grounded(state)
         c, s = math.cos(yaw), math.sin(yaw)
-        rz = self._rz
-        rz[0, 0] = rz[1, 1] = c
-        rz[0, 1], rz[1, 0] = s, -s   # rz is Rz(yaw)^T: rows @ rz rotates by yaw
-        out = [_Term(self.z_target @ rz, z, self.weights)]
-        if self._with_x:
-            out.append(_Term(self.x_target @ rz, x, self.x_weights))
+        rz = np.array(((c, s, 0.0), (-s, c, 0.0), (0.0, 0.0, 1.0)))
+        pose = IKPose(yaw, rz, z, x, state.cost)
+        total = squares = d_yaw = 0.0
+        count = 0
+        values: dict[str, float] = {}
+        gz = gx = gc = None
+        for term in self.terms:
+            part = term.evaluate(pose, derivatives)
+            total += part.value
+            values[term.name] = part.value
+            if part.residual is not None:
+                squares += float(part.residual @ part.residual)
+                count += len(part.residual)
+            if derivatives:
+                d_yaw += part.yaw
+                gz = _add(gz, part.z)
+                gx = _add(gx, part.x)
+                gc = _add(gc, part.cost)
+        out = Objective(total, values, math.sqrt(squares / count) if count else 0.0,
+                        float(state.cost.sum()), ground=contact)
+        if derivatives:
+            gz = np.zeros_like(z) if gz is None else gz
+            if cache is not None:
+                assert self.ground is not None
+                gz, gx = self.ground.backward(cache, state.z, gz, state.x, gx)
+            grad = np.empty(len(params))
+            grad[0] = d_yaw
+            grad[1:] = self.evaluator.gradient(state, gz, gx, gc)
+            out.grad = grad
         return out
 
-    def _squares(self, terms: list[_Term]) -> float:
-        squares = float(terms[0].angle @ terms[0].angle)
-        if len(terms) > 1:
-            angle = terms[1].angle[self.use_x]
-            squares += float(angle @ angle)
-        return squares
+    def _grounded(self, state: FKState
+                  ) -> tuple[np.ndarray, np.ndarray, GroundContact | None, Any]:
+        """The FK's vectors (rows), put on the ground if the ground model is on, with
+        the contact and what :meth:`GroundOp.backward` needs."""
+        if self.ground is None:
+            return state.z, state.x, None, None
+        contact, cache = self.ground.contact(state.z)
+        return state.z @ contact.rotation.T, state.x @ contact.rotation.T, contact, cache
 
     def value(self, params: np.ndarray) -> float:
         """Eq. 6 at ``params = [theta, *sigma]``."""
         self.evaluations += 1
-        state = self.evaluator.evaluate(params[1:])
-        z, x, _ = self._vectors(state)
-        total = sum(float(t.weights @ (t.angle * t.angle)) for t in self._angles(params[0], z, x))
-        return total + self.zeta * float(self.weights @ (state.cost * state.cost))
+        return self.objective(params).value
 
     def value_and_grad(self, params: np.ndarray) -> tuple[float, np.ndarray]:
         """Eq. 6 and its analytic gradient with respect to ``[theta, *sigma]``."""
         self.evaluations += 1
-        state = self.evaluator.evaluate(params[1:], derivatives=True)
-        z, x, cache = self._vectors(state)
-        terms = self._angles(params[0], z, x)
-        grad = np.empty(len(params))
-        total, d_yaw = 0.0, 0.0
-        grads = []
-        for t in terms:
-            total += float(t.weights @ (t.angle * t.angle))
-            # d angle^2 / d a = -2 angle / sin(angle) * b  (a: transformed, b: target);
-            # angle / sin(angle) -> 1 as the angle -> 0
-            factor = (2.0 * t.weights) * (t.angle / np.maximum(t.sin, _TINY))
-            grads.append(t.target * -factor[:, None])
-            d_yaw += float(factor @ t.cross[:, 2])   # d b / d theta = e_z x b
-        grad[0] = d_yaw
-        self._last = (params.copy(), math.sqrt(self._squares(terms) / max(self._count, 1)))
-        gz = grads[0]
-        gx = grads[1] if len(grads) > 1 else None
-        if cache is not None:
-            assert self.ground is not None
-            gz, gx = self.ground.backward(cache, state.z, gz, state.x, gx)
-        cost_w = self.weights * state.cost
-        total += self.zeta * float(cost_w @ state.cost)
-        grad[1:] = self.evaluator.gradient(state, gz, gx, (2.0 * self.zeta) * cost_w)
-        return total, grad
+        out = self.objective(params, derivatives=True)
+        assert out.grad is not None
+        self._last = (params.copy(), out.rms_angle)
+        return out.value, out.grad
 
     # -- reading a solution ------------------------------------------------------------
 
     def evaluate(self, sigma: np.ndarray, yaw: float
                  ) -> tuple[float, float, float, GroundContact | None]:
         """``(cost, motion_cost, rms_angle, ground contact)`` of a solution."""
-        state = self.evaluator.evaluate(sigma)
-        contact = None
-        if self.ground is None:
-            z, x = state.z, state.x
-        else:
-            contact = self.ground.contact(state.z)[0]
-            z, x = state.z @ contact.rotation.T, state.x @ contact.rotation.T
-        terms = self._angles(yaw, z, x)
-        cost = sum(float(t.weights @ (t.angle * t.angle)) for t in terms)
-        cost += self.zeta * float(self.weights @ (state.cost * state.cost))
-        rms = math.sqrt(self._squares(terms) / self._count) if self._count else 0.0
-        return cost, float(state.cost.sum()), rms, contact
+        out = self.objective(np.concatenate([[yaw], sigma]))
+        return out.value, out.motion_cost, out.rms_angle, out.ground
 
     def yaw_estimate(self, sigma: np.ndarray) -> float:
         """Eq. 8: the yaw aligning the target with the forward kinematics at ``sigma``."""
         state = self.evaluator.evaluate(sigma)
-        z, x, _ = self._vectors(state)
-        use_x = self._with_x
+        z, x, _, _ = self._grounded(state)
+        use_x = bool(self.use_x.any())
         return align_yaw(z.T, self.z_target.T, weights=self.weights,
                          x=x.T if use_x else None,
                          x_target=self.x_target.T if use_x else None,
@@ -323,7 +470,7 @@ class IKProblem:
     def configuration(self, sigma: np.ndarray) -> Configuration:
         """The current configuration moved by ``sigma`` (and grounded if asked for)."""
         state = self.evaluator.evaluate(np.asarray(sigma, dtype=np.float64))
-        z, x, _ = self._vectors(state)
+        z, x, _, _ = self._grounded(state)
         return transformed_configuration(self.current, self.tree, z.T, x.T, self.has_x)
 
     # -- one local solve -----------------------------------------------------------------
@@ -378,16 +525,17 @@ def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,
         tree: kinematic tree over the ids of both configurations.
         current: the configuration now: the zero point of the joint space.
         target: the target configuration; its horizontal frame may differ by a yaw.
-        options: weights, tolerance, time budget, restarts, seed, ground model.
+        options: weights, tolerance, restarts, seed, ground model, optional time budget.
 
     Returns:
         The best solution found; ``success`` says whether its RMS angle residual is
-        under ``options.tolerance``. The solve stops at the first start that reaches
-        the tolerance.
+        under ``options.tolerance`` and ``reason`` why the search stopped. The solve
+        stops at the first start that reaches the tolerance; without a time budget
+        the result depends only on the inputs and ``options`` (deterministic).
     """
     options = options or IKOptions()
     started = time.perf_counter()
-    deadline = started + options.time_budget
+    deadline = None if options.time_budget is None else started + options.time_budget
     problem = IKProblem(tree, current, target, options)
     rng = np.random.default_rng(options.seed)
     sigma0 = (np.zeros(tree.dim) if options.initial_sigma is None
@@ -418,7 +566,7 @@ def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,
         if tree.dim == 0:
             reason = "no_joints"
             break
-        if time.perf_counter() > deadline:
+        if deadline is not None and time.perf_counter() > deadline:
             reason = "time_budget"
             break
     assert best is not None
@@ -427,6 +575,13 @@ def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,
                       success=rms < options.tolerance, iterations=iterations,
                       restarts=starts - 1, reason=reason,
                       elapsed=time.perf_counter() - started, ground=contact, problem=problem)
+
+
+def _add(total: np.ndarray | None, part: np.ndarray | None) -> np.ndarray | None:
+    """``total + part``, where ``None`` stands for zero."""
+    if part is None:
+        return total
+    return part if total is None else total + part
 
 
 def _better(found: tuple[float, float, float, object], best: tuple[float, float, float, object],

@@ -4,7 +4,7 @@ In a moving action the IK runs every control tick while the robot moves, so an
 optimal solution is not needed at each tick. :class:`IKTracker` follows the paper:
 
 * the first :meth:`~IKTracker.step` is the initial phase: :func:`~.ik.solve_ik` with
-  sampled restarts until a solution under the tolerance is found (or the budget ends);
+  sampled restarts until a solution under the tolerance is found (or they run out);
 * later steps *track*: one L-BFGS-B run warm-started from the previous solution, within
   ``tick_budget``;
 * meanwhile an *exploration* thread keeps optimising starts sampled globally from the
@@ -37,9 +37,10 @@ class IKTracker:
     Args:
         tree: kinematic tree of the moving configuration.
         target: the target configuration (same ids; its yaw is solved).
-        options: solver options; ``time_budget`` bounds the initial phase and each
-            exploration run, ``seed`` seeds both the solver and the explorer.
-        tick_budget: time limit of one tracking step [s].
+        options: solver options; ``time_budget`` (if set) cuts the initial phase and
+            each exploration run short, ``seed`` seeds both the solver and the explorer.
+        tick_budget: time limit of one tracking step [s] (a control tick cannot wait;
+            a step cut short says so in its ``reason``).
         explore: run the exploration thread (``False``: deterministic tracking only).
         explore_pause: pause between two exploration runs [s], to leave the cores to
             the control loop.
@@ -137,7 +138,8 @@ class IKTracker:
             current, target = snapshot
             problem = IKProblem(self.tree, current, target, self.options)
             start = 0.5 * (lo + hi) + scale * (rng.random(self.tree.dim) - 0.5) * (hi - lo)
-            deadline = time.perf_counter() + self.options.time_budget
+            budget = self.options.time_budget
+            deadline = None if budget is None else time.perf_counter() + budget
             sigma, yaw, _ = problem.local_solve(start, problem.yaw_estimate(start), deadline)
             cost = problem.evaluate(sigma, yaw)[0]
             last = self.last
