@@ -5,6 +5,7 @@ from __future__ import annotations
 from msrr.core import hookimpl
 from msrr.core.robot import MisoRules
 
+from .joints import JOINT_MODES
 from .robot import SPEC
 
 
@@ -16,3 +17,10 @@ def msrr_robot():
 @hookimpl
 def msrr_docking_rules(robot: str):
     return MisoRules(SPEC.name) if robot == SPEC.name else None
+
+
+@hookimpl
+def msrr_kinematic_nodes(robot: str, register):
+    if robot == SPEC.name:
+        for node_type in JOINT_MODES:
+            register(node_type)

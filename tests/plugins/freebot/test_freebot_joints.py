@@ -15,6 +15,7 @@ from msrr.plugins.freebot.joints import (
     exp_so3,
     left_jacobian,
 )
+
 from msrr_test_support import ROOT
 
 CHAIN3 = ROOT / "plugins" / "freebot" / "configs" / "chain3.json"

@@ -1,0 +1,136 @@
+"""SnailBot joint modes: spherical (crawling) and sucker-revolute; derivatives and geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from msrr.core import plugins
+from msrr.core.configuration import Configuration
+from msrr.core.io import load_configuration
+from msrr.core.kinematics import default_tree, forward
+from msrr.core.kinematics.rotations import rodrigues
+from msrr.plugins.snailbot.joints import SphericalJoint, SuckerRevoluteJoint, orient
+
+from msrr_test_support import ROOT
+
+PAIR = ROOT / "plugins" / "snailbot" / "configs" / "pair.json"
+
+NODES = {
+    "spherical": SphericalJoint(["e"], ["B1"]),
+    "spherical-substrate-child": SphericalJoint(["e"], ["B2"], substrate_is_child=1.0),
+    "sucker_revolute": SuckerRevoluteJoint(["e"], ["B1"]),
+}
+
+
+def contact(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    z = rng.normal(size=3)
+    z /= np.linalg.norm(z)
+    x = rng.normal(size=3)
+    x -= x.dot(z) * z
+    return z[:, None], (x / np.linalg.norm(x))[:, None]
+
+
+def test_snailbot_registers_both_modes_with_spherical_the_default():
+    robot = plugins.resolve("snailbot")
+    assert robot.joint_modes["spherical"] is SphericalJoint
+    assert robot.joint_modes["sucker_revolute"] is SuckerRevoluteJoint
+    assert robot.default_joint_mode() is SphericalJoint
+    assert robot.spec.defaults["joint_mode"] == "spherical"
+
+
+@pytest.mark.parametrize("key", list(NODES))
+def test_jacobian_matches_central_differences(key):
+    node = NODES[key]
+    rng = np.random.default_rng(17)
+    h = 1e-6
+    for _ in range(20):
+        z, x = contact(rng)
+        sigma = rng.uniform(-1.5, 1.5, size=node.dim)
+        jac = node.jacobian(z, x, sigma)
+        for i in range(node.dim):
+            e = np.zeros(node.dim)
+            e[i] = h
+            plus, minus = node.forward(z, x, sigma + e), node.forward(z, x, sigma - e)
+            for name, analytic in (("z", jac.z), ("x", jac.x), ("cost", jac.cost),
+                                   ("rotations", jac.rotations)):
+                numeric = (getattr(plus, name) - getattr(minus, name)) / (2 * h)
+                err = (np.linalg.norm(analytic[..., i] - numeric)
+                       / max(np.linalg.norm(numeric), 1e-3))
+                assert err < 1e-6, f"{key} d{name}/dsigma[{i}]: relative error {err:.2e}"
+
+
+@pytest.mark.parametrize("key", list(NODES))
+def test_zero_joint_values_change_nothing(key):
+    node = NODES[key]
+    z, x = contact(np.random.default_rng(1))
+    out = node.forward(z, x, np.zeros(node.dim))
+    assert np.allclose(out.z, z) and np.allclose(out.x, x)
+    assert np.allclose(out.rotations[0], np.eye(3)) and out.cost[0] == 0.0
+
+
+def test_crawling_turns_the_body_about_the_substrate_and_keeps_the_foot_flat():
+    z, x = np.array([[0.0], [0.0], [1.0]]), np.array([[1.0], [0.0], [0.0]])
+    out = SphericalJoint(["e"], ["B1"]).forward(z, x, np.array([0.5, 0.0, 0.3]))
+    assert np.allclose(out.z[:, 0], [np.sin(0.5), 0.0, np.cos(0.5)])
+    rot = out.rotations[0]
+    assert np.allclose(rot @ z[:, 0], out.z[:, 0])      # the foot stays on the normal
+    assert abs(out.x[:, 0] @ out.z[:, 0]) < 1e-12       # the heading stays tangent
+    assert out.cost[0] == pytest.approx(0.5 + 0.5 * 0.3)
+
+
+def test_either_tree_direction_gives_the_same_relative_pose():
+    """Substrate as parent (crawler turns about the substrate's centre) and crawler as
+    parent (substrate turns about its own centre by the inverse) agree on the pose of
+    the SnailBot in the substrate's frame."""
+    rng = np.random.default_rng(4)
+    ahead, behind = NODES["spherical"], NODES["spherical-substrate-child"]
+    for _ in range(5):
+        z, x = contact(rng)
+        sigma = rng.uniform(-1, 1, size=3)
+        a, b = ahead.forward(z, x, sigma), behind.forward(z, x, sigma)
+        # ahead: substrate fixed at 0, SnailBot at a.z with orientation R
+        # behind: SnailBot fixed at z, substrate at 0 with orientation R_b
+        r_b = b.rotations[0]
+        assert np.allclose(r_b.T @ b.z[:, 0], a.z[:, 0])
+        assert np.allclose(r_b.T, a.rotations[0])
+        assert np.allclose(b.z, z) and np.allclose(b.x, x)
+
+
+def test_sucker_turns_only_about_the_contact_normal():
+    z, x = contact(np.random.default_rng(6))
+    out = SuckerRevoluteJoint(["e"], ["B1"]).forward(z, x, np.array([0.4]))
+    assert np.allclose(out.z, z)
+    assert np.allclose(out.rotations[0], rodrigues(z[:, 0], 0.4))
+    assert out.cost[0] == pytest.approx(0.4)
+
+
+def chain(n: int) -> Configuration:
+    """B1 -> B2 -> ... -> Bn (each SnailBot on the next), all stacked along +z."""
+    config = Configuration("snailbot", name=f"chain{n}")
+    for i in range(1, n + 1):
+        config.add_module(f"B{i}", "snailbot")
+    for i in range(1, n):
+        config.connect(f"B{i}", f"B{i + 1}", z=[0.0, 0.0, 1.0])
+    return config
+
+
+def test_orient_marks_the_joints_whose_child_is_the_substrate():
+    config = chain(5)  # the default tree is rooted at B3
+    tree = orient(default_tree(config, SphericalJoint), config)
+    flags = {n.vertices[0]: n.params["substrate_is_child"] for n in tree.nodes[1:]}
+    assert flags == {"B2": 0.0, "B4": 1.0, "B1": 0.0, "B5": 1.0}
+    sigma = np.random.default_rng(0).uniform(-0.5, 0.5, tree.dim)
+    moved = forward(tree, config, sigma).configuration
+    assert set(moved.edge_ids()) == set(config.edge_ids())
+    # B3 -> B4 is below the root: the SnailBot B3 stays, its connection vector too
+    b3 = next(e for e in config.edges() if e.source == "B3")
+    assert np.allclose(moved.edge(b3.id).z, config.edge(b3.id).z)
+
+
+def test_default_tree_of_a_snailbot_file():
+    robot = plugins.resolve("snailbot")
+    config = load_configuration(PAIR)
+    tree = default_tree(config, robot.default_joint_mode())
+    assert tree.dim == 3
+    assert forward(tree, config, np.zeros(3)).configuration == config
