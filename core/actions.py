@@ -1,18 +1,34 @@
-"""Action detection from the topology difference of two configurations.
+"""Topology diff and action classification: the one place both are defined.
 
 FreeSN paper, section 4.1: comparing the topology graphs of the current and the
 target configuration tells the action type. No change is *moving*; one connection
-made is a *connection*, one broken a *disconnection*; a leaf module that leaves its
-parent for one of the parent's neighbours is a *flow*; several changes at once are
-a *parallel* connection (if anything is made) or disconnection.
+made is a *connection* ("a node and a virtual node are merged"), one broken a
+*disconnection*; a leaf module that leaves its parent for one of the parent's
+neighbours is a *flow* ("the disconnection and connection happen simultaneously");
+several changes at once are a *parallel* connection or disconnection.
 
 Connections are compared by their ends, ``(module, port)`` pairs, regardless of
 edge direction and id, so a recognized configuration compares equal to a planned
 one with the same physical links. A connection that is itself a module (a FreeSN
 strut) is compared end by end instead: each strut end resting on a module is one
-link ``{(strut, end), (module, None)}``, and a free end (a virtual vertex) is none,
-so a strut whose free end docks is one connection, and an end that moves from one
-node to another is a flow.
+link ``{(strut, end), (module, port)}``. An end at a virtual vertex (a free
+connector) is no link, so renaming a free connector is no change, a strut whose free
+end docks is one connection, and an end that moves from one node to another is a flow.
+
+Breaking and making different connections in one step (say the face swap a-b, c-d
+-> a-d, c-b) is a **parallel connection**. The paper's parallel action covers it
+word for word: "the topological changes are classified into connections and
+disconnections. First, the disconnection commands are sent ... After all
+topological disconnection changes are detected, the system moves to the target
+configuration without connections. The connection commands are sent ..." (section
+4.1, Parallel Connection and Disconnection Action); the executor runs exactly these
+phases (release, approach, connect). It is not a flow, which moves one leaf, and
+MMRP's undock-then-dock (section 4.4 of the MMRP paper, Table 4) is the same order of
+commands, which an MMRP planner emits as separate single actions. The type is
+named after the phase that finishes the action; :attr:`TopologyDiff.broken` says
+whether it releases first. (A library edge needs one topology to execute in, so the
+library builder asks for the intermediate configuration of such a step instead;
+that is a rule of the library, not of classification.)
 """
 
 from __future__ import annotations
@@ -23,9 +39,11 @@ from dataclasses import dataclass
 
 from .configuration import Configuration
 from .errors import PlanningError
+from .mapping import ModuleMap, free_vertex_name
 from .plan import Action, ActionType, ConnectionChange
 
 __all__ = [
+    "STRUT_ENDS",
     "TopologyDiff",
     "classify",
     "connection_key",
@@ -54,9 +72,10 @@ def _links(config: Configuration) -> list[tuple[Key, ConnectionChange]]:
     for edge in config.edges():
         ports = edge.ports or (None, None)
         if edge.kind is None:
-            links.append((connection_key(edge.source, edge.target, ports[0], ports[1]),
-                          ConnectionChange(edge.source, edge.target, ports[0], ports[1],
-                                           edge.id)))
+            if not (config.is_virtual(edge.source) or config.is_virtual(edge.target)):
+                links.append((connection_key(edge.source, edge.target, ports[0], ports[1]),
+                              ConnectionChange(edge.source, edge.target, ports[0], ports[1],
+                                               edge.id)))
             continue
         for end, vertex, port in zip(STRUT_ENDS, (edge.source, edge.target), ports, strict=True):
             if not config.is_virtual(vertex):
@@ -65,17 +84,14 @@ def _links(config: Configuration) -> list[tuple[Key, ConnectionChange]]:
     return links
 
 
-def _keyed(config: Configuration) -> Counter[Key]:
-    return Counter(key for key, _ in _links(config))
-
-
 @dataclass(frozen=True)
 class TopologyDiff:
     """Connections made and broken going from one configuration to another.
 
     Attributes:
         made: connections present in the target only (as the target names them).
-        broken: connections present in the current configuration only.
+        broken: connections present in the current configuration only (as the current
+            configuration names them, or in the target's ids when a mapping was given).
     """
 
     made: tuple[ConnectionChange, ...]
@@ -88,13 +104,91 @@ class TopologyDiff:
         parts = [f"+{c}" for c in self.made] + [f"-{c}" for c in self.broken]
         return " ".join(parts) or "no change"
 
+    def changes(self) -> tuple[ConnectionChange, ...]:
+        """The connections broken, then those made."""
+        return self.broken + self.made
 
-def topology_diff(current: Configuration, target: Configuration) -> TopologyDiff:
-    """What connections must be made and broken to turn ``current`` into ``target``."""
-    have, want = _keyed(current), _keyed(target)
-    made = _pick(_links(target), want - have)
-    broken = _pick(_links(current), have - want)
-    return TopologyDiff(made, broken)
+    def applied_to(self, config: Configuration, *, made: bool = True) -> Configuration:
+        """``config`` without the broken connections and (if ``made``) with the made ones.
+
+        Links are found by their direction-free keys, so ``config`` may name its
+        connections differently from the configuration the diff was taken from; a
+        broken link already gone and a made link already there are left alone. A strut
+        end that leaves a module rests on a new virtual vertex; one that docks leaves
+        its virtual vertex, which is removed when nothing else touches it.
+
+        Raises:
+            ConfigurationError: a change refers to a module ``config`` does not have.
+        """
+        out = config.copy()
+        for change in self.broken:
+            present = {key: link for key, link in _links(out)}
+            link = present.get(_key(change))
+            if link is None:
+                continue
+            if _is_strut_end(change):
+                _move_strut_end(out, change, None)
+            else:
+                out.disconnect(link.edge_id)  # type: ignore[arg-type]
+        for change in self.made if made else ():
+            if _key(change) in {key for key, _ in _links(out)}:
+                continue
+            if _is_strut_end(change):
+                _move_strut_end(out, change, change.target)
+                continue
+            ports = None if change.source_port is None else (change.source_port,
+                                                             change.target_port)
+            free = change.edge_id is not None and change.edge_id not in out.edge_ids()
+            out.connect(change.source, change.target, id=change.edge_id if free else None,
+                        ports=ports)  # type: ignore[arg-type]
+        return out
+
+
+def _key(change: ConnectionChange) -> Key:
+    return connection_key(change.source, change.target, change.source_port, change.target_port)
+
+
+def _is_strut_end(change: ConnectionChange) -> bool:
+    """Whether ``change`` is one end of a connection that is a module (see :func:`_links`)."""
+    return change.source == change.edge_id and change.source_port in STRUT_ENDS
+
+
+def _move_strut_end(config: Configuration, change: ConnectionChange, vertex: str | None
+                    ) -> None:
+    """Rest one end of strut ``change.source`` on ``vertex``, or on a new virtual vertex."""
+    edge = config.disconnect(change.source)
+    at_source = change.source_port == STRUT_ENDS[0]
+    old = edge.source if at_source else edge.target
+    if vertex is None:
+        vertex = free_vertex_name(edge.id, at_source, set(config.vertices()))
+        config.add_virtual(vertex)
+    ports = None
+    if edge.ports is not None or change.target_port is not None:
+        ports = list(edge.ports or ("", ""))
+        ports[0 if at_source else 1] = change.target_port or ""
+    source, target = (vertex, edge.target) if at_source else (edge.source, vertex)
+    config.connect(source, target, id=edge.id, kind=edge.kind, z=edge.z, x=edge.x,
+                   ports=None if ports is None else (ports[0], ports[1]))
+    if config.is_virtual(old) and config.degree(old) == 0:
+        config.remove_module(old)
+
+
+def topology_diff(current: Configuration, target: Configuration,
+                  mapping: ModuleMap | None = None) -> TopologyDiff:
+    """What connections must be made and broken to turn ``current`` into ``target``.
+
+    Args:
+        current: the configuration the step starts from.
+        target: the configuration it reaches.
+        mapping: ids of ``current`` -> ids of ``target`` (a library edge's module map);
+            the same ids on both sides when omitted. With a mapping, ``current`` is
+            first expressed in ``target``'s ids (:meth:`ModuleMap.apply`).
+    """
+    if mapping is not None:
+        current = mapping.apply(current)[0]
+    have, want = _links(current), _links(target)
+    have_keys, want_keys = Counter(k for k, _ in have), Counter(k for k, _ in want)
+    return TopologyDiff(_pick(want, want_keys - have_keys), _pick(have, have_keys - want_keys))
 
 
 def _pick(links: Iterable[tuple[Key, ConnectionChange]], surplus: Counter[Key]
@@ -109,6 +203,7 @@ def _pick(links: Iterable[tuple[Key, ConnectionChange]], surplus: Counter[Key]
 
 
 def _is_flow(current: Configuration, diff: TopologyDiff) -> bool:
+    """One leaf (or one strut end) leaves its module for a neighbour of it (section 4.1)."""
     if len(diff.made) != 1 or len(diff.broken) != 1:
         return False
     made, broken = diff.made[0], diff.broken[0]
@@ -125,9 +220,7 @@ def _is_flow(current: Configuration, diff: TopologyDiff) -> bool:
             and current.graph.to_undirected(as_view=True).has_edge(old_parent, new_parent))
 
 
-def classify(current: Configuration, target: Configuration) -> ActionType:
-    """The action type that takes ``current`` to ``target`` (FreeSN section 4.1)."""
-    diff = topology_diff(current, target)
+def _classify(current: Configuration, diff: TopologyDiff) -> ActionType:
     if not diff:
         return ActionType.MOVING
     if _is_flow(current, diff):
@@ -140,19 +233,40 @@ def classify(current: Configuration, target: Configuration) -> ActionType:
     return ActionType.PARALLEL_CONNECTION
 
 
-def detect_action(current: Configuration, target: Configuration, *, note: str = "") -> Action:
+def classify(current: Configuration, target: Configuration,
+             mapping: ModuleMap | None = None) -> ActionType:
+    """The section 4.1 action type that takes ``current`` to ``target``.
+
+    Args:
+        current: the configuration the step starts from.
+        target: the configuration it reaches.
+        mapping: ids of ``current`` -> ids of ``target``; the same ids when omitted.
+    """
+    if mapping is not None:
+        current = mapping.apply(current)[0]
+    return _classify(current, topology_diff(current, target))
+
+
+def detect_action(current: Configuration, target: Configuration, *,
+                  mapping: ModuleMap | None = None, note: str = "") -> Action:
     """The :class:`Action` that takes ``current`` to ``target``.
 
     ``changes`` lists the connections broken, then those made; ``modules`` every
-    module whose connections change.
+    module whose connections change. With a ``mapping`` (ids of ``current`` -> ids of
+    ``target``) everything is named in ``target``'s ids.
+
+    Raises:
+        PlanningError: the two configurations do not have the same modules.
     """
+    if mapping is not None:
+        current = mapping.apply(current)[0]
     if set(current.modules()) != set(target.modules()):
         raise PlanningError(f"cannot detect an action between {current.name or 'current'} and "
                             f"{target.name or 'target'}: their modules differ")
     diff = topology_diff(current, target)
-    changes = diff.broken + diff.made
+    changes = diff.changes()
     modules = tuple(dict.fromkeys(m for c in changes for m in (c.source, c.target)))
-    return Action(type=classify(current, target), target=target.copy(), modules=modules,
+    return Action(type=_classify(current, diff), target=target.copy(), modules=modules,
                   changes=changes, note=note)
 
 

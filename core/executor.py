@@ -215,22 +215,7 @@ class Executor:
     def _phase_goal(self, phase: Phase, diff: TopologyDiff) -> Configuration:
         """The topology expected at the end of ``phase``."""
         assert self._current is not None
-        goal = self._current.copy()
-        broken = {connection_key(c.source, c.target, c.source_port, c.target_port)
-                  for c in diff.broken}
-        for edge in goal.edges():
-            ports = edge.ports or (None, None)
-            if connection_key(edge.source, edge.target, *ports) in broken:
-                goal.disconnect(edge.id)
-        if phase in (Phase.CONNECT, Phase.FLOW):
-            for c in diff.made:
-                key = connection_key(c.source, c.target, c.source_port, c.target_port)
-                present = {connection_key(e.source, e.target, *(e.ports or (None, None)))
-                           for e in goal.edges()}
-                if key not in present:
-                    ports = None if c.source_port is None else (c.source_port, c.target_port)
-                    goal.connect(c.source, c.target, ports=ports)
-        return goal
+        return diff.applied_to(self._current, made=phase in (Phase.CONNECT, Phase.FLOW))
 
     # -- one tick ---------------------------------------------------------------------
 
@@ -262,7 +247,8 @@ class Executor:
         parts = [self.recognizer.recognize({m: observation.sensors[m] for m in sorted(group)},
                                            seed=self.run.seed)
                  for group in observation.groups]
-        return _union(parts, self.run.plan.start)
+        like = self.run.plan.start
+        return Configuration.union(parts, robot=like.robot, name=like.name)
 
 
     def _detect_changes(self, index: int, configuration: Configuration) -> None:
@@ -279,15 +265,3 @@ class Executor:
                 if not event.expected:
                     raise _ActionFailed(f"action {index}: unexpected {event} detected at "
                                         f"t={event.time:.1f} s")
-
-
-def _union(parts: list[Configuration], like: Configuration) -> Configuration:
-    """The disjoint union of recognized parts, named after ``like``."""
-    whole = Configuration(like.robot, name=like.name)
-    for part in parts:
-        for vertex in part.vertices():
-            whole.add_module(vertex, part.kind_of(vertex), position=part.position(vertex))
-    for part in parts:
-        for e in part.edges():
-            whole.connect(e.source, e.target, kind=e.kind, z=e.z, x=e.x, ports=e.ports)
-    return whole

@@ -7,8 +7,8 @@
 * :mod:`.retrieve` -- match, shortest action path, remap to system ids (6.3, Fig. 15).
 """
 
+from ..mapping import ModuleMap
 from .build import DEFAULT_MERGE_THRESHOLD, build_library, build_steps
-from .mapping import ModuleMap
 from .model import (
     ActionEdge,
     Behavior,
@@ -24,7 +24,6 @@ from .model import (
 from .retrieve import Retrieval, RetrievedStep, retrieve, shortest_path
 from .sources import LibrarySources, load_sources
 from .storage import LIBRARY_SCHEMA_VERSION, LibraryFile, dump_library, load_library, save_library
-from .transitions import TopologyChanges, action_type, topology_changes
 
 __all__ = [
     "DEFAULT_MERGE_THRESHOLD",
@@ -43,9 +42,7 @@ __all__ = [
     "Retrieval",
     "RetrievedStep",
     "SubLibrary",
-    "TopologyChanges",
     "TreeRef",
-    "action_type",
     "build_library",
     "build_steps",
     "dump_library",
@@ -54,5 +51,4 @@ __all__ = [
     "retrieve",
     "save_library",
     "shortest_path",
-    "topology_changes",
 ]

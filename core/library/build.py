@@ -24,11 +24,12 @@ from dataclasses import dataclass
 import networkx as nx
 
 from .. import plugins
+from ..actions import classify, topology_diff
 from ..configuration import Configuration
 from ..errors import ConfigurationError
+from ..mapping import ModuleMap
 from ..plan import ActionType
 from . import engine
-from .mapping import ModuleMap
 from .model import (
     ActionEdge,
     Behavior,
@@ -41,7 +42,6 @@ from .model import (
     TreeRef,
 )
 from .sources import DesignedGroup, LibrarySources, MappingBehaviorSource, RecordedSequence
-from .transitions import action_type
 
 __all__ = ["DEFAULT_MERGE_THRESHOLD", "Progress", "build_library", "build_steps",
            "vectors_on"]
@@ -196,9 +196,14 @@ class _Builder:
         cb = sub.configurations[b.config_id].configuration
         mapping = _modules_only(a.mapping.inverse().then(b.mapping), ca).completed(ca, cb)
         try:
-            action = action_type(ca, cb, mapping)
+            diff = topology_diff(ca, cb, mapping)
+            action = classify(ca, cb, mapping)
         except ConfigurationError as exc:
             raise LibraryError(f"{origin}: {exc.message}") from None
+        if diff.made and diff.broken and action is not ActionType.FLOW:
+            raise LibraryError(f"{origin}: one step both breaks ({len(diff.broken)}) and makes "
+                               f"({len(diff.made)}) connections; a library edge executes in one "
+                               "topology, so record the intermediate configuration between them")
         same = sub.configurations[a.config_id].group == sub.configurations[b.config_id].group
         identity = same and mapping.is_identity()
         if action is ActionType.MOVING and a.config_id == b.config_id and identity:

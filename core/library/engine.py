@@ -21,7 +21,7 @@ from typing import Any
 
 from ..configuration import Configuration
 from ..errors import UnknownNameError
-from .mapping import ModuleMap
+from ..mapping import ModuleMap
 from .model import LibraryError
 from .sources import DesignedTree
 

@@ -25,8 +25,8 @@ import networkx as nx
 
 from ..configuration import Configuration
 from ..errors import ConfigurationError, PlanningError
+from ..mapping import ModuleMap
 from ..plan import ActionType
-from .mapping import ModuleMap
 
 __all__ = [
     "ActionEdge",

@@ -17,11 +17,12 @@ from typing import Any
 import networkx as nx
 
 from .. import plugins
+from ..actions import detect_action
 from ..alignment import rot_z
 from ..configuration import Configuration
-from ..plan import Action, ActionType, ConnectionChange
+from ..mapping import ModuleMap
+from ..plan import Action, ActionType
 from . import engine
-from .mapping import ModuleMap
 from .model import (
     ActionEdge,
     Behavior,
@@ -32,7 +33,6 @@ from .model import (
     SubLibrary,
     TreeRef,
 )
-from .transitions import topology_changes
 
 __all__ = ["Retrieval", "RetrievedStep", "retrieve", "shortest_path"]
 
@@ -98,14 +98,9 @@ class Retrieval:
 
 
 def _action(before: Configuration, step: RetrievedStep) -> Action:
-    changes = topology_changes(before, step.target)
-    made = [(step.target, e) for e, _ in changes.connections if e in step.target.edge_ids()]
-    broken = [(before, e) for e, _ in changes.disconnections]
-    listed = tuple(ConnectionChange(c.edge(e).source, c.edge(e).target, edge_id=e)
-                   for c, e in broken + made)
-    modules = tuple(dict.fromkeys(c.edge_id for c in listed if c.edge_id))
-    return Action(type=step.action, target=step.target, modules=modules, changes=listed,
-                  cost=step.cost, kinematic_tree=step.tree, note=f"library {step.library_id}")
+    action = detect_action(before, step.target, note=f"library {step.library_id}")
+    action.cost, action.kinematic_tree = step.cost, step.tree
+    return action
 
 
 def shortest_path(sub: SubLibrary, start: str, target: str) -> list[str]:
@@ -135,11 +130,8 @@ class _Mapper:
 
     def express(self, config_id: str, to_system: ModuleMap) -> tuple[Configuration, ModuleMap]:
         config = self.sub.configurations[config_id].configuration
-        renamed, used = to_system.apply(config, name=self.sub.configurations[config_id].name
-                                        or config_id)
-        z = {e.id: self.rotation @ e.z for e in renamed.edges() if e.z is not None}
-        turned = renamed.with_vectors(z=z, x={})
-        return turned, used
+        return to_system.apply(config.skeletal(), rotation=self.rotation,
+                               name=self.sub.configurations[config_id].name or config_id)
 
     def tree(self, ref: TreeRef, config: Configuration, to_system: ModuleMap) -> Any:
         return engine.tree_in_ids(self.sub.groups[ref.group].trees[ref.name], to_system, config)

@@ -20,8 +20,8 @@ from pydantic import Field, field_validator
 from ..errors import ConfigurationError
 from ..files import StrictModel, atomic_write_text, parse_model, read_json
 from ..io import ConfigurationFile, configuration_from_model, configuration_to_model
+from ..mapping import ModuleMap
 from ..plan import ActionType
-from .mapping import ModuleMap
 from .model import (
     ActionEdge,
     Behavior,

@@ -7,10 +7,10 @@ import dataclasses
 import pytest
 
 from msrr.core import plugins
+from msrr.core.actions import classify
 from msrr.core.library import (
     LibraryError,
     ModuleMap,
-    action_type,
     build_library,
     build_steps,
     dump_library,
@@ -53,7 +53,7 @@ def test_every_edge_is_the_recorded_legal_action(s6n3):
         before = sub.configurations[edge.source].configuration
         after = sub.configurations[edge.target].configuration
         mapping = edge.module_map(before)
-        assert action_type(before, after, mapping) is edge.action
+        assert classify(before, after, mapping) is edge.action
         assert rules.check_action(before, after) == []
         modules = {m for m in before.modules()}
         mapped = set(mapping.edges) | {v for v in mapping.nodes if not before.is_virtual(v)}

@@ -8,9 +8,9 @@ import networkx as nx
 import pytest
 
 from msrr.core import plugins
+from msrr.core.actions import classify
 from msrr.core.library import (
     RetrievalError,
-    action_type,
     load_library,
     retrieve,
     shortest_path,
@@ -48,7 +48,7 @@ def check_sequence(system, steps):
         assert set(step.target.modules()) == set(system.modules())
         assert rules.check(step.target) == []
         assert rules.check_action(before, step.target) == []
-        assert action_type(before, step.target) is step.action
+        assert classify(before, step.target) is step.action
         tree_topology = step.tree.configuration      # the tree is in system ids too
         moves_in = before if step.action in (ActionType.CONNECTION,
                                              ActionType.PARALLEL_CONNECTION) else step.target
