@@ -207,9 +207,9 @@ def _is_flow(current: Configuration, diff: TopologyDiff) -> bool:
     if len(diff.made) != 1 or len(diff.broken) != 1:
         return False
     made, broken = diff.made[0], diff.broken[0]
-    if made.source_port in STRUT_ENDS and (made.source, made.source_port) == (
-            broken.source, broken.source_port):
-        return True  # a strut end slides from one node to another
+    if _is_strut_end(made) or _is_strut_end(broken):  # the same strut end slides to a node
+        return (_is_strut_end(made) and _is_strut_end(broken)
+                and (made.source, made.source_port) == (broken.source, broken.source_port))
     mover = {made.source, made.target} & {broken.source, broken.target}
     if len(mover) != 1:
         return False

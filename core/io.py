@@ -10,9 +10,9 @@ import json
 import os
 from typing import Annotated, Literal
 
-from pydantic import ConfigDict, Field, field_validator
+from pydantic import ConfigDict, Field, ValidationInfo, field_validator
 
-from .configuration import Configuration
+from .configuration import Configuration, unit
 from .errors import ConfigurationError, DockingRuleError
 from .files import StrictModel, atomic_write_text, parse_model, read_json
 from .robot import Robot
@@ -64,11 +64,12 @@ class ConnectionModel(_Strict):
 
     @field_validator("z", "x")
     @classmethod
-    def _unit(cls, value: list[float] | None) -> list[float] | None:
+    def _unit(cls, value: list[float] | None, info: ValidationInfo) -> list[float] | None:
         if value is not None:
-            norm = sum(c * c for c in value) ** 0.5
-            if abs(norm - 1.0) > 1e-6:
-                raise ValueError(f"must be a unit vector, its norm is {norm:.6g}")
+            try:
+                unit(value, what=str(info.field_name))
+            except ConfigurationError as exc:
+                raise ValueError(exc.message) from None
         return value
 
 

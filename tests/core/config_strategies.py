@@ -87,3 +87,49 @@ def random_map(config: Configuration, seed: int, prefix: str = "m") -> ModuleMap
     return ModuleMap({v: f"{prefix}{order[i]}" for i, v in enumerate(vertices)},
                      {e: (f"{prefix}e{edge_order[i]}", bool(rng.random() < 0.5))
                       for i, e in enumerate(edges)})
+
+
+def rewired(config: Configuration, seed: int, changes: int) -> Configuration:
+    """``config`` with the same modules and up to ``changes`` random topology changes:
+    plain connections removed or added face to face, strut ends moved to another node,
+    to a free end or from a free end onto a node."""
+    rng = np.random.default_rng(seed)
+    out = config.copy()
+    nodes = out.vertices(virtual=False)
+    for k in range(changes):
+        edges = out.edges()
+        struts = [e for e in edges if e.kind is not None]
+        if struts:
+            edge = struts[int(rng.integers(len(struts)))]
+            at_source = bool(rng.random() < 0.5)
+            old = edge.source if at_source else edge.target
+            other = edge.target if at_source else edge.source
+            choices = [n for n in nodes if n != other]
+            if rng.random() < 0.3 or not choices:
+                new = f"free{seed % 1000}-{k}"
+                out.add_virtual(new)
+            else:
+                new = choices[int(rng.integers(len(choices)))]
+            out.disconnect(edge.id)
+            source, target = (new, edge.target) if at_source else (edge.source, new)
+            out.connect(source, target, id=edge.id, kind=edge.kind, z=edge.z, x=edge.x)
+            if out.is_virtual(old) and out.degree(old) == 0:
+                out.remove_module(old)
+        elif edges and rng.random() < 0.5:
+            out.disconnect(edges[int(rng.integers(len(edges)))].id)
+        elif len(nodes) > 1:
+            used = {(e.source, e.ports[0]) for e in edges} | {(e.target, e.ports[1]) for e in edges}
+            u, v = (str(n) for n in rng.choice(nodes, size=2, replace=False))
+            free_u = [f for f in FACES if (u, f) not in used]
+            free_v = [f for f in FACES if (v, f) not in used]
+            if free_u and free_v:
+                out.connect(u, v, ports=(free_u[int(rng.integers(len(free_u)))],
+                                         free_v[int(rng.integers(len(free_v)))]))
+    return out
+
+
+@st.composite
+def configuration_pairs(draw: st.DrawFn) -> tuple[Configuration, Configuration]:
+    """A configuration and a rewired copy of it (same modules, changed topology)."""
+    config = draw(configurations)
+    return config, rewired(config, draw(st.integers(0, 2**32 - 1)), draw(st.integers(0, 4)))
