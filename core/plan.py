@@ -141,7 +141,7 @@ class ActionModel(StrictModel):
 
 
 class PlanFile(StrictModel):
-    """A plan file (``platform plan --json``), accepted by ``platform run --plan``."""
+    """A plan file (``platform plan --json``; read back with :func:`load_plan`)."""
 
     schema_version: int = Field(1, ge=1, le=1)
     robot: str

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
+import networkx as nx
+
+from .configuration import VIRTUAL, Configuration
 from .errors import UnknownNameError
-
-if TYPE_CHECKING:
-    from .configuration import Configuration
 
 __all__ = [
     "DockingRules",
@@ -212,8 +212,6 @@ def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:
     an edge kind; robots with edge kinds need a kind on every edge; every port must
     exist on its module kind; a virtual vertex has exactly one connection.
     """
-    from .configuration import VIRTUAL
-
     found: list[Violation] = []
     vertex_kinds = {k.name for k in spec.kinds_with_role("vertex")}
     edge_kinds = {k.name for k in spec.kinds_with_role("edge")}
@@ -251,8 +249,6 @@ def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:
 
 def tree_violations(config: Configuration) -> list[Violation]:
     """Violations of "the topology is one tree" (connected, no cycle, no parallel edge)."""
-    import networkx as nx
-
     if len(config) == 0:
         return [Violation("modules", "a configuration needs at least one module")]
     found = []

@@ -9,7 +9,12 @@ from msrr.core import plugins
 ROOT = Path(__file__).resolve().parents[1]
 
 
+BUILTIN_ROBOTS = ("freebot", "freesn", "mmrp", "snailbot")
+"""The robots this repository ships; each ships at least one configuration file."""
+
+
 def installed_robots() -> list[str]:
+    """Every installed robot: built-in, the example, and any third-party plugin."""
     return list(plugins.robots())
 
 

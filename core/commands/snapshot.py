@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from ..console import console
+from ..timeline.snapshot import write_snapshot
 
 __all__ = ["command"]
 
@@ -24,7 +25,5 @@ def command(recording: Path, output: Path, title: str) -> None:
     of connections and each module's distance to its goal over simulated time.
     Needs matplotlib (the dev extra).
     """
-    from ..timeline.snapshot import write_snapshot
-
     path = write_snapshot(recording, output, title)
     console.print(f"wrote {path}")

@@ -1,4 +1,8 @@
-"""`platform robots`, `validate`, `show`, `plugins`, `schema`: output and bad input."""
+"""`platform robots`, `validate`, `show`, `plugins`, `schema`, `plan`: output and bad input.
+
+In-process with click's ``CliRunner`` on the tiny robot; one test runs the installed
+console script, because what it prints on an error is the point.
+"""
 
 from __future__ import annotations
 
@@ -9,30 +13,20 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from tiny_robot import chain, installed
 
+from msrr.core import save_configuration
 from msrr.core.cli import get_cli
-
-from msrr_test_support import ROOT, shipped_configurations
-
-MMRP = ROOT / "plugins/mmrp/configs"
 
 
 def run(*args: str):
-    return CliRunner().invoke(get_cli(), list(args), catch_exceptions=False)
+    return CliRunner().invoke(get_cli(), list(args))
 
 
-def test_robots_lists_every_builtin_robot() -> None:
-    result = run("robots")
-    assert result.exit_code == 0
-    for name in ("freesn", "mmrp", "freebot", "snailbot"):
-        assert name in result.output
-
-
-@pytest.mark.parametrize("path", shipped_configurations(), ids=lambda p: p.stem)
-def test_validate_accepts_shipped_files(path: Path) -> None:
-    result = run("validate", str(path))
-    assert result.exit_code == 0, result.output
-    assert "valid" in result.output
+@pytest.fixture
+def tiny(tmp_path: Path):
+    with installed(tmp_path) as plugin:
+        yield plugin
 
 
 def _write(tmp_path: Path, name: str, data) -> Path:
@@ -41,29 +35,45 @@ def _write(tmp_path: Path, name: str, data) -> Path:
     return path
 
 
+def test_robots_lists_every_robot_with_its_capabilities(tiny) -> None:
+    result = run("robots")
+    assert result.exit_code == 0
+    row = next(line for line in result.output.splitlines() if line.startswith("│ tiny"))
+    cells = [c.strip() for c in row.strip("│").split("│")]
+    assert cells == ["tiny", "Tiny test robot", "cube (C)", "tiny_hinge", "line", "points",
+                     "swap"]
+
+
+def test_validate_accepts_a_good_file(tiny, tmp_path: Path) -> None:
+    result = run("validate", str(tmp_path / "start.json"))
+    assert result.exit_code == 0, result.output
+    assert result.output.strip() == f"valid {tmp_path / 'start.json'}: tiny, 3 modules, " \
+                                    "1 connections"
+
+
 def _bad_files(tmp_path: Path) -> dict[str, tuple[Path, str]]:
-    series = json.loads((MMRP / "series.json").read_text())
-    chain = json.loads((ROOT / "plugins/freebot/configs/chain3.json").read_text())
-    chain["connections"].append({"source": "F1", "target": "F3", "z": [0.0, 1.0, 0.0]})
-    tt = dict(series, connections=[{"source": "1", "target": "2", "ports": ["T", "T"]},
-                                   *series["connections"][1:]])
+    good = json.loads((tmp_path / "start.json").read_text())
+    bb = dict(good, connections=[{"source": "a", "target": "b", "ports": ["B", "B"]}])
+    twice = dict(good, connections=[{"source": "a", "target": "b", "ports": ["T", "B"]},
+                                    {"source": "a", "target": "c", "ports": ["T", "B"]}])
     return {
         "missing": (tmp_path / "missing.json", "missing.json: no such file"),
-        "truncated": (_write(tmp_path, "truncated.json", (MMRP / "cross.json").read_text()[:200]),
+        "truncated": (_write(tmp_path, "truncated.json", json.dumps(good)[:40]),
                       "truncated.json: invalid JSON"),
-        "unknown robot": (_write(tmp_path, "tank.json", dict(series, robot="tank")),
+        "unknown robot": (_write(tmp_path, "tank.json", dict(good, robot="tank")),
                           "unknown robot 'tank'"),
-        "T-T faces": (_write(tmp_path, "tt.json", tt), "tt.json: connection 1T-2T: illegal port pair"),
-        "two out-connections": (_write(tmp_path, "two.json", chain),
-                                "two.json: module F1: has 2 out-connections"),
+        "B-B ports": (_write(tmp_path, "bb.json", bb),
+                      "bb.json: connection aB-bB: illegal port pair aB-bB"),
+        "port used twice": (_write(tmp_path, "twice.json", twice),
+                            "twice.json: connection aT-cB: port T of module a is already used"),
     }
 
 
-@pytest.mark.parametrize("case", ["missing", "truncated", "unknown robot", "T-T faces",
-                                  "two out-connections"])
-def test_validate_rejects_bad_files_with_one_line(tmp_path: Path, case: str) -> None:
+@pytest.mark.parametrize("case", ["missing", "truncated", "unknown robot", "B-B ports",
+                                  "port used twice"])
+def test_validate_rejects_bad_files_with_one_line(tiny, tmp_path: Path, case: str) -> None:
     path, message = _bad_files(tmp_path)[case]
-    result = CliRunner().invoke(get_cli(), ["validate", str(path)])
+    result = run("validate", str(path))
     assert result.exit_code == 1
     assert message in result.output
     assert "Traceback" not in result.output
@@ -81,23 +91,44 @@ def test_console_script_prints_no_traceback(tmp_path: Path) -> None:
     assert "Traceback" not in done.stdout + done.stderr
 
 
-def test_show_prints_modules_connections_and_signature() -> None:
-    result = run("show", str(MMRP / "cross.json"))
-    assert result.exit_code == 0
-    assert "signature: M9" in result.output
-    assert "1 → 2" in result.output and "T–B" in result.output
-    assert "valid" in result.output
+def test_show_prints_modules_connections_and_signature(tiny, tmp_path: Path) -> None:
+    result = run("show", str(tmp_path / "start.json"))
+    assert result.exit_code == 0, result.output
+    assert "signature: C3" in result.output
+    assert "a → b" in result.output and "T–B" in result.output
+    assert "valid for Tiny test robot" in result.output
 
 
-def test_plugins_lists_hooks() -> None:
+def test_show_of_an_invalid_file_prints_it_and_says_why(tiny, tmp_path: Path) -> None:
+    config = chain(("a", "b"), ("a", "c"))  # port T of a used twice
+    save_configuration(config, tmp_path / "twice.json")
+    result = run("show", str(tmp_path / "twice.json"))
+    assert result.exit_code == 1
+    assert "a → c" in result.output
+    assert "invalid: connection aT-cB: port T of module a is already used" in result.output
+
+
+def test_plugins_lists_hooks(tiny) -> None:
     result = run("plugins")
     assert result.exit_code == 0
-    assert "msrr_robot" in result.output and "mmrp" in result.output
+    start = result.output.index("tiny-robot")
+    rows = result.output[start:start + 600]
+    assert "msrr_planners" in rows and "msrr_robot" in rows
 
 
 def test_schema_prints_json() -> None:
-    result = run("schema", "configuration")
-    assert json.loads(result.output)["title"] == "ConfigurationFile"
+    assert json.loads(run("schema", "configuration").output)["title"] == "ConfigurationFile"
+    assert json.loads(run("schema", "plan").output)["title"] == "PlanFile"
+
+
+def test_plan_prints_the_actions_and_writes_the_plan(tiny, tmp_path: Path) -> None:
+    out = tmp_path / "plan.json"
+    result = run("plan", "--robot", "tiny", str(tmp_path / "start.json"),
+                 str(tmp_path / "goal.json"), "--json", str(out))
+    assert result.exit_code == 0, result.output
+    assert "Undock │ a" in result.output and "Dock   │ b" in result.output
+    assert "1 undock, 1 dock, 1 move actions" in result.output
+    assert json.loads(out.read_text())["planner"] == "line"
 
 
 def test_every_command_has_help() -> None:
@@ -105,3 +136,40 @@ def test_every_command_has_help() -> None:
     for name in cli.commands:
         result = run(name, "--help")
         assert result.exit_code == 0 and "Usage:" in result.output, name
+
+
+def _options(command) -> set[str]:
+    return {opt for param in command.params for opt in getattr(param, "opts", [])}
+
+
+def test_help_and_docs_name_only_options_that_exist() -> None:
+    """Every ``platform <command> ... --option`` written in --help texts, docs and the
+    README is an option of that command."""
+    cli = get_cli()
+    root = Path(__file__).resolve().parents[2]
+    texts = [p.read_text() for p in [root / "README.md", *sorted((root / "docs").glob("*.md"))]]
+    texts += [CliRunner().invoke(cli, [name, "--help"]).output for name in cli.commands]
+    texts += [(command.help or "") + " ".join(getattr(p, "help", "") or "" for p in command.params)
+              for command in cli.commands.values()]
+    wrong = []
+    for text in texts:
+        for name, rest in _command_lines(text):
+            command = cli.commands[name]
+            while isinstance(command, type(cli)) and rest and rest[0] in command.commands:
+                command, rest = command.commands[rest[0]], rest[1:]
+            known = _options(command) | {"--help", "-h"}
+            wrong += [f"platform {name} {flag}" for flag in rest
+                      if flag.startswith("--") and flag not in known]
+    assert not wrong, wrong
+
+
+def _command_lines(text: str) -> list[tuple[str, list[str]]]:
+    found = []
+    commands = set(get_cli().commands)
+    for part in text.replace("`", "\n").splitlines():
+        words = part.replace("[", " ").replace("]", " ").replace("=", " ").split()
+        for i, word in enumerate(words[:-1]):
+            if word in ("platform", "msrr") and words[i + 1] in commands:
+                found.append((words[i + 1], [w.rstrip(".,;:)") for w in words[i + 2:]]))
+    return found
+

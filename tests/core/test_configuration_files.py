@@ -1,4 +1,5 @@
-"""Configuration files: round trips for random configurations of every robot, and errors."""
+"""Configuration files: round trips for random configurations of every installed robot, and
+errors (on the tiny robot of the tests)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tiny_robot import ROBOT, chain, installed
 
 from msrr.core import (
     ConfigurationError,
@@ -23,8 +25,9 @@ from msrr.core import (
 )
 from msrr.core.io import ConfigurationFile
 from msrr.core.random_configurations import random_configuration
+from msrr.core.robot import tree_violations
 
-from msrr_test_support import ROOT, installed_robots, shipped_configurations
+from msrr_test_support import ROOT, installed_robots
 
 
 def _random(robot: str, seed: int, size: int):
@@ -49,23 +52,11 @@ def test_round_trip_through_json_is_identical(robot: str, seed: int, size: int) 
 @given(robot=st.sampled_from(installed_robots()), seed=st.integers(0, 2**32 - 1),
        size=st.integers(1, 14))
 def test_random_configurations_are_legal(robot: str, seed: int, size: int) -> None:
-    check_configuration(_random(robot, seed, size))
+    check_configuration(_random(robot, seed, size), plugins.resolve(robot))
 
 
-@pytest.mark.parametrize("path", shipped_configurations(), ids=lambda p: p.stem)
-def test_shipped_configurations_validate_and_round_trip(path: Path, tmp_path: Path) -> None:
-    config = load_configuration(path)
-    save_configuration(config, tmp_path / "copy.json")
-    assert load_configuration(tmp_path / "copy.json") == config
-
-
-def test_every_robot_has_a_shipped_configuration(robot_name: str) -> None:
-    robots_with_files = {load_configuration(p, check=False).robot for p in shipped_configurations()}
-    assert robot_name in robots_with_files
-
-
-def _mmrp(**changes) -> dict:
-    data = json.loads((ROOT / "plugins/mmrp/configs/series.json").read_text())
+def _tiny(**changes) -> dict:
+    data = json.loads(dump_configuration(chain(("a", "b"), ("b", "c"), name="abc")))
     data.update(changes)
     return data
 
@@ -73,51 +64,55 @@ def _mmrp(**changes) -> dict:
 @pytest.mark.parametrize(
     ("data", "error", "field", "message"),
     [
-        (_mmrp(robot="nosuchbot"), UnknownRobotError, None, "unknown robot 'nosuchbot'"),
-        (_mmrp(schema_version=2), ConfigurationError, "schema_version", "Input should be 1"),
-        (_mmrp(colour="red"), ConfigurationError, "colour", "Extra inputs"),
-        ({**_mmrp(), "modules": [{"id": "1"}]}, ConfigurationError, "modules[0].kind", "Field required"),
-        ({**_mmrp(), "connections": [{"source": "1", "target": "2", "ports": ["T", "T"]}]},
-         DockingRuleError, "connection 1T-2T", "illegal port pair 1T-2T"),
-        ({**_mmrp(), "connections": [{"source": "1", "target": "2", "ports": ["T", "B"]}]},
-         DockingRuleError, "connections", "3 separate groups"),
-        ({**_mmrp(), "connections": [{"source": "1", "target": "9", "ports": ["T", "B"]}]},
-         ConfigurationError, "connections[0]", "'9' is not a module"),
-        ({**_mmrp(), "connections": [{"source": "1", "target": "2", "ports": ["X", "B"]}]},
-         DockingRuleError, "connection 1X-2B", "no port 'X'"),
+        (_tiny(schema_version=2), ConfigurationError, "schema_version", "Input should be 1"),
+        (_tiny(colour="red"), ConfigurationError, "colour", "Extra inputs"),
+        ({**_tiny(), "modules": [{"id": "a"}]}, ConfigurationError, "modules[0].kind",
+         "Field required"),
+        ({**_tiny(), "connections": [{"source": "a", "target": "b", "ports": ["B", "B"]}]},
+         DockingRuleError, "connection aB-bB", "illegal port pair aB-bB"),
+        ({**_tiny(), "connections": [{"source": "a", "target": "z", "ports": ["T", "B"]}]},
+         ConfigurationError, "connections[0]", "'z' is not a module"),
+        ({**_tiny(), "connections": [{"source": "a", "target": "b", "ports": ["X", "B"]}]},
+         DockingRuleError, "connection aX-bB", "no port 'X'"),
+        ({**_tiny(), "modules": [{"id": "a", "kind": "sphere"}, {"id": "b", "kind": "cube"},
+                                 {"id": "c", "kind": "cube"}]}, DockingRuleError, "module a",
+         "unknown module kind 'sphere'"),
+        ({**_tiny(), "connections": [{"source": "a", "target": "b", "z": [0.0, 0.0, 2.0]}]},
+         ConfigurationError, "connections[0].z", "must be a unit vector"),
+        (_tiny(robot="mmrp"), DockingRuleError, "robot", "is 'mmrp', expected 'tiny'"),
     ],
 )
 def test_invalid_configurations_name_the_field(data, error, field, message) -> None:
     with pytest.raises(error, match=message) as info:
-        check_configuration(parse_configuration(data, "f.json"))
-    if field is not None:
-        assert info.value.field == field
-        assert "\n" not in str(info.value)
+        check_configuration(parse_configuration(data, "f.json"), ROBOT)
+    assert info.value.field == field
+    assert "\n" not in str(info.value)
 
 
-def test_mmrp_loop_is_reported_with_its_modules() -> None:
-    data = _mmrp(connections=[
-        {"source": "1", "target": "2", "ports": ["T", "B"]},
-        {"source": "2", "target": "3", "ports": ["L", "R"]},
-        {"source": "3", "target": "4", "ports": ["B", "T"]},
-        {"source": "4", "target": "1", "ports": ["R", "L"]},
-    ])
-    with pytest.raises(DockingRuleError, match="closed loop"):
-        check_configuration(parse_configuration(data))
+def test_the_installed_robot_is_resolved_at_the_top_layer(tmp_path: Path) -> None:
+    path = tmp_path / "abc.json"
+    save_configuration(chain(("a", "b"), ("b", "c")), path)
+    with pytest.raises(UnknownRobotError, match="unknown robot 'tiny'"):
+        plugins.load_configuration(path)
+    with installed():
+        assert plugins.load_configuration(path) == load_configuration(path, ROBOT)
+        path.write_text(path.read_text().replace('"B"', '"T"', 1))
+        with pytest.raises(DockingRuleError, match=r"abc\.json: connection aT-bB: illegal port "
+                                                       r"pair aT-bT"):
+            plugins.load_configuration(path)
+    assert load_configuration(path).robot == "tiny"  # parsing alone needs no robot
 
 
-def test_freebot_module_with_two_out_connections_is_refused() -> None:
-    data = json.loads((ROOT / "plugins/freebot/configs/chain3.json").read_text())
-    data["connections"].append({"source": "F1", "target": "F3", "z": [0.0, 1.0, 0.0]})
-    with pytest.raises(DockingRuleError, match="module F1: has 2 out-connections"):
-        check_configuration(parse_configuration(data))
-
-
-def test_freesn_strut_needs_a_vector() -> None:
-    data = json.loads((ROOT / "plugins/freesn/configs/triangle-leg.json").read_text())
-    del data["connections"][0]["z"]
-    with pytest.raises(DockingRuleError, match="connection S1: needs a unit z vector"):
-        check_configuration(parse_configuration(data))
+def test_tree_rules_name_the_groups_and_the_loop() -> None:
+    apart = chain(("a", "b"))
+    assert [str(v) for v in tree_violations(apart)] == [
+        "connections: the modules form 2 separate groups (a b; c), expected one tree"]
+    loop = chain(("a", "b"), ("b", "c"))
+    loop.connect("c", "a", ports=("T", "B"))
+    assert [v.message for v in tree_violations(loop)] == [
+        "closed loop a - b - c: the topology must be a tree (make one loop edge a virtual "
+        "connection)"]
+    assert tree_violations(chain(("a", "b"), ("b", "c"))) == []
 
 
 def test_load_errors_name_the_file(tmp_path: Path) -> None:

@@ -1,4 +1,8 @@
-"""The plugin surface itself: loading, isolation of broken plugins, every hookspec."""
+"""The plugin surface itself: loading, isolation of broken plugins, every hookspec.
+
+Every hook is exercised through the tiny robot of ``tiny_robot.py`` (an inline
+plugin registered for the test), never through a built-in robot.
+"""
 
 from __future__ import annotations
 
@@ -7,108 +11,93 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import click
+import numpy as np
 import pytest
+from click.testing import CliRunner
+from tiny_robot import (
+    NAME,
+    SPEC,
+    GoalController,
+    Hinge,
+    LinePlanner,
+    LinkRecognizer,
+    PointDriver,
+    TinyRules,
+    chain,
+    installed,
+    make_run,
+    swap_plan,
+)
 
 from msrr.core import (
-    Configuration,
+    DockingRuleError,
     DockingRules,
-    ModuleKind,
     PluginError,
     RobotSpec,
-    Scenario,
     UnknownNameError,
     UnknownRobotError,
+    check_configuration,
     hookimpl,
     hookspecs,
     plugins,
 )
+from msrr.core.events import ActionStatus, Run, RunResult, Tick, TopologyEvent
+from msrr.core.executor import Executor
+from msrr.core.plan import Action
+from msrr.core.random_configurations import random_configuration
 
 HOOKS = sorted(name for name in dir(hookspecs) if name.startswith("msrr_"))
 TESTS = Path(__file__).resolve().parents[1]
 
-TOY = RobotSpec("toy", "Toy", (ModuleKind("cube", "C", "vertex"),))
+
+@pytest.fixture
+def tiny(tmp_path: Path):
+    with installed(tmp_path) as plugin:
+        yield plugin
 
 
-class ToyPlugin:
-    """An inline plugin that implements every capability hook for robot 'toy'."""
+class Listener:
+    """Records every run event with its payload."""
 
     def __init__(self) -> None:
         self.events: list[tuple] = []
 
     @hookimpl
-    def msrr_robot(self):
-        return TOY
-
-    @hookimpl
-    def msrr_docking_rules(self, robot):
-        if robot == "toy":
-            rules = DockingRules()
-            rules.robot = "toy"
-            return rules
-        return None
-
-    def _register(self, robot, register, *names):
-        if robot == "toy":
-            for name in names:
-                register(SimpleNamespace(name=name, description=name))
-
-    @hookimpl
-    def msrr_kinematic_nodes(self, robot, register):
-        self._register(robot, register, "hinge")
-
-    @hookimpl
-    def msrr_controllers(self, robot, register):
-        self._register(robot, register, "pd")
-
-    @hookimpl
-    def msrr_recognizers(self, robot, register):
-        self._register(robot, register, "camera")
-
-    @hookimpl
-    def msrr_planners(self, robot, register):
-        self._register(robot, register, "greedy", "exact")
-
-    @hookimpl
-    def msrr_drivers(self, robot, register):
-        self._register(robot, register, "sim")
-
-    @hookimpl
-    def msrr_scenarios(self, robot, register):
-        if robot == "toy":
-            register(Scenario("stack", "stack the cubes", Path("a.json"), Path("b.json"), True))
-
-    @hookimpl
-    def msrr_register_commands(self, cli):
-        @cli.command("toy-hello")
-        def hello() -> None:
-            click.echo("hello from toy")
-
-    @hookimpl
-    def msrr_on_run_start(self, run):
+    def msrr_on_run_start(self, run: Run) -> None:
         self.events.append(("start", run))
 
     @hookimpl
-    def msrr_on_tick(self, run, tick):
+    def msrr_on_tick(self, run: Run, tick: Tick) -> None:
         self.events.append(("tick", tick))
 
     @hookimpl
-    def msrr_on_action(self, run, action, status):
+    def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
         self.events.append(("action", action, status))
 
     @hookimpl
-    def msrr_on_topology_change(self, run, change):
+    def msrr_on_topology_change(self, run: Run, change: TopologyEvent) -> None:
         self.events.append(("topology", change))
 
     @hookimpl
-    def msrr_on_run_end(self, run, result):
+    def msrr_on_run_end(self, run: Run, result: RunResult) -> None:
         self.events.append(("end", result))
 
 
-@pytest.fixture
-def toy():
-    plugin = ToyPlugin()
-    with plugins.temporary(plugin, "toy-test-plugin"):
-        yield plugin
+@pytest.fixture(scope="module")
+def run_events() -> tuple[Run, list[tuple]]:
+    """The events of the tiny robot's swap plan (a-b undocked, c moved, b-c docked)."""
+    run = make_run(swap_plan())
+    with PointDriver() as driver, plugins.temporary(Listener()) as listener:
+        driver.reset(run.plan.start)
+        plugins.emit.run_start(run)
+        result = Executor(run, driver, LinkRecognizer(), GoalController()).execute()
+        plugins.emit.run_end(run, result)
+    assert result.success
+    return run, listener.events
+
+
+def _of(events: list[tuple], kind: str) -> list[tuple]:
+    return [e[1:] for e in events if e[0] == kind]
 
 
 def test_plugin_hooks_have_tests() -> None:
@@ -118,95 +107,181 @@ def test_plugin_hooks_have_tests() -> None:
     assert not missing, f"hooks without a test: {missing}"
 
 
-def test_hook_msrr_robot(toy) -> None:
-    assert plugins.robot("toy") is TOY
-    assert {"freesn", "mmrp", "freebot", "snailbot", "toy"} <= set(plugins.robots())
+def test_every_hookspec_says_what_it_receives_and_when_it_is_called() -> None:
+    for name in HOOKS:
+        doc = getattr(hookspecs, name).__doc__ or ""
+        params = re.findall(r":param (\w+):", doc)
+        assert doc.strip(), name
+        assert "alled" in doc or name.startswith("msrr_on_"), f"{name}: say when it is called"
+        expected = list(getattr(hookspecs, name).__code__.co_varnames[
+            :getattr(hookspecs, name).__code__.co_argcount])
+        assert params == expected, f"{name}: documents {params}, takes {expected}"
 
 
-def test_hook_msrr_docking_rules(toy) -> None:
-    assert plugins.docking_rules("toy").robot == "toy"
-    assert type(plugins.docking_rules("mmrp")).__name__ == "MmrpRules"
+def test_hook_msrr_robot(tiny) -> None:
+    assert plugins.robot(NAME) is SPEC and NAME in plugins.robots()
+
+    class Several:
+        @hookimpl
+        def msrr_robot(self):
+            return [RobotSpec("one", "One", ()), RobotSpec("two", "Two", ())]
+
+    with plugins.temporary(Several()), pytest.raises(PluginError, match="returned list"):
+        plugins.robots()
 
 
-def test_hook_msrr_kinematic_nodes(toy) -> None:
-    assert list(plugins.kinematic_nodes("toy")) == ["hinge"]
+def test_hook_msrr_docking_rules(tiny) -> None:
+    assert isinstance(plugins.docking_rules(NAME), TinyRules)
+
+    class RobotOnly:
+        @hookimpl
+        def msrr_robot(self):
+            return RobotSpec("bare", "Bare", SPEC.module_kinds)
+
+    with plugins.temporary(RobotOnly()):
+        assert type(plugins.docking_rules("bare")) is DockingRules  # permissive default
 
 
-def test_hook_msrr_controllers(toy) -> None:
-    assert list(plugins.controllers("toy")) == ["pd"]
+def test_hook_msrr_kinematic_nodes(tiny) -> None:
+    assert plugins.kinematic_nodes(NAME) == {"tiny_hinge": Hinge}
+    assert set(plugins.resolve(NAME).joint_modes) == {"fixed", "tiny_hinge"}
+
+    class NotANode:
+        @hookimpl
+        def msrr_kinematic_nodes(self, robot, register):
+            register(SimpleNamespace(name="wobble"))
+
+    with plugins.temporary(NotANode()), pytest.raises(
+            PluginError, match="msrr_kinematic_nodes: joint mode 'wobble' is not a subclass "
+                               "of KinematicNode"):
+        plugins.kinematic_nodes(NAME)
 
 
-def test_hook_msrr_recognizers(toy) -> None:
-    assert plugins.recognizers.get("toy").name == "camera"
+def test_hook_msrr_controllers(tiny) -> None:
+    assert isinstance(plugins.controllers.get(NAME), GoalController)
 
 
-def test_hook_msrr_planners(toy) -> None:
-    assert plugins.planners.get("toy").name == "greedy"  # the first registered is the default
-    assert plugins.planners.get("toy", "exact").name == "exact"
-    with pytest.raises(UnknownNameError, match=r"unknown planner for robot 'toy' 'astar' \(known: exact, greedy\)"):
-        plugins.planners.get("toy", "astar")
+def test_hook_msrr_recognizers(tiny) -> None:
+    recognizer = plugins.recognizers.get(NAME)
+    assert recognizer.recognize({"a": {"T": ("b", "B")}, "b": {"B": ("a", "T")}}) == chain(
+        ("a", "b"), modules="ab")
 
 
-def test_hook_msrr_drivers(toy) -> None:
-    assert list(plugins.drivers("toy")) == ["sim"]
+def test_hook_msrr_planners(tiny) -> None:
+    class Second:
+        @hookimpl
+        def msrr_planners(self, robot, register):
+            if robot == NAME:
+                planner = LinePlanner()
+                planner.name = "exact"
+                register(planner)
+
+    assert plugins.planners.get(NAME).name == "line"
+    with plugins.temporary(Second()):
+        # the plugin registered last answers first (pluggy's order), so its item leads
+        assert list(plugins.planners(NAME)) == ["exact", "line"]
+        assert plugins.planners.get(NAME).name == "exact"  # the first item is the default
+        assert plugins.planners.get(NAME, "line").name == "line"
+        with pytest.raises(UnknownNameError, match=r"unknown planner for robot 'tiny' 'astar' "
+                                                   r"\(known: exact, line\)"):
+            plugins.planners.get(NAME, "astar")
 
 
-def test_hook_msrr_scenarios(toy) -> None:
-    assert plugins.scenarios("toy")["stack"].default
+def test_items_that_do_not_fit_the_capability_are_refused(tiny) -> None:
+    class Shapeless:
+        @hookimpl
+        def msrr_planners(self, robot, register):
+            register(SimpleNamespace(name="nap", description="no plan method"))
+
+    with plugins.temporary(Shapeless()), pytest.raises(
+            PluginError, match="msrr_planners: planner 'nap' is not Planner"):
+        plugins.planners(NAME)
 
 
-def test_hook_msrr_register_commands(toy) -> None:
-    from click.testing import CliRunner
-
-    from msrr.core.cli import cli
-
-    group = click.Group(commands=dict(cli.commands))
-    plugins.register_commands(group)
-    result = CliRunner().invoke(group, ["toy-hello"])
-    assert result.output == "hello from toy\n"
+def test_hook_msrr_drivers(tiny) -> None:
+    assert plugins.drivers(NAME) == {"points": PointDriver}
+    with plugins.drivers.get(NAME)(gui=False, seed=0) as driver:
+        assert driver.is_connected
 
 
-def test_hook_msrr_on_run_start(toy) -> None:
-    plugins.emit.run_start("run-1")
-    assert toy.events == [("start", "run-1")]
+def test_hook_msrr_scenarios(tiny, tmp_path: Path) -> None:
+    scenario = plugins.scenarios(NAME)["swap"]
+    assert scenario.default and scenario.start == tmp_path / "start.json"
+    assert plugins.load_configuration(scenario.goal) == chain(("b", "c"), name="bc")
 
 
-def test_hook_msrr_on_tick(toy) -> None:
-    plugins.emit.tick("run-1", 7)
-    assert toy.events == [("tick", 7)]
+class _Hello:
+    def __init__(self, word: str):
+        self.word = word
+
+    @hookimpl
+    def msrr_register_commands(self, cli: click.Group) -> None:
+        @cli.command(f"say-{self.word}")
+        def say() -> None:
+            click.echo(f"{self.word} from a plugin")
 
 
-def test_hook_msrr_on_action(toy) -> None:
-    plugins.emit.action("run-1", "dock", "started")
-    assert toy.events == [("action", "dock", "started")]
+def test_hook_msrr_register_commands() -> None:
+    """Historic: plugins registered before and after the CLI is built both add commands."""
+    pm, _ = plugins.create_plugin_manager()
+    plugins.register(_Hello("early"), pm=pm)
+    group = click.Group()
+    plugins.register_commands(group, pm)
+    assert "say-early" in group.commands and "say-late" not in group.commands
+    plugins.register(_Hello("late"), pm=pm)
+    result = CliRunner().invoke(group, ["say-late"])
+    assert result.exit_code == 0 and result.output == "late from a plugin\n"
 
 
-def test_hook_msrr_on_topology_change(toy) -> None:
-    plugins.emit.topology_change("run-1", "1T-2B")
-    assert toy.events == [("topology", "1T-2B")]
+def test_hook_msrr_on_run_start(run_events) -> None:
+    run, events = run_events
+    assert events[0] == ("start", run)
 
 
-def test_hook_msrr_on_run_end(toy) -> None:
-    plugins.emit.run_end("run-1", "ok")
-    assert toy.events == [("end", "ok")]
+def test_hook_msrr_on_tick(run_events) -> None:
+    _, events = run_events
+    ticks = [t for (t,) in _of(events, "tick")]
+    assert ticks and all(isinstance(t, Tick) for t in ticks)
+    assert [t.index for t in ticks] == list(range(len(ticks)))
+    assert ticks[-1].configuration == chain(("b", "c"))
 
 
-def test_unknown_robot_lists_the_known_ones() -> None:
-    with pytest.raises(UnknownRobotError, match=r"unknown robot 'tank' \(known: .*freesn.*mmrp"):
+def test_hook_msrr_on_action(run_events) -> None:
+    run, events = run_events
+    statuses = [(run.plan.actions.index(a), s) for a, s in _of(events, "action")]
+    assert statuses == [(i, s) for i in range(3)
+                        for s in (ActionStatus.STARTED, ActionStatus.SUCCEEDED)]
+
+
+def test_hook_msrr_on_topology_change(run_events) -> None:
+    _, events = run_events
+    changes = [c for (c,) in _of(events, "topology")]
+    assert [(c.kind, str(c.change), c.expected) for c in changes] == [
+        ("undock", "aT-bB", True), ("dock", "bT-cB", True)]
+
+
+def test_hook_msrr_on_run_end(run_events) -> None:
+    _, events = run_events
+    assert events[-1][0] == "end" and isinstance(events[-1][1], RunResult)
+    assert events[-1][1].success and events[-1][1].docks == 1
+
+
+def test_unknown_robot_lists_the_known_ones(tiny) -> None:
+    with pytest.raises(UnknownRobotError, match=r"unknown robot 'tank' \(known: .*tiny"):
         plugins.robot("tank")
     with pytest.raises(UnknownRobotError):
         plugins.planners("tank")
 
 
-def test_duplicate_names_are_refused(toy) -> None:
+def test_duplicate_names_are_refused(tiny) -> None:
     class Twin:
         @hookimpl
         def msrr_planners(self, robot, register):
-            if robot == "toy":
-                register(SimpleNamespace(name="greedy"))
+            if robot == NAME:
+                register(LinePlanner())
 
-    with plugins.temporary(Twin()), pytest.raises(PluginError, match="two planners named 'greedy'"):
-        plugins.planners("toy")
+    with plugins.temporary(Twin()), pytest.raises(PluginError, match="two planners named 'line'"):
+        plugins.planners(NAME)
 
 
 def test_misspelled_hook_is_refused_and_not_left_registered() -> None:
@@ -244,7 +319,7 @@ class _EntryPoint:
 
 
 def test_broken_plugins_are_reported_and_others_still_load(monkeypatch) -> None:
-    good = SimpleNamespace(msrr_robot=hookimpl(lambda: TOY))
+    good = SimpleNamespace(msrr_robot=hookimpl(lambda: SPEC))
 
     class Misspelled:
         @hookimpl
@@ -271,13 +346,25 @@ def test_msrr_load_plugins_restricts_loading(monkeypatch) -> None:
     assert [name for name, _ in pm.list_name_plugin()] == ["b"] and errors == []
 
 
-def test_builtin_robots_load_through_entry_points() -> None:
-    names = {name for name, _ in plugins.get_plugin_manager().list_name_plugin()}
-    assert {"freesn", "mmrp", "freebot", "snailbot"} <= names
+def test_installed_plugins_load_without_errors() -> None:
     assert plugins.load_errors() == []
 
 
 def test_configurations_validate_against_their_robot(robot_name: str) -> None:
-    spec = plugins.robot(robot_name)
-    assert spec.name == robot_name and spec.module_kinds
-    assert isinstance(Configuration(robot_name).signature().label(spec), str)
+    """Random legal configurations of every installed robot pass its own check, and fail
+    against another robot and with a module kind the robot does not have."""
+    robot = plugins.resolve(robot_name)
+    other = plugins.resolve(next(n for n in plugins.robots() if n != robot_name))
+    rng = np.random.default_rng(7)
+    for size in (1, 4, 9):
+        config = random_configuration(robot.spec, robot.rules, size, rng)
+        check_configuration(config, robot)
+        with pytest.raises(DockingRuleError, match=f"is {robot_name!r}, expected "
+                                                   f"{other.name!r}") as info:
+            check_configuration(config, other)
+        assert info.value.field == "robot"
+        alien = config.copy()
+        alien.add_module("x1", "alien")
+        with pytest.raises(DockingRuleError, match="unknown module kind 'alien'") as info:
+            check_configuration(alien, robot)
+        assert info.value.field == "module x1"

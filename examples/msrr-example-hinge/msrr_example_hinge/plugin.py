@@ -14,6 +14,7 @@ from msrr.core import (
     Violation,
     hookimpl,
 )
+from msrr.core.hookspecs import Register
 from msrr.core.robot import port_reuse_violations, tree_violations
 
 CONFIGS = Path(__file__).parent / "configs"
@@ -40,7 +41,8 @@ class HingeRules(DockingRules):
 
     robot = "hinge"
 
-    def ports_compatible(self, source_kind, source_port, target_kind, target_port) -> bool:
+    def ports_compatible(self, source_kind: str, source_port: str | None,
+                         target_kind: str, target_port: str | None) -> bool:
         return {source_port, target_port} == {"head", "tail"}
 
     def check_topology(self, config: Configuration) -> list[Violation]:
@@ -48,17 +50,17 @@ class HingeRules(DockingRules):
 
 
 @hookimpl
-def msrr_robot():
+def msrr_robot() -> RobotSpec | None:
     return SPEC
 
 
 @hookimpl
-def msrr_docking_rules(robot: str):
+def msrr_docking_rules(robot: str) -> DockingRules | None:
     return HingeRules() if robot == SPEC.name else None
 
 
 @hookimpl
-def msrr_scenarios(robot: str, register):
+def msrr_scenarios(robot: str, register: Register[Scenario]) -> None:
     if robot == SPEC.name:
         register(Scenario("reverse", "reverse a chain of three hinges",
                           CONFIGS / "chain3.json", CONFIGS / "chain3-reversed.json"))
