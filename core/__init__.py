@@ -2,7 +2,10 @@
 
 A plugin writes ``from msrr.core import hookimpl`` and implements the hooks of
 :mod:`msrr.core.hookspecs`. Configurations, robot descriptions and errors are
-importable from here directly.
+importable from here directly. The file functions here are those of
+:mod:`msrr.core.io`, which take the :class:`Robot` to check against as an argument;
+:func:`msrr.core.plugins.load_configuration` reads a file and checks it against the
+installed robot it names.
 """
 
 from .configuration import VIRTUAL, Configuration, Edge, Signature, unit
@@ -22,7 +25,7 @@ from .io import (
     parse_configuration,
     save_configuration,
 )
-from .robot import DockingRules, ModuleKind, PortSpec, RobotSpec, Violation
+from .robot import DockingRules, ModuleKind, PortSpec, Robot, RobotSpec, Violation
 from .scenario import Scenario
 
 __all__ = [
@@ -36,6 +39,7 @@ __all__ = [
     "MsrrError",
     "PluginError",
     "PortSpec",
+    "Robot",
     "RobotSpec",
     "Scenario",
     "Signature",

@@ -1,6 +1,9 @@
 """Orchestration of ``platform run``: scenario -> plan -> execute -> files.
 
-Planning happens before anything is written, so an unreachable goal (different
+:func:`prepare_run` loads and checks the two configurations, resolves the robot's
+driver, controller, recognizer and planner once (a :class:`PreparedRun`) and plans;
+:func:`execute_run` runs that on a fresh driver; :func:`write_outputs` writes the
+files. Planning happens before anything is written, so an unreachable goal (different
 module counts, an illegal face pair) fails with a one-line error and leaves no
 folder and no half recording. A run writes into its folder:
 
