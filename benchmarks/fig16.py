@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..configuration import Configuration
-from ..random_configurations import random_unit
+from msrr.core.configuration import Configuration
+from msrr.core.random_configurations import random_unit
 
 __all__ = ["FIG16_TOPOLOGIES", "TopologySpec"]
 

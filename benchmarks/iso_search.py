@@ -1,6 +1,6 @@
 """Isomorphism tree search versus brute-force sorting (FreeSN paper, section 7.1, Fig. 16).
 
-Ten topologies of five node modules and sixteen struts (``msrr.core.matching.fig16``,
+Ten topologies of five node modules and sixteen struts (``benchmarks/fig16.py``,
 48 to 57 600 isomorphisms). For each, random configuration pairs of three kinds:
 
 * isomorphic -- the reference is the system under a random yaw and a random relabelling
@@ -27,11 +27,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from fig16 import FIG16_TOPOLOGIES, TopologySpec
 
 from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.matching import brute_force_isomorphisms, iso_search
-from msrr.core.matching.fig16 import FIG16_TOPOLOGIES, TopologySpec
 
 KINDS = ("isomorphic", "near-random", "full-random")
 NEAR_RMS = np.deg2rad(24.0)

@@ -19,7 +19,8 @@ from ..library import (
     retrieve,
     save_library,
 )
-from ..plugins import load_configuration
+from ..matching import COST_DISTANCE, COST_KINDS
+from ..plugins import load_configuration, resolve
 
 __all__ = ["command"]
 
@@ -34,18 +35,19 @@ def command() -> None:
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path),
               help="Library file to write (atomically).")
 @click.option("--merge-threshold", type=float, default=DEFAULT_MERGE_THRESHOLD, show_default=True,
-              help="Largest IK cost at which two configurations are merged.")
-@click.option("--cost", type=click.Choice(["ik", "distance"]), default=None,
-              help="Motion cost: full-body IK (default when installed) or eq. 8 distance.")
-def build(sources: tuple[Path, ...], output: Path, merge_threshold: float,
-          cost: str | None) -> None:
+              help="Largest motion cost at which two configurations are merged.")
+@click.option("--cost", type=click.Choice(COST_KINDS), default=COST_DISTANCE, show_default=True,
+              help="Motion cost: aligned distance (eq. 8; identical builds on every machine) "
+                   "or full-body IK (eq. 6; reproducible on one BLAS kernel only).")
+def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost: str) -> None:
     """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14)."""
-    inputs = load_sources(sources)
+    inputs = load_sources(sources, resolve)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as bar:
         task = bar.add_task(f"building {inputs.name}", total=build_steps(inputs))
-        library = build_library(inputs, merge_threshold=merge_threshold, cost=cost,
+        library = build_library(inputs, resolve(inputs.robot), merge_threshold=merge_threshold,
+                                cost=cost,
                                 progress=lambda _: bar.advance(task))
     save_library(library, output)
     for sub in library.sublibraries.values():
@@ -99,9 +101,9 @@ def retrieve_command(library: Path, system: Path, target: str | None,
     """Retrieve the cheapest sequence from the system to a target (Fig. 15)."""
     lib = load_library(library)
     config = load_configuration(system)
-    result = retrieve(lib, config, to=target, behavior=behavior)
+    result = retrieve(lib, config, resolve(lib.robot), to=target, behavior=behavior)
     actions = result.actions(config)
-    console.print(f"matched {result.start} of {result.sublibrary} (IK cost "
+    console.print(f"matched {result.start} of {result.sublibrary} ({lib.build.get('cost')} cost "
                   f"{result.match_cost:.4g}); mapping system → library: "
                   + ", ".join(f"{k}→{v}" for k, v in sorted(result.mapping.nodes.items())
                               if not config.is_virtual(k)))

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -10,14 +9,15 @@ import numpy as np
 
 from ..console import console, table
 from ..matching import (
+    CONFIDENCE,
+    COST_KINDS,
     Candidate,
     MatchingError,
     MatchResult,
     RankedMatch,
-    distance_cost,
     match,
 )
-from ..plugins import load_configuration
+from ..plugins import load_configuration, resolve
 
 __all__ = ["command"]
 
@@ -42,28 +42,25 @@ def _summary(result: MatchResult, ranked: RankedMatch, rank: int) -> str:
 @click.argument("references", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("--top", type=int, default=1, show_default=True,
               help="Print the K best mappings.")
-@click.option("--confidence", type=float, default=2.0, show_default=True,
+@click.option("--confidence", type=float, default=CONFIDENCE, show_default=True,
               help="Stop a reference's search when distance > best cost * confidence.")
-@click.option("--time-budget", type=float, default=None, help="Wall-clock limit [s].")
-@click.option("--cost", type=click.Choice(["ik", "distance"]), default=None,
-              help="Motion cost: full-body IK (default when installed) or eq. 8 distance.")
+@click.option("--time-budget", type=float, default=None,
+              help="Stop the search after this long [s] and print the best so far.")
+@click.option("--cost", type=click.Choice(COST_KINDS), default=None,
+              help="Motion cost: full-body IK (eq. 6; the default for robots with joint "
+                   "modes) or aligned distance (eq. 8; the default otherwise).")
 def command(system: Path, references: tuple[Path, ...], top: int, confidence: float,
             time_budget: float | None, cost: str | None) -> None:
     """Match SYSTEM.json against REFERENCE.json files: best reference, cost and mapping."""
     current = load_configuration(system)
     candidates = [Candidate(load_configuration(path), None, str(path)) for path in references]
-    cost_fn = distance_cost if cost == "distance" else None
-    if cost == "ik":
-        from ..matching import ik_cost
-
-        cost_fn = ik_cost
-    result = match(current, candidates, confidence=confidence, time_budget=time_budget,
-                   cost_fn=cost_fn, top=top)
+    result = match(current, candidates, robot=resolve(current.robot), cost=cost,
+                   confidence=confidence, time_budget=time_budget, top=top)
     if result is None:
         raise MatchingError(f"{system}: no reference is isomorphic to this configuration "
                             f"(signature {current.signature().degrees})")
-    if cost is not None:
-        result = replace(result, cost_kind=cost)
+    if result.note:
+        console.print(result.note)
     console.print(f"best match of {system}: {result.candidate.key}")
     for rank, ranked in enumerate(result.ranked, start=1):
         console.print(_summary(result, ranked, rank))

@@ -23,12 +23,13 @@ from dataclasses import dataclass
 
 import networkx as nx
 
-from .. import plugins
 from ..actions import classify, topology_diff
 from ..configuration import Configuration
 from ..errors import ConfigurationError
 from ..mapping import ModuleMap
+from ..matching import COST_DISTANCE, tied
 from ..plan import ActionType
+from ..robot import Robot
 from . import engine
 from .model import (
     ActionEdge,
@@ -105,10 +106,12 @@ def _modules_only(mapping: ModuleMap, source: Configuration) -> ModuleMap:
 class _Builder:
     """State of one build: the library so far and where each named configuration landed."""
 
-    def __init__(self, sources: LibrarySources, threshold: float, cost: str,
+    def __init__(self, sources: LibrarySources, robot: Robot, threshold: float, cost: str,
                  progress: Progress | None):
-        self.spec = plugins.robot(sources.robot)
-        self.cost = engine.check_cost(cost)
+        if robot.name != sources.robot:
+            raise LibraryError(f"the sources are for robot {sources.robot!r}, not {robot.name!r}")
+        self.robot, self.spec, self.modes = robot, robot.spec, robot.joint_modes
+        self.cost = engine.cost_kind(cost)
         self.threshold = threshold
         self.progress = progress or (lambda _: None)
         self.library = Library(sources.robot, sources.name, description=sources.description,
@@ -137,7 +140,7 @@ class _Builder:
         for tree in designed.trees:
             if tree.name in trees:
                 raise LibraryError(f"{where}: duplicate tree name {tree.name!r}")
-            trees[tree.name] = engine.design_tree(reference, tree)
+            trees[tree.name] = engine.design_tree(reference, tree, self.robot)
         sub.groups[gid] = Group(gid, designed.name, reference, trees, designed.description)
         cid = f"{gid}.1"
         sub.configurations[cid] = LibraryConfiguration(
@@ -162,14 +165,14 @@ class _Builder:
         candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
                       for c in sub.configurations.values()
                       if sub.groups[c.group].reference.signature() == signature]
-        outcome = engine.best_match(config, candidates, self.cost) if candidates else None
+        outcome = engine.best_match(config, candidates, self.cost, self.modes) if candidates else None
         if outcome is None:
             raise LibraryError(f"{origin}: configuration {config.name!r} is not isomorphic to "
                                f"any designed group of {sub.name} (groups: "
                                f"{', '.join(sub.groups) or 'none'}); design its group first")
         matched = sub.configurations[outcome.key]
         remapped, mapping = outcome.mapping.apply(config)
-        if outcome.cost <= self.threshold:
+        if outcome.cost <= self.threshold or tied(outcome.cost, self.threshold):
             matched.names = tuple(dict.fromkeys([*matched.names, config.name] if config.name
                                                 else matched.names))
             matched.origins = (*matched.origins, origin)
@@ -213,9 +216,10 @@ class _Builder:
         name = tree_name if tree_name in group.trees else next(iter(group.trees))
         tree = group.trees[name]
         if in_source:
-            cost = engine.motion_cost(self.cost, tree, ca, vectors_on(ca, cb, mapping))
+            cost = engine.edge_cost(self.cost, tree, ca, vectors_on(ca, cb, mapping), self.modes)
         else:
-            cost = engine.motion_cost(self.cost, tree, vectors_on(cb, ca, mapping.inverse()), cb)
+            cost = engine.edge_cost(self.cost, tree, vectors_on(cb, ca, mapping.inverse()), cb,
+                                    self.modes)
         edge = ActionEdge(a.config_id, b.config_id, action, TreeRef(group.id, name),
                           round(max(cost, 0.0), COST_DIGITS), None if identity else mapping)
         key = json.dumps([edge.source, edge.target, edge.action.value, str(edge.tree),
@@ -270,23 +274,27 @@ class _Builder:
             commands=tuple(commands), description=behavior.description)
 
 
-def build_library(sources: LibrarySources, *, merge_threshold: float = DEFAULT_MERGE_THRESHOLD,
-                  cost: str | None = None, progress: Progress | None = None) -> Library:
+def build_library(sources: LibrarySources, robot: Robot, *,
+                  merge_threshold: float = DEFAULT_MERGE_THRESHOLD, cost: str = COST_DISTANCE,
+                  progress: Progress | None = None) -> Library:
     """Build a library from designed groups and recorded sequences (section 6.2, Fig. 14).
 
     Args:
         sources: the inputs, see :func:`~msrr.core.library.sources.load_sources`.
-        merge_threshold: configurations whose inverse-kinematics cost to an existing
-            library configuration is at most this are merged into it.
-        cost: motion cost, ``"ik"`` (eq. 6) or ``"distance"`` (eq. 8); ``"ik"`` when the
-            kinematics is installed by default.
+        robot: the robot the sources describe (joint modes for the trees, module kinds
+            for sub-library names).
+        merge_threshold: configurations whose motion cost to an existing library
+            configuration is at most this (or tied with it) are merged into it.
+        cost: motion cost, ``"distance"`` (eq. 8; byte-identical builds on every
+            machine) or ``"ik"`` (eq. 6; its solver's round-off depends on the BLAS
+            kernel), see :mod:`msrr.core.matching.cost`.
         progress: called once per configuration placed.
 
     Raises:
         LibraryError: a sequence configuration without a designed group, isomorphic
             designed groups, an action that both connects and disconnects, unknown names.
     """
-    builder = _Builder(sources, merge_threshold, cost or engine.available_cost(), progress)
+    builder = _Builder(sources, robot, merge_threshold, cost, progress)
     for group in sources.groups:
         builder.add_group(group)
     for sequence in sources.sequences:

@@ -1,54 +1,45 @@
 """The library's only door to the kinematics and the matcher.
 
 Library creation and retrieval need four things from the rest of the core: a
-kinematic tree for a designed topology, the inverse-kinematics motion cost between
-two configurations of one topology (section 3.4), the configuration matcher
-(Alg. 4) and a tree expressed in another set of ids. They are gathered here so the
-library code stays pure data handling, and so a test can count or replace them.
+kinematic tree for a designed topology, the motion cost between two configurations of
+one topology (section 3.4), the configuration matcher (Alg. 4) and a tree expressed in
+another set of ids. They are gathered here so the library code stays pure data
+handling. The robot's joint modes come in as arguments; nothing here asks the plugin
+host.
 
-Matching and inverse kinematics run with fixed seeds and restart-bounded options
-(no clock decides a result), so building the same sources twice gives the same
-library. The motion cost is the full-body IK cost, or the eq. 8 aligned distance
-where the kinematics is not installed; a library records which one it was built
-with and retrieval matches with the same one.
+The motion cost and its tie rule are :mod:`msrr.core.matching.cost`'s: a fixed seed,
+bounded restarts, no clock, and ties decided by a stated key, so building the same
+sources twice -- on any machine -- gives the same library. A library records the cost
+kind it was built with and retrieval matches with the same one.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from ..configuration import Configuration
-from ..errors import UnknownNameError
+from ..errors import MsrrError, UnknownNameError
+from ..kinematics import KinematicTree, default_tree
 from ..mapping import ModuleMap
+from ..matching import Candidate, MatchingError, check_cost, match, motion_cost
+from ..robot import Robot
 from .model import LibraryError
 from .sources import DesignedTree
 
 __all__ = [
-    "MATCH_CONFIDENCE",
     "MatchOutcome",
     "best_match",
-    "available_cost",
-    "check_cost",
-    "motion_cost",
+    "cost_kind",
     "design_tree",
+    "edge_cost",
     "load_tree",
     "rename_tree",
     "tree_in_ids",
 ]
 
-MATCH_CONFIDENCE = 4.0
-"""Confidence factor sigma of Alg. 4: stop a candidate's search past sigma * best cost."""
-
-COST_IK = "ik"
-COST_DISTANCE = "distance"
-COST_KINDS = (COST_IK, COST_DISTANCE)
-
-IK_SEED = 0
-IK_RESTARTS = 2
-IK_TIME_BUDGET = 120.0
-"""IK solves end on tolerance or restarts, never on this generous clock, so they repeat."""
+Modes = Mapping[str, type]
+"""Joint modes by name (``Robot.joint_modes``)."""
 
 
 @dataclass(frozen=True)
@@ -58,7 +49,7 @@ class MatchOutcome:
     Attributes:
         key: the candidate's key (a library configuration id).
         mapping: system ids -> candidate ids (every vertex and edge).
-        cost: inverse-kinematics cost from the system to the candidate.
+        cost: motion cost from the system to the candidate.
         yaw: yaw [rad] that aligns the candidate with the system.
     """
 
@@ -68,16 +59,14 @@ class MatchOutcome:
     yaw: float = 0.0
 
 
-def design_tree(reference: Configuration, designed: DesignedTree) -> dict:
+def design_tree(reference: Configuration, designed: DesignedTree, robot: Robot) -> dict:
     """The serialised kinematic tree of a designed group tree (Fig. 14(a)).
 
     A designed tree is a serialised tree (checked by loading it on ``reference``) or a
-    joint mode for the default tree of ``reference``.
+    joint mode of ``robot`` for the default tree of ``reference`` (the robot's default
+    joint mode when it names none).
     """
-    from ..kinematics import KinematicTree, default_tree
-
     try:
-        robot = _robot(reference.robot)
         if designed.tree is not None:
             return KinematicTree.from_dict(designed.tree, reference,
                                            modes=robot.joint_modes).to_dict()
@@ -91,36 +80,24 @@ def design_tree(reference: Configuration, designed: DesignedTree) -> dict:
         return default_tree(reference, joint_mode).to_dict()
     except LibraryError:
         raise
-    except Exception as exc:  # the kinematics' own errors name the problem
+    except MsrrError as exc:  # the kinematics' own errors name the problem
         raise LibraryError(f"kinematic tree {designed.name!r}: {exc}") from None
 
 
-def load_tree(tree: dict, config: Configuration) -> Any:
+def load_tree(tree: dict, config: Configuration, modes: Modes) -> KinematicTree:
     """A :class:`~msrr.core.kinematics.KinematicTree` from its serialised form."""
-    from ..kinematics.tree import KinematicTree
-
-    return KinematicTree.from_dict(tree, config, modes=_robot(config.robot).joint_modes)
+    return KinematicTree.from_dict(tree, config, modes=modes)
 
 
-def tree_in_ids(tree: dict, mapping: ModuleMap, config: Configuration) -> Any:
+def tree_in_ids(tree: dict, mapping: ModuleMap, config: Configuration, modes: Modes
+                ) -> KinematicTree:
     """A serialised tree renamed by ``mapping`` and loaded on ``config`` (Fig. 15(c)).
 
     Vertex and edge ids of the stored topology and of every node are renamed; an edge
     mapped with ``inv`` has its ends swapped. Loading checks the renamed topology
     against ``config``.
     """
-    from ..kinematics.tree import KinematicTree
-
-    return KinematicTree.from_dict(rename_tree(tree, mapping), config,
-                                   modes=_robot(config.robot).joint_modes)
-
-
-def _robot(name: str) -> Any:
-    """Transitional: the robot's joint modes from the plugin host, until the library
-    receives its ``Robot`` as an argument (issue 10)."""
-    from ..plugins import resolve
-
-    return resolve(name)
+    return KinematicTree.from_dict(rename_tree(tree, mapping), config, modes=modes)
 
 
 def rename_tree(tree: dict, mapping: ModuleMap) -> dict:
@@ -144,60 +121,38 @@ def rename_tree(tree: dict, mapping: ModuleMap) -> dict:
     return out
 
 
-def available_cost() -> str:
-    """``"ik"`` when the full-body inverse kinematics is installed, else ``"distance"``."""
+def cost_kind(kind: str) -> str:
+    """``kind`` if it names a motion cost, else :class:`LibraryError`."""
     try:
-        from ..kinematics.ik import solve_ik  # noqa: F401
-    except ImportError:
-        return COST_DISTANCE
-    return COST_IK
+        return check_cost(kind)
+    except MatchingError as exc:
+        raise LibraryError(str(exc)) from None
 
 
-def check_cost(kind: str) -> str:
-    if kind not in COST_KINDS:
-        raise LibraryError(f"unknown motion cost {kind!r} (known: {', '.join(COST_KINDS)})")
-    return kind
-
-
-def motion_cost(kind: str, tree: Any, current: Configuration, target: Configuration) -> float:
-    """Motion cost from ``current`` to ``target`` (same ids and topology).
-
-    ``"ik"``: the full-body IK objective (eq. 6) with a fixed seed and a bounded number
-    of restarts; ``"distance"``: the eq. 8 aligned distance, the matcher's stand-in
-    when the kinematics is not installed.
-
-    Args:
-        tree: a :class:`KinematicTree` or its serialised form.
-    """
-    if check_cost(kind) == COST_DISTANCE:
-        from ..matching import distance_cost
-
-        return float(distance_cost(target, None, current))
-    from ..kinematics.ik import IKOptions, solve_ik
-
-    if isinstance(tree, dict):
-        tree = load_tree(tree, target)
-    options = IKOptions(seed=IK_SEED, max_restarts=IK_RESTARTS, time_budget=IK_TIME_BUDGET)
-    return float(solve_ik(tree, current, target, options=options).cost)
+def edge_cost(kind: str, tree: dict, current: Configuration, target: Configuration,
+              modes: Modes) -> float:
+    """Motion cost (:func:`msrr.core.matching.motion_cost`) from ``current`` to ``target``
+    (same ids and topology) with a serialised tree over those ids."""
+    return motion_cost(kind, load_tree(tree, target, modes), current, target)
 
 
 def best_match(system: Configuration, candidates: Sequence[tuple[str, Configuration, dict]],
-               cost: str) -> MatchOutcome | None:
+               cost: str, modes: Modes) -> MatchOutcome | None:
     """The candidate the system matches best (Alg. 4), or ``None`` if none is isomorphic.
+
+    Ties between candidates go to the one listed first (the matcher's tie rule).
 
     Args:
         system: the configuration to match, in its own ids.
         candidates: ``(key, configuration, serialised tree)`` triples.
-        cost: the motion cost kind (see :func:`motion_cost`).
+        cost: the motion cost kind.
+        modes: the robot's joint modes, to load the trees.
     """
-    from ..matching import Candidate, match
-
-    pool = [Candidate(config, load_tree(tree, config), key=key)
+    pool = [Candidate(config, load_tree(tree, config, modes), key)
             for key, config, tree in candidates]
-    result = match(system, pool, confidence=MATCH_CONFIDENCE,
-                   cost_fn=lambda ref, tree, sys: motion_cost(check_cost(cost), tree, sys, ref))
+    result = match(system, pool, cost=cost_kind(cost))
     if result is None:
         return None
     mapping = ModuleMap(dict(result.mapping.nodes), dict(result.mapping.edges))
     return MatchOutcome(str(result.candidate.key), mapping, float(result.cost),
-                        float(getattr(result.mapping, "yaw", 0.0)))
+                        float(result.mapping.yaw))

@@ -12,16 +12,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from itertools import pairwise
-from typing import Any
 
 import networkx as nx
 
-from .. import plugins
 from ..actions import detect_action
 from ..alignment import rot_z
 from ..configuration import Configuration
+from ..kinematics import KinematicTree
 from ..mapping import ModuleMap
+from ..matching import COST_IK
 from ..plan import Action, ActionType
+from ..robot import Robot
 from . import engine
 from .model import (
     ActionEdge,
@@ -52,7 +53,7 @@ class RetrievedStep:
 
     library_id: str
     target: Configuration
-    tree: Any
+    tree: KinematicTree
     tree_ref: TreeRef
     action: ActionType
     cost: float
@@ -124,8 +125,8 @@ def shortest_path(sub: SubLibrary, start: str, target: str) -> list[str]:
 class _Mapper:
     """Expresses library configurations and trees in the system's ids, step by step."""
 
-    def __init__(self, sub: SubLibrary, yaw: float):
-        self.sub = sub
+    def __init__(self, sub: SubLibrary, yaw: float, modes: engine.Modes):
+        self.sub, self.modes = sub, modes
         self.rotation = rot_z(yaw)
 
     def express(self, config_id: str, to_system: ModuleMap) -> tuple[Configuration, ModuleMap]:
@@ -133,8 +134,9 @@ class _Mapper:
         return to_system.apply(config.skeletal(), rotation=self.rotation,
                                name=self.sub.configurations[config_id].name or config_id)
 
-    def tree(self, ref: TreeRef, config: Configuration, to_system: ModuleMap) -> Any:
-        return engine.tree_in_ids(self.sub.groups[ref.group].trees[ref.name], to_system, config)
+    def tree(self, ref: TreeRef, config: Configuration, to_system: ModuleMap) -> KinematicTree:
+        return engine.tree_in_ids(self.sub.groups[ref.group].trees[ref.name], to_system, config,
+                                  self.modes)
 
     def follow(self, path: list[str], to_system: ModuleMap, config: Configuration
                ) -> tuple[list[RetrievedStep], ModuleMap]:
@@ -175,16 +177,18 @@ def _commands(behavior: Behavior, to_system: ModuleMap) -> tuple[CommandGain, ..
 
 def library_cost(library: Library) -> str:
     """The motion cost a library was built with (``build.cost``; IK when not recorded)."""
-    return engine.check_cost(str(library.build.get("cost", engine.COST_IK)))
+    return engine.cost_kind(str(library.build.get("cost", COST_IK)))
 
 
-def retrieve(library: Library, system: Configuration, *, to: str | None = None,
+def retrieve(library: Library, system: Configuration, robot: Robot, *, to: str | None = None,
              behavior: str | None = None) -> Retrieval:
     """The cheapest action sequence from ``system`` to a target, in the system's ids.
 
     Args:
         library: the behavior library.
         system: the current system configuration, in its own ids.
+        robot: the library's robot (module kinds name the sub-library; joint modes load
+            the kinematic trees).
         to: a library configuration id or name.
         behavior: a behavior name; the path leads to its start configuration.
 
@@ -198,7 +202,9 @@ def retrieve(library: Library, system: Configuration, *, to: str | None = None,
     if system.robot != library.robot:
         raise LibraryError(f"the system is a {system.robot} configuration, library "
                            f"{library.name} is for {library.robot}")
-    label = system.signature().label(plugins.robot(system.robot))
+    if robot.name != library.robot:
+        raise LibraryError(f"library {library.name} is for {library.robot}, not {robot.name}")
+    label = system.signature().label(robot.spec)
     sub = library.sublibrary(label)
     chosen: Behavior | None = None
     if behavior is not None:
@@ -214,12 +220,13 @@ def retrieve(library: Library, system: Configuration, *, to: str | None = None,
     candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
                   for c in sub.configurations.values()
                   if sub.groups[c.group].reference.signature() == signature]
-    outcome = engine.best_match(system, candidates, library_cost(library)) if candidates else None
+    outcome = (engine.best_match(system, candidates, library_cost(library), robot.joint_modes)
+               if candidates else None)
     if outcome is None:
         raise RetrievalError(f"the system is not isomorphic to any group of sub-library {label} "
                              f"(groups: {', '.join(f'{g.id} ({g.name})' for g in sub.groups.values())})")
     path = shortest_path(sub, outcome.key, target)
-    mapper = _Mapper(sub, outcome.yaw)
+    mapper = _Mapper(sub, outcome.yaw, robot.joint_modes)
     start_config, to_system = mapper.express(outcome.key, outcome.mapping.inverse())
     group = sub.groups[sub.configurations[outcome.key].group]
     first_tree = TreeRef(group.id, next(iter(group.trees)))

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -28,10 +28,10 @@ from typing import Literal
 from pydantic import Field
 
 from ..configuration import Configuration
-from ..errors import ConfigurationError
+from ..errors import ConfigurationError, MsrrError
 from ..files import StrictModel, parse_model, read_json
 from ..io import ConfigurationFile, check_configuration, configuration_from_model
-from ..plugins import resolve  # TODO(issue 10, library): receive the Robot as an argument
+from ..robot import Robot
 from .model import CommandGain, LibraryError
 
 __all__ = [
@@ -171,14 +171,14 @@ class LibrarySources:
     description: str = ""
 
 
-def _configuration(model: ConfigurationFile, source: str, field: str, robot: str
+def _configuration(model: ConfigurationFile, source: str, field: str, robot: Robot
                    ) -> Configuration:
     try:
         config = configuration_from_model(model)
-        if config.robot != robot:
-            raise ConfigurationError(f"robot is {config.robot!r}, the file is for {robot!r}",
-                                     field="robot")
-        check_configuration(config, resolve(robot))
+        if config.robot != robot.name:
+            raise ConfigurationError(f"robot is {config.robot!r}, the file is for "
+                                     f"{robot.name!r}", field="robot")
+        check_configuration(config, robot)
     except ConfigurationError as exc:
         inner = f".{exc.field}" if exc.field else ""
         raise LibraryError(exc.message, source=source, field=f"{field}{inner}") from None
@@ -199,8 +199,14 @@ def _read(path: Path, robot: str | None) -> tuple[LibrarySourceFile, str]:
     return model, source
 
 
-def load_sources(paths: Iterable[str | os.PathLike[str]]) -> LibrarySources:
+def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str], Robot]
+                 ) -> LibrarySources:
     """Read library source files (designs, sequences, behaviors) in the given order.
+
+    Args:
+        paths: the source files.
+        robots: the :class:`~msrr.core.robot.Robot` of a robot name (the sources name
+            their robot; ``msrr.core.plugins.resolve`` at the top layer).
 
     Raises:
         LibraryError: no file, a bad file, sources for different robots, or a
@@ -209,15 +215,19 @@ def load_sources(paths: Iterable[str | os.PathLike[str]]) -> LibrarySources:
     paths = [Path(p) for p in paths]
     if not paths:
         raise LibraryError("no library source files given")
-    robot: str | None = None
+    robot: Robot | None = None
     name = description = ""
     groups: list[DesignedGroup] = []
     sequences: list[RecordedSequence] = []
     behaviors: list[MappingBehaviorSource] = []
     files = []
     for path in paths:
-        model, source = _read(path, robot)
-        robot = model.robot
+        model, source = _read(path, None if robot is None else robot.name)
+        if robot is None:
+            try:
+                robot = robots(model.robot)
+            except MsrrError as exc:
+                raise LibraryError(str(exc), source=source, field="robot") from None
         name = name or (model.library or "")
         description = description or model.description
         files.append((path.name, hashlib.sha256(path.read_bytes()).hexdigest()))
@@ -250,5 +260,5 @@ def load_sources(paths: Iterable[str | os.PathLike[str]]) -> LibrarySources:
             behaviors.append(MappingBehaviorSource(b.name, b.start, tuple(b.parameters), commands,
                                                    b.description, path.name))
     assert robot is not None
-    return LibrarySources(robot, name or paths[0].stem, tuple(groups), tuple(sequences),
+    return LibrarySources(robot.name, name or paths[0].stem, tuple(groups), tuple(sequences),
                           tuple(behaviors), tuple(files), description)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -164,7 +164,8 @@ class _Search:
 
 
 def iso_search(system: Configuration, reference: Configuration, *, gamma: float = 0.0,
-               deadline: float | None = None) -> Iterator[Mapping]:
+               deadline: float | None = None,
+               clock: Callable[[], float] = time.monotonic) -> Iterator[Mapping]:
     """Isomorphisms from ``system`` onto ``reference`` in ascending distance (Alg. 2).
 
     Non-isomorphic pairs are rejected by signature first (Alg. 2 lines 2-7). The
@@ -175,7 +176,8 @@ def iso_search(system: Configuration, reference: Configuration, *, gamma: float 
         system: the current configuration.
         reference: the configuration to map onto.
         gamma: weight of forward vectors in the distance (0: skeletal, as for FreeSN).
-        deadline: a :func:`time.monotonic` instant after which the search stops.
+        deadline: an instant of ``clock`` after which the search stops.
+        clock: the time source of ``deadline`` (:func:`time.monotonic`).
 
     Yields:
         :class:`Mapping` objects with non-decreasing :attr:`Mapping.distance`.
@@ -191,7 +193,7 @@ def iso_search(system: Configuration, reference: Configuration, *, gamma: float 
     while queue:
         pops += 1
         if deadline is not None and (pops - 1) % DEADLINE_CHECK_EVERY == 0 \
-                and time.monotonic() > deadline:
+                and clock() > deadline:
             return
         key, _, node, mapping = heapq.heappop(queue)
         if mapping is not None:

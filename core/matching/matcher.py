@@ -3,51 +3,45 @@
 Given the system configuration and candidate (reference configuration, kinematic
 tree) pairs -- later the library -- :func:`match` keeps the candidates whose signature
 equals the system's, walks each one's isomorphism tree search in ascending distance,
-evaluates the motion cost of every mapping it sees (by default the full-body IK cost,
-eq. 6) and stops a candidate's search as soon as the next distance exceeds
-``cost_min * confidence`` (Alg. 4 line 5, ``sigma``). A time budget cuts the whole
-search short and still returns the best found so far.
+evaluates the motion cost (:mod:`.cost`) of every mapping it sees and stops a
+candidate's search once the next distance exceeds ``cost_min * sigma`` (Alg. 4 line 5).
+
+Ties never go to round-off. Mappings whose distances are tied (:func:`~.cost.tied`)
+form one batch: the stop test of line 5 is taken once per batch, so every member of a
+batch is evaluated or none is, whatever order the search yields them in. The best
+mapping is the one of least cost; among costs tied with the least, the least distance;
+among those tied again, the candidate given first, then the mapping whose sorted
+``(system id, reference id)`` node pairs and ``(system edge, reference edge, inv)``
+triples compare smallest. A time budget may end the search early; the result then says
+so (``complete`` is false) and is the best found so far.
 """
 
 from __future__ import annotations
 
+import bisect
+import math
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
-
-import numpy as np
 
 from ..configuration import Configuration
-from ..errors import MsrrError
-from .distance import vector_match
+from ..errors import UnknownNameError
+from ..kinematics import KinematicTree, default_tree
+from ..robot import Robot
+from .cost import (
+    CONFIDENCE,
+    COST_DISTANCE,
+    COST_FUNCTIONS,
+    COST_IK,
+    CostFn,
+    MatchingError,
+    check_cost,
+    tied,
+)
 from .iso_search import iso_search
 from .mapping import Mapping
 
-__all__ = [
-    "COST_DISTANCE",
-    "COST_IK",
-    "Candidate",
-    "CostFn",
-    "MatchResult",
-    "MatchingError",
-    "RankedMatch",
-    "distance_cost",
-    "ik_cost",
-    "match",
-]
-
-CostFn = Callable[[Configuration, Any, Configuration], float]
-"""``cost_fn(reference, tree, system_in_reference_ids) -> cost``."""
-
-COST_IK = "ik"
-COST_DISTANCE = "distance"
-
-DEFAULT_CONFIDENCE = 2.0
-
-
-class MatchingError(MsrrError):
-    """Bad arguments to the matcher (a non-positive confidence, budget or top count)."""
+__all__ = ["Candidate", "MatchResult", "RankedMatch", "mapping_key", "match"]
 
 
 @dataclass(frozen=True)
@@ -56,13 +50,13 @@ class Candidate:
 
     Attributes:
         reference: the reference configuration.
-        tree: its kinematic tree; None uses ``default_tree(reference)``.
+        tree: its kinematic tree; None uses the robot's default tree of ``reference``.
         key: anything that identifies the candidate to the caller (a file, a library id).
     """
 
     reference: Configuration
-    tree: Any = None
-    key: Any = None
+    tree: KinematicTree | None = None
+    key: object = None
 
 
 @dataclass(frozen=True)
@@ -72,6 +66,8 @@ class RankedMatch:
     candidate: Candidate
     mapping: Mapping
     cost: float
+    position: int = 0
+    """Index of the candidate in the list given to :func:`match` (the tie rule's key)."""
 
 
 @dataclass(frozen=True)
@@ -82,18 +78,20 @@ class MatchResult:
         candidate: the best candidate (reference configuration and kinematic tree).
         mapping: the best system -> reference module mapping.
         cost: its motion cost.
-        cost_kind: ``"ik"`` (eq. 6 objective of the full-body IK), ``"distance"`` (the
-            eq. 8 aligned distance, used when the kinematics is unavailable) or
-            ``"custom"`` (an injected ``cost_fn``).
+        cost_kind: ``"ik"`` (eq. 6, full-body IK), ``"distance"`` (eq. 8) or
+            ``"custom"`` (an injected cost function).
+        note: why the cost kind is what it is when it was not asked for (a robot
+            without joint modes is matched by distance); empty otherwise.
         ranked: the best evaluated mappings, best first (as many as ``top``).
         evaluated: how many mappings had their cost evaluated.
-        complete: False when the time budget cut the search short.
+        complete: False when the time budget ended the search early.
     """
 
     candidate: Candidate
     mapping: Mapping
     cost: float
     cost_kind: str
+    note: str = ""
     ranked: tuple[RankedMatch, ...] = field(default=())
     evaluated: int = 0
     complete: bool = True
@@ -103,61 +101,92 @@ class MatchResult:
         return self.candidate.reference
 
     @property
-    def tree(self) -> Any:
+    def tree(self) -> KinematicTree | None:
         return self.candidate.tree
 
 
-def distance_cost(reference: Configuration, tree: Any, system: Configuration) -> float:
-    """Eq. 8 aligned distance of ``system`` (in reference ids) to ``reference``."""
-    del tree
-    ids = [e.id for e in reference.edges() if e.z is not None and system.edge(e.id).z is not None]
-    if not ids:
-        return 0.0
-    return vector_match(system.vectors(ids), reference.vectors(ids)).cost
+def mapping_key(mapping: Mapping) -> tuple:
+    """The last key of the tie rule: sorted node pairs, then sorted edge triples."""
+    return (tuple(sorted(mapping.nodes.items())),
+            tuple(sorted((e, f, inv) for e, (f, inv) in mapping.edges.items())))
 
 
-def ik_cost(reference: Configuration, tree: Any, system: Configuration) -> float:
-    """Full-body IK cost (eq. 6) of moving ``system`` (in reference ids) to ``reference``."""
-    from ..kinematics import IKOptions, default_tree, solve_ik
-
-    if tree is None:  # transitional until matching receives its Robot (issue 10)
-        from ..plugins import resolve
-
-        tree = default_tree(reference, resolve(reference.robot).default_joint_mode())
-    return float(solve_ik(tree, system, reference, options=IKOptions(seed=0)).cost)
+def _best(ranked: Sequence[RankedMatch]) -> RankedMatch:
+    """The best of ``ranked`` under the tie rule (module doc)."""
+    least = min(r.cost for r in ranked)
+    by_cost = [r for r in ranked if tied(r.cost, least)]
+    nearest = min(r.mapping.distance for r in by_cost)
+    by_distance = [r for r in by_cost if tied(r.mapping.distance, nearest)]
+    return min(by_distance, key=lambda r: (r.position, mapping_key(r.mapping)))
 
 
-def _default_cost() -> tuple[CostFn, str]:
+def _module_joint(robot: Robot | None) -> type | None:
+    if robot is None:
+        return None
     try:
-        from ..kinematics import default_tree, solve_ik  # noqa: F401
-    except ImportError:
-        return distance_cost, COST_DISTANCE
-    return ik_cost, COST_IK
+        return robot.default_joint_mode()
+    except UnknownNameError:
+        return None
+
+
+def _cost(cost: str | CostFn | None, pool: list[Candidate], robot: Robot | None
+          ) -> tuple[CostFn, str, str, list[Candidate]]:
+    """The cost function, its kind, the note on it and the candidates with their trees."""
+    if callable(cost):
+        return cost, "custom", "", pool
+    joint = _module_joint(robot)
+    have_trees = all(c.tree is not None for c in pool) or joint is not None
+    note = ""
+    if cost is None:
+        if have_trees:
+            kind = COST_IK
+        else:
+            kind = COST_DISTANCE
+            note = (f"robot {robot.name!r} has no joint modes" if robot is not None
+                    else "no kinematic trees given") + ": eq. 8 distance as the motion cost"
+    else:
+        kind = check_cost(cost)
+    if kind == COST_IK:
+        if not have_trees:
+            raise MatchingError("the IK motion cost needs a kinematic tree for every "
+                                "candidate or a robot with a module joint mode")
+        pool = [c if c.tree is not None else Candidate(c.reference,
+                                                       default_tree(c.reference, joint), c.key)
+                for c in pool]
+    return COST_FUNCTIONS[kind], kind, note, pool
 
 
 def match(system: Configuration, candidates: Iterable[Candidate], *,
-          confidence: float = DEFAULT_CONFIDENCE, time_budget: float | None = None,
-          cost_fn: CostFn | None = None, top: int = 1,
-          max_mappings: int | None = None) -> MatchResult | None:
+          robot: Robot | None = None, cost: str | CostFn | None = None,
+          confidence: float = CONFIDENCE, top: int = 1, max_mappings: int | None = None,
+          time_budget: float | None = None,
+          clock: Callable[[], float] = time.monotonic) -> MatchResult | None:
     """Best candidate and module mapping for ``system`` (Alg. 4).
 
     Args:
         system: the current configuration.
-        candidates: reference configurations with kinematic trees.
+        candidates: reference configurations with kinematic trees, in order of
+            preference for ties.
+        robot: the robot; its default joint mode builds the tree of a candidate without
+            one. A robot without module joint modes is matched by distance.
+        cost: ``"ik"`` (eq. 6), ``"distance"`` (eq. 8) or a function
+            ``cost(reference, tree, system_in_reference_ids)``; by default the IK cost
+            when trees are available, else the distance (the result's ``note`` says why).
         confidence: ``sigma`` of Alg. 4: a candidate's search stops when a mapping's
             distance exceeds ``confidence`` times the ``top``-th best cost so far.
-        time_budget: wall-clock limit [s]; the best found so far is returned.
-        cost_fn: ``cost_fn(reference, tree, system_in_reference_ids) -> cost``; the
-            full-body IK cost by default, or the aligned distance when the kinematics is
-            not installed (the result says which in ``cost_kind``).
         top: how many best mappings to keep in :attr:`MatchResult.ranked`.
-        max_mappings: optional cap on mappings evaluated per candidate.
+        max_mappings: a cap on the mappings evaluated per candidate, checked between
+            batches of tied distances.
+        time_budget: stop the search after this long [s] (of ``clock``) and return the
+            best so far with ``complete=False``.
+        clock: the time source of ``time_budget`` (injected by tests).
 
     Returns:
         The best match, or None when no candidate is isomorphic to ``system``.
 
     Raises:
-        MatchingError: a non-positive ``confidence``, ``time_budget`` or ``top``.
+        MatchingError: a non-positive ``confidence``, ``time_budget`` or ``top``, an
+            unknown cost kind, or the IK cost without trees.
     """
     if not confidence > 0:
         raise MatchingError(f"confidence must be positive, got {confidence}")
@@ -165,41 +194,47 @@ def match(system: Configuration, candidates: Iterable[Candidate], *,
         raise MatchingError(f"time budget must be positive, got {time_budget} s")
     if top < 1:
         raise MatchingError(f"top must be at least 1, got {top}")
-    if cost_fn is None:
-        cost_fn, cost_kind = _default_cost()
-    else:
-        cost_kind = "custom"
-    deadline = None if time_budget is None else time.monotonic() + time_budget
     signature = system.signature()
+    pool = list(candidates)
+    cost_fn, cost_kind, note, pool = _cost(cost, pool, robot)
+    deadline = None if time_budget is None else clock() + time_budget
     ranked: list[RankedMatch] = []
-    evaluated, complete = 0, True
+    costs: list[float] = []          # sorted, for the top-th best cost of line 5
+    complete = True
 
     def threshold() -> float:
-        return ranked[top - 1].cost if len(ranked) >= top else np.inf
+        return costs[top - 1] if len(costs) >= top else math.inf
 
-    for candidate in candidates:
+    for position, candidate in enumerate(pool):
         if candidate.reference.robot != system.robot \
                 or candidate.reference.signature() != signature:
             continue
+        batch: float | None = None
         for seen, mapping in enumerate(iso_search(system, candidate.reference,
-                                                   deadline=deadline), start=1):
-            if mapping.distance > threshold() * confidence:
+                                                  deadline=deadline, clock=clock)):
+            if batch is None or not tied(mapping.distance, batch):
+                if max_mappings is not None and seen >= max_mappings:
+                    break
+                limit = confidence * threshold()
+                if mapping.distance > limit and not tied(mapping.distance, limit):
+                    break                                   # Alg. 4 line 5
+                batch = mapping.distance
+            value = float(cost_fn(candidate.reference, candidate.tree,
+                                  mapping.system_in_reference_ids(system)))
+            ranked.append(RankedMatch(candidate, mapping, value, position))
+            bisect.insort(costs, value)
+            if deadline is not None and clock() > deadline:
                 break
-            cost = float(cost_fn(candidate.reference, candidate.tree,
-                                 mapping.system_in_reference_ids(system)))
-            evaluated += 1
-            ranked.append(RankedMatch(candidate, mapping, cost))
-            ranked.sort(key=lambda r: r.cost)
-            del ranked[top:]
-            if deadline is not None and time.monotonic() > deadline:
-                break
-            if max_mappings is not None and seen >= max_mappings:
-                break
-        if deadline is not None and time.monotonic() > deadline:
+        if deadline is not None and clock() > deadline:
             complete = False
             break
     if not ranked:
         return None
-    best = ranked[0]
-    return MatchResult(best.candidate, best.mapping, best.cost, cost_kind, tuple(ranked),
-                       evaluated, complete)
+    best: list[RankedMatch] = []
+    left = list(ranked)
+    while left and len(best) < top:
+        best.append(_best(left))
+        left = [r for r in left if r is not best[-1]]
+    first = best[0]
+    return MatchResult(first.candidate, first.mapping, first.cost, cost_kind, note,
+                       tuple(best), len(ranked), complete)

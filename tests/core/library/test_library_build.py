@@ -20,19 +20,21 @@ from msrr.core.library.sources import RecordedSequence, SequenceStep
 
 from library_helpers import source_files
 
+FREESN = plugins.resolve("freesn")
+
 
 @pytest.fixture(scope="module")
 def sources():
-    return load_sources(source_files("S6N3"))
+    return load_sources(source_files("S6N3"), plugins.resolve)
 
 
 def test_build_is_deterministic(s6n3, sources):
-    assert dump_library(build_library(sources, cost="distance")) == dump_library(s6n3)
+    assert dump_library(build_library(sources, FREESN, cost="distance")) == dump_library(s6n3)
 
 
 def test_progress_is_reported_once_per_configuration(sources):
     seen = []
-    build_library(sources, cost="distance", progress=seen.append)
+    build_library(sources, FREESN, cost="distance", progress=seen.append)
     assert len(seen) == build_steps(sources)
 
 
@@ -69,7 +71,7 @@ def test_close_configurations_are_merged(s6n3, sources):
     assert len(sub.configurations) < placed
     merged = sub.configuration("aim-S6")
     assert len(merged.origins) == 2          # recorded in both directions of Fig. 20
-    (never,) = build_library(sources, cost="distance", merge_threshold=-1.0).sublibraries.values()
+    (never,) = build_library(sources, FREESN, cost="distance", merge_threshold=-1.0).sublibraries.values()
     assert len(never.configurations) == placed
 
 
@@ -84,12 +86,12 @@ def test_mapping_behavior_is_remapped_to_group_ids(s6n3):
 def test_isomorphic_designed_groups_are_refused(sources):
     twice = dataclasses.replace(sources, groups=(*sources.groups, sources.groups[0]))
     with pytest.raises(LibraryError, match="isomorphic to group S6N3-1"):
-        build_library(twice)
+        build_library(twice, FREESN)
 
 
 def test_configuration_without_a_designed_group_is_refused(sources):
     with pytest.raises(LibraryError, match="not isomorphic to any designed group"):
-        build_library(dataclasses.replace(sources, groups=sources.groups[:1]))
+        build_library(dataclasses.replace(sources, groups=sources.groups[:1]), FREESN)
 
 
 def test_connect_and_disconnect_in_one_step_is_refused(sources):
@@ -105,7 +107,7 @@ def test_connect_and_disconnect_in_one_step_is_refused(sources):
     bad = RecordedSequence("bad", (SequenceStep(one_leg), SequenceStep(other_leg)),
                            origin="test.json")
     with pytest.raises(LibraryError, match="test.json:bad.*intermediate configuration"):
-        build_library(dataclasses.replace(sources, sequences=(bad,)))
+        build_library(dataclasses.replace(sources, sequences=(bad,)), FREESN)
 
 
 def test_module_map_of_identity_edge_is_identity(s6n3):

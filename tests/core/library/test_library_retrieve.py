@@ -19,6 +19,8 @@ from msrr.core.plan import ActionType
 
 from library_helpers import LIBRARIES, relabelled
 
+FREESN = plugins.resolve("freesn")
+
 
 @pytest.fixture(scope="module")
 def s6n3():
@@ -59,7 +61,7 @@ def check_sequence(system, steps):
 @pytest.mark.parametrize("seed", [1, 2])
 def test_retrieval_of_fig20_from_a_relabelled_perturbed_copy(s6n3, seed):
     system = system_from(s6n3, "fig20a", seed=seed)
-    result = retrieve(s6n3, system, to="fig20d")
+    result = retrieve(s6n3, system, FREESN, to="fig20d")
     assert result.start == "S6N3-1.1"
     assert result.steps[-1].library_id == s6n3.find_configuration("fig20d")[1].id
     assert len(result.steps) > 1
@@ -69,7 +71,7 @@ def test_retrieval_of_fig20_from_a_relabelled_perturbed_copy(s6n3, seed):
 
 def test_retrieval_back_from_fig20d_uses_disconnections(s6n3):
     system = system_from(s6n3, "fig20d")
-    result = retrieve(s6n3, system, to="fig20a")
+    result = retrieve(s6n3, system, FREESN, to="fig20a")
     check_sequence(system, result.steps)
     assert ActionType.DISCONNECTION in {s.action for s in result.steps}
 
@@ -107,12 +109,12 @@ def test_unreachable_target_names_the_reachable_groups(s12n6):
     system = system_from(s12n6, "fig22a")
     with pytest.raises(RetrievalError, match=r"reachable groups: S12N6-1 \(octahedron\), "
                        r"S12N6-4 \(open-face\), S12N6-5 \(open-face-and-edge\)"):
-        retrieve(s12n6, system, to="fig21a")
+        retrieve(s12n6, system, FREESN, to="fig21a")
 
 
 def test_parallel_reconfiguration_of_fig22(s12n6):
     system = system_from(s12n6, "fig22a", noise=0.02)
-    result = retrieve(s12n6, system, behavior="node-wheels")
+    result = retrieve(s12n6, system, FREESN, behavior="node-wheels")
     check_sequence(system, result.steps)
     assert ActionType.PARALLEL_DISCONNECTION in {s.action for s in result.steps}
     assert {c.module for c in result.commands} <= set(system.modules())
@@ -120,7 +122,7 @@ def test_parallel_reconfiguration_of_fig22(s12n6):
 
 def test_looping_sequence_behavior_comes_back_to_its_start(s4n5):
     system = system_from(s4n5, "star-flat")
-    result = retrieve(s4n5, system, behavior="crawl")
+    result = retrieve(s4n5, system, FREESN, behavior="crawl")
     check_sequence(system, [*result.steps, *result.behavior_steps])
     assert result.behavior_steps[-1].library_id == result.behavior.start
     assert len(result.behavior_steps) == 3
@@ -128,13 +130,13 @@ def test_looping_sequence_behavior_comes_back_to_its_start(s4n5):
 
 def test_system_of_another_topology_is_refused(s4n5):
     with pytest.raises(RetrievalError, match="reachable groups: S4N5-1"):
-        retrieve(s4n5, system_from(s4n5, "star-flat"), to="squirm-up")
+        retrieve(s4n5, system_from(s4n5, "star-flat"), FREESN, to="squirm-up")
 
 
 def test_exactly_one_target(s6n3):
     from msrr.core.library import LibraryError
 
     with pytest.raises(LibraryError, match="exactly one target"):
-        retrieve(s6n3, system_from(s6n3, "fig20a"))
+        retrieve(s6n3, system_from(s6n3, "fig20a"), FREESN)
     with pytest.raises(LibraryError, match="no behavior 'dance'"):
-        retrieve(s6n3, system_from(s6n3, "fig20a"), behavior="dance")
+        retrieve(s6n3, system_from(s6n3, "fig20a"), FREESN, behavior="dance")

@@ -6,7 +6,14 @@ import numpy as np
 
 from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
+from msrr.core.kinematics import FixedNode
 from msrr.core.random_configurations import random_unit
+from msrr.core.robot import ModuleKind, Robot, RobotSpec
+
+BARS = Robot(RobotSpec("bars", "Bars test robot", (ModuleKind("node", "N", "vertex"),
+                                                    ModuleKind("strut", "S", "edge"))),
+             joint_modes={"fixed": FixedNode})
+"""A robot without module joint modes (only ``fixed``): the matcher falls back to distance."""
 
 
 def random_freesn(rng: np.random.Generator, nodes: int, struts: int, free: int) -> Configuration:
