@@ -10,7 +10,8 @@ into the shipped libraries::
     platform library build plugins/freesn/library_sources/S6N3/*.json \
         -o plugins/freesn/libraries/S6N3.json              # and so on per sub-library
 
-Strut length is the FreeSN nominal 0.20 m; every closed loop therefore closes
+Geometry (strut length, wheel radius) is the FreeSN robot spec's
+(``msrr.plugins.freesn.robot``); every closed loop therefore closes
 geometrically. Sequences record the intermediate configurations at topology
 changes (section 6.2): the system first reaches ``S_conn`` (the free connector
 pointing at the node it docks to) and then connects with unchanged vectors; a
@@ -25,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-L = 0.20                 # strut length, node centre to node centre [m]
-R_NODE = 0.05            # node radius [m]
-R_WHEEL = 0.012          # connector wheel radius [m]
+from msrr.plugins.freesn.robot import STRUT
+
+L = STRUT.geometry["length"]               # strut length, node centre to node centre [m]
+R_WHEEL = STRUT.geometry["wheel_radius"]   # connector wheel radius [m]
 UP = np.array([0.0, 0.0, 1.0])
 HERE = Path(__file__).parent
 
