@@ -11,7 +11,13 @@ Environment:
     ``MSRR_TRACE_PLUGINS``: when set, every hook call is traced to stderr.
 
 Core code calls the functions of this module (``robots()``, ``planners(robot)``,
-``emit.run_start(run)``...), never ``pm.hook`` directly.
+``emit.run_start(run)``...), never ``pm.hook`` directly. This is the top of the
+core's import graph: kinematics, matching, library and file code never import it;
+they receive the :class:`~msrr.core.robot.Robot` that :func:`resolve` builds.
+
+The capability lookups are typed facades (:class:`Capability`): ``planners`` is a
+``Capability[Planner]``, so ``planners("mmrp")`` is a ``dict[str, Planner]`` and
+``planners.get("mmrp")`` a :class:`~msrr.core.capabilities.Planner`.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.metadata import entry_points
-from typing import Any, Generic, TypeVar
+from typing import Generic, TypeVar
 
 import click
 import pluggy
@@ -123,7 +129,8 @@ def _load_entry_points(pm: pluggy.PluginManager) -> list[LoadError]:
     return errors
 
 
-def register(plugin: Any, name: str | None = None, pm: pluggy.PluginManager | None = None) -> None:
+def register(plugin: object, name: str | None = None,
+             pm: pluggy.PluginManager | None = None) -> None:
     """Register ``plugin`` and check it against the hookspecs at once.
 
     Raises:

@@ -55,8 +55,8 @@ def print_plan(plan: Plan) -> None:
     for note in plan.notes:
         console.print(f"- {note}", soft_wrap=True)
     if plan.mapping:
-        console.print(table("Mapping (start -> goal)", ["start", "goal"],
-                            sorted(plan.mapping.items(), key=lambda kv: (len(kv[0]), kv[0]))))
+        pairs = sorted(plan.mapping.items(), key=lambda pair: (len(pair[0]), pair[0]))
+        console.print(table("Mapping (start -> goal)", ["start", "goal"], pairs))
     console.print(table(f"Actions ({plan.planner})", ["Action", "ID", "Face", "ID", "Face"],
                         action_rows(plan.actions)))
     console.print(f"{plan.undocks} undock, {plan.docks} dock, "

@@ -37,13 +37,15 @@ class _ProgressListener:
 
 
 def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Table:
-    rows = [["actions", f"{result.actions_done}/{result.actions_total}"],
-            ["docks", f"{result.docks} (planned {planned_docks})"],
-            ["undocks", f"{result.undocks} (planned {planned_undocks})"],
-            ["retries", result.retries],
-            ["simulated time", f"{result.sim_time:.1f} s"],
-            ["wall time", f"{result.wall_time:.1f} s"],
-            ["success", "[green]yes[/green]" if result.success else "[red]no[/red]"]]
+    rows: list[list[object]] = [
+        ["actions", f"{result.actions_done}/{result.actions_total}"],
+        ["docks", f"{result.docks} (planned {planned_docks})"],
+        ["undocks", f"{result.undocks} (planned {planned_undocks})"],
+        ["retries", result.retries],
+        ["simulated time", f"{result.sim_time:.1f} s"],
+        ["wall time", f"{result.wall_time:.1f} s"],
+        ["success", "[green]yes[/green]" if result.success else "[red]no[/red]"],
+    ]
     return table("Run summary", ["", "value"], rows)
 
 

@@ -5,11 +5,14 @@ from __future__ import annotations
 import json
 
 import click
+from pydantic import BaseModel
 
 from ..io import ConfigurationFile
 from ..plan import PlanFile
 
-FORMATS = {"configuration": ConfigurationFile, "plan": PlanFile}
+__all__ = ["FORMATS", "command"]
+
+FORMATS: dict[str, type[BaseModel]] = {"configuration": ConfigurationFile, "plan": PlanFile}
 
 
 @click.command("schema")

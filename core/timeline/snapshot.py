@@ -41,9 +41,9 @@ def _yaw(q: list[float]) -> float:
 
 
 def _latest(rows: list[Row], tick: int) -> Row | None:
-    timed = [r for r in rows if r.tick is not None]
-    i = bisect_right([r.tick for r in timed], tick)
-    return timed[i - 1] if i else None
+    timed = [(r.tick, r) for r in rows if r.tick is not None]
+    i = bisect_right([t for t, _ in timed], tick)
+    return timed[i - 1][1] if i else None
 
 
 @dataclass
