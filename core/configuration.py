@@ -348,8 +348,9 @@ class Configuration:
         nodes = [(rename(v, v) if rename else v, data["kind"], data["position"])
                  for v, data in self.graph.nodes(data=True)]
         new_edges = []
+        adjacency = self.graph._succ  # plain dicts: the views cost a third of a copy
         for edge_id, (source, target) in self._edge_ends.items():
-            data = self.graph.adj[source][target][edge_id]
+            data = adjacency[source][target][edge_id]
             ez = data["z"] if z is None else _optional_unit(z.get(edge_id), f"z of {edge_id}")
             ex = data["x"] if x is None else _optional_unit(x.get(edge_id), f"x of {edge_id}")
             ports = data["ports"]
@@ -383,7 +384,7 @@ class Configuration:
         for part in parts:
             nodes += [(v, d["kind"], d["position"]) for v, d in part.graph.nodes(data=True)]
             for edge_id, (source, target) in part._edge_ends.items():
-                data = part.graph.adj[source][target][edge_id]
+                data = part.graph._succ[source][target][edge_id]
                 if edge_id in taken:
                     edge_id = _fresh_id(source, target, data["ports"], taken)
                 taken.add(edge_id)
@@ -397,15 +398,27 @@ class Configuration:
         """A configuration from checked parts: ``(id, kind, position)`` vertices and
         ``(id, source, target, attributes)`` edges whose vectors are read-only unit arrays."""
         out = cls(robot, name=name, description=description)
-        out.graph.add_nodes_from((v, {"kind": kind, "position": pos}) for v, kind, pos in nodes)
+        # Filled the way MultiDiGraph.add_node/add_edge fill them (networkx >= 3.6), without
+        # their per-call checks: the parts are checked here, and this is the hot path of
+        # every derived configuration.
+        graph = out.graph
+        node, succ, pred = graph._node, graph._succ, graph._pred
+        for vertex, kind, position in nodes:
+            node[vertex] = {"kind": kind, "position": position}
+            succ[vertex], pred[vertex] = {}, {}
         out._edge_ends = {edge_id: (source, target) for edge_id, source, target, _ in edges}
-        if len(out.graph) != len(nodes) or len(out._edge_ends) != len(edges) or (
-                out._edge_ends.keys() & out.graph.nodes.keys()):
+        if len(node) != len(nodes) or len(out._edge_ends) != len(edges) or (
+                out._edge_ends.keys() & node.keys()):
             counts = Counter([v for v, _, _ in nodes] + [e[0] for e in edges])
             raise ConfigurationError(f"duplicate module id(s) "
                                      f"{sorted(k for k, n in counts.items() if n > 1)}")
-        out.graph.add_edges_from((source, target, edge_id, data)
-                                 for edge_id, source, target, data in edges)
+        for edge_id, source, target, data in edges:
+            if source not in node or target not in node:
+                raise ConfigurationError(f"connection {edge_id!r} ends outside the configuration")
+            keyed = succ[source].get(target)
+            if keyed is None:
+                keyed = succ[source][target] = pred[target][source] = {}
+            keyed[edge_id] = data
         return out
 
     def copy(self) -> Configuration:

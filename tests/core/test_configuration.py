@@ -92,3 +92,91 @@ def test_remove_module_removes_its_connections() -> None:
     c.remove_module("N1")
     assert set(c.edge_ids()) == {"S2"}
     assert "S4" not in c.modules()
+
+
+def rebuilt(c: Configuration) -> Configuration:
+    """``c`` built again vertex by vertex and edge by edge (the reference for derive)."""
+    out = Configuration(c.robot, name=c.name, description=c.description)
+    for v in c.vertices():
+        out.add_module(v, c.kind_of(v), position=c.position(v))
+    for e in c.edges():
+        out.connect(e.source, e.target, id=e.id, kind=e.kind, z=e.z, x=e.x, ports=e.ports)
+    return out
+
+
+def shape(c: Configuration) -> tuple:
+    """The networkx adjacency of ``c`` in both directions, with edge keys."""
+    def side(adjacency) -> dict:
+        return {u: {v: list(keys) for v, keys in nbrs.items()} for u, nbrs in adjacency.items()}
+    return dict(c.graph.nodes(data="kind")), side(c.graph.succ), side(c.graph.pred)
+
+
+def test_derive_builds_the_same_graph_as_building_step_by_step() -> None:
+    c = triangle()
+    c.add_module("N4", "node", position=[1.0, 2.0, 3.0])
+    c.connect("N4", "N3", id="S5", kind="strut", z=[0, 1, 0], ports=("p", "q"))
+    d = c.derive(vertices={"N1": "a"}, edges={"S2": "b2"}, reverse=["S5"])
+    reference = rebuilt(d)
+    assert d == reference
+    assert shape(d) == shape(reference)
+    assert list(d.edge_ids()) == ["S1", "b2", "S3", "S4", "S5"]       # order kept
+    assert [e.id for e in d.incident("N3")] == [e.id for e in reference.incident("N3")]
+    assert d.is_connected() and d.signature() == c.signature()
+    d.disconnect("S5")
+    d.remove_module("a")
+    assert shape(d) == shape(rebuilt(d)) and list(d.graph.in_edges("N4")) == []
+    assert c == rebuilt(c) and "S5" in c.edge_ids()                  # the original is untouched
+
+
+def test_derive_turns_renames_replaces_and_rotates_in_that_order() -> None:
+    c = triangle()
+    quarter = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    d = c.derive(vertices={"N1": "a", "N2": "b"}, edges={"S1": "T"}, reverse=["S1"],
+                 z={"S1": [0, 1, 0]}, rotation=quarter, name="turned")
+    edge = d.edge("T")
+    assert (edge.source, edge.target, d.name) == ("b", "a", "turned")
+    np.testing.assert_allclose(edge.z, [1, 0, 0], atol=1e-15)        # quarter @ -[0, 1, 0]
+    np.testing.assert_allclose(edge.x, [0, 0, 1], atol=1e-15)        # x is kept, then rotated
+    assert d.edge("S2").z is None                                     # missing from z: None
+    assert c.with_vectors(x={}) == c.skeletal() == c.derive(x={})
+    assert c.relabel({"N1": "a"}) == c.derive(vertices={"N1": "a"})
+
+
+def test_vectors_are_shared_read_only() -> None:
+    c = triangle()
+    d = c.copy()
+    assert d.edge("S1").z is c.edge("S1").z
+    with pytest.raises(ValueError, match="read-only"):
+        d.edge("S1").z[0] = 2.0
+    given = np.array([0.0, 0.0, 1.0])
+    c.connect("N2", "v1", id="S6", kind="strut", z=given)
+    given[2] = 5.0                                        # the caller's array stays theirs
+    np.testing.assert_array_equal(c.edge("S6").z, [0, 0, 1])
+
+
+@pytest.mark.parametrize(
+    ("derive", "message"),
+    [
+        (lambda c: c.derive(vertices={"N1": "N2"}), "duplicate module id.*'N2'"),
+        (lambda c: c.derive(edges={"S1": "N1"}), "duplicate module id.*'N1'"),
+        (lambda c: c.derive(reverse=["S9"]), "unknown connection.*'S9'"),
+        (lambda c: c.derive(z={"S1": [2, 0, 0]}), "z of S1 must be a unit vector"),
+    ],
+)
+def test_bad_derivations_raise_clear_errors(derive, message: str) -> None:
+    with pytest.raises(ConfigurationError, match=message):
+        derive(triangle())
+
+
+def test_union_of_disjoint_parts_keeps_ids_unless_taken() -> None:
+    a = Configuration("mmrp")
+    a.add_module("1", "mmrp")
+    a.add_module("2", "mmrp")
+    a.connect("1", "2", id="e", ports=("T", "B"))
+    b = a.relabel({"1": "3", "2": "4"})
+    whole = Configuration.union([a, b], robot="mmrp", name="two")
+    assert whole.name == "two" and sorted(whole.vertices()) == ["1", "2", "3", "4"]
+    assert whole.edge("e").source == "1" and whole.edge("3T-4B").source == "3"
+    assert not whole.is_connected()
+    with pytest.raises(ConfigurationError, match="duplicate module id"):
+        Configuration.union([a, a], robot="mmrp")
