@@ -7,6 +7,7 @@ console script, because what it prints on an error is the point.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -80,14 +81,26 @@ def test_validate_rejects_bad_files_with_one_line(tiny, tmp_path: Path, case: st
     assert len([line for line in result.output.splitlines() if line.strip()]) == 1
 
 
+HEAVY = {"rerun", "pybullet", "mujoco", "matplotlib"}
+
+
 def test_console_script_prints_no_traceback(tmp_path: Path) -> None:
+    """The installed script turns an error into one line, and starts without the heavy
+    simulation and plotting packages (imported only by the commands that use them)."""
     exe = Path(sys.executable).parent / "platform"
     assert exe.exists(), "the platform console script is not installed"
     bad = _write(tmp_path, "bad.json", "{")
-    done = subprocess.run([exe, "show", str(bad)], capture_output=True, text=True, timeout=120)
+    env = {**os.environ, "PYTHONPROFILEIMPORTTIME": "1"}
+    done = subprocess.run([exe, "show", str(bad)], capture_output=True, text=True, timeout=120,
+                          env=env)
     assert done.returncode == 1
-    assert done.stderr.strip().splitlines() == [f"Error: {bad}: invalid JSON at line 1 column 2: "
-                                                "Expecting property name enclosed in double quotes"]
+    lines = done.stderr.strip().splitlines()
+    imported = {line.rsplit("|", 1)[-1].strip().split(".")[0] for line in lines
+                if line.startswith("import time:")}
+    assert "msrr" in imported and not imported & HEAVY, imported & HEAVY
+    assert [line for line in lines if not line.startswith("import time:")] == [
+        f"Error: {bad}: invalid JSON at line 1 column 2: "
+        "Expecting property name enclosed in double quotes"]
     assert "Traceback" not in done.stdout + done.stderr
 
 
