@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
 from msrr.core import plugins
+from msrr.core.cli import get_cli
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import KinematicTree, default_tree, forward
 from msrr.core.kinematics.rotations import skew
@@ -186,3 +188,11 @@ def test_default_tree_of_a_freebot_file_moves_the_chain():
     assert forward(tree, config, np.zeros(tree.dim)).configuration == config
     moved = forward(tree, config, np.array([0.3, 0.0, 0.0, -0.2])).configuration
     assert moved != config and moved.is_connected()
+
+
+def test_platform_match_uses_the_rolling_contact_joint():
+    system = str(CHAIN3)
+    result = CliRunner().invoke(get_cli(), ["match", system, system])
+    assert result.exit_code == 0, result.output
+    assert f"best match of {system}: {system}" in result.output
+    assert "(ik)" in result.output

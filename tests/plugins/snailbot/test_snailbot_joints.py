@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
 from msrr.core import plugins
+from msrr.core.cli import get_cli
 from msrr.core.configuration import Configuration
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import default_tree, forward
@@ -134,3 +136,12 @@ def test_default_tree_of_a_snailbot_file():
     tree = default_tree(config, robot.default_joint_mode())
     assert tree.dim == 3
     assert forward(tree, config, np.zeros(3)).configuration == config
+
+
+def test_platform_match_uses_the_spherical_joint():
+    folder = ROOT / "plugins" / "snailbot" / "configs"
+    system, other = str(folder / "chain5.json"), str(folder / "tree5.json")
+    result = CliRunner().invoke(get_cli(), ["match", system, other, system])
+    assert result.exit_code == 0, result.output
+    assert f"best match of {system}: {system}" in result.output
+    assert "(ik)" in result.output
