@@ -40,7 +40,8 @@ class IKTracker:
         options: solver options; ``time_budget`` (if set) cuts the initial phase and
             each exploration run short, ``seed`` seeds both the solver and the explorer.
         tick_budget: time limit of one tracking step [s] (a control tick cannot wait;
-            a step cut short says so in its ``reason``).
+            a step cut short says so in its ``reason``); ``None``: bounded by
+            ``options.max_iterations`` only.
         explore: run the exploration thread (``False``: deterministic tracking only).
         explore_pause: pause between two exploration runs [s], to leave the cores to
             the control loop.
@@ -49,7 +50,7 @@ class IKTracker:
     """
 
     def __init__(self, tree: KinematicTree, target: Configuration,
-                 options: IKOptions | None = None, *, tick_budget: float = 0.05,
+                 options: IKOptions | None = None, *, tick_budget: float | None = 0.05,
                  explore: bool = True, explore_pause: float = 0.0):
         self.tree = tree
         self.options = options or IKOptions()
@@ -66,6 +67,8 @@ class IKTracker:
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._thread: threading.Thread | None = None
+        seed = None if self.options.seed is None else self.options.seed + 1
+        self._rng = np.random.default_rng(seed)
         _layout(tree)  # built once here, shared read-only by both threads
 
     # -- the control loop's side --------------------------------------------------------
@@ -73,6 +76,12 @@ class IKTracker:
     @property
     def target(self) -> Configuration:
         return self._target
+
+    @property
+    def offer(self) -> tuple[np.ndarray, float] | None:
+        """The exploration's pending ``(sigma, yaw)`` for the next step, if any."""
+        with self._lock:
+            return self._offer
 
     def set_target(self, target: Configuration) -> None:
         """Track a new target; the warm start is kept, the exploration offer dropped."""
@@ -122,33 +131,40 @@ class IKTracker:
             self._thread.start()
 
     def _explore(self) -> None:
-        seed = None if self.options.seed is None else self.options.seed + 1
-        rng = np.random.default_rng(seed)
+        while not self._stop.is_set():
+            if not self.explore_once():
+                self._wake.wait(0.1)
+                self._wake.clear()
+                continue
+            if self.explore_pause:
+                self._stop.wait(self.explore_pause)
+
+    def explore_once(self) -> bool:
+        """One exploration run (what the thread repeats): a start sampled from the joint
+        bounds, optimised on the latest configuration; offered to the next tracking step
+        if it beats the tracked solution and any earlier offer. ``False`` before the
+        first :meth:`step`."""
+        with self._lock:
+            snapshot = self._snapshot
+        if snapshot is None:
+            return False
+        current, target = snapshot
+        problem = IKProblem(self.tree, current, target, self.options)
         lo, hi = self.tree.bounds
         lo = np.where(np.isfinite(lo), lo, -np.pi)
         hi = np.where(np.isfinite(hi), hi, np.pi)
         scale = self.options.sample_scale
-        while not self._stop.is_set():
-            with self._lock:
-                snapshot = self._snapshot
-            if snapshot is None:
-                self._wake.wait(0.1)
-                self._wake.clear()
-                continue
-            current, target = snapshot
-            problem = IKProblem(self.tree, current, target, self.options)
-            start = 0.5 * (lo + hi) + scale * (rng.random(self.tree.dim) - 0.5) * (hi - lo)
-            budget = self.options.time_budget
-            deadline = None if budget is None else time.perf_counter() + budget
-            sigma, yaw, _ = problem.local_solve(start, problem.yaw_estimate(start), deadline)
-            cost = problem.evaluate(sigma, yaw)[0]
-            last = self.last
-            reference = problem.evaluate(last.sigma, last.yaw)[0] if last is not None else np.inf
-            with self._lock:
-                if self._snapshot is snapshot and cost < min(reference, self._offer_cost):
-                    self._offer, self._offer_cost = (sigma, yaw), cost
-            if self.explore_pause:
-                self._stop.wait(self.explore_pause)
+        start = 0.5 * (lo + hi) + scale * (self._rng.random(self.tree.dim) - 0.5) * (hi - lo)
+        budget = self.options.time_budget
+        deadline = None if budget is None else time.perf_counter() + budget
+        sigma, yaw, _ = problem.local_solve(start, problem.yaw_estimate(start), deadline)
+        cost = problem.evaluate(sigma, yaw)[0]
+        last = self.last
+        reference = problem.evaluate(last.sigma, last.yaw)[0] if last is not None else np.inf
+        with self._lock:
+            if self._snapshot is snapshot and cost < min(reference, self._offer_cost):
+                self._offer, self._offer_cost = (sigma, yaw), cost
+        return True
 
     def close(self) -> None:
         """Stop the exploration thread (waits for its current run to end)."""

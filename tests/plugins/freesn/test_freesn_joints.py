@@ -2,12 +2,27 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from msrr.core import plugins
-from msrr.core.kinematics import FixedNode, KinematicNode, KinematicTreeError
+from msrr.core import Configuration, plugins
+from msrr.core.io import load_configuration
+from msrr.core.kinematics import (
+    Evaluator,
+    FixedNode,
+    IKOptions,
+    KinematicNode,
+    KinematicTree,
+    KinematicTreeError,
+    default_tree,
+    forward,
+    solve_ik,
+    tree_vectors,
+)
 from msrr.core.kinematics.rotations import rodrigues, rotation_between
+from msrr.core.random_configurations import random_configuration
 from msrr.plugins.freesn.joints import (
     JOINT_MODES,
     DifferentialSphericalJoint,
@@ -176,3 +191,71 @@ def test_a_module_joint_has_one_edge_and_one_vertex(edges, vertices):
 def test_unknown_parameters_are_refused_listing_the_known_ones():
     with pytest.raises(KinematicTreeError, match="known: alpha, bound, steer_epsilon"):
         OppositeSteeringJoint(["S1"], ["N2"], gamma=1.0)
+
+
+# -- FreeSN joints in trees: default tree, reverse-mode gradient, IK ------------------------------
+
+FREESN = plugins.resolve("freesn")
+TRIANGLE_LEG = Path(__file__).resolve().parents[3] / "plugins/freesn/configs/triangle-leg.json"
+
+
+def random_freesn(n_edges: int, seed: int, free: int = 0) -> Configuration:
+    rng = np.random.default_rng(seed)
+    return random_configuration(FREESN.spec, FREESN.rules, n_edges + 1 - free, rng,
+                                free_connectors=free)
+
+
+def tree_gradient_error(tree: KinematicTree, config: Configuration, seed: int) -> float:
+    """Relative error of the reverse-mode FK gradient of a random linear loss of Z, X, C
+    against central differences."""
+    rng = np.random.default_rng(seed)
+    z0, x0, _ = tree_vectors(tree, config)
+    ev = Evaluator(tree, z0, x0)
+    n = len(tree.edges)
+    gz, gx, gc = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=n)
+    sigma = rng.normal(size=tree.dim) * 0.6
+
+    def loss(s: np.ndarray) -> float:
+        state = ev.evaluate(s)
+        return float(np.sum(state.z * gz) + np.sum(state.x * gx) + state.cost @ gc)
+
+    analytic = ev.gradient(ev.evaluate(sigma, derivatives=True), gz, gx, gc)
+    h = 1e-6
+    numeric = np.array([(loss(sigma + h * e) - loss(sigma - h * e)) / (2 * h)
+                        for e in np.eye(tree.dim)])
+    return float(np.linalg.norm(analytic - numeric) / max(np.linalg.norm(numeric), 1e-12))
+
+
+def test_the_default_tree_uses_the_default_mode_and_holds_the_triangle_rigid():
+    config = load_configuration(TRIANGLE_LEG)
+    tree = default_tree(config, FREESN.default_joint_mode())
+    assert tree.root.edges == ("S1", "S2", "S3") and tree.root.vertices == ("N1", "N2", "N3")
+    assert type(tree.nodes[1]) is OppositeSteeringJoint and tree.dim == 3
+    assert KinematicTree.from_dict(tree.to_dict(), config, modes=FREESN.joint_modes) == tree
+
+
+@pytest.mark.parametrize("mode", [m for m in JOINT_MODES if m.family == "module_joint"],
+                         ids=lambda m: m.name)
+def test_reverse_mode_gradient_of_freesn_trees_matches_central_differences(mode):
+    for seed in range(3):
+        config = random_freesn(9, seed, free=1)
+        assert tree_gradient_error(default_tree(config, mode), config, seed) < 1e-6
+
+
+def test_reverse_mode_gradient_through_a_parallel_strut():
+    config = load_configuration(TRIANGLE_LEG)
+    tree = KinematicTree(config, [FixedNode(["S1"], ["N1", "N2"]),
+                                  ParallelStrutNode(["S2", "S3"], ["N3"]),
+                                  OppositeSteeringJoint(["S4"], ["v1"])])
+    for seed in range(3):
+        assert tree_gradient_error(tree, config, seed) < 1e-6
+
+
+def test_ik_recovers_a_freesn_configuration_moved_by_its_default_joints():
+    for seed in range(5):
+        config = random_freesn(12, seed, free=2)
+        tree = default_tree(config, FREESN.default_joint_mode())
+        sigma = np.random.default_rng(seed).normal(size=tree.dim) * 0.3
+        target = forward(tree, config, sigma).configuration
+        sol = solve_ik(tree, config, target, IKOptions(seed=seed))
+        assert sol.success and sol.reason == "tolerance"
