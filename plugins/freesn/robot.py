@@ -23,6 +23,10 @@ STRUT = ModuleKind(
         "wheel_radius": 0.012,   # connector wheel radius [m]
         "wheel_base": 0.03,      # distance between a connector's two wheels [m]
         "max_wheel_speed": 6.0,  # [rad/s]
+        "max_torque": 2.0,       # connector drive torque about the node centre, hardware [N m]
+        "connection_strength": 40.0,  # magnetic pull-off force of a connector, hardware [N]
+        "dock_tolerance": 0.02,  # extended magnet: strut end to node centre offset that docks [m]
+        "connector_mass": 0.03,  # magnet array, wheels and motors of one connector [kg]
     },
     description="two magnetic differential-drive connectors, one at each end",
 )

@@ -1,0 +1,74 @@
+"""The joint names of a FreeSN strut's :class:`~msrr.core.driver.ModuleCommand`.
+
+A strut module has two connectors, ``a`` (the source end of its connection) and
+``b``. Each takes, like the hardware's low-level controller (FreeSN paper, section
+4.2, Fig. 11b), a target connection vector in the horizontal frame of the node it is
+docked to -- the unit vector from the node centre to the strut end -- as the joints
+``"<end>.dir_x"``, ``"<end>.dir_y"``, ``"<end>.dir_z"``, and optionally the strut's
+forward vector in the same frame (``"<end>.fwd_x"``...) which sets the rotation of
+the strut about its axis. ``dock=("b",)`` extends end ``b``'s magnet array until it
+docks, ``undock=("a",)`` retracts end ``a``'s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from msrr.core.driver import ModuleCommand
+from msrr.core.errors import ExecutionError
+
+__all__ = ["ENDS", "ConnectorTarget", "connector_joints", "parse_command"]
+
+ENDS = ("a", "b")
+_AXES = ("x", "y", "z")
+
+
+def connector_joints(end: str, direction: np.ndarray, forward: np.ndarray | None = None
+                     ) -> dict[str, float]:
+    """The joint entries that command connector ``end`` toward ``direction`` (unit, (3,))."""
+    joints = {f"{end}.dir_{a}": float(c) for a, c in zip(_AXES, direction, strict=True)}
+    if forward is not None:
+        joints.update({f"{end}.fwd_{a}": float(c) for a, c in zip(_AXES, forward, strict=True)})
+    return joints
+
+
+ConnectorTarget = tuple[np.ndarray, np.ndarray | None]
+"""A connector's target: connection vector and optional forward vector, node horizontal frame."""
+
+
+def parse_command(strut: str, command: ModuleCommand) -> dict[str, ConnectorTarget]:
+    """The connector targets in ``command``, by end; vectors normalised.
+
+    Raises:
+        ExecutionError: an unknown joint or port name, or a partial or zero vector.
+    """
+    targets: dict[str, ConnectorTarget] = {}
+    known = {f"{e}.{k}_{a}" for e in ENDS for k in ("dir", "fwd") for a in _AXES}
+    unknown = set(command.joints) - known
+    if unknown:
+        raise ExecutionError(f"strut {strut}: unknown joint(s) {sorted(unknown)} (known: "
+                             f"<end>.dir_x/y/z and <end>.fwd_x/y/z with end a or b)")
+    for port in (*command.dock, *command.undock):
+        if port not in ENDS:
+            raise ExecutionError(f"strut {strut}: unknown connector {port!r} (known: a, b)")
+    for end in ENDS:
+        direction = _vector(strut, command.joints, end, "dir")
+        if direction is not None:
+            targets[end] = (direction, _vector(strut, command.joints, end, "fwd"))
+    return targets
+
+
+def _vector(strut: str, joints: Mapping[str, float], end: str, what: str) -> np.ndarray | None:
+    names = [f"{end}.{what}_{a}" for a in _AXES]
+    present = [n in joints for n in names]
+    if not any(present):
+        return None
+    if not all(present):
+        raise ExecutionError(f"strut {strut}: joints {names} must be given together")
+    vector = np.array([joints[n] for n in names], dtype=np.float64)
+    norm = float(np.linalg.norm(vector))
+    if not np.isfinite(norm) or norm < 1e-9:
+        raise ExecutionError(f"strut {strut}: {end}.{what} must be a non-zero vector")
+    return vector / norm

@@ -1,0 +1,149 @@
+"""FreeSN controllers: joint-vector targets -> per-connector commands (paper 4.1-4.2).
+
+The inverse kinematics gives the joint vectors ``Z^joint`` of the target in the root
+horizontal frame ``H_r`` (section 4.1, Fig. 8). Like the hardware's centralised
+computer, :func:`connector_commands` turns them into what each strut's low-level
+controller takes (section 4.2, Fig. 11b): for every docked connector, the connection
+vector in the horizontal frame of *its* node, ``^{H_i} z = Rz(-psi_i) (+/-) z``, with the
+node headings ``psi_i`` estimated from the same module reports the recognizer uses
+(so slip that shifts the node frames shifts the commands too). The target is first
+turned about the vertical onto the recognized configuration (eq. 8): the yaw of a
+free-standing robot is not the controllers' business.
+
+The joint modes (Figs. 6-7) differ in what the connectors are told:
+
+* ``opposite_steering`` (default), ``full_opposite``, ``parallel_strut``: connection
+  vectors only; each connector reaches its vector by the minimal rotation (the
+  opposite connector cancelling the steering), and the strut keeps its roll;
+* ``differential_spherical``, ``revolute``: the strut's forward vector ``x`` too (the
+  steering, or the rotation about the axis, is part of the motion).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from msrr.core.alignment import align_yaw, angles_between, rot_z
+from msrr.core.configuration import Configuration
+from msrr.core.control import Control
+from msrr.core.driver import ModuleCommand, Observation
+from msrr.core.errors import ExecutionError
+from msrr.core.events import Phase
+from msrr.core.plan import Action
+
+from .commands import connector_joints
+from .geometry import END_SIGN
+from .recognizer import FreeSNRecognizer, links_of, node_headings
+from .world import NodeReport, StrutReport
+
+__all__ = ["FORWARD_MODES", "FreeSNController", "connector_commands", "shape_error"]
+
+FORWARD_MODES = frozenset({"differential_spherical", "revolute"})
+"""Joint modes whose controllers also command the strut's forward vector."""
+
+
+def shape_error(current: Configuration, target: Configuration) -> tuple[float, np.ndarray, float]:
+    """RMS angle [rad] between the ``z`` of the struts both have, after yaw alignment.
+
+    Returns:
+        ``(rms, per-strut angles (n,), yaw)`` with ``yaw`` [rad] the turn of the target
+        onto ``current`` (eq. 8).
+    """
+    ids = [e for e in target.edge_ids() if e in set(current.edge_ids())]
+    if not ids:
+        return 0.0, np.zeros(0), 0.0
+    z, z_target = current.vectors(ids), target.vectors(ids)
+    yaw = align_yaw(z, z_target).theta
+    angles = angles_between(z, rot_z(yaw) @ z_target)
+    return float(np.sqrt(np.mean(angles**2))), angles, yaw
+
+
+def connector_commands(target: Configuration, reports: Mapping[str, NodeReport | StrutReport],
+                       *, yaw: float = 0.0, forward: bool = False,
+                       struts: set[str] | None = None) -> dict[str, ModuleCommand]:
+    """Per-strut commands that drive every docked connector toward ``target``.
+
+    Args:
+        target: joint vectors ``z`` (and ``x``) of the struts, root horizontal frame.
+        reports: the modules' reports (``observation.sensors``).
+        yaw: turn [rad] of ``target`` about the vertical into the recognized frame.
+        forward: command the strut's forward vector too (needs ``x`` in ``target``).
+        struts: only these struts (default: every strut of ``target``).
+
+    Raises:
+        ExecutionError: ``forward`` and a target strut without ``x``.
+    """
+    links = links_of(reports)
+    heading = node_headings(reports, links)
+    turn = rot_z(yaw)
+    commands: dict[str, ModuleCommand] = {}
+    for edge in target.edges():
+        if edge.z is None or (struts is not None and edge.id not in struts) \
+                or not isinstance(reports.get(edge.id), StrutReport):
+            continue
+        if forward and edge.x is None:
+            raise ExecutionError(f"strut {edge.id}: the target has no forward vector x")
+        joints: dict[str, float] = {}
+        for end, sign in END_SIGN.items():
+            node = links.get((edge.id, end))
+            if node is None:
+                continue
+            to_node = rot_z(-heading[node]) @ turn
+            joints.update(connector_joints(
+                end, to_node @ (sign * edge.z),
+                to_node @ edge.x if forward and edge.x is not None else None))
+        if joints:
+            commands[edge.id] = ModuleCommand(joints=joints)
+    return commands
+
+
+class FreeSNController:
+    """The controller of one FreeSN joint mode (registered as ``freesn.<mode>``).
+
+    :meth:`commands` is the low-level translation the executor calls each tick with
+    the IK-tracked joint vectors. :meth:`control` (the core
+    :class:`~msrr.core.control.Controller` protocol) commands the action's target
+    directly, without IK: enough for a move to a nearby configuration.
+
+    Args:
+        mode: joint-mode name (``opposite_steering``, ...).
+        tolerance: RMS strut angle [rad] under which a phase counts as reached.
+        strut_length: for ``Control.errors``, strut angle -> end displacement [m].
+    """
+
+    def __init__(self, mode: str = "opposite_steering", *, tolerance: float = np.radians(3.0),
+                 strut_length: float = 0.2):
+        self.mode = mode
+        self.name = f"freesn.{mode}"
+        self.description = f"FreeSN {mode.replace('_', ' ')} joint controller"
+        self.tolerance = tolerance
+        self.strut_length = strut_length
+        self.forward = mode in FORWARD_MODES
+        self._recognizer = FreeSNRecognizer()
+
+    def commands(self, target: Configuration, observation: Observation, *,
+                 current: Configuration | None = None) -> dict[str, ModuleCommand]:
+        """Commands toward ``target`` (joint vectors, root horizontal frame).
+
+        ``current`` (the recognized configuration) sets the yaw alignment; it is
+        recognized from ``observation`` when omitted.
+        """
+        current = current or self._recognizer.recognize(observation.sensors)
+        _, _, yaw = shape_error(current, target)
+        return connector_commands(target, observation.sensors, yaw=yaw, forward=self.forward)
+
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+        """Nothing to prepare: every tick reads the reports afresh."""
+
+    def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
+        """Command ``action.target`` directly; reached under ``tolerance`` RMS."""
+        current = self._recognizer.recognize(observation.sensors)
+        rms, angles, yaw = shape_error(current, action.target)
+        ids = [e for e in action.target.edge_ids() if e in set(current.edge_ids())]
+        commands = connector_commands(action.target, observation.sensors, yaw=yaw,
+                                      forward=self.forward)
+        errors = {strut: float(a) * self.strut_length for strut, a in zip(ids, angles,
+                                                                          strict=True)}
+        return Control(commands=commands, errors=errors, reached=rms < self.tolerance)

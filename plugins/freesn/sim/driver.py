@@ -1,0 +1,124 @@
+"""The FreeSN MuJoCo driver (registered as ``mujoco`` for robot ``freesn``)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import fields, replace
+from typing import Any, ClassVar
+
+from msrr.core.configuration import Configuration
+from msrr.core.driver import Driver, ModuleCommand, Observation, Pose
+from msrr.core.errors import ExecutionError
+from msrr.core.robot import RobotSpec
+
+from ..robot import SPEC
+from .commands import parse_command
+from .options import SimOptions
+from .world import FreeSNWorld
+
+__all__ = ["FreeSNMujocoDriver"]
+
+
+class FreeSNMujocoDriver(Driver):
+    """FreeSN modules simulated in MuJoCo, headless unless ``gui=True``.
+
+    Args:
+        gui: open MuJoCo's passive viewer (needs a display).
+        seed: seed of the noise, drift and slip (overrides ``options.seed``).
+        options: the run's :class:`~.options.SimOptions`; keyword overrides of its
+            fields (``noise=np.radians(2)``, ``slip=0.05``) may be given directly.
+        spec: the robot description whose geometry builds the world.
+
+    Commands (per strut, see :mod:`.commands`): ``joints`` with the connection vector
+    (and forward vector) of each docked connector in its node's horizontal frame;
+    ``dock=("b",)`` extends a magnet array, ``undock=("a",)`` retracts one. A strut not
+    commanded brakes its connectors where they are. Node modules take no command.
+    Sensors: module id -> :class:`~.world.NodeReport` or :class:`~.world.StrutReport`.
+    """
+
+    name: ClassVar[str] = "mujoco"
+    description: ClassVar[str] = ("MuJoCo: node spheres, struts on motor-driven spherical "
+                                  "joints, magnets as weld constraints")
+
+    def __init__(self, *, gui: bool = False, seed: int | None = None,
+                 options: SimOptions | None = None, spec: RobotSpec = SPEC, **overrides: Any):
+        options = options or SimOptions()
+        known = {f.name for f in fields(SimOptions)}
+        unknown = set(overrides) - known
+        if unknown:
+            raise ExecutionError(f"unknown MuJoCo driver option(s) {sorted(unknown)} (known: "
+                                 f"gui, seed, options, spec, {', '.join(sorted(known))})")
+        if seed is not None:
+            overrides["seed"] = seed
+        self.options = replace(options, **overrides)
+        self.gui = gui
+        self.spec = spec
+        self.world: FreeSNWorld | None = None
+        self._connected = False
+        self._viewer: Any = None
+
+    @property
+    def is_connected(self) -> bool:
+        return self._connected
+
+    def connect(self) -> None:
+        self._connected = True
+
+    def disconnect(self) -> None:
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        self.world = None
+        self._connected = False
+
+    def _world(self) -> FreeSNWorld:
+        self.require_connected()
+        if self.world is None:
+            raise ExecutionError("driver 'mujoco' has no world yet; call reset(start) first")
+        return self.world
+
+    def reset(self, start: Configuration) -> None:
+        """Build the world of ``start`` (its docked ends docked); time becomes 0."""
+        self.require_connected()
+        self.world = FreeSNWorld(start, self.spec, self.options)
+        if self.gui:
+            from mujoco import viewer  # the viewer needs a display; imported only then
+
+            if self._viewer is not None:
+                self._viewer.close()
+            self._viewer = viewer.launch_passive(self.world.model, self.world.data)
+
+    def get_observation(self) -> Observation:
+        world = self._world()
+        poses = {m: Pose(p, q) for m, (p, q) in world.poses().items()}
+        groups = world.groups()
+        return Observation(time=world.time, poses=poses, sensors=world.reports(),
+                           groups=tuple(groups) if len(groups) > 1 else ())
+
+    def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
+        world = self._world()
+        unknown = set(commands) - set(world.struts) - set(world.nodes)
+        if unknown:
+            raise ExecutionError(f"commands for unknown module(s) {sorted(unknown)}")
+        for strut, command in commands.items():
+            if strut in world.nodes:
+                if command.joints or command.dock or command.undock or command.wheels:
+                    raise ExecutionError(f"node {strut} takes no command")
+                continue
+            targets = parse_command(strut, command)
+            for end in command.undock:
+                world.command_undock(strut, end)
+            for end in command.dock:
+                world.command_dock(strut, end)
+            for end, target in targets.items():
+                world.command_target(strut, end, target)
+
+    def step(self, dt: float) -> None:
+        world = self._world()
+        world.step(dt)
+        if self._viewer is not None:
+            self._viewer.sync()
+
+    @property
+    def time(self) -> float:
+        return self._world().time

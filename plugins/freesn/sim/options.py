@@ -1,0 +1,124 @@
+"""Options of one FreeSN simulation run and the physical parameters they resolve to."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from msrr.core.errors import ExecutionError
+from msrr.core.robot import RobotSpec
+
+__all__ = ["Physical", "SimOptions"]
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """How one simulation runs; hardware figures come from the robot spec.
+
+    Attributes:
+        timestep: physics step [s].
+        noise: standard deviation of every reported angle (localisation, IMU tilt,
+            module attitude) [rad], white, per observation.
+        drift: random walk of each connector's odometry heading [rad / sqrt(s)].
+        slip: heading error of a connector per radian it rolls, standard deviation
+            [rad / rad]; the wheels slip unseen by the encoders, so the connector's own
+            estimate (and the physical pose it servos to) drifts from the truth.
+        strength_factor: connection strength as a fraction of the hardware's; below 1
+            as the FreeSN paper's section 6.2 asks, so what passes in simulation holds
+            on the robot.
+        torque_factor: connector torque limit as a fraction of the hardware's (6.2).
+        position_gain: connector position loop gain [1/s] (speed command per rad of error).
+        break_filter: time constant of the connection-load low-pass before the strength
+            check [s] (a magnet does not let go on a one-step impulse).
+        seed: seed of the noise, drift and slip generators.
+    """
+
+    timestep: float = 0.002
+    noise: float = 0.0
+    drift: float = 0.0
+    slip: float = 0.0
+    strength_factor: float = 0.5
+    torque_factor: float = 0.6
+    position_gain: float = 20.0
+    break_filter: float = 0.05
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("timestep", "strength_factor", "torque_factor", "position_gain",
+                     "break_filter"):
+            if not getattr(self, name) > 0:
+                raise ExecutionError(f"simulation option {name} must be positive, "
+                                     f"got {getattr(self, name)}")
+        for name in ("noise", "drift", "slip"):
+            if getattr(self, name) < 0:
+                raise ExecutionError(f"simulation option {name} must be >= 0, "
+                                     f"got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class Physical:
+    """The figures the world is built from: spec geometry scaled by the options.
+
+    Attributes:
+        node_radius: [m]. node_mass: [kg].
+        strut_length: node centre to node centre of a strut docked at both ends [m].
+        strut_radius: [m]. strut_mass: [kg], connectors included.
+        connector_mass: [kg] each.
+        max_torque: connector torque limit used in simulation [N m].
+        max_roll_rate: fastest rolling of a connector over its node [rad/s] about the
+            node centre (wheel speed x wheel radius / node radius).
+        max_spin_rate: fastest turn of a strut about its axis [rad/s] (the two wheels
+            in opposition: 2 x wheel speed x wheel radius / wheel base).
+        damping: motor back-EMF damping [N m s/rad] = torque / roll rate (a DC motor's
+            linear torque-speed line from stall to no-load speed).
+        strength: connection strength used in simulation [N].
+        dock_tolerance: [m].
+    """
+
+    node_radius: float
+    node_mass: float
+    strut_length: float
+    strut_radius: float
+    strut_mass: float
+    connector_mass: float
+    max_torque: float
+    max_roll_rate: float
+    max_spin_rate: float
+    damping: float
+    strength: float
+    dock_tolerance: float
+
+    @classmethod
+    def from_spec(cls, spec: RobotSpec, options: SimOptions) -> Physical:
+        """Read ``spec``'s ``node`` and ``strut`` geometry; errors name the missing key."""
+        node = _geometry(spec, "node")
+        strut = _geometry(spec, "strut")
+        wheel_speed = strut["max_wheel_speed"] * strut["wheel_radius"]  # [m/s] at the surface
+        roll = wheel_speed / node["radius"]
+        torque = strut["max_torque"] * options.torque_factor
+        return cls(
+            node_radius=node["radius"], node_mass=node["mass"],
+            strut_length=strut["length"], strut_radius=strut["radius"],
+            strut_mass=strut["mass"], connector_mass=strut["connector_mass"],
+            max_torque=torque, max_roll_rate=roll,
+            max_spin_rate=2.0 * wheel_speed / strut["wheel_base"],
+            damping=torque / roll,
+            strength=strut["connection_strength"] * options.strength_factor,
+            dock_tolerance=strut["dock_tolerance"],
+        )
+
+
+_NEEDED = {
+    "node": ("radius", "mass"),
+    "strut": ("length", "radius", "mass", "connector_mass", "wheel_radius", "wheel_base",
+              "max_wheel_speed", "max_torque", "connection_strength", "dock_tolerance"),
+}
+
+
+def _geometry(spec: RobotSpec, kind: str) -> Mapping[str, float]:
+    geometry = spec.kind(kind).geometry
+    for key in _NEEDED[kind]:
+        if key not in geometry:
+            raise ExecutionError(f"robot {spec.name!r}: module kind {kind!r} has no geometry "
+                                 f"{key!r}, which the MuJoCo world needs")
+    return {k: float(v) for k, v in geometry.items()}

@@ -1,0 +1,175 @@
+"""FreeSN configuration identification from module reports (paper sections 2.1, 4.2).
+
+The recognizer reads only what modules report (:class:`~.world.NodeReport`,
+:class:`~.world.StrutReport`), never a simulator's state:
+
+1. topology: a strut end is docked on a node when the strut reports it and the node
+   localises that connector;
+2. connection vectors in each node's horizontal frame ``H_i``: the node's magnetic
+   localisation (node frame) turned by its IMU tilt, ``d = tilt_i loc``;
+3. yaw between horizontal frames: a strut docked on nodes ``i`` and ``j`` reports its
+   attitude in both, ``A_i`` and ``A_j``, so ``R_{H_i H_j} = A_i A_j^T`` (ideally a
+   rotation about the vertical by ``psi_j - psi_i``); the headings of all nodes in the
+   root's frame are the least-squares solution over every such strut (one
+   Gauss-Newton step from a breadth-first estimate, so loops average their
+   measurements rather than keep one path's);
+4. ``z = Rz(psi_i) d`` from each docked end (averaged when both are), ``x`` from the
+   attitude; free ends become virtual vertices ``"<strut>:<end>"``.
+
+The root is the smallest node id of each connected group (or the one given).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+
+import numpy as np
+
+from msrr.core.alignment import rot_z
+from msrr.core.configuration import Configuration
+from msrr.core.errors import ConfigurationError
+
+from .commands import ENDS
+from .geometry import END_SIGN, yaw_of
+from .world import NodeReport, StrutReport
+
+__all__ = ["FreeSNRecognizer", "Links", "links_of", "node_headings"]
+
+Reports = Mapping[str, "NodeReport | StrutReport"]
+Links = dict[tuple[str, str], str]
+"""``(strut, end)`` -> node for every docked connector."""
+
+
+def links_of(reports: Reports) -> Links:
+    """The docked connectors, where the strut and the node agree."""
+    links: Links = {}
+    for strut, report in reports.items():
+        if not isinstance(report, StrutReport):
+            continue
+        for end in ENDS:
+            node = report.docked.get(end)
+            if node is None:
+                continue
+            seen = reports.get(node)
+            if isinstance(seen, NodeReport) and f"{strut}:{end}" in seen.connectors \
+                    and end in report.attitude:
+                links[(strut, end)] = node
+    return links
+
+
+def _wrap(angle: np.ndarray | float) -> np.ndarray | float:
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+def node_headings(reports: Reports, links: Links | None = None,
+                  root: str | None = None) -> dict[str, float]:
+    """Heading [rad] of every node's horizontal frame in its group's root frame.
+
+    Args:
+        reports: module reports by id.
+        links: docked connectors (computed when omitted).
+        root: the root node of its group (default: each group's smallest node id).
+    """
+    links = links_of(reports) if links is None else links
+    nodes = sorted(m for m, r in reports.items() if isinstance(r, NodeReport))
+    measured: list[tuple[str, str, float]] = []   # (i, j, psi_j - psi_i)
+    for strut, report in reports.items():
+        if not isinstance(report, StrutReport):
+            continue
+        a, b = links.get((strut, "a")), links.get((strut, "b"))
+        if a is not None and b is not None and a != b:
+            rel = report.attitude["a"] @ report.attitude["b"].T
+            measured.append((a, b, yaw_of(rel)))
+    neighbours: dict[str, list[tuple[str, float]]] = {n: [] for n in nodes}
+    for i, j, delta in measured:
+        neighbours[i].append((j, delta))
+        neighbours[j].append((i, -delta))
+    heading: dict[str, float] = {}
+    roots: set[str] = set()
+    order = ([root] if root is not None else []) + nodes
+    for start in order:
+        if start in heading:
+            continue
+        heading[start] = 0.0
+        roots.add(start)
+        queue = deque([start])
+        while queue:
+            u = queue.popleft()
+            for v, delta in neighbours[u]:
+                if v not in heading:
+                    heading[v] = heading[u] + delta
+                    queue.append(v)
+    free = [n for n in nodes if n not in roots]
+    if measured and free:
+        column = {n: c for c, n in enumerate(free)}
+        jac = np.zeros((len(measured), len(free)))
+        res = np.empty(len(measured))
+        for row, (i, j, delta) in enumerate(measured):
+            res[row] = _wrap(heading[j] - heading[i] - delta)
+            if j in column:
+                jac[row, column[j]] += 1.0
+            if i in column:
+                jac[row, column[i]] -= 1.0
+        step = np.linalg.lstsq(jac, -res, rcond=None)[0]
+        for n, c in column.items():
+            heading[n] = float(_wrap(heading[n] + step[c]))
+    return heading
+
+
+class FreeSNRecognizer:
+    """Configuration identification of FreeSN (registered as ``freesn``).
+
+    ``recognize`` takes the driver's ``observation.sensors``: module id ->
+    :class:`~.world.NodeReport` or :class:`~.world.StrutReport`.
+    """
+
+    name = "freesn"
+    description = ("magnetic localisation + IMU + odometry reports -> configuration in the "
+                   "root node's horizontal frame")
+
+    def __init__(self, root: str | None = None):
+        self.root = root
+
+    def recognize(self, observation: Reports, *, seed: int = 0) -> Configuration:
+        """The configuration the reports show, in the modules' own ids.
+
+        Raises:
+            ConfigurationError: a report of an unknown type.
+        """
+        for module, report in observation.items():
+            if not isinstance(report, NodeReport | StrutReport):
+                raise ConfigurationError(f"module {module!r}: not a FreeSN report "
+                                         f"({type(report).__name__})")
+        links = links_of(observation)
+        heading = node_headings(observation, links, self.root)
+        config = Configuration("freesn")
+        for module, report in observation.items():
+            if isinstance(report, NodeReport):
+                config.add_module(module, "node")
+        for strut, report in observation.items():
+            if not isinstance(report, StrutReport):
+                continue
+            ends, zs, x = [], [], None
+            for end in ENDS:
+                node = links.get((strut, end))
+                if node is None:
+                    ends.append(f"{strut}:{end}")
+                    config.add_virtual(ends[-1])
+                    continue
+                ends.append(node)
+                frame = rot_z(heading[node])
+                loc = observation[node].connectors[f"{strut}:{end}"]
+                direction = observation[node].tilt @ loc
+                zs.append(END_SIGN[end] * frame @ (direction / np.linalg.norm(direction)))
+                if x is None:
+                    x = frame @ report.attitude[end][:, 0]
+            if zs:
+                z = np.sum(zs, axis=0)
+                z = z / np.linalg.norm(z)
+            else:  # a strut on its own: its IMU, in its own horizontal frame
+                z, x = report.tilt[:, 2], report.tilt[:, 0]
+            x = x - (x @ z) * z
+            x = x / np.linalg.norm(x)
+            config.connect(ends[0], ends[1], id=strut, kind="strut", z=z, x=x)
+        return config

@@ -1,0 +1,627 @@
+"""The FreeSN MuJoCo world, built in code with ``mujoco.MjSpec``.
+
+Bodies (FreeSN paper, section 2.1, Fig. 2):
+
+* a node is a free steel sphere;
+* a strut is a free body (a capsule between its two ends) carrying one *connector*
+  body per end. The connector hangs on a ball joint whose centre is the point of the
+  strut axis at ``L/2`` from the strut centre -- where the node centre lies when that
+  end is docked. The connector is the part that rolls on the node (wheels, magnet
+  array); its ball joint is the spherical joint of the paper's kinematics;
+* docking welds the connector to the node with the connector's origin on the node's
+  centre (a weld equality, activated and deactivated at run time through
+  ``data.eq_active``). Strut and node are then joined by a spherical joint about the
+  node's centre whose three rotations are driven by the connector's motors; loops (a
+  triangle, the octahedron) close through the same welds.
+
+Actuation (section 4.2, Fig. 11b): the wheels of a docked connector roll the strut
+end over the node (two directions) and turn the strut about its axis. The motors are
+DC motors: a passive damping ``D = torque / roll rate`` on the ball joint (their
+back-EMF, integrated implicitly) and a drive torque ``D * omega_cmd`` bounded by the
+torque limit, with ``omega_cmd`` from a position loop toward the commanded pose,
+bounded by the wheel speed (rolling) and the differential speed (spinning).
+
+Slip and drift: each docked connector keeps an odometry heading error ``eps`` (a
+rotation about the strut axis that its encoders do not see); it grows by ``slip``
+per radian rolled and by ``drift`` per square-root second. The connector servos its
+*estimate*, so the physical pose is off by ``eps``, and its reports carry it.
+
+Docking (Fig. 11c-d): a dock command extends the magnet array; an extended free end
+docks when its joint centre is within ``dock_tolerance`` of a node centre. An undock
+command retracts the array and releases the weld. A connection breaks (weld released,
+``break`` event) when its low-passed constraint force exceeds the connection strength.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from msrr.core.alignment import rot_z
+from msrr.core.configuration import Configuration
+from msrr.core.errors import ExecutionError
+from msrr.core.robot import RobotSpec
+
+from .commands import ENDS, ConnectorTarget
+from .geometry import END_SIGN, Placement, heading, place
+from .options import Physical, SimOptions
+
+__all__ = ["DockEvent", "FreeSNWorld", "NodeReport", "StrutReport"]
+
+_GAP = 0.003          # strut capsule tip to node surface when docked [m]
+_FRICTION = (0.8, 0.02, 0.001)
+_WELD_SOLREF = (0.004, 1.0)
+_WELD_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+_ROLLER_MASS = 0.02   # rolling frame of a connector (wheels, magnet carrier) [kg]
+_ARMATURE = 1e-3     # wheel-motor rotors reflected through the gearbox (~1e-7 x 100^2) [kg m^2]
+_EZ = np.array([0.0, 0.0, 1.0])
+_ALL_BITS = 0x7FFFFFFF  # nodes and the ground touch every collision bit
+_SIDE_BY_SIDE = np.radians(20.0)  # struts this close at a shared node sit side by side
+
+
+@dataclass(frozen=True)
+class DockEvent:
+    """A connector's docking event.
+
+    Attributes:
+        time: [s]. strut, end: the connector. node: the node it docked to or left.
+        kind: ``"dock"``, ``"undock"`` (commanded) or ``"break"`` (load over strength).
+        load: filtered connection force at the event [N] (breaks only).
+    """
+
+    time: float
+    strut: str
+    end: str
+    node: str
+    kind: str
+    load: float = 0.0
+
+
+@dataclass(frozen=True)
+class NodeReport:
+    """What a node module reports (section 2.1).
+
+    Attributes:
+        tilt: rotation (3, 3) of the node in its own horizontal frame (IMU; yaw-free).
+        connectors: ``"<strut>:<end>"`` -> unit vector (3,) in the node frame where that
+            connector sits (magnetic localisation).
+    """
+
+    tilt: np.ndarray
+    connectors: dict[str, np.ndarray]
+
+
+@dataclass(frozen=True)
+class StrutReport:
+    """What a strut module reports (section 4.2, Fig. 11a).
+
+    Attributes:
+        docked: per end, the node the connector is docked to, or ``None``.
+        attitude: per docked end, the strut's rotation (3, 3) in that node's horizontal
+            frame (IMU + odometry); its ``z`` column is the strut axis from end a to b.
+        tilt: the strut's rotation in its own horizontal frame (IMU alone).
+        magnet: per end, ``"neutral"``, ``"extended"`` or ``"retracted"``.
+        events: docking events of its connectors since the previous report.
+    """
+
+    docked: dict[str, str | None]
+    attitude: dict[str, np.ndarray]
+    tilt: np.ndarray
+    magnet: dict[str, str]
+    events: tuple[DockEvent, ...] = ()
+
+
+def _inertia_rod(mass: float, radius: float, length: float) -> list[float]:
+    across = mass * (3 * radius**2 + length**2) / 12.0
+    return [across, across, 0.5 * mass * radius**2]
+
+
+class FreeSNWorld:
+    """One configuration of FreeSN modules in MuJoCo.
+
+    Args:
+        config: the starting configuration (nodes, struts with ``z``); its docked
+            strut ends start docked.
+        spec: the robot description (``node`` and ``strut`` geometry).
+        options: the run's options.
+    """
+
+    def __init__(self, config: Configuration, spec: RobotSpec, options: SimOptions):
+        self.options = options
+        self.phys = phys = Physical.from_spec(spec, options)
+        self.rng = np.random.default_rng(options.seed)
+        self.placement = place(config, phys.strut_length, phys.node_radius, phys.strut_radius)
+        self.nodes = [v for v in config.vertices() if not config.is_virtual(v)]
+        self.struts = [e.id for e in config.edges()]
+        self.ends = [(s, e) for s in self.struts for e in ENDS]
+        self.model, self._welds = self._build(self.placement)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self._node_body = np.array([m.body(f"node/{n}").id for n in self.nodes], dtype=int)
+        self._strut_body = np.array([m.body(f"strut/{s}").id for s in self.struts], dtype=int)
+        self._conn_body = np.array([m.body(f"connector/{s}/{e}").id for s, e in self.ends],
+                                   dtype=int)
+        joints = [m.joint(f"ball/{s}/{e}") for s, e in self.ends]
+        self._qadr = np.array([j.qposadr[0] for j in joints], dtype=int)
+        self._dadr = np.array([j.dofadr[0] for j in joints], dtype=int)
+        self._sign = np.array([END_SIGN[e] for _, e in self.ends])
+        self._node_index = {n: i for i, n in enumerate(self.nodes)}
+        self._strut_index = {s: j for j, s in enumerate(self.struts)}
+        self._end_index = {end: k for k, end in enumerate(self.ends)}
+        k = len(self.ends)
+        self.docked: list[str | None] = [None] * k
+        self.magnet = ["neutral"] * k
+        self._target = np.tile(np.eye(3), (k, 1, 1))   # believed node->strut rotation target
+        self._has_target = np.zeros(k, dtype=bool)
+        self._ball_target = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
+        self._conn_node = np.tile(np.eye(3), (k, 1, 1))  # connector->node rotation while docked
+        self._eps = np.zeros(k)                            # odometry heading error [rad]
+        self._load = np.zeros(k)
+        self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
+        self._driven = np.zeros(0, dtype=int)             # docked ends with a target
+        self._tau = np.zeros((k, 3))
+        self._dofs = self._dadr[:, None] + np.arange(3)
+        self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
+        self.events: list[DockEvent] = []
+        self._reported = 0
+        self.time = 0.0
+        self._capsule = np.array([m.geom(f"capsule/{s}").id for s in self.struts], dtype=int)
+        mujoco.mj_forward(self.model, self.data)
+        for s, (a, b) in self.placement.ends.items():
+            for end, node in zip(ENDS, (a, b), strict=True):
+                if node is not None:
+                    self._dock(self._end_index[(s, end)], node, event=False)
+        self._collision_groups()
+        mujoco.mj_forward(self.model, self.data)
+
+    # -- building ---------------------------------------------------------------------
+
+    def _build(self, placement: Placement) -> tuple[mujoco.MjModel, dict]:
+        p = self.phys
+        spec = mujoco.MjSpec()
+        spec.modelname = "freesn"
+        spec.option.timestep = self.options.timestep
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                size=[10.0, 10.0, 0.1], friction=_FRICTION,
+                                conaffinity=_ALL_BITS, rgba=[0.85, 0.85, 0.8, 1.0])
+        spec.worldbody.add_light(pos=[0, 0, 3], dir=[0, 0, -1])
+        shell = 2.0 / 3.0 * p.node_mass * p.node_radius**2  # thin steel shell
+        for node in self.nodes:
+            body = spec.worldbody.add_body(name=f"node/{node}", pos=placement.nodes[node],
+                                           mass=p.node_mass, inertia=[shell] * 3,
+                                           explicitinertial=True)
+            body.add_freejoint(name=f"free/{node}")
+            body.add_geom(name=f"sphere/{node}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                          size=[p.node_radius, 0, 0], friction=_FRICTION, mass=0,
+                          conaffinity=_ALL_BITS,
+                          rgba=[0.6, 0.6, 0.65, 1.0])
+        tip = 0.5 * p.strut_length - p.node_radius - _GAP
+        segment = max(tip - p.strut_radius, 1e-4)
+        rod = p.strut_mass - 2.0 * p.connector_mass
+        if rod <= 0:
+            raise ExecutionError("strut mass must exceed the mass of its two connectors")
+        inertia = np.array(_inertia_rod(rod, p.strut_radius, 2 * tip))
+        inertia[:2] += 2.0 * p.connector_mass * tip**2
+        for strut in self.struts:
+            centre, rotation = placement.struts[strut]
+            quat = Rotation.from_matrix(rotation).as_quat(scalar_first=True)
+            body = spec.worldbody.add_body(name=f"strut/{strut}", pos=centre, quat=quat,
+                                           mass=p.strut_mass, inertia=inertia.tolist(),
+                                           explicitinertial=True)
+            body.add_freejoint(name=f"free/{strut}")
+            body.add_geom(name=f"capsule/{strut}", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                          fromto=[0, 0, -segment, 0, 0, segment], size=[p.strut_radius, 0, 0],
+                          friction=_FRICTION, mass=0, rgba=[0.9, 0.55, 0.1, 1.0])
+            for end in ENDS:
+                roller = body.add_body(name=f"connector/{strut}/{end}",
+                                       pos=[0, 0, -END_SIGN[end] * 0.5 * p.strut_length],
+                                       mass=_ROLLER_MASS, inertia=[1e-7] * 3,
+                                       explicitinertial=True)
+                roller.add_joint(name=f"ball/{strut}/{end}", type=mujoco.mjtJoint.mjJNT_BALL,
+                                 damping=p.damping, armature=_ARMATURE)
+        welds = {}
+        for strut in self.struts:
+            for end in ENDS:
+                for node in self.nodes:
+                    name = f"dock/{strut}/{end}/{node}"
+                    spec.add_equality(name=name, type=mujoco.mjtEq.mjEQ_WELD,
+                                      objtype=mujoco.mjtObj.mjOBJ_BODY,
+                                      name1=f"connector/{strut}/{end}", name2=f"node/{node}",
+                                      active=False, solref=list(_WELD_SOLREF),
+                                      solimp=list(_WELD_SOLIMP))
+                    welds[(strut, end, node)] = name
+        model = spec.compile()
+        if len(self.struts) > 30:
+            raise ExecutionError(f"the MuJoCo world holds at most 30 struts (collision bits), "
+                                 f"got {len(self.struts)}")
+        return model, {key: model.equality(name).id for key, name in welds.items()}
+
+    # -- docking ----------------------------------------------------------------------
+
+    def _dock(self, k: int, node: str, *, event: bool = True) -> None:
+        strut, end = self.ends[k]
+        eq = self._welds[(strut, end, node)]
+        d = self.data
+        q_conn = d.xquat[self._conn_body[k]]
+        q_node = d.xquat[self._node_body[self._node_index[node]]]
+        rel = np.empty(4)
+        inv = np.empty(4)
+        mujoco.mju_negQuat(inv, q_conn)
+        mujoco.mju_mulQuat(rel, inv, q_node)
+        data = self.model.eq_data[eq]
+        data[:6] = 0.0       # anchor: the node centre; relpose: the connector origin on it
+        data[6:10] = rel     # relpose: current relative orientation
+        data[10] = 1.0       # torque scale
+        d.eq_active[eq] = 1
+        self._eq[k] = eq
+        self.docked[k] = node
+        self._conn_node[k] = Rotation.from_quat(rel, scalar_first=True).as_matrix()
+        self.magnet[k] = "neutral"   # back to the origin after the dock (section 4.2)
+        self._load[k] = 0.0
+        self._hold(k)
+        if event:
+            self.events.append(DockEvent(self.time, strut, end, node, "dock"))
+
+    def _release(self, k: int, kind: str) -> None:
+        node = self.docked[k]
+        if node is None:
+            return
+        strut, end = self.ends[k]
+        self.data.eq_active[self._welds[(strut, end, node)]] = 0
+        self._eq[k] = -1
+        self.docked[k] = None
+        self._has_target[k] = False
+        self._refresh_driven()
+        self._eps[k] = 0.0
+        self.events.append(DockEvent(self.time, strut, end, node, kind, float(self._load[k])))
+        self._load[k] = 0.0
+
+    def _collision_groups(self) -> None:
+        """Collision bits: every body collides with every other except side-by-side struts.
+
+        Two struts docked to one node in (nearly) the same direction -- parallel struts
+        between two nodes, or a strut aimed along another to dock beside it -- lie on one
+        line in the skeletal model, where the hardware seats them side by side. Struts
+        within ``_SIDE_BY_SIDE`` [rad] of each other at a shared node are grouped
+        (transitively); a group shares one bit ``g`` with ``contype = g`` and
+        ``conaffinity = every other bit``, so its members skip each other and still
+        touch everything else. Nodes and the ground accept every bit.
+        """
+        group = list(range(len(self.struts)))
+
+        def find(j: int) -> int:
+            while group[j] != j:
+                group[j] = group[group[j]]
+                j = group[j]
+            return j
+
+        axes = self.data.xmat[self._strut_body].reshape(-1, 3, 3)[:, :, 2]
+        at_node: dict[str, list[tuple[int, np.ndarray]]] = {}
+        for k, node in enumerate(self.docked):
+            if node is not None:
+                j = self._strut_index[self.ends[k][0]]
+                at_node.setdefault(node, []).append((j, self._sign[k] * axes[j]))
+        cos_limit = np.cos(_SIDE_BY_SIDE)
+        for members in at_node.values():
+            for i, (j1, u1) in enumerate(members):
+                for j2, u2 in members[i + 1:]:
+                    if float(u1 @ u2) > cos_limit:
+                        group[find(j1)] = find(j2)
+        roots = sorted({find(j) for j in range(len(self.struts))})
+        bit = {r: 1 << (i + 1) for i, r in enumerate(roots)}
+        contype = np.array([bit[find(j)] for j in range(len(self.struts))], dtype=np.int64)
+        everything = (1 << (len(roots) + 1)) - 1
+        self.model.geom_contype[self._capsule] = contype
+        self.model.geom_conaffinity[self._capsule] = everything & ~contype
+
+    def _hold(self, k: int) -> None:
+        """Brake connector ``k`` where it believes it is."""
+        self._target[k] = self._believed(np.array([k]))[0]
+        self._has_target[k] = True
+        self._refresh_driven()
+
+    def _refresh_driven(self) -> None:
+        self._driven = np.flatnonzero(self._has_target & (self._eq >= 0))
+
+    def command_dock(self, strut: str, end: str) -> None:
+        """Extend the magnet array of ``strut``'s ``end`` (kept until it docks)."""
+        k = self._end(strut, end)
+        if self.docked[k] is None:
+            self.magnet[k] = "extended"
+
+    def command_undock(self, strut: str, end: str) -> None:
+        """Retract the magnet array of ``strut``'s ``end``: the connection is released."""
+        k = self._end(strut, end)
+        self.magnet[k] = "retracted"
+        self._release(k, "undock")
+
+    def command_target(self, strut: str, end: str, target: ConnectorTarget) -> None:
+        """Drive a docked connector to a connection vector (and forward vector) given in
+        the horizontal frame of its node; ignored when the end is free."""
+        k = self._end(strut, end)
+        node = self.docked[k]
+        if node is None:
+            return
+        direction, forward = target
+        r_wn = self.data.xmat[self._node_body[self._node_index[node]]].reshape(3, 3)
+        tilt = rot_z(-float(heading(self.data.xquat[self._node_body[self._node_index[node]]])))
+        to_node = r_wn.T @ tilt.T          # horizontal frame -> node frame
+        want = to_node @ direction
+        current = self._believed(np.array([k]))[0]   # node -> strut, believed
+        u = self._sign[k] * _EZ
+        if forward is None:
+            have = current @ u
+            self._target[k] = _minimal(have, want) @ current
+        else:
+            self._target[k] = _frame(self._sign[k] * want, to_node @ forward)
+        self._has_target[k] = True
+        self._refresh_driven()
+
+    def _end(self, strut: str, end: str) -> int:
+        try:
+            return self._end_index[(strut, end)]
+        except KeyError:
+            raise ExecutionError(f"no connector {strut}:{end} in this world (struts: "
+                                 f"{', '.join(self.struts)})") from None
+
+    # -- state ------------------------------------------------------------------------
+
+    def _ball(self, ks: np.ndarray) -> np.ndarray:
+        return self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
+
+    def _believed(self, ks: np.ndarray) -> np.ndarray:
+        """Node -> strut rotations (n, 3, 3) as the connectors believe them (with ``eps``)."""
+        r_c = Rotation.from_quat(self._ball(ks), scalar_first=True).as_matrix()
+        true = np.einsum("nji,nkj->nik", self._conn_node[ks], r_c)  # (R_c R_cn)^T
+        return true @ Rotation.from_rotvec(self._eps[ks, None] * _EZ).as_matrix()
+
+    def _update_ball_targets(self) -> None:
+        ks = np.flatnonzero(self._has_target)
+        if not len(ks):
+            return
+        true = self._target[ks] @ Rotation.from_rotvec(-self._eps[ks, None] * _EZ).as_matrix()
+        r_c = np.einsum("nij,njk->nik", self._conn_node[ks], true).transpose(0, 2, 1)
+        self._ball_target[ks] = Rotation.from_matrix(r_c).as_quat(scalar_first=True)
+
+    # -- stepping ---------------------------------------------------------------------
+
+    def step(self, duration: float) -> None:
+        """Advance by ``duration`` [s] (whole physics steps, at least one)."""
+        self._update_ball_targets()
+        self._collision_groups()
+        n = max(1, round(duration / self.options.timestep))
+        for _ in range(n):
+            self._servo()
+            mujoco.mj_step(self.model, self.data)
+            self.time += self.options.timestep
+            self._check_loads()
+            if any(m == "extended" for m in self.magnet):
+                self._check_docks()
+        self._odometry(n * self.options.timestep)
+
+    def _servo(self) -> None:
+        p = self.phys
+        ks = self._driven
+        tau = self._tau
+        tau[:] = 0.0
+        if len(ks):
+            q = self._ball(ks)
+            error = _quat_log(_quat_mul(_quat_conj(q), self._ball_target[ks]))  # child frame
+            omega = self.options.position_gain * error
+            w, x, y, z = q.T   # strut axis in the connector frame: row 3 of R(q), signed
+            axis = self._sign[ks, None] * np.column_stack(
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
+            spin = np.einsum("ni,ni->n", omega, axis)
+            roll = omega - spin[:, None] * axis
+            norm = np.sqrt(np.einsum("ni,ni->n", roll, roll))
+            scale = np.minimum(1.0, p.max_roll_rate / np.maximum(norm, 1e-12))
+            scale *= np.minimum(1.0, p.max_torque / np.maximum(p.damping * norm * scale, 1e-12))
+            t_spin = np.clip(p.damping * np.clip(spin, -p.max_spin_rate, p.max_spin_rate),
+                             -p.max_torque, p.max_torque)
+            tau[ks] = (p.damping * scale)[:, None] * roll + t_spin[:, None] * axis
+        self.data.qfrc_applied[self._dofs] = tau
+
+    def _check_loads(self) -> None:
+        d = self.data
+        docked = self._eq >= 0
+        n = 6 * int(np.count_nonzero(docked))
+        force = np.zeros(self.model.neq)
+        if n:  # equality rows come first, six per weld, in the order of the equality ids
+            rows = d.efc_force[:n].reshape(-1, 6)
+            force[d.efc_id[:n:6]] = np.sqrt(np.einsum("ni,ni->n", rows[:, :3], rows[:, :3]))
+        alpha = min(1.0, self.options.timestep / self.options.break_filter)
+        self._load[docked] += alpha * (force[self._eq[docked]] - self._load[docked])
+        self._load[~docked] = 0.0
+        for k in np.flatnonzero(self._load > self.phys.strength):
+            self._release(int(k), "break")
+
+    def _check_docks(self) -> None:
+        centres = self.data.xpos[self._node_body]
+        for k, state in enumerate(self.magnet):
+            if state != "extended" or self.docked[k] is not None:
+                continue
+            strut, end = self.ends[k]
+            other = self.docked[self._end_index[(strut, "b" if end == "a" else "a")]]
+            gap = np.linalg.norm(centres - self.data.xpos[self._conn_body[k]], axis=1)
+            for i in np.argsort(gap):
+                if gap[i] > self.phys.dock_tolerance:
+                    break
+                if self.nodes[i] != other:
+                    self._dock(k, self.nodes[i])
+                    break
+
+    def _odometry(self, duration: float) -> None:
+        ball = self._ball(np.arange(len(self.ends)))
+        moved = 2.0 * np.arccos(np.clip(np.abs(np.einsum("ni,ni->n", ball, self._last_ball)),
+                                        0.0, 1.0))
+        self._last_ball = ball.copy()
+        docked = np.array([d is not None for d in self.docked])
+        o = self.options
+        if o.slip or o.drift:
+            noise = self.rng.standard_normal((2, len(self.ends)))
+            self._eps += docked * (o.slip * moved * noise[0] + o.drift * np.sqrt(duration)
+                                   * noise[1])
+
+    # -- reading ----------------------------------------------------------------------
+
+    def reports(self) -> dict[str, NodeReport | StrutReport]:
+        """Every module's report, with the run's noise; events since the previous call."""
+        d = self.data
+        noise = self.options.noise
+        node_rot = d.xmat[self._node_body].reshape(-1, 3, 3)
+        node_yaw = heading(d.xquat[self._node_body])
+        strut_rot = d.xmat[self._strut_body].reshape(-1, 3, 3)
+        eps_rot = Rotation.from_rotvec(self._eps[:, None] * _EZ).as_matrix()
+        located: dict[str, dict[str, np.ndarray]] = {n: {} for n in self.nodes}
+        out: dict[str, NodeReport | StrutReport] = {}
+        new = self.events[self._reported:]
+        self._reported = len(self.events)
+        for j, strut in enumerate(self.struts):
+            docked, attitude, magnet = {}, {}, {}
+            for end in ENDS:
+                k = self._end_index[(strut, end)]
+                node = self.docked[k]
+                docked[end], magnet[end] = node, self.magnet[k]
+                if node is None:
+                    continue
+                i = self._node_index[node]
+                axis = self._sign[k] * strut_rot[j][:, 2]
+                located[node][f"{strut}:{end}"] = self._jitter_vector(node_rot[i].T @ axis, noise)
+                attitude[end] = self._jitter(rot_z(-node_yaw[i]) @ strut_rot[j] @ eps_rot[k],
+                                             noise)
+            tilt = rot_z(-float(heading(d.xquat[self._strut_body[j]]))) @ strut_rot[j]
+            out[strut] = StrutReport(docked, attitude, self._jitter(tilt, noise), magnet,
+                                     tuple(e for e in new if e.strut == strut))
+        for i, node in enumerate(self.nodes):
+            out[node] = NodeReport(self._jitter(rot_z(-node_yaw[i]) @ node_rot[i], noise),
+                                   located[node])
+        return out
+
+    def _jitter(self, rotation: np.ndarray, noise: float) -> np.ndarray:
+        if not noise:
+            return rotation
+        return Rotation.from_rotvec(self.rng.normal(0.0, noise, 3)).as_matrix() @ rotation
+
+    def _jitter_vector(self, vector: np.ndarray, noise: float) -> np.ndarray:
+        return self._jitter(np.eye(3), noise) @ vector
+
+    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """World pose of every module body: ``(position (3,), quaternion (x, y, z, w))``."""
+        d = self.data
+        out = {}
+        for name, body in [*zip(self.nodes, self._node_body, strict=True),
+                           *zip(self.struts, self._strut_body, strict=True)]:
+            w, x, y, z = d.xquat[body]
+            out[name] = (d.xpos[body].copy(), np.array([x, y, z, w]))
+        return out
+
+    def ground_truth(self, root: str | None = None, *, name: str = "") -> Configuration:
+        """The configuration the bodies form, from the simulator's state (never from reports).
+
+        Vectors in the horizontal frame of ``root`` (default: the smallest node id);
+        free strut ends are virtual vertices ``"<strut>:<end>"``.
+        """
+        d = self.data
+        root = root or min(self.nodes)
+        yaw = float(heading(d.xquat[self._node_body[self._node_index[root]]]))
+        frame = rot_z(-yaw)
+        config = Configuration("freesn", name=name)
+        for node in self.nodes:
+            config.add_module(node, "node")
+        for j, strut in enumerate(self.struts):
+            ends = []
+            for end in ENDS:
+                node = self.docked[self._end_index[(strut, end)]]
+                if node is None:
+                    node = f"{strut}:{end}"
+                    config.add_virtual(node)
+                ends.append(node)
+            rot = frame @ d.xmat[self._strut_body[j]].reshape(3, 3)
+            config.connect(ends[0], ends[1], id=strut, kind="strut", z=rot[:, 2], x=rot[:, 0])
+        return config
+
+    def docked_pairs(self) -> set[tuple[str, str, str]]:
+        """``(strut, end, node)`` of every active dock constraint (simulator state)."""
+        active = self.data.eq_active
+        return {key for key, eq in self._welds.items() if active[eq]}
+
+    def constraint_residual(self) -> float:
+        """Largest position error of an active dock constraint [m]."""
+        d = self.data
+        worst = 0.0
+        for (strut, end, node), eq in self._welds.items():
+            if d.eq_active[eq]:
+                gap = d.xpos[self._conn_body[self._end_index[(strut, end)]]] - \
+                    d.xpos[self._node_body[self._node_index[node]]]
+                worst = max(worst, float(np.linalg.norm(gap)))
+        return worst
+
+    def groups(self) -> list[frozenset[str]]:
+        """Modules of each physically separate system (connected through docks)."""
+        parent = {m: m for m in [*self.nodes, *self.struts]}
+
+        def find(m: str) -> str:
+            while parent[m] != m:
+                parent[m] = parent[parent[m]]
+                m = parent[m]
+            return m
+
+        for k, node in enumerate(self.docked):
+            if node is not None:
+                parent[find(self.ends[k][0])] = find(node)
+        groups: dict[str, set[str]] = {}
+        for m in parent:
+            groups.setdefault(find(m), set()).add(m)
+        return [frozenset(g) for g in groups.values()]
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products of quaternions ``(w, x, y, z)``, shape (n, 4)."""
+    aw, ax, ay, az = a.T
+    bw, bx, by, bz = b.T
+    return np.column_stack([aw * bw - ax * bx - ay * by - az * bz,
+                            aw * bx + ax * bw + ay * bz - az * by,
+                            aw * by - ax * bz + ay * bw + az * bx,
+                            aw * bz + ax * by - ay * bx + az * bw])
+
+
+def _quat_conj(q: np.ndarray) -> np.ndarray:
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _quat_log(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (n, 3) of unit quaternions (n, 4), angles in [0, pi]."""
+    q = np.where(q[:, :1] < 0, -q, q)
+    v = q[:, 1:]
+    s = np.sqrt(np.einsum("ni,ni->n", v, v))
+    angle = 2.0 * np.arctan2(s, q[:, 0])
+    return v * np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)[:, None]
+
+
+def _minimal(v: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Minimal rotation (3, 3) taking unit ``v`` onto unit ``w``."""
+    axis = np.cross(v, w)
+    s = np.linalg.norm(axis)
+    c = float(np.dot(v, w))
+    if s < 1e-12:
+        if c > 0:
+            return np.eye(3)
+        perp = np.cross(v, [1.0, 0, 0] if abs(v[0]) < 0.9 else [0, 1.0, 0])
+        return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
+    return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
+
+
+def _frame(z: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Rotation with columns ``x`` (made perpendicular), ``z x x``, ``z``."""
+    z = z / np.linalg.norm(z)
+    x = x - np.dot(x, z) * z
+    norm = np.linalg.norm(x)
+    if norm < 1e-9:
+        x = np.cross(z, [1.0, 0, 0] if abs(z[0]) < 0.9 else [0, 1.0, 0])
+        norm = np.linalg.norm(x)
+    x = x / norm
+    return np.column_stack([x, np.cross(z, x), z])
