@@ -84,10 +84,19 @@ def _optional_unit(vector: VectorLike | None, what: str) -> np.ndarray | None:
     return unit(vector, what=what)
 
 
-def _rotated(rotation: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """``rotation @ vector``, renormalised against round-off, read-only."""
-    out = rotation @ vector
-    return _read_only(out / np.sqrt(out @ out))
+def _rotate(rotation: np.ndarray, edges: list[dict]) -> None:
+    """Rotate ``z`` and ``x`` of every edge attribute dict in place, all in one product.
+
+    The results are rows of one read-only array, renormalised against round-off.
+    """
+    slots = [(data, key) for data in edges for key in ("z", "x") if data[key] is not None]
+    if not slots:
+        return
+    turned = np.array([data[key] for data, key in slots]) @ np.asarray(rotation).T
+    turned /= np.linalg.norm(turned, axis=1, keepdims=True)
+    turned.flags.writeable = False
+    for (data, key), row in zip(slots, turned, strict=True):
+        data[key] = row
 
 
 def _fresh_id(source: str, target: str, ports: tuple[str, str] | None,
@@ -358,13 +367,12 @@ class Configuration:
                 source, target = target, source
                 ports = None if ports is None else (ports[1], ports[0])
                 ez = None if ez is None else _read_only(-ez)
-            if rotation is not None:
-                ez = None if ez is None else _rotated(rotation, ez)
-                ex = None if ex is None else _rotated(rotation, ex)
             if rename:
                 source, target = rename(source, source), rename(target, target)
             new_edges.append((edges.get(edge_id, edge_id) if edges else edge_id, source, target,
                               {"kind": data["kind"], "z": ez, "x": ex, "ports": ports}))
+        if rotation is not None:
+            _rotate(rotation, [data for *_, data in new_edges])
         return Configuration._assemble(
             self.robot, self.name if name is None else name,
             self.description if description is None else description, nodes, new_edges)

@@ -129,9 +129,10 @@ class ModuleMap:
             ConfigurationError: a module (vertex or edge module) of ``config`` is not
                 mapped, or two ids map to one.
         """
-        nodes = {v: self.nodes[v] for v in config.vertices() if v in self.nodes}
+        vertices = config.vertices()
+        nodes = {v: self.nodes[v] for v in vertices if v in self.nodes}
         taken = set(self.nodes.values())
-        for vertex in config.vertices():
+        for vertex in vertices if len(nodes) < len(vertices) else ():
             if vertex in nodes:
                 continue
             if not config.is_virtual(vertex):
@@ -143,10 +144,11 @@ class ModuleMap:
             taken.add(nodes[vertex])
         edges: dict[str, EdgeImage] = {}
         taken_edges = {e for e, _ in self.edges.values()}
-        for edge in config.edges():
-            if edge.id in self.edges:
-                edges[edge.id] = self.edges[edge.id]
+        for edge_id in config.edge_ids():
+            if edge_id in self.edges:
+                edges[edge_id] = self.edges[edge_id]
                 continue
+            edge = config.edge(edge_id)
             if edge.kind is not None:
                 raise ConfigurationError(f"module {edge.id!r} of configuration "
                                          f"{config.name or config.robot!r} is not mapped")
