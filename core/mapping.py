@@ -25,10 +25,13 @@ import numpy as np
 from .configuration import Configuration
 from .errors import ConfigurationError
 
-__all__ = ["EdgeImage", "ModuleMap", "end_vertex", "free_vertex_name"]
+__all__ = ["CONNECTOR_ENDS", "EdgeImage", "ModuleMap", "end_vertex", "free_vertex_name"]
 
 EdgeImage = tuple[str, bool]
 """Image of an edge: ``(edge id, inv)``."""
+
+CONNECTOR_ENDS = ("source", "target")
+"""Names of the two connector ends of an edge module (behavior commands use them)."""
 
 
 def end_vertex(config: Configuration, edge_id: str, at_source: bool) -> str:
@@ -73,6 +76,26 @@ class ModuleMap:
     def inverted(self) -> list[str]:
         """Edges whose image points the other way."""
         return [e for e, (_, inv) in self.edges.items() if inv]
+
+    def image(self, module: str, connector: str | None = None) -> tuple[str, str | None]:
+        """Where a module, and one connector end of it, go under this map.
+
+        Args:
+            module: a vertex id or the id of an edge that is a module (a strut).
+            connector: ``"source"`` or ``"target"`` end of an edge module, or ``None``;
+                the two are swapped when the edge is reversed.
+
+        Raises:
+            ConfigurationError: ``module`` is not mapped.
+        """
+        if module in self.edges:
+            image, inv = self.edges[module]
+            if inv and connector in CONNECTOR_ENDS:
+                connector = CONNECTOR_ENDS[1 - CONNECTOR_ENDS.index(connector)]
+            return image, connector
+        if module in self.nodes:
+            return self.nodes[module], connector
+        raise ConfigurationError(f"module {module!r} is not mapped")
 
     def inverse(self) -> ModuleMap:
         """The inverse mapping (maps are injective); ``inv`` flags are symmetric."""

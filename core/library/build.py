@@ -258,16 +258,11 @@ class _Builder:
             raise LibraryError(f"{origin}: behavior {behavior.name!r} is defined twice")
         commands = []
         for command in behavior.commands:
-            if command.module in placement.mapping.edges:
-                module, inv = placement.mapping.edges[command.module]
-                connector = command.connector
-                if inv and connector is not None:
-                    connector = "target" if connector == "source" else "source"
-            elif command.module in placement.mapping.nodes:
-                module, connector = placement.mapping.nodes[command.module], command.connector
-            else:
+            try:
+                module, connector = placement.mapping.image(command.module, command.connector)
+            except ConfigurationError:
                 raise LibraryError(f"{origin}: module {command.module!r} is not in "
-                                   f"configuration {behavior.start!r}")
+                                   f"configuration {behavior.start!r}") from None
             commands.append(CommandGain(module, command.command, command.gains, connector))
         sub.behaviors[behavior.name] = Behavior(
             behavior.name, "mapping", placement.config_id, parameters=behavior.parameters,

@@ -164,13 +164,7 @@ class _Mapper:
 def _commands(behavior: Behavior, to_system: ModuleMap) -> tuple[CommandGain, ...]:
     out = []
     for command in behavior.commands:
-        if command.module in to_system.edges:
-            module, inv = to_system.edges[command.module]
-            connector = command.connector
-            if inv and connector is not None:
-                connector = "target" if connector == "source" else "source"
-        else:
-            module, connector = to_system.nodes[command.module], command.connector
+        module, connector = to_system.image(command.module, command.connector)
         out.append(CommandGain(module, command.command, command.gains, connector))
     return tuple(out)
 

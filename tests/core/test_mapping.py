@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from config_strategies import configurations, random_map
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -11,8 +12,6 @@ from msrr.core import Configuration, ConfigurationError
 from msrr.core.alignment import rot_z
 from msrr.core.mapping import ModuleMap
 from msrr.core.matching import Mapping
-
-from config_strategies import configurations, random_map
 
 
 def leg() -> Configuration:
@@ -115,3 +114,13 @@ def test_a_match_is_a_module_map_with_a_score():
     for edge in config.edges():
         np.testing.assert_allclose(back.edge(edge.id).z, edge.z, atol=1e-12)
     assert back.edge("S1").source == "N1"
+
+
+def test_image_of_a_module_swaps_the_connector_end_of_a_reversed_strut():
+    mapping = ModuleMap({"N1": "A"}, {"S1": ("T1", True), "S2": ("T2", False)})
+    assert mapping.image("S1", "source") == ("T1", "target")
+    assert mapping.image("S2", "source") == ("T2", "source")
+    assert mapping.image("S1") == ("T1", None)
+    assert mapping.image("N1", "source") == ("A", "source")
+    with pytest.raises(ConfigurationError, match="'N9' is not mapped"):
+        mapping.image("N9")
