@@ -1,16 +1,13 @@
-"""Shared fixtures of the library tests: a library built from the S6N3 sources."""
+"""Shared fixtures of the core library tests: a library of the ``stick`` test robot."""
 
 from __future__ import annotations
 
 import pytest
+from stick_library import STICK, stick_sources
 
-from msrr.core.library import Library, build_library, load_sources
-from msrr.core.plugins import resolve
-
-from library_helpers import source_files
+from msrr.core.library import Library, build_library
 
 
 @pytest.fixture(scope="session")
-def s6n3() -> Library:
-    return build_library(load_sources(source_files("S6N3"), resolve), resolve("freesn"),
-                         cost="distance")
+def stick_lib() -> Library:
+    return build_library(stick_sources(), STICK, cost="distance")

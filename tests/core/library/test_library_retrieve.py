@@ -1,4 +1,4 @@
-"""Retrieval (paper section 6.3, Fig. 15) on the shipped FreeSN libraries."""
+"""Retrieval (paper section 6.3, Fig. 15) on the ``stick`` test robot's library."""
 
 from __future__ import annotations
 
@@ -6,74 +6,72 @@ import itertools
 
 import networkx as nx
 import pytest
+from stick_library import STICK, relabelled, stick_sources
 
-from msrr.core import plugins
 from msrr.core.actions import classify
 from msrr.core.library import (
+    LibraryError,
     RetrievalError,
-    load_library,
+    build_library,
     retrieve,
     shortest_path,
 )
 from msrr.core.plan import ActionType
-
-from library_helpers import LIBRARIES, relabelled
-
-FREESN = plugins.resolve("freesn")
-
-
-@pytest.fixture(scope="module")
-def s6n3():
-    return load_library(LIBRARIES / "S6N3.json")
-
-
-@pytest.fixture(scope="module")
-def s4n5():
-    return load_library(LIBRARIES / "S4N5.json")
-
-
-@pytest.fixture(scope="module")
-def s12n6():
-    return load_library(LIBRARIES / "S12N6.json")
+from msrr.core.robot import Robot, RobotSpec
 
 
 def system_from(library, key, seed=3, noise=0.03):
     _, config = library.find_configuration(key)
-    return relabelled(config.configuration, "m", noise=noise, seed=seed)
+    return relabelled(config.configuration, noise=noise, seed=seed)
 
 
 def check_sequence(system, steps):
     """Every step in the system's ids, legal, and of the action type its topology says."""
-    rules = plugins.docking_rules(system.robot)
     before = system
     for step in steps:
         assert set(step.target.modules()) == set(system.modules())
-        assert rules.check(step.target) == []
-        assert rules.check_action(before, step.target) == []
+        assert STICK.rules.check_action(before, step.target) == []
         assert classify(before, step.target) is step.action
-        tree_topology = step.tree.configuration      # the tree is in system ids too
         moves_in = before if step.action in (ActionType.CONNECTION,
                                              ActionType.PARALLEL_CONNECTION) else step.target
-        assert sorted(tree_topology.vertices()) == sorted(moves_in.vertices())
+        assert sorted(step.tree.configuration.vertices()) == sorted(moves_in.vertices())
         before = step.target
 
 
 @pytest.mark.parametrize("seed", [1, 2])
-def test_retrieval_of_fig20_from_a_relabelled_perturbed_copy(s6n3, seed):
-    system = system_from(s6n3, "fig20a", seed=seed)
-    result = retrieve(s6n3, system, FREESN, to="fig20d")
-    assert result.start == "S6N3-1.1"
-    assert result.steps[-1].library_id == s6n3.find_configuration("fig20d")[1].id
-    assert len(result.steps) > 1
+def test_retrieval_from_a_relabelled_perturbed_copy(stick_lib, seed):
+    system = system_from(stick_lib, "flat", seed=seed)
+    result = retrieve(stick_lib, system, STICK, to="triangle")
+    assert result.start == "H3R3-1.1" and result.match_cost < 0.01
+    assert [s.library_id for s in result.steps] == ["H3R3-1.1", "H3R3-1.2", "H3R3-2.1"]
     check_sequence(system, result.steps)
-    assert {s.action for s in result.steps} >= {ActionType.MOVING, ActionType.CONNECTION}
+    assert [s.action for s in result.steps][-1] is ActionType.CONNECTION
+    assert result.cost == pytest.approx(sum(s.cost for s in result.steps))
 
 
-def test_retrieval_back_from_fig20d_uses_disconnections(s6n3):
-    system = system_from(s6n3, "fig20d")
-    result = retrieve(s6n3, system, FREESN, to="fig20a")
+def test_retrieval_back_uses_the_disconnection(stick_lib):
+    system = system_from(stick_lib, "triangle")
+    result = retrieve(stick_lib, system, STICK, to="leg-down")
     check_sequence(system, result.steps)
-    assert ActionType.DISCONNECTION in {s.action for s in result.steps}
+    assert [s.action for s in result.steps[1:]] == [ActionType.DISCONNECTION, ActionType.MOVING]
+
+
+def test_ik_cost_library_matches_with_the_ik_cost():
+    library = build_library(stick_sources(), STICK, cost="ik")
+    assert library.build["cost"] == "ik"
+    system = system_from(library, "aim", seed=5, noise=0.02)
+    result = retrieve(library, system, STICK, to="leg-down")
+    assert result.start == "H3R3-1.2"
+    check_sequence(system, result.steps)
+
+
+def test_mapping_behavior_commands_are_in_system_ids(stick_lib):
+    system = system_from(stick_lib, "flat")
+    result = retrieve(stick_lib, system, STICK, behavior="spin")
+    (command,) = result.commands
+    assert command.module in system.edge_ids()
+    last = result.steps[-1].target
+    assert last.is_virtual(last.edge(command.module).target)    # the free rod spins
 
 
 def brute_force_cost(sub, start, target):
@@ -82,61 +80,39 @@ def brute_force_cost(sub, start, target):
     graph.add_nodes_from(sub.configurations)
     for edge in sub.edges:
         graph.add_edge(edge.source, edge.target, cost=edge.cost)
-    best = None
-    for path in nx.all_simple_edge_paths(graph, start, target):
-        cost = sum(graph.edges[e]["cost"] for e in path)
-        best = cost if best is None else min(best, cost)
-    return best
+    costs = [sum(graph.edges[e]["cost"] for e in path)
+             for path in nx.all_simple_edge_paths(graph, start, target)]
+    return min(costs, default=None)
 
 
-@pytest.mark.parametrize("name", ["S6N3", "S12N6"])
-def test_shortest_path_matches_brute_force(name):
-    library = load_library(LIBRARIES / f"{name}.json")
-    (sub,) = library.sublibraries.values()
+def test_shortest_path_matches_brute_force(stick_lib):
+    (sub,) = stick_lib.sublibraries.values()
     graph = sub.graph()
+    unreachable = 0
     for start, target in itertools.permutations(sub.configurations, 2):
-        expected = brute_force_cost(sub, start, target) if start != target else 0.0
+        expected = brute_force_cost(sub, start, target)
         if expected is None:
+            unreachable += 1
             with pytest.raises(RetrievalError):
                 shortest_path(sub, start, target)
             continue
         path = shortest_path(sub, start, target)
-        cost = sum(graph[u][v]["cost"] for u, v in itertools.pairwise(path))
-        assert cost == pytest.approx(expected)
+        assert sum(graph[u][v]["cost"] for u, v in itertools.pairwise(path)) == \
+            pytest.approx(expected)
+    assert unreachable > 0
 
 
-def test_unreachable_target_names_the_reachable_groups(s12n6):
-    system = system_from(s12n6, "fig22a")
-    with pytest.raises(RetrievalError, match=r"reachable groups: S12N6-1 \(octahedron\), "
-                       r"S12N6-4 \(open-face\), S12N6-5 \(open-face-and-edge\)"):
-        retrieve(s12n6, system, FREESN, to="fig21a")
+def test_unreachable_target_names_the_reachable_groups(stick_lib):
+    with pytest.raises(RetrievalError, match=r"reachable groups: H3R3-1 \(open\)$"):
+        retrieve(stick_lib, system_from(stick_lib, "leg-down"), STICK, to="triangle")
 
 
-def test_parallel_reconfiguration_of_fig22(s12n6):
-    system = system_from(s12n6, "fig22a", noise=0.02)
-    result = retrieve(s12n6, system, FREESN, behavior="node-wheels")
-    check_sequence(system, result.steps)
-    assert ActionType.PARALLEL_DISCONNECTION in {s.action for s in result.steps}
-    assert {c.module for c in result.commands} <= set(system.modules())
-
-
-def test_looping_sequence_behavior_comes_back_to_its_start(s4n5):
-    system = system_from(s4n5, "star-flat")
-    result = retrieve(s4n5, system, FREESN, behavior="crawl")
-    check_sequence(system, [*result.steps, *result.behavior_steps])
-    assert result.behavior_steps[-1].library_id == result.behavior.start
-    assert len(result.behavior_steps) == 3
-
-
-def test_system_of_another_topology_is_refused(s4n5):
-    with pytest.raises(RetrievalError, match="reachable groups: S4N5-1"):
-        retrieve(s4n5, system_from(s4n5, "star-flat"), FREESN, to="squirm-up")
-
-
-def test_exactly_one_target(s6n3):
-    from msrr.core.library import LibraryError
-
+def test_exactly_one_target_and_the_right_robot(stick_lib):
+    system = system_from(stick_lib, "flat")
     with pytest.raises(LibraryError, match="exactly one target"):
-        retrieve(s6n3, system_from(s6n3, "fig20a"), FREESN)
+        retrieve(stick_lib, system, STICK)
     with pytest.raises(LibraryError, match="no behavior 'dance'"):
-        retrieve(s6n3, system_from(s6n3, "fig20a"), FREESN, behavior="dance")
+        retrieve(stick_lib, system, STICK, behavior="dance")
+    other = Robot(RobotSpec("other", "Other", STICK.spec.module_kinds))
+    with pytest.raises(LibraryError, match="is for stick, not other"):
+        retrieve(stick_lib, system, other, to="triangle")

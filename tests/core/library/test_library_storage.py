@@ -12,12 +12,12 @@ from msrr.core.cli import get_cli
 from msrr.core.library import LibraryError, dump_library, load_library, save_library
 
 
-def test_round_trip_is_lossless(s6n3, tmp_path):
+def test_round_trip_is_lossless(stick_lib, tmp_path):
     path = tmp_path / "lib.json"
-    save_library(s6n3, path)
+    save_library(stick_lib, path)
     loaded = load_library(path)
     assert dump_library(loaded) == path.read_text()
-    for sub in s6n3.sublibraries.values():
+    for sub in stick_lib.sublibraries.values():
         other = loaded.sublibraries[sub.name]
         assert list(other.configurations) == list(sub.configurations)
         for cid, config in sub.configurations.items():
@@ -28,9 +28,9 @@ def test_round_trip_is_lossless(s6n3, tmp_path):
         assert other.behaviors == sub.behaviors
 
 
-def test_truncated_file_is_refused_with_its_path(s6n3, tmp_path):
+def test_truncated_file_is_refused_with_its_path(stick_lib, tmp_path):
     path = tmp_path / "lib.json"
-    text = dump_library(s6n3)
+    text = dump_library(stick_lib)
     path.write_text(text[: len(text) // 2])
     with pytest.raises(LibraryError, match=str(path)):
         load_library(path)
@@ -40,17 +40,17 @@ def test_truncated_file_is_refused_with_its_path(s6n3, tmp_path):
     (lambda d: d.update(schema_version=2), "schema_version"),
     (lambda d: d["sublibraries"][0]["edges"][0].update(target="nowhere"),
      "sublibraries[0].edges[0].target"),
-    (lambda d: d["sublibraries"][0]["configurations"][1]["z"].update(S1=[1.0, 1.0, 0.0]),
+    (lambda d: d["sublibraries"][0]["configurations"][1]["z"].update(R1=[1.0, 1.0, 0.0]),
      "sublibraries[0].configurations[1].z"),
-    (lambda d: d["sublibraries"][0]["edges"][0].update(tree={"group": "S6N3-1", "name": "K9"}),
+    (lambda d: d["sublibraries"][0]["edges"][0].update(tree={"group": "H3R3-1", "name": "K9"}),
      "sublibraries[0].edges[0].tree"),
-    (lambda d: d["sublibraries"][0]["behaviors"][0].update(start="S6N3-9.9"),
+    (lambda d: d["sublibraries"][0]["behaviors"][0].update(start="H3R3-9.9"),
      "sublibraries[0].behaviors[0].start"),
-    (lambda d: d["sublibraries"][0]["configurations"][0].update(group="S6N3-7"),
+    (lambda d: d["sublibraries"][0]["configurations"][0].update(group="H3R3-7"),
      "sublibraries[0].configurations[0].group"),
 ])
-def test_invalid_field_is_named(s6n3, tmp_path, edit, field):
-    data = json.loads(dump_library(s6n3))
+def test_invalid_field_is_named(stick_lib, tmp_path, edit, field):
+    data = json.loads(dump_library(stick_lib))
     edit(data)
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(data))
@@ -61,9 +61,9 @@ def test_invalid_field_is_named(s6n3, tmp_path, edit, field):
 
 
 @pytest.mark.parametrize("failure", [KeyboardInterrupt, OSError])
-def test_interrupted_write_leaves_the_original(s6n3, tmp_path, monkeypatch, failure):
+def test_interrupted_write_leaves_the_original(stick_lib, tmp_path, monkeypatch, failure):
     path = tmp_path / "lib.json"
-    save_library(s6n3, path)
+    save_library(stick_lib, path)
     before = path.read_bytes()
 
     def interrupted(fd):
@@ -71,7 +71,7 @@ def test_interrupted_write_leaves_the_original(s6n3, tmp_path, monkeypatch, fail
 
     monkeypatch.setattr(os, "fsync", interrupted)
     with pytest.raises(failure):
-        save_library(s6n3, path)
+        save_library(stick_lib, path)
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["lib.json"]
     load_library(path)

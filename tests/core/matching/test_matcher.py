@@ -13,7 +13,6 @@ from matching_helpers import BARS, assert_isomorphism, random_freesn, scrambled
 from msrr.core.cli import get_cli
 from msrr.core.io import save_configuration
 from msrr.core.matching import (
-    CONFIDENCE,
     Candidate,
     MatchingError,
     brute_force_isomorphisms,
@@ -153,12 +152,6 @@ def test_tied_candidates_go_to_the_first_listed():
     for pool in itertools.permutations([exact, close]):
         result = match(reference, list(pool), cost="distance")
         assert result.candidate is pool[0]
-
-
-def test_confidence_is_one_constant():
-    from msrr.core.library import engine
-
-    assert CONFIDENCE == 4.0 and not hasattr(engine, "MATCH_CONFIDENCE")
 
 
 def test_robot_without_joint_modes_is_matched_by_distance_and_told():
