@@ -9,7 +9,7 @@ two such configurations with a polynomial-time pairing heuristic and an exact se
 This module implements that problem from its statement; the code is our own.
 
 **Model.** A connected configuration of ``n`` identical MISO modules is a pointer
-array ``parent[i]``: the module module ``i``'s connector sits on, ``-1`` if free. It
+array ``parent[i]``: the module that module ``i``'s connector sits on, ``-1`` if free. It
 is a *tree* (``n - 1`` connections, exactly one free module, the *sink*) or, with every
 connector used, *unicyclic* (one cycle). Start and goal are trees; intermediate
 configurations may close the one cycle.
@@ -46,7 +46,9 @@ with ``kept`` the connections both configurations share under ``pi``.
   move.
 * :func:`solve_exact` (exponential): branch and bound over pairings in the goal's
   breadth-first order with the admissible bound ``max(partial d, ceil(sum |in-degree
-  change| / 2))`` (a step changes two in-degrees by one), sibling symmetry broken,
+  change| / 2))`` (a step changes two in-degrees by one), goal siblings with equal
+  subtree shapes taking increasing start indices (one side only: breaking start and
+  goal symmetries together could cut every optimum),
   and for each complete pairing an A* over legal steps with the consistent heuristic
   "modules not at their target". Starts from the heuristic's plan as upper bound.
 * :func:`brute_force_steps`: breadth-first search over every labelled configuration
@@ -708,11 +710,6 @@ def solve_exact(problem: MisoProblem, *, node_limit: int = 2_000_000) -> MisoSol
         key = (pb[v], label_b[v])
         twin_before[v] = seen.get(key, FREE)
         seen[key] = v
-    # start symmetry: leaves of one parent are interchangeable; try the first unused
-    leaf_twins: dict[int, list[int]] = {}
-    for i in range(n):
-        if not children_a[i] and pa[i] != FREE:
-            leaf_twins.setdefault(pa[i], []).append(i)
     assign = [FREE] * n   # goal -> start
     used = [False] * n
     stats = {"nodes": 0.0, "pairings": 0.0}
@@ -741,12 +738,7 @@ def solve_exact(problem: MisoProblem, *, node_limit: int = 2_000_000) -> MisoSol
         low = assign[twin_before[v]] if twin_before[v] != FREE else FREE
         candidates = [i for i in range(n) if not used[i] and i > low]
         candidates.sort(key=lambda i: pa[i] != p)
-        tried_leaf_of: set[int] = set()
         for i in candidates:
-            if not children_a[i] and pa[i] != FREE:
-                if pa[i] in tried_leaf_of:
-                    continue
-                tried_leaf_of.add(pa[i])
             used[i], assign[v] = True, i
             search(pos + 1, partial + (pa[i] != p), degree_gap + abs(indeg_a[i] - indeg_b[v]))
             used[i], assign[v] = False, FREE
