@@ -27,7 +27,11 @@ __all__ = ["Action", "ActionType", "ConnectionChange", "Plan", "load_plan", "sav
 
 
 class ActionType(StrEnum):
-    """Kinds of action (FreeSN paper section 4.1)."""
+    """Kinds of action (FreeSN paper section 4.1), detected by :func:`msrr.core.actions.classify`.
+
+    A step that breaks some connections and makes others (not a flow) is a
+    ``PARALLEL_CONNECTION``: disconnections first, then connections.
+    """
 
     MOVING = "moving"
     CONNECTION = "connection"
