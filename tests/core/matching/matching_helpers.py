@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import importlib.util
+import sys
+from pathlib import Path
+
 import numpy as np
 
 from msrr.core.alignment import rot_z
@@ -14,6 +18,14 @@ BARS = Robot(RobotSpec("bars", "Bars test robot", (ModuleKind("node", "N", "vert
                                                     ModuleKind("strut", "S", "edge"))),
              joint_modes={"fixed": FixedNode})
 """A robot without module joint modes (only ``fixed``): the matcher falls back to distance."""
+
+if "kin_helpers" not in sys.modules:      # the kinematics tests' ``stick`` robot
+    _PATH = Path(__file__).resolve().parents[1] / "kinematics" / "kin_helpers.py"
+    _SPEC = importlib.util.spec_from_file_location("kin_helpers", _PATH)
+    sys.modules["kin_helpers"] = importlib.util.module_from_spec(_SPEC)
+    _SPEC.loader.exec_module(sys.modules["kin_helpers"])
+stick = sys.modules["kin_helpers"]
+"""``stick.STICK`` (hubs, rods, gimbal joints) and ``stick.triangle_leg()``."""
 
 
 def random_freesn(rng: np.random.Generator, nodes: int, struts: int, free: int) -> Configuration:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from matching_helpers import BARS, assert_isomorphism, random_freesn, scrambled
+from matching_helpers import BARS, assert_isomorphism, random_freesn, scrambled, stick
 
 from msrr.core.cli import get_cli
 from msrr.core.io import save_configuration
@@ -17,12 +17,13 @@ from msrr.core.matching import (
     MatchingError,
     brute_force_isomorphisms,
     distance_cost,
+    ik_cost,
     iso_search,
     mapping_key,
     match,
     tied,
 )
-from msrr.core.plugins import load_configuration, resolve
+from msrr.core.plugins import load_configuration
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -137,7 +138,7 @@ def test_ties_go_to_the_stated_key_never_to_round_off():
     expected = min((m for m in maps if tied(m.distance, least)), key=mapping_key)
     rng = np.random.default_rng(1)
     chosen = set()
-    for _ in range(6):
+    for _ in range(4):
         system = _noisy(reference, rng)
         result = match(system, [Candidate(_noisy(reference, rng), None, "ref")],
                        cost="distance")
@@ -201,12 +202,15 @@ def test_cli_match_without_isomorphic_reference_is_one_line(tmp_path):
 
 
 def test_default_cost_is_the_ik_cost_for_a_robot_with_joint_modes():
-    config = load_configuration(ROOT / "plugins" / "freesn" / "configs" / "triangle-leg.json")
+    config = stick.triangle_leg()
     reference = scrambled(config, np.random.default_rng(0), noise=0.1)
-    result = match(config, [Candidate(reference, None, "ref")], robot=resolve("freesn"))
+    result = match(config, [Candidate(reference, None, "ref")], robot=stick.STICK)
     assert result is not None and result.cost_kind == "ik" and not result.note
     assert_isomorphism(config, reference, result.mapping)
     assert result.mapping.distance < 0.1
+    assert result.tree is not None and result.tree.dim > 0      # the robot's default tree
+    assert result.cost == pytest.approx(ik_cost(reference, result.tree,
+                                                result.mapping.system_in_reference_ids(config)))
 
 
 def test_cli_matches_a_robot_without_joint_modes(tmp_path):
