@@ -4,8 +4,9 @@ Under the mapping f: V_c -> V_g a connection ``connect(uF_u, vF_v)`` of the star
 kept when the goal has ``connect(f(u)F_u, f(v)F_v)``; every other start connection
 is undocked and every goal connection without a kept preimage is docked. The
 executable order is: all undocks, then the moves of the rigid groups (matched
-subconfigurations and free modules) to their goal poses, then the docks in
-breadth-first order of the goal tree, so each dock attaches one more group to the
+subconfigurations and free modules) to their goal poses in a collision-free order,
+routed through free cells and parked where needed (:mod:`.routing`), then the docks
+in breadth-first order of the goal tree, so each dock attaches one more group to the
 part that holds the goal root.
 """
 
@@ -19,6 +20,8 @@ from msrr.core.plan import Action, ActionType, ConnectionChange
 from .centre import parents
 from .mcs import components
 from .representation import FaceLinks, face_links
+from .routing import Cell, route_groups
+from .targets import DerivedConfiguration
 
 __all__ = ["Pose", "generate_actions", "kept_edge_ids", "rigid_groups"]
 
@@ -48,29 +51,43 @@ def rigid_groups(start: Configuration, kept: Sequence[str]) -> list[list[str]]:
     return components(links, start.vertices())
 
 
-def _rounded(pose: Pose) -> list[float]:
-    return [round(float(c), 9) for c in pose]
+def _fresh_id(base: str, taken: set[str]) -> str:
+    candidate, n = base, 1
+    while candidate in taken:
+        n += 1
+        candidate = f"{base}#{n}"
+    taken.add(candidate)
+    return candidate
 
 
 def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping[str, str],
-                     start_poses: Mapping[str, Pose], goal_poses: Mapping[str, Pose], *,
-                     start_root: str, goal_root: str, priority: Sequence[str] = ()
-                     ) -> list[Action]:
+                     start_cells: Mapping[str, Cell], goal_cells: Mapping[str, Cell], *,
+                     start_root: str, goal_root: str, unit: float,
+                     priority: Sequence[str] = ()) -> list[Action]:
     """Undock, move and dock actions that take ``start`` to ``goal`` (start ids).
 
     Args:
         start: the start configuration (loop edges included, they are undocked too).
         goal: the goal tree, in goal ids.
         mapping: the bijection f, start id -> goal id.
-        start_poses: pose of every start module [m, m, rad].
-        goal_poses: goal pose of every start module, same frame.
+        start_cells: grid cell of every start module (the start's root frame).
+        goal_cells: goal cell of every start module, same frame.
         start_root: tau_c; an undock names the end farther from it first.
         goal_root: tau_g; docks follow the goal tree breadth-first from it.
+        unit: the grid pitch [m].
         priority: module order for the moves (matched subconfigurations, then free
-            modules in the order they reached their targets).
+            modules in the order they reached their targets); see
+            :func:`~msrr.plugins.mmrp.routing.route_groups`.
 
     Returns:
-        The actions; each one's ``target`` is the configuration after it.
+        The actions. Each moving action is one straight, axis-aligned translation of
+        a rigid group through free cells (its path: from where the group is to
+        ``goals``); a route with turns or a parking stop is several moving actions.
+        Targets are :class:`~msrr.plugins.mmrp.targets.DerivedConfiguration` s, each
+        the previous one plus this action's change; moving actions share theirs.
+
+    Raises:
+        PlanningError: no collision-free order of the moves exists (see routing).
     """
     links_g = face_links(goal)
     inverse = {g: c for c, g in mapping.items()}
@@ -81,49 +98,61 @@ def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping
         start_adj[e.source].append(e.target)
         start_adj[e.target].append(e.source)
     start_parent = parents(start_adj, start_root)
-    current = start.copy()
+    groups = rigid_groups(start, kept)
+    links = [frozenset({e.source, e.target}) for e in start.edges() if e.id in keep]
+    routing = route_groups(groups, start_cells, goal_cells, links=links, priority=priority)
+    cut = set(routing.cut)
+    keep = {e.id for e in start.edges()
+            if e.id in keep and frozenset({e.source, e.target}) not in cut}
+    current: Configuration = start
     actions: list[Action] = []
+    kept_pairs = set()
     for e in start.edges():
         if e.id in keep:
+            kept_pairs.add(frozenset({e.source, e.target}))
             continue
-        current.disconnect(e.id)
+        current = DerivedConfiguration(current, [("disconnect", e.id, "", "", "", "")])
         child_first = start_parent.get(e.source) == e.target
         change = (ConnectionChange(e.source, e.target, e.ports[0], e.ports[1], e.id)
                   if child_first else
                   ConnectionChange(e.target, e.source, e.ports[1], e.ports[0], e.id))
-        actions.append(Action(ActionType.DISCONNECTION, current.copy(),
+        actions.append(Action(ActionType.DISCONNECTION, current,
                               modules=(change.source, change.target), changes=(change,),
                               note=f"undock {change}"))
-    rank = {m: i for i, m in enumerate(priority)}
-    groups = sorted(rigid_groups(start, kept),
-                    key=lambda g: min(rank.get(m, len(rank)) for m in g))
-    for group in groups:
-        moved = any(abs(a - b) > 1e-9 for m in group
-                    for a, b in zip(start_poses[m], goal_poses[m], strict=True))
-        if not moved:
-            continue
-        distance = max(((goal_poses[m][0] - start_poses[m][0]) ** 2
-                        + (goal_poses[m][1] - start_poses[m][1]) ** 2) ** 0.5 for m in group)
-        what = "module" if len(group) == 1 else "subconfiguration"
-        actions.append(Action(ActionType.MOVING, current.copy(), modules=tuple(group),
-                              goals={m: _rounded(goal_poses[m]) for m in group},
-                              cost=distance,
-                              note=f"move {what} {','.join(group)} to its goal pose"))
+    moved = current if current is not start else DerivedConfiguration(start)
+    for route in routing.routes:
+        first = route.modules[0]
+        offsets = {m: (start_cells[m][0] - start_cells[first][0],
+                       start_cells[m][1] - start_cells[first][1]) for m in route.modules}
+        what = "module" if len(route.modules) == 1 else "subconfiguration"
+        legs = len(route.corners) - 1
+        for leg, (a, b) in enumerate(zip(route.corners, route.corners[1:], strict=False), 1):
+            goals = {m: [(b[0] + dx) * unit, (b[1] + dy) * unit, 0.0]
+                     for m, (dx, dy) in offsets.items()}
+            where = "a parking place" if route.parking else "its goal pose"
+            actions.append(Action(
+                ActionType.MOVING, moved, modules=route.modules, goals=goals,
+                cost=(abs(b[0] - a[0]) + abs(b[1] - a[1])) * unit,
+                note=f"move {what} {','.join(route.modules)} toward {where} "
+                     f"(leg {leg}/{legs}, cell {a} -> {b})"))
     goal_adj: dict[str, list[str]] = {v: [] for v in goal.vertices()}
     for e in goal.edges():
         goal_adj[e.source].append(e.target)
         goal_adj[e.target].append(e.source)
     goal_parent = parents(goal_adj, goal_root)
+    taken = set(start.edge_ids())
     for child, parent in goal_parent.items():
         if parent is None:
             continue
         child_face = next(f for f, (w, _) in links_g[child].items() if w == parent)
         parent_face = links_g[child][child_face][1]
         u, v = inverse[parent], inverse[child]
-        if any(e.id in keep and {e.source, e.target} == {u, v} for e in start.incident(v)):
+        if frozenset({u, v}) in kept_pairs:
             continue
-        edge_id = current.connect(u, v, ports=(parent_face, child_face))
+        edge_id = _fresh_id(f"{u}{parent_face}-{v}{child_face}", taken)
+        current = DerivedConfiguration(current, [("connect", u, v, parent_face, child_face,
+                                                  edge_id)])
         change = ConnectionChange(v, u, child_face, parent_face, edge_id)
-        actions.append(Action(ActionType.CONNECTION, current.copy(), modules=(v, u),
+        actions.append(Action(ActionType.CONNECTION, current, modules=(v, u),
                               changes=(change,), note=f"dock {change}"))
     return actions

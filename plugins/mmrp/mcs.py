@@ -85,12 +85,24 @@ def common_candidates(links_c: FaceLinks, links_g: FaceLinks, within_c: Collecti
         first = mcs(links_c, links_g, *prefer, within_c=set_c, within_g=set_g)
         found.append(first)
         seen.update(first.items())
+    # a pair with no face-compatible neighbour pair is a one-module MCS: skip it, and
+    # start the search only from pairs that share a (face, mating face) signature
+    by_face: dict[tuple[str, str], list[str]] = {}
+    for b in order_g:
+        for face, (w, face2) in sorted(links_g[b].items()):
+            if w in set_g:
+                by_face.setdefault((face, face2), []).append(b)
     for a in order_c:
-        for b in order_g:
-            if (a, b) not in seen:
-                part = mcs(links_c, links_g, a, b, within_c=set_c, within_g=set_g)
-                seen.update(part.items())
-                found.append(part)
+        for face, (w, face2) in sorted(links_c[a].items()):
+            if w not in set_c:
+                continue
+            for b in by_face.get((face, face2), ()):
+                if (a, b) not in seen:
+                    part = mcs(links_c, links_g, a, b, within_c=set_c, within_g=set_g)
+                    seen.update(part.items())
+                    found.append(part)
+    if not found and order_c and order_g:
+        found.append({order_c[0]: order_g[0]})
     found.sort(key=len, reverse=True)  # stable: the preferred pair wins ties
     return found[:limit]
 

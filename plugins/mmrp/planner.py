@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from msrr.core import Configuration, plugins
 from msrr.core.errors import ConfigurationError, PlanningError
 from msrr.core.io import check_configuration
-from msrr.core.plan import Plan
+from msrr.core.plan import ActionType, Plan
 
 from .actions import Pose, generate_actions, kept_edge_ids
 from .centre import root_of
@@ -37,7 +37,6 @@ from .representation import (
     Link,
     face_links,
     grid_cells,
-    layout,
     overlapping_cells,
     pitch,
     to_tree,
@@ -184,8 +183,9 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     actions = generate_actions(start, goal, mapping, start_cells, goal_cells,
                                start_root=tau_c, goal_root=tau_g, unit=unit,
                                priority=priority)
-    kept = len(kept_edge_ids(start, links_g, mapping))
-    pairs = len(goal.edges()) - kept
+    pairs = sum(a.type is ActionType.CONNECTION for a in actions)
+    kept = len(goal.edges()) - pairs
+    cut = len(kept_edge_ids(start, links_g, mapping)) - kept
     elapsed = (time.perf_counter() - began) * 1e3
     recognition = recognize_with_stats(observe(start), seed=seed)
     notes = [
@@ -224,6 +224,9 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
                "mcs_modules": float(len(common)), "matched_pairs": float(len(matching.pairs)),
                "free_vertices": float(len(matching.free_current)),
                "fallback_modules": float(len(result.fallback)),
+               "cut_for_motion": float(cut),
+               "parking_moves": float(sum(a.type is ActionType.MOVING and "parking" in a.note
+                                          for a in actions)),
                "field_steps": float(result.steps), "matching_attempts": float(matching.attempts),
                "recognition_rounds": float(recognition.rounds),
                "recognition_messages": float(recognition.messages),

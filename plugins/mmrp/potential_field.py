@@ -183,3 +183,38 @@ def map_free_vertices(free: Mapping[str, tuple[float, float]],
             fallback.append(names[moving[row]])
     return FieldResult(mapping, tuple(arrival), tuple(fallback), steps,
                        {m: float(travelled[i] * unit) for i, m in enumerate(names)})
+
+
+def assign_free_vertices(free: Mapping[str, tuple[float, float]],
+                         targets: Mapping[str, tuple[float, float]]) -> FieldResult:
+    """The field's intent without simulating it: minimum total distance, nearest first.
+
+    For many free modules the field of eqs. 2-5 crowds the ring around the mapped
+    subconfigurations and stalls. This replaces the simulation by what it aims at:
+    every free module takes a near free target and no two paths cross -- a
+    minimum-total-Euclidean-distance assignment has no two crossing segments (if two
+    crossed, swapping their targets would shorten the total, by the triangle
+    inequality). Collisions on the way, which the repulsion of eq. 3 avoids, are
+    avoided by routing the moves on the grid (:mod:`.routing`). Arrival order is by
+    assigned distance, as the nearest module reaches its target first in the field.
+
+    Args:
+        free: start position of every current free module [m].
+        targets: position of every goal free module in the same frame [m].
+
+    Returns:
+        The mapping; ``fallback`` is empty and ``steps`` 0 (nothing was simulated).
+    """
+    if len(free) != len(targets):
+        raise ValueError(f"{len(free)} free modules for {len(targets)} targets")
+    names, goal_names = list(free), list(targets)
+    if not names:
+        return FieldResult({}, (), (), 0, {})
+    pos = np.array([free[m] for m in names], dtype=float).reshape(-1, 2)
+    goal = np.array([targets[g] for g in goal_names], dtype=float).reshape(-1, 2)
+    cost = np.linalg.norm(pos[:, None, :] - goal[None, :, :], axis=2)
+    rows, cols = linear_sum_assignment(cost)
+    order = np.argsort(cost[rows, cols], kind="stable")
+    mapping = {names[rows[k]]: goal_names[cols[k]] for k in order}
+    return FieldResult(mapping, tuple(mapping), (), 0,
+                       {names[r]: float(cost[r, c]) for r, c in zip(rows, cols, strict=True)})

@@ -17,6 +17,7 @@ from msrr.core.configuration import Configuration
 from msrr.core.errors import PlanningError
 from msrr.core.io import load_configuration
 from msrr.core.plan import ActionType, load_plan, save_plan
+from msrr.plugins.mmrp.check import check_plan
 from msrr.plugins.mmrp.mcs import decompose, mcs
 from msrr.plugins.mmrp.optimum import optimum
 from msrr.plugins.mmrp.planner import plan_hybrid
@@ -66,11 +67,14 @@ def _check_plan(start: Configuration, goal: Configuration, seed: int = 0) -> int
                                        ActionType.CONNECTION].index)
     assert plan.undocks == plan.docks == result.pairs <= len(start) - 1
     poses = dict(result.goal_poses)
+    last = {}
     for action in plan.actions:
         if action.type is ActionType.MOVING:
             assert set(action.goals) == set(action.modules)
-            for module, pose in action.goals.items():
-                assert pose == pytest.approx(list(poses[module]))
+            last.update(action.goals)
+    for module, pose in last.items():
+        assert pose == pytest.approx(list(poses[module]))
+    assert check_plan(plan) == []
     for e in reached.edges():
         dx, dy = GRID_STEP[e.ports[0]]
         assert poses[e.target][:2] == pytest.approx(

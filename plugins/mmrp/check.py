@@ -1,0 +1,166 @@
+"""Plan-level checker: replay an MMRP plan on the grid and report every invalid step.
+
+Independent of the planner: it reads only the plan (start, actions, goal) and the
+MMRP rules of section 3.1. The start is laid out on the grid of docked positions
+from its centre (:func:`~msrr.plugins.mmrp.representation.grid_cells`, the frame of
+the plan's goal poses); then every action is replayed:
+
+* undock -- the connection exists, with these faces;
+* dock -- the faces form a legal pair (T-B or L-R), neither is in use, the two
+  modules sit on neighbouring cells in the direction of the face, and the
+  connection joins two different components (the structure stays a forest);
+* move -- the modules are whole components, heading 0, translated rigidly along one
+  grid axis by whole cells; every cell they pass over, including where they stop,
+  is free of other modules (no swept overlap);
+
+and after each action no two modules share a cell. At the end, the connections
+must equal the plan's goal.
+"""
+
+from __future__ import annotations
+
+import math
+
+from msrr.core.plan import ActionType, Plan
+
+from .centre import root_of
+from .representation import GRID_STEP, edge_set, pitch, to_tree
+from .rules import LEGAL_PAIRS
+
+__all__ = ["check_plan"]
+
+
+def _cell(value: float, unit: float, where: str, problems: list[str]) -> int:
+    cells = value / unit
+    if abs(cells - round(cells)) > 1e-6:
+        problems.append(f"{where}: {value} m is not on the grid of pitch {unit} m")
+    return round(cells)
+
+
+def check_plan(plan: Plan, *, limit: int = 20) -> list[str]:
+    """Replay ``plan`` on the grid; the problems found, at most ``limit`` (empty: valid).
+
+    Args:
+        plan: an MMRP plan whose moving actions carry ``goals`` ``{id: [x, y, yaw]}``
+            [m, m, rad] in the start's root frame (its centre at the origin).
+        limit: stop after this many problems.
+    """
+    problems: list[str] = []
+    unit = pitch()
+    tree = to_tree(plan.start).tree
+    cells: dict[str, tuple[int, int]] = {}
+    root = root_of(tree)
+    cells[root] = (0, 0)
+    stack = [root]
+    links: dict[str, dict[str, tuple[str, str]]] = {v: {} for v in plan.start.vertices()}
+    for e in plan.start.edges():
+        links[e.source][e.ports[0]] = (e.target, e.ports[1])
+        links[e.target][e.ports[1]] = (e.source, e.ports[0])
+    edges: dict[str, tuple[str, str, str, str]] = {
+        e.id: (e.source, e.ports[0], e.target, e.ports[1]) for e in plan.start.edges()}
+    while stack:
+        u = stack.pop()
+        for e in tree.incident(u):
+            face, v = (e.ports[0], e.target) if e.source == u else (e.ports[1], e.source)
+            if v not in cells:
+                cells[v] = (cells[u][0] + GRID_STEP[face][0], cells[u][1] + GRID_STEP[face][1])
+                stack.append(v)
+    holder: dict[tuple[int, int], str] = {}
+    for m, c in cells.items():
+        if c in holder:
+            problems.append(f"start: modules {holder[c]} and {m} on one cell {c}")
+        holder[c] = m
+
+    def component(m: str) -> set[str]:
+        seen, todo = {m}, [m]
+        while todo:
+            for w, _ in links[todo.pop()].values():
+                if w not in seen:
+                    seen.add(w)
+                    todo.append(w)
+        return seen
+
+    for k, action in enumerate(plan.actions):
+        if len(problems) >= limit:
+            break
+        where = f"action {k} ({action.type.value})"
+        if action.type is ActionType.DISCONNECTION:
+            for ch in action.changes:
+                edge = edges.pop(ch.edge_id, None)
+                if edge is None:
+                    problems.append(f"{where}: no connection {ch.edge_id} to undock")
+                    continue
+                a, fa, b, fb = edge
+                if {(a, fa), (b, fb)} != {(ch.source, ch.source_port), (ch.target, ch.target_port)}:
+                    problems.append(f"{where}: connection {ch.edge_id} is {a}{fa}-{b}{fb}, "
+                                    f"not {ch}")
+                links[a].pop(fa, None)
+                links[b].pop(fb, None)
+        elif action.type is ActionType.CONNECTION:
+            for ch in action.changes:
+                a, fa, b, fb = ch.source, ch.source_port, ch.target, ch.target_port
+                if frozenset({fa, fb}) not in LEGAL_PAIRS:
+                    problems.append(f"{where}: faces {fa}-{fb} cannot dock")
+                    continue
+                if fa in links[a] or fb in links[b]:
+                    problems.append(f"{where}: a face of {ch} is already connected")
+                    continue
+                step = GRID_STEP[fa]
+                if (cells[a][0] + step[0], cells[a][1] + step[1]) != cells[b]:
+                    problems.append(f"{where}: {b} is not next to face {fa} of {a} "
+                                    f"({cells[a]} -> {cells[b]})")
+                if b in component(a):
+                    problems.append(f"{where}: {ch} closes a loop (not a forest)")
+                if ch.edge_id in edges:
+                    problems.append(f"{where}: connection id {ch.edge_id} already used")
+                links[a][fa] = (b, fb)
+                links[b][fb] = (a, fa)
+                edges[ch.edge_id or f"{a}{fa}-{b}{fb}"] = (a, fa, b, fb)
+        elif action.type is ActionType.MOVING:
+            group = set(action.modules)
+            if set(action.goals) != group:
+                problems.append(f"{where}: goals for {sorted(action.goals)} but modules "
+                                f"{sorted(group)}")
+                continue
+            for m in group:
+                if not component(m) <= group:
+                    problems.append(f"{where}: {m} moves without the modules docked to it")
+                    break
+            shift = set()
+            for m, (x, y, yaw) in action.goals.items():
+                if abs(math.remainder(yaw, 2 * math.pi)) > 1e-6:
+                    problems.append(f"{where}: module {m} heading {yaw} rad, not 0")
+                target = (_cell(x, unit, where, problems), _cell(y, unit, where, problems))
+                shift.add((target[0] - cells[m][0], target[1] - cells[m][1]))
+            if len(shift) != 1:
+                problems.append(f"{where}: the modules do not translate together")
+                continue
+            (dx, dy), = shift
+            if dx and dy:
+                problems.append(f"{where}: move ({dx}, {dy}) is not along one grid axis")
+                continue
+            n = abs(dx) + abs(dy)
+            ux, uy = (dx > 0) - (dx < 0), (dy > 0) - (dy < 0)
+            for m in group:
+                del holder[cells[m]]
+            for t in range(1, n + 1):
+                for m in group:
+                    c = (cells[m][0] + t * ux, cells[m][1] + t * uy)
+                    if c in holder:
+                        problems.append(f"{where}: {m} passes over {holder[c]} at {c}")
+                        break
+                else:
+                    continue
+                break
+            for m in group:
+                cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
+                if cells[m] in holder:
+                    problems.append(f"{where}: {m} and {holder[cells[m]]} on one cell")
+                holder[cells[m]] = m
+        else:
+            problems.append(f"{where}: MMRP plans have no {action.type.value} actions")
+    if len(problems) < limit:
+        final = frozenset(frozenset({(a, fa), (b, fb)}) for a, fa, b, fb in edges.values())
+        if final != edge_set(plan.goal):
+            problems.append("the replayed connections differ from the plan's goal")
+    return problems[:limit]

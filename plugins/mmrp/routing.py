@@ -1,0 +1,538 @@
+"""Collision-free order and grid routes for the moves of rigid groups (issue 17).
+
+After the undocks, every rigid group (a matched subconfiguration, a kept chain, or a
+free module) translates on the grid of docked positions from its start cells to its
+goal cells; all MMRP modules keep heading 0, so a move is a translation. Groups move
+one at a time. A group may move when its goal cells are free; its route is an A*
+search over unit grid translations in which both placements of every unit step are
+free, so the swept area of the route never touches another module. When no group
+can reach its goal (two groups holding each other's goal cells, or a goal only
+reachable through a cell someone still holds), a group that blocks a goal is
+*parked*: moved to the nearest placement, by route length, that covers and touches
+no goal cell still awaited -- the intent of the potential field of section 4.3
+(nearest free place, no crossing) applied to a rigid group. Groups whose goal cells
+sit in pockets of the goal (cells with many goal neighbours) go first, so pockets
+are filled before they close.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass
+
+from msrr.core.errors import PlanningError
+
+__all__ = ["Cell", "Route", "Routing", "compress", "route_groups"]
+
+Cell = tuple[int, int]
+STEPS: tuple[Cell, ...] = ((1, 0), (-1, 0), (0, 1), (0, -1))
+DIRECT_LIMIT = 24
+"""Most groups for which the greedy order is tried first (its failed searches grow
+quadratically; evacuate-and-assemble scales)."""
+
+
+@dataclass(frozen=True)
+class Route:
+    """One move of one rigid group.
+
+    Attributes:
+        modules: the group.
+        corners: the cell of the group's first module at the start, at every turn
+            and at the end (straight axis-aligned segments between consecutive
+            corners; the other modules keep their offsets).
+        parking: whether the move parks the group out of the way (it moves again later).
+    """
+
+    modules: tuple[str, ...]
+    corners: tuple[Cell, ...]
+    parking: bool = False
+
+
+def compress(path: Sequence[Cell]) -> tuple[Cell, ...]:
+    """The corners of a 4-connected cell path: its ends and every change of direction."""
+    if len(path) <= 2:
+        return tuple(path)
+    corners = [path[0]]
+    for a, b, c in zip(path, path[1:], path[2:], strict=False):
+        if (b[0] - a[0], b[1] - a[1]) != (c[0] - b[0], c[1] - b[1]):
+            corners.append(b)
+    corners.append(path[-1])
+    return tuple(corners)
+
+
+def _search(shape: Sequence[Cell], start: Cell, free: Callable[[Cell], bool],
+            done: Callable[[Cell], bool], goal: Cell | None, bounds: tuple[int, int, int, int],
+            limit: int, penalty: int = 0,
+            heuristic: Callable[[Cell], int] | None = None) -> list[Cell] | None:
+    """A* (``goal`` given) or BFS (``goal`` None) over translations of ``shape``.
+
+    A translation ``t`` is allowed when every cell ``s + t`` is free; consecutive
+    translations differ by one unit step, so a step sweeps only its two placements.
+    With ``penalty`` > 0 occupied cells are allowed at that extra cost per cell (to
+    find which groups block the cheapest route).
+    """
+    lo_x, lo_y, hi_x, hi_y = bounds
+
+    def step_cost(t: Cell) -> int:
+        if not (lo_x <= t[0] <= hi_x and lo_y <= t[1] <= hi_y):
+            return -1
+        blocked = sum(not free((s[0] + t[0], s[1] + t[1])) for s in shape)
+        if blocked and not penalty:
+            return -1
+        return 1 + penalty * blocked
+
+    def h(t: Cell) -> int:
+        if heuristic is not None:
+            return heuristic(t)
+        return 0 if goal is None else abs(t[0] - goal[0]) + abs(t[1] - goal[1])
+
+    parent: dict[Cell, Cell | None] = {start: None}
+    cost = {start: 0}
+    frontier = [(h(start), 0, start)]
+    expanded = 0
+    while frontier:
+        _, g, t = heapq.heappop(frontier)
+        if g > cost[t]:
+            continue
+        if done(t):
+            path = [t]
+            while parent[path[-1]] is not None:
+                path.append(parent[path[-1]])
+            return path[::-1]
+        expanded += 1
+        if expanded > limit:
+            return None
+        for dx, dy in STEPS:
+            n = (t[0] + dx, t[1] + dy)
+            if g + 1 >= cost.get(n, 1 << 30):
+                continue
+            c = step_cost(n)
+            if c > 0 and g + c < cost.get(n, 1 << 30):
+                cost[n] = g + c
+                parent[n] = t
+                heapq.heappush(frontier, (g + c + h(n), g + c, n))
+    return None
+
+
+def _region(seed: Cell, walls: Collection[Cell], box: tuple[int, int, int, int],
+            seen: set[Cell], limit: int = 400) -> set[Cell] | None:
+    """The cells 4-connected to ``seed`` around ``walls``, or None if it reaches outside
+    ``box`` or grows past ``limit`` cells (open, for all the routing cares)."""
+    region = {seed}
+    stack = [seed]
+    while stack:
+        c = stack.pop()
+        if not (box[0] <= c[0] <= box[2] and box[1] <= c[1] <= box[3]):
+            seen |= region
+            return None
+        for dx, dy in STEPS:
+            n = (c[0] + dx, c[1] + dy)
+            if n not in walls and n not in region:
+                region.add(n)
+                stack.append(n)
+        if len(region) > limit:
+            seen |= region
+            return None
+    seen |= region
+    return region
+
+
+def _shapes(groups: Sequence[Sequence[str]], goal: Mapping[str, Cell]) -> list[tuple[Cell, ...]]:
+    """Cell offsets of every group's modules from its first module."""
+    return [tuple((goal[m][0] - goal[g[0]][0], goal[m][1] - goal[g[0]][1]) for m in g)
+            for g in groups]
+
+
+def _bounds(cells: Collection[Cell], margin: int) -> tuple[int, int, int, int]:
+    return (min(c[0] for c in cells) - margin, min(c[1] for c in cells) - margin,
+            max(c[0] for c in cells) + margin, max(c[1] for c in cells) + margin)
+
+
+def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
+            goal: Mapping[str, Cell], priority: Sequence[str], max_parks: int
+            ) -> list[Route] | None:
+    """Greedy order: any group whose goal is free and reachable, parking blockers.
+
+    Returns None when it gets stuck (then :func:`_staged` plans from the start).
+    """
+    where = dict(start)
+    occupied = {where[m]: i for i, group in enumerate(groups) for m in group}
+    goal_cells = {goal[m]: i for i, group in enumerate(groups) for m in group}
+    shapes = _shapes(groups, goal)
+    rank = {m: i for i, m in enumerate(priority)}
+    pocket = []
+    for group in groups:
+        own = {goal[m] for m in group}
+        pocket.append(max(sum((goal[m][0] + dx, goal[m][1] + dy) in goal_cells
+                              and (goal[m][0] + dx, goal[m][1] + dy) not in own
+                              for dx, dy in STEPS) for m in group))
+    pending = sorted((i for i, g in enumerate(groups) if where[g[0]] != goal[g[0]]),
+                     key=lambda i: (-pocket[i], min(rank.get(m, len(rank)) for m in groups[i])))
+    margin = max(len(g) for g in groups) + 3
+    bounds = _bounds([*start.values(), *goal.values()], margin)
+    limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 3000)
+    parks = [0] * len(groups)
+    routes: list[Route] = []
+
+    def free_for(index: int) -> Callable[[Cell], bool]:
+        def free(cell: Cell) -> bool:
+            holder = occupied.get(cell)
+            return holder is None or holder == index
+        return free
+
+    def move(index: int, path: list[Cell], parking: bool) -> None:
+        group = groups[index]
+        end = path[-1]
+        for m in group:
+            del occupied[where[m]]
+        for m, s in zip(group, shapes[index], strict=True):
+            where[m] = (end[0] + s[0], end[1] + s[1])
+            occupied[where[m]] = index
+        routes.append(Route(tuple(group), compress(path), parking))
+
+    final: set[Cell] = {where[m] for i, g in enumerate(groups) if i not in pending for m in g}
+    awaited_cells = {goal[m]: i for i in pending for m in groups[i]}
+    box = (bounds[0] + margin, bounds[1] + margin, bounds[2] - margin, bounds[3] - margin)
+
+    def encloses(index: int) -> bool:
+        """Whether placing ``index`` at its goal walls in a cell some pending group needs."""
+        own = {goal[m] for m in groups[index]}
+        walls = final | own
+        seen: set[Cell] = set()
+        for c0 in own:
+            for dx, dy in STEPS:
+                c = (c0[0] + dx, c0[1] + dy)
+                if c in walls or c in seen:
+                    continue
+                region = _region(c, walls, box, seen)
+                if region is not None and any(
+                        awaited_cells.get(r, index) != index
+                        or occupied.get(r, index) not in (index, None) for r in region):
+                    return True
+        return False
+
+    def to_goal(index: int, safe: bool = True) -> bool:
+        group = groups[index]
+        if any(occupied.get(goal[m], index) != index for m in group):
+            return False
+        if safe and encloses(index):
+            return False
+        path = _search(shapes[index], where[group[0]], free_for(index),
+                       lambda t, target=goal[group[0]]: t == target, goal[group[0]], bounds, limit)
+        if path is None:
+            return False
+        move(index, path, parking=False)
+        for m in group:
+            final.add(goal[m])
+            del awaited_cells[goal[m]]
+        return True
+
+    def park(index: int, awaited: Collection[int], protect: Collection[Cell] = ()) -> bool:
+        if parks[index] >= max_parks:
+            return False
+        reserved: set[Cell] = set(protect)
+        for j in awaited:
+            if j != index:
+                for m in groups[j]:
+                    c = goal[m]
+                    reserved.add(c)
+                    reserved.update((c[0] + dx, c[1] + dy) for dx, dy in STEPS)
+        shape = shapes[index]
+        here = where[groups[index][0]]
+
+        def clear(t: Cell) -> bool:
+            return t != here and not any((s[0] + t[0], s[1] + t[1]) in reserved for s in shape)
+
+        path = _search(shape, here, free_for(index), clear, None, bounds, limit)
+        if path is None:
+            return False
+        parks[index] += 1
+        for m in groups[index]:
+            final.discard(where[m])
+            awaited_cells[goal[m]] = index
+        move(index, path, parking=True)
+        return True
+
+    def clear_way(index: int) -> bool:
+        """Park the groups on the cheapest route of ``index`` to its goal, then move it."""
+        group = groups[index]
+        path = _search(shapes[index], where[group[0]], free_for(index),
+                       lambda t, target=goal[group[0]]: t == target, goal[group[0]], bounds,
+                       limit, penalty=4 * len(groups))
+        if path is None:
+            return False
+        protect = {(s[0] + t[0], s[1] + t[1]) for t in path for s in shapes[index]}
+        blockers = list(dict.fromkeys(occupied[c] for c in protect
+                                      if occupied.get(c, index) != index))
+        awaited = {*pending, index}
+        for b in blockers:
+            if not park(b, awaited, protect):
+                return False
+            if b not in pending:
+                pending.append(b)
+        return to_goal(index)
+
+    while pending:
+        moved = next((i for i in pending if to_goal(i)), None)
+        if moved is None:
+            moved = next((i for i in list(pending) if clear_way(i)), None)
+        if moved is not None:
+            pending.remove(moved)
+            continue
+        awaited = set(pending)
+        blockers = [i for i in pending
+                    if any(goal_cells.get(where[m], i) != i for m in groups[i])]
+        for i in [*blockers, *(i for i in pending if i not in blockers)]:
+            if park(i, awaited):
+                break
+        else:
+            return None
+    return routes
+
+
+def _split(group: list[str], links: set[frozenset[str]]) -> tuple[list[str], list[str],
+                                                                 frozenset[str]]:
+    """Cut the kept connection of ``group`` that leaves the most even two pieces."""
+    inner = [e for e in links if e <= set(group)]
+    best: tuple[int, list[str], list[str], frozenset[str]] | None = None
+    for cut in inner:
+        a = next(iter(cut))
+        piece, stack = {a}, [a]
+        while stack:
+            u = stack.pop()
+            for e in inner:
+                if e != cut and u in e:
+                    (w,) = e - {u}
+                    if w not in piece:
+                        piece.add(w)
+                        stack.append(w)
+        worst = max(len(piece), len(group) - len(piece))
+        if best is None or worst < best[0]:
+            best = (worst, [m for m in group if m in piece],
+                    [m for m in group if m not in piece], cut)
+    assert best is not None  # a group of two or more modules has a kept connection
+    return best[1], best[2], best[3]
+
+
+def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
+            goal: Mapping[str, Cell], links: Collection[frozenset[str]]
+            ) -> tuple[list[Route], list[frozenset[str]]]:
+    """Evacuate, then assemble: a slower order that does not get stuck.
+
+    Every moving group leaves for its own slot in a row of parking slots below the
+    configurations (outermost groups first, each by a free route), then the groups
+    come back in the reverse of an order that peels the goal from the outside, so
+    every goal cell is reached before anything closes the way in. A group that stays
+    put but walls in a moving one (at its start or its goal) moves out and back too.
+    Rigid groups hooked into each other so that no translation separates them are
+    split: the kept connection that halves the largest such group is undocked (and
+    docked again at the goal), one more dock/undock pair.
+
+    Returns:
+        The routes and the kept connections cut, as module pairs.
+    """
+    parts = [list(g) for g in groups]
+    kept = set(links)
+    cut: list[frozenset[str]] = []
+    moving = {i for i, g in enumerate(parts) if start[g[0]] != goal[g[0]]}
+    box = _bounds([*start.values(), *goal.values()], 0)
+    while True:
+        shapes = _shapes(parts, goal)
+        try:
+            return _staged_once(parts, shapes, start, goal, moving, box), cut
+        except _Walled as walled:
+            if walled.neighbours - moving:
+                moving |= walled.neighbours
+                continue
+            largest = max(walled.neighbours | walled.stuck, key=lambda i: len(parts[i]))
+            if len(parts[largest]) < 2:
+                raise PlanningError("no collision-free order of the moves found: single "
+                                    f"module {parts[largest][0]} is walled in") from None
+            piece_a, piece_b, edge = _split(parts[largest], kept)
+            kept.discard(edge)
+            cut.append(edge)
+            parts[largest] = piece_a
+            parts.append(piece_b)
+            moving.add(len(parts) - 1)
+
+
+class _Walled(Exception):
+    def __init__(self, neighbours: set[int], stuck: set[int]):
+        super().__init__()
+        self.neighbours = neighbours
+        self.stuck = stuck
+
+
+def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, ...]],
+                 start: Mapping[str, Cell], goal: Mapping[str, Cell], moving: set[int],
+                 box: tuple[int, int, int, int]) -> list[Route]:
+    """One evacuate-and-assemble plan; raises :class:`_Walled` if a peel gets stuck.
+
+    Outside the box, routes follow a rectangular lane ``2 * reach`` cells around it
+    (``reach`` exceeds every group's extent, so a group on the lane is clear of the
+    box) to a row of slots below the lane, each slot entered straight from above.
+    Inside the box, a route is the escape path found by the peel, which stays valid:
+    when a group leaves (or, reversed, arrives) exactly the groups that the peel saw
+    are in the box.
+    """
+    lo_x, lo_y, hi_x, hi_y = box
+    reach = max(max(abs(c) for s in sh for c in s) for sh in shapes) + 2
+    lane = (lo_x - 2 * reach, lo_y - 2 * reach, hi_x + 2 * reach, hi_y + 2 * reach)
+
+    def outside(shape: Sequence[Cell]) -> Callable[[Cell], bool]:
+        return lambda t: all(not (lo_x <= s[0] + t[0] <= hi_x and lo_y <= s[1] + t[1] <= hi_y)
+                             for s in shape)
+
+    def to_border(t: Cell) -> int:
+        return max(0, min(t[0] - lo_x, hi_x - t[0], t[1] - lo_y, hi_y - t[1]) + 1)
+
+    def peel(cells_of: Callable[[int], list[Cell]]) -> tuple[list[int], dict[int, list[Cell]]]:
+        """An order in which the moving groups can leave the box one by one, and how."""
+        occupied = {c: i for i in range(len(groups)) for c in cells_of(i)}
+        inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], reach)
+        limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
+        left = sorted(moving, key=lambda i: to_border(cells_of(i)[0]))
+        order: list[int] = []
+        escape: dict[int, list[Cell]] = {}
+        while left:
+            for i in left:
+                path = _search(shapes[i], cells_of(i)[0],
+                               lambda c, i=i: occupied.get(c, i) == i,
+                               outside(shapes[i]), None, inside, limit, heuristic=to_border)
+                if path is not None:
+                    break
+            else:
+                near: set[int] = set()
+                for i in left:
+                    path = _search(shapes[i], cells_of(i)[0],
+                                   lambda c, i=i: occupied.get(c, i) == i,
+                                   outside(shapes[i]), None, inside, limit,
+                                   penalty=4 * len(groups), heuristic=to_border)
+                    near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
+                             for s in shapes[i]
+                             if occupied.get((t[0] + s[0], t[1] + s[1]), i) != i}
+                raise _Walled(near, set(left))
+            left.remove(i)
+            order.append(i)
+            escape[i] = path
+            for c in cells_of(i):
+                del occupied[c]
+        return order, escape
+
+    def to_lane(i: int, t: Cell) -> list[Cell]:
+        """From a placement outside the box, straight out to the lane (away from the
+        box, so clear of it), then along the lane to its bottom side."""
+        xs = [c[0] + t[0] for c in shapes[i]]
+        ys = [c[1] + t[1] for c in shapes[i]]
+        if max(ys) < lo_y:
+            return [(t[0], lane[1])]
+        if max(xs) < lo_x:
+            return [(lane[0], t[1]), (lane[0], lane[1])]
+        if min(xs) > hi_x:
+            return [(lane[2], t[1]), (lane[2], lane[1])]
+        corner = lane[0] if t[0] - lane[0] <= lane[2] - t[0] else lane[2]
+        return [(t[0], lane[3]), (corner, lane[3]), (corner, lane[1])]
+
+    out_order, out_paths = peel(lambda i: [start[m] for m in groups[i]])
+    in_peel, in_paths = peel(lambda i: [goal[m] for m in groups[i]])
+    slot: dict[int, Cell] = {}
+    x = lo_x
+    for i in out_order:
+        xs = [c[0] for c in shapes[i]]
+        slot[i] = (x - min(xs), lane[1] - 2 * reach)
+        x += max(xs) - min(xs) + 2
+    routes: list[Route] = []
+    for i in out_order:
+        escape = out_paths[i]
+        path = [*escape, *to_lane(i, escape[-1]), (slot[i][0], lane[1]), slot[i]]
+        routes.append(Route(tuple(groups[i]), _corners(path), parking=True))
+    for i in reversed(in_peel):
+        escape = in_paths[i]
+        path = [*escape, *to_lane(i, escape[-1]), (slot[i][0], lane[1]), slot[i]][::-1]
+        routes.append(Route(tuple(groups[i]), _corners(path), parking=False))
+    return routes
+
+
+def _corners(points: Sequence[Cell]) -> tuple[Cell, ...]:
+    """The corners of a polyline of axis-aligned segments (unit steps or longer)."""
+    steps: list[Cell] = [points[0]]
+    for p in points[1:]:
+        q = steps[-1]
+        if p == q:
+            continue
+        if p[0] != q[0] and p[1] != q[1]:
+            raise AssertionError(f"route leg {q} -> {p} is not axis-aligned")  # internal bug
+        steps.append(p)
+    if len(steps) <= 2:
+        return tuple(steps)
+    out = [steps[0]]
+    for a, b, c in zip(steps, steps[1:], steps[2:], strict=False):
+        d1 = ((b[0] > a[0]) - (b[0] < a[0]), (b[1] > a[1]) - (b[1] < a[1]))
+        d2 = ((c[0] > b[0]) - (c[0] < b[0]), (c[1] > b[1]) - (c[1] < b[1]))
+        if d1 != d2:
+            out.append(b)
+    out.append(steps[-1])
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class Routing:
+    """The moves in executable order and the kept connections cut to make them possible.
+
+    Attributes:
+        routes: the moves.
+        cut: kept connections undocked so hooked groups can separate (module pairs).
+    """
+
+    routes: list[Route]
+    cut: list[frozenset[str]]
+
+
+def route_groups(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
+                 goal: Mapping[str, Cell], *, links: Collection[frozenset[str]] = (),
+                 priority: Sequence[str] = (), max_parks: int = 3,
+                 direct: bool = True) -> Routing:
+    """Order the groups' moves and route each through free cells, parking where needed.
+
+    First greedily (:func:`_direct`): a group moves when its goal is free, it has a
+    free route and its arrival walls in no cell a pending group needs; when none
+    can, blockers are parked at the nearest place that touches no awaited goal.
+    Should that get stuck, the order is planned again from the start by
+    evacuating and assembling (:func:`_staged`).
+
+    Args:
+        groups: the rigid groups (every module in exactly one).
+        start: start cell of every module (after the undocks).
+        goal: goal cell of every module, same frame; groups translate rigidly.
+        links: the kept connections that hold the groups together (module pairs).
+        priority: tie-break order of the moves (modules earlier move earlier).
+        max_parks: how often the greedy order may park one group.
+        direct: try the greedy order first (False: evacuate and assemble only).
+
+    Returns:
+        The moves in executable order (groups already at their goal do not appear
+        unless they had to move out of the way) and the connections cut.
+
+    Raises:
+        PlanningError: two modules on one cell, a group that is no translation of
+            its goal, or a group walled in for good.
+    """
+    seen: dict[Cell, str] = {}
+    for group in groups:
+        for m in group:
+            if start[m] in seen:
+                raise PlanningError(f"modules {seen[start[m]]} and {m} start on one cell "
+                                    f"{start[m]}")
+            seen[start[m]] = m
+    for group, shape in zip(groups, _shapes(groups, goal), strict=True):
+        if any((start[m][0] - start[group[0]][0], start[m][1] - start[group[0]][1]) != s
+               for m, s in zip(group, shape, strict=True)):
+            raise PlanningError(f"group {','.join(group)} is not a translation of its goal")
+    if not groups:
+        return Routing([], [])
+    routes = _direct(groups, start, goal, priority, max_parks) \
+        if direct and len(groups) <= DIRECT_LIMIT else None
+    if routes is not None:
+        return Routing(routes, [])
+    return Routing(*_staged(groups, start, goal, links))
