@@ -5,11 +5,13 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from tiny_robot import GoalController, LinkRecognizer, PointDriver, make_run, swap_plan
+from tiny_robot import GoalController, LinkRecognizer, PointDriver, chain, make_run, swap_plan
 
 from msrr.core import hookimpl, plugins
+from msrr.core.actions import detect_action
 from msrr.core.errors import ExecutionError
 from msrr.core.executor import Executor, ExecutorOptions
+from msrr.core.plan import ActionType, Plan
 
 
 class Recorder:
@@ -71,3 +73,18 @@ def test_options_are_checked() -> None:
     with pytest.raises(ExecutionError, match="not connected"):
         Executor(make_run(swap_plan()), PointDriver(), LinkRecognizer(),
                  GoalController()).execute()
+
+
+def test_a_face_swap_runs_as_one_parallel_connection() -> None:
+    """a-b, c-d -> a-d, c-b, detected as one action: release both, approach, dock both."""
+    start = chain(("a", "b"), ("c", "d"), modules="abcd")
+    goal = chain(("a", "d"), ("c", "b"), modules="abcd")
+    action = detect_action(start, goal)
+    assert action.type is ActionType.PARALLEL_CONNECTION
+    action.goals = {"d": [-1.0, 0.0, 0.0], "b": [3.0, 0.0, 0.0]}     # modules start at x = 0..3
+    result, events = execute(Plan("tiny", "test", start, goal, [action]))
+    assert result.success, result.reason
+    assert (result.undocks, result.docks, result.actions_done) == (2, 2, 1)
+    topology = [e for k, e in events if k == "topology"]
+    assert sorted(topology[:2]) == ["undock aT-bB", "undock cT-dB"]
+    assert sorted(topology[2:]) == ["dock aT-dB", "dock cT-bB"]
