@@ -183,6 +183,9 @@ def topology_diff(current: Configuration, target: Configuration,
         mapping: ids of ``current`` -> ids of ``target`` (a library edge's module map);
             the same ids on both sides when omitted. With a mapping, ``current`` is
             first expressed in ``target``'s ids (:meth:`ModuleMap.apply`).
+
+    Raises:
+        ConfigurationError: ``mapping`` misses a module of ``current``.
     """
     if mapping is not None:
         current = mapping.apply(current)[0]
@@ -241,6 +244,9 @@ def classify(current: Configuration, target: Configuration,
         current: the configuration the step starts from.
         target: the configuration it reaches.
         mapping: ids of ``current`` -> ids of ``target``; the same ids when omitted.
+
+    Raises:
+        ConfigurationError: ``mapping`` misses a module of ``current``.
     """
     if mapping is not None:
         current = mapping.apply(current)[0]
