@@ -122,8 +122,7 @@ class TopologyDiff:
         """
         out = config.copy()
         for change in self.broken:
-            present = {key: link for key, link in _links(out)}
-            link = present.get(_key(change))
+            link = dict(_links(out)).get(_key(change))
             if link is None:
                 continue
             if _is_strut_end(change):
