@@ -823,12 +823,13 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
               planner: str = "miso", node_limit: int = 2_000_000) -> Plan:
     """A :class:`~msrr.core.plan.Plan` of MISO connection changes from ``start`` to ``goal``.
 
-    Each step becomes one action: a *connection* (the free module connects), a
-    *disconnection* (a module on the cycle frees itself), a *flow* (a leaf moves to a
-    module touching its parent) or, for any other re-targeting, a *disconnection* and
-    a *connection* noted ``reconnect`` (one planning step; the module carries its
-    in-tree between them). A last *moving* action sets the goal's vectors. Kept
-    connections keep their ids and vectors; new ones take the goal's vectors.
+    Each step becomes one action, typed as :func:`msrr.core.actions.classify` types
+    it: a *connection* (the free module connects), a *disconnection* (a module on the
+    cycle frees itself), a *flow* (a leaf moves to a module touching its parent) or,
+    for any other re-targeting, a break-and-make *parallel connection* (disconnection
+    first, then connection; the module carries its in-tree). A last *moving* action
+    sets the goal's vectors. Kept connections keep their ids and vectors; new ones take
+    the goal's vectors.
     """
     problem = MisoProblem.from_configurations(start, goal)
     solution = (solve_exact(problem, node_limit=node_limit) if exact
@@ -853,36 +854,26 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     flows = reconnections = 0
     for t, step in enumerate(solution.steps, 1):
         i = step.module
-        change_old = (ConnectionChange(ids[i], ids[step.old]) if step.old != FREE else None)
-        change_new = (ConnectionChange(ids[i], ids[step.new]) if step.new != FREE else None)
+        broken = (ConnectionChange(ids[i], ids[step.old]),) if step.old != FREE else ()
+        made = (ConnectionChange(ids[i], ids[step.new]),) if step.new != FREE else ()
         flow = _is_flow(parent, step)
-        if step.old != FREE and step.new != FREE and not flow:
-            reconnections += 1
-            mid = list(parent)
-            mid[i] = FREE
-            assert change_old is not None
-            middle = _configuration(start, ids, mid, vectors, edge_ids, f"step {t}a")
-            actions.append(Action(ActionType.DISCONNECTION, middle, (ids[i], ids[step.old]),
-                                  (change_old,), note=f"reconnect {ids[i]}: "
-                                  f"{ids[step.old]} -> {ids[step.new]} (step {t}, part 1 of 2)"))
         parent[i] = step.new
         after = _configuration(start, ids, parent, vectors, edge_ids, f"step {t}")
         if flow:
             flows += 1
-            kind, changes = ActionType.FLOW, (change_old, change_new)
-            note = f"flow {ids[i]}: {ids[step.old]} -> {ids[step.new]} (step {t})"
-        elif step.new == FREE:
-            kind, changes = ActionType.DISCONNECTION, (change_old,)
-            note = f"free {ids[i]} from {ids[step.old]} (step {t})"
-        elif step.old == FREE:
-            kind, changes = ActionType.CONNECTION, (change_new,)
-            note = f"connect {ids[i]} to {ids[step.new]} (step {t})"
+            kind, verb = ActionType.FLOW, "flow"
+        elif not made:
+            kind, verb = ActionType.DISCONNECTION, "free"
+        elif not broken:
+            kind, verb = ActionType.CONNECTION, "connect"
         else:
-            kind, changes = ActionType.CONNECTION, (change_new,)
-            note = (f"reconnect {ids[i]}: {ids[step.old]} -> {ids[step.new]} "
-                    f"(step {t}, part 2 of 2)")
-        modules = tuple(dict.fromkeys(m for c in changes if c for m in (c.source, c.target)))
-        actions.append(Action(kind, after, modules, tuple(c for c in changes if c), note=note))
+            reconnections += 1
+            kind, verb = ActionType.PARALLEL_CONNECTION, "reconnect"
+        old = ids[step.old] if step.old != FREE else "(free)"
+        new = ids[step.new] if step.new != FREE else "(free)"
+        actions.append(Action(kind, after, tuple(dict.fromkeys(
+            m for c in broken + made for m in (c.source, c.target))), broken + made,
+            note=f"{verb} {ids[i]}: {old} -> {new} (step {t})"))
         current = after
     reached = _configuration(start, ids, final, goal_vectors, edge_ids,
                              goal.name or "goal")
@@ -890,10 +881,6 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
         actions.append(Action(ActionType.MOVING, reached, ids, note="take the goal's shape"))
     mapping = {ids[a]: problem.goal_ids[b] for a, b in enumerate(solution.pairing)}
     notes = []
-    if reconnections:
-        notes.append(f"{reconnections} step(s) re-target a connector that is not a leaf's or "
-                     "not onto a neighbour: emitted as disconnection + connection pairs "
-                     "(notes 'part 1/2 of 2') to merge into one action")
     if exact and not solution.optimal:
         notes.append(f"exact search stopped after {node_limit} nodes: best plan found, "
                      "optimality not proved")
