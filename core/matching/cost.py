@@ -20,7 +20,6 @@ and a stated key decides (see :func:`msrr.core.matching.matcher.match`).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 from ..configuration import Configuration
@@ -65,9 +64,9 @@ TIE_ABSOLUTE = 1e-12
 IK_RESTARTS = 2
 """Sampled IK restarts after the first start (the motion cost is bounded by restarts)."""
 
-IK_OPTIONS = IKOptions(seed=0, max_restarts=IK_RESTARTS, time_budget=math.inf, polish=0)
+IK_OPTIONS = IKOptions(seed=0, max_restarts=IK_RESTARTS, time_budget=None, polish=0)
 """The IK settings of the motion cost: fixed seed, bounded restarts and iterations, no
-clock (``time_budget`` infinite), stop at the first start under the IK tolerance."""
+clock (``time_budget=None``), stop at the first start under the IK tolerance."""
 
 CostFn = Callable[[Configuration, KinematicTree | None, Configuration], float]
 """``cost_fn(reference, tree, system_in_reference_ids) -> cost``."""
