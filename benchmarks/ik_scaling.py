@@ -19,6 +19,7 @@ the first ``--fd-pairs`` pairs, and the time against the angular distance of the
 ``exponent`` is the slope of log(median time) against log(edges).
 
 Usage: ``python benchmarks/ik_scaling.py --pairs 100 --seed 0 --plot fig17.png``
+(``--clock cpu`` times each solve by this process's CPU time, for a shared machine).
 """
 
 from __future__ import annotations
@@ -92,11 +93,15 @@ def make_pair(n_edges: int, rng: np.random.Generator, rms_deg: float) -> Pair:
     return Pair(tree, start, target, float(np.rad2deg(rms(lo))))
 
 
-def solve(pair: Pair, seed: int, gradient: str = "analytic") -> Run:
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+
+
+def solve(pair: Pair, seed: int, gradient: str = "analytic", clock: str = "wall") -> Run:
     options = IKOptions(seed=seed, gradient=gradient)  # type: ignore[arg-type]
-    started = time.perf_counter()
+    tick = CLOCKS[clock]
+    started = tick()
     sol = solve_ik(pair.tree, pair.start, pair.target, options)
-    ms = (time.perf_counter() - started) * 1e3
+    ms = (tick() - started) * 1e3
     rms_deg = float(np.rad2deg(sol.rms_angle))
     return Run(len(pair.tree.edges), ms, rms_deg < SOLVED_DEG, sol.iterations, sol.restarts,
                rms_deg, pair.rms_deg)
@@ -161,11 +166,15 @@ def main() -> None:
                         help="30-edge pairs also solved with finite differences (default 20)")
     parser.add_argument("--distance-pairs", type=int, default=25,
                         help="30-edge pairs per angular distance (default 25)")
+    parser.add_argument("--clock", choices=sorted(CLOCKS), default="wall",
+                        help="time solves by wall clock (default) or by this process's CPU "
+                             "time (steadier on a machine shared with other jobs)")
     args = parser.parse_args()
+    clock = args.clock
     console = Console(highlight=False)
     console.print(f"seed={args.seed} pairs={args.pairs} per size, edges "
                   f"{args.min_edges}..{args.max_edges}, target RMS {NEAR_RMS_DEG:.0f} deg, "
-                  f"solved below {SOLVED_DEG:.0f} deg")
+                  f"solved below {SOLVED_DEG:.0f} deg, {args.clock} clock")
     rng = np.random.default_rng(args.seed)
     warm = make_pair(5, np.random.default_rng(args.seed + 1), NEAR_RMS_DEG)
     solve(warm, 0)  # first-call set-up (thread pools, imports) is not measured
@@ -175,7 +184,7 @@ def main() -> None:
     pairs_30: list[Pair] = []
     for n in sizes:
         pairs = [make_pair(n, rng, NEAR_RMS_DEG) for _ in range(args.pairs)]
-        by_size[n] = [solve(p, args.seed + i) for i, p in enumerate(pairs)]
+        by_size[n] = [solve(p, args.seed + i, clock=clock) for i, p in enumerate(pairs)]
         if n == args.max_edges:
             pairs_30 = pairs
 
@@ -192,8 +201,9 @@ def main() -> None:
     console.print(table)
 
     fd_pairs = pairs_30[: args.fd_pairs]
-    analytic = [solve(p, args.seed + i) for i, p in enumerate(fd_pairs)]
-    numeric = [solve(p, args.seed + i, "finite_difference") for i, p in enumerate(fd_pairs)]
+    analytic = [solve(p, args.seed + i, clock=clock) for i, p in enumerate(fd_pairs)]
+    numeric = [solve(p, args.seed + i, "finite_difference", clock)
+               for i, p in enumerate(fd_pairs)]
     fd_speedup = sum(r.ms for r in numeric) / sum(r.ms for r in analytic)
     console.print(f"finite differences vs analytic gradient, {args.max_edges} edges, "
                   f"{len(fd_pairs)} pairs: {sum(r.ms for r in numeric) / len(fd_pairs):.1f} ms "
@@ -208,8 +218,8 @@ def main() -> None:
     for column in ("RMS deg", "median ms", "p95 ms", "success", "iterations"):
         table.add_column(column, justify="right")
     for distance in DISTANCES_DEG:
-        runs = [solve(make_pair(args.max_edges, distance_rng, distance), args.seed + i)
-                for i in range(args.distance_pairs)]
+        runs = [solve(make_pair(args.max_edges, distance_rng, distance), args.seed + i,
+                      clock=clock) for i in range(args.distance_pairs)]
         by_distance[distance] = runs
         ms = [r.ms for r in runs]
         table.add_row(f"{distance:.0f}", f"{np.median(ms):.2f}",
