@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -59,12 +60,16 @@ __all__ = [
     "IKTerm",
     "MotionCostTerm",
     "Objective",
+    "StopReason",
     "TermValue",
     "VectorAngleTerm",
     "solve_ik",
 ]
 
 _TINY = 1e-12
+
+StopReason = Literal["tolerance", "max_restarts", "no_joints", "time_budget"]
+"""Why :func:`solve_ik` stopped (see :attr:`IKSolution.reason`)."""
 _THREADPOOLS: ThreadpoolController | None = None
 
 
@@ -174,7 +179,7 @@ class IKSolution:
     success: bool
     iterations: int
     restarts: int
-    reason: str
+    reason: StopReason
     elapsed: float
     ground: GroundContact | None = None
     problem: IKProblem | None = field(default=None, repr=False, compare=False)
@@ -227,7 +232,7 @@ class TermValue:
     yaw: float = 0.0
 
 
-class IKTerm:
+class IKTerm(ABC):
     """One term of the IK objective (mink style: the solver sums the terms).
 
     A term computes its value and, if ``derivatives``, its gradient with respect to
@@ -238,8 +243,9 @@ class IKTerm:
 
     name: str = ""
 
+    @abstractmethod
     def evaluate(self, pose: IKPose, derivatives: bool = False) -> TermValue:
-        raise NotImplementedError
+        """The term's value at ``pose``; with ``derivatives`` also its pose gradient."""
 
 
 class VectorAngleTerm(IKTerm):
@@ -543,7 +549,7 @@ def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,
     best: tuple[tuple[float, float, float, GroundContact | None], np.ndarray, float] | None = None
     iterations = 0
     starts = 0
-    reason = "max_restarts"
+    reason: StopReason = "max_restarts"
     span = problem.upper - problem.lower
     finite = np.isfinite(span)
     while starts <= options.max_restarts:
