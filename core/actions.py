@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from .configuration import Configuration
 from .errors import PlanningError
 from .mapping import ModuleMap, free_vertex_name
-from .plan import Action, ActionType, ConnectionChange
+from .plan import Action, ActionType, ConnectionChange, ConnectionKey, connection_key
 
 __all__ = [
     "STRUT_ENDS",
@@ -52,21 +52,11 @@ __all__ = [
     "topology_diff",
 ]
 
-End = tuple[str, str | None]
-Key = frozenset[End]
-
-
-def connection_key(source: str, target: str, source_port: str | None = None,
-                   target_port: str | None = None) -> Key:
-    """The direction-free identity of a connection: its two ``(module, port)`` ends."""
-    return frozenset({(source, source_port), (target, target_port)})
-
-
 STRUT_ENDS = ("a", "b")
 """Names of the source and target end of a connection that is a module."""
 
 
-def _links(config: Configuration) -> list[tuple[Key, ConnectionChange]]:
+def _links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]:
     """Every physical link of ``config`` with its direction-free key."""
     links = []
     for edge in config.edges():
@@ -122,7 +112,7 @@ class TopologyDiff:
         """
         out = config.copy()
         for change in self.broken:
-            link = dict(_links(out)).get(_key(change))
+            link = dict(_links(out)).get(change.key)
             if link is None:
                 continue
             if _is_strut_end(change):
@@ -130,7 +120,7 @@ class TopologyDiff:
             else:
                 out.disconnect(link.edge_id)  # type: ignore[arg-type]
         for change in self.made if made else ():
-            if _key(change) in {key for key, _ in _links(out)}:
+            if change.key in {key for key, _ in _links(out)}:
                 continue
             if _is_strut_end(change):
                 _move_strut_end(out, change, change.target)
@@ -141,10 +131,6 @@ class TopologyDiff:
             out.connect(change.source, change.target, id=change.edge_id if free else None,
                         ports=ports)  # type: ignore[arg-type]
         return out
-
-
-def _key(change: ConnectionChange) -> Key:
-    return connection_key(change.source, change.target, change.source_port, change.target_port)
 
 
 def _is_strut_end(change: ConnectionChange) -> bool:
@@ -193,7 +179,7 @@ def topology_diff(current: Configuration, target: Configuration,
     return TopologyDiff(_pick(want, want_keys - have_keys), _pick(have, have_keys - want_keys))
 
 
-def _pick(links: Iterable[tuple[Key, ConnectionChange]], surplus: Counter[Key]
+def _pick(links: Iterable[tuple[ConnectionKey, ConnectionChange]], surplus: Counter[ConnectionKey]
           ) -> tuple[ConnectionChange, ...]:
     left = Counter(surplus)
     picked = []

@@ -26,7 +26,7 @@ import time as wallclock
 from dataclasses import dataclass
 
 from . import plugins
-from .actions import TopologyDiff, connection_key, topology_diff
+from .actions import TopologyDiff, topology_diff
 from .capabilities import Recognizer
 from .configuration import Configuration
 from .control import Control, Controller
@@ -166,8 +166,7 @@ class Executor:
         diff = topology_diff(self._current, action.target)
         self._check_plan_consistency(index, action, diff)
         plugins.emit.action(self.run, action, ActionStatus.STARTED)
-        self._expected = ({connection_key(c.source, c.target, c.source_port, c.target_port)
-                           for c in diff.made + diff.broken})
+        self._expected = {c.key for c in diff.changes()}
         try:
             for phase in phases_of(action, diff):
                 self._run_phase(index, action, phase, diff)
@@ -179,10 +178,8 @@ class Executor:
         plugins.emit.action(self.run, action, ActionStatus.SUCCEEDED)
 
     def _check_plan_consistency(self, index: int, action: Action, diff: TopologyDiff) -> None:
-        planned = {connection_key(c.source, c.target, c.source_port, c.target_port)
-                   for c in action.changes}
-        needed = {connection_key(c.source, c.target, c.source_port, c.target_port)
-                  for c in diff.made + diff.broken}
+        planned = {c.key for c in action.changes}
+        needed = {c.key for c in diff.changes()}
         if action.type is ActionType.MOVING and diff:
             raise _ActionFailed(f"action {index} ({action}): a moving action cannot change "
                                 f"the topology ({diff})")
@@ -257,7 +254,7 @@ class Executor:
         self._current = configuration
         for kind, items in (("undock", change.broken), ("dock", change.made)):
             for c in items:
-                key = connection_key(c.source, c.target, c.source_port, c.target_port)
+                key = c.key
                 event = TopologyEvent(kind, c, self.tick_index, self.driver.time, index,
                                       key in self._expected)
                 self.events.append(event)

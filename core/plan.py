@@ -23,7 +23,8 @@ from .configuration import Configuration
 from .files import StrictModel, atomic_write_text, parse_model, read_json
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
 
-__all__ = ["Action", "ActionType", "ConnectionChange", "Plan", "load_plan", "save_plan"]
+__all__ = ["Action", "ActionType", "ConnectionChange", "ConnectionKey", "Plan", "connection_key",
+           "load_plan", "save_plan"]
 
 
 class ActionType(StrEnum):
@@ -41,6 +42,16 @@ class ActionType(StrEnum):
     PARALLEL_DISCONNECTION = "parallel_disconnection"
 
 
+ConnectionKey = frozenset[tuple[str, str | None]]
+"""The direction-free identity of a connection: its two ``(module, port)`` ends."""
+
+
+def connection_key(source: str, target: str, source_port: str | None = None,
+                   target_port: str | None = None) -> ConnectionKey:
+    """The direction-free identity of a connection: its two ``(module, port)`` ends."""
+    return frozenset({(source, source_port), (target, target_port)})
+
+
 @dataclass(frozen=True)
 class ConnectionChange:
     """One connection made or broken: ``connect(source source_port, target target_port)``."""
@@ -50,6 +61,11 @@ class ConnectionChange:
     source_port: str | None = None
     target_port: str | None = None
     edge_id: str | None = None
+
+    @property
+    def key(self) -> ConnectionKey:
+        """Its direction-free identity (:func:`connection_key`)."""
+        return connection_key(self.source, self.target, self.source_port, self.target_port)
 
     def __str__(self) -> str:
         return f"{self.source}{self.source_port or ''}-{self.target}{self.target_port or ''}"
