@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from msrr.core import VIRTUAL, Configuration, ConfigurationError, plugins
+from msrr.core import VIRTUAL, Configuration, ConfigurationError, parse_configuration, plugins
 
 
 def triangle() -> Configuration:
@@ -180,3 +180,17 @@ def test_union_of_disjoint_parts_keeps_ids_unless_taken() -> None:
     assert not whole.is_connected()
     with pytest.raises(ConfigurationError, match="duplicate module id"):
         Configuration.union([a, a], robot="mmrp")
+
+
+@pytest.mark.parametrize("vector", [[0.0, 0.0, 2.0], [0.0, float("nan"), 1.0]])
+def test_files_and_code_check_vectors_the_same_way(vector) -> None:
+    """One unit-vector check (``configuration.unit``) behind files and ``connect``."""
+    with pytest.raises(ConfigurationError) as in_code:
+        triangle().connect("N1", "N2", id="S9", kind="strut", z=vector)
+    data = {"schema_version": 1, "robot": "tiny",
+            "modules": [{"id": "a", "kind": "cube"}, {"id": "b", "kind": "cube"}],
+            "connections": [{"source": "a", "target": "b", "z": vector}]}
+    with pytest.raises(ConfigurationError) as in_file:
+        parse_configuration(data, "f.json")
+    assert in_file.value.field == "connections[0].z"
+    assert in_code.value.message in str(in_file.value)
