@@ -15,6 +15,10 @@ from __future__ import annotations
 from collections.abc import Collection, Iterable
 from dataclasses import dataclass
 
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
 from .centre import heights, tree_centre
 from .representation import FaceLinks
 
@@ -73,38 +77,88 @@ def common_candidates(links_c: FaceLinks, links_g: FaceLinks, within_c: Collecti
     """The ``limit`` largest distinct ``MCS(v_c, v_g)`` over all root pairs, largest first.
 
     The pairs of a common subconfiguration form one component of the face-product
-    graph, so every pair is visited once: O(|V_c| |V_g|). Ties go to the component
-    that contains ``prefer`` (the centres tau_c, tau_g, as the paper roots the MCS),
-    then to the first found.
+    graph, whose vertices are pairs (v_c, v_g) and whose edges join
+    ``(u_c, u_g)``-``(w_c, w_g)`` when ``connect(u_c F, w_c F')`` and
+    ``connect(u_g F, w_g F')`` are both connections. Every component is found at
+    once (``scipy.sparse.csgraph.connected_components`` over the product edges,
+    O(|E_c| |E_g|)), so this equals running :func:`mcs` from every root pair. Ties go
+    to the component that contains ``prefer`` (the centres tau_c, tau_g, as the
+    paper roots the MCS), then to the one with the first pair in (``within_c``,
+    ``within_g``) order. A mapping starts with ``prefer`` if it holds it, else with
+    its first pair.
     """
     order_c, order_g = list(within_c), list(within_g)
-    set_c, set_g = set(order_c), set(order_g)
+    index_c = {v: i for i, v in enumerate(order_c)}
+    index_g = {v: i for i, v in enumerate(order_g)}
+    size_g = len(order_g)
+
+    def typed(links: FaceLinks, order: list[str], index: dict[str, int]
+              ) -> dict[tuple[str, str], list[tuple[int, int]]]:
+        out: dict[tuple[str, str], list[tuple[int, int]]] = {}
+        for v in order:
+            for face, (w, face2) in links[v].items():
+                if face in ("T", "L") and w in index:
+                    out.setdefault((face, face2), []).append((index[v], index[w]))
+        return out
+
+    edges_c, edges_g = typed(links_c, order_c, index_c), typed(links_g, order_g, index_g)
+    sources, targets = [], []
+    for key, pairs_c in edges_c.items():
+        pairs_g = edges_g.get(key)
+        if not pairs_g:
+            continue
+        ec, eg = np.array(pairs_c), np.array(pairs_g)
+        sources.append((ec[:, 0, None] * size_g + eg[None, :, 0]).ravel())
+        targets.append((ec[:, 1, None] * size_g + eg[None, :, 1]).ravel())
+    prefer_key = (index_c[prefer[0]] * size_g + index_g[prefer[1]]
+                  if prefer is not None and prefer[0] in index_c and prefer[1] in index_g
+                  else None)
     found: list[dict[str, str]] = []
-    seen: set[tuple[str, str]] = set()
-    if prefer is not None and prefer[0] in set_c and prefer[1] in set_g:
-        first = mcs(links_c, links_g, *prefer, within_c=set_c, within_g=set_g)
-        found.append(first)
-        seen.update(first.items())
-    # a pair with no face-compatible neighbour pair is a one-module MCS: skip it, and
-    # start the search only from pairs that share a (face, mating face) signature
-    by_face: dict[tuple[str, str], list[str]] = {}
-    for b in order_g:
-        for face, (w, face2) in sorted(links_g[b].items()):
-            if w in set_g:
-                by_face.setdefault((face, face2), []).append(b)
-    for a in order_c:
-        for face, (w, face2) in sorted(links_c[a].items()):
-            if w not in set_c:
-                continue
-            for b in by_face.get((face, face2), ()):
-                if (a, b) not in seen:
-                    part = mcs(links_c, links_g, a, b, within_c=set_c, within_g=set_g)
-                    seen.update(part.items())
-                    found.append(part)
-    if not found and order_c and order_g:
-        found.append({order_c[0]: order_g[0]})
-    found.sort(key=len, reverse=True)  # stable: the preferred pair wins ties
-    return found[:limit]
+    if sources:
+        src, dst = np.concatenate(sources), np.concatenate(targets)
+        nodes, inverse = np.unique(np.concatenate([src, dst]), return_inverse=True)
+        if len(src) < 4096:  # small: a Python union-find beats building a sparse matrix
+            root = list(range(len(nodes)))
+
+            def find(v: int) -> int:
+                while root[v] != v:
+                    root[v] = root[root[v]]
+                    v = root[v]
+                return v
+
+            half = len(src)
+            for a, b in zip(inverse[:half].tolist(), inverse[half:].tolist(), strict=True):
+                ra, rb = find(a), find(b)
+                if ra != rb:
+                    root[max(ra, rb)] = min(ra, rb)
+            _, labels = np.unique([find(v) for v in range(len(nodes))], return_inverse=True)
+            count = int(labels.max()) + 1
+        else:
+            graph = coo_matrix((np.ones(len(src)), (inverse[:len(src)], inverse[len(src):])),
+                               shape=(len(nodes), len(nodes)))
+            count, labels = connected_components(graph, directed=False)
+        sizes = np.bincount(labels, minlength=count)
+        first = np.full(count, np.iinfo(np.int64).max)
+        np.minimum.at(first, labels, nodes)  # nodes are sorted: the first pair in order
+        holds = np.zeros(count, dtype=bool)
+        if prefer_key is not None:
+            at = np.searchsorted(nodes, prefer_key)
+            if at < len(nodes) and nodes[at] == prefer_key:
+                holds[labels[at]] = True
+        ranked = np.lexsort((first, ~holds, -sizes))[:limit]
+        for label in ranked:
+            members = nodes[labels == label]
+            lead = prefer_key if holds[label] else int(members[0])
+            mapping = {order_c[lead // size_g]: order_g[lead % size_g]}
+            for key in members.tolist():
+                mapping.setdefault(order_c[key // size_g], order_g[key % size_g])
+            found.append(mapping)
+    if len(found) < limit and order_c and order_g:
+        taken = {(a, b) for part in found for a, b in part.items()}
+        single = prefer if prefer_key is not None else (order_c[0], order_g[0])
+        if single not in taken:
+            found.append({single[0]: single[1]})
+    return found[:max(limit, 1)]
 
 
 def largest_common(links_c: FaceLinks, links_g: FaceLinks, within_c: Collection[str],

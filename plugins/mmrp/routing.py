@@ -18,6 +18,7 @@ are filled before they close.
 from __future__ import annotations
 
 import heapq
+from collections import deque
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -61,38 +62,29 @@ def compress(path: Sequence[Cell]) -> tuple[Cell, ...]:
     return tuple(corners)
 
 
-def _search(shape: Sequence[Cell], start: Cell, free: Callable[[Cell], bool],
+def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me: int,
             done: Callable[[Cell], bool], goal: Cell | None, bounds: tuple[int, int, int, int],
             limit: int, penalty: int = 0,
             heuristic: Callable[[Cell], int] | None = None) -> list[Cell] | None:
-    """A* (``goal`` given) or BFS (``goal`` None) over translations of ``shape``.
+    """A* (``goal`` given) or best-first to ``done`` over translations of ``shape``.
 
-    A translation ``t`` is allowed when every cell ``s + t`` is free; consecutive
-    translations differ by one unit step, so a step sweeps only its two placements.
-    With ``penalty`` > 0 occupied cells are allowed at that extra cost per cell (to
-    find which groups block the cheapest route).
+    A translation ``t`` is allowed when every cell ``s + t`` is free (held by nobody
+    or by ``me``); consecutive translations differ by one unit step, so a step sweeps
+    only its two placements. With ``penalty`` > 0 occupied cells are allowed at that
+    extra cost per cell (to find which groups block the cheapest route).
     """
     lo_x, lo_y, hi_x, hi_y = bounds
-
-    def step_cost(t: Cell) -> int:
-        if not (lo_x <= t[0] <= hi_x and lo_y <= t[1] <= hi_y):
-            return -1
-        blocked = sum(not free((s[0] + t[0], s[1] + t[1])) for s in shape)
-        if blocked and not penalty:
-            return -1
-        return 1 + penalty * blocked
-
-    def h(t: Cell) -> int:
-        if heuristic is not None:
-            return heuristic(t)
-        return 0 if goal is None else abs(t[0] - goal[0]) + abs(t[1] - goal[1])
-
+    single = len(shape) == 1 and shape[0] == (0, 0)
     parent: dict[Cell, Cell | None] = {start: None}
     cost = {start: 0}
-    frontier = [(h(start), 0, start)]
+    h0 = heuristic(start) if heuristic is not None else (
+        0 if goal is None else abs(start[0] - goal[0]) + abs(start[1] - goal[1]))
+    frontier = [(h0, 0, start)]
     expanded = 0
+    get = occupied.get
     while frontier:
         _, g, t = heapq.heappop(frontier)
+        g = -g
         if g > cost[t]:
             continue
         if done(t):
@@ -103,15 +95,29 @@ def _search(shape: Sequence[Cell], start: Cell, free: Callable[[Cell], bool],
         expanded += 1
         if expanded > limit:
             return None
+        x, y = t
         for dx, dy in STEPS:
-            n = (t[0] + dx, t[1] + dy)
-            if g + 1 >= cost.get(n, 1 << 30):
+            n = (x + dx, y + dy)
+            if not (lo_x <= n[0] <= hi_x and lo_y <= n[1] <= hi_y):
                 continue
-            c = step_cost(n)
-            if c > 0 and g + c < cost.get(n, 1 << 30):
-                cost[n] = g + c
+            if single:
+                blocked = get(n, me) != me
+            else:
+                blocked = 0
+                for s in shape:
+                    if get((s[0] + n[0], s[1] + n[1]), me) != me:
+                        blocked += 1
+                        if not penalty:
+                            break
+            if blocked and not penalty:
+                continue
+            c = g + 1 + penalty * blocked
+            if c < cost.get(n, 1 << 30):
+                cost[n] = c
                 parent[n] = t
-                heapq.heappush(frontier, (g + c + h(n), g + c, n))
+                h = heuristic(n) if heuristic is not None else (
+                    0 if goal is None else abs(n[0] - goal[0]) + abs(n[1] - goal[1]))
+                heapq.heappush(frontier, (c + h, -c, n))
     return None
 
 
@@ -175,12 +181,6 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
     parks = [0] * len(groups)
     routes: list[Route] = []
 
-    def free_for(index: int) -> Callable[[Cell], bool]:
-        def free(cell: Cell) -> bool:
-            holder = occupied.get(cell)
-            return holder is None or holder == index
-        return free
-
     def move(index: int, path: list[Cell], parking: bool) -> None:
         group = groups[index]
         end = path[-1]
@@ -218,7 +218,7 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
             return False
         if safe and encloses(index):
             return False
-        path = _search(shapes[index], where[group[0]], free_for(index),
+        path = _search(shapes[index], where[group[0]], occupied, index,
                        lambda t, target=goal[group[0]]: t == target, goal[group[0]], bounds, limit)
         if path is None:
             return False
@@ -244,7 +244,7 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
         def clear(t: Cell) -> bool:
             return t != here and not any((s[0] + t[0], s[1] + t[1]) in reserved for s in shape)
 
-        path = _search(shape, here, free_for(index), clear, None, bounds, limit)
+        path = _search(shape, here, occupied, index, clear, None, bounds, limit)
         if path is None:
             return False
         parks[index] += 1
@@ -257,7 +257,7 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
     def clear_way(index: int) -> bool:
         """Park the groups on the cheapest route of ``index`` to its goal, then move it."""
         group = groups[index]
-        path = _search(shapes[index], where[group[0]], free_for(index),
+        path = _search(shapes[index], where[group[0]], occupied, index,
                        lambda t, target=goal[group[0]]: t == target, goal[group[0]], bounds,
                        limit, penalty=4 * len(groups))
         if path is None:
@@ -392,28 +392,30 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
         occupied = {c: i for i in range(len(groups)) for c in cells_of(i)}
         inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], reach)
         limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
-        left = sorted(moving, key=lambda i: to_border(cells_of(i)[0]))
+        left = deque(sorted(moving, key=lambda i: to_border(cells_of(i)[0])))
         order: list[int] = []
         escape: dict[int, list[Cell]] = {}
+        failures = 0
         while left:
-            for i in left:
-                path = _search(shapes[i], cells_of(i)[0],
-                               lambda c, i=i: occupied.get(c, i) == i,
-                               outside(shapes[i]), None, inside, limit, heuristic=to_border)
-                if path is not None:
-                    break
-            else:
+            i = left[0]
+            path = _search(shapes[i], cells_of(i)[0], occupied, i, outside(shapes[i]), None,
+                           inside, limit, heuristic=to_border)
+            if path is None:
+                left.rotate(-1)
+                failures += 1
+                if failures <= len(left):
+                    continue
                 near: set[int] = set()
-                for i in left:
-                    path = _search(shapes[i], cells_of(i)[0],
-                                   lambda c, i=i: occupied.get(c, i) == i,
-                                   outside(shapes[i]), None, inside, limit,
-                                   penalty=4 * len(groups), heuristic=to_border)
+                for j in left:
+                    path = _search(shapes[j], cells_of(j)[0], occupied, j, outside(shapes[j]),
+                                   None, inside, limit, penalty=4 * len(groups),
+                                   heuristic=to_border)
                     near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
-                             for s in shapes[i]
-                             if occupied.get((t[0] + s[0], t[1] + s[1]), i) != i}
+                             for s in shapes[j]
+                             if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
                 raise _Walled(near, set(left))
-            left.remove(i)
+            failures = 0
+            left.popleft()
             order.append(i)
             escape[i] = path
             for c in cells_of(i):
