@@ -25,3 +25,29 @@ def msrr_kinematic_nodes(robot: str, register):
 
         for node_type in JOINT_MODES:
             register(node_type)
+
+
+@hookimpl
+def msrr_drivers(robot: str, register):
+    if robot == SPEC.name:
+        from .sim import FreeSNMujocoDriver
+
+        register(FreeSNMujocoDriver)
+
+
+@hookimpl
+def msrr_recognizers(robot: str, register):
+    if robot == SPEC.name:
+        from .sim import FreeSNRecognizer
+
+        register(FreeSNRecognizer())
+
+
+@hookimpl
+def msrr_controllers(robot: str, register):
+    if robot == SPEC.name:
+        from .joints import JOINT_MODES
+        from .sim import FreeSNController
+
+        for node_type in JOINT_MODES:  # one per joint mode, named as its ``controller``
+            register(FreeSNController(node_type.name))

@@ -28,6 +28,7 @@ class SimOptions:
             on the robot.
         torque_factor: connector torque limit as a fraction of the hardware's (6.2).
         position_gain: connector position loop gain [1/s] (speed command per rad of error).
+        servo_rate: rate of the connectors' motor loops and of the load check [Hz].
         break_filter: time constant of the connection-load low-pass before the strength
             check [s] (a magnet does not let go on a one-step impulse).
         seed: seed of the noise, drift and slip generators.
@@ -39,13 +40,14 @@ class SimOptions:
     slip: float = 0.0
     strength_factor: float = 0.5
     torque_factor: float = 0.6
-    position_gain: float = 20.0
+    position_gain: float = 40.0
+    servo_rate: float = 250.0
     break_filter: float = 0.05
     seed: int = 0
 
     def __post_init__(self) -> None:
         for name in ("timestep", "strength_factor", "torque_factor", "position_gain",
-                     "break_filter"):
+                     "servo_rate", "break_filter"):
             if not getattr(self, name) > 0:
                 raise ExecutionError(f"simulation option {name} must be positive, "
                                      f"got {getattr(self, name)}")

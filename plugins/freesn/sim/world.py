@@ -164,6 +164,7 @@ class FreeSNWorld:
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
         self._tau = np.zeros((k, 3))
         self._dofs = self._dadr[:, None] + np.arange(3)
+        self._servo_every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
         self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
         self.events: list[DockEvent] = []
         self._reported = 0
@@ -193,7 +194,8 @@ class FreeSNWorld:
         for node in self.nodes:
             body = spec.worldbody.add_body(name=f"node/{node}", pos=placement.nodes[node],
                                            mass=p.node_mass, inertia=[shell] * 3,
-                                           explicitinertial=True)
+                                           explicitinertial=True, ipos=[0, 0, 0],
+                                           iquat=[1, 0, 0, 0])
             body.add_freejoint(name=f"free/{node}")
             body.add_geom(name=f"sphere/{node}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
                           size=[p.node_radius, 0, 0], friction=_FRICTION, mass=0,
@@ -211,7 +213,8 @@ class FreeSNWorld:
             quat = Rotation.from_matrix(rotation).as_quat(scalar_first=True)
             body = spec.worldbody.add_body(name=f"strut/{strut}", pos=centre, quat=quat,
                                            mass=p.strut_mass, inertia=inertia.tolist(),
-                                           explicitinertial=True)
+                                           explicitinertial=True, ipos=[0, 0, 0],
+                                           iquat=[1, 0, 0, 0])
             body.add_freejoint(name=f"free/{strut}")
             body.add_geom(name=f"capsule/{strut}", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
                           fromto=[0, 0, -segment, 0, 0, segment], size=[p.strut_radius, 0, 0],
@@ -220,7 +223,8 @@ class FreeSNWorld:
                 roller = body.add_body(name=f"connector/{strut}/{end}",
                                        pos=[0, 0, -END_SIGN[end] * 0.5 * p.strut_length],
                                        mass=_ROLLER_MASS, inertia=[1e-7] * 3,
-                                       explicitinertial=True)
+                                       explicitinertial=True, ipos=[0, 0, 0],
+                                           iquat=[1, 0, 0, 0])
                 roller.add_joint(name=f"ball/{strut}/{end}", type=mujoco.mjtJoint.mjJNT_BALL,
                                  damping=p.damping, armature=_ARMATURE)
         welds = {}
@@ -394,13 +398,18 @@ class FreeSNWorld:
         self._update_ball_targets()
         self._collision_groups()
         n = max(1, round(duration / self.options.timestep))
-        for _ in range(n):
-            self._servo()
+        every = self._servo_every
+        docking = "extended" in self.magnet
+        for i in range(n):
+            if i % every == 0:
+                self._servo()
             mujoco.mj_step(self.model, self.data)
             self.time += self.options.timestep
-            self._check_loads()
-            if any(m == "extended" for m in self.magnet):
+            if i % every == every - 1 or i == n - 1:
+                self._check_loads(min(every, i % every + 1))
+            if docking:
                 self._check_docks()
+                docking = "extended" in self.magnet
         self._odometry(n * self.options.timestep)
 
     def _servo(self) -> None:
@@ -420,12 +429,12 @@ class FreeSNWorld:
             norm = np.sqrt(np.einsum("ni,ni->n", roll, roll))
             scale = np.minimum(1.0, p.max_roll_rate / np.maximum(norm, 1e-12))
             scale *= np.minimum(1.0, p.max_torque / np.maximum(p.damping * norm * scale, 1e-12))
-            t_spin = np.clip(p.damping * np.clip(spin, -p.max_spin_rate, p.max_spin_rate),
-                             -p.max_torque, p.max_torque)
+            spin = np.minimum(np.maximum(spin, -p.max_spin_rate), p.max_spin_rate)
+            t_spin = np.minimum(np.maximum(p.damping * spin, -p.max_torque), p.max_torque)
             tau[ks] = (p.damping * scale)[:, None] * roll + t_spin[:, None] * axis
         self.data.qfrc_applied[self._dofs] = tau
 
-    def _check_loads(self) -> None:
+    def _check_loads(self, steps: int = 1) -> None:
         d = self.data
         docked = self._eq >= 0
         n = 6 * int(np.count_nonzero(docked))
@@ -433,7 +442,7 @@ class FreeSNWorld:
         if n:  # equality rows come first, six per weld, in the order of the equality ids
             rows = d.efc_force[:n].reshape(-1, 6)
             force[d.efc_id[:n:6]] = np.sqrt(np.einsum("ni,ni->n", rows[:, :3], rows[:, :3]))
-        alpha = min(1.0, self.options.timestep / self.options.break_filter)
+        alpha = min(1.0, steps * self.options.timestep / self.options.break_filter)
         self._load[docked] += alpha * (force[self._eq[docked]] - self._load[docked])
         self._load[~docked] = 0.0
         for k in np.flatnonzero(self._load > self.phys.strength):
