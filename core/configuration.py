@@ -31,7 +31,7 @@ from .errors import ConfigurationError
 if TYPE_CHECKING:
     from .robot import RobotSpec
 
-__all__ = ["VIRTUAL", "Configuration", "Edge", "Signature", "VectorLike", "unit"]
+__all__ = ["VIRTUAL", "Configuration", "Edge", "Signature", "VectorLike", "unique_id", "unit"]
 
 VIRTUAL = "virtual"
 """Kind of the vertices that stand for free connectors (FreeSN paper, Fig. 4)."""
@@ -99,15 +99,20 @@ def _rotate(rotation: np.ndarray, edges: list[dict]) -> None:
         data[key] = row
 
 
-def _fresh_id(source: str, target: str, ports: tuple[str, str] | None,
-              taken: Collection[str]) -> str:
-    """An edge id made from the ends (and ports), numbered ``#2``, ``#3``... when taken."""
-    base = f"{source}{ports[0]}-{target}{ports[1]}" if ports else f"{source}-{target}"
+def unique_id(base: str, taken: Collection[str]) -> str:
+    """``base``, or ``base#2``, ``base#3``... the first that is not ``taken``."""
     candidate, n = base, 1
     while candidate in taken:
         n += 1
         candidate = f"{base}#{n}"
     return candidate
+
+
+def _fresh_id(source: str, target: str, ports: tuple[str, str] | None,
+              taken: Collection[str]) -> str:
+    """An edge id made from the ends (and ports), numbered when taken."""
+    return unique_id(f"{source}{ports[0]}-{target}{ports[1]}" if ports else f"{source}-{target}",
+                     taken)
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .configuration import Configuration
+from .configuration import Configuration, unique_id
 from .errors import ConfigurationError
 
 __all__ = ["CONNECTOR_ENDS", "EdgeImage", "ModuleMap", "end_vertex", "free_vertex_name"]
@@ -42,12 +42,7 @@ def end_vertex(config: Configuration, edge_id: str, at_source: bool) -> str:
 
 def free_vertex_name(edge_id: str, at_source: bool, taken: set[str]) -> str:
     """A fresh, deterministic name for the free connector at one end of ``edge_id``."""
-    base = f"{edge_id}:{'a' if at_source else 'b'}"
-    name, n = base, 1
-    while name in taken:
-        n += 1
-        name = f"{base}#{n}"
-    return name
+    return unique_id(f"{edge_id}:{'a' if at_source else 'b'}", taken)
 
 
 @dataclass(frozen=True)
