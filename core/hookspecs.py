@@ -28,7 +28,10 @@ from .plan import Action
 from .robot import DockingRules, RobotSpec
 from .scenario import Scenario
 
-if TYPE_CHECKING:  # click and the kinematics (scipy) are not needed to declare the hooks
+# Only type checkers need these two: every plugin imports this module through
+# ``msrr.core``, which imports neither click nor the kinematics (scipy.spatial alone
+# takes about 0.2 s to import).
+if TYPE_CHECKING:
     import click
 
     from .kinematics.node import KinematicNode
