@@ -75,12 +75,14 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 
 
 def _optional_unit(vector: VectorLike | None, what: str) -> np.ndarray | None:
-    """``vector`` checked by :func:`unit`; a read-only array passes through unchanged."""
+    """``vector`` checked by :func:`unit`; a read-only unit float64 array is shared as it is."""
     if vector is None:
         return None
     if (isinstance(vector, np.ndarray) and not vector.flags.writeable
             and vector.dtype == np.float64 and vector.shape == (3,)):
-        return vector  # already checked when it entered a configuration
+        x, y, z = vector.tolist()  # the cheap path for vectors of other configurations
+        if abs(x * x + y * y + z * z - 1.0) <= 2 * UNIT_TOLERANCE:
+            return vector
     return unit(vector, what=what)
 
 

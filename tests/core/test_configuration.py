@@ -194,3 +194,10 @@ def test_files_and_code_check_vectors_the_same_way(vector) -> None:
         parse_configuration(data, "f.json")
     assert in_file.value.field == "connections[0].z"
     assert in_code.value.message in str(in_file.value)
+
+
+def test_a_read_only_array_is_still_checked() -> None:
+    long = np.array([0.0, 0.0, 2.0])
+    long.flags.writeable = False
+    with pytest.raises(ConfigurationError, match="unit vector"):
+        triangle().derive(z={"S1": long})
