@@ -339,7 +339,8 @@ class Configuration:
         2. every edge in ``reverse`` is turned around: ends and ports swapped, ``z``
            negated, ``x`` kept (the connection direction runs from source to target, the
            forward vector belongs to the module body; FreeSN paper, Alg. 3 lines 12-13);
-        3. ``rotation`` (shape (3, 3), orthonormal) rotates every vector, e.g. a yaw;
+        3. ``rotation`` (shape (3, 3), orthonormal) rotates every ``z`` and ``x``, e.g. a
+           yaw (positions stay where they are);
         4. ``vertices`` / ``edges`` rename ids; unmapped ids stay as they are.
 
         Args:
