@@ -178,12 +178,13 @@ def robots() -> dict[str, RobotSpec]:
             :class:`RobotSpec` or ``None``, or two plugins describe the same robot.
     """
     found: dict[str, RobotSpec] = {}
-    for spec in get_plugin_manager().hook.msrr_robot():
-        if spec is None:
-            continue
+    hook = get_plugin_manager().hook.msrr_robot
+    for spec in hook():
         if not isinstance(spec, RobotSpec):
-            raise PluginError(f"msrr_robot returned {type(spec).__name__}, expected one RobotSpec "
-                              "or None (one entry point per robot)")
+            culprit = next((impl.plugin_name for impl in hook.get_hookimpls()
+                            if not isinstance(impl.function(), RobotSpec | None)), "?")
+            raise PluginError(f"plugin {culprit!r}: msrr_robot returned {type(spec).__name__}, "
+                              "expected one RobotSpec or None (one entry point per robot)")
         if spec.name in found:
             raise PluginError(f"two plugins describe robot {spec.name!r}")
         found[spec.name] = spec

@@ -126,7 +126,9 @@ def test_hook_msrr_robot(tiny) -> None:
         def msrr_robot(self):
             return [RobotSpec("one", "One", ()), RobotSpec("two", "Two", ())]
 
-    with plugins.temporary(Several()), pytest.raises(PluginError, match="returned list"):
+    with plugins.temporary(Several(), "several"), pytest.raises(
+            PluginError, match="plugin 'several': msrr_robot returned list, expected one "
+                               "RobotSpec or None"):
         plugins.robots()
 
 
