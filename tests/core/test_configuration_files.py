@@ -4,6 +4,7 @@ errors (on the tiny robot of the tests)."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from msrr.core import (
     plugins,
     save_configuration,
 )
+from msrr.core.files import atomic_write_bytes, atomic_write_text
 from msrr.core.io import ConfigurationFile
 from msrr.core.random_configurations import random_configuration
 from msrr.core.robot import tree_violations
@@ -128,3 +130,20 @@ def test_json_schema_in_docs_is_current() -> None:
     shipped = json.loads((ROOT / "docs/configuration.schema.json").read_text())
     assert shipped == ConfigurationFile.model_json_schema(), (
         "regenerate with: platform schema configuration > docs/configuration.schema.json")
+
+
+def test_atomic_write_leaves_the_old_file_or_the_new_one(tmp_path: Path, monkeypatch) -> None:
+    target = tmp_path / "sub" / "c.json"
+    assert atomic_write_text(target, "old\n") == target and target.read_text() == "old\n"
+    mask = os.umask(0)
+    os.umask(mask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~mask
+
+    def fail(src, dst):
+        raise OSError("disk gone")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(OSError, match="disk gone"):
+        atomic_write_bytes(target, b"new\n")
+    assert target.read_text() == "old\n"
+    assert [p.name for p in target.parent.iterdir()] == ["c.json"]  # no temporary file left
