@@ -34,6 +34,7 @@ from .potential_field import (
 )
 from .recognition import observe, recognize_with_stats
 from .representation import (
+    FaceLinks,
     Link,
     face_links,
     grid_cells,
@@ -47,7 +48,11 @@ from .targets import DerivedConfiguration
 __all__ = ["LOOKAHEAD", "HybridResult", "McsHybridPlanner", "plan_hybrid"]
 
 LOOKAHEAD = 4
-"""Common subconfigurations tried as the first decomposition (see :func:`plan_hybrid`)."""
+"""Fewest common subconfigurations tried as the first decomposition (see :func:`plan_hybrid`)."""
+
+LOOKAHEAD_BUDGET = 256
+"""Adaptive lookahead: ``max(LOOKAHEAD, LOOKAHEAD_BUDGET // n)`` first decompositions
+for n modules, so small systems try every one and large ones stay O(n^2)."""
 
 FIELD_LIMIT = 24
 """Most free modules mapped by simulating the potential field (see :func:`plan_hybrid`)."""
@@ -91,6 +96,14 @@ def _subs(subs: tuple[Subconfiguration, ...]) -> str:
                      for s in subs) or "none"
 
 
+def _kept_ceiling(links_c: FaceLinks, links_g: FaceLinks) -> int:
+    """No bijection keeps more: per face pair (T-B, L-R), the fewer connections."""
+    def count(links: FaceLinks, face: str) -> int:
+        return sum(face in faces for faces in links.values())
+    return min(count(links_c, "T"), count(links_g, "T")) + min(count(links_c, "L"),
+                                                               count(links_g, "L"))
+
+
 def _checked(start: Configuration, goal: Configuration) -> Configuration:
     """The start as a tree (loops made virtual); raises PlanningError for unreachable goals."""
     if start.robot != SPEC.name or goal.robot != SPEC.name:
@@ -115,7 +128,7 @@ def _checked(start: Configuration, goal: Configuration) -> Configuration:
 
 
 def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
-                window: int = HEIGHT_WINDOW, lookahead: int = LOOKAHEAD,
+                window: int = HEIGHT_WINDOW, lookahead: int | None = None,
                 field: FieldParameters | None = None,
                 field_limit: int = FIELD_LIMIT) -> HybridResult:
     """Plan the reconfiguration from ``start`` to ``goal`` (section 4).
@@ -127,7 +140,10 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
         window: the height-adjacent rule's largest height difference.
         lookahead: how many of the largest common subconfigurations to try as the
             first decomposition (1 = the paper's single MCS); the one whose matching
-            keeps the most connections wins, the paper's choice on ties.
+            keeps the most connections wins, the paper's choice on ties. Default
+            adaptive: ``max(LOOKAHEAD, LOOKAHEAD_BUDGET // n)``; the search stops
+            early once a decomposition keeps as many connections as any bijection
+            can (per face pair T-B / L-R, the fewer of start and goal connections).
         field: potential-field gains and distances.
         field_limit: most free modules mapped by simulating the field; more are
             mapped by :func:`assign_free_vertices` (the field's intent, no stall).
@@ -141,9 +157,14 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     links_c, links_g = face_links(tree), face_links(goal)
     tau_c, tau_g = root_of(tree), root_of(goal)
     all_c, all_g = tree.vertices(), goal.vertices()
+    if lookahead is None:
+        lookahead = max(LOOKAHEAD, LOOKAHEAD_BUDGET // max(len(all_c), 1))
+    ceiling = _kept_ceiling(links_c, links_g)
     best: tuple[int, Decomposition, SubconfigurationMatching] | None = None
     for common in common_candidates(links_c, links_g, all_c, all_g, prefer=(tau_c, tau_g),
                                     limit=lookahead):
+        if best is not None and best[0] >= ceiling:
+            break
         split = decompose(links_c, links_g, all_c, all_g, common)
         matched_subs = match_subconfigurations(links_c, links_g, split.current, split.goal,
                                                split.free_current, split.free_goal,
