@@ -225,8 +225,8 @@ def close_loops(positions: dict[str, np.ndarray], links: list[tuple[str, str, np
                              ftol=1e-12).x
 
     x0 = np.array([positions[n] for n in names[1:]]).ravel()
-    if not len(x0) or np.max(np.abs(residual(x0, direction_weight))) < 1e-12:
-        return dict(positions)
+    if not len(x0) or np.max(np.abs(residual(x0, 0.0))) < 1e-6 * length:
+        return dict(positions)  # closes already (to the precision of the stored vectors)
     rng = np.random.default_rng(0)
     found: list[tuple[float, np.ndarray]] = []
     for attempt in range(restarts + 1):

@@ -558,6 +558,22 @@ class FreeSNWorld:
         active = self.data.eq_active
         return {key for key, eq in self._welds.items() if active[eq]}
 
+    def penetrations(self, depth: float = 0.001) -> list[tuple[str, str, float]]:
+        """Module bodies that overlap by more than ``depth`` [m] now: ``(geom, geom, depth)``.
+
+        A configuration whose skeletal vectors put one module through another (the
+        skeletal model ignores the struts' thickness) starts with such overlaps; they
+        are self-collisions the world cannot resolve.
+        """
+        d, m = self.data, self.model
+        out = []
+        for contact in d.contact[:d.ncon]:
+            if contact.dist < -depth and 0 not in (m.geom_bodyid[contact.geom[0]],
+                                                   m.geom_bodyid[contact.geom[1]]):
+                out.append((m.geom(contact.geom[0]).name, m.geom(contact.geom[1]).name,
+                            float(-contact.dist)))
+        return out
+
     def constraint_residual(self) -> float:
         """Largest position error of an active dock constraint [m]."""
         d = self.data
