@@ -38,6 +38,7 @@ from .ik import (
     VectorAngleTerm,
     solve_ik,
 )
+from .joints import RevoluteJoint
 from .node import (
     FAMILIES,
     FixedNode,
@@ -90,6 +91,7 @@ __all__ = [
     "Objective",
     "StopReason",
     "ParallelNode",
+    "RevoluteJoint",
     "TermValue",
     "VectorAngleTerm",
     "canonical_perpendicular",

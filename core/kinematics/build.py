@@ -108,7 +108,7 @@ def default_tree(config: Configuration, joint_mode: type[KinematicNode], *,
             if sf in seen:
                 continue
             seen.add(sf)
-            nodes.append(joint_mode([e.id], [far]))
+            nodes.append(joint_mode.for_edge(e, far))
             rest = [v for v in members[sf] if v != far]
             if rest or inner.get(sf):
                 nodes.append(FixedNode(inner.get(sf, []), rest))

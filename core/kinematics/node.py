@@ -29,12 +29,15 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Self
 
 import numpy as np
 
 from ..errors import ConfigurationError
 from .rotations import skew
+
+if TYPE_CHECKING:
+    from ..configuration import Edge
 
 __all__ = [
     "FAMILIES",
@@ -304,6 +307,17 @@ class ModuleJointNode(KinematicNode):
             raise KinematicTreeError(
                 f"{self.name} node: a module joint has exactly one edge and one vertex, got "
                 f"edges {list(self.edges)} and vertices {list(self.vertices)}")
+
+
+    @classmethod
+    def for_edge(cls, edge: Edge, reached: str) -> Self:
+        """The node of this mode for ``edge`` when a tree reaches vertex ``reached``
+        through it (:func:`~msrr.core.kinematics.default_tree` builds nodes this way).
+
+        A mode whose motion depends on the edge's direction (a joint about one end's
+        centre) overrides this to set its parameters from ``edge``.
+        """
+        return cls([edge.id], [reached])
 
 
 class ParallelNode(KinematicNode):

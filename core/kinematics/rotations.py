@@ -20,6 +20,8 @@ __all__ = [
     "ANTIPARALLEL_TOLERANCE",
     "canonical_perpendicular",
     "cross",
+    "exp_so3",
+    "left_jacobian",
     "normalize",
     "rodrigues",
     "rotation_between",
@@ -131,3 +133,41 @@ def rotation_between_omega(v: np.ndarray, v2: np.ndarray, dv2: np.ndarray) -> np
     omega = (cross(v2[..., None, :], np.swapaxes(dv2, -1, -2)).swapaxes(-1, -2)
              - twist[..., None, :] * v2[..., :, None])
     return np.where(flip[..., None, None], 0.0, omega)
+
+
+_SMALL = 1e-4  # below this angle [rad] the series forms of the coefficients are used
+
+
+def _coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``sin(a)/a``, ``(1 - cos a)/a^2`` and ``(a - sin a)/a^3``, exact series near 0."""
+    a = np.asarray(theta, dtype=np.float64)
+    small = a < _SMALL
+    safe = np.where(small, 1.0, a)
+    a2 = a * a
+    s = np.where(small, 1.0 - a2 / 6.0, np.sin(safe) / safe)
+    c = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    d = np.where(small, 1.0 / 6.0 - a2 / 120.0, (safe - np.sin(safe)) / safe ** 3)
+    return s, c, d
+
+
+def exp_so3(phi: np.ndarray) -> np.ndarray:
+    """``exp(hat(phi))``: rotation by ``|phi|`` [rad] about ``phi``; (..., 3) -> (..., 3, 3).
+
+    Smooth at ``phi = 0`` (exactly the identity there).
+    """
+    phi = np.asarray(phi, dtype=np.float64)
+    s, c, _ = _coefficients(np.linalg.norm(phi, axis=-1))
+    k = skew(phi)
+    return _EYE + s[..., None, None] * k + c[..., None, None] * (k @ k)
+
+
+def left_jacobian(phi: np.ndarray) -> np.ndarray:
+    """Left Jacobian of SO(3): ``d exp(hat(phi)) = hat(J(phi) dphi) exp(hat(phi))``.
+
+    ``J = I + (1 - cos a)/a^2 hat(phi) + (a - sin a)/a^3 hat(phi)^2``, ``a = |phi|``;
+    shape (..., 3) -> (..., 3, 3).
+    """
+    phi = np.asarray(phi, dtype=np.float64)
+    _, c, d = _coefficients(np.linalg.norm(phi, axis=-1))
+    k = skew(phi)
+    return _EYE + c[..., None, None] * k + d[..., None, None] * (k @ k)

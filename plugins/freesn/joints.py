@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from msrr.core.kinematics.joints import RevoluteJoint as CoreRevoluteJoint
 from msrr.core.kinematics.node import (
     KinematicTreeError,
     ModuleJointNode,
@@ -257,27 +258,11 @@ class FullOppositeJoint(_SphericalJoint):
                 np.zeros((n, 3, 3)) if derivatives else None)
 
 
-class RevoluteJoint(ModuleJointNode):
-    """Revolute mode (Fig. 6a, eq. 1): rotate by ``sigma`` [rad] about ``z``; ``C = |sigma|``."""
+class RevoluteJoint(CoreRevoluteJoint):
+    """Revolute mode (Fig. 6a, eq. 1): both connectors turn about the strut axis."""
 
-    name = "revolute"
-    dim = 1
     controller = "freesn.revolute"
     description = "both connectors turn about the strut axis"
-    defaults = {"bound": float(np.pi)}
-
-    @classmethod
-    def evaluate(cls, z, x, sigma, params, n_ports, derivatives, context=None):
-        z1, x1, s = z[:, 0], x[:, 0], sigma[:, 0]
-        rot = rodrigues(z1, s)
-        xj = np.einsum("nab,nb->na", rot, x1)
-        out = NodeBatch(z.copy(), xj[:, None], np.abs(s)[:, None], rot[:, None])
-        if derivatives:
-            out.dz = np.zeros(z.shape + (1,))
-            out.dx = cross(z1, xj)[:, None, :, None]
-            out.dcost = np.sign(s)[:, None, None]
-            out.omega = z1[:, None, :, None].copy()
-        return out
 
 
 class ParallelStrutNode(ParallelNode):

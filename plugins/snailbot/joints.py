@@ -16,34 +16,34 @@ from the substrate's centre towards the SnailBot.
       C = theta + alpha |psi|
 
   with ``omega_{s_i} = J(w) dw/ds_i`` (left Jacobian, see
-  :mod:`msrr.plugins.freebot.joints`) and ``omega_psi = z^joint``.
+  :mod:`msrr.core.kinematics.surface`) and ``omega_psi = z^joint``.
 
   The joint sits at the substrate's centre. When the kinematic tree reaches the
   SnailBot first (the substrate is the node's child, parameter
   ``substrate_is_child = 1``), the SnailBot and its connection vector stay put and the
   substrate turns about its own centre by the inverse motion:
   ``z^joint = z``, ``x^joint = x``, ``portRot = R^T``, ``omega = -R^T omega``.
-  :func:`orient` sets the parameter from the configuration's edge directions.
+  :meth:`SphericalJoint.for_edge` sets the parameter from the edge's direction, so
+  :func:`~msrr.core.kinematics.default_tree` builds the right joint for either end.
 
 * :class:`SuckerRevoluteJoint` (``sucker_revolute``): the vacuum sucker locks the foot;
   the SnailBot only turns about the sucker axis, which is the contact normal ``z``
   (it passes through both centres, so the motion is the same from either end):
   ``portRot = rodrigues(z, sigma)``, ``z^joint = z``, ``x^joint = portRot x``,
-  ``C = |sigma|`` -- FreeSN's revolute joint (eq. 1) under the SnailBot's name.
+  ``C = |sigma|`` -- the core revolute joint (FreeSN eq. 1) under the SnailBot's name.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from msrr.core.configuration import Configuration
+from msrr.core.configuration import Edge
+from msrr.core.kinematics.joints import RevoluteJoint
 from msrr.core.kinematics.node import ModuleJointNode, NodeBatch
 from msrr.core.kinematics.rotations import rodrigues
-from msrr.core.kinematics.tree import KinematicTree
-from msrr.plugins.freebot.joints import TangentMotion, moved
-from msrr.plugins.freesn.joints import RevoluteJoint
+from msrr.core.kinematics.surface import TangentMotion, moved
 
-__all__ = ["JOINT_MODES", "SphericalJoint", "SuckerRevoluteJoint", "orient"]
+__all__ = ["JOINT_MODES", "SphericalJoint", "SuckerRevoluteJoint"]
 
 
 class SphericalJoint(ModuleJointNode):
@@ -52,7 +52,7 @@ class SphericalJoint(ModuleJointNode):
     ``sigma`` (3,): geodesic-normal coordinates of the foot's travel [rad] (forward,
     left) and the turn about the normal [rad]. Parameters: ``alpha`` weight of turning
     in the cost (0.5), ``bound`` [rad] per coordinate (pi), ``substrate_is_child``
-    (0 or 1, see :func:`orient`).
+    (0 or 1, see :meth:`for_edge`).
     """
 
     name = "spherical"
@@ -60,6 +60,12 @@ class SphericalJoint(ModuleJointNode):
     controller = "snailbot.spherical"
     description = "crawl over the substrate's shell and turn about the contact normal"
     defaults = {"alpha": 0.5, "bound": float(np.pi), "substrate_is_child": 0.0}
+
+    @classmethod
+    def for_edge(cls, edge: Edge, reached: str) -> SphericalJoint:
+        """The joint about the substrate's centre: the substrate is the node's child
+        when the tree reaches the connection's target (the substrate) through it."""
+        return cls([edge.id], [reached], substrate_is_child=float(reached == edge.target))
 
     @classmethod
     def evaluate(cls, z, x, sigma, params, n_ports, derivatives, context=None):
@@ -93,8 +99,8 @@ class SphericalJoint(ModuleJointNode):
 class SuckerRevoluteJoint(RevoluteJoint):
     """SnailBot locked by its vacuum sucker: rotation by ``sigma`` [rad] about ``z``.
 
-    The sucker axis is the contact normal, so this is FreeSN's revolute joint (eq. 1,
-    ``C = |sigma|``) with the SnailBot's controller.
+    The sucker axis is the contact normal, so this is the core revolute joint (FreeSN
+    eq. 1, ``C = |sigma|``) with the SnailBot's controller.
     """
 
     name = "sucker_revolute"
@@ -105,22 +111,3 @@ class SuckerRevoluteJoint(RevoluteJoint):
 JOINT_MODES: tuple[type, ...] = (SphericalJoint, SuckerRevoluteJoint)
 """SnailBot node types in registration order; the first is the default joint mode."""
 
-
-def orient(tree: KinematicTree, config: Configuration) -> KinematicTree:
-    """``tree`` with ``substrate_is_child = 1`` on every spherical node whose child is
-    the substrate (the target of its connection), so each joint turns about the
-    substrate's centre whichever end the tree reaches first.
-
-    Args:
-        tree: a kinematic tree over ``config``'s topology.
-        config: the configuration whose edge directions say which end is the SnailBot.
-    """
-    nodes = []
-    for node in tree.nodes:
-        if isinstance(node, SphericalJoint):
-            edge = config.edge(node.edges[0])
-            flag = 1.0 if node.vertices[0] == edge.target else 0.0
-            node = SphericalJoint(node.edges, node.vertices,
-                                  **{**node.params, "substrate_is_child": flag})
-        nodes.append(node)
-    return KinematicTree(config, nodes)

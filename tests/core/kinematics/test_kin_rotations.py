@@ -14,7 +14,7 @@ from msrr.core.kinematics import (
     skew,
     vee,
 )
-from msrr.core.kinematics.rotations import cross
+from msrr.core.kinematics.rotations import cross, exp_so3, left_jacobian
 
 
 def is_rotation(r: np.ndarray) -> bool:
@@ -100,3 +100,21 @@ def test_canonical_perpendicular_is_unit_and_perpendicular():
     p = canonical_perpendicular(v)
     assert np.allclose(np.linalg.norm(p, axis=1), 1.0)
     assert np.allclose(np.einsum("ni,ni->n", p, v), 0.0)
+
+
+def test_left_jacobian_is_the_derivative_of_the_exponential():
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        phi, dphi, h = rng.normal(size=3), rng.normal(size=3), 1e-6
+        numeric = (exp_so3(phi + h * dphi) - exp_so3(phi - h * dphi)) / (2 * h)
+        analytic = skew(left_jacobian(phi) @ dphi) @ exp_so3(phi)
+        assert np.allclose(numeric, analytic, atol=1e-8)
+
+
+def test_exp_so3_is_rodrigues():
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        phi = rng.normal(size=3)
+        angle = np.linalg.norm(phi)
+        assert np.allclose(exp_so3(phi), rodrigues(phi / angle, angle), atol=1e-12)
+    assert np.array_equal(exp_so3(np.zeros(3)), np.eye(3))

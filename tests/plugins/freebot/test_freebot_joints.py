@@ -11,12 +11,8 @@ from msrr.core import plugins
 from msrr.core.cli import get_cli
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import KinematicTree, default_tree, forward
-from msrr.core.kinematics.rotations import skew
-from msrr.plugins.freebot.joints import (
-    RollingContactJoint,
-    exp_so3,
-    left_jacobian,
-)
+from msrr.core.kinematics.rotations import exp_so3, skew
+from msrr.plugins.freebot.joints import RollingContactJoint
 
 from msrr_test_support import ROOT
 
@@ -69,15 +65,6 @@ def test_jacobian_matches_central_differences(ratio):
         for what, err in central_difference_errors(node, z, x, sigma, h=1e-6):
             if "cost" not in what:
                 assert err < 1e-6, f"{what} at |sigma|={np.linalg.norm(sigma):.1e}: {err:.2e}"
-
-
-def test_left_jacobian_is_the_derivative_of_the_exponential():
-    rng = np.random.default_rng(3)
-    for _ in range(10):
-        phi, dphi, h = rng.normal(size=3), rng.normal(size=3), 1e-6
-        numeric = (exp_so3(phi + h * dphi) - exp_so3(phi - h * dphi)) / (2 * h)
-        analytic = skew(left_jacobian(phi) @ dphi) @ exp_so3(phi)
-        assert np.allclose(numeric, analytic, atol=1e-8)
 
 
 def test_equal_spheres_turn_twice_the_travel_and_the_contact_moves_on_a_geodesic():

@@ -12,7 +12,7 @@ from msrr.core.configuration import Configuration
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import default_tree, forward
 from msrr.core.kinematics.rotations import rodrigues
-from msrr.plugins.snailbot.joints import SphericalJoint, SuckerRevoluteJoint, orient
+from msrr.plugins.snailbot.joints import SphericalJoint, SuckerRevoluteJoint
 
 from msrr_test_support import ROOT
 
@@ -117,9 +117,9 @@ def chain(n: int) -> Configuration:
     return config
 
 
-def test_orient_marks_the_joints_whose_child_is_the_substrate():
+def test_default_tree_marks_the_joints_whose_child_is_the_substrate():
     config = chain(5)  # the default tree is rooted at B3
-    tree = orient(default_tree(config, SphericalJoint), config)
+    tree = default_tree(config, SphericalJoint)
     flags = {n.vertices[0]: n.params["substrate_is_child"] for n in tree.nodes[1:]}
     assert flags == {"B2": 0.0, "B4": 1.0, "B1": 0.0, "B5": 1.0}
     sigma = np.random.default_rng(0).uniform(-0.5, 0.5, tree.dim)
