@@ -3,8 +3,9 @@
 A SnailBot's foot (tracks or a magnet-embedded rocker-bogie) lies flat on another
 module's shell (the *substrate*), so relative to the substrate the SnailBot turns
 about the substrate's centre: a spherical joint (FreeSN paper section 2.1). The
-connection ``source -> target`` runs from the SnailBot to its substrate and ``z`` points
-from the substrate's centre towards the SnailBot.
+connection ``source -> target`` runs from the SnailBot to its substrate and ``z``, like
+every connection vector, points from the source (the SnailBot) towards the target's
+centre; the joint's motion does not depend on that sign.
 
 * :class:`SphericalJoint` (``spherical``, the default): ``sigma = (s1, s2, psi)``; the
   foot travels along the geodesic with normal coordinates ``(s1, s2)`` (forward along
