@@ -54,7 +54,7 @@ LOOKAHEAD_BUDGET = 256
 """Adaptive lookahead: ``max(LOOKAHEAD, LOOKAHEAD_BUDGET // n)`` first decompositions
 for n modules, so small systems try every one and large ones stay O(n^2)."""
 
-FIELD_LIMIT = 24
+FIELD_LIMIT = 12
 """Most free modules mapped by simulating the potential field (see :func:`plan_hybrid`)."""
 
 

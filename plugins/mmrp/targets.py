@@ -62,4 +62,9 @@ class DerivedConfiguration(Configuration):
     def __reduce_ex__(self, protocol: int) -> Any:
         if "_lazy" in self.__dict__:
             self._build()
-        return Configuration.derive(self).__reduce_ex__(protocol)
+        return _plain, (Configuration.derive(self),)
+
+
+def _plain(config: Configuration) -> Configuration:
+    """Unpickle a derived configuration as the plain one it stands for."""
+    return config
