@@ -6,8 +6,11 @@ A strut module has two connectors, ``a`` (the source end of its connection) and
 docked to -- the unit vector from the node centre to the strut end -- as the joints
 ``"<end>.dir_x"``, ``"<end>.dir_y"``, ``"<end>.dir_z"``, and optionally the strut's
 forward vector in the same frame (``"<end>.fwd_x"``...) which sets the rotation of
-the strut about its axis. ``dock=("b",)`` extends end ``b``'s magnet array until it
-docks, ``undock=("a",)`` retracts end ``a``'s.
+the strut about its axis, and optionally ``"<end>.effort"`` in ``(0, 1]``, the fraction
+of the torque limit the connector may use (its motor current limit): a connector that
+closes a loop of rigid struts is driven softly so it follows rather than fights.
+``dock=("b",)`` extends end ``b``'s magnet array until it docks, ``undock=("a",)``
+retracts end ``a``'s.
 """
 
 from __future__ import annotations
@@ -25,17 +28,20 @@ ENDS = ("a", "b")
 _AXES = ("x", "y", "z")
 
 
-def connector_joints(end: str, direction: np.ndarray, forward: np.ndarray | None = None
-                     ) -> dict[str, float]:
+def connector_joints(end: str, direction: np.ndarray, forward: np.ndarray | None = None,
+                     effort: float = 1.0) -> dict[str, float]:
     """The joint entries that command connector ``end`` toward ``direction`` (unit, (3,))."""
     joints = {f"{end}.dir_{a}": float(c) for a, c in zip(_AXES, direction, strict=True)}
     if forward is not None:
         joints.update({f"{end}.fwd_{a}": float(c) for a, c in zip(_AXES, forward, strict=True)})
+    if effort != 1.0:
+        joints[f"{end}.effort"] = float(effort)
     return joints
 
 
-ConnectorTarget = tuple[np.ndarray, np.ndarray | None]
-"""A connector's target: connection vector and optional forward vector, node horizontal frame."""
+ConnectorTarget = tuple[np.ndarray, np.ndarray | None, float]
+"""A connector's target: connection vector, optional forward vector (node horizontal frame)
+and effort (fraction of the torque limit)."""
 
 
 def parse_command(strut: str, command: ModuleCommand) -> dict[str, ConnectorTarget]:
@@ -46,17 +52,21 @@ def parse_command(strut: str, command: ModuleCommand) -> dict[str, ConnectorTarg
     """
     targets: dict[str, ConnectorTarget] = {}
     known = {f"{e}.{k}_{a}" for e in ENDS for k in ("dir", "fwd") for a in _AXES}
+    known |= {f"{e}.effort" for e in ENDS}
     unknown = set(command.joints) - known
     if unknown:
         raise ExecutionError(f"strut {strut}: unknown joint(s) {sorted(unknown)} (known: "
-                             f"<end>.dir_x/y/z and <end>.fwd_x/y/z with end a or b)")
+                             f"<end>.dir_x/y/z, <end>.fwd_x/y/z, <end>.effort with end a or b)")
     for port in (*command.dock, *command.undock):
         if port not in ENDS:
             raise ExecutionError(f"strut {strut}: unknown connector {port!r} (known: a, b)")
     for end in ENDS:
         direction = _vector(strut, command.joints, end, "dir")
+        effort = float(command.joints.get(f"{end}.effort", 1.0))
+        if not 0.0 < effort <= 1.0:
+            raise ExecutionError(f"strut {strut}: {end}.effort must be in (0, 1], got {effort}")
         if direction is not None:
-            targets[end] = (direction, _vector(strut, command.joints, end, "fwd"))
+            targets[end] = (direction, _vector(strut, command.joints, end, "fwd"), effort)
     return targets
 
 

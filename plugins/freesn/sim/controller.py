@@ -21,6 +21,7 @@ The joint modes (Figs. 6-7) differ in what the connectors are told:
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Mapping
 
 import numpy as np
@@ -35,10 +36,14 @@ from msrr.core.plan import Action
 
 from .commands import connector_joints
 from .geometry import END_SIGN
-from .recognizer import FreeSNRecognizer, links_of, node_headings
+from .recognizer import FreeSNRecognizer, Links, links_of, node_headings
 from .world import NodeReport, StrutReport
 
-__all__ = ["FORWARD_MODES", "FreeSNController", "connector_commands", "shape_error"]
+__all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "FreeSNController", "connector_commands",
+           "driving_ends", "shape_error"]
+
+FOLLOW_EFFORT = 0.25
+"""Torque fraction of a connector that closes a loop (it follows rather than fights)."""
 
 FORWARD_MODES = frozenset({"differential_spherical", "revolute"})
 """Joint modes whose controllers also command the strut's forward vector."""
@@ -60,9 +65,46 @@ def shape_error(current: Configuration, target: Configuration) -> tuple[float, n
     return float(np.sqrt(np.mean(angles**2))), angles, yaw
 
 
+def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
+    """The connectors that drive at full effort: one spanning tree of locks.
+
+    A strut docked at both ends is two spherical joints in a loop of rigid struts; if
+    every connector held its own target, measurement noise alone would set them
+    against each other. Breadth-first from the root node (the smallest id of each
+    group), the strut that first reaches a node is driven from the node it comes
+    from; every other end of a strut docked at both ends (the child end, and both ends
+    of a strut that closes a loop) follows softly. A strut with one free end is driven
+    from its docked end. This is the kinematic tree's choice of which connector is the
+    joint (FreeSN paper, section 3.2).
+    """
+    at: dict[str, list[tuple[str, str]]] = {}
+    for (strut, end), node in links.items():
+        at.setdefault(node, []).append((strut, end))
+    ends_of: dict[str, dict[str, str]] = {}
+    for (strut, end), node in links.items():
+        ends_of.setdefault(strut, {})[end] = node
+    driving = {(s, next(iter(e))) for s, e in ends_of.items() if len(e) == 1}
+    reached: set[str] = set()
+    for start in ([root] if root else []) + sorted(at):
+        if start in reached:
+            continue
+        reached.add(start)
+        queue = deque([start])
+        while queue:
+            node = queue.popleft()
+            for strut, end in sorted(at[node]):
+                other = ends_of[strut].get("b" if end == "a" else "a")
+                if other is not None and other not in reached:
+                    reached.add(other)
+                    queue.append(other)
+                    driving.add((strut, end))
+    return driving
+
+
 def connector_commands(target: Configuration, reports: Mapping[str, NodeReport | StrutReport],
                        *, yaw: float = 0.0, forward: bool = False,
-                       struts: set[str] | None = None) -> dict[str, ModuleCommand]:
+                       struts: set[str] | None = None,
+                       follow_effort: float = FOLLOW_EFFORT) -> dict[str, ModuleCommand]:
     """Per-strut commands that drive every docked connector toward ``target``.
 
     Args:
@@ -71,12 +113,14 @@ def connector_commands(target: Configuration, reports: Mapping[str, NodeReport |
         yaw: turn [rad] of ``target`` about the vertical into the recognized frame.
         forward: command the strut's forward vector too (needs ``x`` in ``target``).
         struts: only these struts (default: every strut of ``target``).
+        follow_effort: torque fraction of the connectors outside :func:`driving_ends`.
 
     Raises:
         ExecutionError: ``forward`` and a target strut without ``x``.
     """
     links = links_of(reports)
     heading = node_headings(reports, links)
+    driving = driving_ends(links)
     turn = rot_z(yaw)
     commands: dict[str, ModuleCommand] = {}
     for edge in target.edges():
@@ -93,7 +137,8 @@ def connector_commands(target: Configuration, reports: Mapping[str, NodeReport |
             to_node = rot_z(-heading[node]) @ turn
             joints.update(connector_joints(
                 end, to_node @ (sign * edge.z),
-                to_node @ edge.x if forward and edge.x is not None else None))
+                to_node @ edge.x if forward and edge.x is not None else None,
+                1.0 if (edge.id, end) in driving else follow_effort))
         if joints:
             commands[edge.id] = ModuleCommand(joints=joints)
     return commands
@@ -122,27 +167,35 @@ class FreeSNController:
         self.strut_length = strut_length
         self.forward = mode in FORWARD_MODES
         self._recognizer = FreeSNRecognizer()
+        self._yaw = 0.0
 
     def commands(self, target: Configuration, observation: Observation, *,
-                 current: Configuration | None = None) -> dict[str, ModuleCommand]:
+                 yaw: float | None = None, current: Configuration | None = None
+                 ) -> dict[str, ModuleCommand]:
         """Commands toward ``target`` (joint vectors, root horizontal frame).
 
-        ``current`` (the recognized configuration) sets the yaw alignment; it is
-        recognized from ``observation`` when omitted.
+        Args:
+            yaw: turn [rad] of ``target`` into the recognized frame; when ``None``, the
+                eq. 8 alignment with ``current`` (recognized from ``observation`` when
+                omitted). Keep it fixed over an action: re-aligning every tick lets a
+                blocked strut turn the whole goal.
         """
-        current = current or self._recognizer.recognize(observation.sensors)
-        _, _, yaw = shape_error(current, target)
+        if yaw is None:
+            current = current or self._recognizer.recognize(observation.sensors)
+            yaw = shape_error(current, target)[2]
         return connector_commands(target, observation.sensors, yaw=yaw, forward=self.forward)
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
-        """Nothing to prepare: every tick reads the reports afresh."""
+        """Fix the yaw of the action's target for this phase (eq. 8 alignment)."""
+        current = self._recognizer.recognize(observation.sensors)
+        self._yaw = shape_error(current, action.target)[2]
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         """Command ``action.target`` directly; reached under ``tolerance`` RMS."""
         current = self._recognizer.recognize(observation.sensors)
-        rms, angles, yaw = shape_error(current, action.target)
+        rms, angles, _ = shape_error(current, action.target)
         ids = [e for e in action.target.edge_ids() if e in set(current.edge_ids())]
-        commands = connector_commands(action.target, observation.sensors, yaw=yaw,
+        commands = connector_commands(action.target, observation.sensors, yaw=self._yaw,
                                       forward=self.forward)
         errors = {strut: float(a) * self.strut_length for strut, a in zip(ids, angles,
                                                                           strict=True)}

@@ -59,7 +59,7 @@ _ROLLER_MASS = 0.02   # rolling frame of a connector (wheels, magnet carrier) [k
 _ARMATURE = 1e-3     # wheel-motor rotors reflected through the gearbox (~1e-7 x 100^2) [kg m^2]
 _EZ = np.array([0.0, 0.0, 1.0])
 _ALL_BITS = 0x7FFFFFFF  # nodes and the ground touch every collision bit
-_SIDE_BY_SIDE = np.radians(20.0)  # struts this close at a shared node sit side by side
+_SIDE_BY_SIDE_MARGIN = np.radians(8.0)  # beyond the angle at which two capsules touch
 
 
 @dataclass(frozen=True)
@@ -163,8 +163,12 @@ class FreeSNWorld:
         self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
         self._tau = np.zeros((k, 3))
+        self._effort = np.ones(k)                          # fraction of the torque limit
         self._dofs = self._dadr[:, None] + np.arange(3)
         self._servo_every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
+        tip = phys.node_radius + _GAP + phys.strut_radius   # capsule cap centre from the node
+        self._side_by_side = 2.0 * np.arcsin(min(1.0, phys.strut_radius / tip)) \
+            + _SIDE_BY_SIDE_MARGIN
         self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
         self.events: list[DockEvent] = []
         self._reported = 0
@@ -277,6 +281,7 @@ class FreeSNWorld:
         strut, end = self.ends[k]
         self.data.eq_active[self._welds[(strut, end, node)]] = 0
         self._eq[k] = -1
+        self._effort[k] = 1.0
         self.docked[k] = None
         self._has_target[k] = False
         self._refresh_driven()
@@ -290,8 +295,9 @@ class FreeSNWorld:
         Two struts docked to one node in (nearly) the same direction -- parallel struts
         between two nodes, or a strut aimed along another to dock beside it -- lie on one
         line in the skeletal model, where the hardware seats them side by side. Struts
-        within ``_SIDE_BY_SIDE`` [rad] of each other at a shared node are grouped
-        (transitively); a group shares one bit ``g`` with ``contype = g`` and
+        whose capsules would touch at a shared node (axis angle under ``2 asin(r / (R +
+        gap + r))`` plus a margin) are grouped (transitively), so a strut can come
+        alongside another to dock beside it; a group shares one bit ``g`` with ``contype = g`` and
         ``conaffinity = every other bit``, so its members skip each other and still
         touch everything else. Nodes and the ground accept every bit.
         """
@@ -309,7 +315,7 @@ class FreeSNWorld:
             if node is not None:
                 j = self._strut_index[self.ends[k][0]]
                 at_node.setdefault(node, []).append((j, self._sign[k] * axes[j]))
-        cos_limit = np.cos(_SIDE_BY_SIDE)
+        cos_limit = np.cos(self._side_by_side)
         for members in at_node.values():
             for i, (j1, u1) in enumerate(members):
                 for j2, u2 in members[i + 1:]:
@@ -350,7 +356,8 @@ class FreeSNWorld:
         node = self.docked[k]
         if node is None:
             return
-        direction, forward = target
+        direction, forward, effort = target
+        self._effort[k] = effort
         r_wn = self.data.xmat[self._node_body[self._node_index[node]]].reshape(3, 3)
         tilt = rot_z(-float(heading(self.data.xquat[self._node_body[self._node_index[node]]])))
         to_node = r_wn.T @ tilt.T          # horizontal frame -> node frame
@@ -427,10 +434,11 @@ class FreeSNWorld:
             spin = np.einsum("ni,ni->n", omega, axis)
             roll = omega - spin[:, None] * axis
             norm = np.sqrt(np.einsum("ni,ni->n", roll, roll))
+            limit = p.max_torque * self._effort[ks]
             scale = np.minimum(1.0, p.max_roll_rate / np.maximum(norm, 1e-12))
-            scale *= np.minimum(1.0, p.max_torque / np.maximum(p.damping * norm * scale, 1e-12))
+            scale *= np.minimum(1.0, limit / np.maximum(p.damping * norm * scale, 1e-12))
             spin = np.minimum(np.maximum(spin, -p.max_spin_rate), p.max_spin_rate)
-            t_spin = np.minimum(np.maximum(p.damping * spin, -p.max_torque), p.max_torque)
+            t_spin = np.minimum(np.maximum(p.damping * spin, -limit), limit)
             tau[ks] = (p.damping * scale)[:, None] * roll + t_spin[:, None] * axis
         self.data.qfrc_applied[self._dofs] = tau
 
