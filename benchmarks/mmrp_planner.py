@@ -103,7 +103,7 @@ def _simulate(count: int, rng: np.random.Generator) -> list[list]:
             data = json.loads(summary.read_text()) if summary.exists() else {}
             rows.append([k, done.returncode == 0 and bool(data.get("success")),
                          data.get("docks", "-"), data.get("undocks", "-"),
-                         f"{data.get('sim_time', float('nan')):.1f}", f"{wall:.1f}"])
+                         f"{data.get('sim_time_s', float('nan')):.1f}", f"{wall:.1f}"])
     return rows
 
 

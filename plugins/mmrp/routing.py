@@ -121,6 +121,42 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
     return None
 
 
+def _straighten(path: list[Cell], shape: Sequence[Cell], occupied: Mapping[Cell, int],
+                me: int) -> list[Cell]:
+    """Fewer turns: replace stretches of ``path`` by one straight leg or one L where the
+    shape's swept cells are free (the same test as the search), farthest first."""
+    def clear(a: Cell, b: Cell) -> bool:
+        step = ((b[0] > a[0]) - (b[0] < a[0]), (b[1] > a[1]) - (b[1] < a[1]))
+        t = a
+        while t != b:
+            t = (t[0] + step[0], t[1] + step[1])
+            if any(occupied.get((s[0] + t[0], s[1] + t[1]), me) != me for s in shape):
+                return False
+        return True
+
+    out = [path[0]]
+    i = 0
+    while i < len(path) - 1:
+        a = path[i]
+        for j in range(len(path) - 1, i, -1):
+            b = path[j]
+            if a[0] == b[0] or a[1] == b[1]:
+                if clear(a, b):
+                    out.append(b)
+                    break
+                continue
+            corner = next((c for c in ((b[0], a[1]), (a[0], b[1]))
+                           if clear(a, c) and clear(c, b)), None)
+            if corner is not None:
+                out += [corner, b]
+                break
+        else:  # unreachable: consecutive cells are one free unit step apart
+            j = i + 1
+            out.append(path[j])
+        i = j
+    return out
+
+
 def _region(seed: Cell, walls: Collection[Cell], box: tuple[int, int, int, int],
             seen: set[Cell], limit: int = 400) -> set[Cell] | None:
     """The cells 4-connected to ``seed`` around ``walls``, or None if it reaches outside
@@ -183,13 +219,14 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
 
     def move(index: int, path: list[Cell], parking: bool) -> None:
         group = groups[index]
+        path = _straighten(path, shapes[index], occupied, index)
         end = path[-1]
         for m in group:
             del occupied[where[m]]
         for m, s in zip(group, shapes[index], strict=True):
             where[m] = (end[0] + s[0], end[1] + s[1])
             occupied[where[m]] = index
-        routes.append(Route(tuple(group), compress(path), parking))
+        routes.append(Route(tuple(group), _corners(path), parking))
 
     final: set[Cell] = {where[m] for i, g in enumerate(groups) if i not in pending for m in g}
     awaited_cells = {goal[m]: i for i in pending for m in groups[i]}
@@ -417,7 +454,7 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
             failures = 0
             left.popleft()
             order.append(i)
-            escape[i] = path
+            escape[i] = _straighten(path, shapes[i], occupied, i)
             for c in cells_of(i):
                 del occupied[c]
         return order, escape
