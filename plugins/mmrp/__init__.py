@@ -4,6 +4,8 @@ Wei et al., "A Graph-Based Hybrid Reconfiguration Deformation Planning for Modul
 Robots", Sensors 23 (2023) 7892.
 """
 
+from .check import check_plan
+from .exact import CertifiedOptimum, certified_optimum
 from .optimum import Optimum, optimum
 from .planner import HybridResult, McsHybridPlanner, plan_hybrid
 from .recognition import DistributedRecognizer, Recognition, recognize_with_stats
@@ -14,12 +16,15 @@ from .rules import MmrpRules
 __all__ = [
     "FACES",
     "SPEC",
+    "CertifiedOptimum",
     "DistributedRecognizer",
     "HybridResult",
     "McsHybridPlanner",
     "MmrpRules",
     "Optimum",
     "Recognition",
+    "certified_optimum",
+    "check_plan",
     "layout",
     "optimum",
     "plan_hybrid",
