@@ -10,13 +10,21 @@
 * :mod:`.driver` -- the :class:`~msrr.core.driver.Driver` registered as ``mujoco``.
 """
 
-from .controller import FORWARD_MODES, FreeSNController, connector_commands, shape_error
+from .controller import (
+    FOLLOW_EFFORT,
+    FORWARD_MODES,
+    FreeSNController,
+    connector_commands,
+    driving_ends,
+    shape_error,
+)
 from .driver import FreeSNMujocoDriver
 from .options import Physical, SimOptions
 from .recognizer import FreeSNRecognizer, node_headings
 from .world import DockEvent, FreeSNWorld, NodeReport, StrutReport
 
 __all__ = [
+    "FOLLOW_EFFORT",
     "FORWARD_MODES",
     "DockEvent",
     "FreeSNController",
@@ -28,6 +36,7 @@ __all__ = [
     "SimOptions",
     "StrutReport",
     "connector_commands",
+    "driving_ends",
     "node_headings",
     "shape_error",
 ]

@@ -59,6 +59,7 @@ _ROLLER_MASS = 0.02   # rolling frame of a connector (wheels, magnet carrier) [k
 _ARMATURE = 1e-3     # wheel-motor rotors reflected through the gearbox (~1e-7 x 100^2) [kg m^2]
 _EZ = np.array([0.0, 0.0, 1.0])
 _ALL_BITS = 0x7FFFFFFF  # nodes and the ground touch every collision bit
+_SEAT = 0.1           # time constant of a magnet drawing a docked connector onto the centre [s]
 _SIDE_BY_SIDE_MARGIN = np.radians(8.0)  # beyond the angle at which two capsules touch
 
 
@@ -261,7 +262,12 @@ class FreeSNWorld:
         mujoco.mju_negQuat(inv, q_conn)
         mujoco.mju_mulQuat(rel, inv, q_node)
         data = self.model.eq_data[eq]
-        data[:6] = 0.0       # anchor: the node centre; relpose: the connector origin on it
+        data[:3] = 0.0       # anchor: the node centre
+        # relpose position: where the node centre is now, in the connector frame; the
+        # magnet then draws the connector onto the centre (_seat) instead of snapping
+        r_conn = d.xmat[self._conn_body[k]].reshape(3, 3)
+        data[3:6] = r_conn.T @ (d.xpos[self._node_body[self._node_index[node]]]
+                                - d.xpos[self._conn_body[k]])
         data[6:10] = rel     # relpose: current relative orientation
         data[10] = 1.0       # torque scale
         d.eq_active[eq] = 1
@@ -414,6 +420,7 @@ class FreeSNWorld:
             self.time += self.options.timestep
             if i % every == every - 1 or i == n - 1:
                 self._check_loads(min(every, i % every + 1))
+                self._seat(min(every, i % every + 1) * self.options.timestep)
             if docking:
                 self._check_docks()
                 docking = "extended" in self.magnet
@@ -455,6 +462,13 @@ class FreeSNWorld:
         self._load[~docked] = 0.0
         for k in np.flatnonzero(self._load > self.phys.strength):
             self._release(int(k), "break")
+
+    def _seat(self, duration: float) -> None:
+        """Draw freshly docked connectors onto their node centres (time constant ``_SEAT``)."""
+        active = self._eq[self._eq >= 0]
+        offsets = self.model.eq_data[active, 3:6]
+        if np.any(offsets):
+            self.model.eq_data[active, 3:6] = offsets * max(0.0, 1.0 - duration / _SEAT)
 
     def _check_docks(self) -> None:
         centres = self.data.xpos[self._node_body]

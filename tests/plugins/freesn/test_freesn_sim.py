@@ -22,6 +22,7 @@ from msrr.core.library import load_library
 from msrr.plugins.freesn.joints import JOINT_MODES
 from msrr.plugins.freesn.robot import SPEC
 from msrr.plugins.freesn.sim import (
+    FOLLOW_EFFORT,
     FreeSNController,
     FreeSNMujocoDriver,
     FreeSNRecognizer,
@@ -29,6 +30,8 @@ from msrr.plugins.freesn.sim import (
     NodeReport,
     SimOptions,
     StrutReport,
+    connector_commands,
+    driving_ends,
     shape_error,
 )
 from msrr.plugins.freesn.sim.geometry import heading, place
@@ -271,3 +274,58 @@ def test_revolute_controller_turns_a_strut_about_its_axis():
             driver.step(0.1)
         reached = driver.world.ground_truth().edge("S4").x
     assert np.degrees(np.arccos(np.clip(reached @ goal.edge("S4").x, -1, 1))) < 5.0
+
+
+def _drive(driver, controller, goal, ticks, extra=None):
+    """Command ``goal`` for ``ticks`` ticks of 0.1 s, the yaw fixed at the start."""
+    yaw = shape_error(FreeSNRecognizer().recognize(driver.get_observation().sensors), goal)[2]
+    for _ in range(ticks):
+        commands = dict(controller.commands(goal, driver.get_observation(), yaw=yaw))
+        for strut, command in (extra or {}).items():
+            base = commands.get(strut, ModuleCommand())
+            commands[strut] = ModuleCommand(joints=base.joints, dock=command.dock,
+                                            undock=command.undock)
+        driver.send_action(commands)
+        driver.step(0.1)
+
+
+def test_connection_then_disconnection_by_connector_commands():
+    """S6N3: swing a leg onto a node, dock it (a loop closes), undock it, swing it back."""
+    flat, aimed, docked = (_library_config("S6N3", k) for k in ("S6N3-1.2", "S6N3-1.3",
+                                                                 "S6N3-2.1"))
+    controller = FreeSNController()
+    with FreeSNMujocoDriver(noise=np.radians(2.0), slip=0.05, seed=11) as driver:
+        driver.reset(flat)
+        _drive(driver, controller, aimed, 20)                      # moving (150 deg swing)
+        assert shape_error(driver.world.ground_truth(), aimed)[0] < np.radians(5.0)
+        _drive(driver, controller, docked, 10, {"S4": ModuleCommand(dock=("b",))})
+        truth = driver.world.ground_truth()
+        assert not topology_diff(truth, docked), "S4's free end docked on N2"
+        assert shape_error(truth, docked)[0] < np.radians(5.0)
+        _drive(driver, controller, aimed, 3, {"S4": ModuleCommand(undock=("b",))})
+        _drive(driver, controller, flat, 20)
+        truth = driver.world.ground_truth()
+        assert not topology_diff(truth, flat)
+        assert shape_error(truth, flat)[0] < np.radians(5.0)
+        kinds = [(e.kind, e.strut, e.end, e.node) for e in driver.world.events]
+    assert kinds == [("dock", "S4", "b", "N2"), ("undock", "S4", "b", "N2")]
+
+
+def test_driving_ends_form_one_spanning_tree_of_locks():
+    config = _library_config("S6N3", "S6N3-3.1")  # triangle, two parallel struts, one leg
+    links = {(e.id, end): n for e in config.edges()
+             for end, n in (("a", e.source), ("b", e.target)) if not config.is_virtual(n)}
+    driving = driving_ends(links)
+    loops = [e.id for e in config.edges() if not config.is_virtual(e.target)]
+    tree = [(s, end) for s, end in driving if s in loops]
+    assert len(tree) == 2, "three nodes: two struts lock them, the rest follow"
+    reached = {"N1"} | {links[(s, "b" if end == "a" else "a")] for s, end in tree}
+    assert reached == {"N1", "N2", "N3"}
+    assert ("S6", "a") in driving  # the leg is driven from its docked end
+    commands = connector_commands(config, _reports(config.with_vectors(
+        x={e.id: np.cross(e.z, [0.0, 0.0, 1.0]) / np.linalg.norm(np.cross(e.z, [0, 0, 1.0]))
+           for e in config.edges()}), np.random.default_rng(0))[0])
+    efforts = {(s, end): c.joints.get(f"{end}.effort", 1.0) for s, c in commands.items()
+               for end in ("a", "b") if f"{end}.dir_x" in c.joints}
+    assert {k for k, v in efforts.items() if v == 1.0} == driving
+    assert all(v == FOLLOW_EFFORT for k, v in efforts.items() if k not in driving)
