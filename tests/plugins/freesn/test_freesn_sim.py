@@ -13,12 +13,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from msrr.core import Configuration, plugins
-from msrr.core.actions import topology_diff
+from msrr.core.actions import detect_actions, topology_diff
 from msrr.core.alignment import rot_z
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
+from msrr.core.events import Run
+from msrr.core.executor import Executor, ExecutorOptions
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
+from msrr.core.plan import Plan
 from msrr.plugins.freesn.joints import JOINT_MODES
 from msrr.plugins.freesn.robot import SPEC
 from msrr.plugins.freesn.sim import (
@@ -329,3 +332,24 @@ def test_driving_ends_form_one_spanning_tree_of_locks():
                for end in ("a", "b") if f"{end}.dir_x" in c.joints}
     assert {k for k, v in efforts.items() if v == 1.0} == driving
     assert all(v == FOLLOW_EFFORT for k, v in efforts.items() if k not in driving)
+
+
+def test_core_executor_runs_a_connection_and_a_disconnection():
+    """The core executor, unchanged, with this driver, recognizer and controller (no IK)."""
+    sequence = [_library_config("S6N3", k) for k in ("S6N3-1.3", "S6N3-2.1", "S6N3-1.3")]
+    actions = detect_actions(sequence)
+    assert [a.type.value for a in actions] == ["connection", "disconnection"]
+    plan = Plan(robot="freesn", planner="manual", start=sequence[0], goal=sequence[-1],
+                actions=actions)
+    run = Run(robot="freesn", scenario="custom", plan=plan, spec=SPEC, driver="mujoco")
+    with FreeSNMujocoDriver(noise=np.radians(2.0), slip=0.05, seed=2) as driver:
+        driver.reset(sequence[0])
+        result = Executor(run, driver, plugins.recognizers.get("freesn"),
+                          plugins.controllers.get("freesn"),
+                          ExecutorOptions(action_timeout=10.0, retries=0)).execute()
+        events = [(e.kind, e.strut, e.end, e.node) for e in driver.world.events]
+        truth = driver.world.ground_truth()
+    assert result.success, result.reason
+    assert (result.docks, result.undocks) == (1, 1)
+    assert events == [("dock", "S4", "b", "N2"), ("undock", "S4", "b", "N2")]
+    assert not topology_diff(truth, sequence[-1])
