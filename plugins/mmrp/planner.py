@@ -50,7 +50,7 @@ __all__ = ["LOOKAHEAD", "HybridResult", "McsHybridPlanner", "plan_hybrid"]
 LOOKAHEAD = 4
 """Fewest common subconfigurations tried as the first decomposition (see :func:`plan_hybrid`)."""
 
-LOOKAHEAD_BUDGET = 256
+LOOKAHEAD_BUDGET = 1024
 """Adaptive lookahead: ``max(LOOKAHEAD, LOOKAHEAD_BUDGET // n)`` first decompositions
 for n modules, so small systems try every one and large ones stay O(n^2)."""
 

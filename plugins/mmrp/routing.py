@@ -213,7 +213,7 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
                      key=lambda i: (-pocket[i], min(rank.get(m, len(rank)) for m in groups[i])))
     margin = max(len(g) for g in groups) + 3
     bounds = _bounds([*start.values(), *goal.values()], margin)
-    limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 3000)
+    limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 800)
     parks = [0] * len(groups)
     routes: list[Route] = []
 
