@@ -277,3 +277,14 @@ def test_assignment_mapping_is_minimal_and_crossing_free():
     assert not any(_crosses(*a, *b) for a, b in itertools.combinations(segments, 2))
     assert not result.stalled and list(result.arrival) == sorted(
         result.arrival, key=lambda m: result.travelled[m])
+
+
+def test_the_random_30_scenario_plans_a_checked_plan():
+    from msrr.core import plugins
+    from msrr.core.io import load_configuration
+
+    scenario = plugins.scenarios("mmrp")["random-30"]
+    start, goal = load_configuration(scenario.start), load_configuration(scenario.goal)
+    assert len(start) == len(goal) == 30
+    plan = plugins.planners.get("mmrp", "mcs-hybrid").plan(start, goal)
+    assert check_plan(plan) == [] and plan.docks == plan.undocks
