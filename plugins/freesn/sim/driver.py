@@ -31,8 +31,9 @@ class FreeSNMujocoDriver(Driver):
 
     Commands (per strut, see :mod:`.commands`): ``joints`` with the connection vector
     (and forward vector) of each docked connector in its node's horizontal frame;
-    ``dock=("b",)`` extends a magnet array, ``undock=("a",)`` retracts one. A strut not
-    commanded brakes its connectors where they are. Node modules take no command.
+    ``dock=("b",)`` extends a magnet array, ``undock=("a",)`` retracts one. A strut that
+    drops out of the commands stops where it is (motors braked); one commanded without
+    joints keeps its last targets. Node modules take no command.
     Sensors: module id -> :class:`~.world.NodeReport` or :class:`~.world.StrutReport`.
     """
 
@@ -56,6 +57,7 @@ class FreeSNMujocoDriver(Driver):
         self.world: FreeSNWorld | None = None
         self._connected = False
         self._viewer: Any = None
+        self._moving: set[str] = set()
 
     @property
     def is_connected(self) -> bool:
@@ -81,6 +83,7 @@ class FreeSNMujocoDriver(Driver):
         """Build the world of ``start`` (its docked ends docked); time becomes 0."""
         self.require_connected()
         self.world = FreeSNWorld(start, self.spec, self.options)
+        self._moving = set()
         if self.gui:
             from mujoco import viewer  # the viewer needs a display; imported only then
 
@@ -100,6 +103,9 @@ class FreeSNMujocoDriver(Driver):
         unknown = set(commands) - set(world.struts) - set(world.nodes)
         if unknown:
             raise ExecutionError(f"commands for unknown module(s) {sorted(unknown)}")
+        for strut in self._moving - set(commands):
+            world.command_stop(strut)
+        self._moving = {m for m in commands if m in world.struts}
         for strut, command in commands.items():
             if strut in world.nodes:
                 if command.joints or command.dock or command.undock or command.wheels:

@@ -343,6 +343,14 @@ class FreeSNWorld:
     def _refresh_driven(self) -> None:
         self._driven = np.flatnonzero(self._has_target & (self._eq >= 0))
 
+    def command_stop(self, strut: str) -> None:
+        """Stop ``strut``'s connectors where they are now (motors braked)."""
+        for end in ENDS:
+            k = self._end(strut, end)
+            if self.docked[k] is not None:
+                self._effort[k] = 1.0
+                self._hold(k)
+
     def command_dock(self, strut: str, end: str) -> None:
         """Extend the magnet array of ``strut``'s ``end`` (kept until it docks)."""
         k = self._end(strut, end)

@@ -353,3 +353,22 @@ def test_core_executor_runs_a_connection_and_a_disconnection():
     assert (result.docks, result.undocks) == (1, 1)
     assert events == [("dock", "S4", "b", "N2"), ("undock", "S4", "b", "N2")]
     assert not topology_diff(truth, sequence[-1])
+
+
+def test_a_strut_left_out_of_the_commands_stops_where_it_is():
+    start = _library_config("S6N3", "S6N3-1.2")   # flat: legs on the ground
+    goal = start.with_vectors(z={e.id: (rot_z(np.radians(-90.0)) @ e.z if e.id == "S4" else e.z)
+                                 for e in start.edges()})
+    controller = FreeSNController()
+    with FreeSNMujocoDriver() as driver:
+        driver.reset(start)
+        for _ in range(3):
+            driver.send_action(controller.commands(goal, driver.get_observation(), yaw=0.0))
+            driver.step(0.1)
+        driver.send_action({})
+        stopped = driver.world.ground_truth().edge("S4").z
+        driver.step(1.0)
+        after = driver.world.ground_truth().edge("S4").z
+    swing = np.degrees(np.arccos(np.clip(stopped @ start.edge("S4").z, -1, 1)))
+    assert 5.0 < swing < 80.0, "stopped half way"
+    assert np.degrees(np.arccos(np.clip(stopped @ after, -1, 1))) < 2.0
