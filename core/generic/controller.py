@@ -1,0 +1,297 @@
+"""The latch controller: moves modules of the kinematic driver into place and docks them.
+
+It reads only the observation (poses and :class:`~msrr.core.generic.driver.ModuleReading`
+sensors) and commands pose targets (``joints={"x", "y", "z", "yaw"}``) and docks:
+
+* **move** (an action with planar goals ``{id: [x, y, yaw]}``): each goal module (with
+  its group) lifts clear of every other body, travels and turns, and lowers onto its
+  goal (its height kept); an action without goals is reached at once (the kinematic
+  world has no joints to move);
+* **approach** (and **flow**): for each connection the action makes, one side's group
+  is carried so that the two ports face each other (or the bodies touch along the
+  target's ``z`` for connections without ports): the smaller group moves, the target's
+  on a tie, unless its final place would overlap another body; once there, the
+  controller arms the ports itself, so parallel connections dock one by one and each
+  next placement starts from the merged group;
+* **release**: connections without ports are released with ``undock=("@other",)``
+  (the executor sends the port commands of every other change, in release, connect
+  and flow);
+* **connect**: keeps the docks of the action armed.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from ..control import Control
+from ..driver import ModuleCommand, Observation
+from ..events import Phase
+from ..plan import Action, ConnectionChange, ConnectionKey, connection_key
+from ..robot import ModuleKind, RobotSpec, body_half_size
+from .driver import FREEFORM_PREFIX, ModuleReading
+from .geometry import (
+    BodyPose,
+    inscribed_radius,
+    place_for_contact,
+    place_for_ports,
+    rotate_z,
+    wrap_angle,
+)
+
+__all__ = ["LatchController"]
+
+REACHED = 1e-6
+"""Distance [m] (and angle [rad]) at which a waypoint counts as reached."""
+
+
+@dataclass
+class _Job:
+    """One module (and its group) to bring somewhere, then possibly one dock."""
+
+    leader: str
+    waypoints: deque = field(default_factory=deque)
+    final: BodyPose | None = None
+    change: ConnectionChange | None = None
+
+
+def _body(observation: Observation, module: str) -> BodyPose:
+    pose = observation.poses[module]
+    return BodyPose(np.asarray(pose.position, dtype=float), pose.yaw)
+
+
+class LatchController:
+    """Controller of the generic runtime for robot ``spec`` (see the module docstring)."""
+
+    name = "latches"
+    description = "lift, carry and dock modules in the kinematic world (generic runtime)"
+    generic = True
+
+    def __init__(self, spec: RobotSpec):
+        self.spec = spec
+        self.jobs: deque[_Job | ConnectionChange | tuple[str, list[float]]] = deque()
+        self.job: _Job | None = None
+
+    # -- the controller protocol -------------------------------------------------------------
+
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+        self.job = None
+        self.jobs = deque()
+        if phase is Phase.MOVE:
+            self.jobs.extend(sorted(action.goals.items()))
+        elif phase in (Phase.APPROACH, Phase.FLOW):
+            self.jobs.extend(self._made(action))
+
+    def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
+        commands: dict[str, ModuleCommand] = {}
+        if phase in (Phase.RELEASE, Phase.FLOW):
+            for change in self._broken(action):
+                if change.source_port is None and change.target_port is None:
+                    self._add(commands, change.source, undock=f"{FREEFORM_PREFIX}{change.target}")
+        if phase is Phase.CONNECT:
+            for change in self._made(action):
+                self._arm(commands, change)
+        errors: dict[str, float] = {}
+        if phase in (Phase.MOVE, Phase.APPROACH, Phase.FLOW):
+            self._advance(action, observation, commands, errors)
+        return Control(commands, errors, reached=self.job is None and not self.jobs)
+
+    # -- jobs ---------------------------------------------------------------------------------
+
+    def _advance(self, action: Action, observation: Observation,
+                 commands: dict[str, ModuleCommand], errors: dict[str, float]) -> None:
+        latched = _latched(observation)
+        while True:
+            if self.job is None:
+                if not self.jobs:
+                    return
+                self.job = self._start(self.jobs.popleft(), action, observation, latched)
+                if self.job is None:
+                    continue
+            job = self.job
+            here = _body(observation, job.leader)
+            while job.waypoints and _close(here, job.waypoints[0]):
+                job.waypoints.popleft()
+            if job.final is not None:
+                errors[job.leader] = float(np.linalg.norm(here.position - job.final.position))
+            if job.waypoints:
+                target = job.waypoints[0]
+                self._add(commands, job.leader, pose=target)
+                return
+            if job.change is None or job.change.key in latched:
+                self.job = None
+                continue
+            self._arm(commands, job.change)
+            self._add(commands, job.leader, pose=job.final)
+            return
+
+    def _start(self, item: ConnectionChange | tuple[str, list[float]], action: Action,
+               observation: Observation, latched: set[ConnectionKey]) -> _Job | None:
+        if isinstance(item, ConnectionChange):
+            if item.key in latched:
+                return None
+            return self._dock_job(item, action, observation, latched)
+        module, goal = item
+        here = _body(observation, module)
+        x, y, yaw = (float(v) for v in goal[:3])
+        final = BodyPose(np.array([x, y, here.position[2]]), wrap_angle(yaw))
+        group = self._groups(observation, latched, set())[module]
+        return _Job(module, self._path(observation, group, module, final), final)
+
+    def _dock_job(self, change: ConnectionChange, action: Action, observation: Observation,
+                  latched: set[ConnectionKey]) -> _Job:
+        broken = {c.key for c in self._broken(action)}
+        groups = self._groups(observation, latched, broken)
+        source, target = change.source, change.target
+        if target in groups[source]:  # closing a loop: nothing can move, dock if aligned
+            return _Job(target, deque(), _body(observation, target), change)
+        options = [(target, source), (source, target)]
+        if len(groups[source]) < len(groups[target]):
+            options.reverse()
+        first = None
+        for moving, fixed in options:
+            final = self._placement(change, action, observation, moving, fixed)
+            if first is None:
+                first = (moving, final)
+            if not self._collides(observation, groups[moving], moving, final):
+                break
+        else:
+            moving, final = first  # type: ignore[misc]  # the driver will refuse and say why
+        return _Job(moving, self._path(observation, groups[moving], moving, final), final, change)
+
+    def _placement(self, change: ConnectionChange, action: Action, observation: Observation,
+                   moving: str, fixed: str) -> BodyPose:
+        kind = {m: self.spec.kind(observation.sensors[m].kind) for m in (moving, fixed)}
+        here, there = _body(observation, moving), _body(observation, fixed)
+        fixed_port = change.source_port if fixed == change.source else change.target_port
+        moving_port = change.target_port if fixed == change.source else change.source_port
+        if (fixed_port is not None and moving_port is not None
+                and kind[fixed].port(fixed_port).normal is not None
+                and kind[moving].port(moving_port).normal is not None):
+            return place_for_ports(kind[fixed], fixed_port, there, kind[moving], moving_port,
+                                   here.yaw)
+        z = _target_z(action, change)
+        if z is None:
+            z = here.position - there.position if fixed == change.source \
+                else there.position - here.position
+        return place_for_contact(kind[fixed], there, kind[moving], here.yaw, np.asarray(z),
+                                 fixed == change.source)
+
+    # -- geometry of moves --------------------------------------------------------------------
+
+    def _kind(self, observation: Observation, module: str) -> ModuleKind:
+        return self.spec.kind(observation.sensors[module].kind)
+
+    def _moved(self, observation: Observation, group: set[str], leader: str, final: BodyPose
+               ) -> dict[str, BodyPose]:
+        """Poses of ``group`` after the rigid move that takes ``leader`` to ``final``."""
+        start = _body(observation, leader)
+        turn = wrap_angle(final.yaw - start.yaw)
+        return {m: BodyPose(final.position + rotate_z(_body(observation, m).position
+                                                      - start.position, turn),
+                            wrap_angle(_body(observation, m).yaw + turn)) for m in group}
+
+    def _collides(self, observation: Observation, group: set[str], leader: str,
+                  final: BodyPose) -> bool:
+        moved = self._moved(observation, group, leader, final)
+        for m, pose in moved.items():
+            for other in observation.poses:
+                if other in group:
+                    continue
+                gap = float(np.linalg.norm(pose.position - _body(observation, other).position))
+                if gap < (inscribed_radius(self._kind(observation, m))
+                          + inscribed_radius(self._kind(observation, other)) - 1e-9):
+                    return True
+        return False
+
+    def _path(self, observation: Observation, group: set[str], leader: str, final: BodyPose
+              ) -> deque[BodyPose]:
+        """Lift clear of every other body, travel and turn at that height, lower."""
+        here = _body(observation, leader)
+        if _close(here, final):
+            return deque()
+        tallest = max(float(p.position[2]) + max(body_half_size(self._kind(observation, m)))
+                      for m, p in observation.poses.items() if m not in group) \
+            if len(group) < len(observation.poses) else float(here.position[2])
+        lowest = min(float(observation.poses[m].position[2])
+                     - max(body_half_size(self._kind(observation, m))) for m in group)
+        height = max(float(here.position[2]), float(final.position[2]),
+                     tallest + (float(here.position[2]) - lowest)) + 2 * max(
+            max(body_half_size(k)) for k in self.spec.module_kinds)
+        up = BodyPose(np.array([here.position[0], here.position[1], height]), here.yaw)
+        over = BodyPose(np.array([final.position[0], final.position[1], height]), final.yaw)
+        return deque([up, over, final])
+
+    # -- helpers ------------------------------------------------------------------------------
+
+    @staticmethod
+    def _groups(observation: Observation, latched: set[ConnectionKey],
+                ignore: set[ConnectionKey]) -> dict[str, set[str]]:
+        graph = nx.Graph()
+        graph.add_nodes_from(observation.poses)
+        for key in latched - ignore:
+            ends = [m for m, _ in key]
+            if len(ends) == 2 and all(m in observation.poses for m in ends):
+                graph.add_edge(*ends)
+        return {m: group for group in nx.connected_components(graph) for m in group}
+
+    @staticmethod
+    def _made(action: Action) -> list[ConnectionChange]:
+        keys = _target_keys(action)
+        return [c for c in action.changes if c.key in keys]
+
+    @staticmethod
+    def _broken(action: Action) -> list[ConnectionChange]:
+        keys = _target_keys(action)
+        return [c for c in action.changes if c.key not in keys]
+
+    def _arm(self, commands: dict[str, ModuleCommand], change: ConnectionChange) -> None:
+        if change.source_port is None or change.target_port is None:
+            self._add(commands, change.source, dock=f"{FREEFORM_PREFIX}{change.target}")
+        else:
+            self._add(commands, change.source, dock=change.source_port)
+            self._add(commands, change.target, dock=change.target_port)
+
+    @staticmethod
+    def _add(commands: dict[str, ModuleCommand], module: str, *, pose: BodyPose | None = None,
+             dock: str | None = None, undock: str | None = None) -> None:
+        base = commands.get(module, ModuleCommand())
+        joints = dict(base.joints)
+        if pose is not None:
+            joints.update(x=float(pose.position[0]), y=float(pose.position[1]),
+                          z=float(pose.position[2]), yaw=float(pose.yaw))
+        commands[module] = ModuleCommand(joints=joints, wheels=base.wheels,
+                                         dock=base.dock + ((dock,) if dock else ()),
+                                         undock=base.undock + ((undock,) if undock else ()))
+
+
+def _close(pose: BodyPose, target: BodyPose) -> bool:
+    return (float(np.linalg.norm(pose.position - target.position)) <= REACHED
+            and abs(wrap_angle(pose.yaw - target.yaw)) <= REACHED)
+
+
+def _latched(observation: Observation) -> set[ConnectionKey]:
+    """The links the modules report (vertex-to-vertex latches and edge-module ends)."""
+    found = set()
+    for module, reading in observation.sensors.items():
+        if isinstance(reading, ModuleReading):
+            for latch in reading.latches:
+                found.add(connection_key(module, latch.other, latch.port, latch.other_port))
+    return found
+
+
+def _target_keys(action: Action) -> set[ConnectionKey]:
+    return {connection_key(e.source, e.target, *(e.ports or (None, None)))
+            for e in action.target.edges() if e.kind is None}
+
+
+def _target_z(action: Action, change: ConnectionChange) -> np.ndarray | None:
+    for e in action.target.edges():
+        if connection_key(e.source, e.target, *(e.ports or (None, None))) == change.key:
+            if e.z is None:
+                return None
+            return np.asarray(e.z) if e.source == change.source else -np.asarray(e.z)
+    return None

@@ -1,0 +1,296 @@
+"""Test helpers for robot plugins, and the conformance suite every robot passes.
+
+In the spirit of dm_control's one suite over every task: :func:`check_robot` asserts,
+for one installed robot, what the platform promises of every robot. A plugin's own
+tests run it with one line::
+
+    from msrr.core.testing import check_robot
+
+    def test_conformance():
+        check_robot("hinge")
+
+and the platform's suite runs it over every installed robot (``@robot_parameters()``).
+
+**Shipped configurations** (the contract): the start and goal files of the robot's
+scenarios (``msrr_scenarios``) and every ``*.json`` of robot ``name`` in the ``configs``
+folder beside the module that describes it (the plugin module whose ``msrr_robot``
+answers ``name``). A robot ships at least one.
+
+**The checks**, each over every shipped configuration (``check_robot`` collects every
+failure and raises one :class:`ConformanceError` listing them):
+
+1. it loads and validates against the robot (structure and docking rules) and
+   round-trips through JSON unchanged;
+2. it matches itself with zero cost (:func:`msrr.core.matching.match`);
+3. every planner of the robot plans it to itself with zero actions;
+4. the default planner plans between every two configurations with the same module
+   counts -- or says it cannot with a :class:`~msrr.core.errors.PlanningError` -- and
+   the plan replays: each action's changes cover the topology change it makes, and the
+   last target is the plan's goal;
+5. in the kinematic driver (:mod:`msrr.core.generic`; robots with a physical simulator
+   too), each configuration runs to itself and every plan of check 4 and every scenario
+   runs to success with the generic recognizer and controller.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from . import plugins
+from .actions import topology_diff
+from .configuration import Configuration
+from .driver import ModuleCommand
+from .errors import MsrrError, PlanningError
+from .events import Run, RunResult
+from .executor import Executor, ExecutorOptions
+from .generic import KinematicDriver, LatchController, LatchRecognizer
+from .io import check_configuration, dump_configuration, parse_configuration
+from .matching import Candidate, match
+from .plan import Plan
+from .robot import RobotSpec
+
+__all__ = [
+    "ConformanceError",
+    "ConformanceReport",
+    "FakeDriver",
+    "check_robot",
+    "replay_problems",
+    "robot_parameters",
+    "run_kinematic",
+    "shipped_configurations",
+]
+
+
+class ConformanceError(AssertionError):
+    """A robot broke the platform's contract; the message lists every failed check."""
+
+
+class FakeDriver(KinematicDriver):
+    """The kinematic driver that records what it is told, for tests of controllers,
+    recognizers and listeners.
+
+    Args:
+        spec: the robot's description.
+        jammed: ``(module, port)`` pairs whose connector never latches (a failed dock).
+        **options: as for :class:`~msrr.core.generic.driver.KinematicDriver`.
+
+    Attributes:
+        sent: every ``send_action`` argument, in order.
+    """
+
+    name = "fake"
+    description = "kinematic world that records commands and can jam connectors"
+
+    def __init__(self, spec: RobotSpec, *, jammed: Iterable[tuple[str, str]] = (), **options: Any):
+        super().__init__(spec, **options)
+        self.jammed = set(jammed)
+        self.sent: list[dict[str, ModuleCommand]] = []
+
+    def send_action(self, commands: Any) -> None:
+        self.sent.append(dict(commands))
+        super().send_action(commands)
+        self.armed -= self.jammed
+
+
+def run_kinematic(plan: Plan, spec: RobotSpec, *, rate: float = 10.0,
+                  action_timeout: float = 60.0, driver: KinematicDriver | None = None
+                  ) -> RunResult:
+    """Execute ``plan`` in the kinematic driver with the generic recognizer and controller.
+
+    No files are written and no recording is made; run events still go to every
+    listener plugin. ``driver`` (say a :class:`FakeDriver`) replaces the default one.
+    """
+    run = Run(robot=spec.name, scenario="conformance", plan=plan, spec=spec,
+              driver="kinematic", rate=rate)
+    with driver or KinematicDriver(spec) as world:
+        world.reset(plan.start)
+        executor = Executor(run, world, LatchRecognizer(spec), LatchController(spec),
+                            ExecutorOptions(rate=rate, action_timeout=action_timeout))
+        return executor.execute()
+
+
+def shipped_configurations(name: str) -> list[Path]:
+    """The configuration files robot ``name`` ships (see the module docstring), sorted."""
+    found = set()
+    for scenario in plugins.scenarios(name).values():
+        found |= {Path(scenario.start), Path(scenario.goal)}
+    for folder in _config_folders(name):
+        for path in folder.glob("*.json"):
+            try:
+                robot = json.loads(path.read_text()).get("robot")
+            except (OSError, ValueError, AttributeError):
+                robot = name  # a broken file is the robot's: loading it reports why
+            if robot == name:
+                found.add(path)
+    return sorted(found)
+
+
+def _config_folders(name: str) -> list[Path]:
+    folders = []
+    for impl in plugins.get_plugin_manager().hook.msrr_robot.get_hookimpls():
+        spec = impl.function()
+        if not (isinstance(spec, RobotSpec) and spec.name == name):
+            continue
+        plugin = impl.plugin
+        module = inspect.getmodule(plugin) if inspect.ismodule(plugin) else \
+            inspect.getmodule(type(plugin))
+        source = getattr(module, "__file__", None)
+        if source:
+            folders.append(Path(source).parent / "configs")
+    return [f for f in folders if f.is_dir()]
+
+
+def replay_problems(plan: Plan) -> list[str]:
+    """What is wrong when ``plan`` is replayed action by action (empty: it replays).
+
+    Each action's planned changes must cover the topology change from the previous
+    target to its own (the executor's consistency rule), and the last target must have
+    the topology of ``plan.goal``.
+    """
+    problems = []
+    current = plan.start
+    for index, action in enumerate(plan.actions):
+        needed = {c.key for c in topology_diff(current, action.target).changes()}
+        planned = {c.key for c in action.changes}
+        if planned and not needed <= planned:
+            problems.append(f"action {index} ({action}) needs {topology_diff(current, action.target)}")
+        if not planned and needed:
+            problems.append(f"action {index} ({action}) changes the topology but lists no change")
+        current = action.target
+    left = topology_diff(current, plan.goal)
+    if left:
+        problems.append(f"the last target differs from the plan's goal: {left}")
+    return problems
+
+
+def robot_parameters(names: Iterable[str] | None = None) -> Callable:
+    """``@robot_parameters()``: a ``pytest.mark.parametrize("robot", ...)`` over the
+    installed robots (or ``names``), one test id per robot."""
+    import pytest  # only tests need pytest; the platform does not depend on it
+
+    robots = sorted(plugins.robots()) if names is None else list(names)
+    return pytest.mark.parametrize("robot", robots, ids=robots)
+
+
+@dataclass
+class ConformanceReport:
+    """What :func:`check_robot` checked.
+
+    Attributes:
+        robot: the robot's name.
+        passed: every check that passed, one line each.
+        declined: plans the default planner declined with a ``PlanningError`` (and why).
+        failures: every check that failed (then :func:`check_robot` raises).
+    """
+
+    robot: str
+    passed: list[str] = field(default_factory=list)
+    declined: list[str] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    def check(self, what: str, step: Callable[[], Any]) -> Any:
+        try:
+            value = step()
+        except (MsrrError, AssertionError, ValueError, KeyError) as exc:
+            self.failures.append(f"{what}: {type(exc).__name__}: {exc}")
+            return None
+        self.passed.append(what)
+        return value
+
+
+def check_robot(name: str, *, run: bool = True, rate: float = 10.0) -> ConformanceReport:
+    """Assert that robot ``name`` keeps the platform's contract (module docstring).
+
+    Args:
+        name: an installed robot.
+        run: also execute in the kinematic driver (check 5).
+        rate: control rate [Hz] of those runs.
+
+    Raises:
+        ConformanceError: listing every failed check, with the file and the reason.
+    """
+    report = ConformanceReport(name)
+    robot = plugins.resolve(name)
+    files = shipped_configurations(name)
+    if not files:
+        raise ConformanceError(f"robot {name!r} ships no configuration: register a scenario or "
+                               "put files in a configs/ folder beside its plugin module")
+    configs: dict[str, Configuration] = {}
+    for path in files:
+        config = report.check(f"{path.name}: load", lambda p=path: plugins.load_configuration(p))
+        if config is None:
+            continue
+        configs[path.name] = config
+        report.check(f"{path.name}: validate", lambda c=config: check_configuration(c, robot))
+        report.check(f"{path.name}: JSON round trip", lambda c=config: _round_trip(c))
+        report.check(f"{path.name}: match itself", lambda c=config: _self_match(c, robot))
+        for planner_name, planner in plugins.planners(name).items():
+            report.check(f"{path.name}: planner {planner_name} to itself",
+                         lambda c=config, p=planner: _zero_plan(p.plan(c, c)))
+    planner = plugins.planners.get(name)
+    plans: list[tuple[str, Plan]] = []
+    for a, start in configs.items():
+        for b, goal in configs.items():
+            if a == b or start.signature().counts != goal.signature().counts:
+                continue
+            try:
+                plan = planner.plan(start, goal)
+            except PlanningError as exc:
+                report.declined.append(f"plan {a} -> {b} ({planner.name}): {exc}")
+                continue
+            except MsrrError as exc:
+                report.failures.append(f"plan {a} -> {b} ({planner.name}): "
+                                       f"{type(exc).__name__}: {exc}")
+                continue
+            if isinstance(plan, Plan):
+                plans.append((f"{a} -> {b}", plan))
+                problems = replay_problems(plan)
+                if problems:
+                    report.failures.append(f"plan {a} -> {b} ({planner.name}) does not replay: "
+                                           + "; ".join(problems))
+                else:
+                    report.passed.append(f"plan {a} -> {b} ({planner.name}) replays")
+    if run:
+        for label, config in configs.items():
+            report.check(f"{label}: run to itself in the kinematic driver",
+                         lambda c=config: _succeeds(run_kinematic(
+                             Plan(name, "conformance", c, c, []), robot.spec, rate=rate)))
+        for label, plan in plans:
+            report.check(f"run {label} in the kinematic driver",
+                         lambda p=plan: _succeeds(run_kinematic(p, robot.spec, rate=rate)))
+    if report.failures:
+        raise ConformanceError(f"robot {name!r} fails {len(report.failures)} check(s):\n  "
+                               + "\n  ".join(report.failures))
+    return report
+
+
+def _round_trip(config: Configuration) -> None:
+    again = parse_configuration(json.loads(dump_configuration(config)))
+    if again != config:
+        raise AssertionError("the configuration changes through JSON")
+
+
+def _self_match(config: Configuration, robot: Any) -> None:
+    result = match(config, [Candidate(config, None, "itself")], robot=robot)
+    if result is None:
+        raise AssertionError("no match with itself")
+    cost = result.ranked[0].cost
+    if not math.isfinite(cost) or abs(cost) > 1e-6:
+        raise AssertionError(f"matching itself costs {cost:.3g}, expected 0")
+
+
+def _zero_plan(plan: Plan) -> None:
+    if plan.actions:
+        raise AssertionError(f"{len(plan.actions)} action(s) from a configuration to itself: "
+                             + ", ".join(str(a) for a in plan.actions))
+
+
+def _succeeds(result: RunResult) -> None:
+    if not result.success:
+        raise AssertionError(f"run failed: {result.reason}")
