@@ -33,7 +33,7 @@ from typing import Generic, TypeVar
 import click
 import pluggy
 
-from . import hookspecs, io
+from . import generic, hookspecs, io
 from .capabilities import Controller, DriverFactory, Planner, Recognizer
 from .configuration import Configuration
 from .errors import ConfigurationError, PluginError, UnknownNameError, UnknownRobotError
@@ -258,7 +258,9 @@ class Capability(Generic[T]):
         return isinstance(item, self.accepts)
 
     def __call__(self, robot_name: str) -> dict[str, T]:
-        """Everything registered for ``robot_name``, by name, in registration order.
+        """Everything registered for ``robot_name``, by name, in registration order; for
+        planners, drivers, recognizers and controllers then the generic runtime's items
+        (:mod:`msrr.core.generic`) under names the robot's own do not take.
 
         Raises:
             UnknownRobotError: no plugin describes ``robot_name``.
@@ -281,6 +283,9 @@ class Capability(Generic[T]):
             found[name] = item
 
         getattr(get_plugin_manager().hook, self.hook_name)(robot=robot_name, register=add)
+        if self.hook_name in generic.HOOKS:  # the generic runtime, after the robot's own
+            for item in generic.capabilities(self.hook_name, resolve(robot_name)):
+                found.setdefault(item.name, item)  # type: ignore[attr-defined]
         return found
 
     def get(self, robot_name: str, name: str | None = None) -> T:

@@ -18,6 +18,7 @@ from .configuration import VIRTUAL, Configuration
 from .errors import UnknownNameError
 
 __all__ = [
+    "DEFAULT_HALF_SIZE",
     "DockingRules",
     "Robot",
     "MisoRules",
@@ -25,6 +26,7 @@ __all__ = [
     "PortSpec",
     "RobotSpec",
     "Violation",
+    "body_half_size",
     "check_structure",
     "out_degree_violations",
     "port_reuse_violations",
@@ -78,6 +80,28 @@ class ModuleKind:
             if port.name == name:
                 return port
         raise UnknownNameError(f"port of module kind {self.name!r}", name, (p.name for p in self.ports))
+
+
+DEFAULT_HALF_SIZE = 0.05
+"""Half edge [m] of the cube a module kind is drawn and simulated as when its geometry
+gives no size."""
+
+
+def body_half_size(kind: ModuleKind) -> tuple[float, float, float]:
+    """Half extents [m] of ``kind``'s body box, from ``kind.geometry``.
+
+    ``length``/``width``/``height`` (a box, missing ones taken from the others) or
+    ``radius`` (its bounding cube); :data:`DEFAULT_HALF_SIZE` when neither is given.
+    The timeline draws this box and the generic kinematic driver simulates it.
+    """
+    g = kind.geometry
+    if "length" in g or "width" in g or "height" in g:
+        length = float(g.get("length", g.get("width", g.get("height", 0.0))))
+        width = float(g.get("width", length))
+        height = float(g.get("height", min(length, width)))
+        return length / 2, width / 2, height / 2
+    r = float(g.get("radius", DEFAULT_HALF_SIZE))
+    return r, r, r
 
 
 @dataclass(frozen=True)

@@ -132,8 +132,11 @@ def prepare_run(request: RunRequest) -> PreparedRun:
             raise ConfigurationError(f"is a {config.robot!r} configuration, not "
                                      f"{request.robot!r}", source=str(path))
     factory = plugins.drivers.get(request.robot, request.driver)
-    controller = plugins.controllers.get(request.robot)
-    recognizer = plugins.recognizers.get(request.robot)
+    # a driver may name the recognizer and controller that read and command it (the
+    # generic kinematic driver does); otherwise the robot's first ones
+    companions = getattr(factory, "companions", {})
+    controller = plugins.controllers.get(request.robot, companions.get("controller"))
+    recognizer = plugins.recognizers.get(request.robot, companions.get("recognizer"))
     planner = plugins.planners.get(request.robot, request.planner)
     options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
     plan: Plan = planner.plan(start, goal, seed=request.seed)
