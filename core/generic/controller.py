@@ -8,9 +8,12 @@ sensors) and commands pose targets (``joints={"x", "y", "z", "yaw"}``) and docks
   goal (its height kept); an action without goals is reached at once (the kinematic
   world has no joints to move);
 * **approach** (and **flow**): for each connection the action makes, one side's group
-  is carried so that the two ports face each other (or the bodies touch along the
-  target's ``z`` for connections without ports): the smaller group moves, the target's
-  on a tie, unless its final place would overlap another body; once there, the
+  is carried so that the two ports face each other (or the bodies touch, along the
+  target's ``z`` or, if that place is taken, along an axis or a horizontal diagonal,
+  for connections without ports): the smaller group moves, the target's on a tie,
+  unless its place or its path would overlap another body; the path is straight, or
+  lifts clear of every body, travels and lowers (after a side step if needed); the
+  first whose sweep is free is taken; once there, the
   controller arms the ports itself, so parallel connections dock one by one and each
   next placement starts from the merged group;
 * **release**: connections without ports are released with ``undock=("@other",)``
@@ -21,6 +24,8 @@ sensors) and commands pose targets (``joints={"x", "y", "z", "yaw"}``) and docks
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -46,6 +51,10 @@ __all__ = ["LatchController"]
 
 REACHED = 1e-6
 """Distance [m] (and angle [rad]) at which a waypoint counts as reached."""
+
+CONTACT_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1),
+                      (1, 1, 0), (1, -1, 0), (-1, 1, 0), (-1, -1, 0))
+"""Connection directions tried after the target's own for a contact dock."""
 
 
 @dataclass
@@ -151,19 +160,28 @@ class LatchController:
         options = [(target, source), (source, target)]
         if len(groups[source]) < len(groups[target]):
             options.reverse()
-        first = None
-        for moving, fixed in options:
-            final = self._placement(change, action, observation, moving, fixed)
-            if first is None:
-                first = (moving, final)
-            if not self._collides(observation, groups[moving], moving, final):
-                break
-        else:
-            moving, final = first  # type: ignore[misc]  # the driver will refuse and say why
+        places = [(moving, final) for moving, fixed in options
+                  for final in self._placements(change, action, observation, moving, fixed)]
+        free_place = None
+        for moving, final in places:
+            if self._collides(observation, groups[moving], moving, final):
+                continue
+            path = self._path(observation, groups[moving], moving, final)
+            job = _Job(moving, path, final, change)
+            if self._sweep_free(observation, groups[moving], moving,
+                                [_body(observation, moving), *path]):
+                return job
+            free_place = free_place or job
+        if free_place is not None:
+            return free_place  # the driver refuses the move and says where
+        moving, final = places[0]
         return _Job(moving, self._path(observation, groups[moving], moving, final), final, change)
 
-    def _placement(self, change: ConnectionChange, action: Action, observation: Observation,
-                   moving: str, fixed: str) -> BodyPose:
+    def _placements(self, change: ConnectionChange, action: Action, observation: Observation,
+                    moving: str, fixed: str) -> list[BodyPose]:
+        """Where ``moving`` may go to make ``change`` with ``fixed``: one pose for two ports
+        with normals; for contact, along the target's ``z`` first, then along the axes and
+        the horizontal diagonals (a freeform connector docks anywhere on the surface)."""
         kind = {m: self.spec.kind(observation.sensors[m].kind) for m in (moving, fixed)}
         here, there = _body(observation, moving), _body(observation, fixed)
         fixed_port = change.source_port if fixed == change.source else change.target_port
@@ -171,14 +189,13 @@ class LatchController:
         if (fixed_port is not None and moving_port is not None
                 and kind[fixed].port(fixed_port).normal is not None
                 and kind[moving].port(moving_port).normal is not None):
-            return place_for_ports(kind[fixed], fixed_port, there, kind[moving], moving_port,
-                                   here.yaw)
-        z = _target_z(action, change)
-        if z is None:
-            z = here.position - there.position if fixed == change.source \
-                else there.position - here.position
-        return place_for_contact(kind[fixed], there, kind[moving], here.yaw, np.asarray(z),
-                                 fixed == change.source)
+            return [place_for_ports(kind[fixed], fixed_port, there, kind[moving], moving_port,
+                                    here.yaw)]
+        first = _target_z(action, change)
+        directions = [] if first is None else [np.asarray(first, dtype=float)]
+        directions += [np.array(d, dtype=float) / np.linalg.norm(d) for d in CONTACT_DIRECTIONS]
+        return [place_for_contact(kind[fixed], there, kind[moving], here.yaw, z,
+                                  fixed == change.source) for z in directions]
 
     # -- geometry of moves --------------------------------------------------------------------
 
@@ -209,13 +226,45 @@ class LatchController:
 
     def _path(self, observation: Observation, group: set[str], leader: str, final: BodyPose
               ) -> deque[BodyPose]:
-        """Lift clear of every other body, travel and turn at that height, lower."""
+        """Waypoints of ``leader`` to ``final`` whose sweep hits no other body: the first
+        free of a straight move, lift-travel-lower, and lift-travel-lower after a side step
+        (away from the nearest bodies, else along +-x, +-y, one to three body sizes); the lift path if none is free
+        (the driver then refuses the move and says where)."""
         here = _body(observation, leader)
         if _close(here, final):
             return deque()
-        tallest = max(float(p.position[2]) + max(body_half_size(self._kind(observation, m)))
-                      for m, p in observation.poses.items() if m not in group) \
-            if len(group) < len(observation.poses) else float(here.position[2])
+        candidates = [[final]]
+        for side in self._side_steps(observation, group, here):
+            start = BodyPose(here.position + side, here.yaw)
+            lift = self._lift(observation, group, start, final)
+            candidates.append(([start] if side.any() else []) + lift)
+        for path in candidates:
+            if self._sweep_free(observation, group, leader, [here, *path]):
+                return deque(path)
+        return deque(candidates[1])
+
+    def _side_steps(self, observation: Observation, group: set[str], here: BodyPose
+                    ) -> list[np.ndarray]:
+        extent = 2 * max(max(body_half_size(k)) for k in self.spec.module_kinds)
+        near = [observation.poses[m].position - here.position for m in observation.poses
+                if m not in group]
+        steps = [np.zeros(3)]
+        if near:
+            away = -np.sum([v / max(float(np.linalg.norm(v)), 1e-9) ** 3 for v in near], axis=0)
+            away[2] = 0.0
+            if float(np.linalg.norm(away)) > 1e-9:
+                steps.append(away / np.linalg.norm(away) * extent)
+        steps += [np.array(d, dtype=float) * extent * k for k in (1, 2, 3)
+                  for d in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0))]
+        return steps
+
+    def _lift(self, observation: Observation, group: set[str], here: BodyPose, final: BodyPose
+              ) -> list[BodyPose]:
+        """Lift clear of every other body, travel and turn at that height, lower."""
+        others = [m for m in observation.poses if m not in group]
+        tallest = max((float(observation.poses[m].position[2])
+                       + max(body_half_size(self._kind(observation, m))) for m in others),
+                      default=float(here.position[2]))
         lowest = min(float(observation.poses[m].position[2])
                      - max(body_half_size(self._kind(observation, m))) for m in group)
         height = max(float(here.position[2]), float(final.position[2]),
@@ -223,7 +272,23 @@ class LatchController:
             max(body_half_size(k)) for k in self.spec.module_kinds)
         up = BodyPose(np.array([here.position[0], here.position[1], height]), here.yaw)
         over = BodyPose(np.array([final.position[0], final.position[1], height]), final.yaw)
-        return deque([up, over, final])
+        return [up, over, final]
+
+    def _sweep_free(self, observation: Observation, group: set[str], leader: str,
+                    path: list[BodyPose]) -> bool:
+        """Whether ``group``, carried by ``leader`` along ``path`` (straight segments,
+        heading turned evenly), stays clear of every other body (sampled finer than the
+        smallest body)."""
+        step = min(inscribed_radius(k) for k in self.spec.module_kinds) / 2
+        for a, b in itertools.pairwise(path):
+            count = max(1, math.ceil(float(np.linalg.norm(b.position - a.position)) / step))
+            turn = wrap_angle(b.yaw - a.yaw)
+            for i in range(1, count + 1):
+                t = i / count
+                pose = BodyPose(a.position + t * (b.position - a.position), a.yaw + t * turn)
+                if self._collides(observation, group, leader, pose):
+                    return False
+        return True
 
     # -- helpers ------------------------------------------------------------------------------
 
