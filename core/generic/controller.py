@@ -43,7 +43,6 @@ from .geometry import (
     inscribed_radius,
     place_for_contact,
     place_for_ports,
-    rotate_z,
     wrap_angle,
 )
 
@@ -202,27 +201,43 @@ class LatchController:
     def _kind(self, observation: Observation, module: str) -> ModuleKind:
         return self.spec.kind(observation.sensors[module].kind)
 
-    def _moved(self, observation: Observation, group: set[str], leader: str, final: BodyPose
-               ) -> dict[str, BodyPose]:
-        """Poses of ``group`` after the rigid move that takes ``leader`` to ``final``."""
-        start = _body(observation, leader)
-        turn = wrap_angle(final.yaw - start.yaw)
-        return {m: BodyPose(final.position + rotate_z(_body(observation, m).position
-                                                      - start.position, turn),
-                            wrap_angle(_body(observation, m).yaw + turn)) for m in group}
-
     def _collides(self, observation: Observation, group: set[str], leader: str,
                   final: BodyPose) -> bool:
-        moved = self._moved(observation, group, leader, final)
-        for m, pose in moved.items():
-            for other in observation.poses:
-                if other in group:
-                    continue
-                gap = float(np.linalg.norm(pose.position - _body(observation, other).position))
-                if gap < (inscribed_radius(self._kind(observation, m))
-                          + inscribed_radius(self._kind(observation, other)) - 1e-9):
-                    return True
-        return False
+        """Whether ``group`` moved rigidly so that ``leader`` is at ``final`` overlaps
+        another body (inscribed balls)."""
+        return not self._sweep_free(observation, group, leader, [final])
+
+    def _sweep_free(self, observation: Observation, group: set[str], leader: str,
+                    path: list[BodyPose]) -> bool:
+        """Whether ``group``, carried by ``leader`` through the poses of ``path`` (straight
+        segments between them, heading turned evenly; a single pose is checked alone),
+        stays clear of every other body, sampled finer than the smallest body."""
+        members = sorted(group)
+        others = [m for m in observation.poses if m not in group]
+        if not others:
+            return True
+        radius = {m: inscribed_radius(self._kind(observation, m)) for m in observation.poses}
+        start = _body(observation, leader)
+        offsets = np.array([observation.poses[m].position for m in members]) - start.position
+        fixed = np.array([observation.poses[m].position for m in others])
+        limit = (np.array([radius[m] for m in members])[:, None]
+                 + np.array([radius[m] for m in others])[None, :] - 1e-9)
+        step = min(radius.values()) / 2
+        samples = []
+        for a, b in itertools.pairwise(path) if len(path) > 1 else [(path[0], path[0])]:
+            count = max(1, math.ceil(float(np.linalg.norm(b.position - a.position)) / step))
+            turn = wrap_angle(b.yaw - a.yaw)
+            for t in np.linspace(1.0 / count, 1.0, count):
+                samples.append((a.position + t * (b.position - a.position),
+                                wrap_angle(a.yaw + t * turn - start.yaw)))
+        for position, turn in samples:
+            c, s_ = math.cos(turn), math.sin(turn)
+            rotated = offsets @ np.array([[c, s_, 0.0], [-s_, c, 0.0], [0.0, 0.0, 1.0]])
+            moved = position + rotated
+            gaps = np.linalg.norm(moved[:, None, :] - fixed[None, :, :], axis=2)
+            if np.any(gaps < limit):
+                return False
+        return True
 
     def _path(self, observation: Observation, group: set[str], leader: str, final: BodyPose
               ) -> deque[BodyPose]:
@@ -273,22 +288,6 @@ class LatchController:
         up = BodyPose(np.array([here.position[0], here.position[1], height]), here.yaw)
         over = BodyPose(np.array([final.position[0], final.position[1], height]), final.yaw)
         return [up, over, final]
-
-    def _sweep_free(self, observation: Observation, group: set[str], leader: str,
-                    path: list[BodyPose]) -> bool:
-        """Whether ``group``, carried by ``leader`` along ``path`` (straight segments,
-        heading turned evenly), stays clear of every other body (sampled finer than the
-        smallest body)."""
-        step = min(inscribed_radius(k) for k in self.spec.module_kinds) / 2
-        for a, b in itertools.pairwise(path):
-            count = max(1, math.ceil(float(np.linalg.norm(b.position - a.position)) / step))
-            turn = wrap_angle(b.yaw - a.yaw)
-            for i in range(1, count + 1):
-                t = i / count
-                pose = BodyPose(a.position + t * (b.position - a.position), a.yaw + t * turn)
-                if self._collides(observation, group, leader, pose):
-                    return False
-        return True
 
     # -- helpers ------------------------------------------------------------------------------
 

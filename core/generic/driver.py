@@ -378,14 +378,21 @@ class KinematicDriver(Driver):
                 link.z = rotate_z(link.z, turn)
 
     def _overlap(self, movers: set[str], others: set[str]) -> tuple[str, str] | None:
-        for a in sorted(movers):
-            for b in sorted(others):
-                if a >= b and b in movers:
-                    continue
-                gap = float(np.linalg.norm(self.poses[a].position - self.poses[b].position))
-                if gap < inscribed_radius(self.kinds[a]) + inscribed_radius(self.kinds[b]) - 1e-9:
-                    return a, b
-        return None
+        """The first pair (mover, other) whose inscribed balls intersect, if any."""
+        a_ids, b_ids = sorted(movers), sorted(others)
+        if not a_ids or not b_ids:
+            return None
+        a = np.array([self.poses[m].position for m in a_ids])
+        b = np.array([self.poses[m].position for m in b_ids])
+        radius = {m: inscribed_radius(k) for m, k in self.kinds.items()}
+        limit = (np.array([radius[m] for m in a_ids])[:, None]
+                 + np.array([radius[m] for m in b_ids])[None, :] - 1e-9)
+        same = np.array(a_ids)[:, None] == np.array(b_ids)[None, :]
+        hits = np.argwhere((np.linalg.norm(a[:, None] - b[None, :], axis=2) < limit) & ~same)
+        if not len(hits):
+            return None
+        i, j = hits[0]
+        return a_ids[i], b_ids[j]
 
     # -- latching ---------------------------------------------------------------------------
 
