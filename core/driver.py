@@ -134,6 +134,22 @@ class Driver(ABC):
     def time(self) -> float:
         """Driver time since :meth:`reset` [s]."""
 
+    def ground_truth(self) -> Configuration | None:
+        """The configuration as the simulator knows it, for judging a run (never for
+        control); ``None`` where there is none (hardware, or a driver without one)."""
+        return None
+
+    def faults(self) -> list[str]:
+        """Faults the simulator saw since :meth:`reset`, each ``"<reason>: <details>"``
+        with a reason of :data:`msrr.core.library.check.CHECK_REASONS` (``"connector
+        broke: ..."``); empty where there are none or the driver cannot tell."""
+        return []
+
+    def constraint_events(self) -> dict[str, int]:
+        """Docks and undocks since :meth:`reset` counted from the simulator's constraint
+        state (``{"dock": n, "undock": m}``); empty where the driver cannot tell."""
+        return {}
+
     def require_connected(self) -> None:
         """Raise :class:`ExecutionError` unless connected."""
         if not self.is_connected:

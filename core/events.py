@@ -7,6 +7,7 @@ them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import StrEnum
@@ -150,6 +151,10 @@ class RunResult:
         sim_time: driver time at the end [s].
         wall_time: wall-clock duration of the execution [s].
         final: the configuration recognized at the end.
+        shape_error: RMS angle [rad] between the recognized final configuration and
+            the goal after yaw alignment (eq. 8).
+        truth_shape_error: the same from the driver's ground truth (simulators), or ``None``.
+        truth_topology: whether the ground truth's topology is the goal's, or ``None``.
     """
 
     success: bool
@@ -164,6 +169,9 @@ class RunResult:
     sim_time: float = 0.0
     wall_time: float = 0.0
     final: Configuration | None = None
+    shape_error: float | None = None
+    truth_shape_error: float | None = None
+    truth_topology: bool | None = None
 
     def summary(self) -> dict[str, object]:
         """JSON-ready numbers (for ``summary.json``)."""
@@ -171,4 +179,11 @@ class RunResult:
                 "failed_action": self.failed_action, "actions_done": self.actions_done,
                 "actions_total": self.actions_total, "docks": self.docks,
                 "undocks": self.undocks, "retries": self.retries, "ticks": self.ticks,
-                "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3)}
+                "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3),
+                "shape_error_deg": _degrees(self.shape_error),
+                "truth_shape_error_deg": _degrees(self.truth_shape_error),
+                "truth_topology": self.truth_topology}
+
+
+def _degrees(angle: float | None) -> float | None:
+    return None if angle is None else round(math.degrees(angle), 3)

@@ -6,13 +6,24 @@ previous tick, ask the controller for commands, send them and advance the driver
 
 Per action type:
 
-* moving: ``move`` until the controller reports the target reached;
+* moving: ``move`` until the target is reached;
 * disconnection (also parallel): ``release`` (undock commands) until every planned
-  disconnection is detected, then ``move`` if the action has goals;
+  disconnection is detected, then ``move`` to the target (with IK tracking, or when the
+  action has goals);
 * connection (also parallel): ``release`` first if the action also breaks
   connections, ``approach`` S_conn until reached, then ``connect`` (dock commands
   armed while pushing toward S_extr) until every planned connection is detected;
 * flow: undock and dock at once until both changes are detected.
+
+**IK tracking** (section 4.1, Fig. 8; :mod:`msrr.core.closed_loop`) drives the moving
+phases when the controller is a :class:`~msrr.core.closed_loop.JointController` and
+the action carries a kinematic tree or the robot has joint modes: every tick the
+recognized configuration goes through IK tracking toward the phase goal (the target,
+``S_conn`` or ``S_extr``), the joint vectors go to the controller of each kinematic
+node (``plugins.controllers.get(robot, node.controller)``, the executor's controller
+for fixed nodes), and the phase is reached when the tracked motion cost falls under the
+threshold. During ``release`` only the undock commands are sent (everything else
+holds). Other robots (MMRP) run through :meth:`Controller.control` as before.
 
 A phase that does not finish within ``action_timeout`` seconds of driver time is
 retried (the controller is restarted) up to ``retries`` times, then the action and
@@ -28,10 +39,19 @@ from dataclasses import dataclass
 from . import plugins
 from .actions import TopologyDiff, topology_diff
 from .capabilities import Recognizer
+from .closed_loop import (
+    JointController,
+    PhaseTracker,
+    TrackingOptions,
+    connection_goal,
+    extruded,
+    shape_error,
+    tree_for,
+)
 from .configuration import Configuration
 from .control import Control, Controller
 from .driver import Driver, ModuleCommand, Observation
-from .errors import ExecutionError
+from .errors import ExecutionError, MsrrError
 from .events import ActionStatus, Phase, Run, RunResult, Tick, TopologyEvent
 from .plan import Action, ActionType, ConnectionChange
 
@@ -46,11 +66,15 @@ class ExecutorOptions:
         rate: control rate [Hz] of driver time.
         action_timeout: driver time one phase attempt may take [s].
         retries: attempts repeated after a timeout before the action fails.
+        tracking: IK tracking settings (robots with joint modes).
+        ik: use IK tracking where it applies (``False``: the controller's own path).
     """
 
     rate: float = 10.0
     action_timeout: float = 60.0
     retries: int = 1
+    tracking: TrackingOptions = TrackingOptions()
+    ik: bool = True
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -61,8 +85,13 @@ class ExecutorOptions:
             raise ExecutionError(f"retries must be >= 0, got {self.retries}")
 
 
-def phases_of(action: Action, diff: TopologyDiff) -> list[Phase]:
-    """The phases that execute ``action`` given the topology change it needs."""
+def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> list[Phase]:
+    """The phases that execute ``action`` given the topology change it needs.
+
+    With ``tracking`` (IK tracking toward the target), a disconnection moves to its
+    target after the release (section 4.1, Fig. 10: "first disconnecting the connector
+    and then moving to the target configuration").
+    """
     if action.type is ActionType.FLOW:
         return [Phase.FLOW]
     out: list[Phase] = []
@@ -70,7 +99,7 @@ def phases_of(action: Action, diff: TopologyDiff) -> list[Phase]:
         out.append(Phase.RELEASE)
     if diff.made:
         out += [Phase.APPROACH, Phase.CONNECT]
-    elif action.goals or not diff.broken:
+    elif action.goals or not diff.broken or tracking:
         out.append(Phase.MOVE)
     return out
 
@@ -124,6 +153,15 @@ class Executor:
         self.retries = 0
         self._current: Configuration | None = None
         self._expected: set = set()
+        self._tracker: PhaseTracker | None = None
+        self._joint_mode: type | None = None
+        self._controllers: dict[str, JointController] = {}
+        self._ik = self.options.ik and isinstance(controller, JointController)
+        if self._ik:
+            try:
+                self._joint_mode = plugins.resolve(run.robot).default_joint_mode()
+            except MsrrError:
+                self._joint_mode = None
 
     # -- public -----------------------------------------------------------------------
 
@@ -157,6 +195,11 @@ class Executor:
         result.sim_time = self.driver.time
         result.wall_time = wallclock.perf_counter() - started
         result.final = self._current
+        result.shape_error = shape_error(self._current, plan.goal)
+        truth = self.driver.ground_truth()
+        if truth is not None:
+            result.truth_shape_error = shape_error(truth, plan.goal)
+            result.truth_topology = not topology_diff(truth, plan.goal)
         return result
 
     # -- actions ----------------------------------------------------------------------
@@ -167,14 +210,16 @@ class Executor:
         self._check_plan_consistency(index, action, diff)
         plugins.emit.action(self.run, action, ActionStatus.STARTED)
         self._expected = {c.key for c in diff.changes()}
+        tracking = self._tracks(action)
         try:
-            for phase in phases_of(action, diff):
+            for phase in phases_of(action, diff, tracking=tracking):
                 self._run_phase(index, action, phase, diff)
         except _ActionFailed:
             plugins.emit.action(self.run, action, ActionStatus.FAILED)
             raise
         finally:
             self._expected = set()
+            self._tracker = None
         plugins.emit.action(self.run, action, ActionStatus.SUCCEEDED)
 
     def _check_plan_consistency(self, index: int, action: Action, diff: TopologyDiff) -> None:
@@ -194,7 +239,8 @@ class Executor:
                 self.retries += 1
                 plugins.emit.action(self.run, action, ActionStatus.RETRYING)
             observation = self.driver.get_observation()
-            self.controller.begin(action, phase, observation)
+            if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0):
+                self.controller.begin(action, phase, observation)
             deadline = self.driver.time + self.options.action_timeout
             while self.driver.time < deadline - 1e-9:
                 if self._tick(index, action, phase, diff):
@@ -214,6 +260,67 @@ class Executor:
         assert self._current is not None
         return diff.applied_to(self._current, made=phase in (Phase.CONNECT, Phase.FLOW))
 
+    # -- IK tracking (section 4.1) ------------------------------------------------------
+
+    def _tracks(self, action: Action) -> bool:
+        """Whether IK tracking drives ``action``'s moving phases."""
+        return (self._ik and action.type is not ActionType.FLOW
+                and (action.kinematic_tree is not None or self._joint_mode is not None))
+
+    def _begin_tracking(self, action: Action, phase: Phase, diff: TopologyDiff,
+                        observation: Observation, *, retry: bool) -> bool:
+        """Set up IK tracking for ``phase``; ``False`` when the controller's path runs it."""
+        if not self._tracks(action):
+            self._tracker = None
+            return False
+        if phase is Phase.RELEASE:
+            self._tracker = None
+            return True
+        current = self._recognize(observation)
+        conn = connection_goal(current, action.target)
+        if phase is Phase.CONNECT and self._tracker is not None and not retry:
+            self._tracker.set_goal(extruded(conn, diff.made, self.options.tracking.shrink))
+            return True
+        goal = conn
+        if phase is Phase.CONNECT:
+            goal = extruded(conn, diff.made, self.options.tracking.shrink)
+        tree = tree_for(current, action.kinematic_tree, self._joint_mode)
+        if tree is None:
+            self._tracker = None
+            return False
+        self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed)
+        return True
+
+    def _controller_for(self, name: str) -> JointController:
+        """The joint controller registered as ``name``, else the executor's own."""
+        if name not in self._controllers:
+            found: object = None
+            if name:
+                try:
+                    found = plugins.controllers.get(self.run.robot, name)
+                except MsrrError:
+                    found = None
+            self._controllers[name] = (found if isinstance(found, JointController)
+                                       else self.controller)  # type: ignore[assignment]
+        return self._controllers[name]
+
+    def _track(self, configuration: Configuration, observation: Observation) -> Control:
+        """One tracking tick: IK from the last solution, then each node's controller."""
+        tracker = self._tracker
+        assert tracker is not None
+        joint = tracker.step(configuration)
+        by_controller: dict[str, set[str]] = {}
+        for node in tracker.tree.nodes:
+            by_controller.setdefault(node.controller, set()).update(node.edges)
+        commands: dict[str, ModuleCommand] = {}
+        for name, edges in by_controller.items():
+            sent = self._controller_for(name).commands(joint, observation, yaw=0.0)
+            commands.update({m: c for m, c in sent.items() if m in edges})
+        solution = tracker.last
+        errors = {} if solution is None else {"ik_motion_cost": solution.motion_cost,
+                                              "ik_residual": solution.rms_angle}
+        return Control(commands=commands, errors=errors, reached=tracker.reached)
+
     # -- one tick ---------------------------------------------------------------------
 
     def _tick(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> bool:
@@ -221,7 +328,12 @@ class Executor:
         observation = self.driver.get_observation()
         configuration = self._recognize(observation)
         self._detect_changes(index, configuration)
-        control = self.controller.control(action, phase, observation)
+        if self._tracks(action) and phase is Phase.RELEASE:
+            control = Control()
+        elif self._tracker is not None:
+            control = self._track(configuration, observation)
+        else:
+            control = self.controller.control(action, phase, observation)
         extra: dict[str, ModuleCommand] = {}
         if phase in (Phase.RELEASE, Phase.FLOW):
             extra.update(_port_commands(diff.broken, "undock"))

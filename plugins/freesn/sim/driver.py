@@ -58,6 +58,7 @@ class FreeSNMujocoDriver(Driver):
         self._connected = False
         self._viewer: Any = None
         self._moving: set[str] = set()
+        self._overlaps: set[tuple[str, str]] = set()
 
     @property
     def is_connected(self) -> bool:
@@ -84,6 +85,7 @@ class FreeSNMujocoDriver(Driver):
         self.require_connected()
         self.world = FreeSNWorld(start, self.spec, self.options)
         self._moving = set()
+        self._overlaps = {p[:2] for p in self.world.penetrations(0.003)}
         if self.gui:
             from mujoco import viewer  # the viewer needs a display; imported only then
 
@@ -128,3 +130,22 @@ class FreeSNMujocoDriver(Driver):
     @property
     def time(self) -> float:
         return self._world().time
+
+    def ground_truth(self) -> Configuration | None:
+        """The world's ground truth (:meth:`FreeSNWorld.ground_truth`), for judging runs."""
+        return self._world().ground_truth()
+
+    def faults(self) -> list[str]:
+        """Connector breaks, then overlaps of bodies that did not overlap at the start."""
+        world = self._world()
+        out = [f"connector broke: {e.strut}:{e.end} at {e.node}, {e.load:.1f} N at "
+               f"t={e.time:.2f} s" for e in world.events if e.kind == "break"]
+        new = [p for p in world.penetrations(0.003) if p[:2] not in self._overlaps]
+        out += [f"self-collision: {a} in {b} by {1000 * d:.1f} mm" for a, b, d in new]
+        return out
+
+    def constraint_events(self) -> dict[str, int]:
+        """Docks and undocks (commanded or broken) from the world's constraint switches."""
+        events = self._world().events
+        return {"dock": sum(e.kind == "dock" for e in events),
+                "undock": sum(e.kind in ("undock", "break") for e in events)}

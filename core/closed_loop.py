@@ -1,0 +1,245 @@
+"""IK tracking inside the executor's closed loop (FreeSN paper, section 4.1, Figs. 8-10).
+
+For robots whose actions carry a kinematic tree (or whose joint modes give a default
+one), every control tick of a moving phase is
+
+    recognize -> IK tracking from the last solution -> joint vectors -> controller -> driver
+
+:class:`PhaseTracker` holds the tracking state of one phase: the phase goal (the target,
+``S_conn`` or ``S_extr``), the tree bound to the phase's topology and an
+:class:`~msrr.core.kinematics.IKTracker` warm-started from the last tick's solution.
+Exploration runs when tracking is *stuck* (the residual has not improved for
+``stuck_ticks`` ticks): one sampled start per tick, optimised on the latest
+configuration, handed over when it beats the tracked solution (section 3.4). It runs
+in the control thread, so a run is reproducible from its seed.
+
+The phase goals (pure functions, :func:`connection_goal` and :func:`extruded`):
+
+* ``S_conn`` -- the target's vectors on the topology the system has now (no new
+  connection), Fig. 9;
+* ``S_extr`` -- ``S_conn`` with the cycle each new connection closes shortened: the
+  chain of edges between the two nodes being merged is bent so that their distance is
+  ``1 - shrink`` strut lengths, so the connector presses ``shrink`` lengths into the
+  node ("reducing the length of the edges connecting the merged nodes in the upcoming
+  cycle to guarantee a robust connection").
+
+Reaching (section 4.1, "the controllers are terminated if the current system
+configuration is close to the target by monitoring the estimated motion costs"): a
+phase is reached when the distance cost of eq. 8 -- the RMS angle between the
+recognized and the goal vectors after yaw alignment, :func:`shape_error` -- is under
+``reach_tolerance``. The IK's own motion cost (eqs. 3-5) is not used for this: its
+steering terms stay near 0.1 rad per joint under 2 deg of recognition noise even when
+the shape is within 1 deg, so no fixed threshold on it separates reached from not.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import networkx as nx
+import numpy as np
+
+from .actions import STRUT_ENDS, topology_diff
+from .alignment import align_yaw, angles_between, rot_z
+from .configuration import Configuration
+from .driver import ModuleCommand, Observation
+from .kinematics import IKOptions, IKSolution, IKTracker, KinematicTree, default_tree
+from .plan import ConnectionChange
+
+__all__ = ["JointController", "PhaseTracker", "TrackingOptions", "connection_goal",
+           "extruded", "shape_error", "tree_for"]
+
+
+@runtime_checkable
+class JointController(Protocol):
+    """A controller that turns joint vectors (the IK result) into module commands.
+
+    ``commands(joint, observation, yaw=...)``: ``joint`` holds the joint vectors ``z``
+    (and ``x``) of every edge in the root horizontal frame of the recognized
+    configuration; ``yaw`` [rad] turns them into that frame (0: already in it).
+    """
+
+    name: str
+
+    def commands(self, target: Configuration, observation: Observation, *,
+                 yaw: float | None = None) -> Mapping[str, ModuleCommand]: ...
+
+
+@dataclass(frozen=True)
+class TrackingOptions:
+    """How IK tracking runs in the executor.
+
+    Attributes:
+        reach_tolerance: a phase is reached when the recognized configuration is this
+            close to its goal (RMS angle after yaw alignment) [rad].
+        shrink: ``S_extr`` brings the merged nodes this fraction of a strut length closer.
+        max_iterations: L-BFGS-B iterations of one tracking step (bounds the tick's time
+            without a wall-clock budget, so runs are reproducible).
+        initial_restarts: sampled starts of a phase's first solve.
+        stuck_ticks: ticks without residual improvement before exploration runs.
+    """
+
+    reach_tolerance: float = float(np.radians(3.0))
+    shrink: float = 0.1
+    max_iterations: int = 60
+    initial_restarts: int = 8
+    stuck_ticks: int = 5
+
+
+def shape_error(current: Configuration, goal: Configuration) -> float:
+    """RMS angle [rad] between the ``z`` of the edges both have, after yaw alignment (eq. 8);
+    0 when they share no edge with a vector (robots without connection vectors)."""
+    have = {e.id for e in current.edges() if e.z is not None}
+    ids = [e.id for e in goal.edges() if e.id in have and e.z is not None]
+    if not ids:
+        return 0.0
+    z, z_goal = current.vectors(ids), goal.vectors(ids)
+    yaw = align_yaw(z, z_goal).theta
+    return float(np.sqrt(np.mean(angles_between(z, rot_z(yaw) @ z_goal) ** 2)))
+
+
+def connection_goal(topology: Configuration, target: Configuration) -> Configuration:
+    """``S_conn``: ``target``'s vectors on ``topology`` (edges matched by id, Fig. 9)."""
+    ids = set(topology.edge_ids())
+    z = {e.id: e.z for e in target.edges() if e.id in ids and e.z is not None}
+    x = {e.id: e.x for e in target.edges() if e.id in ids and e.x is not None}
+    return topology.with_vectors(z=z, x=x or None)
+
+
+def _chain(config: Configuration, strut: str, end: str, node: str
+           ) -> list[tuple[str, float]] | None:
+    """Edges (with the sign of their ``z`` along the way) from the strut's other end to
+    ``node``, avoiding the strut; ``None`` when there is no such path."""
+    edge = config.edge(strut)
+    base = edge.target if end == STRUT_ENDS[0] else edge.source
+    graph = nx.MultiGraph()
+    for e in config.edges():
+        if e.id != strut:
+            graph.add_edge(e.source, e.target, key=e.id)
+    if base not in graph or node not in graph:
+        return None
+    try:
+        path = nx.shortest_path(graph, base, node)
+    except nx.NetworkXNoPath:
+        return None
+    out = []
+    for u, w in zip(path, path[1:], strict=False):
+        key = min(graph[u][w])
+        e = config.edge(key)
+        out.append((key, 1.0 if e.source == u else -1.0))
+    return out
+
+
+def _bent(vectors: np.ndarray, axis: np.ndarray, lam: float, *, total: bool = True
+          ) -> np.ndarray:
+    """Chain vectors ``normalise(z_i - lam axis)`` (n, 3), or their sum (3,) if ``total``."""
+    moved = vectors - lam * axis
+    moved /= np.linalg.norm(moved, axis=1, keepdims=True)
+    return moved.sum(axis=0) if total else moved
+
+
+def extruded(conn: Configuration, made: tuple[ConnectionChange, ...], shrink: float
+             ) -> Configuration:
+    """``S_extr``: ``conn`` with each new connection's cycle shortened (section 4.1).
+
+    For a strut end that docks at ``node``, the chain of edges from the strut's other
+    end to ``node`` sums (unit lengths) to ``D``. Each chain vector becomes
+    ``normalise(z_i - lambda D/|D|)`` with ``lambda`` found by bisection so the chain's
+    reach along ``D`` is ``|D| - shrink``: the merged nodes come ``shrink`` strut lengths
+    closer and the connector is pushed into the node. A chain of one edge cannot shorten
+    and is left as it is. Changes that are not strut ends are ignored.
+    """
+    z = {e.id: np.array(e.z) for e in conn.edges() if e.z is not None}
+    for change in made:
+        if change.source_port not in STRUT_ENDS or change.source not in z:
+            continue
+        chain = _chain(conn, change.source, change.source_port, change.target)
+        if not chain or len(chain) < 2:
+            continue
+        vectors = np.array([s * z[e] for e, s in chain])
+        reach = vectors.sum(axis=0)
+        length = float(np.linalg.norm(reach))
+        if length < 1e-9:
+            continue
+        axis = reach / length
+        goal = length - shrink
+
+        lo, hi = 0.0, 0.95  # below 1: a chain vector along D must not vanish
+        if _bent(vectors, axis, hi) @ axis > goal:
+            continue
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if _bent(vectors, axis, mid) @ axis > goal else (lo, mid)
+        moved = _bent(vectors, axis, hi, total=False)
+        for (e, s), v in zip(chain, moved, strict=True):
+            z[e] = s * v
+    return conn.with_vectors(z=z)
+
+
+def tree_for(topology: Configuration, given: object, joint_mode: type | None
+             ) -> KinematicTree | None:
+    """The kinematic tree for a phase on ``topology``: ``given`` when it is a tree over the
+    same edges and links (free-end names may differ: the IK reads vectors by edge id),
+    else the default tree of ``joint_mode``; ``None`` when neither applies (no joint
+    mode, or ``topology`` is not one connected system)."""
+    if isinstance(given, KinematicTree) and set(given.edges) == set(topology.edge_ids()) \
+            and not topology_diff(given.configuration, topology):
+        return given
+    if joint_mode is None or not topology.is_connected():
+        return None
+    return default_tree(topology, joint_mode)
+
+
+class PhaseTracker:
+    """IK tracking toward one phase goal (section 3.4 tracking, section 4.1 control).
+
+    Args:
+        tree: kinematic tree over the phase's topology.
+        goal: the phase goal (same edge ids).
+        options: tracking options.
+        seed: seed of the first solve and of exploration.
+    """
+
+    def __init__(self, tree: KinematicTree, goal: Configuration, options: TrackingOptions,
+                 seed: int = 0):
+        self.tree = tree
+        self.goal = goal
+        self.options = options
+        ik = IKOptions(max_iterations=options.max_iterations,
+                       max_restarts=options.initial_restarts, seed=seed)
+        self._tracker = IKTracker(tree, goal, ik, tick_budget=None, explore=False)
+        self._best = np.inf
+        self._since = 0
+        self._error = np.inf
+        self.last: IKSolution | None = None
+        self.explorations = 0
+
+    def step(self, current: Configuration) -> Configuration:
+        """Track one tick; the joint configuration (``current`` moved by the solution,
+        the recognized root horizontal frame)."""
+        solution = self._tracker.step(current)
+        self.last = solution
+        self._error = shape_error(current, self.goal)
+        if solution.rms_angle < self._best - 1e-4:
+            self._best, self._since = solution.rms_angle, 0
+        else:
+            self._since += 1
+        if self._since >= self.options.stuck_ticks and solution.rms_angle > \
+                self.options.reach_tolerance:
+            self._tracker.explore_once()
+            self.explorations += 1
+        return solution.configuration
+
+    @property
+    def reached(self) -> bool:
+        """The recognized configuration is within ``reach_tolerance`` RMS of the goal after
+        yaw alignment (checked on the configuration of the last :meth:`step`)."""
+        return self._error < self.options.reach_tolerance
+
+    def set_goal(self, goal: Configuration) -> None:
+        """Switch the goal (``S_conn`` -> ``S_extr``); the warm start is kept."""
+        self.goal = goal
+        self._tracker.set_target(goal)
+        self._best, self._since = np.inf, 0

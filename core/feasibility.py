@@ -1,0 +1,139 @@
+"""Run library edges in a simulator and judge them on its ground truth (section 6.2).
+
+:func:`run_edge` executes one :class:`~msrr.core.library.check.EdgeCase` with the
+executor's closed loop on a fresh driver and answers an
+:class:`~msrr.core.library.check.EdgeCheck`; :func:`check_library` does every edge of a
+library. The verdict never trusts the recognizer: the final shape and topology come from
+:meth:`Driver.ground_truth`, the docks and undocks and any fault from
+:meth:`Driver.faults` (the simulator's constraint state). Reasons, first found wins:
+
+* ``connector broke`` / ``self-collision`` / ``torque limit`` -- a fault the driver saw;
+* ``fell over`` -- the final shape matches the target once tilted but not after a turn
+  about the vertical alone (the robot lies on its side);
+* ``timeout`` -- a phase did not finish (the executor's reason follows);
+* ``wrong topology`` / ``wrong shape`` -- the ground truth ends elsewhere (over
+  ``tolerance``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import plugins
+from .actions import topology_diff
+from .capabilities import Controller, DriverFactory, Recognizer
+from .closed_loop import shape_error
+from .configuration import Configuration
+from .errors import MsrrError
+from .events import Run
+from .executor import Executor, ExecutorOptions
+from .library.check import CheckFile, EdgeCase, EdgeCheck, edge_cases
+from .library.model import Library
+from .plan import Plan
+from .robot import Robot
+
+__all__ = ["EdgeRunner", "check_library", "run_edge", "tilted_error"]
+
+
+def tilted_error(current: Configuration, goal: Configuration) -> float:
+    """RMS angle [rad] between the ``z`` of both after the best rotation of any axis
+    (Kabsch): small when the shape is right but turned over."""
+    ids = [e for e in goal.edge_ids() if e in set(current.edge_ids())]
+    if not ids:
+        return 0.0
+    a, b = current.vectors(ids), goal.vectors(ids)
+    u, _, vt = np.linalg.svd(a @ b.T)
+    d = np.sign(np.linalg.det(u @ vt))
+    rotation = u @ np.diag([1.0, 1.0, d]) @ vt
+    cos = np.clip(np.einsum("ij,ij->j", a, rotation @ b), -1.0, 1.0)
+    return float(np.sqrt(np.mean(np.arccos(cos) ** 2)))
+
+
+@dataclass(frozen=True)
+class EdgeRunner:
+    """What runs an edge: the robot's capabilities and the run settings.
+
+    Attributes:
+        robot: the robot.
+        driver: factory of the simulation driver (called ``driver(gui=False, seed=...,
+            **driver_options)``).
+        recognizer: the robot's recognizer.
+        controller: the robot's controller.
+        options: executor options (rate, timeout per phase, retries).
+        driver_options: keyword options of the driver (noise, slip, ...).
+        seed: the run's seed.
+        tolerance: largest final RMS strut angle to the target [rad] (ground truth).
+    """
+
+    robot: Robot
+    driver: DriverFactory
+    recognizer: Recognizer
+    controller: Controller
+    options: ExecutorOptions = ExecutorOptions(action_timeout=30.0, retries=0)
+    driver_options: tuple[tuple[str, float | int | bool], ...] = ()
+    seed: int = 0
+    tolerance: float = math.radians(5.0)
+
+
+def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
+    """Execute one edge from its source configuration; the verdict from ground truth."""
+    plan = Plan(robot=runner.robot.name, planner="library-check", start=case.start,
+                goal=case.target, actions=[case.action])
+    run = Run(robot=runner.robot.name, scenario=case.key, plan=plan, spec=runner.robot.spec,
+              driver=runner.driver.name, rate=runner.options.rate, seed=runner.seed)
+    with runner.driver(gui=False, seed=runner.seed, **dict(runner.driver_options)) as driver:
+        driver.reset(case.start)
+        try:
+            result = Executor(run, driver, runner.recognizer, runner.controller,
+                              runner.options).execute()
+        except MsrrError as exc:
+            return EdgeCheck(edge=case.key, action=case.edge.action.value, feasible=False,
+                             reason=f"error: {exc}", sim_time=round(driver.time, 3))
+        truth = driver.ground_truth()
+        faults = driver.faults()
+        counts = driver.constraint_events()
+        sim_time = driver.time
+    error = None if truth is None else shape_error(truth, case.target)
+    reason = ""
+    if faults:
+        reason = faults[0]
+    elif truth is not None and error is not None and error > runner.tolerance \
+            and tilted_error(truth, case.target) < runner.tolerance:
+        reason = f"fell over: {math.degrees(error):.1f} deg off after a yaw turn only"
+    elif not result.success:
+        reason = ("timeout: " if "did not finish" in result.reason else "error: ") + result.reason
+    elif truth is not None and topology_diff(truth, case.target):
+        reason = f"wrong topology: {topology_diff(truth, case.target)}"
+    elif error is not None and error > runner.tolerance:
+        reason = f"wrong shape: {math.degrees(error):.1f} deg RMS from the target"
+    return EdgeCheck(edge=case.key, action=case.edge.action.value, feasible=not reason,
+                     reason=reason, sim_time=round(sim_time, 3),
+                     shape_error_deg=None if error is None else round(math.degrees(error), 3),
+                     docks=counts.get("dock", 0), undocks=counts.get("undock", 0))
+
+
+def check_library(library: Library, runner: EdgeRunner, *, digest: str,
+                  progress: Callable[[EdgeCheck], None] | None = None) -> CheckFile:
+    """Run every edge of ``library`` (see :func:`run_edge`); the check file's content."""
+    checks = []
+    for case in edge_cases(library, runner.robot):
+        checks.append(run_edge(case, runner))
+        if progress is not None:
+            progress(checks[-1])
+    options: dict[str, float | int | str | bool] = {
+        "rate_hz": runner.options.rate, "action_timeout_s": runner.options.action_timeout,
+        "retries": runner.options.retries, "tolerance_deg": round(math.degrees(runner.tolerance), 6),
+        **dict(runner.driver_options)}
+    return CheckFile(library=library.name, library_sha256=digest, robot=library.robot,
+                     driver=runner.driver.name, seed=runner.seed, options=options, edges=checks)
+
+
+def default_runner(robot_name: str, **settings: object) -> EdgeRunner:
+    """An :class:`EdgeRunner` with the robot's first driver, recognizer and controller."""
+    robot = plugins.resolve(robot_name)
+    return EdgeRunner(robot, plugins.drivers.get(robot_name), plugins.recognizers.get(robot_name),
+                      plugins.controllers.get(robot_name), **settings)  # type: ignore[arg-type]
