@@ -9,6 +9,7 @@ import click
 from .. import plugins
 from ..console import NONE, console, table
 from ..errors import MsrrError
+from ..generic import is_generic
 
 __all__ = ["command"]
 
@@ -18,7 +19,8 @@ def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> st
         items = lookup(robot)
     except MsrrError as exc:  # one broken plugin must not hide the others' rows
         return f"[red]error: {exc}[/red]"
-    return ", ".join(items) if items else NONE
+    names = [f"{name}*" if is_generic(item) else name for name, item in items.items()]
+    return ", ".join(names) if names else NONE
 
 
 @click.command("robots")
@@ -37,3 +39,6 @@ def command() -> None:
                                              "planners", "drivers", "scenarios"], rows))
     if not specs:
         console.print("No robot plugin is installed.")
+    else:
+        console.print("* the generic runtime every robot gets (msrr.core.generic); a robot's "
+                      "own planners and drivers come first and are the default.")

@@ -41,8 +41,8 @@ def test_robots_lists_every_robot_with_its_capabilities(tiny) -> None:
     assert result.exit_code == 0
     row = next(line for line in result.output.splitlines() if line.startswith("│ tiny"))
     cells = [c.strip() for c in row.strip("│").split("│")]
-    assert cells == ["tiny", "Tiny test robot", "cube (C)", "tiny_hinge", "line", "points",
-                     "swap"]
+    assert cells == ["tiny", "Tiny test robot", "cube (C)", "tiny_hinge",
+                     "line, generic*", "points, kinematic*", "swap"]
 
 
 def test_validate_accepts_a_good_file(tiny, tmp_path: Path) -> None:

@@ -181,11 +181,11 @@ def test_hook_msrr_planners(tiny) -> None:
     assert plugins.planners.get(NAME).name == "line"
     with plugins.temporary(Second()):
         # the plugin registered last answers first (pluggy's order), so its item leads
-        assert list(plugins.planners(NAME)) == ["exact", "line"]
+        assert list(plugins.planners(NAME)) == ["exact", "line", "generic"]  # core's last
         assert plugins.planners.get(NAME).name == "exact"  # the first item is the default
         assert plugins.planners.get(NAME, "line").name == "line"
         with pytest.raises(UnknownNameError, match=r"unknown planner for robot 'tiny' 'astar' "
-                                                   r"\(known: exact, line\)"):
+                                                   r"\(known: exact, generic, line\)"):
             plugins.planners.get(NAME, "astar")
 
 
@@ -201,7 +201,8 @@ def test_items_that_do_not_fit_the_capability_are_refused(tiny) -> None:
 
 
 def test_hook_msrr_drivers(tiny) -> None:
-    assert plugins.drivers(NAME) == {"points": PointDriver}
+    drivers = plugins.drivers(NAME)
+    assert list(drivers) == ["points", "kinematic"] and drivers["points"] is PointDriver
     with plugins.drivers.get(NAME)(gui=False, seed=0) as driver:
         assert driver.is_connected
 
