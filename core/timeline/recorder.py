@@ -4,7 +4,8 @@ Entity paths (stable, documented in ``docs/running.md``):
 
 * ``world/modules/<id>`` -- the module body (box) with its pose per tick;
   ``world/modules/<id>/faces`` -- its ports, active red, passive blue;
-  body size and ports come from the module kind in the robot spec (:func:`body_half_size`);
+  body size and ports come from the module kind in the robot spec
+  (:func:`msrr.core.robot.body_half_size`);
 * ``world/targets`` -- goal poses of the running action (wireframe boxes);
 * ``topology/current``, ``topology/target`` -- graph views (nodes and edges);
 * ``action`` -- the running action as text; ``plan``, ``mapping`` -- static text;
@@ -28,13 +29,10 @@ from ..actions import connection_key
 from ..configuration import Configuration
 from ..events import ActionStatus, Run, RunResult, Tick, TopologyEvent
 from ..plan import Action
-from ..robot import ModuleKind
+from ..robot import DEFAULT_HALF_SIZE, body_half_size
 from .blueprint import build_blueprint
 
-__all__ = ["DEFAULT_HALF_SIZE", "TimelineRecorder", "body_half_size"]
-
-DEFAULT_HALF_SIZE = 0.05
-"""Half edge [m] of the cube drawn for a module kind whose geometry gives no size."""
+__all__ = ["TimelineRecorder"]
 
 ACTIVE = (220, 60, 50)
 PASSIVE = (50, 90, 220)
@@ -48,22 +46,6 @@ def _graph(config: Configuration) -> tuple[rr.GraphNodes, rr.GraphEdges]:
     labels = [f"{v}" for v in nodes]
     return (rr.GraphNodes(node_ids=nodes, labels=labels),
             rr.GraphEdges(edges=edges, graph_type="directed"))
-
-
-def body_half_size(kind: ModuleKind) -> tuple[float, float, float]:
-    """Half extents [m] of the box drawn for ``kind``, from ``kind.geometry``.
-
-    ``length``/``width``/``height`` (a box, missing ones taken from the others) or
-    ``radius`` (its bounding cube); :data:`DEFAULT_HALF_SIZE` when neither is given.
-    """
-    g = kind.geometry
-    if "length" in g or "width" in g or "height" in g:
-        length = float(g.get("length", g.get("width", g.get("height", 0.0))))
-        width = float(g.get("width", length))
-        height = float(g.get("height", min(length, width)))
-        return length / 2, width / 2, height / 2
-    r = float(g.get("radius", DEFAULT_HALF_SIZE))
-    return r, r, r
 
 
 def _topology_key(config: Configuration) -> frozenset:

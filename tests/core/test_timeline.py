@@ -10,6 +10,7 @@ import pytest
 from click.testing import CliRunner
 from tiny_robot import (
     CUBE,
+    NAME,
     GoalController,
     LinkRecognizer,
     PointDriver,
@@ -22,8 +23,8 @@ from msrr.core import MsrrError, hookimpl, plugins
 from msrr.core.cli import get_cli
 from msrr.core.executor import Executor
 from msrr.core.plan import load_plan
+from msrr.core.robot import DEFAULT_HALF_SIZE, body_half_size
 from msrr.core.timeline import read_recording, summarize_recording
-from msrr.core.timeline.recorder import DEFAULT_HALF_SIZE, body_half_size
 
 
 def _record(path: Path) -> Path:
@@ -120,17 +121,19 @@ def test_platform_run_writes_plan_summary_and_recording_resolving_each_capabilit
     assert summarize_recording(out / "run.rrd").rows["/events/docks"] == 1
 
 
-@pytest.mark.parametrize(("option", "message"), [
-    (["--driver", "hardware"], "unknown driver for robot 'tiny' 'hardware' (known: points)"),
-    (["--planner", "astar"], "unknown planner for robot 'tiny' 'astar' (known: line)"),
-    (["--scenario", "dance"], "unknown scenario for robot 'tiny' 'dance' (known: swap)"),
+@pytest.mark.parametrize(("option", "what", "capability"), [
+    (["--driver", "hardware"], "driver", plugins.drivers),
+    (["--planner", "astar"], "planner", plugins.planners),
+    (["--scenario", "dance"], "scenario", plugins.scenarios),
 ])
-def test_platform_run_names_unknown_choices_and_writes_nothing(tmp_path: Path, option: list[str],
-                                                               message: str) -> None:
+def test_platform_run_names_unknown_choices_and_writes_nothing(
+        tmp_path: Path, option: list[str], what: str, capability: plugins.Capability) -> None:
     out = tmp_path / "out"
     with installed(tmp_path):
+        known = ", ".join(sorted(capability(NAME)))
         result = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out),
                                                 *option])
     assert result.exit_code == 1
-    assert result.output.strip().splitlines() == [f"Error: {message}"]
+    assert result.output.strip().splitlines() == [
+        f"Error: unknown {what} for robot 'tiny' {option[1]!r} (known: {known})"]
     assert not out.exists()
