@@ -28,7 +28,7 @@ from .files import atomic_write_text
 from .plan import Plan, save_plan
 from .scenario import Scenario
 
-__all__ = ["PreparedRun", "RunRequest", "default_out_dir", "execute_run", "prepare_run",
+__all__ = ["PreparedRun", "RunRequest", "default_out_dir", "execute_run", "parse_driver_options", "prepare_run",
            "resolve_scenario", "write_outputs"]
 
 
@@ -49,6 +49,7 @@ class RunRequest:
         action_timeout: driver time one action phase may take [s].
         driver: driver name (default: the robot's first).
         planner: planner name (default: the robot's first).
+        driver_options: extra keyword options of the driver factory (``noise``, ``slip``).
     """
 
     robot: str
@@ -63,6 +64,7 @@ class RunRequest:
     action_timeout: float = 90.0
     driver: str | None = None
     planner: str | None = None
+    driver_options: tuple[tuple[str, float | int | bool | str], ...] = ()
 
 
 def resolve_scenario(robot: str, name: str | None) -> Scenario:
@@ -78,6 +80,33 @@ def resolve_scenario(robot: str, name: str | None) -> Scenario:
     if found:
         return next(iter(found.values()))
     raise UnknownNameError(f"scenario for robot {robot!r}", "(default)", ())
+
+
+def parse_driver_options(items: tuple[str, ...] | list[str]
+                         ) -> tuple[tuple[str, float | int | bool | str], ...]:
+    """``("noise=0.035", "slip=0.05")`` -> ``(("noise", 0.035), ("slip", 0.05))``: numbers
+    and ``true``/``false`` are converted, anything else stays a string.
+
+    Raises:
+        ConfigurationError: an item without ``=``.
+    """
+    out: list[tuple[str, float | int | bool | str]] = []
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ConfigurationError(f"driver option {item!r} is not KEY=VALUE")
+        value: float | int | bool | str = text
+        if text.lower() in ("true", "false"):
+            value = text.lower() == "true"
+        else:
+            for kind in (int, float):
+                try:
+                    value = kind(text)
+                    break
+                except ValueError:
+                    continue
+        out.append((key.strip(), value))
+    return tuple(out)
 
 
 def default_out_dir(robot: str, scenario: str, root: Path = Path("runs")) -> Path:
@@ -96,6 +125,7 @@ class PreparedRun:
         controller: the robot's controller.
         options: rate and action timeout of the executor.
         gui: open the simulator's window.
+        driver_options: extra keyword options of the driver factory.
     """
 
     run: Run
@@ -104,6 +134,7 @@ class PreparedRun:
     controller: Controller
     options: ExecutorOptions
     gui: bool = False
+    driver_options: tuple[tuple[str, float | int | bool | str], ...] = ()
 
 
 def prepare_run(request: RunRequest) -> PreparedRun:
@@ -144,7 +175,8 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     run = Run(robot=request.robot, scenario=name, plan=plan, spec=spec, driver=factory.name,
               rate=request.rate, seed=request.seed, out_dir=out,
               recording=out / "run.rrd" if request.log else None)
-    return PreparedRun(run, factory, recognizer, controller, options, request.gui)
+    return PreparedRun(run, factory, recognizer, controller, options, request.gui,
+                       request.driver_options)
 
 
 def execute_run(prepared: PreparedRun) -> RunResult:
@@ -154,7 +186,8 @@ def execute_run(prepared: PreparedRun) -> RunResult:
     listeners close their files.
     """
     run = prepared.run
-    with prepared.driver(gui=prepared.gui, seed=run.seed) as driver:
+    with prepared.driver(gui=prepared.gui, seed=run.seed,
+                         **dict(prepared.driver_options)) as driver:
         driver.reset(run.plan.start)
         executor = Executor(run, driver, prepared.recognizer, prepared.controller,
                             prepared.options)

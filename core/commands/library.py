@@ -5,10 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+import numpy as np
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from ..console import MsrrGroup, console, table
+from ..executor import ExecutorOptions
+from ..feasibility import default_runner, run_edge
 from ..library import (
     DEFAULT_MERGE_THRESHOLD,
     Library,
@@ -18,6 +21,15 @@ from ..library import (
     load_sources,
     retrieve,
     save_library,
+)
+from ..library.check import (
+    CheckFile,
+    apply_check,
+    check_path,
+    edge_cases,
+    library_digest,
+    load_check,
+    save_check,
 )
 from ..matching import COST_DISTANCE, COST_KINDS
 from ..plugins import load_configuration, resolve
@@ -86,8 +98,70 @@ def _show(library: Library) -> None:
 @command.command("show")
 @click.argument("library", type=click.Path(path_type=Path))
 def show(library: Path) -> None:
-    """Show a LIBRARY file: sub-libraries, groups, configurations, behaviors, edges."""
-    _show(load_library(library))
+    """Show a LIBRARY file: sub-libraries, groups, configurations, behaviors, edges.
+
+    Feasibility flags come from the check file beside it (``<LIB>.check.json``) when it
+    is a check of this very file."""
+    lib = load_library(library)
+    sidecar = check_path(library)
+    if sidecar.exists():
+        check = load_check(sidecar)
+        if check.library_sha256 == library_digest(library):
+            apply_check(lib, check)
+        else:
+            console.print(f"[yellow]{sidecar} checks another build of {library}; run "
+                          "`platform library check` again[/yellow]")
+    _show(lib)
+
+
+@command.command("check")
+@click.argument("library", type=click.Path(path_type=Path))
+@click.option("-o", "--output", type=click.Path(path_type=Path),
+              help="Check file to write (atomically); default <LIB>.check.json beside it.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulation.")
+@click.option("--timeout", "action_timeout", type=float, default=30.0, show_default=True,
+              help="Simulated time one phase may take [s].")
+@click.option("--noise", type=float, default=0.0, show_default=True,
+              help="Recognizer noise (std of every reported angle) [deg].")
+@click.option("--slip", type=float, default=0.0, show_default=True,
+              help="Odometry heading error per radian rolled [rad/rad].")
+@click.option("--edge", "only", multiple=True, help="Check only edges whose key contains this.")
+def check_command(library: Path, output: Path | None, seed: int, action_timeout: float,
+                  noise: float, slip: float, only: tuple[str, ...]) -> None:
+    """Run every action edge of LIBRARY in simulation from its source configuration and
+    record per edge: feasible, the reason when not, the simulated time (paper 6.2)."""
+    lib = load_library(library)
+    driver_options: tuple[tuple[str, float], ...] = ()
+    if noise:
+        driver_options += (("noise", float(np.radians(noise))),)
+    if slip:
+        driver_options += (("slip", slip),)
+    runner = default_runner(lib.robot, options=ExecutorOptions(action_timeout=action_timeout,
+                                                               retries=0),
+                            driver_options=driver_options, seed=seed)
+    cases = [c for c in edge_cases(lib, runner.robot) if not only or any(o in c.key for o in only)]
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TimeElapsedColumn())
+    checks = []
+    with Progress(*columns, console=console, transient=True) as bar:
+        task = bar.add_task(f"checking {lib.name}", total=len(cases))
+        for case in cases:
+            bar.update(task, description=f"{case.key}")
+            checks.append(run_edge(case, runner))
+            bar.advance(task)
+    options = {"rate_hz": runner.options.rate, "action_timeout_s": action_timeout,
+               "noise_deg": noise, "slip": slip}
+    check = CheckFile(library=lib.name, library_sha256=library_digest(library), robot=lib.robot,
+                      driver=runner.driver.name, seed=seed, options=options, edges=checks)
+    target = output or check_path(library)
+    save_check(check, target)
+    console.print(table(f"{lib.name}: feasibility", ["edge", "action", "feasible", "sim time [s]",
+                                                      "shape error [deg]", "reason"],
+                        [[c.edge, c.action, "yes" if c.feasible else "no", f"{c.sim_time:.1f}",
+                          "" if c.shape_error_deg is None else f"{c.shape_error_deg:.2f}",
+                          escape(c.reason)] for c in checks]))
+    done = sum(c.feasible for c in checks)
+    console.print(f"{done}/{len(checks)} edges feasible; wrote {target}")
 
 
 @command.command("retrieve")

@@ -13,7 +13,7 @@ from ..console import console, err_console, table
 from ..events import ActionStatus, Run, RunResult, TopologyEvent
 from ..hookspecs import hookimpl
 from ..plan import Action
-from ..run import RunRequest, execute_run, prepare_run, write_outputs
+from ..run import RunRequest, execute_run, parse_driver_options, prepare_run, write_outputs
 
 __all__ = ["command"]
 
@@ -68,9 +68,13 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
 @click.option("--rate", default=10.0, show_default=True, help="Control rate [Hz].")
 @click.option("--timeout", "action_timeout", default=90.0, show_default=True,
               help="Driver time one action phase may take before a retry [s].")
+@click.option("--driver-option", "driver_options", multiple=True, metavar="KEY=VALUE",
+              help="Keyword option of the driver, repeatable (FreeSN mujoco: noise=0.035 "
+                   "[rad], slip=0.05, drift=..., see docs/freesn.md).")
 def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None,
             planner_name: str | None, driver_name: str | None, seed: int, out: Path | None,
-            no_log: bool, gui: bool, rate: float, action_timeout: float) -> None:
+            no_log: bool, gui: bool, rate: float, action_timeout: float,
+            driver_options: tuple[str, ...]) -> None:
     """Plan and execute a reconfiguration in simulation and record it.
 
     Writes DIR/run.rrd, DIR/plan.json and DIR/summary.json. Exits 1 with the failing
@@ -79,7 +83,8 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
     request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
                          out=out, log=not no_log, gui=gui, rate=rate,
                          action_timeout=action_timeout, driver=driver_name,
-                         planner=planner_name)
+                         planner=planner_name,
+                         driver_options=parse_driver_options(driver_options))
     prepared = prepare_run(request)
     run, plan = prepared.run, prepared.run.plan
     console.print(f"[bold]{robot}[/bold] {run.scenario}: {plan.start.name or 'start'} -> "

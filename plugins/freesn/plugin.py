@@ -2,10 +2,26 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from msrr.core import hookimpl
 
 from .robot import SPEC
 from .rules import FreeSNRules
+
+CONFIGS = Path(__file__).resolve().parent / "configs"
+"""Shipped configurations: every library configuration as ``<library id>.json``."""
+
+SCENARIOS = (
+    ("s6n3-connect", "S6N3-1.3", "S6N3-2.1", "S6N3: a leg docks to a node (connection)", True),
+    ("s6n3-disconnect", "S6N3-2.1", "S6N3-1.3", "S6N3: a docked leg undocks (disconnection)",
+     False),
+    ("s6n3-crouch", "S6N3-1.1", "S6N3-1.2", "S6N3: the triangle lowers onto its legs (moving)",
+     False),
+    ("s6n3-fig20", "S6N3-1.1", "S6N3-4.1", "S6N3: fig. 20(a) to 20(d), three connections",
+     False),
+)
+"""``(name, start id, goal id, description, default)``: ``platform run --scenario``."""
 
 
 @hookimpl
@@ -25,6 +41,27 @@ def msrr_kinematic_nodes(robot: str, register):
 
         for node_type in JOINT_MODES:
             register(node_type)
+
+
+@hookimpl
+def msrr_planners(robot: str, register):
+    if robot == SPEC.name:
+        from msrr.core.plugins import resolve
+
+        from .planner import LibraryPlanner
+
+        register(LibraryPlanner(resolve(SPEC.name)))
+
+
+@hookimpl
+def msrr_scenarios(robot: str, register):
+    if robot == SPEC.name:
+        from msrr.core.scenario import Scenario
+
+        for name, start, goal, what, default in SCENARIOS:
+            register(Scenario(name=name, start=CONFIGS / f"{start}.json",
+                              goal=CONFIGS / f"{goal}.json", description=what,
+                              default=default))
 
 
 @hookimpl
