@@ -204,7 +204,7 @@ class ConformanceReport:
         return value
 
 
-def check_robot(name: str, *, run: bool = True, rate: float = 10.0) -> ConformanceReport:
+def check_robot(name: str, *, run: bool = True, rate: float = 5.0) -> ConformanceReport:
     """Assert that robot ``name`` keeps the platform's contract (module docstring).
 
     Args:
