@@ -15,7 +15,8 @@ sensors) and commands pose targets (``joints={"x", "y", "z", "yaw"}``) and docks
   lifts clear of every body, travels and lowers (after a side step if needed); the
   first whose sweep is free is taken; once there, the
   controller arms the ports itself, so parallel connections dock one by one and each
-  next placement starts from the merged group;
+  next placement starts from the merged group (the last waits for the connect phase,
+  where the executor arms its ports);
 * **release**: connections without ports are released with ``undock=("@other",)``
   (the executor sends the port commands of every other change, in release, connect
   and flow);
@@ -104,12 +105,12 @@ class LatchController:
                 self._arm(commands, change)
         errors: dict[str, float] = {}
         if phase in (Phase.MOVE, Phase.APPROACH, Phase.FLOW):
-            self._advance(action, observation, commands, errors)
+            self._advance(action, phase, observation, commands, errors)
         return Control(commands, errors, reached=self.job is None and not self.jobs)
 
     # -- jobs ---------------------------------------------------------------------------------
 
-    def _advance(self, action: Action, observation: Observation,
+    def _advance(self, action: Action, phase: Phase, observation: Observation,
                  commands: dict[str, ModuleCommand], errors: dict[str, float]) -> None:
         latched = _latched(observation)
         while True:
@@ -129,8 +130,9 @@ class LatchController:
                 target = job.waypoints[0]
                 self._add(commands, job.leader, pose=target)
                 return
-            if job.change is None or job.change.key in latched:
-                self.job = None
+            if job.change is None or job.change.key in latched or (
+                    phase is Phase.APPROACH and not self.jobs):
+                self.job = None  # the last dock of an approach latches in the connect phase
                 continue
             self._arm(commands, job.change)
             self._add(commands, job.leader, pose=job.final)

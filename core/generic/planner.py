@@ -193,7 +193,7 @@ class GenericPlanner:
                     found[connection_key(s, t, ps, pt)] = Link(s, t, ps, pt)
                     break
         found.update(want)
-        return dict(sorted(found.items(), key=lambda item: sorted(item[0], key=str)))
+        return dict(sorted(found.items(), key=lambda item: _order(item[0])))
 
     def _legal(self, start: Configuration, links: list[Link]) -> bool:
         config = state_configuration(start, links)
@@ -226,7 +226,7 @@ class GenericPlanner:
                 continue
             closed.add(state)
             if state != first and not self._legal(start, [info[k] for k in sorted(
-                    state, key=lambda k: sorted(k, key=str))]):
+                    state, key=_order)]):
                 continue
             if state == goal:
                 path = [state]
@@ -240,7 +240,7 @@ class GenericPlanner:
                     "without reaching the goal (beyond its limit; register a planner of its own)")
             used = {end for key in state for end in key if end[1] is not None}
             g = -neg_g + 1
-            for key in itertools.chain(sorted(state, key=lambda k: sorted(k, key=str)),
+            for key in itertools.chain(sorted(state, key=_order),
                                        (k for k in candidates if k not in state
                                         and not any(e in used for e in k))):
                 child = state ^ {key}
@@ -273,6 +273,11 @@ class GenericPlanner:
                                          f"{link.target_port or ''}"))
             current = nxt
         return actions
+
+
+def _order(key: ConnectionKey) -> list[str]:
+    """A total order on link keys (ports may be ``None``): their ends as text, sorted."""
+    return sorted(str(end) for end in key)
 
 
 def _groups(config: Configuration) -> list[set[str]]:

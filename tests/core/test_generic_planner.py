@@ -125,8 +125,8 @@ def test_goal_with_other_ids_is_refused_not_relabelled() -> None:
 
 def test_beyond_the_size_limit_is_a_planning_error() -> None:
     modules = "abcdefgh"
-    start = chain(*zip(modules, modules[1:]), modules=modules)
-    goal = chain(*zip(modules[1:], modules), modules=modules)
+    start = chain(*itertools.pairwise(modules), modules=modules)
+    goal = chain(*((b, a) for a, b in itertools.pairwise(modules)), modules=modules)
     with pytest.raises(PlanningError, match=r"8 modules with 16 ports is beyond the generic "
                                             r"planner's limit \(6 modules, 48 ports\)"):
         GenericPlanner(ROBOT, max_modules=6).plan(start, goal)
