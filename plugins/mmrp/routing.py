@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 from msrr.core.errors import PlanningError
 
-__all__ = ["Cell", "Route", "Routing", "compress", "route_groups"]
+__all__ = ["Cell", "Route", "Routing", "route_groups"]
 
 Cell = tuple[int, int]
 STEPS: tuple[Cell, ...] = ((1, 0), (-1, 0), (0, 1), (0, -1))
@@ -48,18 +48,6 @@ class Route:
     modules: tuple[str, ...]
     corners: tuple[Cell, ...]
     parking: bool = False
-
-
-def compress(path: Sequence[Cell]) -> tuple[Cell, ...]:
-    """The corners of a 4-connected cell path: its ends and every change of direction."""
-    if len(path) <= 2:
-        return tuple(path)
-    corners = [path[0]]
-    for a, b, c in zip(path, path[1:], path[2:], strict=False):
-        if (b[0] - a[0], b[1] - a[1]) != (c[0] - b[0], c[1] - b[1]):
-            corners.append(b)
-    corners.append(path[-1])
-    return tuple(corners)
 
 
 def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me: int,
