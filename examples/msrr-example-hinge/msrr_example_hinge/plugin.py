@@ -23,8 +23,9 @@ HINGE = ModuleKind(
     name="hinge",
     symbol="H",
     role="vertex",
-    ports=(PortSpec("head", "active", (1.0, 0.0, 0.0)), PortSpec("tail", "passive", (-1.0, 0.0, 0.0))),
-    geometry={"length": 0.1, "mass": 0.2},
+    ports=(PortSpec("head", "active", (1.0, 0.0, 0.0)),
+           PortSpec("tail", "passive", (-1.0, 0.0, 0.0))),
+    geometry={"length": 0.1, "mass": 0.2},  # SI units: [m], [kg]
     description="one revolute hinge between a head port and a tail port",
 )
 
@@ -34,6 +35,11 @@ SPEC = RobotSpec(
     module_kinds=(HINGE,),
     description="Example third-party robot: hinge modules dock head-to-tail into chains.",
 )
+
+
+@hookimpl
+def msrr_robot() -> RobotSpec | None:
+    return SPEC
 
 
 class HingeRules(DockingRules):
@@ -50,11 +56,6 @@ class HingeRules(DockingRules):
 
 
 @hookimpl
-def msrr_robot() -> RobotSpec | None:
-    return SPEC
-
-
-@hookimpl
 def msrr_docking_rules(robot: str) -> DockingRules | None:
     return HingeRules() if robot == SPEC.name else None
 
@@ -63,4 +64,5 @@ def msrr_docking_rules(robot: str) -> DockingRules | None:
 def msrr_scenarios(robot: str, register: Register[Scenario]) -> None:
     if robot == SPEC.name:
         register(Scenario("reverse", "reverse a chain of three hinges",
-                          CONFIGS / "chain3.json", CONFIGS / "chain3-reversed.json"))
+                          CONFIGS / "chain3.json", CONFIGS / "chain3-reversed.json",
+                          default=True))
