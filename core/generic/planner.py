@@ -29,8 +29,13 @@ ids is refused; a robot's own planner (MMRP's MCS hybrid, MISO) finds mappings.
 
 **Size limit.** At most :data:`MAX_MODULES` modules and :data:`MAX_PORTS` ports, and
 :data:`MAX_EXPANSIONS` states popped; beyond either a :class:`PlanningError` says so.
-The search space grows as the number of link subsets; ``benchmarks/generic_planner.py``
-measures the time per size.
+The search space grows as the number of link subsets. ``benchmarks/generic_planner.py``
+(seed 0, 5 pairs per size) measured: when undocking and docking the differing links is
+legal, A* walks straight to the goal (12 MMRP modules, 48 ports: 51 ms median, 136 ms
+worst); when every intermediate must stay connected (temporary docks needed), 10
+modules take 269 ms median and 1.8 s worst (172 states), 12 modules 0.6 s median --
+about 10 ms per state explored, so the expansion limit stops a hopeless search after
+roughly 20 s.
 """
 
 from __future__ import annotations
@@ -58,7 +63,7 @@ MAX_MODULES = 12
 MAX_PORTS = 48
 """Most ports (over all modules) the generic planner accepts."""
 
-MAX_EXPANSIONS = 100_000
+MAX_EXPANSIONS = 2_000
 """Most configurations A* pops before giving up with a :class:`PlanningError`."""
 
 
