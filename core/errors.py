@@ -8,8 +8,10 @@ prints that line and exits non-zero instead of showing a traceback.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Final
 
 __all__ = [
+    "MAX_MESSAGE",
     "ConfigurationError",
     "DockingRuleError",
     "ExecutionError",
@@ -18,11 +20,35 @@ __all__ = [
     "PluginError",
     "UnknownNameError",
     "UnknownRobotError",
+    "one_line",
 ]
+
+MAX_MESSAGE: Final = 300
+"""Longest error line [characters]; longer ones are shortened in the middle."""
+
+
+def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` on one line of at most ``limit`` characters.
+
+    Line breaks and tabs become spaces; a longer text keeps its head and tail around
+    ``" … "`` (the head says what, the tail usually where or why). Characters that
+    are not printable (control characters, lone surrogates) are shown as escapes.
+    """
+    flat = " ".join(text.split())
+    if not flat.isprintable():  # control characters, lone surrogates: escaped
+        flat = "".join(c if c.isprintable() else repr(c)[1:-1] for c in flat)
+    if len(flat) <= limit:
+        return flat
+    head = (limit - 3) * 2 // 3
+    tail = limit - 3 - head
+    return f"{flat[:head]} … {flat[len(flat) - tail:]}"
 
 
 class MsrrError(Exception):
-    """Root of every error msrr raises on purpose."""
+    """Root of every error msrr raises on purpose; ``str()`` is :func:`one_line`."""
+
+    def __str__(self) -> str:
+        return one_line(super().__str__())
 
 
 class ConfigurationError(MsrrError):
@@ -41,8 +67,12 @@ class ConfigurationError(MsrrError):
         super().__init__(str(self))
 
     def __str__(self) -> str:
-        parts = [p for p in (self.source, self.field) if p]
-        return ": ".join([*parts, self.message])
+        # file and field stay readable: each gets a share, the message the rest
+        source = one_line(self.source, 120) if self.source else ""
+        field = one_line(self.field, 80) if self.field else ""
+        where = ": ".join(p for p in (source, field) if p)
+        room = MAX_MESSAGE - len(where) - (2 if where else 0)
+        return ": ".join(p for p in (where, one_line(self.message, room)) if p)
 
     def at(self, source: str) -> ConfigurationError:
         """The same error, attributed to ``source`` (keeps an existing source)."""
@@ -67,7 +97,7 @@ class UnknownNameError(MsrrError, KeyError):
 
     def __str__(self) -> str:
         known = ", ".join(self.choices) if self.choices else "none"
-        return f"unknown {self.what} {self.name!r} (known: {known})"
+        return one_line(f"unknown {self.what} {self.name!r} (known: {known})")
 
 
 class UnknownRobotError(UnknownNameError):

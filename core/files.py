@@ -1,26 +1,74 @@
-"""File helpers shared by every writer: atomic writes and readable JSON errors."""
+"""File helpers shared by every reader and writer: atomic writes, strict JSON reading,
+strict number types and readable validation errors.
+
+Every msrr file is read by :func:`read_json`, which refuses what :mod:`json` lets
+through silently: ``NaN``/``Infinity`` and numbers that overflow to them, repeated
+keys (JSON would keep the last), lone surrogate escapes (``"\\ud800"``: not text),
+nesting deeper than :data:`MAX_DEPTH` and integers too large to be a float. File
+models number fields as :data:`Number` (finite, never a boolean) and flags as
+:data:`Flag` (``true``/``false`` only).
+"""
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
+from collections import Counter
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, Final, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import AllowInfNan, BaseModel, BeforeValidator, ConfigDict, Strict, ValidationError
 
 from .errors import ConfigurationError
 
-__all__ = ["StrictModel", "atomic_write_bytes", "atomic_write_text", "parse_model", "read_json", "validation_field"]
+__all__ = [
+    "MAX_DEPTH",
+    "Flag",
+    "Number",
+    "SchemaVersion",
+    "StrictModel",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "not_boolean",
+    "parse_model",
+    "read_json",
+    "validation_field",
+]
 
 M = TypeVar("M", bound=BaseModel)
 
+MAX_DEPTH: Final = 64
+"""Deepest nesting of arrays and objects a file may have (msrr files need about 12)."""
+
+_MAX_INT: Final = 2**63
+"""Integers at least this large are refused (no msrr field needs one; float() of one
+larger than 1e308 overflows)."""
+
+
+def not_boolean(value: Any) -> Any:
+    """A before-validator: ``true``/``false`` where a number is expected is an error."""
+    if isinstance(value, bool):
+        raise ValueError("must be a number, not a boolean")
+    return value
+
+
+Number = Annotated[float, Strict(), AllowInfNan(False)]
+"""A finite number: an integer or a float, never a boolean, a string, NaN or infinity."""
+
+Flag = Annotated[bool, Strict()]
+"""``true`` or ``false``, never ``0``/``1`` or ``"yes"``."""
+
+SchemaVersion = Annotated[Literal[1], BeforeValidator(not_boolean)]
+"""``schema_version`` 1 of every file format (``true`` is not 1)."""
+
 
 class StrictModel(BaseModel):
-    """Base of every file model: unknown fields are errors, not silently dropped."""
+    """Base of every file model: unknown fields are errors, not silently dropped; no
+    field anywhere accepts NaN or infinity."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
@@ -61,8 +109,82 @@ def _umask() -> int:
     return mask
 
 
+class _Refused:
+    """A JSON value :func:`read_json` refuses, kept in place so the error names its field."""
+
+    __slots__ = ("why",)
+
+    def __init__(self, why: str):
+        self.why = why
+
+
+class _Duplicates(dict):
+    """A JSON object that repeated some keys (the repeated keys in ``repeated``)."""
+
+    repeated: list[str]
+
+
+def _object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    obj = dict(pairs)
+    if len(obj) == len(pairs):
+        return obj
+    marked = _Duplicates(obj)
+    marked.repeated = [k for k, n in Counter(k for k, _ in pairs).items() if n > 1]
+    return marked
+
+
+def _float(text: str) -> float | _Refused:
+    value = float(text)
+    return value if math.isfinite(value) else _Refused(f"number {text[:40]} is too large")
+
+
+def _int(text: str) -> int | _Refused:
+    if len(text) > 19:
+        return _Refused(f"integer of {len(text)} digits is too large")
+    value = int(text)
+    return value if abs(value) < _MAX_INT else _Refused(f"integer {text} is too large")
+
+
+def _constant(text: str) -> _Refused:
+    return _Refused(f"{text} is not a finite number")
+
+
+def _check_document(data: Any, source: str) -> None:
+    """Refuse what :func:`json.loads` accepted but a file must not hold (see module doc)."""
+    stack: list[tuple[Any, tuple[Any, ...]]] = [(data, ())]
+    while stack:
+        value, loc = stack.pop()
+        if isinstance(value, str):
+            if not value.isprintable() and any("\ud800" <= c <= "\udfff" for c in value):
+                raise ConfigurationError("a lone surrogate escape is not text",
+                                         source=source, field=validation_field(loc))
+        elif isinstance(value, _Refused):
+            raise ConfigurationError(value.why, source=source, field=validation_field(loc))
+        elif isinstance(value, dict | list):
+            if len(loc) >= MAX_DEPTH:
+                raise ConfigurationError(f"nested deeper than {MAX_DEPTH} levels",
+                                         source=source, field=validation_field(loc[:3]) + "…")
+            if isinstance(value, _Duplicates):
+                raise ConfigurationError(f"repeated key {value.repeated[0]!r}", source=source,
+                                         field=validation_field(loc))
+            if isinstance(value, dict):
+                for key, item in value.items():
+                    if not key.isprintable() and any("\ud800" <= c <= "\udfff" for c in key):
+                        raise ConfigurationError("a lone surrogate escape is not text",
+                                                 source=source, field=validation_field(loc))
+                    stack.append((item, (*loc, key)))
+            else:
+                stack.extend((item, (*loc, i)) for i, item in enumerate(value))
+
+
 def read_json(path: str | os.PathLike[str]) -> Any:
-    """Parse a JSON file; a missing file or bad JSON becomes a one-line ConfigurationError."""
+    """Parse a JSON file strictly (see the module doc).
+
+    Raises:
+        ConfigurationError: a missing file, a folder, text that is not UTF-8, bad JSON,
+            or one of the refusals of the module doc; one line naming the file and, when
+            there is one, the field.
+    """
     source = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -70,13 +192,21 @@ def read_json(path: str | os.PathLike[str]) -> Any:
         raise ConfigurationError("no such file", source=source) from None
     except IsADirectoryError:
         raise ConfigurationError("is a directory, expected a JSON file", source=source) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigurationError(f"cannot read: {exc}", source=source) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigurationError(f"not UTF-8 text (byte {exc.start})", source=source) from None
+    except OSError as exc:
+        raise ConfigurationError(f"cannot read: {exc.strerror or exc}", source=source) from None
     try:
-        return json.loads(text)
+        data = json.loads(text, object_pairs_hook=_object, parse_float=_float,
+                          parse_int=_int, parse_constant=_constant)
     except json.JSONDecodeError as exc:
         raise ConfigurationError(f"invalid JSON at line {exc.lineno} column {exc.colno}: "
                                  f"{exc.msg}", source=source) from None
+    except RecursionError:
+        raise ConfigurationError(f"nested deeper than {MAX_DEPTH} levels",
+                                 source=source) from None
+    _check_document(data, source)
+    return data
 
 
 def validation_field(loc: tuple[Any, ...]) -> str:
@@ -94,6 +224,9 @@ def parse_model(model: type[M], data: Any, source: str | None = None) -> M:
     """Validate ``data`` against a pydantic model; the first error names its field."""
     try:
         return model.model_validate(data)
+    except RecursionError:  # data that did not come through read_json
+        raise ConfigurationError(f"nested deeper than {MAX_DEPTH} levels",
+                                 source=source) from None
     except ValidationError as exc:
         errors = exc.errors()
         first = errors[0]

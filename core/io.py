@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Annotated, Final, Literal
+from typing import Annotated, Final
 
 from pydantic import ConfigDict, Field, ValidationInfo, field_validator
 
 from .configuration import Configuration, unit
 from .errors import ConfigurationError, DockingRuleError
-from .files import StrictModel, atomic_write_text, parse_model, read_json
+from .files import Number, SchemaVersion, StrictModel, atomic_write_text, parse_model, read_json
 from .robot import Robot
 
 __all__ = [
@@ -33,13 +33,13 @@ __all__ = [
 
 SCHEMA_VERSION: Final = 1
 
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Vec3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
 
 
 class _Strict(StrictModel):
     """Module ids may be written as numbers (MMRP modules 1..9); they are read as strings."""
 
-    model_config = ConfigDict(extra="forbid", coerce_numbers_to_str=True)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, coerce_numbers_to_str=True)
 
 
 class ModuleModel(_Strict):
@@ -76,7 +76,7 @@ class ConnectionModel(_Strict):
 class ConfigurationFile(_Strict):
     """A configuration file: one robot configuration in its own module ids."""
 
-    schema_version: Literal[1] = Field(description="File format version.")
+    schema_version: SchemaVersion = Field(description="File format version.")
     robot: str = Field(min_length=1, description="Name of the robot plugin.")
     name: str = ""
     description: str = ""

@@ -15,16 +15,18 @@ import json
 import os
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import Field
+from pydantic import Field, Strict
 
 from .configuration import Configuration
-from .files import StrictModel, atomic_write_text, parse_model, read_json
+from .errors import ConfigurationError
+from .files import Number, StrictModel, atomic_write_text, parse_model, read_json
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
+from .robot import Robot, check_structure
 
-__all__ = ["Action", "ActionType", "ConnectionChange", "ConnectionKey", "Plan", "connection_key",
-           "load_plan", "save_plan"]
+__all__ = ["Action", "ActionType", "ConnectionChange", "ConnectionKey", "Plan", "check_plan",
+           "connection_key", "load_plan", "save_plan"]
 
 
 class ActionType(StrEnum):
@@ -154,24 +156,24 @@ class ActionModel(StrictModel):
     target: ConfigurationFile
     modules: list[str] = []
     changes: list[ChangeModel] = []
-    goals: dict[str, list[float]] = {}
-    cost: float = 0.0
-    kinematic_tree: Any | None = None
+    goals: dict[str, list[Number]] = {}
+    cost: Number = Field(0.0, ge=0.0)
+    kinematic_tree: dict[str, Any] | None = None
     note: str = ""
 
 
 class PlanFile(StrictModel):
     """A plan file (``platform plan --json``; read back with :func:`load_plan`)."""
 
-    schema_version: int = Field(1, ge=1, le=1)
-    robot: str
+    schema_version: Annotated[int, Strict()] = Field(1, ge=1, le=1)
+    robot: str = Field(min_length=1)
     planner: str
     start: ConfigurationFile
     goal: ConfigurationFile
     actions: list[ActionModel]
     mapping: dict[str, str] = {}
     notes: list[str] = []
-    stats: dict[str, float] = {}
+    stats: dict[str, Number] = {}
 
 
 def plan_to_model(plan: Plan) -> PlanFile:
@@ -191,18 +193,80 @@ def plan_to_model(plan: Plan) -> PlanFile:
     )
 
 
+def _configuration(model: ConfigurationFile, robot: str, source: str | None, field: str
+                   ) -> Configuration:
+    try:
+        config = configuration_from_model(model)
+    except ConfigurationError as exc:
+        raise ConfigurationError(exc.message, source=source,
+                                 field=f"{field}.{exc.field}" if exc.field else field) from None
+    if config.robot != robot:
+        raise ConfigurationError(f"a configuration of robot {config.robot!r} in a plan for "
+                                 f"{robot!r}", source=source, field=f"{field}.robot")
+    return config
+
+
+def _check_action(action: Action, i: int, source: str | None) -> None:
+    """The ids an action names exist in its target."""
+    target = action.target
+    for j, module in enumerate(action.modules):
+        if module not in target:
+            raise ConfigurationError(f"module {module!r} is not in the action's target",
+                                     source=source, field=f"actions[{i}].modules[{j}]")
+    for module in action.goals:
+        if module not in target:
+            raise ConfigurationError(f"module {module!r} is not in the action's target",
+                                     source=source, field=f"actions[{i}].goals")
+    for j, change in enumerate(action.changes):
+        for end in (change.source, change.target):
+            if end not in target:
+                raise ConfigurationError(f"module {end!r} is not in the action's target",
+                                         source=source, field=f"actions[{i}].changes[{j}]")
+
+
 def plan_from_model(model: PlanFile, source: str | None = None) -> Plan:
-    return Plan(
-        robot=model.robot, planner=model.planner,
-        start=configuration_from_model(model.start, source),
-        goal=configuration_from_model(model.goal, source),
-        actions=[Action(type=a.type, target=configuration_from_model(a.target, source),
+    """A :class:`Plan` from its file model; every configuration names the plan's robot,
+    every id an action names is in its target; errors name ``source`` and the field."""
+    actions = []
+    for i, a in enumerate(model.actions):
+        action = Action(type=a.type,
+                        target=_configuration(a.target, model.robot, source,
+                                              f"actions[{i}].target"),
                         modules=tuple(a.modules),
                         changes=tuple(ConnectionChange(**c.model_dump()) for c in a.changes),
                         goals=a.goals, cost=a.cost, kinematic_tree=a.kinematic_tree, note=a.note)
-                 for a in model.actions],
-        mapping=model.mapping, notes=model.notes, stats=model.stats,
-    )
+        _check_action(action, i, source)
+        actions.append(action)
+    start = _configuration(model.start, model.robot, source, "start")
+    goal = _configuration(model.goal, model.robot, source, "goal")
+    for module in model.mapping:
+        if module not in start:
+            raise ConfigurationError(f"module {module!r} is not in the start",
+                                     source=source, field="mapping")
+    return Plan(robot=model.robot, planner=model.planner, start=start, goal=goal,
+                actions=actions, mapping=model.mapping, notes=model.notes, stats=model.stats)
+
+
+def check_plan(plan: Plan, robot: Robot) -> None:
+    """Validate ``plan`` against ``robot``: its start and goal follow every rule of the
+    robot; every action target has only the robot's module kinds and ports (an
+    intermediate configuration may break a topology rule on purpose, e.g. while split).
+
+    Raises:
+        ConfigurationError: naming the field (``start``, ``actions[3].target``...).
+    """
+    if plan.robot != robot.name:
+        raise ConfigurationError(f"is a plan for robot {plan.robot!r}, not {robot.name!r}",
+                                 field="robot")
+    for where, config in (("start", plan.start), ("goal", plan.goal)):
+        found = robot.violations(config)
+        if found:
+            raise ConfigurationError(f"{found[0].where}: {found[0].message}", field=where)
+    for i, action in enumerate(plan.actions):
+        found = check_structure(action.target, robot.spec)
+        if found:
+            raise ConfigurationError(f"{found[0].where}: {found[0].message}",
+                                     field=f"actions[{i}].target")
 
 
 def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:
@@ -211,6 +275,19 @@ def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, json.dumps(data, indent=2) + "\n")
 
 
-def load_plan(path: str | os.PathLike[str]) -> Plan:
-    """Read a plan file; errors name the file and the field."""
-    return plan_from_model(parse_model(PlanFile, read_json(path), str(path)), str(path))
+def load_plan(path: str | os.PathLike[str], robot: Robot | None = None) -> Plan:
+    """Read a plan file and, when ``robot`` is given, validate it (:func:`check_plan`).
+
+    :func:`msrr.core.plugins.load_plan` checks against the installed robot the file names.
+
+    Raises:
+        ConfigurationError: a bad file, field or id, or a broken rule of ``robot``;
+            naming the file and the field.
+    """
+    plan = plan_from_model(parse_model(PlanFile, read_json(path), str(path)), str(path))
+    if robot is not None:
+        try:
+            check_plan(plan, robot)
+        except ConfigurationError as exc:
+            raise exc.at(str(path)) from None
+    return plan

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -34,12 +34,22 @@ import click
 import pluggy
 
 from . import generic, hookspecs, io
+from . import plan as plan_module
 from .capabilities import Controller, DriverFactory, Planner, Recognizer
 from .configuration import Configuration
-from .errors import ConfigurationError, PluginError, UnknownNameError, UnknownRobotError
-from .events import ActionStatus, Run, RunResult, Tick, TopologyEvent
+from .errors import (
+    ConfigurationError,
+    PluginError,
+    UnknownNameError,
+    UnknownRobotError,
+    one_line,
+)
+from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
+from .files import read_json
 from .kinematics.node import FixedNode, KinematicNode
-from .plan import Action
+from .library import storage as library_storage
+from .library.model import Library, LibraryError
+from .plan import Action, Plan
 from .robot import DockingRules, Robot, RobotSpec
 from .scenario import Scenario
 
@@ -56,6 +66,9 @@ __all__ = [
     "kinematic_nodes",
     "load_configuration",
     "load_errors",
+    "load_library",
+    "load_plan",
+    "problems",
     "planners",
     "plugin_rows",
     "recognizers",
@@ -84,8 +97,31 @@ class LoadError:
         return f"plugin {self.entry_point!r} not loaded: {self.reason}"
 
 
+@dataclass(frozen=True)
+class PluginProblem:
+    """A loaded plugin that broke the hook contract at a call and was disabled.
+
+    Attributes:
+        plugin: its registered name.
+        entry_point: ``"msrr.plugins: <name> = <module>"``, or where it was registered
+            from for plugins registered in code.
+        hook: the hook whose call failed.
+        reason: what it did (raised what, returned what).
+    """
+
+    plugin: str
+    entry_point: str
+    hook: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"plugin {self.plugin!r} ({self.entry_point}) disabled: {self.hook} {self.reason}"
+
+
 _pm: pluggy.PluginManager | None = None
 _load_errors: list[LoadError] = []
+_entry_points: dict[str, str] = {}  # plugin name -> entry point it was loaded from
+_disabled: dict[str, tuple[object, PluginProblem]] = {}  # plugin name -> (plugin, problem)
 
 
 def create_plugin_manager() -> tuple[pluggy.PluginManager, list[LoadError]]:
@@ -126,6 +162,8 @@ def _load_entry_points(pm: pluggy.PluginManager) -> list[LoadError]:
             register(plugin, ep.name, pm)
         except PluginError as exc:
             errors.append(LoadError(ep.name, str(exc)))
+        else:
+            _entry_points[ep.name] = f"{ENTRY_POINT_GROUP}: {ep.name} = {ep.value}"
     return errors
 
 
@@ -155,10 +193,13 @@ def temporary(plugin: P, name: str | None = None,
     """Register ``plugin`` for the duration of a ``with`` block (tests, notebooks)."""
     pm = pm or get_plugin_manager()
     register(plugin, name, pm)
+    registered = pm.get_name(plugin)
     try:
         yield plugin
     finally:
         pm.unregister(plugin)
+        if registered is not None and _is_disabled(registered, plugin):
+            del _disabled[registered]
 
 
 def load_errors() -> list[LoadError]:
@@ -170,30 +211,87 @@ def load_errors() -> list[LoadError]:
 # -- robots ---------------------------------------------------------------------------
 
 
-def robots() -> dict[str, RobotSpec]:
-    """Every robot described by a loaded plugin, by name (sorted).
+def problems() -> list[PluginProblem]:
+    """Plugins disabled because a hook call raised or answered with the wrong type."""
+    pm = get_plugin_manager()
+    return [problem for name, (plugin, problem) in _disabled.items()
+            if pm.get_plugin(name) is plugin]
 
-    Raises:
-        PluginError: a plugin answered ``msrr_robot`` with something other than one
-            :class:`RobotSpec` or ``None``, or two plugins describe the same robot.
-    """
-    found: dict[str, RobotSpec] = {}
-    hook = get_plugin_manager().hook.msrr_robot
-    for spec in hook():
+
+def _is_disabled(name: str, plugin: object) -> bool:
+    entry = _disabled.get(name)
+    return entry is not None and entry[0] is plugin
+
+
+def _disable(impl: pluggy.HookImpl, hook: str, reason: str) -> None:
+    module = getattr(impl.plugin, "__module__", None) or getattr(impl.plugin, "__name__", "?")
+    where = _entry_points.get(impl.plugin_name) or f"registered in code, {module}"
+    problem = PluginProblem(impl.plugin_name, where, hook, one_line(reason, 160))
+    _disabled[impl.plugin_name] = (impl.plugin, problem)
+
+
+def _call_each(hook_name: str, before: Callable[[], object] | None = None, **kwargs: object
+               ) -> Iterator[tuple[pluggy.HookImpl, object]]:
+    """Call every enabled implementation of ``hook_name`` in pluggy's order (the last
+    registered first), yielding ``(impl, answer)``; one that raises is disabled and
+    skipped, so a broken plugin never stops the others. ``before`` runs before each call."""
+    pm = get_plugin_manager()
+    for impl in reversed(getattr(pm.hook, hook_name).get_hookimpls()):
+        if _is_disabled(impl.plugin_name, impl.plugin):
+            continue
+        if before is not None:
+            before()
+        try:
+            answer = impl.function(*(kwargs[name] for name in impl.argnames))
+        except Exception as exc:  # noqa: BLE001 - any failure of a plugin is reported, not raised
+            _disable(impl, hook_name, f"raised {type(exc).__name__}: {exc}")
+            continue
+        yield impl, answer
+
+
+def _robot_answers() -> tuple[dict[str, RobotSpec], dict[str, list[str]]]:
+    """Robots described by exactly one plugin, and robot name -> plugins for the others."""
+    claims: dict[str, list[tuple[str, RobotSpec]]] = {}
+    for impl, spec in _call_each("msrr_robot"):
+        if spec is None:
+            continue
         if not isinstance(spec, RobotSpec):
-            culprit = next((impl.plugin_name for impl in hook.get_hookimpls()
-                            if not isinstance(impl.function(), RobotSpec | None)), "?")
-            raise PluginError(f"plugin {culprit!r}: msrr_robot returned {type(spec).__name__}, "
-                              "expected one RobotSpec or None (one entry point per robot)")
-        if spec.name in found:
-            raise PluginError(f"two plugins describe robot {spec.name!r}")
-        found[spec.name] = spec
-    return dict(sorted(found.items()))
+            _disable(impl, "msrr_robot", f"returned {type(spec).__name__}, expected one "
+                     "RobotSpec or None (one entry point per robot)")
+            continue
+        claims.setdefault(spec.name, []).append((impl.plugin_name, spec))
+    unique = {name: found[0][1] for name, found in claims.items() if len(found) == 1}
+    clashes = {name: sorted(plugin for plugin, _ in found)
+               for name, found in claims.items() if len(found) > 1}
+    return dict(sorted(unique.items())), clashes
+
+
+def robots() -> dict[str, RobotSpec]:
+    """Every robot described by exactly one enabled plugin, by name (sorted).
+
+    A plugin whose ``msrr_robot`` raises or answers with anything but one
+    :class:`RobotSpec` or ``None`` is disabled (see :func:`problems`); a robot two
+    plugins describe is left out (see :func:`robot_clashes`); the others stay usable.
+    """
+    return _robot_answers()[0]
+
+
+def robot_clashes() -> dict[str, list[str]]:
+    """Robot name -> the plugins that all describe it (such robots are refused)."""
+    return _robot_answers()[1]
 
 
 def robot(name: str) -> RobotSpec:
-    """The robot called ``name``; raises :class:`UnknownRobotError` listing the known ones."""
-    known = robots()
+    """The robot called ``name``.
+
+    Raises:
+        UnknownRobotError: no enabled plugin describes it (listing the known ones).
+        PluginError: two plugins describe it (naming both).
+    """
+    known, clashes = _robot_answers()
+    if name in clashes:
+        raise PluginError(f"robot {name!r} is described by plugins {', '.join(map(repr, clashes[name]))}"
+                          "; it is refused until one of them is removed")
     try:
         return known[name]
     except KeyError:
@@ -203,8 +301,15 @@ def robot(name: str) -> RobotSpec:
 def docking_rules(name: str) -> DockingRules:
     """Docking rules of robot ``name`` (permissive defaults if no plugin defines them)."""
     robot(name)
-    rules = get_plugin_manager().hook.msrr_docking_rules(robot=name)
-    return rules if rules is not None else DockingRules()
+    for impl, rules in _call_each("msrr_docking_rules", robot=name):
+        if rules is None:
+            continue
+        if not isinstance(rules, DockingRules):
+            _disable(impl, "msrr_docking_rules", f"returned {type(rules).__name__}, "
+                     "expected DockingRules or None")
+            continue
+        return rules  # firstresult: the first answer that is not None
+    return DockingRules()
 
 
 def resolve(name: str) -> Robot:
@@ -227,10 +332,53 @@ def load_configuration(path: str | os.PathLike[str]) -> Configuration:
     """
     config = io.load_configuration(path)
     try:
-        io.check_configuration(config, resolve(config.robot))
+        io.check_configuration(config, _robot_of(config.robot, path))
     except ConfigurationError as exc:
         raise exc.at(str(path)) from None
     return config
+
+
+def _robot_of(name: str, path: str | os.PathLike[str]) -> Robot:
+    """:func:`resolve`, with an unknown or refused robot named as the file's field."""
+    try:
+        return resolve(name)
+    except (UnknownRobotError, PluginError) as exc:
+        raise ConfigurationError(str(exc), source=str(path), field="robot") from None
+
+
+def load_library(path: str | os.PathLike[str]) -> Library:
+    """Read a library file and validate it whole against the installed robot it names
+    (:func:`msrr.core.library.storage.library_from_model`).
+
+    Raises:
+        LibraryError: naming the file and the field.
+    """
+    name = _peek_robot(path)
+    try:
+        return library_storage.load_library(path, _robot_of(name, path) if name else None)
+    except ConfigurationError as exc:
+        if isinstance(exc, LibraryError):
+            raise
+        raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
+
+
+def load_plan(path: str | os.PathLike[str]) -> Plan:
+    """Read a plan file and validate it against the installed robot it names
+    (:func:`msrr.core.plan.check_plan`).
+
+    Raises:
+        ConfigurationError: naming the file and the field.
+    """
+    name = _peek_robot(path)
+    return plan_module.load_plan(path, _robot_of(name, path) if name else None)
+
+
+def _peek_robot(path: str | os.PathLike[str]) -> str | None:
+    """The ``robot`` a file names, if it is a JSON object with a string there (the
+    reader reports every other problem)."""
+    data = read_json(path)
+    name = data.get("robot") if isinstance(data, dict) else None
+    return name if isinstance(name, str) and name else None
 
 
 # -- capabilities ---------------------------------------------------------------------
@@ -262,12 +410,16 @@ class Capability(Generic[T]):
         planners, drivers, recognizers and controllers then the generic runtime's items
         (:mod:`msrr.core.generic`) under names the robot's own do not take.
 
+        A plugin that registers an item without a name, of the wrong type or under a
+        name already taken, or whose hook raises, is disabled (:func:`problems`) and
+        its items are left out; the other plugins' items are still returned.
+
         Raises:
             UnknownRobotError: no plugin describes ``robot_name``.
-            PluginError: an item without a name, of the wrong type, or a duplicate name.
         """
         robot(robot_name)
         found: dict[str, T] = {}
+        pending: list[T] = []
 
         def add(item: T, /) -> None:
             name = getattr(item, "name", None)
@@ -277,12 +429,26 @@ class Capability(Generic[T]):
                 need = "a subclass of " if self.subclass else ""
                 raise PluginError(f"{self.hook_name}: {self.what} {name!r} is not "
                                   f"{need}{self.accepts.__name__}")
-            if name in found:
+            if any(getattr(p, "name", None) == name for p in pending):
                 raise PluginError(f"{self.hook_name}: two {self.what}s named {name!r} "
                                   f"for robot {robot_name!r}")
-            found[name] = item
+            pending.append(item)
 
-        getattr(get_plugin_manager().hook, self.hook_name)(robot=robot_name, register=add)
+        # a plugin whose call raises (a bad item included) is disabled, its items dropped;
+        # of two plugins registering one name, the later registered (called first) is
+        owners: dict[str, pluggy.HookImpl] = {}
+        for impl, _answer in _call_each(self.hook_name, pending.clear, robot=robot_name,
+                                        register=add):
+            for item in pending:
+                name = item.name  # type: ignore[attr-defined]
+                if name in owners:
+                    intruder = owners[name]
+                    _disable(intruder, self.hook_name, f"registered a {self.what} named "
+                             f"{name!r} that plugin {impl.plugin_name!r} also registers")
+                    for taken in [n for n, o in owners.items() if o is intruder]:
+                        del owners[taken], found[taken]
+                found[name] = item
+                owners[name] = impl
         if self.hook_name in generic.HOOKS:  # the generic runtime, after the robot's own
             for item in generic.capabilities(self.hook_name, resolve(robot_name)):
                 found.setdefault(item.name, item)  # type: ignore[attr-defined]
@@ -337,6 +503,9 @@ class _Events:
 
     def topology_change(self, run: Run, change: TopologyEvent) -> None:
         get_plugin_manager().hook.msrr_on_topology_change(run=run, change=change)
+
+    def fault(self, run: Run, fault: FaultEvent) -> None:
+        get_plugin_manager().hook.msrr_on_fault(run=run, fault=fault)
 
     def run_end(self, run: Run, result: RunResult) -> None:
         get_plugin_manager().hook.msrr_on_run_end(run=run, result=result)

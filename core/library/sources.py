@@ -29,7 +29,7 @@ from pydantic import Field
 
 from ..configuration import Configuration
 from ..errors import ConfigurationError, MsrrError
-from ..files import StrictModel, parse_model, read_json
+from ..files import Flag, Number, SchemaVersion, StrictModel, parse_model, read_json
 from ..io import ConfigurationFile, check_configuration, configuration_from_model
 from ..robot import Robot
 from .model import CommandGain, LibraryError
@@ -70,7 +70,7 @@ class SequenceSourceModel(StrictModel):
     name: str = Field(min_length=1)
     description: str = ""
     behavior: str | None = Field(None, description="Label the sequence as this behavior.")
-    loop: bool = Field(False, description="The last step returns to the first and repeats.")
+    loop: Flag = Field(False, description="The last step returns to the first and repeats.")
     steps: list[StepModel] = Field(min_length=1)
 
 
@@ -78,7 +78,7 @@ class CommandSourceModel(StrictModel):
     module: str = Field(min_length=1)
     command: str = Field(min_length=1)
     connector: Literal["source", "target"] | None = None
-    gains: dict[str, float]
+    gains: dict[str, Number]
 
 
 class MappingBehaviorModel(StrictModel):
@@ -92,7 +92,7 @@ class MappingBehaviorModel(StrictModel):
 class LibrarySourceFile(StrictModel):
     """A library source file (FreeSN paper, section 6.2)."""
 
-    schema_version: Literal[1]
+    schema_version: SchemaVersion
     robot: str = Field(min_length=1)
     library: str | None = Field(None, description="Name of the library these sources build.")
     description: str = ""

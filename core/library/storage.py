@@ -13,15 +13,27 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Callable
 from typing import Annotated, Literal
 
 from pydantic import Field, field_validator
 
+from ..configuration import Configuration
 from ..errors import ConfigurationError
-from ..files import StrictModel, atomic_write_text, parse_model, read_json
+from ..files import (
+    Flag,
+    Number,
+    SchemaVersion,
+    StrictModel,
+    atomic_write_text,
+    parse_model,
+    read_json,
+)
 from ..io import ConfigurationFile, configuration_from_model, configuration_to_model
+from ..kinematics.tree import KinematicTree
 from ..mapping import ModuleMap
 from ..plan import ActionType
+from ..robot import Robot
 from .model import (
     ActionEdge,
     Behavior,
@@ -47,7 +59,7 @@ __all__ = [
 
 LIBRARY_SCHEMA_VERSION = 1
 
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Vec3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
 
 
 class TreeModel(StrictModel):
@@ -86,7 +98,7 @@ class BehaviorModel(StrictModel):
     description: str = ""
     start: str = Field(min_length=1)
     steps: list[str] = []
-    loop: bool = False
+    loop: Flag = False
     parameters: list[str] = []
     commands: list[CommandSourceModel] = []
 
@@ -98,7 +110,7 @@ class TreeRefModel(StrictModel):
 
 class MappingModel(StrictModel):
     nodes: dict[str, str] = {}
-    edges: dict[str, tuple[str, bool]] = {}
+    edges: dict[str, tuple[str, Flag]] = {}
 
 
 class EdgeModel(StrictModel):
@@ -106,9 +118,9 @@ class EdgeModel(StrictModel):
     target: str
     action: ActionType
     tree: TreeRefModel
-    cost: float = Field(ge=0.0)
+    cost: Number = Field(ge=0.0)
     mapping: MappingModel | None = None
-    feasible: bool | None = None
+    feasible: Flag | None = None
 
 
 class SubLibraryModel(StrictModel):
@@ -122,7 +134,7 @@ class SubLibraryModel(StrictModel):
 class LibraryFile(StrictModel):
     """A behavior library file (FreeSN paper, section 6.1)."""
 
-    schema_version: Literal[1] = Field(description="File format version.")
+    schema_version: SchemaVersion = Field(description="File format version.")
     robot: str = Field(min_length=1)
     name: str = Field(min_length=1)
     description: str = ""
@@ -133,7 +145,8 @@ class LibraryFile(StrictModel):
 # -- model -> library -----------------------------------------------------------------
 
 
-def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | None) -> SubLibrary:
+def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | None,
+                           library_robot: str, robot: Robot | None) -> SubLibrary:
     def fail(field: str, message: str) -> LibraryError:
         return LibraryError(message, source=source, field=f"{where}.{field}")
 
@@ -146,23 +159,40 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
         except ConfigurationError as exc:
             raise fail(f"groups[{i}].reference.{exc.field or ''}".rstrip("."),
                        exc.message) from None
+        if reference.robot != library_robot:
+            raise fail(f"groups[{i}].reference.robot", f"is {reference.robot!r}, the library "
+                       f"is for {library_robot!r}")
         names = [t.name for t in gm.trees]
         if len(set(names)) != len(names):
             raise fail(f"groups[{i}].trees", "duplicate tree names")
+        if robot is not None:
+            _check_group(reference, gm, robot, model.name, lambda f, m, i=i: fail(
+                f"groups[{i}].{f}", m))
         sub.groups[gm.id] = Group(gm.id, gm.name, reference, {t.name: t.tree for t in gm.trees},
                                   gm.description)
+    taken: dict[str, str] = {}  # id or name -> the configuration id that has it
     for i, cm in enumerate(model.configurations):
         if cm.id in sub.configurations:
             raise fail(f"configurations[{i}].id", f"duplicate configuration id {cm.id!r}")
         if cm.group not in sub.groups:
             raise fail(f"configurations[{i}].group", f"unknown group {cm.group!r} (known: "
                        f"{', '.join(sub.groups)})")
+        for j, key in enumerate([cm.id, *cm.names]):
+            if taken.get(key, cm.id) != cm.id:
+                field = "id" if j == 0 else f"names[{j - 1}]"
+                raise fail(f"configurations[{i}].{field}", f"{key!r} already names "
+                           f"configuration {taken[key]!r}")
+            taken[key] = cm.id
         reference = sub.groups[cm.group].reference
         if set(cm.z) != set(reference.edge_ids()):
             raise fail(f"configurations[{i}].z", "needs exactly the edges of group "
                        f"{cm.group} ({', '.join(reference.edge_ids())})")
         config = reference.with_vectors(z=cm.z, x={})
         config.name = cm.names[0] if cm.names else cm.id
+        if robot is not None:
+            found = robot.violations(config)
+            if found:
+                raise fail(f"configurations[{i}]", f"{found[0].where}: {found[0].message}")
         sub.configurations[cm.id] = LibraryConfiguration(cm.id, cm.group, config,
                                                          tuple(cm.names), tuple(cm.origins))
     for i, em in enumerate(model.edges):
@@ -173,6 +203,10 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
         if group is None or em.tree.name not in group.trees:
             raise fail(f"edges[{i}].tree", f"unknown kinematic tree {em.tree.group}/"
                        f"{em.tree.name}")
+        ends = {sub.configurations[em.source].group, sub.configurations[em.target].group}
+        if em.tree.group not in ends:
+            raise fail(f"edges[{i}].tree.group", f"tree of group {em.tree.group!r}, the edge "
+                       f"joins {' and '.join(sorted(ends))}")
         mapping = None
         if em.mapping is not None:
             mapping = ModuleMap(dict(em.mapping.nodes), dict(em.mapping.edges))
@@ -184,6 +218,10 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
             if bad:
                 raise fail(f"edges[{i}].mapping", f"maps ids that are not in its configurations: "
                            f"{', '.join(sorted(bad))}")
+            for kind, images in (("edge", [e for e, _ in mapping.edges.values()]),
+                                 ("node", list(mapping.nodes.values()))):
+                if len(set(images)) != len(images):
+                    raise fail(f"edges[{i}].mapping", f"maps two {kind}s to one")
         elif sub.configurations[em.source].group != sub.configurations[em.target].group:
             raise fail(f"edges[{i}].mapping", "an edge across groups needs a module mapping")
         sub.edges.append(ActionEdge(em.source, em.target, em.action,
@@ -196,6 +234,16 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
             if step not in sub.configurations:
                 field = "start" if j == 0 else f"steps[{j - 1}]"
                 raise fail(f"behaviors[{i}].{field}", f"unknown configuration {step!r}")
+        start = sub.configurations[bm.start].configuration
+        for j, c in enumerate(bm.commands):
+            where_c = f"behaviors[{i}].commands[{j}]"
+            if c.module not in start and c.module not in start.edge_ids():
+                raise fail(f"{where_c}.module", f"no module {c.module!r} in the start "
+                           f"configuration {bm.start!r}")
+            unknown = sorted(set(c.gains) - set(bm.parameters))
+            if unknown:
+                raise fail(f"{where_c}.gains", f"unknown parameter {unknown[0]!r} (parameters: "
+                           f"{', '.join(bm.parameters) or 'none'})")
         commands = tuple(CommandGain(c.module, c.command, tuple(sorted(c.gains.items())),
                                      c.connector) for c in bm.commands)
         sub.behaviors[bm.name] = Behavior(bm.name, bm.kind, bm.start, tuple(bm.steps), bm.loop,
@@ -203,15 +251,46 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
     return sub
 
 
-def library_from_model(model: LibraryFile, source: str | None = None) -> Library:
-    """A :class:`Library` from its file model; broken cross-references name their field."""
+def _check_group(reference: Configuration, gm: GroupModel, robot: Robot, sub_name: str,
+                 fail: Callable[[str, str], LibraryError]) -> None:
+    """A group's reference follows the robot's rules, names its sub-library, and every
+    tree loads on it with the robot's joint modes."""
+    found = robot.violations(reference)
+    if found:
+        raise fail("reference", f"{found[0].where}: {found[0].message}")
+    label = reference.signature().label(robot.spec)
+    if label != sub_name:
+        raise fail("reference", f"has modules {label}, not those of sub-library {sub_name}")
+    for k, tm in enumerate(gm.trees):
+        try:
+            KinematicTree.from_dict(tm.tree, reference, modes=robot.joint_modes)
+        except ConfigurationError as exc:
+            inner = f".{exc.field}" if exc.field else ""
+            raise fail(f"trees[{k}].tree{inner}", exc.message) from None
+
+
+def library_from_model(model: LibraryFile, source: str | None = None,
+                       robot: Robot | None = None) -> Library:
+    """A :class:`Library` from its file model; errors name ``source`` and the field.
+
+    Always checked: every cross-reference (groups, trees, configurations, edges,
+    behaviors, mapped ids, command modules and parameters), one robot throughout, and
+    that no id or name is used by two configurations. With ``robot`` also: it is the
+    library's robot, every reference and configuration follows its rules, every
+    sub-library holds the module counts it is named after, and every kinematic tree
+    loads on its group's reference with the robot's joint modes.
+    """
+    if robot is not None and robot.name != model.robot:
+        raise LibraryError(f"is a library for robot {model.robot!r}, not {robot.name!r}",
+                           source=source, field="robot")
     library = Library(model.robot, model.name, build=dict(model.build),
                       description=model.description)
     for i, sm in enumerate(model.sublibraries):
         if sm.name in library.sublibraries:
             raise LibraryError(f"duplicate sub-library {sm.name!r}", source=source,
                                field=f"sublibraries[{i}].name")
-        library.sublibraries[sm.name] = _sublibrary_from_model(sm, f"sublibraries[{i}]", source)
+        library.sublibraries[sm.name] = _sublibrary_from_model(
+            sm, f"sublibraries[{i}]", source, model.robot, robot)
     return library
 
 
@@ -268,12 +347,14 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, dump_library(library))
 
 
-def load_library(path: str | os.PathLike[str]) -> Library:
-    """Read and validate a library file.
+def load_library(path: str | os.PathLike[str], robot: Robot | None = None) -> Library:
+    """Read and validate a library file (:func:`library_from_model`; ``robot`` adds the
+    checks against the robot; :func:`msrr.core.plugins.load_library` passes the
+    installed robot the file names).
 
     Raises:
-        LibraryError: missing file, bad or truncated JSON, a wrong field or a broken
-            cross-reference; the message names the file and the field.
+        LibraryError: missing file, bad or truncated JSON, a wrong field, a broken
+            cross-reference or rule; the message names the file and the field.
     """
     source = str(path)
     try:
@@ -282,5 +363,5 @@ def load_library(path: str | os.PathLike[str]) -> Library:
         raise
     except ConfigurationError as exc:
         raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
-    return library_from_model(model, source)
+    return library_from_model(model, source, robot)
 
