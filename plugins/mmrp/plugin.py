@@ -49,7 +49,7 @@ def msrr_scenarios(robot: str, register):
                           description="series to T, 4 modules (paper Figs. 17-18)",
                           start=CONFIGS / "series.json", goal=CONFIGS / "t.json"))
         register(Scenario(name="random-30",
-                          description="random 30-module tree to another (issue 17, ~12 min "
+                          description="random 30-module tree to another (issue 17, ~17 min "
                                       "simulated)",
                           start=CONFIGS / "random30-start.json",
                           goal=CONFIGS / "random30-goal.json"))
