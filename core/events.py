@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
 
@@ -18,7 +18,8 @@ from .driver import ModuleCommand, Observation
 from .plan import Action, ConnectionChange, Plan
 from .robot import RobotSpec
 
-__all__ = ["ActionStatus", "Phase", "Run", "RunResult", "Tick", "TopologyEvent"]
+__all__ = ["ActionStatus", "FaultEvent", "Phase", "Run", "RunResult", "ShapeErrors", "Tick",
+           "TopologyEvent"]
 
 
 class ActionStatus(StrEnum):
@@ -134,12 +135,67 @@ class TopologyEvent:
         return f"{self.kind} {self.change}"
 
 
+@dataclass(frozen=True)
+class FaultEvent:
+    """A fault that happened during a run: injected (``--faults``) or caught by the guard.
+
+    Attributes:
+        kind: ``dropout``, ``loss``, ``latency``, ``dock-fail``, ``noise``, ``nan`` or
+            ``deadline`` (see :mod:`msrr.core.faults`).
+        text: one line on what happened ("module 3 stopped responding").
+        time: driver time [s].
+        recovered: whether the run carries on normally (``False``: it may stop).
+    """
+
+    kind: str
+    text: str
+    time: float
+    recovered: bool = True
+
+    def __str__(self) -> str:
+        return f"{self.kind}: {self.text} at t={self.time:.1f} s"
+
+
+@dataclass(frozen=True)
+class ShapeErrors:
+    """How far the final module poses are from the goal layout, after the planar rigid
+    alignment that fits them best (:func:`msrr.core.shape.shape_errors`).
+
+    Attributes:
+        max_position: largest module position error [m].
+        rms_position: RMS of the module position errors [m].
+        max_heading: largest module heading error [rad].
+        tolerance_position: the robot's tolerance [m] (``shape_tolerance``).
+        tolerance_heading: the robot's tolerance [rad].
+    """
+
+    max_position: float
+    rms_position: float
+    max_heading: float
+    tolerance_position: float
+    tolerance_heading: float
+
+    @property
+    def within(self) -> bool:
+        """Every module within both tolerances."""
+        return (self.max_position <= self.tolerance_position
+                and self.max_heading <= self.tolerance_heading)
+
+    def summary(self) -> dict[str, float]:
+        return {"max_position_error_m": round(self.max_position, 4),
+                "rms_position_error_m": round(self.rms_position, 4),
+                "max_heading_error_rad": round(self.max_heading, 4),
+                "position_tolerance_m": self.tolerance_position,
+                "heading_tolerance_rad": self.tolerance_heading}
+
+
 @dataclass
 class RunResult:
     """The summary of a run.
 
     Attributes:
-        success: every action finished and the final topology is the goal's.
+        success: every action finished, the final topology is the goal's and, where the
+            robot declares a ``shape_tolerance``, every module is within it (``shape``).
         reason: one line on failure ("action 4 (connection 4T-5B) timed out ...").
         failed_action: index of the failing action, if one failed.
         actions_done: actions that succeeded.
@@ -155,6 +211,10 @@ class RunResult:
             the goal after yaw alignment (eq. 8).
         truth_shape_error: the same from the driver's ground truth (simulators), or ``None``.
         truth_topology: whether the ground truth's topology is the goal's, or ``None``.
+        shape: final pose errors against the goal layout, or ``None`` when the robot
+            declares no ``shape_tolerance`` or the driver cannot lay out the goal.
+        faults: the faults met, in order.
+        interrupted: the signal that stopped the run (``"SIGINT"``), or ``""``.
     """
 
     success: bool
@@ -172,6 +232,9 @@ class RunResult:
     shape_error: float | None = None
     truth_shape_error: float | None = None
     truth_topology: bool | None = None
+    shape: ShapeErrors | None = None
+    faults: list[FaultEvent] = field(default_factory=list)
+    interrupted: str = ""
 
     def summary(self) -> dict[str, object]:
         """JSON-ready numbers (for ``summary.json``)."""
@@ -182,7 +245,11 @@ class RunResult:
                 "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3),
                 "shape_error_deg": _degrees(self.shape_error),
                 "truth_shape_error_deg": _degrees(self.truth_shape_error),
-                "truth_topology": self.truth_topology}
+                "truth_topology": self.truth_topology,
+                "shape": None if self.shape is None else self.shape.summary(),
+                "faults": [{"kind": f.kind, "text": f.text, "time_s": round(f.time, 3),
+                            "recovered": f.recovered} for f in self.faults],
+                "interrupted": self.interrupted or None}
 
 
 def _degrees(angle: float | None) -> float | None:

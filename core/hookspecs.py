@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 import pluggy
 
 from .capabilities import Controller, DriverFactory, Planner, Recognizer
-from .events import ActionStatus, Run, RunResult, Tick, TopologyEvent
+from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
 from .plan import Action
 from .robot import DockingRules, RobotSpec
 from .scenario import Scenario
@@ -226,6 +226,17 @@ def msrr_on_topology_change(run: Run, change: TopologyEvent) -> None:
     :param run: the run.
     :param change: the :class:`~msrr.core.events.TopologyEvent` (``"dock"`` or
         ``"undock"``, the connection with its ports, tick, simulated time).
+    """
+
+
+@hookspec
+def msrr_on_fault(run: Run, fault: FaultEvent) -> None:
+    """A fault happened: injected by ``platform run --faults`` or caught by the guard
+    around every driver (a NaN reading held, the run's deadline reached).
+
+    :param run: the run.
+    :param fault: the :class:`~msrr.core.events.FaultEvent` (kind, one line, simulated
+        time, whether the run carries on).
     """
 
 

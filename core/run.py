@@ -1,35 +1,60 @@
 """Orchestration of ``platform run``: scenario -> plan -> execute -> files.
 
-:func:`prepare_run` loads and checks the two configurations, resolves the robot's
-driver, controller, recognizer and planner once (a :class:`PreparedRun`) and plans;
+:func:`prepare_run` checks the request and the output folder, loads and checks the two
+configurations, resolves the robot's driver, controller, recognizer and planner once
+(a :class:`PreparedRun`), plans, and only then claims the output folder;
 :func:`execute_run` runs that on a fresh driver; :func:`write_outputs` writes the
-files. Planning happens before anything is written, so an unreachable goal (different
-module counts, an illegal face pair) fails with a one-line error and leaves no
-folder and no half recording. A run writes into its folder:
+files. Every bad option or output place, an unreachable goal (different module counts,
+an illegal face pair) fails with a one-line error before anything is written. A run
+writes into its folder:
 
 * ``run.rrd`` -- the rerun recording (via the timeline plugin), unless ``log=False``;
 * ``plan.json`` -- the executed plan (:func:`msrr.core.plan.save_plan`);
 * ``summary.json`` -- the :class:`~msrr.core.events.RunResult` numbers.
+
+All three are written also when the run fails, meets a fault or is interrupted
+(:class:`~msrr.core.interrupts.Interrupted`): the driver is told to stop every module,
+then disconnected, and ``summary.json`` says ``success: false`` with the reason.
+Every driver goes through :class:`~msrr.core.faults.GuardedDriver` (NaN readings held,
+the overall deadline of driver time) and, with ``faults``, a
+:class:`~msrr.core.faults.FaultyDriver`.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
 from . import plugins
 from .capabilities import Controller, DriverFactory, Recognizer
+from .driver import Driver, Pose
 from .errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
-from .events import Run, RunResult
+from .events import ActionStatus, FaultEvent, Run, RunResult
 from .executor import Executor, ExecutorOptions
+from .faults import Fault, FaultyDriver, GuardedDriver, parse_faults
 from .files import atomic_write_text
-from .plan import Plan, save_plan
+from .hookspecs import hookimpl
+from .interrupts import Interrupted, shielded
+from .plan import Action, Plan, save_plan
 from .scenario import Scenario
+from .shape import shape_errors, shape_tolerance
 
-__all__ = ["PreparedRun", "RunRequest", "default_out_dir", "execute_run", "parse_driver_options", "prepare_run",
-           "resolve_scenario", "write_outputs"]
+__all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
+           "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
+           "prepare_run", "resolve_scenario", "write_outputs"]
+
+RUN_FILES = ("run.rrd", "plan.json", "summary.json")
+"""The files a finished run leaves in its folder."""
+
+MAX_RATE = 1000.0
+"""Highest control rate ``platform run`` accepts [Hz]."""
 
 
 @dataclass(frozen=True)
@@ -50,6 +75,10 @@ class RunRequest:
         driver: driver name (default: the robot's first).
         planner: planner name (default: the robot's first).
         driver_options: extra keyword options of the driver factory (``noise``, ``slip``).
+        force: replace a run already in ``out``.
+        faults: fault SPEC (:func:`msrr.core.faults.parse_faults`), or ``""``.
+        deadline: overall driver time the run may take [s]; ``None``:
+            :func:`default_deadline`.
     """
 
     robot: str
@@ -65,6 +94,32 @@ class RunRequest:
     driver: str | None = None
     planner: str | None = None
     driver_options: tuple[tuple[str, float | int | bool | str], ...] = ()
+    force: bool = False
+    faults: str = ""
+    deadline: float | None = None
+
+    def check(self) -> None:
+        """Refuse non-finite or out-of-range numbers (one line naming the option)."""
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ConfigurationError(f"must be a whole number >= 0, got {self.seed!r}",
+                                     field="--seed")
+        for name, value, high in (("--rate", self.rate, MAX_RATE),
+                                  ("--timeout", self.action_timeout, None),
+                                  ("--deadline", self.deadline, None)):
+            if value is None:
+                continue
+            if isinstance(value, bool) or not math.isfinite(value) or value <= 0:
+                raise ConfigurationError(f"must be a finite number > 0, got {value!r}",
+                                         field=name)
+            if high is not None and value > high:
+                raise ConfigurationError(f"must be at most {high:g}, got {value:g}", field=name)
+
+
+def default_deadline(plan: Plan, action_timeout: float) -> float:
+    """The overall driver time [s] a run of ``plan`` may take by default: one
+    ``action_timeout`` per action plus one, so a run whose every action runs to its
+    timeout still ends, and no run can go on forever."""
+    return (len(plan.actions) + 1) * action_timeout
 
 
 def resolve_scenario(robot: str, name: str | None) -> Scenario:
@@ -110,8 +165,106 @@ def parse_driver_options(items: tuple[str, ...] | list[str]
 
 
 def default_out_dir(robot: str, scenario: str, root: Path = Path("runs")) -> Path:
-    """``runs/<YYYYmmdd-HHMMSS>-<robot>-<scenario>``."""
+    """``runs/<YYYYmmdd-HHMMSS>-<robot>-<scenario>`` (:func:`claim_out_dir` adds ``-2``,
+    ``-3``, ... when another run took it first)."""
     return root / f"{datetime.now():%Y%m%d-%H%M%S}-{robot}-{scenario}"
+
+
+def leftovers(folder: Path) -> list[str]:
+    """Files an interrupted or killed run left in ``folder``: a recording still named
+    ``*.part``, temporary files of an atomic write (``.<name>.*.tmp``)."""
+    try:
+        names = sorted(p.name for p in folder.iterdir())
+    except OSError:
+        return []
+    return [n for n in names if n.endswith(".part")
+            or (n.startswith(".") and n.endswith(".tmp"))]
+
+
+def _found(folder: Path) -> tuple[list[str], list[str]]:
+    return [n for n in RUN_FILES if (folder / n).exists()], leftovers(folder)
+
+
+def check_out_dir(out: Path | None, *, force: bool = False) -> list[str]:
+    """Refuse a bad output folder before any work; say what an earlier run left in it.
+
+    Refused: an empty path, an existing file, a path under a file, a place where no
+    folder can be created, and (unless ``force``) a folder that holds a run's files or
+    an interrupted run's leftovers.
+
+    Returns:
+        one line per thing found that ``force`` will replace (empty for a new folder).
+
+    Raises:
+        ConfigurationError: naming ``--out`` and the path.
+    """
+    if out is None:
+        return []
+    source = str(out)
+    if not source.strip():
+        raise ConfigurationError("is empty; give a folder", field="--out")
+    try:
+        if out.exists() and not out.is_dir():
+            raise ConfigurationError("is a file, expected a folder", field="--out", source=source)
+        ancestor = out.absolute()
+        while not ancestor.exists() and ancestor != ancestor.parent:
+            ancestor = ancestor.parent
+        if not ancestor.is_dir():
+            raise ConfigurationError(f"is under {ancestor}, which is a file", field="--out",
+                                     source=source)
+        probe = tempfile.mkdtemp(prefix=".msrr-probe-", dir=ancestor)
+        os.rmdir(probe)
+    except OSError as exc:
+        raise ConfigurationError(f"cannot create the folder: {exc.strerror or exc}",
+                                 field="--out", source=source) from None
+    if not out.is_dir():
+        return []
+    finished, left = _found(out)
+    if not finished and not left:
+        return []
+    what = []
+    if finished:
+        what.append(f"a run ({', '.join(finished)})")
+    if left:
+        what.append(f"an interrupted run's leftovers ({', '.join(left)})")
+    text = " and ".join(what)
+    if not force:
+        raise ConfigurationError(f"holds {text}; use --force to replace it", field="--out",
+                                 source=source)
+    return [f"{out} held {text}: replaced"]
+
+
+def claim_out_dir(out: Path, *, default: bool, force: bool = False) -> Path:
+    """Create the run's folder; returns the folder claimed.
+
+    A default folder (``default``) is created exclusively: when a run started in the
+    same second took the name, ``-2``, ``-3``, ... is appended. A given folder is
+    created if missing; with ``force`` the files of an earlier run and its leftovers
+    are removed first, so nothing in it can describe another run.
+
+    Raises:
+        ConfigurationError: the folder cannot be created.
+    """
+    try:
+        if default:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            for number in range(1, 10_000):
+                candidate = out if number == 1 else out.with_name(f"{out.name}-{number}")
+                try:
+                    candidate.mkdir()
+                    return candidate
+                except FileExistsError:
+                    continue
+            raise ConfigurationError("no free run folder name", source=str(out))
+        out.mkdir(parents=True, exist_ok=True)
+        if force:
+            finished, left = _found(out)
+            for name in finished + left:
+                (out / name).unlink(missing_ok=True)
+        return out
+    except OSError as exc:
+        raise ConfigurationError(f"cannot create the folder: {exc.strerror or exc}",
+                                 field="--out", source=str(out)) from None
 
 
 @dataclass(frozen=True)
@@ -126,6 +279,9 @@ class PreparedRun:
         options: rate and action timeout of the executor.
         gui: open the simulator's window.
         driver_options: extra keyword options of the driver factory.
+        faults: the faults to inject (empty: none).
+        deadline: overall driver time the run may take [s].
+        notes: what was found in the output folder and replaced (one line each).
     """
 
     run: Run
@@ -135,18 +291,26 @@ class PreparedRun:
     options: ExecutorOptions
     gui: bool = False
     driver_options: tuple[tuple[str, float | int | bool | str], ...] = ()
+    faults: tuple[Fault, ...] = ()
+    deadline: float = math.inf
+    notes: tuple[str, ...] = ()
 
 
 def prepare_run(request: RunRequest) -> PreparedRun:
-    """Load the configurations, resolve the capabilities and plan; nothing is written.
+    """Check the options and the output folder, load the configurations, resolve the
+    capabilities and plan; the output folder is created only once all that succeeded.
 
     Raises:
-        ConfigurationError: a file is missing or invalid.
+        ConfigurationError: a bad option or output place, a file missing or invalid.
         PlanningError: the goal cannot be reached.
         UnknownNameError: unknown scenario, planner or driver, or the robot has no
             recognizer or controller.
     """
+    request.check()
+    faults = parse_faults(request.faults) if request.faults.strip() else ()
+    notes = check_out_dir(request.out, force=request.force)
     spec = plugins.robot(request.robot)
+    shape_tolerance(spec)  # a malformed tolerance is refused before the run, not after
     if (request.start is None) != (request.goal is None):
         raise ConfigurationError("give both --from and --to, or neither")
     if request.start is not None and request.goal is not None:
@@ -171,50 +335,199 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     planner = plugins.planners.get(request.robot, request.planner)
     options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
     plan: Plan = planner.plan(start, goal, seed=request.seed)
-    out = request.out or default_out_dir(request.robot, name)
+    deadline = request.deadline or default_deadline(plan, request.action_timeout)
+    if request.out is None:
+        out = claim_out_dir(default_out_dir(request.robot, name), default=True)
+    else:
+        out = claim_out_dir(request.out, default=False, force=request.force)
     run = Run(robot=request.robot, scenario=name, plan=plan, spec=spec, driver=factory.name,
               rate=request.rate, seed=request.seed, out_dir=out,
               recording=out / "run.rrd" if request.log else None)
     return PreparedRun(run, factory, recognizer, controller, options, request.gui,
-                       request.driver_options)
+                       request.driver_options, faults, deadline, tuple(notes))
+
+
+class _Progress:
+    """Where a run is (for the line that says what an interruption or error stopped) and
+    the faults it met; a listener plugin for the duration of one run."""
+
+    def __init__(self, run: Run):
+        self.run = run
+        self.current: int | None = None
+        self.done = 0
+        self.faults: list[FaultEvent] = []
+
+    @hookimpl
+    def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
+        if run is not self.run:
+            return
+        index = next((i for i, a in enumerate(run.plan.actions) if a is action), None)
+        if status == ActionStatus.STARTED:
+            self.current = index
+        elif status == ActionStatus.SUCCEEDED:
+            self.done += 1
+            self.current = None
+
+    def fault(self, event: FaultEvent) -> None:
+        self.faults.append(event)
+        plugins.emit.fault(self.run, event)
+
+    def where(self) -> str:
+        """``"action 4/9: moving 4, 8"``, or what runs outside an action."""
+        actions = self.run.plan.actions
+        if self.current is not None:
+            return f"action {self.current + 1}/{len(actions)}: {actions[self.current]}"
+        if self.done == len(actions):
+            return "the final check"
+        return "start-up" if self.done == 0 else f"between actions {self.done}/{len(actions)}"
+
+
+def _stop(driver: Driver) -> None:
+    """Tell every module to stop (an empty command set); the driver disconnects next."""
+    if driver.is_connected:
+        driver.send_action({})
+
+
+@contextmanager
+def _driver_for(prepared: PreparedRun, progress: _Progress) -> Iterator[GuardedDriver]:
+    """The run's driver, wrapped: faults (if any) inside, the guard outside; stopped and
+    disconnected on the way out whatever happens."""
+    run = prepared.run
+    inner: Driver = prepared.driver(gui=prepared.gui, seed=run.seed,
+                                    **dict(prepared.driver_options))
+    if prepared.faults:
+        inner = FaultyDriver(inner, prepared.faults, seed=run.seed, on_fault=progress.fault)
+    driver = GuardedDriver(inner, deadline=prepared.deadline, on_fault=progress.fault)
+    try:
+        driver.connect()
+        yield driver
+    finally:
+        with shielded(raise_deferred=False):
+            try:
+                _stop(driver)
+            finally:
+                driver.disconnect()
+
+
+def _goal_layout(prepared: PreparedRun) -> dict[str, Pose] | None:
+    """Where the robot's own driver places the goal (a fresh, fault-free driver)."""
+    run = prepared.run
+    with prepared.driver(gui=False, seed=run.seed, **dict(prepared.driver_options)) as driver:
+        driver.reset(run.plan.goal)
+        return dict(driver.get_observation().poses)
+
+
+def _judge_shape(prepared: PreparedRun, result: RunResult, final: dict[str, Pose]) -> None:
+    """Add the final shape errors to ``result``; a run outside the tolerance fails."""
+    tolerance = shape_tolerance(prepared.run.spec)
+    if tolerance is None or not final:
+        return
+    layout = _goal_layout(prepared)
+    if not layout or set(layout) != set(final):
+        return
+    result.shape = shape_errors(final, layout, tolerance)
+    if result.success and not result.shape.within:
+        result.success = False
+        shape = result.shape
+        result.reason = (f"final shape outside the tolerance: position error up to "
+                         f"{shape.max_position:.3f} m (tolerance {shape.tolerance_position:g}), "
+                         f"heading error up to {shape.max_heading:.3f} rad (tolerance "
+                         f"{shape.tolerance_heading:g})")
 
 
 def execute_run(prepared: PreparedRun) -> RunResult:
     """Execute ``prepared.run.plan`` on a fresh driver; fires every run event.
 
-    The run always ends with ``msrr_on_run_end`` (also when interrupted), so
-    listeners close their files.
+    Never raises for what happens during the run: a failed action, an error of the
+    driver or controller, a fault or the deadline all end in a :class:`RunResult` with
+    ``success=False`` and a one-line reason, after the modules were told to stop. An
+    :class:`~msrr.core.interrupts.Interrupted` (or ``KeyboardInterrupt``) is re-raised
+    after that clean-up, carrying the result as ``exc.result``. ``msrr_on_run_end``
+    is always fired, so listeners close their files.
     """
     run = prepared.run
-    with prepared.driver(gui=prepared.gui, seed=run.seed,
-                         **dict(prepared.driver_options)) as driver:
-        driver.reset(run.plan.start)
-        executor = Executor(run, driver, prepared.recognizer, prepared.controller,
-                            prepared.options)
-        plugins.emit.run_start(run)
-        result = RunResult(success=False, reason="interrupted",
-                           actions_total=len(run.plan.actions))
+    progress = _Progress(run)
+    result = RunResult(success=False, reason="did not start", actions_total=len(run.plan.actions))
+    started = False
+    with plugins.temporary(progress):
         try:
-            result = executor.execute()
+            with _driver_for(prepared, progress) as driver:
+                driver.reset(run.plan.start)
+                executor = Executor(run, driver, prepared.recognizer, prepared.controller,
+                                    prepared.options)
+                plugins.emit.run_start(run)
+                started = True
+                try:
+                    result = executor.execute()
+                finally:
+                    result.sim_time = driver.time
+                final = dict(driver.get_observation().poses) if result.success else {}
+            _judge_shape(prepared, result, final)
+        except (Interrupted, KeyboardInterrupt) as exc:
+            name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+            result = _failed(result, progress, f"interrupted during {progress.where()} ({name})")
+            result.interrupted = name
+            exc.result = result  # type: ignore[union-attr]
+            raise
         except MsrrError as exc:
-            result.reason = str(exc)
-            raise
-        except BaseException as exc:
-            result.reason = f"interrupted: {type(exc).__name__}"
-            raise
+            result = _failed(result, progress, f"stopped during {progress.where()}: {exc}")
+        except Exception as exc:  # a driver's or controller's bug must not lose the run
+            result = _failed(result, progress, f"stopped during {progress.where()}: "
+                             f"{type(exc).__name__}: {exc}")
         finally:
-            plugins.emit.run_end(run, result)
+            result.faults = list(progress.faults)
+            with shielded(raise_deferred=False):
+                if not started:  # stopped before the driver was ready: still a recording
+                    plugins.emit.run_start(run)
+                plugins.emit.run_end(run, result)
     return result
 
 
+def interrupted_result(prepared: PreparedRun, exc: BaseException) -> RunResult:
+    """The result of a run interrupted before :func:`execute_run` could say where; fires
+    ``msrr_on_run_start`` and ``msrr_on_run_end`` so listeners still write their files."""
+    name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+    run = prepared.run
+    result = RunResult(success=False, reason=f"interrupted during start-up ({name})",
+                       actions_total=len(run.plan.actions), interrupted=name)
+    with shielded(raise_deferred=False):
+        plugins.emit.run_start(run)
+        plugins.emit.run_end(run, result)
+    return result
+
+
+def _failed(result: RunResult, progress: _Progress, reason: str) -> RunResult:
+    """``result`` marked failed with ``reason``, counted from what ``progress`` saw."""
+    result.success = False
+    result.reason = " ".join(reason.split())
+    result.actions_done = max(result.actions_done, progress.done)
+    if progress.current is not None:
+        result.failed_action = progress.current
+    return result
+
+
+def _finite(value: object) -> object:
+    """``value`` with every non-finite float replaced by ``None`` (JSON has no NaN)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    return value
+
+
 def write_outputs(run: Run, result: RunResult) -> None:
-    """Write ``plan.json`` and ``summary.json`` into ``run.out_dir``."""
+    """Write ``plan.json`` and ``summary.json`` into ``run.out_dir`` (signals deferred,
+    so an interruption cannot leave one without the other)."""
     if run.out_dir is None:
         raise ExecutionError("run has no output folder")
-    save_plan(run.plan, run.out_dir / "plan.json")
     summary = {"robot": run.robot, "scenario": run.scenario, "planner": run.plan.planner,
                "driver": run.driver, "seed": run.seed, "rate_hz": run.rate,
                "planned_docks": run.plan.docks, "planned_undocks": run.plan.undocks,
                "recording": None if run.recording is None else run.recording.name,
                **result.summary()}
-    atomic_write_text(run.out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
+    text = json.dumps(_finite(summary), indent=2, allow_nan=False) + "\n"
+    with shielded():
+        save_plan(run.plan, run.out_dir / "plan.json")
+        atomic_write_text(run.out_dir / "summary.json", text)

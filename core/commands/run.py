@@ -10,10 +10,20 @@ from rich.table import Table
 
 from .. import plugins
 from ..console import console, err_console, table
-from ..events import ActionStatus, Run, RunResult, TopologyEvent
+from ..errors import ConfigurationError
+from ..events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
 from ..hookspecs import hookimpl
+from ..interrupts import Interrupted, install, shielded
 from ..plan import Action
-from ..run import RunRequest, execute_run, parse_driver_options, prepare_run, write_outputs
+from ..run import (
+    PreparedRun,
+    RunRequest,
+    execute_run,
+    interrupted_result,
+    parse_driver_options,
+    prepare_run,
+    write_outputs,
+)
 
 __all__ = ["command"]
 
@@ -27,13 +37,17 @@ class _ProgressListener:
 
     @hookimpl
     def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
-        self.progress.update(self.task, description=f"{action} [dim]{status}[/dim]")
+        self.progress.update(self.task, description=f"{action} ({status})")
         if status == ActionStatus.SUCCEEDED:
             self.progress.advance(self.task)
 
     @hookimpl
     def msrr_on_topology_change(self, run: Run, change: TopologyEvent) -> None:
-        self.progress.console.print(f"  {change} at t={change.time:.1f} s")
+        self.progress.console.print(f"  {change} at t={change.time:.1f} s", markup=False)
+
+    @hookimpl
+    def msrr_on_fault(self, run: Run, fault: FaultEvent) -> None:
+        self.progress.console.print(f"  fault {fault}", markup=False)
 
 
 def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Table:
@@ -44,8 +58,16 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
         ["retries", result.retries],
         ["simulated time", f"{result.sim_time:.1f} s"],
         ["wall time", f"{result.wall_time:.1f} s"],
-        ["success", "[green]yes[/green]" if result.success else "[red]no[/red]"],
     ]
+    if result.shape is not None:
+        shape = result.shape
+        rows += [["position error max/RMS", f"{shape.max_position:.3f} / {shape.rms_position:.3f}"
+                  f" m (tolerance {shape.tolerance_position:g})"],
+                 ["heading error max", f"{shape.max_heading:.3f} rad (tolerance "
+                  f"{shape.tolerance_heading:g})"]]
+    if result.faults:
+        rows.append(["faults", len(result.faults)])
+    rows.append(["success", "[green]yes[/green]" if result.success else "[red]no[/red]"])
     return table("Run summary", ["", "value"], rows)
 
 
@@ -60,47 +82,84 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
               help="Planner name; default the robot's first registered planner.")
 @click.option("--driver", "driver_name", default=None,
               help="Driver name; default the robot's first registered driver.")
-@click.option("--seed", default=0, show_default=True, help="Seed of planning and recognition.")
-@click.option("--out", type=click.Path(path_type=Path), default=None,
-              help="Output folder [default: runs/<timestamp>-<robot>-<scenario>].")
+@click.option("--seed", default=0, show_default=True,
+              help="Seed of planning, recognition and injected faults (>= 0).")
+@click.option("--out", default=None, metavar="DIR",
+              help="Output folder [default: runs/<timestamp>-<robot>-<scenario>, never shared].")
+@click.option("--force", is_flag=True, help="Replace a run already in --out.")
 @click.option("--no-log", is_flag=True, help="Do not write the rerun recording.")
 @click.option("--gui", is_flag=True, help="Open the simulator's window (needs a display).")
-@click.option("--rate", default=10.0, show_default=True, help="Control rate [Hz].")
+@click.option("--rate", default=10.0, show_default=True, help="Control rate [Hz], at most 1000.")
 @click.option("--timeout", "action_timeout", default=90.0, show_default=True,
-              help="Driver time one action phase may take before a retry [s].")
+              help="Driver time one action phase may take before a retry [s], finite.")
+@click.option("--deadline", default=None, type=float,
+              help="Driver time the whole run may take [s]; default (actions + 1) x --timeout.")
+@click.option("--faults", default="", metavar="SPEC",
+              help="Inject faults, e.g. 'dropout:module=3,at=5;loss:p=0.05;latency:ticks=2;"
+                   "dock-fail:count=1;noise:sigma=0.01;nan:at=3' (see docs/running.md).")
 @click.option("--driver-option", "driver_options", multiple=True, metavar="KEY=VALUE",
               help="Keyword option of the driver, repeatable (FreeSN mujoco: noise=0.035 "
                    "[rad], slip=0.05, drift=..., see docs/freesn.md).")
 def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None,
-            planner_name: str | None, driver_name: str | None, seed: int, out: Path | None,
-            no_log: bool, gui: bool, rate: float, action_timeout: float,
-            driver_options: tuple[str, ...]) -> None:
+            planner_name: str | None, driver_name: str | None, seed: int, out: str | None,
+            force: bool, no_log: bool, gui: bool, rate: float, action_timeout: float,
+            deadline: float | None, faults: str, driver_options: tuple[str, ...]) -> None:
     """Plan and execute a reconfiguration in simulation and record it.
 
-    Writes DIR/run.rrd, DIR/plan.json and DIR/summary.json. Exits 1 with the failing
-    action named if the plan cannot be finished.
+    Writes DIR/run.rrd, DIR/plan.json and DIR/summary.json, also when the run fails,
+    meets a fault or is interrupted. Exits 1 with the failing action named if the plan
+    cannot be finished, 130 on SIGINT (Ctrl-C) and 143 on SIGTERM.
     """
-    request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
-                         out=out, log=not no_log, gui=gui, rate=rate,
-                         action_timeout=action_timeout, driver=driver_name,
-                         planner=planner_name,
-                         driver_options=parse_driver_options(driver_options))
-    prepared = prepare_run(request)
+    install()
+    try:
+        if out is not None and not out.strip():
+            raise ConfigurationError("is empty; give a folder", field="--out")
+        request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
+                             out=None if out is None else Path(out), log=not no_log, gui=gui,
+                             rate=rate, action_timeout=action_timeout, driver=driver_name,
+                             planner=planner_name,
+                             driver_options=parse_driver_options(driver_options),
+                             force=force, faults=faults, deadline=deadline)
+        prepared = prepare_run(request)
+    except (Interrupted, KeyboardInterrupt) as exc:
+        code = exc.exit_code if isinstance(exc, Interrupted) else 130
+        name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+        err_console.print(f"Error: interrupted ({name}) during start-up, before the plan was "
+                          "made; nothing was run", markup=False)
+        raise SystemExit(code) from None
+    try:
+        result = _execute(prepared)
+    except (Interrupted, KeyboardInterrupt) as exc:
+        result = getattr(exc, "result", None) or interrupted_result(prepared, exc)
+        with shielded(raise_deferred=False):
+            write_outputs(prepared.run, result)
+            err_console.print(f"Error: {result.reason}; wrote {prepared.run.out_dir}",
+                              markup=False)
+        raise SystemExit(exc.exit_code if isinstance(exc, Interrupted) else 130) from None
+    run = prepared.run
+    write_outputs(run, result)
+    console.print(_summary(result, run.plan.docks, run.plan.undocks))
+    assert run.out_dir is not None
+    console.print(f"wrote {run.out_dir / 'plan.json'}, {run.out_dir / 'summary.json'}",
+                  markup=False)
+    if run.recording is not None:
+        console.print(f"open the recording with: rerun {run.recording}", markup=False)
+    if not result.success:
+        err_console.print(f"Error: {result.reason}", soft_wrap=True, markup=False)
+        raise SystemExit(1)
+
+
+def _execute(prepared: PreparedRun) -> RunResult:
     run, plan = prepared.run, prepared.run.plan
-    console.print(f"[bold]{robot}[/bold] {run.scenario}: {plan.start.name or 'start'} -> "
+    for note in prepared.notes:
+        err_console.print(f"note: {note}", markup=False)
+    console.print(f"{run.robot} {run.scenario}: {plan.start.name or 'start'} -> "
                   f"{plan.goal.name or 'goal'}, {len(plan.actions)} actions by {plan.planner} "
-                  f"({plan.undocks} undocks, {plan.docks} docks), driver {run.driver}")
-    progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                  f"({plan.undocks} undocks, {plan.docks} docks), driver {run.driver}"
+                  + (f", faults {'; '.join(map(str, prepared.faults))}" if prepared.faults else ""),
+                  markup=False)
+    progress = Progress(TextColumn("{task.description}", markup=False), BarColumn(),
                         TextColumn("{task.completed}/{task.total} actions"),
                         TimeElapsedColumn(), console=console, transient=True)
     with progress, plugins.temporary(_ProgressListener(progress, len(plan.actions))):
-        result = execute_run(prepared)
-    write_outputs(run, result)
-    console.print(_summary(result, plan.docks, plan.undocks))
-    assert run.out_dir is not None
-    console.print(f"wrote {run.out_dir / 'plan.json'}, {run.out_dir / 'summary.json'}")
-    if run.recording is not None:
-        console.print(f"open the recording with: [bold]rerun {run.recording}[/bold]")
-    if not result.success:
-        err_console.print(f"Error: {result.reason}", soft_wrap=True)
-        raise SystemExit(1)
+        return execute_run(prepared)

@@ -9,15 +9,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..events import ActionStatus, Run, RunResult, Tick, TopologyEvent
+from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
 from ..hookspecs import hookimpl
 from ..plan import Action
 
 if TYPE_CHECKING:
     from .recorder import TimelineRecorder
 
-__all__ = ["abort", "msrr_on_action", "msrr_on_run_end", "msrr_on_run_start", "msrr_on_tick",
-           "msrr_on_topology_change"]
+__all__ = ["abort", "msrr_on_action", "msrr_on_fault", "msrr_on_run_end", "msrr_on_run_start",
+           "msrr_on_tick", "msrr_on_topology_change"]
 
 _recorders: dict[int, TimelineRecorder] = {}
 
@@ -50,6 +50,12 @@ def msrr_on_action(run: Run, action: Action, status: ActionStatus) -> None:
 def msrr_on_topology_change(run: Run, change: TopologyEvent) -> None:
     if (recorder := _recorder(run)) is not None:
         recorder.topology_change(change)
+
+
+@hookimpl
+def msrr_on_fault(run: Run, fault: FaultEvent) -> None:
+    if (recorder := _recorder(run)) is not None:
+        recorder.fault(fault)
 
 
 @hookimpl

@@ -10,7 +10,9 @@ Entity paths (stable, documented in ``docs/running.md``):
 * ``topology/current``, ``topology/target`` -- graph views (nodes and edges);
 * ``action`` -- the running action as text; ``plan``, ``mapping`` -- static text;
 * ``commands/<id>/<wheel or joint>``, ``errors/<id>`` -- scalars per module;
-* ``events/docks``, ``events/undocks``, ``events/actions`` -- text logs.
+* ``events/docks``, ``events/undocks``, ``events/actions``, ``events/faults`` -- text logs
+  (faults: injected by ``--faults`` or caught by the driver guard, WARN when the run
+  carries on, ERROR when it stops).
 
 Timelines: ``tick`` (sequence) and ``sim_time`` (duration of driver time). The file
 is written as ``<name>.part`` and renamed when the run ends, so no half recording
@@ -27,7 +29,7 @@ import rerun as rr
 
 from ..actions import connection_key
 from ..configuration import Configuration
-from ..events import ActionStatus, Run, RunResult, Tick, TopologyEvent
+from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
 from ..plan import Action
 from ..robot import DEFAULT_HALF_SIZE, body_half_size
 from .blueprint import build_blueprint
@@ -178,6 +180,11 @@ class TimelineRecorder:
         path = "events/docks" if event.kind == "dock" else "events/undocks"
         level = "INFO" if event.expected else "WARN"
         self.rec.log(path, rr.TextLog(f"{event} at t={event.time:.1f} s", level=level))
+
+    def fault(self, event: FaultEvent) -> None:
+        self.rec.set_time("sim_time", duration=event.time)
+        self.rec.log("events/faults", rr.TextLog(str(event),
+                                                 level="WARN" if event.recovered else "ERROR"))
 
     def finish(self, result: RunResult) -> Path:
         """Log the summary, close the file and move it to its final name."""

@@ -1,0 +1,83 @@
+"""SIGINT and SIGTERM as one exception, and a shield for clean-up that must finish.
+
+:func:`install` makes both signals raise :class:`Interrupted` in the main thread (the
+``platform`` entry point installs it first thing). :class:`Interrupted` is not a
+:class:`KeyboardInterrupt`, so click does not turn it into a bare ``Aborted!``; the
+code that catches it says what was interrupted and exits with :attr:`exit_code`
+(130 for SIGINT, 143 for SIGTERM, the shell's ``128 + signal``).
+
+``with shielded():`` defers both signals while a block runs (stopping the modules,
+writing the run's files), then raises the first one that arrived.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
+
+__all__ = ["SIGNALS", "Interrupted", "install", "shielded"]
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(BaseException):  # noqa: N818 -- it is an interruption, not an error
+    """A signal asked the process to stop.
+
+    Attributes:
+        signum: the signal's number.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+    @property
+    def name(self) -> str:
+        """``"SIGINT"`` or ``"SIGTERM"``."""
+        return signal.Signals(self.signum).name
+
+    @property
+    def exit_code(self) -> int:
+        """``128 + signum``: 130 for SIGINT, 143 for SIGTERM."""
+        return 128 + self.signum
+
+
+_pending: list[int] = []
+_depth = 0
+
+
+def _handler(signum: int, frame: FrameType | None) -> None:
+    if _depth:
+        _pending.append(signum)
+        return
+    raise Interrupted(signum)
+
+
+def install() -> bool:
+    """Make SIGINT and SIGTERM raise :class:`Interrupted`; ``False`` outside the main
+    thread (where Python cannot install signal handlers), with nothing changed."""
+    if threading.current_thread() is not threading.main_thread():
+        return False
+    for signum in SIGNALS:
+        signal.signal(signum, _handler)
+    return True
+
+
+@contextmanager
+def shielded(*, raise_deferred: bool = True) -> Iterator[None]:
+    """Defer SIGINT and SIGTERM during the block; after it raise the first deferred one
+    (or, with ``raise_deferred=False``, drop them: the run is already stopping)."""
+    global _depth
+    _depth += 1
+    try:
+        yield
+    finally:
+        _depth -= 1
+    if not _depth and _pending:
+        signum = _pending[0]
+        _pending.clear()
+        if raise_deferred:
+            raise Interrupted(signum)
