@@ -13,9 +13,9 @@ import functools
 
 import click
 
-from . import plugins
+from . import interrupts, plugins
 from .commands import add_builtin_commands
-from .console import MsrrGroup, err_console
+from .console import MsrrGroup, err_console, styled
 
 __all__ = ["cli", "get_cli", "main"]
 
@@ -28,7 +28,7 @@ def cli() -> None:
     Robots are plugins; see `platform robots` for the installed ones.
     """
     for error in plugins.load_errors():
-        err_console.print(f"[yellow]warning:[/yellow] {error}")
+        err_console.print(styled("warning:", "yellow"), str(error))
 
 
 @functools.cache
@@ -40,5 +40,15 @@ def get_cli() -> click.Group:
 
 
 def main() -> None:
-    """Console-script entry point of ``platform`` and ``msrr``."""
-    get_cli()(prog_name="platform")
+    """Console-script entry point of ``platform`` and ``msrr``.
+
+    SIGINT and SIGTERM end any command with one line and exit 130 or 143
+    (:mod:`msrr.core.interrupts`); ``platform run`` says what it interrupted and still
+    writes its files.
+    """
+    interrupts.install()
+    try:
+        get_cli()(prog_name="platform")
+    except interrupts.Interrupted as exc:
+        err_console.print(f"Error: interrupted ({exc.name})", markup=False)
+        raise SystemExit(exc.exit_code) from None

@@ -3,31 +3,76 @@
 Shared by :mod:`msrr.core.cli` and every module of :mod:`msrr.core.commands`; it
 imports neither, so the command modules and the top-level group never import each
 other.
+
+Everything is printed literally: both consoles have rich markup switched off, so a
+module named ``"[/red]"``, a path with ``[`` or a vector ``[nan, 0.0, 1.0]`` prints as
+written and never breaks or vanishes. Colour is asked for explicitly with
+:func:`styled` (a :class:`rich.text.Text`), never with ``[red]`` in a string. Tables
+show at most :data:`MAX_ROWS` rows and say how many they left out.
 """
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Iterable
-from typing import Any
+from itertools import islice
+from typing import Any, Final
 
 import click
 import numpy as np
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 from .configuration import Configuration
-from .errors import MsrrError
+from .errors import MsrrError, one_line
 
-__all__ = ["NONE", "MsrrGroup", "console", "err_console", "show_configuration", "table",
-           "vector_text"]
+__all__ = ["MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "console", "err_console", "error_line",
+           "printable", "show_configuration", "styled", "table", "vector_text"]
+
+
+
+def printable(text: str) -> str:
+    """``text`` with unprintable characters (lone surrogates from undecodable file
+    names, control characters) escaped, so writing it never fails."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() or c in "\n\t" else repr(c)[1:-1] for c in text)
+
+
+class _LiteralConsole(Console):
+    """A console that prints strings literally and safely (no markup, no emoji codes,
+    unprintable characters escaped)."""
+
+    def print(self, *objects: Any, **kwargs: Any) -> None:  # noqa: A003 - rich's name
+        kwargs.setdefault("markup", False)
+        super().print(*(printable(o) if isinstance(o, str) else o for o in objects), **kwargs)
+
 
 # Piped output (files, CI logs, tests) gets wide tables instead of rich's 80 columns.
 _WIDTH = None if sys.stdout.isatty() else 160
-console = Console(highlight=False, soft_wrap=True, width=_WIDTH)
-err_console = Console(stderr=True, highlight=False, soft_wrap=True, width=_WIDTH)
+console = _LiteralConsole(highlight=False, soft_wrap=True, width=_WIDTH, markup=False,
+                          emoji=False)
+err_console = _LiteralConsole(stderr=True, highlight=False, soft_wrap=True, width=_WIDTH,
+                              markup=False, emoji=False)
 
-NONE = "[dim]none[/dim]"
+MAX_ROWS: Final = 200
+"""Most rows a table prints; the rest are counted in a last row."""
+
+
+def styled(text: str, style: str) -> Text:
+    """``text`` printed literally in ``style`` (``"green"``, ``"bold red"``)."""
+    return Text(text, style=style)
+
+
+NONE = styled("none", "dim")
+
+
+def error_line(exc: BaseException) -> str:
+    """The one line (at most :data:`~msrr.core.errors.MAX_MESSAGE` characters) an error
+    is shown as."""
+    return one_line(str(exc))
 
 
 class MsrrGroup(click.Group):
@@ -38,16 +83,62 @@ class MsrrGroup(click.Group):
         try:
             return super().invoke(ctx)
         except MsrrError as exc:
-            raise click.ClickException(str(exc)) from None
+            raise click.ClickException(error_line(exc)) from None
 
 
-def table(title: str | None, columns: Iterable[str], rows: Iterable[Iterable[Any]]) -> Table:
-    """A rich table with the house style."""
-    out = Table(title=title, title_justify="left", header_style="bold")
+class FiniteFloat(click.ParamType):
+    """A click option type: a finite number within ``[low, high]`` (either bound
+    optional; ``open_low`` excludes ``low``). ``nan``, ``inf`` and out-of-range values
+    are usage errors (exit 2, one line) before any work starts."""
+
+    name = "number"
+
+    def __init__(self, low: float | None = None, high: float | None = None, *,
+                 open_low: bool = False):
+        self.low, self.high, self.open_low = low, high, open_low
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> float:
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number", param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        low_ok = self.low is None or (number > self.low if self.open_low else number >= self.low)
+        if not low_ok or (self.high is not None and number > self.high):
+            self.fail(f"{value!r} is not in {self._range()}", param, ctx)
+        return number
+
+    def _range(self) -> str:
+        low = "-inf" if self.low is None else f"{self.low:g}"
+        high = "inf" if self.high is None else f"{self.high:g}"
+        return f"{'(' if self.open_low or self.low is None else '['}{low}, {high}]"
+
+
+SEED = click.IntRange(0, 2**32 - 1)
+"""Option type of every ``--seed``: numpy's seed range."""
+
+
+def _cell(value: Any) -> Text:
+    return value if isinstance(value, Text) else Text(printable(str(value)))
+
+
+def table(title: str | None, columns: Iterable[str], rows: Iterable[Iterable[Any]],
+          max_rows: int = MAX_ROWS) -> Table:
+    """A rich table with the house style; cells are printed literally (a
+    :class:`~rich.text.Text` keeps its style); beyond ``max_rows`` rows, one last row
+    says how many were left out."""
+    out = Table(title=None if title is None else _cell(title), title_justify="left",
+                header_style="bold")
     for column in columns:
-        out.add_column(column)
-    for row in rows:
-        out.add_row(*(str(cell) for cell in row))
+        out.add_column(_cell(column))
+    iterator = iter(rows)
+    for row in islice(iterator, max_rows):
+        out.add_row(*(_cell(cell) for cell in row))
+    left = sum(1 for _ in iterator)
+    if left:
+        out.add_row(styled(f"… {left} more rows not shown", "dim"))
     return out
 
 
@@ -62,10 +153,12 @@ def show_configuration(config: Configuration, title: str = "") -> None:
     if config.description:
         head += f": {config.description}"
     console.print(head)
-    modules = [[v, config.kind_of(v), config.degree(v), vector_text(config.position(v))]
-               for v in config.vertices()]
-    console.print(table("Modules", ["id", "kind", "degree", "position [m]"], modules))
-    edges = [[e.id, f"{e.source} → {e.target}", e.kind or "",
+    modules = ([v, config.kind_of(v), config.degree(v), vector_text(config.position(v))]
+               for v in config.vertices())
+    console.print(table(f"Modules ({len(config)})", ["id", "kind", "degree", "position [m]"],
+                        modules))
+    edges = ([e.id, f"{e.source} → {e.target}", e.kind or "",
               "–".join(e.ports) if e.ports else "", vector_text(e.z), vector_text(e.x)]
-             for e in config.edges()]
-    console.print(table("Connections", ["id", "ends", "kind", "ports", "z", "x"], edges))
+             for e in config.edges())
+    console.print(table(f"Connections ({len(config.edges())})",
+                        ["id", "ends", "kind", "ports", "z", "x"], edges))

@@ -89,22 +89,27 @@ class UnknownNameError(MsrrError, KeyError):
     The message lists the valid choices.
     """
 
-    def __init__(self, what: str, name: str, choices: Iterable[str]):
+    def __init__(self, what: str, name: str, choices: Iterable[str], *,
+                 source: str | None = None, field: str | None = None):
         self.what = what
         self.name = name
         self.choices = sorted(choices)
+        self.source = source
+        self.field = field
         super().__init__(str(self))
 
     def __str__(self) -> str:
         known = ", ".join(self.choices) if self.choices else "none"
-        return one_line(f"unknown {self.what} {self.name!r} (known: {known})")
+        where = "".join(f"{one_line(p, 120)}: " for p in (self.source, self.field) if p)
+        return one_line(f"{where}unknown {self.what} {self.name!r} (known: {known})")
 
 
 class UnknownRobotError(UnknownNameError):
     """No installed plugin describes a robot of this name."""
 
-    def __init__(self, name: str, choices: Iterable[str]):
-        super().__init__("robot", name, choices)
+    def __init__(self, name: str, choices: Iterable[str], *, source: str | None = None,
+                 field: str | None = None):
+        super().__init__("robot", name, choices, source=source, field=field)
 
 
 class PluginError(MsrrError):

@@ -329,6 +329,7 @@ def load_configuration(path: str | os.PathLike[str]) -> Configuration:
         ConfigurationError: missing file, bad JSON, a wrong field or a broken rule,
             naming the file and the field.
         UnknownRobotError: the file names a robot no installed plugin describes.
+        PluginError: two plugins describe the robot the file names.
     """
     config = io.load_configuration(path)
     try:
@@ -342,8 +343,10 @@ def _robot_of(name: str, path: str | os.PathLike[str]) -> Robot:
     """:func:`resolve`, with an unknown or refused robot named as the file's field."""
     try:
         return resolve(name)
-    except (UnknownRobotError, PluginError) as exc:
-        raise ConfigurationError(str(exc), source=str(path), field="robot") from None
+    except UnknownRobotError as exc:
+        raise UnknownRobotError(name, exc.choices, source=str(path), field="robot") from None
+    except PluginError as exc:
+        raise PluginError(f"{path}: robot: {exc}") from None
 
 
 def load_library(path: str | os.PathLike[str]) -> Library:

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import click
 import numpy as np
-from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from ..console import MsrrGroup, console, table
+from ..console import SEED, FiniteFloat, MsrrGroup, console, styled, table
+from ..errors import ConfigurationError
 from ..executor import ExecutorOptions
 from ..feasibility import default_runner, run_edge
 from ..library import (
@@ -17,7 +17,6 @@ from ..library import (
     Library,
     build_library,
     build_steps,
-    load_library,
     load_sources,
     retrieve,
     save_library,
@@ -32,7 +31,7 @@ from ..library.check import (
     save_check,
 )
 from ..matching import COST_DISTANCE, COST_KINDS
-from ..plugins import load_configuration, resolve
+from ..plugins import load_configuration, load_library, resolve
 
 __all__ = ["command"]
 
@@ -46,15 +45,17 @@ def command() -> None:
 @click.argument("sources", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path),
               help="Library file to write (atomically).")
-@click.option("--merge-threshold", type=float, default=DEFAULT_MERGE_THRESHOLD, show_default=True,
-              help="Largest motion cost at which two configurations are merged.")
+@click.option("--merge-threshold", type=FiniteFloat(0.0, 100.0), default=DEFAULT_MERGE_THRESHOLD,
+              show_default=True, help="Largest motion cost at which two configurations are "
+              "merged, in [0, 100].")
 @click.option("--cost", type=click.Choice(COST_KINDS), default=COST_DISTANCE, show_default=True,
               help="Motion cost: aligned distance (eq. 8; identical builds on every machine) "
                    "or full-body IK (eq. 6; reproducible on one BLAS kernel only).")
 def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost: str) -> None:
     """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14)."""
+    _check_output(output)
     inputs = load_sources(sources, resolve)
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
     with Progress(*columns, console=console, transient=True) as bar:
         task = bar.add_task(f"building {inputs.name}", total=build_steps(inputs))
@@ -68,8 +69,18 @@ def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost:
     console.print(f"wrote {output}")
 
 
+def _check_output(path: Path) -> None:
+    """Refuse an output place that cannot take a file, before any work starts."""
+    if path.is_dir():
+        raise ConfigurationError("is a directory, expected a file to write", source=str(path))
+    parent = next((p for p in path.parents if p.exists()), Path("."))
+    if not parent.is_dir():
+        raise ConfigurationError(f"cannot write under {parent}: not a directory",
+                                 source=str(path))
+
+
 def _show(library: Library) -> None:
-    console.print(escape(f"library {library.name} ({library.robot}): {library.description}"))
+    console.print(f"library {library.name} ({library.robot}): {library.description}")
     for sub in library.sublibraries.values():
         console.print(table(f"{sub.name}: groups", ["group", "name", "vertices", "edges",
                                                     "trees", "configurations"],
@@ -85,7 +96,7 @@ def _show(library: Library) -> None:
                             [[b.name, b.kind, b.start,
                               " → ".join(b.steps) if b.kind == "sequence"
                               else f"{len(b.commands)} commands of {', '.join(b.parameters)}",
-                              "yes" if b.loop else "", escape(b.description)]
+                              "yes" if b.loop else "", b.description]
                              for b in sub.behaviors.values()]))
         console.print(table(f"{sub.name}: action edges", ["source", "target", "action", "tree",
                                                           "cost", "mapping", "feasible"],
@@ -109,8 +120,8 @@ def show(library: Path) -> None:
         if check.library_sha256 == library_digest(library):
             apply_check(lib, check)
         else:
-            console.print(f"[yellow]{sidecar} checks another build of {library}; run "
-                          "`platform library check` again[/yellow]")
+            console.print(styled(f"{sidecar} checks another build of {library}; run "
+                                 "`platform library check` again", "yellow"))
     _show(lib)
 
 
@@ -118,13 +129,14 @@ def show(library: Path) -> None:
 @click.argument("library", type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path),
               help="Check file to write (atomically); default <LIB>.check.json beside it.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulation.")
-@click.option("--timeout", "action_timeout", type=float, default=30.0, show_default=True,
-              help="Simulated time one phase may take [s].")
-@click.option("--noise", type=float, default=0.0, show_default=True,
-              help="Recognizer noise (std of every reported angle) [deg].")
-@click.option("--slip", type=float, default=0.0, show_default=True,
-              help="Odometry heading error per radian rolled [rad/rad].")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the simulation.")
+@click.option("--timeout", "action_timeout", type=FiniteFloat(0.0, 3600.0, open_low=True),
+              default=30.0, show_default=True,
+              help="Simulated time one phase may take [s], in (0, 3600].")
+@click.option("--noise", type=FiniteFloat(0.0, 90.0), default=0.0, show_default=True,
+              help="Recognizer noise (std of every reported angle) [deg], in [0, 90].")
+@click.option("--slip", type=FiniteFloat(0.0, 1.0), default=0.0, show_default=True,
+              help="Odometry heading error per radian rolled [rad/rad], in [0, 1].")
 @click.option("--edge", "only", multiple=True, help="Check only edges whose key contains this.")
 def check_command(library: Path, output: Path | None, seed: int, action_timeout: float,
                   noise: float, slip: float, only: tuple[str, ...]) -> None:
@@ -140,7 +152,7 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
                                                                retries=0),
                             driver_options=driver_options, seed=seed)
     cases = [c for c in edge_cases(lib, runner.robot) if not only or any(o in c.key for o in only)]
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
     checks = []
     with Progress(*columns, console=console, transient=True) as bar:
@@ -159,7 +171,7 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
                                                       "shape error [deg]", "reason"],
                         [[c.edge, c.action, "yes" if c.feasible else "no", f"{c.sim_time:.1f}",
                           "" if c.shape_error_deg is None else f"{c.shape_error_deg:.2f}",
-                          escape(c.reason)] for c in checks]))
+                          c.reason] for c in checks]))
     done = sum(c.feasible for c in checks)
     console.print(f"{done}/{len(checks)} edges feasible; wrote {target}")
 

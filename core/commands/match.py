@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..console import console, table
+from ..console import FiniteFloat, console, table
 from ..matching import (
     CONFIDENCE,
     COST_KINDS,
@@ -40,11 +40,11 @@ def _summary(result: MatchResult, ranked: RankedMatch, rank: int) -> str:
 @click.command("match")
 @click.argument("system", type=click.Path(path_type=Path))
 @click.argument("references", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--top", type=int, default=1, show_default=True,
-              help="Print the K best mappings.")
-@click.option("--confidence", type=float, default=CONFIDENCE, show_default=True,
-              help="Stop a reference's search when distance > best cost * confidence.")
-@click.option("--time-budget", type=float, default=None,
+@click.option("--top", type=click.IntRange(1, 1000), default=1, show_default=True,
+              help="Print the K best mappings (1 to 1000).")
+@click.option("--confidence", type=FiniteFloat(1.0, 1e6), default=CONFIDENCE, show_default=True,
+              help="Stop a reference's search when distance > best cost * confidence (>= 1).")
+@click.option("--time-budget", type=FiniteFloat(0.0, 86400.0, open_low=True), default=None,
               help="Stop the search after this long [s] and print the best so far.")
 @click.option("--cost", type=click.Choice(COST_KINDS), default=None,
               help="Motion cost: full-body IK (eq. 6; the default for robots with joint "

@@ -14,8 +14,8 @@ from pathlib import Path
 import click
 
 from .. import plugins
-from ..console import console, table
-from ..errors import PlanningError
+from ..console import SEED, console, table
+from ..errors import ConfigurationError, PlanningError
 from ..plan import Action, ActionType, Plan, save_plan
 from ..plugins import load_configuration
 
@@ -69,12 +69,14 @@ def print_plan(plan: Plan) -> None:
 @click.argument("goal", type=click.Path(path_type=Path))
 @click.option("--planner", "planner_name", default=None, help="Planner name; default the "
               "robot's first registered planner.")
-@click.option("--seed", default=0, show_default=True, help="Seed of the planner.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the planner.")
 @click.option("--json", "json_out", type=click.Path(path_type=Path), default=None,
               help="Also write the plan to this file (format: `platform schema plan`).")
 def command(robot: str, start: Path, goal: Path, planner_name: str | None, seed: int,
             json_out: Path | None) -> None:
     """Plan the reconfiguration from configuration file START to GOAL."""
+    if json_out is not None and json_out.is_dir():
+        raise ConfigurationError("is a directory, expected a file to write", source=str(json_out))
     planner = plugins.planners.get(robot, planner_name)
     configs = []
     for path in (start, goal):

@@ -7,18 +7,18 @@ from collections.abc import Callable, Mapping
 import click
 
 from .. import plugins
-from ..console import NONE, console, table
+from ..console import NONE, console, styled, table
 from ..errors import MsrrError
 from ..generic import is_generic
 
 __all__ = ["command"]
 
 
-def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> str:
+def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> object:
     try:
         items = lookup(robot)
     except MsrrError as exc:  # one broken plugin must not hide the others' rows
-        return f"[red]error: {exc}[/red]"
+        return styled(f"error: {exc}", "red")
     names = [f"{name}*" if is_generic(item) else name for name, item in items.items()]
     return ", ".join(names) if names else NONE
 
@@ -37,6 +37,11 @@ def command() -> None:
                      _capability(plugins.scenarios, name)])
     console.print(table("Installed robots", ["robot", "title", "module kinds", "joint modes",
                                              "planners", "drivers", "scenarios"], rows))
+    for name, owners in plugins.robot_clashes().items():
+        console.print(styled("refused", "red"), f"robot {name!r}: described by plugins "
+                      f"{', '.join(map(repr, owners))}")
+    for problem in plugins.problems():
+        console.print(styled("disabled", "red"), str(problem))
     if not specs:
         console.print("No robot plugin is installed.")
     else:

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .. import plugins
-from ..console import console, err_console
+from ..console import console, err_console, error_line, styled
 from ..errors import MsrrError
 
 __all__ = ["command"]
@@ -16,16 +16,22 @@ __all__ = ["command"]
 @click.command("validate")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
 def command(files: tuple[Path, ...]) -> None:
-    """Check configuration FILES against their robots' module kinds and docking rules."""
+    """Check configuration FILES against their robots' module kinds and docking rules.
+
+    One line per file (``valid FILE: ...`` or ``invalid FILE: field: why``); exit 1 if
+    any file is invalid."""
     failed = 0
     for path in files:
         try:
             config = plugins.load_configuration(path)
         except MsrrError as exc:
-            err_console.print(f"[red]invalid[/red] {exc}", soft_wrap=True)
+            line = error_line(exc)
+            if not line.startswith(str(path)):  # every line names its file
+                line = error_line(f"{path}: {line}")
+            err_console.print(styled("invalid", "red"), line)
             failed += 1
             continue
-        console.print(f"[green]valid[/green] {path}: {config.robot}, "
+        console.print(styled("valid", "green"), f"{path}: {config.robot}, "
                       f"{len(config.modules())} modules, {len(config.edges())} connections")
     if failed:
         raise SystemExit(1)

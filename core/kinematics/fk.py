@@ -344,11 +344,17 @@ def forward(tree: KinematicTree, config: Configuration,
     Returns:
         The transformed vectors, costs and port rotations. With ``sigma = 0`` the
         vectors are exactly those of ``config``.
+
+    Raises:
+        ConfigurationError: ``sigma`` has the wrong shape or a non-finite value.
     """
     z0, x0, has_x = tree_vectors(tree, config)
     sigma = np.zeros(tree.dim) if sigma is None else np.asarray(sigma, dtype=np.float64)
     if sigma.shape != (tree.dim,):
         raise ConfigurationError(f"sigma must have shape ({tree.dim},), got {sigma.shape}")
+    if not np.isfinite(sigma).all():
+        bad = int(np.flatnonzero(~np.isfinite(sigma))[0])
+        raise ConfigurationError(f"joint value {sigma[bad]} is not finite", field=f"sigma[{bad}]")
     state = Evaluator(tree, z0, x0).evaluate(sigma)
     ports = {v: state.port_rotations[q] for q, v in
              enumerate(v for node in tree.nodes for v in node.vertices)}

@@ -538,8 +538,19 @@ def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,
         under ``options.tolerance`` and ``reason`` why the search stopped. The solve
         stops at the first start that reaches the tolerance; without a time budget
         the result depends only on the inputs and ``options`` (deterministic).
+
+    Raises:
+        ConfigurationError: ``options.initial_sigma`` or ``options.initial_yaw`` is not
+            finite (a NaN start would be "solved" as NaN).
     """
     options = options or IKOptions()
+    if options.initial_sigma is not None and not np.isfinite(
+            np.asarray(options.initial_sigma, dtype=np.float64)).all():
+        raise ConfigurationError("the IK start initial_sigma has non-finite values",
+                                 field="initial_sigma")
+    if options.initial_yaw is not None and not math.isfinite(options.initial_yaw):
+        raise ConfigurationError(f"the IK start initial_yaw is {options.initial_yaw}",
+                                 field="initial_yaw")
     started = time.perf_counter()
     deadline = None if options.time_budget is None else started + options.time_budget
     problem = IKProblem(tree, current, target, options)
@@ -592,8 +603,13 @@ def _add(total: np.ndarray | None, part: np.ndarray | None) -> np.ndarray | None
 
 def _better(found: tuple[float, float, float, object], best: tuple[float, float, float, object],
             tolerance: float) -> bool:
-    """Solved beats unsolved; then the lower eq. 6 cost wins."""
-    return (found[2] < tolerance, -found[0]) > (best[2] < tolerance, -best[0])
+    """Solved beats unsolved; a finite answer beats a non-finite one; then the lower eq. 6
+    cost wins."""
+    def rank(result: tuple[float, float, float, object]) -> tuple[bool, bool, float]:
+        finite = math.isfinite(result[0]) and math.isfinite(result[2])
+        return (finite and result[2] < tolerance, finite, -result[0] if finite else 0.0)
+
+    return rank(found) > rank(best)
 
 
 def _sample(rng: np.random.Generator, attempt: int, problem: IKProblem, best: np.ndarray,

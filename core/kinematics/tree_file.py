@@ -17,13 +17,13 @@ the tree from them.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import Field
 
 from ..configuration import Configuration
 from ..errors import ConfigurationError, UnknownNameError
-from ..files import StrictModel, parse_model
+from ..files import Number, SchemaVersion, StrictModel, parse_model
 from ..io import (
     ConfigurationFile,
     ConnectionModel,
@@ -54,14 +54,14 @@ class NodeModel(StrictModel):
     type: str = Field(min_length=1, description="Node type (joint mode) name, or 'fixed'.")
     edges: list[str] = Field(default_factory=list, description="Edge ids, in the node's order.")
     vertices: list[str] = Field(default_factory=list, description="Owned vertex ids (ports).")
-    params: dict[str, float] = Field(default_factory=dict,
+    params: dict[str, Number] = Field(default_factory=dict,
                                      description="Node-type parameters that differ from defaults.")
 
 
 class KinematicTreeFile(StrictModel):
     """A kinematic tree file: the topology it covers and its nodes in BFS order."""
 
-    schema_version: Literal[1] = Field(description="File format version.")
+    schema_version: SchemaVersion = Field(description="File format version.")
     robot: str = Field(min_length=1)
     configuration: str = Field("", description="Name of the configuration.")
     modules: list[ModuleModel]

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..configuration import Configuration
+from .cost import MatchingError
 from .distance import PartialBound, bound_terms, elevation, vector_match
 from .mapping import Mapping
 from .topology import Topology, edge_inversion, signatures_match, vf2pp_order
@@ -181,7 +182,17 @@ def iso_search(system: Configuration, reference: Configuration, *, gamma: float 
 
     Yields:
         :class:`Mapping` objects with non-decreasing :attr:`Mapping.distance`.
+
+    Raises:
+        MatchingError: a connection that is a module (a strut) has no ``z``: eq. 8
+            cannot be evaluated, and counting it as distance 0 would be a lie.
     """
+    for which, config in (("system", system), ("reference", reference)):
+        for edge in config.edges():
+            if edge.kind is not None and edge.z is None:
+                raise MatchingError(f"{which} {config.name or config.robot}: connection "
+                                    f"{edge.id} ({edge.kind}) has no z; the distance (eq. 8) "
+                                    "needs one")
     sys_view, ref_view = Topology.of(system), Topology.of(reference)
     if not signatures_match(sys_view, ref_view):
         return
