@@ -40,7 +40,6 @@ import numpy as np
 from ..configuration import Configuration
 from ..driver import Driver, ModuleCommand, Observation, Pose
 from ..errors import ExecutionError
-from ..kinematics.build import tree_centre
 from ..robot import ModuleKind, RobotSpec, body_half_size
 from .geometry import (
     BodyPose,
@@ -213,7 +212,10 @@ class KinematicDriver(Driver):
         poses: dict[str, BodyPose] = {}
         offset = 0.0
         for group in sorted(nx.connected_components(graph), key=lambda c: min(rank[v] for v in c)):
-            root = tree_centre(graph.subgraph(group), rank)
+            # the rule of kinematics.build.tree_centre (smallest eccentricity, then rank),
+            # not imported: the kinematics package would put scipy into every command's
+            # start-up through the plugin host
+            root = min(nx.center(graph.subgraph(group)), key=rank.__getitem__)
             placed = {root: BodyPose(np.zeros(3))}
             for parent, child in nx.bfs_edges(graph.subgraph(group), root,
                                               sort_neighbors=lambda vs: sorted(vs, key=rank.get)):
