@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
-from tiny_robot import CUBE, SPEC, chain
+from click.testing import CliRunner
+from tiny_robot import CUBE, NAME, SPEC, chain, installed
 
 from msrr.core import Configuration, ModuleKind, PortSpec, RobotSpec
 from msrr.core.actions import detect_action, topology_diff
+from msrr.core.cli import get_cli
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.generic import GenericPlanner, KinematicDriver, LatchRecognizer
@@ -150,3 +154,15 @@ def test_moving_actions_reach_their_planar_goals() -> None:
     pose = driver.poses["b"]
     assert pose.position.tolist() == pytest.approx([2.0, 1.0, 0.0])
     assert pose.yaw == pytest.approx(np.pi / 2)
+
+
+def test_platform_run_with_the_kinematic_driver_uses_its_companions(tmp_path: Path) -> None:
+    """A robot with its own controller and recognizer (tiny's read PointDriver sensors)
+    runs with ``--driver kinematic``: the driver names the ones that read it."""
+    with installed(tmp_path):
+        result = CliRunner().invoke(get_cli(), [
+            "run", "--robot", NAME, "--scenario", "swap", "--driver", "kinematic",
+            "--planner", "generic", "--no-log", "--out", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    assert "by generic" in result.output and "driver kinematic" in result.output
+    assert '"success": true' in (tmp_path / "run/summary.json").read_text()
