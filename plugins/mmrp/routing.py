@@ -448,18 +448,21 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
         return order, escape
 
     def to_lane(i: int, t: Cell) -> list[Cell]:
-        """From a placement outside the box, straight out to the lane (away from the
-        box, so clear of it), then along the lane to its bottom side."""
-        xs = [c[0] + t[0] for c in shapes[i]]
-        ys = [c[1] + t[1] for c in shapes[i]]
-        if max(ys) < lo_y:
+        """From a placement outside the box, straight out to the lane in a direction in
+        which no cell crosses the box, then along the lane to its bottom side."""
+        cells = [(c[0] + t[0], c[1] + t[1]) for c in shapes[i]]
+        beside_x = [not lo_x <= x <= hi_x for x, _ in cells]
+        beside_y = [not lo_y <= y <= hi_y for _, y in cells]
+        if all(y < lo_y or b for (_, y), b in zip(cells, beside_x, strict=True)):
             return [(t[0], lane[1])]
-        if max(xs) < lo_x:
+        if all(x < lo_x or b for (x, _), b in zip(cells, beside_y, strict=True)):
             return [(lane[0], t[1]), (lane[0], lane[1])]
-        if min(xs) > hi_x:
+        if all(x > hi_x or b for (x, _), b in zip(cells, beside_y, strict=True)):
             return [(lane[2], t[1]), (lane[2], lane[1])]
-        corner = lane[0] if t[0] - lane[0] <= lane[2] - t[0] else lane[2]
-        return [(t[0], lane[3]), (corner, lane[3]), (corner, lane[1])]
+        if all(y > hi_y or b for (_, y), b in zip(cells, beside_x, strict=True)):
+            corner = lane[0] if t[0] - lane[0] <= lane[2] - t[0] else lane[2]
+            return [(t[0], lane[3]), (corner, lane[3]), (corner, lane[1])]
+        raise _Walled(set(), {i})  # wrapped round the box: no straight way out
 
     out_order, out_paths = peel(lambda i: [start[m] for m in groups[i]])
     in_peel, in_paths = peel(lambda i: [goal[m] for m in groups[i]])

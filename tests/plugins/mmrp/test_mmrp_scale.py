@@ -288,3 +288,19 @@ def test_the_random_30_scenario_plans_a_checked_plan():
     assert len(start) == len(goal) == 30
     plan = plugins.planners.get("mmrp", "mcs-hybrid").plan(start, goal)
     assert check_plan(plan) == [] and plan.docks == plan.undocks
+
+
+@settings(max_examples=25, deadline=None)
+@given(n=st.integers(8, 60), seed=st.integers(0, 2**32 - 1))
+def test_evacuate_and_assemble_plans_replay_without_a_collision(n, seed):
+    import msrr.plugins.mmrp.routing as routing
+
+    rng = np.random.default_rng(seed)
+    start, goal = random_tree(n, rng), random_tree(n, rng)
+    limit = routing.DIRECT_LIMIT
+    routing.DIRECT_LIMIT = 0  # force the staged order on small systems
+    try:
+        plan = plan_hybrid(start, goal).plan
+    finally:
+        routing.DIRECT_LIMIT = limit
+    assert check_plan(plan) == []
