@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
 
-__all__ = ["SIGNALS", "Interrupted", "install", "shielded"]
+__all__ = ["SIGNALS", "Interrupted", "handled", "install", "shielded"]
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -64,6 +64,20 @@ def install() -> bool:
     for signum in SIGNALS:
         signal.signal(signum, _handler)
     return True
+
+
+@contextmanager
+def handled() -> Iterator[None]:
+    """:func:`install` for the block, the previous handlers restored after it (so a
+    command run in-process, as tests do, leaves the caller's Ctrl-C alone)."""
+    saved = {signum: signal.getsignal(signum) for signum in SIGNALS}
+    installed = install()
+    try:
+        yield
+    finally:
+        if installed:
+            for signum, handler in saved.items():
+                signal.signal(signum, handler)
 
 
 @contextmanager

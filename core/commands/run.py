@@ -13,7 +13,7 @@ from ..console import console, err_console, table
 from ..errors import ConfigurationError
 from ..events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
 from ..hookspecs import hookimpl
-from ..interrupts import Interrupted, install, shielded
+from ..interrupts import Interrupted, handled, shielded
 from ..plan import Action
 from ..run import (
     PreparedRun,
@@ -67,7 +67,7 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
                   f"{shape.tolerance_heading:g})"]]
     if result.faults:
         rows.append(["faults", len(result.faults)])
-    rows.append(["success", "[green]yes[/green]" if result.success else "[red]no[/red]"])
+    rows.append(["success", "yes" if result.success else "no"])
     return table("Run summary", ["", "value"], rows)
 
 
@@ -110,43 +110,43 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
     meets a fault or is interrupted. Exits 1 with the failing action named if the plan
     cannot be finished, 130 on SIGINT (Ctrl-C) and 143 on SIGTERM.
     """
-    install()
-    try:
-        if out is not None and not out.strip():
-            raise ConfigurationError("is empty; give a folder", field="--out")
-        request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
-                             out=None if out is None else Path(out), log=not no_log, gui=gui,
-                             rate=rate, action_timeout=action_timeout, driver=driver_name,
-                             planner=planner_name,
-                             driver_options=parse_driver_options(driver_options),
-                             force=force, faults=faults, deadline=deadline)
-        prepared = prepare_run(request)
-    except (Interrupted, KeyboardInterrupt) as exc:
-        code = exc.exit_code if isinstance(exc, Interrupted) else 130
-        name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
-        err_console.print(f"Error: interrupted ({name}) during start-up, before the plan was "
-                          "made; nothing was run", markup=False)
-        raise SystemExit(code) from None
-    try:
-        result = _execute(prepared)
-    except (Interrupted, KeyboardInterrupt) as exc:
-        result = getattr(exc, "result", None) or interrupted_result(prepared, exc)
-        with shielded(raise_deferred=False):
-            write_outputs(prepared.run, result)
-            err_console.print(f"Error: {result.reason}; wrote {prepared.run.out_dir}",
-                              markup=False)
-        raise SystemExit(exc.exit_code if isinstance(exc, Interrupted) else 130) from None
-    run = prepared.run
-    write_outputs(run, result)
-    console.print(_summary(result, run.plan.docks, run.plan.undocks))
-    assert run.out_dir is not None
-    console.print(f"wrote {run.out_dir / 'plan.json'}, {run.out_dir / 'summary.json'}",
-                  markup=False)
-    if run.recording is not None:
-        console.print(f"open the recording with: rerun {run.recording}", markup=False)
-    if not result.success:
-        err_console.print(f"Error: {result.reason}", soft_wrap=True, markup=False)
-        raise SystemExit(1)
+    with handled():
+        try:
+            if out is not None and not out.strip():
+                raise ConfigurationError("is empty; give a folder", field="--out")
+            request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
+                                 out=None if out is None else Path(out), log=not no_log, gui=gui,
+                                 rate=rate, action_timeout=action_timeout, driver=driver_name,
+                                 planner=planner_name,
+                                 driver_options=parse_driver_options(driver_options),
+                                 force=force, faults=faults, deadline=deadline)
+            prepared = prepare_run(request)
+        except (Interrupted, KeyboardInterrupt) as exc:
+            code = exc.exit_code if isinstance(exc, Interrupted) else 130
+            name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+            err_console.print(f"Error: interrupted ({name}) during start-up, before the plan was "
+                              "made; nothing was run", markup=False)
+            raise SystemExit(code) from None
+        try:
+            result = _execute(prepared)
+        except (Interrupted, KeyboardInterrupt) as exc:
+            result = getattr(exc, "result", None) or interrupted_result(prepared, exc)
+            with shielded(raise_deferred=False):
+                write_outputs(prepared.run, result)
+                err_console.print(f"Error: {result.reason}; wrote {prepared.run.out_dir}",
+                                  markup=False)
+            raise SystemExit(exc.exit_code if isinstance(exc, Interrupted) else 130) from None
+        run = prepared.run
+        write_outputs(run, result)
+        console.print(_summary(result, run.plan.docks, run.plan.undocks))
+        assert run.out_dir is not None
+        console.print(f"wrote {run.out_dir / 'plan.json'}, {run.out_dir / 'summary.json'}",
+                      markup=False)
+        if run.recording is not None:
+            console.print(f"open the recording with: rerun {run.recording}", markup=False)
+        if not result.success:
+            err_console.print(f"Error: {result.reason}", soft_wrap=True, markup=False)
+            raise SystemExit(1)
 
 
 def _execute(prepared: PreparedRun) -> RunResult:

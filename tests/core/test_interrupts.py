@@ -1,0 +1,180 @@
+"""SIGINT and SIGTERM sent to a real ``platform run`` subprocess (the tiny robot) at
+several moments, and SIGKILL: one line naming what was interrupted, exit 130 / 143,
+the modules told to stop and then disconnected, and a complete folder (a recording
+rerun verifies under its final name, ``plan.json``, ``summary.json`` with
+``success: false`` and the reason). The subprocess waits at each moment (it writes a
+marker file first), so where the signal lands does not depend on timing."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+from tiny_robot import LinePlanner, installed
+
+from msrr.core import hookimpl, plugins
+from msrr.core.cli import get_cli
+from msrr.core.events import ActionStatus, Run, Tick
+from msrr.core.interrupts import SIGNALS
+from msrr.core.plan import Action, load_plan
+from msrr.core.timeline import read_recording
+
+HERE = Path(__file__).parent
+RERUN = shutil.which("rerun", path=str(Path(sys.executable).parent))
+
+
+def _start(tmp_path: Path, pause: str, *args: str) -> tuple[subprocess.Popen, Path]:
+    marker = tmp_path / "marker"
+    marker.unlink(missing_ok=True)
+    env = {**os.environ, "MSRR_TEST_PAUSE": pause, "MSRR_TEST_MARKER": str(marker),
+           "MSRR_TEST_CALLS": str(tmp_path / "calls.txt"),
+           "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")])}
+    process = subprocess.Popen(
+        [sys.executable, str(HERE / "tiny_cli.py"), "run", "--robot", "tiny", "--driver",
+         "recording", "--planner", "pausing", "--out", str(tmp_path / "out"), *args],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return process, marker
+
+
+def _wait_for(process: subprocess.Popen, marker: Path) -> None:
+    """Until the subprocess reached its pause (bounded: a failure, never a hang)."""
+    end = time.monotonic() + 30
+    while not marker.exists():
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < end, "the subprocess never reached its pause"
+        time.sleep(0.01)
+
+
+def _verify(recording: Path) -> None:
+    if RERUN is not None:
+        done = subprocess.run([RERUN, "rrd", "verify", str(recording)], capture_output=True,
+                              text=True, timeout=60)
+        assert done.returncode == 0, done.stderr
+    else:
+        assert read_recording(recording).rows
+
+
+@pytest.mark.parametrize(("signum", "pause", "where"), [
+    (signal.SIGINT, "action:1", "interrupted during action 2/3: moving c"),
+    (signal.SIGTERM, "tick:3", "interrupted during action 3/3: connection bT-cB"),
+])
+def test_signal_during_a_run_leaves_a_complete_honest_folder(
+        tmp_path: Path, signum: int, pause: str, where: str) -> None:
+    process, marker = _start(tmp_path, pause)
+    _wait_for(process, marker)
+    process.send_signal(signum)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 128 + signum, stderr
+    name = signal.Signals(signum).name
+    assert stderr.strip().splitlines() == [
+        f"Error: {where} ({name}); wrote {tmp_path / 'out'}"], stderr
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.iterdir()) == ["plan.json", "run.rrd", "summary.json"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["success"] is False and summary["reason"] == f"{where} ({name})"
+    assert summary["interrupted"] == name
+    assert len(load_plan(out / "plan.json").actions) == 3
+    _verify(out / "run.rrd")
+    calls = (tmp_path / "calls.txt").read_text().split()
+    assert calls[-2:] == ["stop", "disconnect"]
+
+
+def test_after_sigkill_nothing_is_half_written_and_the_next_run_says_what_it_found(
+        tmp_path: Path) -> None:
+    process, marker = _start(tmp_path, "tick:1")
+    _wait_for(process, marker)
+    process.kill()
+    process.communicate(timeout=60)
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.iterdir()) == ["run.rrd.part"]  # no final name
+    with installed(tmp_path):
+        refused = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out)])
+        assert refused.exit_code == 1
+        assert refused.output.strip().splitlines() == [
+            f"Error: {out}: --out: holds an interrupted run's leftovers (run.rrd.part); use "
+            "--force to replace it"]
+        again = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out),
+                                               "--force"])
+    assert again.exit_code == 0, again.output
+    assert again.output.splitlines()[0] == (
+        f"note: {out} held an interrupted run's leftovers (run.rrd.part): replaced")
+    assert sorted(p.name for p in out.iterdir()) == ["plan.json", "run.rrd", "summary.json"]
+    assert json.loads((out / "summary.json").read_text())["success"] is True
+
+
+class _SignalAt:
+    """Sends ``signum`` to this process at one moment (in-process runs)."""
+
+    def __init__(self, signum: int, moment: str):
+        self.signum, self.moment = signum, moment
+
+    def _maybe(self, moment: str) -> None:
+        if moment == self.moment:
+            os.kill(os.getpid(), self.signum)
+
+    @hookimpl
+    def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
+        if status == ActionStatus.STARTED:
+            self._maybe(f"action:{run.plan.actions.index(action)}")
+
+    @hookimpl
+    def msrr_on_run_start(self, run: Run) -> None:
+        self._maybe("run_start")
+
+    @hookimpl
+    def msrr_on_tick(self, run: Run, tick: Tick) -> None:
+        self._maybe(f"tick:{tick.index}")
+
+
+@pytest.fixture
+def own_handlers() -> Iterator[None]:
+    """``platform run`` installs its SIGINT/SIGTERM handlers; put pytest's back after."""
+    saved = {s: signal.getsignal(s) for s in SIGNALS}
+    yield
+    for signum, handler in saved.items():
+        signal.signal(signum, handler)
+
+
+@pytest.mark.parametrize(("signum", "moment", "where"), [
+    (signal.SIGTERM, "action:0", "action 1/3: disconnection aT-bB"),
+    (signal.SIGINT, "run_start", "start-up"),
+    (signal.SIGINT, "tick:2", "action 2/3: moving c"),
+])
+def test_in_process_signals_at_more_moments(tmp_path: Path, own_handlers: None, signum: int,
+                                           moment: str, where: str) -> None:
+    out = tmp_path / "out"
+    with installed(tmp_path), plugins.temporary(_SignalAt(signum, moment)):
+        result = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out)])
+    name = signal.Signals(signum).name
+    assert result.exit_code == 128 + signum
+    assert result.output.strip().splitlines()[-1] == (
+        f"Error: interrupted during {where} ({name}); wrote {out}")
+    assert sorted(p.name for p in out.iterdir()) == ["plan.json", "run.rrd", "summary.json"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["success"], summary["interrupted"]) == (False, name)
+    assert read_recording(out / "run.rrd").rows["/action"]
+
+
+def test_signal_while_planning_is_one_line_and_writes_nothing(
+        tmp_path: Path, own_handlers: None) -> None:
+    def plan_and_signal(self, start, goal, *, seed=0):  # type: ignore[no-untyped-def]
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError("the signal did not interrupt planning")
+
+    out = tmp_path / "out"
+    with installed(tmp_path), pytest.MonkeyPatch.context() as patch:
+        patch.setattr(LinePlanner, "plan", plan_and_signal)
+        result = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out)])
+    assert result.exit_code == 143
+    assert result.output.strip().splitlines() == [
+        "Error: interrupted (SIGTERM) during start-up, before the plan was made; nothing was run"]
+    assert not out.exists()
