@@ -15,7 +15,7 @@ import click
 
 from . import interrupts, plugins
 from .commands import add_builtin_commands
-from .console import MsrrGroup, err_console
+from .console import MsrrGroup, err_console, styled
 
 __all__ = ["cli", "get_cli", "main"]
 
@@ -28,7 +28,7 @@ def cli() -> None:
     Robots are plugins; see `platform robots` for the installed ones.
     """
     for error in plugins.load_errors():
-        err_console.print(f"[yellow]warning:[/yellow] {error}")
+        err_console.print(styled("warning:", "yellow"), str(error))
 
 
 @functools.cache
