@@ -70,6 +70,14 @@ __all__ = [
 ]
 
 
+CHECK_SPEED = 1.0
+"""Module speed [m/s] of the conformance runs (twice the kinematic driver's default:
+the checks are about topology, not timing)."""
+
+CHECK_TURN_RATE = 4.0
+"""Turn rate [rad/s] of the conformance runs."""
+
+
 class ConformanceError(AssertionError):
     """A robot broke the platform's contract; the message lists every failed check."""
 
@@ -294,7 +302,10 @@ def check_robot(name: str, *, run: bool = True, all_pairs: bool = False,
                                       "of connections that are modules")
                 continue
             report.check(f"run {label} in the kinematic driver",
-                         lambda p=plan: _succeeds(run_kinematic(p, robot.spec, rate=rate)))
+                         lambda p=plan: _succeeds(run_kinematic(
+                             p, robot.spec, rate=rate,
+                             driver=KinematicDriver(robot.spec, speed=CHECK_SPEED,
+                                                    turn_rate=CHECK_TURN_RATE))))
     if report.failures:
         raise ConformanceError(f"robot {name!r} fails {len(report.failures)} check(s):\n  "
                                + "\n  ".join(report.failures))
