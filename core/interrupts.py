@@ -4,7 +4,8 @@
 ``platform`` entry point installs it first thing). :class:`Interrupted` is not a
 :class:`KeyboardInterrupt`, so click does not turn it into a bare ``Aborted!``; the
 code that catches it says what was interrupted and exits with :attr:`exit_code`
-(130 for SIGINT, 143 for SIGTERM, the shell's ``128 + signal``).
+(130 for SIGINT, 143 for SIGTERM, the shell's ``128 + signal``). Only the first
+signal raises; later ones (a second Ctrl-C during the clean-up) are ignored.
 
 ``with shielded():`` defers both signals while a block runs (stopping the modules,
 writing the run's files), then raises the first one that arrived.
@@ -47,20 +48,26 @@ class Interrupted(BaseException):  # noqa: N818 -- it is an interruption, not an
 
 _pending: list[int] = []
 _depth = 0
+_fired = False  # one Interrupted per installation: the process is stopping after it
 
 
 def _handler(signum: int, frame: FrameType | None) -> None:
-    if _depth:
+    global _fired
+    if _depth or _fired:
         _pending.append(signum)
         return
+    _fired = True
     raise Interrupted(signum)
 
 
 def install() -> bool:
     """Make SIGINT and SIGTERM raise :class:`Interrupted`; ``False`` outside the main
     thread (where Python cannot install signal handlers), with nothing changed."""
+    global _fired
     if threading.current_thread() is not threading.main_thread():
         return False
+    _fired = False
+    _pending.clear()
     for signum in SIGNALS:
         signal.signal(signum, _handler)
     return True

@@ -1,0 +1,37 @@
+"""The signal handlers: one Interrupted per installation, deferred inside a shield,
+previous handlers restored."""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import pytest
+
+from msrr.core.interrupts import SIGNALS, Interrupted, handled, shielded
+
+
+def _send(signum: int) -> None:
+    """Signal this process; Python runs the handler before the next bytecode."""
+    os.kill(os.getpid(), signum)
+
+
+def test_first_signal_raises_later_ones_are_ignored_and_handlers_come_back() -> None:
+    before = {s: signal.getsignal(s) for s in SIGNALS}
+    with handled():
+        with pytest.raises(Interrupted) as caught:
+            _send(signal.SIGTERM)
+        assert (caught.value.name, caught.value.exit_code) == ("SIGTERM", 143)
+        _send(signal.SIGINT)  # the run is already stopping: ignored
+    assert {s: signal.getsignal(s) for s in SIGNALS} == before
+
+
+def test_a_shield_defers_the_signal_to_its_end() -> None:
+    done = []
+    with handled():
+        with pytest.raises(Interrupted) as caught, shielded():
+            _send(signal.SIGINT)
+            done.append("finished")
+        assert caught.value.exit_code == 130 and done == ["finished"]
+    with handled(), shielded(raise_deferred=False):
+        _send(signal.SIGINT)

@@ -1,0 +1,91 @@
+"""Success means the goal topology AND the goal shape: the planar fit against brute
+force, the errors against a known displacement, and runs judged by the robot's
+``shape_tolerance``."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from tiny_robot import SPEC, installed
+
+from msrr.core.cli import get_cli
+from msrr.core.driver import Pose
+from msrr.core.errors import ConfigurationError
+from msrr.core.robot import RobotSpec
+from msrr.core.shape import fit_planar, shape_errors, shape_tolerance
+
+
+def _rot(theta: float) -> np.ndarray:
+    return np.array([[math.cos(theta), -math.sin(theta)], [math.sin(theta), math.cos(theta)]])
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_planar_fit_matches_a_brute_force_search(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(6, 2))
+    goal = points @ _rot(rng.uniform(-3, 3)).T + rng.normal(size=2) + rng.normal(0, 0.05, (6, 2))
+    theta, t = fit_planar(points, goal)
+
+    def cost(angle: float) -> float:  # the best translation for a rotation is the means'
+        moved = points @ _rot(angle).T
+        return float(np.sum((moved - moved.mean(0) - (goal - goal.mean(0))) ** 2))
+
+    grid = np.linspace(-math.pi, math.pi, 20001)
+    best = grid[int(np.argmin([cost(a) for a in grid]))]
+    assert abs((theta - best + math.pi) % (2 * math.pi) - math.pi) < 1e-3
+    assert cost(theta) <= cost(best) + 1e-9
+    assert np.allclose(t, goal.mean(0) - _rot(theta) @ points.mean(0))
+
+
+def test_errors_are_zero_for_a_moved_layout_and_measure_a_displaced_module() -> None:
+    goal = {"a": Pose.planar(0, 0, 0), "b": Pose.planar(0.3, 0, 0), "c": Pose.planar(0.3, 0.3, 0)}
+    turn, shift = 0.7, np.array([2.0, -1.0])
+    moved = {m: Pose.planar(*(_rot(turn) @ p.position[:2] + shift), p.yaw + turn)
+             for m, p in goal.items()}
+    errors = shape_errors(moved, goal, (0.01, 0.01))
+    assert errors.max_position < 1e-12 and errors.max_heading < 1e-12 and errors.within
+    moved["c"] = Pose.planar(*moved["c"].position[:2], moved["c"].yaw + 0.2)
+    errors = shape_errors(moved, goal, (0.01, 0.1))
+    assert errors.max_heading == pytest.approx(0.2) and not errors.within
+    single = shape_errors({"a": Pose.planar(5, 5, 1.0)}, {"a": Pose.planar(0, 0, 0.2)},
+                          (0.01, 0.01))
+    assert single.max_position < 1e-12 and single.max_heading < 1e-12
+    with pytest.raises(ConfigurationError, match="differ"):
+        shape_errors({"a": goal["a"]}, goal, (0.01, 0.01))
+
+
+def test_the_tolerance_is_read_from_the_spec_and_checked() -> None:
+    def spec(value: object) -> RobotSpec:
+        return RobotSpec("r", "R", SPEC.module_kinds, defaults={"shape_tolerance": value})
+
+    assert shape_tolerance(SPEC) is None
+    assert shape_tolerance(spec({"position": 0.02, "heading": 0.06})) == (0.02, 0.06)
+    for bad in (0.1, {"position": 0.02}, {"position": math.nan, "heading": 1},
+                {"position": True, "heading": 1}, {"position": -1, "heading": 1}):
+        with pytest.raises(ConfigurationError, match="shape_tolerance"):
+            shape_tolerance(spec(bad))
+
+
+@pytest.mark.parametrize(("tolerance", "success"), [(0.01, True), (1e-5, False)])
+def test_a_run_is_judged_by_its_final_shape(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                           tolerance: float, success: bool) -> None:
+    # position noise of 0.3 mm on every reading: the topology is reached either way,
+    # the final shape is within 1 cm but not within 10 um
+    monkeypatch.setitem(SPEC.defaults, "shape_tolerance", {"position": tolerance, "heading": 0.1})
+    out = tmp_path / "out"
+    with installed(tmp_path):
+        result = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out),
+                                                "--faults", "noise:sigma=0.0003"])
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["actions_done"] == summary["actions_total"]
+    assert summary["success"] is success and result.exit_code == (0 if success else 1)
+    shape = summary["shape"]
+    assert 1e-5 < shape["max_position_error_m"] < 0.01
+    assert shape["rms_position_error_m"] <= shape["max_position_error_m"]
+    if not success:
+        assert summary["reason"].startswith("final shape outside the tolerance")
