@@ -13,7 +13,9 @@ sensors) and commands pose targets (``joints={"x", "y", "z", "yaw"}``) and docks
   for connections without ports): the smaller group moves, the target's on a tie,
   unless its place or its path would overlap another body; the path is straight, or
   lifts clear of every body, travels and lowers (after a side step if needed); the
-  first whose sweep is free is taken; once there, the
+  first whose sweep is free is taken; when every place is taken by modules of other
+  groups (left where an undock put them), one such group is first parked beside the
+  others; once there, the
   controller arms the ports itself, so parallel connections dock one by one and each
   next placement starts from the merged group (the last waits for the connect phase,
   where the executor arms its ports);
@@ -83,12 +85,14 @@ class LatchController:
         self.spec = spec
         self.jobs: deque[_Job | ConnectionChange | tuple[str, list[float]]] = deque()
         self.job: _Job | None = None
+        self.parked = 0
 
     # -- the controller protocol -------------------------------------------------------------
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
         self.job = None
         self.jobs = deque()
+        self.parked = 0
         if phase is Phase.MOVE:
             self.jobs.extend(sorted(action.goals.items()))
         elif phase in (Phase.APPROACH, Phase.FLOW):
@@ -175,8 +179,57 @@ class LatchController:
             free_place = free_place or job
         if free_place is not None:
             return free_place  # the driver refuses the move and says where
+        park = self._park_blockers(observation, groups, places, change)
+        if park is not None:
+            return park
         moving, final = places[0]
         return _Job(moving, self._path(observation, groups[moving], moving, final), final, change)
+
+    def _park_blockers(self, observation: Observation, groups: dict[str, set[str]],
+                       places: list[tuple[str, BodyPose]], change: ConnectionChange
+                       ) -> _Job | None:
+        """When every place of a dock is taken by modules of other groups (modules left
+        where an undock put them), a job that parks one such group clear of everything
+        (beside the others, along +y); the dock is queued again after it."""
+        if self.parked >= 2 * len(observation.poses):
+            return None
+        involved = groups[change.source] | groups[change.target]
+        for moving, final in places:
+            blockers = self._blockers(observation, groups[moving], moving, final)
+            if not blockers or blockers & involved:
+                continue
+            group = groups[min(blockers)]
+            leader = min(group)
+            here = _body(observation, leader)
+            extent = 2 * max(max(body_half_size(k)) for k in self.spec.module_kinds)
+            top = max(float(p.position[1]) for m, p in observation.poses.items())
+            bottom = min(float(observation.poses[m].position[1]) for m in group)
+            spot = BodyPose(here.position + np.array([0.0, top - bottom + 2 * extent, 0.0]),
+                            here.yaw)
+            self.parked += 1
+            self.jobs.appendleft(change)
+            return _Job(leader, self._path(observation, group, leader, spot), spot)
+        return None
+
+    def _blockers(self, observation: Observation, group: set[str], leader: str,
+                  final: BodyPose) -> set[str]:
+        """Modules outside ``group`` that overlap it when ``leader`` is at ``final``."""
+        members = sorted(group)
+        others = [m for m in observation.poses if m not in group]
+        if not others:
+            return set()
+        start = _body(observation, leader)
+        turn = wrap_angle(final.yaw - start.yaw)
+        c, s_ = math.cos(turn), math.sin(turn)
+        offsets = np.array([observation.poses[m].position for m in members]) - start.position
+        moved = final.position + offsets @ np.array([[c, s_, 0.0], [-s_, c, 0.0],
+                                                     [0.0, 0.0, 1.0]])
+        fixed = np.array([observation.poses[m].position for m in others])
+        radius = {m: inscribed_radius(self._kind(observation, m)) for m in observation.poses}
+        limit = (np.array([radius[m] for m in members])[:, None]
+                 + np.array([radius[m] for m in others])[None, :] - 1e-9)
+        hits = np.linalg.norm(moved[:, None, :] - fixed[None, :, :], axis=2) < limit
+        return {others[j] for j in np.nonzero(hits.any(axis=0))[0]}
 
     def _placements(self, change: ConnectionChange, action: Action, observation: Observation,
                     moving: str, fixed: str) -> list[BodyPose]:
