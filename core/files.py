@@ -98,6 +98,48 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     return target
 
 
+def check_output_place(path: str | os.PathLike[str], *, option: str, folder: bool = False) -> Path:
+    """Refuse, before any work, a place the command could not write to.
+
+    Refused: an empty path; for a file, an existing folder; for a folder (``folder``),
+    an existing file; a path under a file; a place where nothing can be created (a
+    temporary entry is made in the nearest existing folder and removed at once).
+
+    Args:
+        path: the output file or folder.
+        option: the option that named it (``"--out"``), for the message.
+        folder: whether ``path`` is a folder to write into.
+
+    Returns:
+        ``path`` as a :class:`~pathlib.Path`.
+
+    Raises:
+        ConfigurationError: one line naming the option and the path.
+    """
+    text = os.fspath(path)
+    if not str(text).strip():
+        raise ConfigurationError(f"is empty; give a {'folder' if folder else 'file'}",
+                                 field=option)
+    target = Path(path)
+    source = str(text)
+    try:
+        if folder and target.exists() and not target.is_dir():
+            raise ConfigurationError("is a file, expected a folder", field=option, source=source)
+        if not folder and target.is_dir():
+            raise ConfigurationError("is a folder, expected a file", field=option, source=source)
+        ancestor = target.absolute() if folder else target.absolute().parent
+        while not ancestor.exists() and ancestor != ancestor.parent:
+            ancestor = ancestor.parent
+        if not ancestor.is_dir():
+            raise ConfigurationError(f"is under {ancestor}, which is a file", field=option,
+                                     source=source)
+        os.rmdir(tempfile.mkdtemp(prefix=".msrr-probe-", dir=ancestor))
+    except OSError as exc:
+        raise ConfigurationError(f"cannot be written: {exc.strerror or exc}", field=option,
+                                 source=source) from None
+    return target
+
+
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
     """:func:`atomic_write_bytes` of ``text`` in UTF-8."""
     return atomic_write_bytes(path, text.encode("utf-8"))

@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -39,7 +37,7 @@ from .errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameEr
 from .events import ActionStatus, FaultEvent, Run, RunResult
 from .executor import Executor, ExecutorOptions
 from .faults import Fault, FaultyDriver, GuardedDriver, parse_faults
-from .files import atomic_write_text
+from .files import atomic_write_text, check_output_place
 from .hookspecs import hookimpl
 from .interrupts import Interrupted, shielded
 from .plan import Action, Plan, save_plan
@@ -200,23 +198,7 @@ def check_out_dir(out: Path | None, *, force: bool = False) -> list[str]:
     """
     if out is None:
         return []
-    source = str(out)
-    if not source.strip():
-        raise ConfigurationError("is empty; give a folder", field="--out")
-    try:
-        if out.exists() and not out.is_dir():
-            raise ConfigurationError("is a file, expected a folder", field="--out", source=source)
-        ancestor = out.absolute()
-        while not ancestor.exists() and ancestor != ancestor.parent:
-            ancestor = ancestor.parent
-        if not ancestor.is_dir():
-            raise ConfigurationError(f"is under {ancestor}, which is a file", field="--out",
-                                     source=source)
-        probe = tempfile.mkdtemp(prefix=".msrr-probe-", dir=ancestor)
-        os.rmdir(probe)
-    except OSError as exc:
-        raise ConfigurationError(f"cannot create the folder: {exc.strerror or exc}",
-                                 field="--out", source=source) from None
+    check_output_place(out, option="--out", folder=True)
     if not out.is_dir():
         return []
     finished, left = _found(out)
@@ -230,7 +212,7 @@ def check_out_dir(out: Path | None, *, force: bool = False) -> list[str]:
     text = " and ".join(what)
     if not force:
         raise ConfigurationError(f"holds {text}; use --force to replace it", field="--out",
-                                 source=source)
+                                 source=str(out))
     return [f"{out} held {text}: replaced"]
 
 

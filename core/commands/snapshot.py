@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from ..console import console
+from ..files import check_output_place
 from ..timeline.snapshot import write_snapshot
 
 __all__ = ["command"]
@@ -25,5 +26,6 @@ def command(recording: Path, output: Path, title: str) -> None:
     of connections and each module's distance to its goal over simulated time.
     Needs matplotlib (the dev extra).
     """
+    check_output_place(output, option="--output")  # before reading and drawing
     path = write_snapshot(recording, output, title)
     console.print(f"wrote {path}")

@@ -100,3 +100,15 @@ def test_every_file_honours_the_umask(tmp_path: Path, umask: None) -> None:
     assert _run(tmp_path, "--out", str(out))[0] == 0
     modes = {p.name: p.stat().st_mode & 0o777 for p in out.iterdir()}
     assert modes == {"run.rrd": 0o640, "plan.json": 0o640, "summary.json": 0o640}
+
+
+@pytest.mark.parametrize("place", ["folder", "under-file", "unwritable"])
+def test_snapshot_refuses_a_bad_image_place_in_one_line_before_reading(
+        tmp_path: Path, place: str) -> None:
+    (tmp_path / "a.txt").write_text("keep")
+    output = {"folder": tmp_path, "under-file": tmp_path / "a.txt" / "x.png",
+              "unwritable": Path("/proc/msrr.png")}[place]
+    result = CliRunner().invoke(get_cli(), ["snapshot", str(tmp_path / "missing.rrd"),
+                                            "-o", str(output)])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 1 and len(lines) == 1 and "--output" in lines[0], lines
