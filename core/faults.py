@@ -310,8 +310,12 @@ class FaultyDriver(_Wrapper):
     def get_observation(self) -> Observation:
         observation = self.inner.get_observation()
         poses = dict(observation.poses)
-        for _, fault in self._of("noise"):
+        for index, fault in self._of("noise"):
             sigma, yaw_sigma = float(fault.params["sigma"]), float(fault.params["yaw"])
+            if self._state.get(index) != "active":
+                self._state[index] = "active"
+                self._report("noise", f"Gaussian noise on every reading: {sigma:g} m"
+                             + (f", {yaw_sigma:g} rad" if yaw_sigma else ""))
             for module in sorted(poses):
                 pose = poses[module]
                 position = pose.position + self.rng.normal(0.0, sigma, 3) * (1, 1, 0)

@@ -155,11 +155,10 @@ def test_every_fault_ends_in_recovery_or_a_safe_stop_with_three_files(
     assert len(errors) == (0 if success else 1)
     if not success:
         assert summary["reason"] and summary["reason"] in " ".join(output.split())
-    if kinds != {"noise"}:  # noise is continuous and not reported per reading
-        assert {f["kind"] for f in summary["faults"]} == kinds
-        logged = _timeline_faults(out)
-        assert len(logged) == len(summary["faults"]) and all(
-            text.startswith(tuple(kinds)) for text in logged)
+    assert {f["kind"] for f in summary["faults"]} == kinds
+    logged = _timeline_faults(out)
+    assert len(logged) == len(summary["faults"]) and all(
+        text.startswith(tuple(kinds)) for text in logged)
 
 
 def test_the_deadline_option_stops_a_run_and_inf_is_refused(tmp_path: Path) -> None:
