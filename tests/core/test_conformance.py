@@ -20,7 +20,7 @@ KNOWN_FAILURES = {
 
 @robot_parameters(known_failures=KNOWN_FAILURES)
 def test_every_installed_robot_conforms(robot: str) -> None:
-    check_robot(robot)
+    check_robot(robot, fail_fast=robot in KNOWN_FAILURES)
 
 
 def test_the_tiny_robot_conforms_and_its_plans_run(tmp_path: Path) -> None:
@@ -57,6 +57,12 @@ def test_a_planner_that_moves_to_where_it_is_fails_by_name(tmp_path: Path) -> No
     message = str(failure.value)
     assert "start.json: planner restless to itself: AssertionError: 1 action(s)" in message
     assert "plan start.json -> goal.json (restless) does not replay" not in message
+
+
+def test_fail_fast_stops_at_the_first_failure(tmp_path: Path) -> None:
+    with installed(tmp_path), plugins.temporary(RestlessPlugin()), pytest.raises(
+            ConformanceError, match=r"fails \(first failure\): goal.json: planner restless"):
+        check_robot(NAME, run=False, fail_fast=True)
 
 
 def test_a_robot_without_configurations_is_refused() -> None:
