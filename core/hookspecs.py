@@ -192,7 +192,9 @@ def msrr_register_commands(cli: click.Group) -> None:
 
 @hookspec
 def msrr_on_run_start(run: Run) -> None:
-    """A run starts: the plan is made and the driver is connected and reset.
+    """A run starts: the plan is made and the driver is connected and reset (a run
+    stopped before its driver was ready still fires it, just before ``msrr_on_run_end``,
+    so listeners write complete files).
 
     :param run: the :class:`~msrr.core.events.Run` (robot, scenario, plan, output
         folder, recording path).
