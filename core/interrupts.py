@@ -62,14 +62,16 @@ def _handler(signum: int, frame: FrameType | None) -> None:
 
 def install() -> bool:
     """Make SIGINT and SIGTERM raise :class:`Interrupted`; ``False`` outside the main
-    thread (where Python cannot install signal handlers), with nothing changed."""
+    thread (where Python cannot install signal handlers), with nothing changed. A signal
+    the process inherited as ignored (SIGINT of a shell's background job) stays ignored."""
     global _fired
     if threading.current_thread() is not threading.main_thread():
         return False
     _fired = False
     _pending.clear()
     for signum in SIGNALS:
-        signal.signal(signum, _handler)
+        if signal.getsignal(signum) is not signal.SIG_IGN:  # a background job keeps ignoring
+            signal.signal(signum, _handler)
     return True
 
 

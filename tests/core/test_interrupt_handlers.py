@@ -35,3 +35,13 @@ def test_a_shield_defers_the_signal_to_its_end() -> None:
         assert caught.value.exit_code == 130 and done == ["finished"]
     with handled(), shielded(raise_deferred=False):
         _send(signal.SIGINT)
+
+
+def test_a_signal_inherited_as_ignored_stays_ignored() -> None:
+    saved = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in a shell's background job
+    try:
+        with handled():
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGINT, saved)
