@@ -14,6 +14,17 @@ from ..generic import is_generic
 __all__ = ["command"]
 
 
+CAPABILITIES: tuple[tuple[str, plugins.Capability], ...] = (
+    ("joint modes", plugins.kinematic_nodes),
+    ("controllers", plugins.controllers),
+    ("recognizers", plugins.recognizers),
+    ("planners", plugins.planners),
+    ("drivers", plugins.drivers),
+    ("scenarios", plugins.scenarios),
+)
+"""The capability columns, in the order of the hooks."""
+
+
 def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> object:
     try:
         items = lookup(robot)
@@ -23,20 +34,30 @@ def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> ob
     return ", ".join(names) if names else NONE
 
 
+def _markdown(rows: list[list[object]], header: list[str]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(cell) for cell in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
 @click.command("robots")
-def command() -> None:
-    """List installed robots with their joint modes, planners, drivers and scenarios."""
+@click.option("--markdown", is_flag=True,
+              help="Print the capability table as Markdown (docs/architecture.md holds it).")
+def command(markdown: bool) -> None:
+    """List installed robots with their module kinds and every capability: joint modes,
+    controllers, recognizers, planners, drivers and scenarios (* marks the generic
+    runtime's)."""
     specs = plugins.robots()
     rows = []
     for name, spec in specs.items():
         kinds = ", ".join(f"{k.name} ({k.symbol})" for k in spec.module_kinds)
         rows.append([name, spec.title, kinds,
-                     _capability(plugins.kinematic_nodes, name),
-                     _capability(plugins.planners, name),
-                     _capability(plugins.drivers, name),
-                     _capability(plugins.scenarios, name)])
-    console.print(table("Installed robots", ["robot", "title", "module kinds", "joint modes",
-                                             "planners", "drivers", "scenarios"], rows))
+                     *(_capability(lookup, name) for _, lookup in CAPABILITIES)])
+    header = ["robot", "title", "module kinds", *(what for what, _ in CAPABILITIES)]
+    if markdown:
+        click.echo(_markdown(rows, header))
+        return
+    console.print(table("Installed robots", header, rows))
     for name, owners in plugins.robot_clashes().items():
         console.print(styled("refused", "red"), f"robot {name!r}: described by plugins "
                       f"{', '.join(map(repr, owners))}")
@@ -46,4 +67,4 @@ def command() -> None:
         console.print("No robot plugin is installed.")
     else:
         console.print("* the generic runtime every robot gets (msrr.core.generic); a robot's "
-                      "own planners and drivers come first and are the default.")
+                      "own capabilities come first and are the default.")
