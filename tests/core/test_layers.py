@@ -1,0 +1,101 @@
+"""The core's import graph: layers point down and nothing imports in a circle.
+
+Read from the source with :mod:`ast` (nothing is imported), so a lazy import inside a
+function counts the same as one at the top of a module. Imports under
+``if TYPE_CHECKING:`` are annotations only and are left out.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import networkx as nx
+import pytest
+
+CORE = Path(__file__).resolve().parents[2] / "core"
+
+PURE_LAYERS = ("msrr.core.kinematics", "msrr.core.matching", "msrr.core.library", "msrr.core.io")
+"""Packages that receive robots, rules and joint modes as arguments."""
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(CORE).with_suffix("").parts
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(("msrr", "core", *parts))
+
+
+def _imports(path: Path, name: str) -> set[str]:
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    tree = ast.parse(path.read_text(), str(path))
+    type_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                 and ast.unparse(block.test).endswith("TYPE_CHECKING")
+                 for n in ast.walk(block)}
+    for node in ast.walk(tree):
+        if id(node) in type_only:
+            continue
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[:len(base) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ""
+            found.add(module)
+            found.update(f"{module}.{alias.name}" for alias in node.names)
+    return found
+
+
+def _graph() -> nx.DiGraph:
+    modules = {_module_name(p): p for p in CORE.rglob("*.py")}
+    graph = nx.DiGraph()
+    graph.add_nodes_from(modules)
+    for name, path in modules.items():
+        for target in _imports(path, name):
+            if target in modules and target != name:
+                graph.add_edge(name, target)
+    return graph
+
+
+GRAPH = _graph()
+
+
+def test_the_core_imports_no_plugin():
+    for name, path in ((_module_name(p), p) for p in CORE.rglob("*.py")):
+        plugins = sorted(t for t in _imports(path, name) if t.startswith("msrr.plugins"))
+        assert not plugins, f"{name} imports {plugins}"
+
+
+@pytest.mark.parametrize("layer", PURE_LAYERS)
+def test_pure_layers_do_not_import_the_plugin_host(layer):
+    inside = [m for m in GRAPH if m == layer or m.startswith(layer + ".")]
+    assert inside, f"no module {layer}"
+    for module in inside:
+        assert "msrr.core.plugins" not in GRAPH.successors(module), (
+            f"{module} imports msrr.core.plugins; pass the Robot (or its pieces) as an argument")
+
+
+def test_the_core_import_graph_has_no_cycle():
+    # a package importing its own submodules (__init__ re-exports) is not a cycle
+    graph = GRAPH.copy()
+    graph.remove_edges_from([(a, b) for a, b in GRAPH.edges if b.startswith(a + ".")])
+    cycles = list(nx.simple_cycles(graph, length_bound=6))
+    assert not cycles, f"import cycles: {cycles[:5]}"
+
+
+def test_no_plugin_imports_another():
+    plugins = CORE.parent / "plugins"
+    for path in plugins.rglob("*.py"):
+        own = path.relative_to(plugins).parts[0]
+        tree = ast.parse(path.read_text(), str(path))
+        for node in ast.walk(tree):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            for name in names:
+                parts = name.split(".")
+                if parts[:2] == ["msrr", "plugins"] and len(parts) > 2:
+                    assert parts[2] == own, f"{path} imports {name}"
