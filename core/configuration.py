@@ -18,6 +18,7 @@ ordered degrees) indexes the library and rejects non-isomorphic pairs early.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -54,7 +55,7 @@ def unit(vector: VectorLike, *, what: str = "vector") -> np.ndarray:
     array = np.array(vector, dtype=np.float64)
     if array.shape != (3,) or not np.all(np.isfinite(array)):
         raise ConfigurationError(f"{what} must be 3 finite numbers, got {array.tolist()}")
-    norm = float(np.sqrt(array @ array))
+    norm = math.hypot(*array)  # no overflow for huge components (1e300)
     if abs(norm - 1.0) > UNIT_TOLERANCE:
         raise ConfigurationError(f"{what} must be a unit vector, its norm is {norm:.6g}")
     array.flags.writeable = False

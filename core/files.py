@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import tempfile
 from collections import Counter
 from pathlib import Path
@@ -166,38 +167,72 @@ class _Duplicates(dict):
     repeated: list[str]
 
 
-def _object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    obj = dict(pairs)
-    if len(obj) == len(pairs):
-        return obj
-    marked = _Duplicates(obj)
-    marked.repeated = [k for k, n in Counter(k for k, _ in pairs).items() if n > 1]
-    return marked
+class _Decoder:
+    """The hooks of one :func:`json.loads`; they note whether anything was refused, so
+    the common case (nothing) needs no walk with field paths."""
 
+    def __init__(self) -> None:
+        self.flagged = False
 
-def _float(text: str) -> float | _Refused:
-    value = float(text)
-    return value if math.isfinite(value) else _Refused(f"number {text[:40]} is too large")
+    def object(self, pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        obj = dict(pairs)
+        if len(obj) == len(pairs):
+            return obj
+        self.flagged = True
+        marked = _Duplicates(obj)
+        marked.repeated = [k for k, n in Counter(k for k, _ in pairs).items() if n > 1]
+        return marked
 
+    def float(self, text: str) -> float | _Refused:
+        value = float(text)
+        if math.isfinite(value):
+            return value
+        self.flagged = True
+        return _Refused(f"number {text[:40]} is too large")
 
-def _int(text: str) -> int | _Refused:
-    if len(text) > 19:
+    def int(self, text: str) -> int | _Refused:
+        if len(text) <= 18:
+            return int(text)
+        value = int(text) if len(text) <= 20 else None
+        if value is not None and abs(value) < _MAX_INT:
+            return value
+        self.flagged = True
         return _Refused(f"integer of {len(text)} digits is too large")
-    value = int(text)
-    return value if abs(value) < _MAX_INT else _Refused(f"integer {text} is too large")
+
+    def constant(self, text: str) -> _Refused:
+        self.flagged = True
+        return _Refused(f"{text} is not a finite number")
 
 
-def _constant(text: str) -> _Refused:
-    return _Refused(f"{text} is not a finite number")
+def _too_deep(data: Any) -> bool:
+    """Whether ``data`` nests arrays and objects deeper than :data:`MAX_DEPTH`."""
+    level, depth = [data], 0
+    while level:
+        depth += 1
+        if depth > MAX_DEPTH:
+            return True
+        deeper: list[Any] = []
+        for value in level:
+            items = value.values() if isinstance(value, dict) else value
+            deeper.extend(v for v in items if isinstance(v, dict | list))
+        level = deeper
+    return False
+
+
+_SURROGATE_ESCAPE: Final = re.compile(r"\\u[dD][89a-fA-F]")
+
+
+def _surrogate(text: str) -> bool:
+    return not text.isprintable() and any("\ud800" <= c <= "\udfff" for c in text)
 
 
 def _check_document(data: Any, source: str) -> None:
-    """Refuse what :func:`json.loads` accepted but a file must not hold (see module doc)."""
+    """Find what :func:`read_json` refuses and raise naming its field (see module doc)."""
     stack: list[tuple[Any, tuple[Any, ...]]] = [(data, ())]
     while stack:
         value, loc = stack.pop()
         if isinstance(value, str):
-            if not value.isprintable() and any("\ud800" <= c <= "\udfff" for c in value):
+            if _surrogate(value):
                 raise ConfigurationError("a lone surrogate escape is not text",
                                          source=source, field=validation_field(loc))
         elif isinstance(value, _Refused):
@@ -211,7 +246,7 @@ def _check_document(data: Any, source: str) -> None:
                                          field=validation_field(loc))
             if isinstance(value, dict):
                 for key, item in value.items():
-                    if not key.isprintable() and any("\ud800" <= c <= "\udfff" for c in key):
+                    if _surrogate(key):
                         raise ConfigurationError("a lone surrogate escape is not text",
                                                  source=source, field=validation_field(loc))
                     stack.append((item, (*loc, key)))
@@ -238,16 +273,19 @@ def read_json(path: str | os.PathLike[str]) -> Any:
         raise ConfigurationError(f"not UTF-8 text (byte {exc.start})", source=source) from None
     except OSError as exc:
         raise ConfigurationError(f"cannot read: {exc.strerror or exc}", source=source) from None
+    decoder = _Decoder()
     try:
-        data = json.loads(text, object_pairs_hook=_object, parse_float=_float,
-                          parse_int=_int, parse_constant=_constant)
+        data = json.loads(text, object_pairs_hook=decoder.object, parse_float=decoder.float,
+                          parse_int=decoder.int, parse_constant=decoder.constant)
     except json.JSONDecodeError as exc:
         raise ConfigurationError(f"invalid JSON at line {exc.lineno} column {exc.colno}: "
                                  f"{exc.msg}", source=source) from None
     except RecursionError:
         raise ConfigurationError(f"nested deeper than {MAX_DEPTH} levels",
                                  source=source) from None
-    _check_document(data, source)
+    # a lone surrogate can only come from a \\u escape: the text itself was valid UTF-8
+    if decoder.flagged or _SURROGATE_ESCAPE.search(text) or _too_deep(data):
+        _check_document(data, source)
     return data
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Annotated, Any
@@ -275,16 +276,20 @@ def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, json.dumps(data, indent=2) + "\n")
 
 
-def load_plan(path: str | os.PathLike[str], robot: Robot | None = None) -> Plan:
+def load_plan(path: str | os.PathLike[str],
+              robot: Robot | Callable[[str], Robot] | None = None) -> Plan:
     """Read a plan file and, when ``robot`` is given, validate it (:func:`check_plan`).
 
-    :func:`msrr.core.plugins.load_plan` checks against the installed robot the file names.
+    ``robot`` may be a function giving the robot of the name the file holds, as
+    :func:`msrr.core.plugins.load_plan` passes.
 
     Raises:
         ConfigurationError: a bad file, field or id, or a broken rule of ``robot``;
             naming the file and the field.
     """
     plan = plan_from_model(parse_model(PlanFile, read_json(path), str(path)), str(path))
+    if robot is not None and not isinstance(robot, Robot):
+        robot = robot(plan.robot)
     if robot is not None:
         try:
             check_plan(plan, robot)

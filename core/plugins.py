@@ -45,10 +45,9 @@ from .errors import (
     one_line,
 )
 from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
-from .files import read_json
 from .kinematics.node import FixedNode, KinematicNode
 from .library import storage as library_storage
-from .library.model import Library, LibraryError
+from .library.model import Library
 from .plan import Action, Plan
 from .robot import DockingRules, Robot, RobotSpec
 from .scenario import Scenario
@@ -356,13 +355,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
     Raises:
         LibraryError: naming the file and the field.
     """
-    name = _peek_robot(path)
-    try:
-        return library_storage.load_library(path, _robot_of(name, path) if name else None)
-    except ConfigurationError as exc:
-        if isinstance(exc, LibraryError):
-            raise
-        raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
+    return library_storage.load_library(path, lambda name: _robot_of(name, path))
 
 
 def load_plan(path: str | os.PathLike[str]) -> Plan:
@@ -372,16 +365,7 @@ def load_plan(path: str | os.PathLike[str]) -> Plan:
     Raises:
         ConfigurationError: naming the file and the field.
     """
-    name = _peek_robot(path)
-    return plan_module.load_plan(path, _robot_of(name, path) if name else None)
-
-
-def _peek_robot(path: str | os.PathLike[str]) -> str | None:
-    """The ``robot`` a file names, if it is a JSON object with a string there (the
-    reader reports every other problem)."""
-    data = read_json(path)
-    name = data.get("robot") if isinstance(data, dict) else None
-    return name if isinstance(name, str) and name else None
+    return plan_module.load_plan(path, lambda name: _robot_of(name, path))
 
 
 # -- capabilities ---------------------------------------------------------------------

@@ -9,12 +9,13 @@ import numpy as np
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from ..console import SEED, FiniteFloat, MsrrGroup, console, styled, table
-from ..errors import ConfigurationError
+from ..errors import ConfigurationError, MsrrError
 from ..executor import ExecutorOptions
 from ..feasibility import default_runner, run_edge
 from ..library import (
     DEFAULT_MERGE_THRESHOLD,
     Library,
+    RetrievalError,
     build_library,
     build_steps,
     load_sources,
@@ -187,7 +188,12 @@ def retrieve_command(library: Path, system: Path, target: str | None,
     """Retrieve the cheapest sequence from the system to a target (Fig. 15)."""
     lib = load_library(library)
     config = load_configuration(system)
-    result = retrieve(lib, config, resolve(lib.robot), to=target, behavior=behavior)
+    try:
+        result = retrieve(lib, config, resolve(lib.robot), to=target, behavior=behavior)
+    except MsrrError as exc:  # about the library and the system: name both
+        if str(library) in str(exc):
+            raise
+        raise RetrievalError(f"{library} from {system}: {exc}") from None
     actions = result.actions(config)
     console.print(f"matched {result.start} of {result.sublibrary} ({lib.build.get('cost')} cost "
                   f"{result.match_cost:.4g}); mapping system → library: "

@@ -8,6 +8,7 @@ import click
 import numpy as np
 
 from ..console import FiniteFloat, console, table
+from ..errors import MsrrError
 from ..matching import (
     CONFIDENCE,
     COST_KINDS,
@@ -54,8 +55,13 @@ def command(system: Path, references: tuple[Path, ...], top: int, confidence: fl
     """Match SYSTEM.json against REFERENCE.json files: best reference, cost and mapping."""
     current = load_configuration(system)
     candidates = [Candidate(load_configuration(path), None, str(path)) for path in references]
-    result = match(current, candidates, robot=resolve(current.robot), cost=cost,
-                   confidence=confidence, time_budget=time_budget, top=top)
+    try:
+        result = match(current, candidates, robot=resolve(current.robot), cost=cost,
+                       confidence=confidence, time_budget=time_budget, top=top)
+    except MsrrError as exc:  # a problem of the inputs found while matching: name them
+        if str(system) in str(exc):
+            raise
+        raise MatchingError(f"{system}: {exc}") from None
     if result is None:
         raise MatchingError(f"{system}: no reference is isomorphic to this configuration "
                             f"(signature {current.signature().degrees})")

@@ -85,7 +85,10 @@ def command(robot: str, start: Path, goal: Path, planner_name: str | None, seed:
             raise PlanningError(f"{path}: a configuration of robot {config.robot!r}, "
                                 f"not {robot!r}")
         configs.append(config)
-    plan = planner.plan(configs[0], configs[1], seed=seed)
+    try:
+        plan = planner.plan(configs[0], configs[1], seed=seed)
+    except PlanningError as exc:  # about the pair: name both files
+        raise PlanningError(f"{start} -> {goal}: {exc}") from None
     print_plan(plan)
     if json_out is not None:
         save_plan(plan, json_out)

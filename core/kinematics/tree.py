@@ -28,7 +28,7 @@ import networkx as nx
 import numpy as np
 
 from ..configuration import Configuration
-from ..errors import UnknownNameError
+from ..errors import ConfigurationError, UnknownNameError
 from ..files import atomic_write_text, read_json
 from .cycles import find_cycle_through
 from .node import KinematicNode, KinematicTreeError
@@ -304,16 +304,31 @@ class KinematicTree:
                 known ones), or a topology mismatch.
         """
         topology, nodes = read_tree_document(data, modes, source)
-        if config is not None:
-            check_same_topology(topology, config)
-        return cls(config if config is not None else topology, nodes)
+        if config is not None and topology.robot != config.robot:
+            raise KinematicTreeError(f"a tree of robot {topology.robot!r} for a configuration "
+                                     f"of {config.robot!r}", source=source, field="robot")
+        try:
+            if config is not None:
+                check_same_topology(topology, config)
+            return cls(config if config is not None else topology, nodes)
+        except ConfigurationError as exc:  # named after the document it came from
+            raise KinematicTreeError(exc.message, source=exc.source or source,
+                                     field=exc.field) from None
 
 
 def check_same_topology(mine: Configuration, theirs: Configuration) -> None:
-    """Raise :class:`KinematicTreeError` unless both have the same vertices and edges."""
+    """Raise :class:`KinematicTreeError` unless both have the same vertices and edges
+    (ids, ends and module kinds)."""
     a = {e.id: (e.source, e.target) for e in mine.edges()}
     b = {e.id: (e.source, e.target) for e in theirs.edges()}
     if a == b and set(mine.vertices()) == set(theirs.vertices()):
+        kinds = [f"vertex {v} is {mine.kind_of(v)!r} in the tree, {theirs.kind_of(v)!r} in the "
+                 "configuration" for v in mine.vertices() if mine.kind_of(v) != theirs.kind_of(v)]
+        kinds += [f"edge {e.id} is {e.kind!r} in the tree, {theirs.edge(e.id).kind!r} in the "
+                  "configuration" for e in mine.edges() if e.kind != theirs.edge(e.id).kind]
+        if kinds:
+            raise KinematicTreeError(f"configuration does not have the tree's module kinds "
+                                     f"({kinds[0]})")
         return
     parts = [f"{what} {', '.join(ids)}" for what, ids in (
         ("unknown edges", sorted(set(b) - set(a))), ("missing edges", sorted(set(a) - set(b))),

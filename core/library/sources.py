@@ -28,9 +28,10 @@ from typing import Literal
 from pydantic import Field
 
 from ..configuration import Configuration
-from ..errors import ConfigurationError, MsrrError
+from ..errors import ConfigurationError, MsrrError, UnknownNameError
 from ..files import Flag, Number, SchemaVersion, StrictModel, parse_model, read_json
 from ..io import ConfigurationFile, check_configuration, configuration_from_model
+from ..kinematics.tree import KinematicTree
 from ..robot import Robot
 from .model import CommandGain, LibraryError
 
@@ -185,6 +186,24 @@ def _configuration(model: ConfigurationFile, source: str, field: str, robot: Rob
     return config
 
 
+def _check_tree(model: TreeSourceModel, reference: Configuration, robot: Robot, source: str,
+                field: str) -> None:
+    """A designed tree names one of the robot's joint modes, or is a serialised tree that
+    loads on its group's reference with the robot's joint modes."""
+    if model.tree is not None and model.joint_mode is not None:
+        raise LibraryError("give a joint_mode or a tree, not both", source=source, field=field)
+    if model.joint_mode is not None and model.joint_mode not in robot.joint_modes:
+        raise LibraryError(str(UnknownNameError(f"joint mode for robot {robot.name!r}",
+                                                model.joint_mode, robot.joint_modes)),
+                           source=source, field=f"{field}.joint_mode")
+    if model.tree is not None:
+        try:
+            KinematicTree.from_dict(model.tree, reference, modes=robot.joint_modes)
+        except ConfigurationError as exc:
+            inner = f".{exc.field}" if exc.field else ""
+            raise LibraryError(exc.message, source=source, field=f"{field}.tree{inner}") from None
+
+
 def _read(path: Path, robot: str | None) -> tuple[LibrarySourceFile, str]:
     source = str(path)
     try:
@@ -233,9 +252,11 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
         files.append((path.name, hashlib.sha256(path.read_bytes()).hexdigest()))
         for i, g in enumerate(model.groups):
             where = f"groups[{i}]"
+            reference = _configuration(g.reference, source, f"{where}.reference", robot)
+            for k, t in enumerate(g.trees):
+                _check_tree(t, reference, robot, source, f"{where}.trees[{k}]")
             groups.append(DesignedGroup(
-                name=g.name, description=g.description,
-                reference=_configuration(g.reference, source, f"{where}.reference", robot),
+                name=g.name, description=g.description, reference=reference,
                 trees=tuple(DesignedTree(t.name, t.joint_mode, t.tree) for t in g.trees),
                 configurations=tuple(
                     _configuration(c, source, f"{where}.configurations[{j}]", robot)

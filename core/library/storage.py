@@ -347,10 +347,11 @@ def save_library(library: Library, path: str | os.PathLike[str]) -> None:
     atomic_write_text(path, dump_library(library))
 
 
-def load_library(path: str | os.PathLike[str], robot: Robot | None = None) -> Library:
+def load_library(path: str | os.PathLike[str],
+                 robot: Robot | Callable[[str], Robot] | None = None) -> Library:
     """Read and validate a library file (:func:`library_from_model`; ``robot`` adds the
-    checks against the robot; :func:`msrr.core.plugins.load_library` passes the
-    installed robot the file names).
+    checks against the robot; it may be a function giving the robot of the name the
+    file holds, as :func:`msrr.core.plugins.load_library` passes).
 
     Raises:
         LibraryError: missing file, bad or truncated JSON, a wrong field, a broken
@@ -363,5 +364,7 @@ def load_library(path: str | os.PathLike[str], robot: Robot | None = None) -> Li
         raise
     except ConfigurationError as exc:
         raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
+    if robot is not None and not isinstance(robot, Robot):
+        robot = robot(model.robot)
     return library_from_model(model, source, robot)
 
