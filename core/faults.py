@@ -32,9 +32,11 @@ kind           keys (default)                                  effect
                                                                ``ticks`` ticks
 ``noise``      ``sigma`` (required, [m]), ``yaw`` (0, [rad])   Gaussian noise on every
                                                                reported position (heading)
-``nan``        ``at`` (0), ``module`` (all), ``ticks`` (1)     the pose readings are NaN
-                                                               from ``at`` for ``ticks``
-                                                               observations
+``nan``        ``at`` (0), ``module`` (all), ``ticks`` (1),    the readings are NaN from
+               ``reading`` (``pose`` or ``sensors``)           ``at`` for ``ticks``
+                                                               observations: poses, or
+                                                               every number in the modules'
+                                                               sensor data
 =============  ==============================================  ==========================
 
 Example: ``dropout:module=3,at=5;loss:p=0.05;latency:ticks=2;dock-fail:count=1;``
@@ -46,7 +48,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -65,9 +67,10 @@ FAULT_KINDS: dict[str, dict[str, float | str | None]] = {
     "latency": {"ticks": None},
     "dock-fail": {"count": 1, "ticks": 20},
     "noise": {"sigma": None, "yaw": 0.0},
-    "nan": {"at": 0.0, "module": "", "ticks": 1},
+    "nan": {"at": 0.0, "module": "", "ticks": 1, "reading": "pose"},
 }
-_TEXT_KEYS = {"module"}
+_TEXT_KEYS = {"module", "reading"}
+_CHOICES = {"reading": ("pose", "sensors")}
 _INTEGER_KEYS = {"ticks", "count"}
 
 OnFault = Callable[[FaultEvent], None]
@@ -95,6 +98,9 @@ def _value(kind: str, key: str, text: str, where: str) -> float | str:
     if key in _TEXT_KEYS:
         if not text:
             raise ConfigurationError(f"{where}: {key} is empty", field="--faults")
+        if key in _CHOICES and text not in _CHOICES[key]:
+            raise ConfigurationError(f"{where}: {key} must be one of "
+                                     f"{', '.join(_CHOICES[key])}, got {text!r}", field="--faults")
         return text
     try:
         value = float(text)
@@ -324,6 +330,7 @@ class FaultyDriver(_Wrapper):
                     turned = Pose.planar(0, 0, float(self.rng.normal(0.0, yaw_sigma)))
                     orientation = _quat_mul(turned.orientation, orientation)
                 poses[module] = Pose(position, orientation)
+        sensors = observation.sensors
         for index, fault in self._of("nan"):
             if observation.time + 1e-9 < float(fault.params["at"]):
                 continue
@@ -332,12 +339,57 @@ class FaultyDriver(_Wrapper):
                 continue
             self._nan_left[index] = left - 1
             target = str(fault.params["module"])
-            hit = [m for m in sorted(poses) if not target or m == target]
-            for module in hit:
-                poses[module] = Pose(np.full(3, np.nan), np.full(4, np.nan))
+            if fault.params["reading"] == "sensors":
+                if isinstance(sensors, Mapping):
+                    hit = [m for m in sorted(sensors) if not target or m == target]
+                    sensors = {m: _poisoned(r) if m in hit else r for m, r in sensors.items()}
+                else:
+                    hit, sensors = ["every module"], _poisoned(sensors)
+            else:
+                hit = [m for m in sorted(poses) if not target or m == target]
+                for module in hit:
+                    poses[module] = Pose(np.full(3, np.nan), np.full(4, np.nan))
             if left == int(fault.params["ticks"]):
-                self._report("nan", f"NaN pose reading of {', '.join(hit) or 'no module'}")
+                self._report("nan", f"NaN {fault.params['reading']} reading of "
+                             f"{', '.join(hit) or 'no module'}")
+        if sensors is not observation.sensors:
+            return replace(observation, poses=poses, sensors=sensors)
         return replace(observation, poses=poses)
+
+
+def _poisoned(value: Any) -> Any:
+    """``value`` with every float (also in arrays, mappings, sequences and dataclasses)
+    replaced by NaN."""
+    if isinstance(value, np.ndarray) and value.dtype.kind == "f":
+        return np.full_like(value, np.nan)
+    if isinstance(value, float):
+        return math.nan
+    if isinstance(value, Mapping):
+        return {k: _poisoned(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return type(value)(_poisoned(v) for v in value)
+    if is_dataclass(value) and not isinstance(value, type):
+        return replace(value, **{f.name: _poisoned(getattr(value, f.name))
+                                 for f in fields(value) if f.init})
+    return value
+
+
+def _finite(value: Any, depth: int = 0) -> bool:
+    """Whether every number in ``value`` (arrays, mappings, sequences, dataclasses) is
+    finite."""
+    if depth > 20:
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype.kind not in "fc" or bool(np.all(np.isfinite(value)))
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, Mapping):
+        return all(_finite(v, depth + 1) for v in value.values())
+    if isinstance(value, list | tuple):
+        return all(_finite(v, depth + 1) for v in value)
+    if is_dataclass(value) and not isinstance(value, type):
+        return all(_finite(getattr(value, f.name), depth + 1) for f in fields(value))
+    return True
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -353,9 +405,11 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class GuardedDriver(_Wrapper):
     """``inner`` with sanitized readings and an overall deadline of driver time.
 
-    A pose with a non-finite number is replaced by the module's last finite pose (a
-    ``"nan"`` :class:`FaultEvent` reports it, once per run of bad readings); a module
-    that has never had a finite pose stops the run (:class:`ExecutionError`). A
+    A pose, or a module's sensor data (``sensors[module]``: every float in its arrays,
+    mappings, sequences and dataclasses), with a non-finite number is replaced by the
+    module's last finite one (a ``"nan"`` :class:`FaultEvent` reports it, once per run of
+    bad readings); a module that has never had a finite reading stops the run
+    (:class:`ExecutionError`). A
     :meth:`step` past ``deadline`` seconds of driver time stops the run likewise.
 
     Args:
@@ -368,36 +422,50 @@ class GuardedDriver(_Wrapper):
                  on_fault: OnFault | None = None):
         super().__init__(inner, on_fault)
         self.deadline = deadline
-        self._last: dict[str, Pose] = {}
-        self._bad: set[str] = set()
+        self._last: dict[tuple[str, str], Any] = {}
+        self._bad: set[tuple[str, str]] = set()
 
     def reset(self, start: Configuration) -> None:
         super().reset(start)
         self._last.clear()
         self._bad.clear()
 
+    def _hold(self, what: str, readings: Mapping[str, Any], time: float,
+              finite: Callable[[Any], bool]) -> dict[str, Any]:
+        """``readings`` with each non-finite one replaced by the module's last finite one."""
+        out: dict[str, Any] = {}
+        bad: list[str] = []
+        for module, reading in readings.items():
+            key = (what, module)
+            if finite(reading):
+                out[module] = self._last[key] = reading
+                self._bad.discard(key)
+                continue
+            if key not in self._last:
+                self._report("nan", f"non-finite {what} of module {module} and no earlier "
+                             "reading to hold", recovered=False)
+                raise ExecutionError(f"non-finite {what} reading of module {module} at "
+                                     f"t={time:.1f} s with no earlier finite one")
+            out[module] = self._last[key]
+            if key not in self._bad:
+                bad.append(module)
+                self._bad.add(key)
+        if bad:
+            self._report("nan", f"non-finite {what} of {', '.join(bad)} ignored; last finite "
+                         f"{what} held")
+        return out
+
     def get_observation(self) -> Observation:
         observation = self.inner.get_observation()
-        poses: dict[str, Pose] = {}
-        bad: list[str] = []
-        for module, pose in observation.poses.items():
-            if np.all(np.isfinite(pose.position)) and np.all(np.isfinite(pose.orientation)):
-                poses[module] = self._last[module] = pose
-                self._bad.discard(module)
-                continue
-            if module not in self._last:
-                self._report("nan", f"non-finite pose of module {module} and no earlier "
-                             "reading to hold", recovered=False)
-                raise ExecutionError(f"non-finite pose reading of module {module} at "
-                                     f"t={observation.time:.1f} s with no earlier finite one")
-            poses[module] = self._last[module]
-            if module not in self._bad:
-                bad.append(module)
-                self._bad.add(module)
-        if bad:
-            self._report("nan", f"non-finite pose of {', '.join(bad)} ignored; last finite "
-                         "pose held")
-        return replace(observation, poses=poses)
+        poses = self._hold("pose", observation.poses, observation.time,
+                           lambda p: _finite(p.position) and _finite(p.orientation))
+        sensors = observation.sensors
+        if isinstance(sensors, Mapping):
+            sensors = self._hold("sensors", sensors, observation.time, _finite)
+        elif not _finite(sensors):
+            sensors = self._hold("sensors", {"(all)": sensors}, observation.time,
+                                 _finite)["(all)"]
+        return replace(observation, poses=poses, sensors=sensors)
 
     def step(self, dt: float) -> None:
         if self.inner.time + dt > self.deadline + 1e-9:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ from tiny_robot import PointDriver, chain, installed
 
 from msrr.core import hookimpl, plugins
 from msrr.core.cli import get_cli
-from msrr.core.driver import ModuleCommand
+from msrr.core.driver import ModuleCommand, Observation
 from msrr.core.errors import ConfigurationError, ExecutionError
 from msrr.core.events import FaultEvent, Run
 from msrr.core.faults import FaultyDriver, GuardedDriver, parse_faults
@@ -29,14 +30,15 @@ def test_spec_parses_with_defaults_and_names_every_mistake() -> None:
     assert [f.kind for f in faults] == ["dropout", "loss", "latency", "dock-fail", "noise", "nan"]
     assert faults[0].params == {"module": "3", "at": 5.0, "for": math.inf}
     assert faults[3].params == {"count": 1.0, "ticks": 20.0}
-    assert faults[5].params == {"at": 3.0, "module": "", "ticks": 1.0}
+    assert faults[5].params == {"at": 3.0, "module": "", "ticks": 1.0, "reading": "pose"}
     assert str(faults[1]) == "loss:p=0.05"
     for spec, words in [("warp:x=1", "unknown kind 'warp'"), ("loss", "loss needs p"),
                         ("loss:p=2", "p must be at most 1"), ("loss:p=nan", "must be finite"),
                         ("loss:q=1", "unknown key 'q'"), ("loss:p", "is not KEY=VALUE"),
                         ("latency:ticks=1.5", "whole number"), ("noise:sigma=-1", ">= 0"),
                         ("loss:p=0.1,p=0.2", "given twice"), ("dropout:at=1", "needs module"),
-                        (" ; ", "no fault given"), ("nan:at=inf", "must be finite")]:
+                        (" ; ", "no fault given"), ("nan:at=inf", "must be finite"),
+                        ("nan:reading=imu", "one of pose, sensors")]:
         with pytest.raises(ConfigurationError, match=words) as error:
             parse_faults(spec)
         assert "--faults" in str(error.value) and "\n" not in str(error.value)
@@ -97,6 +99,36 @@ def test_noise_is_seeded_and_nan_readings_are_held_by_the_guard() -> None:
     fresh, _ = _driver("nan:at=0")
     with pytest.raises(ExecutionError, match="no earlier finite"):
         GuardedDriver(fresh).get_observation()
+
+
+@dataclass(frozen=True)
+class _Report:
+    tilt: np.ndarray
+    label: str
+
+
+class _SensingDriver(PointDriver):
+    """Sensor data with numbers in it: per module a report with an array."""
+
+    def get_observation(self) -> Observation:
+        seen = super().get_observation()
+        return replace(seen, sensors={m: _Report(np.array([x, 1.0]), m) for m, x in self.x.items()})
+
+
+def test_nan_in_sensor_data_is_held_per_module_by_the_guard() -> None:
+    events: list = []
+    faulty = FaultyDriver(_SensingDriver(), parse_faults("nan:reading=sensors,module=b,at=0.1"),
+                          on_fault=events.append)
+    guard = GuardedDriver(faulty, on_fault=events.append)
+    guard.connect()
+    guard.reset(chain(("a", "b")))
+    first = guard.get_observation().sensors
+    guard.step(0.1)
+    held = guard.get_observation().sensors
+    assert held["b"] is first["b"] and held["a"].label == "a"  # b's last finite report
+    assert [e.text.split(" of")[0] for e in events] == ["NaN sensors reading",
+                                                       "non-finite sensors"]
+    assert guard.get_observation().sensors["b"].tilt[1] == 1.0  # one tick only: fresh again
 
 
 def test_dock_fail_blocks_the_first_attempt_for_its_ticks() -> None:
