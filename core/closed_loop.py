@@ -45,7 +45,14 @@ from .actions import STRUT_ENDS, topology_diff
 from .alignment import align_yaw, angles_between, rot_z
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
-from .kinematics import IKOptions, IKSolution, IKTracker, KinematicTree, default_tree
+from .kinematics import (
+    GroundModel,
+    IKOptions,
+    IKSolution,
+    IKTracker,
+    KinematicTree,
+    default_tree,
+)
 from .plan import ConnectionChange
 
 __all__ = ["JointController", "PhaseTracker", "TrackingOptions", "connection_goal",
@@ -79,6 +86,8 @@ class TrackingOptions:
             without a wall-clock budget, so runs are reproducible).
         initial_restarts: sampled starts of a phase's first solve.
         stuck_ticks: ticks without residual improvement before exploration runs.
+        ground: solve with the three-point ground model (a floating base settles on its
+            lowest contacts, so the root's tilt is predicted rather than held).
     """
 
     reach_tolerance: float = float(np.radians(3.0))
@@ -86,6 +95,7 @@ class TrackingOptions:
     max_iterations: int = 60
     initial_restarts: int = 8
     stuck_ticks: int = 5
+    ground: bool = True
 
 
 def shape_error(current: Configuration, goal: Configuration) -> float:
@@ -200,15 +210,18 @@ class PhaseTracker:
         goal: the phase goal (same edge ids).
         options: tracking options.
         seed: seed of the first solve and of exploration.
+        ground: the ground model of the robot (``GroundModel.for_configuration``); used
+            when ``options.ground``.
     """
 
     def __init__(self, tree: KinematicTree, goal: Configuration, options: TrackingOptions,
-                 seed: int = 0):
+                 seed: int = 0, ground: GroundModel | None = None):
         self.tree = tree
         self.goal = goal
         self.options = options
         ik = IKOptions(max_iterations=options.max_iterations,
-                       max_restarts=options.initial_restarts, seed=seed)
+                       max_restarts=options.initial_restarts, seed=seed,
+                       ground=ground if options.ground else None)
         self._tracker = IKTracker(tree, goal, ik, tick_budget=None, explore=False)
         self._best = np.inf
         self._since = 0

@@ -53,6 +53,7 @@ from .control import Control, Controller
 from .driver import Driver, ModuleCommand, Observation
 from .errors import ExecutionError, MsrrError
 from .events import ActionStatus, Phase, Run, RunResult, Tick, TopologyEvent
+from .kinematics import GroundModel
 from .plan import Action, ActionType, ConnectionChange
 
 __all__ = ["Executor", "ExecutorOptions", "phases_of"]
@@ -288,7 +289,9 @@ class Executor:
         if tree is None:
             self._tracker = None
             return False
-        self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed)
+        ground = GroundModel.for_configuration(current, self.run.spec)
+        self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
+                                     ground=ground)
         return True
 
     def _controller_for(self, name: str) -> JointController:

@@ -305,40 +305,60 @@ def octahedron_nodes() -> dict[str, np.ndarray]:
     return nodes
 
 
-# The Hamiltonian zig-zag cycle T1-B2-T2-B3-T3-B1 plays the hexagon ring R1-R6; chords C1-C6
-# join every other ring node (i -> i+2), so ring + chords is the octahedron.
-RING_NODES = ["T1", "B2", "T2", "B3", "T3", "B1"]
+# The Hamiltonian zig-zag cycle of the antiprism's side edges, T1-B1-T2-B2-T3-B3 (azimuths 30,
+# 90, 150, 210, 270, 330 deg: each top node to its two *neighbouring* bottom nodes, struts of
+# length L), plays the hexagon ring R1-R6; chords C1-C6 join every other ring node (i -> i+2):
+# the top and the bottom triangle, so ring + chords is the regular octahedron.
+RING_NODES = ["T1", "B1", "T2", "B2", "T3", "B3"]
 
 
-def ring_struts() -> list[tuple]:
-    return [(f"R{i + 1}", RING_NODES[i], RING_NODES[(i + 1) % 6]) for i in range(6)]
+def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int] = frozenset(),
+                *, outward: bool = False) -> list[tuple]:
+    """The ring struts; those in ``free`` undocked at their target end, aimed at it (or
+    pointing outward along the floor with ``outward``)."""
+    out: list[tuple] = []
+    for i in range(6):
+        sid, s, t = f"R{i + 1}", RING_NODES[i], RING_NODES[(i + 1) % 6]
+        if i not in free:
+            out.append((sid, s, t))
+        else:
+            assert nodes is not None
+            out.append((sid, s, None, horizontal(math.atan2(nodes[s][1], nodes[s][0]))
+                        if outward else nodes[t] - nodes[s]))
+    return out
 
 
 def chord(i: int) -> tuple[str, str, str]:
     return (f"C{i + 1}", RING_NODES[i], RING_NODES[(i + 2) % 6])
 
 
-def octa_state(name: str, docked: set[int], description: str = "") -> dict:
-    """The octahedron layout with chords not in ``docked`` free, aimed at their node."""
+def octa_state(name: str, docked: set[int], description: str = "", *,
+               free_ring: frozenset[int] = frozenset()) -> dict:
+    """The octahedron layout with chords not in ``docked`` (and ring struts in
+    ``free_ring``) free, aimed at their node."""
     nodes = octahedron_nodes()
-    struts = ring_struts()
+    struts = ring_struts(nodes, free_ring)
     for i in range(6):
         cid, s, t = chord(i)
         struts.append((cid, s, t) if i in docked else (cid, s, None, nodes[t] - nodes[s]))
     return configuration(name, nodes, struts, description)
 
 
-def octa_legs_down(name: str, docked: set[int], description: str = "") -> dict:
-    """Octahedron layout, free chords pointing down-outward to the floor (wheels)."""
+def octa_legs_down(name: str, docked: set[int], description: str = "", *,
+                   free_ring: frozenset[int] = frozenset()) -> dict:
+    """Octahedron layout with the chords not in ``docked`` free, pointing outward along the
+    floor (Fig. 22(e): the bottom face's struts freed as wheels; the top face stays
+    docked, so each bottom node and its two ring struts form a rigid flap hinged on a
+    top edge and the structure stands by friction, not by connector torque). Ring struts
+    in ``free_ring`` point outward along the floor too (Fig. 22(j))."""
     nodes = octahedron_nodes()
-    struts = ring_struts()
+    struts = ring_struts(nodes, free_ring, outward=True)
     for i in range(6):
         cid, s, t = chord(i)
         if i in docked:
             struts.append((cid, s, t))
         else:
-            out = math.atan2(nodes[s][1], nodes[s][0])
-            struts.append((cid, s, None, horizontal(out, math.radians(60))))
+            struts.append((cid, s, None, horizontal(math.atan2(nodes[s][1], nodes[s][0]))))
     return configuration(name, nodes, struts, description)
 
 
@@ -361,7 +381,7 @@ def hex_star(name: str, description: str = "", *, aimed: bool = False,
     nodes = hex_nodes()
     struts = ring_struts()
     if open_ring:
-        struts[5] = ("R6", RING_NODES[5], None, nodes["T1"] - nodes["B1"])
+        struts[5] = ("R6", RING_NODES[5], None, nodes[RING_NODES[0]] - nodes[RING_NODES[5]])
     for i in range(6):
         cid, s, t = chord(i)
         out = math.atan2(nodes[s][1], nodes[s][0])
@@ -376,7 +396,7 @@ def tree_state(name: str, description: str = "") -> dict:
         nodes[n] = np.array([i * L * math.cos(math.radians(30)),
                              (i % 2) * L * math.sin(math.radians(30)), 0.0])
     struts: list[tuple] = ring_struts()[:5]
-    struts.append(("R6", "B1", None, [1.0, 0.0, 0.0]))
+    struts.append(("R6", RING_NODES[5], None, [1.0, 0.0, 0.0]))
     for i in range(6):
         cid, s, _ = chord(i)
         struts.append((cid, s, None, [0.0, 1.0 if i % 2 else -1.0, 0.0]))
@@ -395,10 +415,11 @@ def s12n6() -> None:
         {"name": "tree", "description": "Fig. 21(e): the opened ring, a tree",
          "reference": tree_state("fig21e"), "trees": [tree("K1")]},
         {"name": "open-face", "description": "Fig. 22(e): octahedron with one face's struts "
-         "free as wheels", "reference": octa_legs_down("fig22e", {1, 3, 5}),
+         "free as wheels", "reference": octa_legs_down("fig22e", {0, 2, 4}),
          "trees": [tree("K1")]},
-        {"name": "open-face-and-edge", "description": "Fig. 22(j): one more bottom strut free",
-         "reference": octa_legs_down("fig22j", {1, 3}), "trees": [tree("K1")]},
+        {"name": "open-face-and-edge", "description": "Fig. 22(j): ring strut R6 free too",
+         "reference": octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5})),
+         "trees": [tree("K1")]},
     ]
     write(out / "designs.json", source("S12N6", "FreeSN sub-library S12N6 (paper Figs. 18, 21, "
                                        "22): twelve struts, six nodes", groups=groups))
@@ -415,17 +436,19 @@ def s12n6() -> None:
                    step(octa_state("three-docked", {1, 3, 5})), step(octa)]},
         {"name": "fig22-a-to-e", "description": "Fig. 22(a)-(e): free one face in parallel, "
          "legs down",
-         "steps": [step(octa), step(octa_state("face-free", {1, 3, 5})),
-                   step(octa_legs_down("fig22e", {1, 3, 5}))]},
+         "steps": [step(octa), step(octa_state("face-free", {0, 2, 4})),
+                   step(octa_legs_down("fig22e", {0, 2, 4}))]},
         {"name": "fig22-e-to-j", "description": "Fig. 22(f)-(j): free one more strut",
-         "steps": [step(octa_legs_down("fig22e", {1, 3, 5})),
-                   step(octa_state("aim-j", {1, 3})), step(octa_legs_down("fig22j", {1, 3}))]},
+         "steps": [step(octa_legs_down("fig22e", {0, 2, 4})),
+                   step(octa_state("aim-j", {0, 2, 4}, free_ring=frozenset({5}))),
+                   step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5})))]},
         {"name": "fig22-j-to-a", "description": "Fig. 22(k)-(p): back to the octahedron",
-         "steps": [step(octa_legs_down("fig22j", {1, 3})), step(octa_state("aim-j", {1, 3})),
-                   step(octa_state("three-docked-j", {1, 3, 5})), step(octa)]},
+         "steps": [step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5}))),
+                   step(octa_state("aim-j", {0, 2, 4}, free_ring=frozenset({5}))),
+                   step(octa_state("three-docked-j", {0, 2, 4})), step(octa)]},
     ]
     nodes = octahedron_nodes()
-    wheels = {cid: (s, t) for cid, s, t in (chord(i) for i in (0, 2, 4))}
+    wheels = {cid: (s, t) for cid, s, t in (chord(i) for i in (1, 3, 5))}
     behaviors = [
         {"name": "wheeled-move", "start": "fig22e", "parameters": ["speed", "yaw_rate"],
          "description": "Fig. 18(g)-(i), 22(e): free struts rolled as wheels",

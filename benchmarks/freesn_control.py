@@ -1,0 +1,93 @@
+"""Benchmark of the FreeSN closed loop (issue 12, item 9; paper section 4.1, 10 Hz loop).
+
+For S4N5, S6N3 and S12N6 (18 modules, 48 joint motors at 12 struts x 2 connectors x 2
+wheels), one moving edge of the shipped library runs in MuJoCo under the executor's IK
+tracking (:class:`msrr.core.closed_loop.PhaseTracker`), recognizer noise 2 deg and slip
+0.05. Per control tick the benchmark times **recognize + IK tracking + controller
+commands** (``obs -> commands``; the driver's report assembly and physics excluded) and
+reports its median and 95th percentile; the **real-time factor** is simulated time over
+wall time, for the physics alone and for the whole loop (reports, tick, physics).
+Targets: tick median <= 20 ms and loop RTF >= 5 at 18 modules.
+
+Usage: ``python benchmarks/freesn_control.py [--seed N] [--ticks N]``. The last line is
+``tick_median_ms_18=... tick_p95_ms_18=... rtf_loop_18=... rtf_physics_18=...``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from msrr.core import plugins
+from msrr.core.closed_loop import PhaseTracker, TrackingOptions, connection_goal, tree_for
+from msrr.core.console import console, table
+from msrr.core.library import load_library
+from msrr.core.library.check import edge_cases
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver
+
+LIBRARIES = Path(__file__).resolve().parents[1] / "plugins" / "freesn" / "libraries"
+EDGES = {"S4N5": "S4N5:S4N5-1.1->S4N5-1.2", "S6N3": "S6N3:S6N3-1.1->S6N3-1.2",
+         "S12N6": "S12N6:S12N6-4.2->S12N6-4.1"}
+"""One moving edge per library (a large motion, so the tracker works every tick)."""
+
+
+def measure(name: str, seed: int, ticks: int, rate: float = 10.0) -> dict[str, float]:
+    robot = plugins.resolve("freesn")
+    case = next(c for c in edge_cases(load_library(LIBRARIES / f"{name}.json"), robot)
+                if c.key == EDGES[name])
+    recognizer = plugins.recognizers.get("freesn")
+    controller = plugins.controllers.get("freesn")
+    tick_s, physics_s = [], 0.0
+    with FreeSNMujocoDriver(noise=math.radians(2.0), slip=0.05, seed=seed) as driver:
+        driver.reset(case.start)
+        current = recognizer.recognize(driver.get_observation().sensors)
+        tree = tree_for(current, case.action.kinematic_tree, robot.default_joint_mode())
+        tracker = PhaseTracker(tree, connection_goal(current, case.target), TrackingOptions(),
+                               seed=seed)
+        began = time.perf_counter()
+        for _ in range(ticks):
+            observation = driver.get_observation()
+            t0 = time.perf_counter()
+            current = recognizer.recognize(observation.sensors)
+            joint = tracker.step(current)
+            commands = controller.commands(joint, observation, yaw=0.0)
+            tick_s.append(time.perf_counter() - t0)
+            driver.send_action(commands)
+            t1 = time.perf_counter()
+            driver.step(1.0 / rate)
+            physics_s += time.perf_counter() - t1
+        loop_s = time.perf_counter() - began
+        sim = driver.time
+        modules = len(case.start.modules())
+    ms = np.array(tick_s[1:]) * 1e3   # the first tick is the initial solve with restarts
+    return {"modules": modules, "first_ms": tick_s[0] * 1e3, "median_ms": float(np.median(ms)),
+            "p95_ms": float(np.percentile(ms, 95)), "rtf_physics": sim / physics_s,
+            "rtf_loop": sim / loop_s, "sim_s": sim}
+
+
+@click.command()
+@click.option("--seed", default=0, show_default=True)
+@click.option("--ticks", default=60, show_default=True, help="Control ticks per library.")
+def main(seed: int, ticks: int) -> None:
+    console.print(f"seed {seed}, {ticks} ticks at 10 Hz per library, noise 2 deg, slip 0.05")
+    rows, results = [], {}
+    for name in EDGES:
+        r = measure(name, seed, ticks)
+        results[name] = r
+        rows.append([name, EDGES[name].split(":", 1)[1], r["modules"], f"{r['first_ms']:.1f}",
+                     f"{r['median_ms']:.2f}", f"{r['p95_ms']:.2f}", f"{r['rtf_physics']:.1f}",
+                     f"{r['rtf_loop']:.1f}"])
+    console.print(table("FreeSN control tick (recognize + IK tracking + commands)",
+                        ["library", "edge", "modules", "first tick [ms]", "median [ms]",
+                         "p95 [ms]", "RTF physics", "RTF loop"], rows))
+    big = results["S12N6"]
+    console.print(f"tick_median_ms_18={big['median_ms']:.2f} tick_p95_ms_18={big['p95_ms']:.2f} "
+                  f"rtf_loop_18={big['rtf_loop']:.1f} rtf_physics_18={big['rtf_physics']:.1f}")
+
+
+if __name__ == "__main__":
+    main()
