@@ -275,7 +275,13 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
                                        field=f"sequences[{i}].steps[{j}]")
             sequences.append(RecordedSequence(s.name, steps, s.loop, s.behavior, s.description,
                                               path.name))
-        for b in model.behaviors:
+        for i, b in enumerate(model.behaviors):
+            for j, c in enumerate(b.commands):
+                unknown = sorted(set(c.gains) - set(b.parameters))
+                if unknown:
+                    raise LibraryError(f"unknown parameter {unknown[0]!r} (parameters: "
+                                       f"{', '.join(b.parameters)})", source=source,
+                                       field=f"behaviors[{i}].commands[{j}].gains")
             commands = tuple(CommandGain(c.module, c.command, tuple(sorted(c.gains.items())),
                                          c.connector) for c in b.commands)
             behaviors.append(MappingBehaviorSource(b.name, b.start, tuple(b.parameters), commands,
