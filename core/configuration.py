@@ -53,7 +53,7 @@ def unit(vector: VectorLike, *, what: str = "vector") -> np.ndarray:
         ConfigurationError: wrong shape, non-finite, or norm off 1 by more than 1e-6.
     """
     array = np.array(vector, dtype=np.float64)
-    if array.shape != (3,) or not np.all(np.isfinite(array)):
+    if array.shape != (3,) or not all(math.isfinite(c) for c in array):
         raise ConfigurationError(f"{what} must be 3 finite numbers, got {array.tolist()}")
     norm = math.hypot(*array)  # no overflow for huge components (1e300)
     if abs(norm - 1.0) > UNIT_TOLERANCE:

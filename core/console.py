@@ -157,8 +157,9 @@ def show_configuration(config: Configuration, title: str = "") -> None:
                for v in config.vertices())
     console.print(table(f"Modules ({len(config)})", ["id", "kind", "degree", "position [m]"],
                         modules))
-    edges = ([e.id, f"{e.source} → {e.target}", e.kind or "",
-              "–".join(e.ports) if e.ports else "", vector_text(e.z), vector_text(e.x)]
-             for e in config.edges())
-    console.print(table(f"Connections ({len(config.edges())})",
-                        ["id", "ends", "kind", "ports", "z", "x"], edges))
+    edges = config.edges()
+    rows = ([e.id, f"{e.source} → {e.target}", e.kind or "",
+             "–".join(e.ports) if e.ports else "", vector_text(e.z), vector_text(e.x)]
+            for e in edges)
+    console.print(table(f"Connections ({len(edges)})",
+                        ["id", "ends", "kind", "ports", "z", "x"], rows))
