@@ -25,13 +25,14 @@ import numpy as np
 from msrr.core import plugins
 from msrr.core.closed_loop import PhaseTracker, TrackingOptions, connection_goal, tree_for
 from msrr.core.console import console, table
+from msrr.core.kinematics import GroundModel
 from msrr.core.library import load_library
 from msrr.core.library.check import edge_cases
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 
 LIBRARIES = Path(__file__).resolve().parents[1] / "plugins" / "freesn" / "libraries"
 EDGES = {"S4N5": "S4N5:S4N5-1.1->S4N5-1.2", "S6N3": "S6N3:S6N3-1.1->S6N3-1.2",
-         "S12N6": "S12N6:S12N6-4.2->S12N6-4.1"}
+         "S12N6": "S12N6:S12N6-4.3->S12N6-4.1"}
 """One moving edge per library (a large motion, so the tracker works every tick)."""
 
 
@@ -47,7 +48,8 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0) -> dict[str, f
         current = recognizer.recognize(driver.get_observation().sensors)
         tree = tree_for(current, case.action.kinematic_tree, robot.default_joint_mode())
         tracker = PhaseTracker(tree, connection_goal(current, case.target), TrackingOptions(),
-                               seed=seed)
+                               seed=seed, ground=GroundModel.for_configuration(current,
+                                                                               robot.spec))
         began = time.perf_counter()
         for _ in range(ticks):
             observation = driver.get_observation()

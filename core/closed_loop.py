@@ -9,7 +9,7 @@ one), every control tick of a moving phase is
 ``S_conn`` or ``S_extr``), the tree bound to the phase's topology and an
 :class:`~msrr.core.kinematics.IKTracker` warm-started from the last tick's solution.
 Exploration runs when tracking is *stuck* (the residual has not improved for
-``stuck_ticks`` ticks): one sampled start per tick, optimised on the latest
+``stuck_ticks`` ticks): one sampled start every ``stuck_ticks`` ticks, optimised on the latest
 configuration, handed over when it beats the tracked solution (section 3.4). It runs
 in the control thread, so a run is reproducible from its seed.
 
@@ -85,14 +85,15 @@ class TrackingOptions:
         max_iterations: L-BFGS-B iterations of one tracking step (bounds the tick's time
             without a wall-clock budget, so runs are reproducible).
         initial_restarts: sampled starts of a phase's first solve.
-        stuck_ticks: ticks without residual improvement before exploration runs.
+        stuck_ticks: while the residual has not improved for this many ticks, one
+            exploration run every this many ticks.
         ground: solve with the three-point ground model (a floating base settles on its
             lowest contacts, so the root's tilt is predicted rather than held).
     """
 
     reach_tolerance: float = float(np.radians(3.0))
     shrink: float = 0.1
-    max_iterations: int = 60
+    max_iterations: int = 12
     initial_restarts: int = 8
     stuck_ticks: int = 5
     ground: bool = True
@@ -240,8 +241,8 @@ class PhaseTracker:
         else:
             self._since += 1
         if self._since >= self.options.stuck_ticks and solution.rms_angle > \
-                self.options.reach_tolerance:
-            self._tracker.explore_once()
+                self.options.reach_tolerance and self._since % self.options.stuck_ticks == 0:
+            self._tracker.explore_once()   # one sampled start every stuck_ticks ticks
             self.explorations += 1
         return solution.configuration
 
