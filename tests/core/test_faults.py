@@ -169,7 +169,7 @@ def _timeline_faults(out: Path) -> list[str]:
 
 
 @pytest.mark.parametrize(("spec", "success", "kinds"), [
-    ("loss:p=0.5", True, {"loss"}),
+    ("loss:p=0.3", True, {"loss"}),
     ("latency:ticks=3", True, {"latency"}),
     ("dock-fail:count=1,ticks=4", True, {"dock-fail"}),
     ("nan:at=0.1", True, {"nan"}),

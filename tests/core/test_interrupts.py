@@ -63,40 +63,27 @@ def _verify(recording: Path) -> None:
         assert read_recording(recording).rows
 
 
-@pytest.mark.parametrize(("signum", "pause", "where"), [
-    (signal.SIGINT, "action:1", "interrupted during action 2/3: moving c"),
-    (signal.SIGTERM, "tick:3", "interrupted during action 3/3: connection bT-cB"),
-])
-def test_signal_during_a_run_leaves_a_complete_honest_folder(
-        tmp_path: Path, signum: int, pause: str, where: str) -> None:
-    process, marker = _start(tmp_path, pause)
-    _wait_for(process, marker)
-    process.send_signal(signum)
+def _check_interrupted(folder: Path, process: subprocess.Popen, signum: int, where: str) -> None:
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 128 + signum, stderr
     name = signal.Signals(signum).name
-    assert stderr.strip().splitlines() == [
-        f"Error: {where} ({name}); wrote {tmp_path / 'out'}"], stderr
-    out = tmp_path / "out"
+    out = folder / "out"
+    assert stderr.strip().splitlines() == [f"Error: {where} ({name}); wrote {out}"], stderr
     assert sorted(p.name for p in out.iterdir()) == ["plan.json", "run.rrd", "summary.json"]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["success"] is False and summary["reason"] == f"{where} ({name})"
     assert summary["interrupted"] == name
     assert len(load_plan(out / "plan.json").actions) == 3
     _verify(out / "run.rrd")
-    calls = (tmp_path / "calls.txt").read_text().split()
+    calls = (folder / "calls.txt").read_text().split()
     assert calls[-2:] == ["stop", "disconnect"]
 
 
-def test_after_sigkill_nothing_is_half_written_and_the_next_run_says_what_it_found(
-        tmp_path: Path) -> None:
-    process, marker = _start(tmp_path, "tick:1")
-    _wait_for(process, marker)
-    process.kill()
+def _check_killed(folder: Path, process: subprocess.Popen) -> None:
     process.communicate(timeout=60)
-    out = tmp_path / "out"
+    out = folder / "out"
     assert sorted(p.name for p in out.iterdir()) == ["run.rrd.part"]  # no final name
-    with installed(tmp_path):
+    with installed(folder):
         refused = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out)])
         assert refused.exit_code == 1
         assert refused.output.strip().splitlines() == [
@@ -109,6 +96,27 @@ def test_after_sigkill_nothing_is_half_written_and_the_next_run_says_what_it_fou
         f"note: {out} held an interrupted run's leftovers (run.rrd.part): replaced")
     assert sorted(p.name for p in out.iterdir()) == ["plan.json", "run.rrd", "summary.json"]
     assert json.loads((out / "summary.json").read_text())["success"] is True
+
+
+def test_sigint_sigterm_and_sigkill_sent_to_real_subprocesses(tmp_path: Path) -> None:
+    """SIGINT while an action starts, SIGTERM after a control tick: a complete, honest
+    folder; SIGKILL: nothing under a final name, and the next run names the leftovers.
+    The three subprocesses start together (their start-up is most of the time)."""
+    cases = {"int": (signal.SIGINT, "action:1"), "term": (signal.SIGTERM, "tick:3"),
+             "kill": (signal.SIGKILL, "tick:1")}
+    started = {}
+    for key, (_, pause) in cases.items():
+        (tmp_path / key).mkdir()
+        started[key] = _start(tmp_path / key, pause)
+    for key, (signum, _) in cases.items():
+        process, marker = started[key]
+        _wait_for(process, marker)
+        process.send_signal(signum)
+    _check_interrupted(tmp_path / "int", started["int"][0], signal.SIGINT,
+                       "interrupted during action 2/3: moving c")
+    _check_interrupted(tmp_path / "term", started["term"][0], signal.SIGTERM,
+                       "interrupted during action 3/3: connection bT-cB")
+    _check_killed(tmp_path / "kill", started["kill"][0])
 
 
 class _SignalAt:
