@@ -121,8 +121,12 @@ def _value(kind: str, key: str, text: str, where: str) -> float | str:
     return value
 
 
-def parse_faults(spec: str) -> tuple[Fault, ...]:
+def parse_faults(spec: str, kinds: Mapping[str, Mapping[str, float | str | None]] = FAULT_KINDS
+                 ) -> tuple[Fault, ...]:
     """``"loss:p=0.05;nan:at=3"`` -> the faults, defaults filled in (syntax: module docstring).
+
+    ``kinds`` (default :data:`FAULT_KINDS`) lists the kinds and their keys another
+    injector accepts in the same syntax (the link emulator's faults).
 
     Raises:
         ConfigurationError: an unknown kind or key, a missing required key, a repeated
@@ -135,10 +139,10 @@ def parse_faults(spec: str) -> tuple[Fault, ...]:
         kind, _, body = item.partition(":")
         kind = kind.strip()
         where = f"fault {number + 1} ({item!r})"
-        if kind not in FAULT_KINDS:
+        if kind not in kinds:
             raise ConfigurationError(f"{where}: unknown kind {kind!r}; known: "
-                                     f"{', '.join(FAULT_KINDS)}", field="--faults")
-        known = FAULT_KINDS[kind]
+                                     f"{', '.join(kinds)}", field="--faults")
+        known = kinds[kind]
         given: dict[str, float | str] = {}
         for pair in (p.strip() for p in body.split(",")) if body.strip() else ():
             key, sep, text = pair.partition("=")
@@ -410,7 +414,8 @@ class GuardedDriver(_Wrapper):
     module's last finite one (a ``"nan"`` :class:`FaultEvent` reports it, once per run of
     bad readings); a module that has never had a finite reading stops the run
     (:class:`ExecutionError`). A
-    :meth:`step` past ``deadline`` seconds of driver time stops the run likewise.
+    :meth:`step` past ``deadline`` seconds of driver time (or of steps asked for, should
+    the driver's clock stop) stops the run likewise.
 
     Args:
         inner: the driver to wrap.
@@ -422,11 +427,13 @@ class GuardedDriver(_Wrapper):
                  on_fault: OnFault | None = None):
         super().__init__(inner, on_fault)
         self.deadline = deadline
+        self._stepped = 0.0
         self._last: dict[tuple[str, str], Any] = {}
         self._bad: set[tuple[str, str]] = set()
 
     def reset(self, start: Configuration) -> None:
         super().reset(start)
+        self._stepped = 0.0
         self._last.clear()
         self._bad.clear()
 
@@ -468,7 +475,10 @@ class GuardedDriver(_Wrapper):
         return replace(observation, poses=poses, sensors=sensors)
 
     def step(self, dt: float) -> None:
-        if self.inner.time + dt > self.deadline + 1e-9:
+        # the sum of the steps asked for also counts: a driver whose clock stopped
+        # cannot keep a run going forever
+        self._stepped += dt
+        if max(self.inner.time + dt, self._stepped) > self.deadline + 1e-9:
             self._report("deadline", f"run deadline of {self.deadline:g} s of driver time "
                          "reached", recovered=False)
             raise ExecutionError(f"run deadline of {self.deadline:g} s of driver time reached "

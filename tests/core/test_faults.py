@@ -153,6 +153,20 @@ def test_deadline_stops_stepping() -> None:
         guard.step(0.1)
 
 
+class _StoppedClock(PointDriver):
+    def step(self, dt: float) -> None:
+        pass  # time never advances
+
+
+def test_deadline_holds_when_the_drivers_clock_stops() -> None:
+    guard = GuardedDriver(_StoppedClock(), deadline=1.0)
+    guard.connect()
+    guard.reset(chain(("a", "b")))
+    with pytest.raises(ExecutionError, match="deadline"):
+        for _ in range(11):
+            guard.step(0.1)
+
+
 def _run(tmp_path: Path, *options: str) -> tuple[int, str, dict, Path]:
     out = tmp_path / "out"
     with installed(tmp_path):
