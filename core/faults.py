@@ -413,9 +413,8 @@ class GuardedDriver(_Wrapper):
     mappings, sequences and dataclasses), with a non-finite number is replaced by the
     module's last finite one (a ``"nan"`` :class:`FaultEvent` reports it, once per run of
     bad readings); a module that has never had a finite reading stops the run
-    (:class:`ExecutionError`). A
-    :meth:`step` past ``deadline`` seconds of driver time (or of steps asked for, should
-    the driver's clock stop) stops the run likewise.
+    (:class:`ExecutionError`). A :meth:`step` past ``deadline`` seconds of driver time
+    (or of steps asked for, should the driver's clock stop) stops the run likewise.
 
     Args:
         inner: the driver to wrap.
