@@ -48,6 +48,7 @@ from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEven
 from .kinematics.node import FixedNode, KinematicNode
 from .library import storage as library_storage
 from .library.model import Library
+from .link import link_driver_factory
 from .plan import Action, Plan
 from .robot import DockingRules, Robot, RobotSpec
 from .scenario import Scenario
@@ -439,6 +440,10 @@ class Capability(Generic[T]):
         if self.hook_name in generic.HOOKS:  # the generic runtime, after the robot's own
             for item in generic.capabilities(self.hook_name, resolve(robot_name)):
                 found.setdefault(item.name, item)  # type: ignore[attr-defined]
+            if self.hook_name == "msrr_drivers":  # the network link to any robot's modules
+                first = next(iter(found.values()))
+                found.setdefault("link", link_driver_factory(  # type: ignore[arg-type]
+                    resolve(robot_name).spec, first))  # type: ignore[arg-type]
         return found
 
     def get(self, robot_name: str, name: str | None = None) -> T:

@@ -394,7 +394,11 @@ def _driver_for(prepared: PreparedRun, progress: _Progress) -> Iterator[GuardedD
 def _goal_layout(prepared: PreparedRun) -> dict[str, Pose] | None:
     """Where the robot's own driver places the goal (a fresh, fault-free driver)."""
     run = prepared.run
-    with prepared.driver(gui=False, seed=run.seed, **dict(prepared.driver_options)) as driver:
+    # a driver that cannot place modules (``link``) names the simulator that lays them out
+    layout = getattr(prepared.driver, "layout", None)
+    factory, options = ((layout, {}) if layout is not None
+                        else (prepared.driver, dict(prepared.driver_options)))
+    with factory(gui=False, seed=run.seed, **options) as driver:
         driver.reset(run.plan.goal)
         return dict(driver.get_observation().poses)
 

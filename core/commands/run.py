@@ -100,10 +100,14 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
 @click.option("--driver-option", "driver_options", multiple=True, metavar="KEY=VALUE",
               help="Keyword option of the driver, repeatable (FreeSN mujoco: noise=0.035 "
                    "[rad], slip=0.05, drift=..., see docs/freesn.md).")
+@click.option("--system", "system_file", type=click.Path(path_type=Path), default=None,
+              metavar="FILE", help="Systems file of the modules for --driver link (implies it; "
+                                   "see docs/hardware.md).")
 def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None,
             planner_name: str | None, driver_name: str | None, seed: int, out: str | None,
             force: bool, no_log: bool, gui: bool, rate: float, action_timeout: float,
-            deadline: float | None, faults: str, driver_options: tuple[str, ...]) -> None:
+            deadline: float | None, faults: str, driver_options: tuple[str, ...],
+            system_file: Path | None) -> None:
     """Plan and execute a reconfiguration in simulation and record it.
 
     Writes DIR/run.rrd, DIR/plan.json and DIR/summary.json, also when the run fails,
@@ -114,11 +118,14 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
         try:
             if out is not None and not out.strip():
                 raise ConfigurationError("is empty; give a folder", field="--out")
+            if system_file is not None:
+                driver_name = driver_name or "link"
             request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
                                  out=None if out is None else Path(out), log=not no_log, gui=gui,
                                  rate=rate, action_timeout=action_timeout, driver=driver_name,
                                  planner=planner_name,
-                                 driver_options=parse_driver_options(driver_options),
+                                 driver_options=parse_driver_options(driver_options)
+                                 + ((("system", str(system_file)),) if system_file else ()),
                                  force=force, faults=faults, deadline=deadline)
             prepared = prepare_run(request)
         except (Interrupted, KeyboardInterrupt) as exc:
