@@ -18,13 +18,15 @@ library. The verdict never trusts the recognizer: the final shape and topology c
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from . import plugins
 from .actions import topology_diff
+from .batch import BatchResult, run_batch
 from .capabilities import Controller, DriverFactory, Recognizer
 from .closed_loop import shape_error
 from .configuration import Configuration
@@ -36,7 +38,7 @@ from .library.model import Library
 from .plan import Plan
 from .robot import Robot
 
-__all__ = ["EdgeRunner", "check_library", "run_edge", "tilted_error"]
+__all__ = ["EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
 
 
 def tilted_error(current: Configuration, goal: Configuration) -> float:
@@ -116,14 +118,42 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
                      docks=counts.get("dock", 0), undocks=counts.get("undock", 0))
 
 
+def check_edges(cases: Sequence[EdgeCase], runner: EdgeRunner, *, workers: int = 1,
+                cluster: str | None = None, backend: str | None = None,
+                progress: bool = True) -> tuple[list[EdgeCheck], BatchResult[EdgeCheck]]:
+    """Run every case (:func:`run_edge`) as one batch (:func:`msrr.core.batch.run_batch`).
+
+    Every edge runs with ``runner.seed`` on a fresh driver, so the checks are the same
+    serially, on a process pool and on Ray. An edge whose run raised (a simulator's bug,
+    not an infeasible edge) is recorded infeasible with reason ``error: ...`` and the
+    other edges are kept.
+
+    Returns:
+        one :class:`EdgeCheck` per case, in case order, and the batch (timings, failures).
+    """
+    batch = run_batch(partial(run_edge, runner=runner), list(cases),
+                      keys=[c.key for c in cases], workers=workers, cluster=cluster,
+                      backend=backend, label="edges", progress=progress,
+                      describe=lambda case: case.key)
+    checks = list(batch.results)
+    for failure in batch.failures:
+        case = cases[failure.index]
+        checks[failure.index] = EdgeCheck(edge=case.key, action=case.edge.action.value,
+                                          feasible=False, reason=f"error: {failure.error}")
+    return [c for c in checks if c is not None], batch
+
+
 def check_library(library: Library, runner: EdgeRunner, *, digest: str,
-                  progress: Callable[[EdgeCheck], None] | None = None) -> CheckFile:
-    """Run every edge of ``library`` (see :func:`run_edge`); the check file's content."""
-    checks = []
-    for case in edge_cases(library, runner.robot):
-        checks.append(run_edge(case, runner))
-        if progress is not None:
-            progress(checks[-1])
+                  progress: Callable[[EdgeCheck], None] | None = None, workers: int = 1,
+                  cluster: str | None = None) -> CheckFile:
+    """Run every edge of ``library`` (see :func:`check_edges`); the check file's content.
+
+    ``progress`` is called with each check, in edge order, once all have run."""
+    checks, _ = check_edges(edge_cases(library, runner.robot), runner, workers=workers,
+                            cluster=cluster, progress=False)
+    if progress is not None:
+        for check in checks:
+            progress(check)
     options: dict[str, float | int | str | bool] = {
         "rate_hz": runner.options.rate, "action_timeout_s": runner.options.action_timeout,
         "retries": runner.options.retries, "tolerance_deg": round(math.degrees(runner.tolerance), 6),

@@ -8,10 +8,11 @@ import click
 import numpy as np
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from ..batch import batch_options, exit_on_interrupt
 from ..console import SEED, FiniteFloat, MsrrGroup, console, styled, table
 from ..errors import ConfigurationError, MsrrError
 from ..executor import ExecutorOptions
-from ..feasibility import default_runner, run_edge
+from ..feasibility import check_edges, default_runner
 from ..library import (
     DEFAULT_MERGE_THRESHOLD,
     Library,
@@ -139,10 +140,15 @@ def show(library: Path) -> None:
 @click.option("--slip", type=FiniteFloat(0.0, 1.0), default=0.0, show_default=True,
               help="Odometry heading error per radian rolled [rad/rad], in [0, 1].")
 @click.option("--edge", "only", multiple=True, help="Check only edges whose key contains this.")
+@batch_options
 def check_command(library: Path, output: Path | None, seed: int, action_timeout: float,
-                  noise: float, slip: float, only: tuple[str, ...]) -> None:
+                  noise: float, slip: float, only: tuple[str, ...], workers: int,
+                  cluster: str | None) -> None:
     """Run every action edge of LIBRARY in simulation from its source configuration and
-    record per edge: feasible, the reason when not, the simulated time (paper 6.2)."""
+    record per edge: feasible, the reason when not, the simulated time (paper 6.2).
+
+    One simulation per edge, on every core (--workers) or a Ray cluster (--cluster);
+    the check file is the same whichever runs it."""
     lib = load_library(library)
     driver_options: tuple[tuple[str, float], ...] = ()
     if noise:
@@ -153,15 +159,10 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
                                                                retries=0),
                             driver_options=driver_options, seed=seed)
     cases = [c for c in edge_cases(lib, runner.robot) if not only or any(o in c.key for o in only)]
-    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
-               TimeElapsedColumn())
-    checks = []
-    with Progress(*columns, console=console, transient=True) as bar:
-        task = bar.add_task(f"checking {lib.name}", total=len(cases))
-        for case in cases:
-            bar.update(task, description=f"{case.key}")
-            checks.append(run_edge(case, runner))
-            bar.advance(task)
+    with exit_on_interrupt():
+        checks, batch = check_edges(cases, runner, workers=workers, cluster=cluster)
+    for failure in batch.failures:
+        console.print(styled(f"edge {failure.key} raised {failure.error}", "red"))
     options = {"rate_hz": runner.options.rate, "action_timeout_s": action_timeout,
                "noise_deg": noise, "slip": slip}
     check = CheckFile(library=lib.name, library_sha256=library_digest(library), robot=lib.robot,
