@@ -1,0 +1,66 @@
+"""platform sweep: options refused before any run, the CSV, the summary, the plot."""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+
+import pytest
+from click.testing import CliRunner
+
+from msrr.core.cli import get_cli
+from msrr.core.commands.sweep import SweepRow, summarize, sweep_csv
+
+BASE = ["sweep", "--robot", "mmrp", "--scenario", "series-t", "--driver", "kinematic",
+        "--workers", "1"]
+
+
+def _row(faults: str, seed: int, success: bool, rms: float, time: float,
+         reason: str = "") -> SweepRow:
+    return SweepRow(faults=faults, seed=seed, success=success, reason=reason, actions_done=8,
+                    actions_total=8, docks=2, undocks=2, retries=0, sim_time_s=time,
+                    position_rms_m=rms, position_max_m=rms, heading_max_rad=0.0,
+                    shape_error_deg=math.nan, faults_met=0)
+
+
+def test_summary_counts_successes_and_spreads_per_setting():
+    rows = [_row("", 0, True, 0.001, 4.0), _row("", 1, True, 0.003, 6.0),
+            _row("loss:p=0.5", 0, False, math.nan, 9.0, "action 2 timed out: x"),
+            _row("loss:p=0.5", 1, True, 0.002, 5.0)]
+    first, second = summarize(rows)
+    assert first[:3] == ["none", 2, "2/2 (100%)"]
+    assert first[3] == "2.00 / 2.80 / 3.00" and first[5] == "5.0 / 5.8 / 6.0"
+    assert first[4] == "-"  # no strut angles for this robot
+    assert second[:4] == ["loss:p=0.5", 2, "1/2 (50%)", "2.00 / 2.00 / 2.00"]
+    assert second[6] == "action 2 timed out (1)"
+    table = list(csv.reader(sweep_csv(rows).splitlines()))
+    assert table[0][:3] == ["faults", "seed", "success"] and len(table) == 5
+    assert table[3][table[0].index("position_rms_m")] == ""  # nan: an empty cell
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--faults", "bogus"], "unknown kind 'bogus'"),
+    (["--from", "x.json"], "give both --from and --to"),
+    (["--workers", "-1"], "-1 is not in the range x>=0"),
+])
+def test_bad_options_fail_in_one_line_before_any_run(tmp_path, args, message):
+    result = CliRunner().invoke(get_cli(), [*BASE, *args, "--out", str(tmp_path / "o")])
+    assert result.exit_code != 0 and message in result.output
+    assert not (tmp_path / "o").exists()
+
+
+def test_sweep_writes_the_table_and_says_how_to_get_the_plot(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    out = tmp_path / "sweep"
+    result = CliRunner().invoke(get_cli(), [*BASE, "--runs", "2", "--seed", "3",
+                                            "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader((out / "sweep.csv").open()))
+    assert [r["seed"] for r in rows] == ["3", "4"] and all(r["success"] == "True" for r in rows)
+    assert all(r["actions_done"] == r["actions_total"] != "0" for r in rows)
+    assert "2/2 (100%)" in result.output
+    assert 'no plot: matplotlib is missing; pip install "msrr-platform[dev]"' in result.output
+    assert not (out / "sweep.png").exists()
+    again = CliRunner().invoke(get_cli(), [*BASE, "--runs", "1", "--out", str(out)])
+    assert again.exit_code == 1 and "use --force" in again.output
