@@ -84,6 +84,8 @@ class TrackingOptions:
         shrink: ``S_extr`` brings the merged nodes this fraction of a strut length closer.
         max_iterations: L-BFGS-B iterations of one tracking step (bounds the tick's time
             without a wall-clock budget, so runs are reproducible).
+        ftol: L-BFGS-B relative objective tolerance of a tracking step (1e-8 halves the
+            tick time but the S4N5 squirm-up then stalls at 18 deg).
         initial_restarts: sampled starts of a phase's first solve.
         stuck_ticks: while the residual has not improved for this many ticks, one
             exploration run every this many ticks.
@@ -93,7 +95,8 @@ class TrackingOptions:
 
     reach_tolerance: float = float(np.radians(3.0))
     shrink: float = 0.1
-    max_iterations: int = 12
+    max_iterations: int = 30
+    ftol: float = 1e-12
     initial_restarts: int = 8
     stuck_ticks: int = 5
     ground: bool = True
@@ -220,7 +223,7 @@ class PhaseTracker:
         self.tree = tree
         self.goal = goal
         self.options = options
-        ik = IKOptions(max_iterations=options.max_iterations,
+        ik = IKOptions(max_iterations=options.max_iterations, ftol=options.ftol,
                        max_restarts=options.initial_restarts, seed=seed,
                        ground=ground if options.ground else None)
         self._tracker = IKTracker(tree, goal, ik, tick_budget=None, explore=False)

@@ -314,8 +314,9 @@ RING_NODES = ["T1", "B1", "T2", "B2", "T3", "B3"]
 
 def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int] = frozenset(),
                 *, outward: bool = False) -> list[tuple]:
-    """The ring struts; those in ``free`` undocked at their target end, aimed at it (or
-    pointing outward along the floor with ``outward``)."""
+    """The ring struts; those in ``free`` undocked at their target end, aimed at it (or,
+    with ``outward``, along the floor 60 deg beside the radial direction, where the node's
+    free chord lies: two struts cannot sit on one spot of a node)."""
     out: list[tuple] = []
     for i in range(6):
         sid, s, t = f"R{i + 1}", RING_NODES[i], RING_NODES[(i + 1) % 6]
@@ -323,7 +324,8 @@ def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int]
             out.append((sid, s, t))
         else:
             assert nodes is not None
-            out.append((sid, s, None, horizontal(math.atan2(nodes[s][1], nodes[s][0]))
+            out.append((sid, s, None,
+                        horizontal(math.atan2(nodes[s][1], nodes[s][0]) + math.radians(60.0))
                         if outward else nodes[t] - nodes[s]))
     return out
 
