@@ -370,7 +370,7 @@ class LinkDriver(Driver):
     def _check(self) -> None:
         for name, module in self.modules.items():
             silent = self._time - module.heard
-            if silent > 2 * self._dt and wall.monotonic() - module.hello_at > self._wall(0.2):
+            if silent > 2 * self._dt and wall.monotonic() - module.hello_at > self._wall(self._dt):
                 self._hello(module)  # a rebooted module needs a new handshake
             if silent > module.timeout + 1e-9:
                 refused = self.stats.refused

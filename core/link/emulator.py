@@ -136,6 +136,8 @@ class Emulator:
         self.driver: Driver | None = None
         self.modules: dict[str, _Emulated] = {}
         self.errors: list[str] = []
+        self.dropped = 0
+        """Datagrams the ``loss`` fault dropped."""
         self._queue: list[tuple[float, int, str, bytes, Any]] = []  # delayed datagrams
         self._count = 0
         self._rebooted: set[int] = set()
@@ -300,6 +302,7 @@ class Emulator:
         """Apply loss and latency to one datagram, then deliver or send it (now or later)."""
         for fault in self.faults:
             if fault.kind == "loss" and self.rng.random() < float(fault.params["p"]):
+                self.dropped += 1
                 return
         delay = 0.0
         for fault in self.faults:

@@ -69,7 +69,11 @@ class ModuleEntry(StrictModel):
 
     @model_validator(mode="after")
     def _address(self) -> ModuleEntry:
-        ipaddress.ip_address(self.address)
+        try:
+            ipaddress.IPv4Address(self.address)
+        except ValueError:
+            raise ValueError(f"address {self.address!r} is not an IPv4 address "
+                             "(protocol version 1 runs over UDP/IPv4)") from None
         return self
 
 

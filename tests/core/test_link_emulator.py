@@ -1,0 +1,165 @@
+"""The link end to end on 127.0.0.1: emulated tiny-robot modules (backed by the tiny
+robot's own PointDriver) driven by ``platform run``'s machinery with ``--driver link``;
+a module that drops out, a wrong key, and a host killed mid-run. Every wait is bounded
+(a few seconds at most) and all traffic stays on loopback."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+from tiny_robot import LinkRecognizer, PointDriver, chain, installed
+
+from msrr.core import save_configuration
+from msrr.core.errors import ExecutionError
+from msrr.core.link import Emulator, KeyRef, LinkDriver, parse_link_faults, write_key, write_system
+from msrr.core.run import RUN_FILES, RunRequest, execute_run, prepare_run, write_outputs
+
+SPEED = 5.0  # module seconds per wall second
+
+
+@contextmanager
+def emulating(folder: Path, faults: str = "", *, speed: float = SPEED, timeout: float = 0.5,
+              start=None) -> Iterator[tuple[Emulator, Path]]:
+    """Emulated modules of ``start`` (a-b docked, c apart) serving in a thread."""
+    emulator = Emulator(PointDriver, start or chain(("a", "b"), name="ab"),
+                        recognizer=LinkRecognizer(), rate=10.0, speed=speed,
+                        faults=parse_link_faults(faults), timeout=timeout)
+    stop = threading.Event()
+    with emulator:
+        write_key(folder / "system.key", emulator.key)
+        path = write_system(folder / "system.json",
+                            emulator.system_file(KeyRef(file="system.key"), "tiny"))
+        thread = threading.Thread(target=emulator.serve, kwargs={"duration": 60.0,
+                                                                 "stop": stop.is_set})
+        thread.start()
+        try:
+            yield emulator, path
+        finally:
+            stop.set()
+            thread.join(5.0)
+            assert not thread.is_alive()
+
+
+def _until(condition, seconds: float = 4.0) -> bool:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if condition():
+            return True
+        time.sleep(0.005)
+    return condition()
+
+
+def _request(tmp_path: Path, system: Path, **options) -> RunRequest:
+    start, goal = tmp_path / "start.json", tmp_path / "goal.json"
+    save_configuration(chain(("a", "b"), name="ab"), start)
+    save_configuration(options.pop("goal", chain(("b", "c"), name="bc")), goal)
+    return RunRequest(robot="tiny", start=start, goal=goal, out=tmp_path / "run",
+                      driver="link", driver_options=(("system", str(system)),), **options)
+
+
+def test_a_run_over_the_link_reaches_the_topology_of_the_direct_simulation(tmp_path) -> None:
+    with installed(), emulating(tmp_path) as (emulator, system):
+        prepared = prepare_run(_request(tmp_path, system, log=False))
+        assert prepared.driver.name == "link" and prepared.run.driver == "link"
+        result = execute_run(prepared)
+        assert result.success, result.reason
+        assert (result.docks, result.undocks) == (1, 1)
+        link_world = emulator.driver.links  # the emulated modules' own simulator
+        direct = execute_run(prepare_run(RunRequest(
+            robot="tiny", start=tmp_path / "start.json", goal=tmp_path / "goal.json",
+            out=tmp_path / "direct", log=False)))
+        assert direct.success and (direct.docks, direct.undocks) == (1, 1)
+        assert link_world == {frozenset({("b", "T"), ("c", "B")})}
+        stats = emulator.stats()
+        assert all(s.received > 0 and s.sent > 0 and not s.refused for s in stats.values())
+        assert not any(e.link.trips for e in emulator.modules.values())  # BYE, not watchdog
+
+
+def test_a_module_that_drops_out_stops_the_run_within_its_timeout(tmp_path) -> None:
+    # a travels 0 -> 3 m at 1 m/s (3 s of module time); b stops answering at 1 s
+    with installed(), emulating(tmp_path, "dropout:module=b,at=1") as (emulator, system):
+        prepared = prepare_run(_request(tmp_path, system, goal=chain(("c", "a"), name="ca")))
+        result = execute_run(prepared)
+        write_outputs(prepared.run, result)  # as platform run does
+    assert not result.success
+    assert "module b silent for" in result.reason and "timeout 0.5 s" in result.reason
+    assert "\n" not in result.reason and result.failed_action is not None
+    silent = float(result.reason.split("silent for ")[1].split(" s")[0])
+    assert 0.5 < silent <= 0.5 + 0.1 + 1e-9  # stopped at the first step past the timeout
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(RUN_FILES)
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["success"] is False and summary["driver"] == "link"
+
+
+def test_a_wrong_key_is_refused_and_counted_on_both_sides(tmp_path) -> None:
+    with installed(), emulating(tmp_path, "wrong-key:module=c") as (emulator, system):
+        driver = LinkDriver(system=system, robot="tiny", handshake=0.5)
+        with pytest.raises(ExecutionError, match=r"^module c \(127\.0\.0\.1:\d+\) did not "
+                                                 r"answer the handshake within 0\.5 s$"):
+            driver.connect()
+        assert not driver.is_connected
+        assert emulator.modules["c"].link.endpoint.stats.refused["bad_tag"] >= 1
+        assert emulator.modules["c"].link.session == 0  # it never obeyed this host
+        assert emulator.modules["a"].link.session != 0
+
+
+HOST = textwrap.dedent("""
+    import sys
+    from msrr.core.driver import ModuleCommand
+    from msrr.core.link import LinkDriver
+    driver = LinkDriver(system=sys.argv[1])
+    driver.connect()
+    while True:
+        driver.send_action({"a": ModuleCommand(wheels={"v": 0.2})})
+        driver.step(0.1)
+""")
+
+
+def test_killing_the_host_stops_the_motors_within_the_watchdog(tmp_path) -> None:
+    with emulating(tmp_path, speed=2.0, timeout=2.0) as (emulator, system):
+        host = subprocess.Popen([sys.executable, "-c", HOST, str(system)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        try:
+            link = emulator.modules["a"].link
+            assert _until(lambda: emulator.driver.speed.get("a") == 0.2, 8.0), \
+                host.stderr.read1().decode() if host.poll() is not None else "no command"
+            host.kill()
+            host.wait(5.0)
+            assert _until(lambda: bool(link.trips), 3.0)
+            trip, = link.trips
+            watchdog = link.watchdog
+            assert watchdog == pytest.approx(0.3)  # 3 control periods of the host
+            assert trip.previous - trip.last <= watchdog + 1e-9 < trip.at - trip.last
+            assert _until(lambda: "a" not in emulator.driver.speed, 1.0)  # motors stopped
+        finally:
+            if host.poll() is None:
+                host.kill()
+                host.wait(5.0)
+
+
+@pytest.mark.parametrize("faults", ["loss:p=0.05", "latency:ms=30,jitter=20",
+                                    "reboot:module=b,at=1,for=0.2"])
+def test_runs_survive_loss_latency_and_a_reboot(tmp_path, faults) -> None:
+    # loss and latency: the swap (nothing travels, so a command held one period late by
+    # the fault moves nothing: the outcome cannot depend on when packets arrive);
+    # reboot: b (standing) reboots while a travels 3 m
+    reboot = faults.startswith("reboot")
+    goal = chain(("c", "a"), name="ca") if reboot else chain(("b", "c"), name="bc")
+    with installed(), emulating(tmp_path, faults, timeout=1.0) as (emulator, system):
+        result = execute_run(prepare_run(_request(tmp_path, system, log=False, goal=goal)))
+        assert result.success, result.reason
+        want = [("c", "T"), ("a", "B")] if reboot else [("b", "T"), ("c", "B")]
+        assert emulator.driver.links == {frozenset(want)}
+        if reboot:
+            assert emulator.modules["b"].link.boots == 2  # and the host linked it again
+        elif faults.startswith("loss"):
+            assert emulator.dropped > 0
