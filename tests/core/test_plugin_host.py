@@ -345,6 +345,24 @@ def test_broken_plugins_are_reported_and_others_still_load(monkeypatch) -> None:
     ]
 
 
+def test_a_plugin_whose_hook_raises_is_named_by_its_entry_point(monkeypatch) -> None:
+    good = SimpleNamespace(msrr_robot=hookimpl(lambda: SPEC))
+
+    def explode():
+        raise ValueError("no robot today")
+
+    bad = SimpleNamespace(msrr_robot=hookimpl(explode))
+    monkeypatch.setattr(plugins, "entry_points",
+                        lambda group: [_EntryPoint("good", good), _EntryPoint("exploding", bad)])
+    monkeypatch.delenv("MSRR_LOAD_PLUGINS", raising=False)
+    pm, errors = plugins.create_plugin_manager()
+    monkeypatch.setattr(plugins, "_pm", pm)
+    assert errors == [] and list(plugins.robots()) == [NAME]  # the good one still works
+    assert [str(p) for p in plugins.problems()] == [
+        "plugin 'exploding' (msrr.plugins: exploding = fake:exploding) disabled: msrr_robot "
+        "raised ValueError: no robot today"]
+
+
 def test_msrr_load_plugins_restricts_loading(monkeypatch) -> None:
     points = [_EntryPoint("a", SimpleNamespace()), _EntryPoint("b", SimpleNamespace())]
     monkeypatch.setattr(plugins, "entry_points", lambda group: points)
