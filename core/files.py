@@ -20,12 +20,22 @@ from collections import Counter
 from pathlib import Path
 from typing import Annotated, Any, Final, Literal, TypeVar
 
-from pydantic import AllowInfNan, BaseModel, BeforeValidator, ConfigDict, Strict, ValidationError
+from pydantic import (
+    AllowInfNan,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    Strict,
+    ValidationError,
+)
 
 from .errors import ConfigurationError
 
 __all__ = [
     "MAX_DEPTH",
+    "Coordinate",
+    "Cost",
     "Flag",
     "Number",
     "SchemaVersion",
@@ -57,6 +67,13 @@ def not_boolean(value: Any) -> Any:
 
 Number = Annotated[float, Strict(), AllowInfNan(False)]
 """A finite number: an integer or a float, never a boolean, a string, NaN or infinity."""
+
+Coordinate = Annotated[float, Strict(), AllowInfNan(False), Field(ge=-1e6, le=1e6)]
+"""A position coordinate: a :data:`Number` within ±1e6 m (a robot a thousand
+kilometres wide is a typing error, and squares of larger numbers overflow)."""
+
+Cost = Annotated[float, Strict(), AllowInfNan(False), Field(ge=0.0, le=1e6)]
+"""A motion cost or path length: a :data:`Number` in [0, 1e6]."""
 
 Flag = Annotated[bool, Strict()]
 """``true`` or ``false``, never ``0``/``1`` or ``"yes"``."""

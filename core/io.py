@@ -14,7 +14,15 @@ from pydantic import ConfigDict, Field, ValidationInfo, field_validator
 
 from .configuration import Configuration, unit
 from .errors import ConfigurationError, DockingRuleError
-from .files import Number, SchemaVersion, StrictModel, atomic_write_text, parse_model, read_json
+from .files import (
+    Coordinate,
+    Number,
+    SchemaVersion,
+    StrictModel,
+    atomic_write_text,
+    parse_model,
+    read_json,
+)
 from .robot import Robot
 
 __all__ = [
@@ -47,7 +55,8 @@ class ModuleModel(_Strict):
 
     id: str = Field(min_length=1, description="Module id, unique in the file.")
     kind: str = Field(min_length=1, description="Module kind of the robot, or 'virtual'.")
-    position: Vec3 | None = Field(None, description="Optional position [m].")
+    position: Annotated[list[Coordinate], Field(min_length=3, max_length=3)] | None = Field(
+        None, description="Optional position [m], each coordinate within ±1e6.")
 
 
 class ConnectionModel(_Strict):

@@ -22,7 +22,7 @@ from pydantic import Field, Strict
 
 from .configuration import Configuration
 from .errors import ConfigurationError
-from .files import Number, StrictModel, atomic_write_text, parse_model, read_json
+from .files import Coordinate, Cost, Number, StrictModel, atomic_write_text, parse_model, read_json
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
 from .robot import Robot, check_structure
 
@@ -157,8 +157,8 @@ class ActionModel(StrictModel):
     target: ConfigurationFile
     modules: list[str] = []
     changes: list[ChangeModel] = []
-    goals: dict[str, list[Number]] = {}
-    cost: Number = Field(0.0, ge=0.0)
+    goals: dict[str, list[Coordinate]] = {}
+    cost: Cost = 0.0
     kinematic_tree: dict[str, Any] | None = None
     note: str = ""
 

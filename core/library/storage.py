@@ -21,6 +21,7 @@ from pydantic import Field, field_validator
 from ..configuration import Configuration
 from ..errors import ConfigurationError
 from ..files import (
+    Cost,
     Flag,
     Number,
     SchemaVersion,
@@ -118,7 +119,7 @@ class EdgeModel(StrictModel):
     target: str
     action: ActionType
     tree: TreeRefModel
-    cost: Number = Field(ge=0.0)
+    cost: Cost
     mapping: MappingModel | None = None
     feasible: Flag | None = None
 

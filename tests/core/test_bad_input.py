@@ -90,6 +90,8 @@ def test_non_utf8_and_directories_are_one_line(tmp_path: Path) -> None:
     ("position", [0.0, True, 0.0], "modules[0].position[1]: Input should be a valid number"),
     ("position", [0.0, "1", 0.0], "modules[0].position[1]: Input should be a valid number"),
     ("position", [0.0, 1e300 * 1e10, 0.0], "modules[0].position[1]: number 1e400 is too large"),
+    ("position", [0.0, 1e300, 0.0], "modules[0].position[1]: Input should be less than or "
+                                    "equal to 1000000"),
 ])
 def test_configurations_refuse_booleans_and_non_finite_numbers(tmp_path: Path, field: str,
                                                                value, expected: str) -> None:

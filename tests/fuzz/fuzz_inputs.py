@@ -75,8 +75,8 @@ class Seed:
 def seeds() -> tuple[Seed, ...]:
     """Every valid input the fuzzer mutates (built once per process)."""
     out = []
-    configs = sorted((ROOT / "plugins").glob("*/configs/*.json"))
-    configs += sorted((ROOT / "examples").glob("*/*/configs/*.json"))
+    configs = sorted((ROOT / "plugins").glob("*/configs/**/*.json"))
+    configs += sorted((ROOT / "examples").glob("*/*/configs/**/*.json"))
     robots = set(plugins.robots())
     for path in configs:
         doc = json.loads(path.read_text())
@@ -99,7 +99,7 @@ def seeds() -> tuple[Seed, ...]:
                             json.loads((Path(tmp) / "plan.json").read_text())))
         freesn = plugins.resolve("freesn")
         for name in TREE_CONFIGURATIONS:
-            config = load_configuration(ROOT / f"plugins/freesn/configs/{name}.json")
+            config = _configuration_named(name)
             save_tree(default_tree(config, freesn.default_joint_mode()), Path(tmp) / "tree.json")
             out.append(Seed("tree", f"{name}.tree.json",
                             json.loads((Path(tmp) / "tree.json").read_text())))
@@ -461,7 +461,8 @@ READERS: dict[str, Callable[[Path], object]] = {
 
 @cache
 def _configuration_named(name: str):
-    return load_configuration(ROOT / f"plugins/freesn/configs/{name}.json")
+    """A shipped FreeSN configuration by name (wherever under configs/ it is)."""
+    return load_configuration(_configuration_path(name))
 
 
 def _tree_configuration(path: Path):
@@ -470,6 +471,10 @@ def _tree_configuration(path: Path):
 
 
 TREE_CONFIGURATIONS = ("S6N3-1.1", "S4N5-2.1")
+
+
+def _configuration_path(name: str) -> Path:
+    return next((ROOT / "plugins/freesn/configs").rglob(f"{name}.json"))
 
 
 def read(case: Case, path: Path) -> Outcome:
@@ -503,7 +508,7 @@ def _commands(case: Case, path: Path) -> list[list[str]]:
         out = [["library", "show", str(path)]]
         if case.seed.name == "S4N5.json" and hash(case.mutation) % 3 == 0:
             out.append(["library", "retrieve", str(path), "--from",
-                        str(ROOT / "plugins/freesn/configs/S4N5-1.2.json"), "--to", "S4N5-1.3"])
+                        str(_configuration_path("S4N5-1.2")), "--to", "S4N5-1.3"])
         return out
     return []
 
