@@ -9,8 +9,8 @@ from msrr.core import hookimpl
 from .robot import SPEC
 from .rules import FreeSNRules
 
-CONFIGS = Path(__file__).resolve().parent / "configs"
-"""Shipped configurations: every library configuration as ``<library id>.json``."""
+CONFIGS = Path(__file__).resolve().parent / "configs" / "library"
+"""Every configuration of the shipped libraries as ``<library id>.json``."""
 
 SCENARIOS = (
     ("s6n3-connect", "S6N3-1.3", "S6N3-2.1", "S6N3: a leg docks to a node (connection)", True),

@@ -104,9 +104,10 @@ def test_library_edges_run_closed_loop_to_the_target(key, noisy):
 
 
 def test_platform_run_from_to_reports_the_ground_truth_shape_error(tmp_path):
+    configs = FREESN / "configs" / "library"
     result = CliRunner().invoke(get_cli(), [
-        "run", "--robot", "freesn", "--from", str(FREESN / "configs" / "S6N3-1.3.json"),
-        "--to", str(FREESN / "configs" / "S6N3-2.1.json"), "--out", str(tmp_path / "run"),
+        "run", "--robot", "freesn", "--from", str(configs / "S6N3-1.3.json"),
+        "--to", str(configs / "S6N3-2.1.json"), "--out", str(tmp_path / "run"),
         "--no-log", "--driver-option", "noise=0.0349", "--driver-option", "slip=0.05"])
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
