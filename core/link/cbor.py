@@ -10,7 +10,8 @@ Only what the protocol needs, in the deterministic form of RFC 8949 section 4.2.
   array) ``[shape, tag 85 (float32 little-endian typed array) bytes]``; a 1-D array
   is the typed array alone;
 * records (dataclass instances): tag 27 (the registered "serialised
-  language-independent object") ``["module:QualName", {field: value}]``.
+  language-independent object with type name and constructor arguments")
+  ``["module:QualName", field values...]`` in the dataclass's field order.
 
 Decoding turns arrays into tuples (hashable, immutable), typed arrays into float64
 numpy arrays, and tag-27 records into instances of an allow-listed dataclass only
@@ -100,10 +101,11 @@ def _encode(value: Any, out: bytearray, depth: int) -> None:
         for item in items:
             _encode(item, out, depth + 1)
     elif dataclasses.is_dataclass(value) and not isinstance(value, type):
-        out += _head(6, TAG_RECORD) + _head(4, 2)
+        fields = dataclasses.fields(value)
+        out += _head(6, TAG_RECORD) + _head(4, 1 + len(fields))
         _encode(record_name(type(value)), out, depth + 1)
-        _encode({f.name: getattr(value, f.name) for f in dataclasses.fields(value)}, out,
-                depth + 1)
+        for f in fields:
+            _encode(getattr(value, f.name), out, depth + 1)
     else:
         raise CborError(f"cannot encode a {type(value).__name__}")
 
@@ -127,7 +129,7 @@ class Decoder:
         self.packages = packages
         self._classes: dict[str, Callable[..., Any]] = {}
 
-    def _record(self, name: str, fields: Any) -> Any:
+    def _record(self, name: str, args: tuple[Any, ...]) -> Any:
         cls = self._classes.get(name)
         if cls is None:
             module, _, qualname = name.partition(":")
@@ -142,10 +144,8 @@ class Decoder:
             if not (isinstance(found, type) and dataclasses.is_dataclass(found)):
                 raise CborError(f"record type {name!r} is not a dataclass")
             cls = self._classes[name] = found
-        if not isinstance(fields, dict):
-            raise CborError(f"record {name!r} without a field map")
         try:
-            return cls(**fields)
+            return cls(*args)
         except TypeError as exc:
             raise CborError(f"record {name!r}: {exc}") from None
 
@@ -233,10 +233,9 @@ class Decoder:
                 raise CborError("multi-dimensional array with a bad shape")
             return flat.reshape(shape)
         if tag == TAG_RECORD:
-            if not (isinstance(content, tuple) and len(content) == 2
-                    and isinstance(content[0], str)):
-                raise CborError("record is not [type name, fields]")
-            return self._record(content[0], content[1])
+            if not (isinstance(content, tuple) and content and isinstance(content[0], str)):
+                raise CborError("record is not [type name, arguments...]")
+            return self._record(content[0], content[1:])
         raise CborError(f"unsupported tag {tag}")
 
 

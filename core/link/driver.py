@@ -65,6 +65,7 @@ class _Module:
     link: int = 0
     heard: float = 0.0
     report: dict[str, Any] | None = None
+    links: tuple[Any, ...] = ()
     reboots: int = 0
     undock: dict[str, int] = field(default_factory=dict)  # port -> first sequence carrying it
     docks: dict[str, tuple[int, float]] = field(default_factory=dict)  # port -> (seq, time)
@@ -268,6 +269,9 @@ class LinkDriver(Driver):
             return
         module.report = payload
         module.heard = self._time
+        links = payload.get("links")
+        if isinstance(links, tuple):
+            module.links = links
         ack = payload.get("ack", 0)
         if isinstance(ack, int):
             self._acknowledged(module, ack)
@@ -298,7 +302,7 @@ class LinkDriver(Driver):
                 source=str(self.path), field="modules")
         self._time = 0.0
         for module in self.modules.values():
-            module.heard, module.report = 0.0, None
+            module.heard, module.report, module.links = 0.0, None, ()
             module.undock.clear()
             module.docks.clear()
         self.send_action({})
@@ -317,7 +321,7 @@ class LinkDriver(Driver):
             if isinstance(pose, np.ndarray) and pose.shape == (7,):
                 poses[name] = Pose(pose[:3].copy(), pose[3:].copy())
             sensors[name] = report.get("sensors")
-            for link in report.get("links", ()):
+            for link in module.links:
                 if isinstance(link, tuple) and len(link) == 3 and link[1] in self.modules:
                     graph.add_edge(name, link[1])
         components = [frozenset(c) for c in nx.connected_components(graph)]

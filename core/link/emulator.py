@@ -11,8 +11,10 @@ control period [s of module time] the emulator:
    session, after a stop or BYE, or once its watchdog expired);
 3. steps the simulator by one period;
 4. sends each module's REPORT: the simulator's sensor data of that module, its pose,
-   its latched ports (``links``), docking events, a battery voltage and the command
-   sequence number it applied (``ack``).
+   its latched ports (``links``: in the first 5 reports of a session, in 5 after a
+   change, and in every 10th),
+   docking events, a battery voltage and the command sequence number it applied
+   (``ack``).
 
 Time: each module's clock is the wall clock since :meth:`Emulator.open` times ``speed``
 (as a module's oscillator, it runs on whether or not the simulator keeps up); frames
@@ -69,6 +71,10 @@ LINK_FAULT_KINDS: dict[str, dict[str, float | str | None]] = {
     "reboot": {"module": None, "at": 0.0, "for": 0.5},
     "wrong-key": {"module": None},
 }
+LINKS_EVERY = 10
+"""A report carries ``links`` every this many ticks, ..."""
+LINKS_REPEAT = 5
+"""... and in this many reports after each change (a lost report cannot hide one)."""
 FULL_BATTERY = 8.4
 """Emulated battery voltage when full [V] (2S Li-ion)."""
 DRAIN = 0.002
@@ -87,6 +93,7 @@ class _Emulated:
     links: frozenset[tuple[str, str, str]] = frozenset()
     offline_until: float = -math.inf
     motor_time: float = 0.0
+    changed: int = -LINKS_REPEAT  # tick of the last change of ``links``
 
 
 class Emulator:
@@ -141,6 +148,7 @@ class Emulator:
         self._queue: list[tuple[float, int, str, bytes, Any]] = []  # delayed datagrams
         self._count = 0
         self._rebooted: set[int] = set()
+        self._ticks = 0
 
     # -- life cycle ------------------------------------------------------------------
 
@@ -248,18 +256,20 @@ class Emulator:
             self.errors.append(str(exc))
             self.driver.send_action({})
         self.driver.step(self.period)
+        self._ticks += 1
         observation, events = self._observe()
         for module, emulated in self.modules.items():
             if not self._online(emulated):
                 continue
             pose = observation.poses.get(module)
             payload: dict[str, Any] = {
-                "t": round(observation.time, 6),
                 "sensors": _sensors_of(observation.sensors, module),
-                "links": sorted(emulated.links),
                 "battery": round(FULL_BATTERY - DRAIN * emulated.motor_time, 3),
                 "motors": module in commands,
             }
+            if (self._ticks % LINKS_EVERY == 0 or self._ticks - emulated.changed < LINKS_REPEAT
+                    or emulated.link.reported < LINKS_REPEAT):
+                payload["links"] = sorted(emulated.links)
             if pose is not None:
                 payload["pose"] = np.concatenate([pose.position, pose.orientation])
             if events.get(module):
@@ -366,6 +376,8 @@ class Emulator:
                 for port, other, other_port in sorted(items):
                     events.setdefault(module, []).append(
                         (kind, port, other, other_port, round(self.clock, 3)))
+            if now != emulated.links:
+                emulated.changed = self._ticks
             emulated.links = now
         return observation, events
 

@@ -50,6 +50,7 @@ class ModuleLink:
         stop: the host asked for a stop (module not named in its last command set).
         applied: highest command sequence number applied.
         trips: every watchdog stop.
+        reported: reports sent in this session.
         outbox: datagrams to send and where (the owner sends them, with its faults).
     """
 
@@ -64,6 +65,7 @@ class ModuleLink:
     command: ModuleCommand | None = None
     command_clock: float = 0.0
     applied: int = 0
+    reported: int = 0
     seen_sessions: set[int] = field(default_factory=set)
     trips: list[WatchdogTrip] = field(default_factory=list)
     outbox: list[tuple[bytes, tuple[str, int]]] = field(default_factory=list)
@@ -106,7 +108,7 @@ class ModuleLink:
                 self.seen_sessions.add(frame.session)
                 self.host, self.session = address, frame.session
                 self.link = secrets.randbits(32) | 1
-                self.command, self.applied = None, 0
+                self.command, self.applied, self.reported = None, 0, 0
                 self._send(FrameType.WELCOME, clock, {"id": self.module, "version": VERSION,
                                                       "boot": self.boots})
                 return None
@@ -150,6 +152,7 @@ class ModuleLink:
         """Send a REPORT (``ack`` added) to the host, if in a session."""
         if self.session and self.host is not None:
             self._send(FrameType.REPORT, clock, {"ack": self.applied, **payload})
+            self.reported += 1
 
     def _send(self, frame_type: FrameType, clock: float, payload: Any) -> None:
         assert self.host is not None
