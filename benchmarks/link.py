@@ -15,13 +15,16 @@
    MMRP cross -> probe once per level (at ``--speed``, about a minute each).
 
 Usage: ``python benchmarks/link.py [--seed N] [--seconds 5] [--runs 5] [--mmrp]``.
-All traffic stays on 127.0.0.1. Prints the seed and three tables.
+The emulator runs as ``platform emulate`` in a second process (as a lab would run
+it); all traffic stays on 127.0.0.1. Prints the seed and three tables.
 """
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
 import tempfile
-import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -33,7 +36,7 @@ import numpy as np
 from msrr.core import plugins
 from msrr.core.console import console, table
 from msrr.core.driver import ModuleCommand
-from msrr.core.link import Emulator, KeyRef, LinkDriver, parse_link_faults, write_key, write_system
+from msrr.core.link import LinkDriver
 from msrr.core.run import RunRequest, execute_run, prepare_run, resolve_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,27 +46,30 @@ PAPER_BITS = 60_000
 
 @contextmanager
 def emulated(robot: str, start_path: Path, folder: Path, *, faults: str = "", seed: int = 0,
-             speed: float = 1.0, timeout: float = 1.0) -> Iterator[tuple[Emulator, Path]]:
-    """Emulated modules of ``start_path`` serving in a thread; yields the systems file."""
-    factory = plugins.drivers.get(robot)
-    recognizer = plugins.recognizers.get(robot, getattr(factory, "companions", {})
-                                         .get("recognizer"))
-    emulator = Emulator(factory, plugins.load_configuration(start_path), recognizer=recognizer,
-                        speed=speed, faults=parse_link_faults(faults), seed=seed,
-                        timeout=timeout)
-    stop = threading.Event()
-    with emulator:
-        write_key(folder / "system.key", emulator.key)
-        system = write_system(folder / "system.json",
-                              emulator.system_file(KeyRef(file="system.key"), robot))
-        thread = threading.Thread(target=emulator.serve, kwargs={"stop": stop.is_set},
-                                  daemon=True)
-        thread.start()
+             speed: float = 1.0, timeout: float = 1.0) -> Iterator[Path]:
+    """``platform emulate`` of ``start_path`` in its own process; yields the systems file
+    once written, and ends the emulator with SIGINT (as Ctrl-C) afterwards."""
+    system = folder / "system.json"
+    system.unlink(missing_ok=True)
+    command = [sys.executable, "-c", "from msrr.core.cli import main; main()", "emulate",
+               "--robot", robot, str(start_path), "--system-out", str(system), "--seed",
+               str(seed), "--speed", str(speed), "--timeout", str(timeout), "--duration",
+               "3600"] + (["--faults", faults] if faults else [])
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        end = time.monotonic() + 60.0
+        while not system.exists():
+            if process.poll() is not None or time.monotonic() > end:
+                raise RuntimeError(f"emulator did not start: {process.stderr.read().decode()}")
+            time.sleep(0.05)
+        yield system
+    finally:
+        process.send_signal(signal.SIGINT)
         try:
-            yield emulator, system
-        finally:
-            stop.set()
-            thread.join(10.0)
+            process.wait(10.0)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(5.0)
 
 
 def _hold(report: dict | None) -> ModuleCommand | None:
@@ -83,7 +89,8 @@ def _hold(report: dict | None) -> ModuleCommand | None:
 
 def bandwidth(folder: Path, seconds: float, seed: int) -> None:
     start = next((ROOT / "plugins/freesn/configs").rglob("S12N6-1.1.json"))
-    with emulated("freesn", start, folder, seed=seed) as (_emulator, system):
+    kinds = plugins.load_configuration(start).modules()
+    with emulated("freesn", start, folder, seed=seed) as system:
         driver = LinkDriver(system=system, robot="freesn")
         with driver:
             driver.reset(plugins.load_configuration(start))
@@ -104,8 +111,8 @@ def bandwidth(folder: Path, seconds: float, seed: int) -> None:
                 up = (into - before[module][1]) / elapsed
                 total += down + up
                 rows.append((module, down, up))
-    struts = [r for r in rows if r[0].startswith("S")]
-    nodes = [r for r in rows if not r[0].startswith("S")]
+    struts = [r for r in rows if kinds[r[0]] == "strut"]
+    nodes = [r for r in rows if kinds[r[0]] != "strut"]
     out = []
     for label, group in (("strut (mean of 12)", struts), ("node (mean of 6)", nodes)):
         down = float(np.mean([r[1] for r in group]))
@@ -129,7 +136,7 @@ def one_run(robot: str, scenario: str | None, start: Path | None, goal: Path | N
     start_path = where.start if where else start
     assert start_path is not None
     faults = f"loss:p={loss:g}" if loss else ""
-    with emulated(robot, start_path, folder, faults=faults, seed=seed, speed=speed) as (_, system):
+    with emulated(robot, start_path, folder, faults=faults, seed=seed, speed=speed) as system:
         request = RunRequest(robot, scenario=scenario, start=None if where else start,
                              goal=None if where else goal, seed=seed, log=False,
                              out=folder / "run", force=True, driver="link",

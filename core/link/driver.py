@@ -54,6 +54,8 @@ from .system import ModuleEntry, SystemFile, load_key, load_system
 
 __all__ = ["LinkDriver", "LinkDriverFactory", "link_driver_factory"]
 
+HANDSHAKE = 2.0
+"""Shortest wall time [s] given to every module to answer at connect and reset."""
 DEFAULT_RATE = 10.0
 """Control rate [Hz] assumed for the watchdog until the first ``step``."""
 
@@ -66,6 +68,7 @@ class _Module:
     heard: float = 0.0
     report: dict[str, Any] | None = None
     links: tuple[Any, ...] = ()
+    has_links: bool = False
     reboots: int = 0
     undock: dict[str, int] = field(default_factory=dict)  # port -> first sequence carrying it
     docks: dict[str, tuple[int, float]] = field(default_factory=dict)  # port -> (seq, time)
@@ -85,7 +88,7 @@ class LinkDriver(Driver):
         robot: the run's robot (the systems file must name it).
         packages: packages whose dataclasses reports may carry (the robot's plugin).
         handshake: wall time [s] to wait for every module at connect and reset;
-            default the largest module timeout / ``time_scale``.
+            default the largest module timeout / ``time_scale``, at least 2 s.
         gui, seed: accepted for the factory interface; unused.
     """
 
@@ -172,7 +175,7 @@ class LinkDriver(Driver):
     def _limit(self) -> float:
         if self.handshake is not None:
             return self.handshake
-        return self._wall(max(m.timeout for m in self.modules.values()))
+        return max(HANDSHAKE, self._wall(max(m.timeout for m in self.modules.values())))
 
     def _wait(self, ready: Any, what: str) -> None:
         """Pump frames (re-sending HELLOs) until ``ready(module)`` for every module."""
@@ -271,7 +274,7 @@ class LinkDriver(Driver):
         module.heard = self._time
         links = payload.get("links")
         if isinstance(links, tuple):
-            module.links = links
+            module.links, module.has_links = links, True
         ack = payload.get("ack", 0)
         if isinstance(ack, int):
             self._acknowledged(module, ack)
@@ -302,11 +305,11 @@ class LinkDriver(Driver):
                 source=str(self.path), field="modules")
         self._time = 0.0
         for module in self.modules.values():
-            module.heard, module.report, module.links = 0.0, None, ()
+            module.heard, module.report = 0.0, None  # links stay: they change by events
             module.undock.clear()
             module.docks.clear()
         self.send_action({})
-        self._wait(lambda m: m.report is not None, "report")
+        self._wait(lambda m: m.report is not None and m.has_links, "report")
         self._mark = wall.monotonic()
 
     def get_observation(self) -> Observation:
