@@ -16,6 +16,12 @@ feeds the table and plot). The last line is machine-readable::
 
     exact=... exact_near=... speedup_57600=... median_ms_57600=...
 
+The pairs are drawn first, in order, from one generator; then each is timed as one batch
+task (:mod:`msrr.core.batch`): ``--workers N`` / ``--cluster ADDRESS`` time several pairs
+at once and print the same table columns (timings vary run to run anyway; ``exact`` and
+``rms deg`` are the same for the same seed). Default: one worker, so timings are
+comparable to the published ones.
+
 Usage: ``python benchmarks/iso_search.py --pairs 50 --seed 0 --plot fig16.png``
 """
 
@@ -30,6 +36,7 @@ import numpy as np
 from fig16 import FIG16_TOPOLOGIES, TopologySpec
 
 from msrr.core.alignment import rot_z
+from msrr.core.batch import exit_on_interrupt, run_batch
 from msrr.core.configuration import Configuration
 from msrr.core.matching import brute_force_isomorphisms, iso_search
 
@@ -87,20 +94,41 @@ def make_pair(spec: TopologySpec, kind: str, rng: np.random.Generator
     return system, reference
 
 
-def run_pair(spec: TopologySpec, kind: str, rng: np.random.Generator, *, bf_max: int,
-             timeout: float) -> Result:
+@dataclass(frozen=True)
+class Pair:
+    """One timed search: a (system, reference) pair and what the brute force may do."""
+
+    topology: str
+    isomorphisms: int
+    kind: str
+    system: Configuration
+    reference: Configuration
+    brute_force: bool
+    timeout: float
+
+
+def make_task(spec: TopologySpec, kind: str, rng: np.random.Generator, *, bf_max: int,
+              timeout: float) -> Pair:
+    """Draw the pair here (one generator, task order), so any backend times the same pairs."""
     system, reference = make_pair(spec, kind, rng)
+    brute_force = not (kind == "full-random" and spec.isomorphisms > bf_max)
+    return Pair(spec.name, spec.isomorphisms, kind, system, reference, brute_force, timeout)
+
+
+def run_pair(pair: Pair) -> Result:
+    """Time the tree search to its first mapping, and the brute force (a batch task)."""
+    system, reference = pair.system, pair.reference
     start = time.perf_counter()
-    first = next(iso_search(system, reference, deadline=time.monotonic() + timeout), None)
+    first = next(iso_search(system, reference, deadline=time.monotonic() + pair.timeout), None)
     tree_ms = 1e3 * (time.perf_counter() - start)
     rms = np.nan if first is None else np.rad2deg(first.rms_angle)
-    if kind == "full-random" and spec.isomorphisms > bf_max:
-        return Result(spec.name, spec.isomorphisms, kind, tree_ms, None, None, rms)
+    if not pair.brute_force:
+        return Result(pair.topology, pair.isomorphisms, pair.kind, tree_ms, None, None, rms)
     start = time.perf_counter()
     ranked = brute_force_isomorphisms(system, reference)
     bf_ms = 1e3 * (time.perf_counter() - start)
     exact = first is not None and first.distance <= ranked[0].distance + TOLERANCE
-    return Result(spec.name, spec.isomorphisms, kind, tree_ms, bf_ms, exact,
+    return Result(pair.topology, pair.isomorphisms, pair.kind, tree_ms, bf_ms, exact,
                   float(np.rad2deg(ranked[0].rms_angle)))
 
 
@@ -162,14 +190,21 @@ def main() -> None:
                         help="largest isomorphism count brute-forced for full-random pairs")
     parser.add_argument("--timeout", type=float, default=30.0,
                         help="time limit of one tree search [s]")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="worker processes (1: here; 0: one per core); each pair is timed "
+                             "in one worker")
+    parser.add_argument("--cluster", default=None, metavar="ADDRESS",
+                        help="run on Ray: auto, ray://HOST:PORT or local")
     args = parser.parse_args()
     print(f"seed={args.seed} pairs={args.pairs} per kind over {len(FIG16_TOPOLOGIES)} topologies")
     rng = np.random.default_rng(args.seed)
-    results = []
-    for kind in KINDS:
-        for i in range(args.pairs):
-            spec = FIG16_TOPOLOGIES[-1 - i % len(FIG16_TOPOLOGIES)]  # largest first
-            results.append(run_pair(spec, kind, rng, bf_max=args.bf_max, timeout=args.timeout))
+    pairs = [make_task(FIG16_TOPOLOGIES[-1 - i % len(FIG16_TOPOLOGIES)],  # largest first
+                       kind, rng, bf_max=args.bf_max, timeout=args.timeout)
+             for kind in KINDS for i in range(args.pairs)]
+    with exit_on_interrupt():
+        results = run_batch(run_pair, pairs, keys=[f"{p.kind}-{p.topology}-{i}"
+                                                   for i, p in enumerate(pairs)],
+                            workers=args.workers, cluster=args.cluster, label="pairs").values()
     table(results)
     if args.plot:
         plot(results, args.plot)
