@@ -57,7 +57,10 @@ def command(markdown: bool) -> None:
     if markdown:
         click.echo(_markdown(rows, header))
         return
-    console.print(table("Installed robots", header, rows))
+    for row in rows:  # one narrow table per robot reads at any terminal width
+        console.print(table(f"{row[0]}: {row[1]}", ["capability", "items"],
+                            [[what, cell] for what, cell in zip(header[2:], row[2:],
+                                                                strict=True)]))
     for name, owners in plugins.robot_clashes().items():
         console.print(styled("refused", "red"), f"robot {name!r}: described by plugins "
                       f"{', '.join(map(repr, owners))}")
