@@ -15,6 +15,10 @@ The last line is machine-readable::
 
     optimal_rate=... max_ms_1000=... median_ms_1000=...
 
+Instances are drawn in order from one generator, then solved as batch tasks
+(:mod:`msrr.core.batch`, ``--workers N`` / ``--cluster ADDRESS``; default one worker so
+times compare with earlier runs): the step counts are the same for the same seed.
+
 Usage: ``python benchmarks/miso_planner.py --seed 0 --plot docs/images/miso-planner.png``
 """
 
@@ -28,6 +32,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from msrr.core.batch import exit_on_interrupt, run_batch
 from msrr.core.miso import MisoProblem, random_miso_tree, solve_exact, solve_heuristic
 
 SMALL = tuple(range(5, 11))
@@ -57,8 +62,9 @@ def instance(n: int, b: int, rng: np.random.Generator) -> MisoProblem:
                                     random_miso_tree(n, rng, max_branching=b))
 
 
-def compare(n: int, rng: np.random.Generator) -> Compared:
-    problem = instance(n, 3, rng)
+def compare(task: tuple[int, MisoProblem]) -> Compared:
+    """Heuristic against exact on one instance (a batch task)."""
+    n, problem = task
     heuristic = solve_heuristic(problem)
     t0 = time.perf_counter()
     exact = solve_exact(problem)
@@ -66,8 +72,9 @@ def compare(n: int, rng: np.random.Generator) -> Compared:
                     1e3 * (time.perf_counter() - t0))
 
 
-def timed(n: int, b: int, rng: np.random.Generator) -> Timed:
-    problem = instance(n, b, rng)
+def timed(task: tuple[int, int, MisoProblem]) -> Timed:
+    """The heuristic's time on one instance (a batch task)."""
+    n, b, problem = task
     t0 = time.perf_counter()
     solution = solve_heuristic(problem)
     return Timed(n, b, 1e3 * (time.perf_counter() - t0), solution.cost, solution.lower_bound)
@@ -112,13 +119,23 @@ def main() -> None:
     parser.add_argument("--branching", type=int, nargs="+", default=[3, 10, 50],
                         help="bounds on branching modules for the time part")
     parser.add_argument("--plot", default=None, help="save a plot to FILE")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="worker processes (1: here; 0: one per core)")
+    parser.add_argument("--cluster", default=None, metavar="ADDRESS",
+                        help="run on Ray: auto, ray://HOST:PORT or local")
     args = parser.parse_args()
     console = Console(highlight=False)
     console.print(f"seed={args.seed} instances={args.instances} per size (n=5..10, b<=3), "
                   f"repeats={args.repeats} per size and bound {args.branching}")
     rng = np.random.default_rng(args.seed)
 
-    compared = [compare(n, rng) for n in SMALL for _ in range(args.instances)]
+    # instances drawn here in order from one generator; solved as batch tasks
+    small = [(n, instance(n, 3, rng)) for n in SMALL for _ in range(args.instances)]
+    large = [(n, b, instance(n, b, rng)) for b in args.branching for n in LARGE
+             for _ in range(args.repeats)]
+    batch = {"workers": args.workers, "cluster": args.cluster}
+    with exit_on_interrupt():
+        compared = run_batch(compare, small, label="exact comparisons", **batch).values()
     table = Table(title="Heuristic vs exact (fewest steps), random MISO trees, b <= 3")
     for column in ("n", "instances", "optimal", "mean extra steps", "mean exact steps",
                    "proved", "exact median ms", "exact max ms"):
@@ -134,7 +151,8 @@ def main() -> None:
                       f"{max(c.exact_ms for c in rows):.1f}")
     console.print(table)
 
-    runs = [timed(n, b, rng) for b in args.branching for n in LARGE for _ in range(args.repeats)]
+    with exit_on_interrupt():
+        runs = run_batch(timed, large, label="timed instances", **batch).values()
     table = Table(title="Heuristic time, random MISO trees")
     for column in ("n", "b <=", "median ms", "max ms", "mean steps", "steps above d"):
         table.add_column(column, justify="right")

@@ -393,7 +393,8 @@ def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] |
                TextColumn("{task.fields[failed]}"), TimeElapsedColumn())
     done = 0
     try:
-        with Progress(*columns, console=console, transient=True, disable=not progress) as bar:
+        with Progress(*columns, console=console, transient=True,
+                      disable=not progress or not console.is_terminal) as bar:
             task = bar.add_task(f"{label} ({name}, {count} worker{'s' * (count > 1)})",
                                 total=len(items), failed="")
             for index, (ok, value, seconds) in stream:
