@@ -12,7 +12,10 @@ Per size, on seeded random pairs of legal planar MMRP trees:
   (``platform run``), success rate and simulated time.
 
 Usage: ``python benchmarks/mmrp_planner.py [--seed N] [--pairs N] [--mid N] [--runs N]
-[--sizes 50,100,...] [--sim N] [--plot FILE]``. The last line is
+[--sizes 50,100,...] [--sim N] [--plot FILE] [--workers N] [--cluster ADDRESS]``. The
+pairs are drawn in order from one generator, then planned as batch tasks
+(:mod:`msrr.core.batch`; ``--workers 0``, the default, uses every core): the table's
+counts are the same for the same seed whichever backend runs them. The last line is
 ``paper_cross_probe_pairs=... optimal_rate=... max_excess=... checker_problems=...
 median_ms_500=... median_ms_1000=...``.
 """
@@ -26,10 +29,13 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import click
 import numpy as np
 
+from msrr.core.batch import batch_options, exit_on_interrupt, run_batch
+from msrr.core.configuration import Configuration
 from msrr.core.console import console, table
 from msrr.core.io import load_configuration, save_configuration
 from msrr.plugins.mmrp.check import check_plan
@@ -48,28 +54,40 @@ def _p95(values: list[float]) -> float:
     return float(np.percentile(values, 95)) if values else float("nan")
 
 
-def _run_size(n: int, count: int, rng: np.random.Generator, reference: str | None
-              ) -> tuple[list, dict]:
-    found, best, ms, problems, stalls, cuts, parks, uncertified, ref_s = \
-        [], [], [], 0, 0, 0, 0, 0, []
+def _solve(task: tuple[Configuration, Configuration, int, str | None]) -> dict[str, Any]:
+    """Plan one pair, replay it in the checker, and find its reference optimum (a batch
+    task: a pure function of the pair, its seed and the reference kind)."""
+    start, goal, seed, reference = task
+    began = time.perf_counter()
+    result = plan_hybrid(start, goal, seed=seed)
+    out: dict[str, Any] = {"ms": (time.perf_counter() - began) * 1e3, "pairs": result.pairs,
+                           "problems": len(check_plan(result.plan)),
+                           "stalls": result.field.stalled,
+                           "cuts": int(result.plan.stats["cut_for_motion"]),
+                           "parks": int(result.plan.stats["parking_moves"])}
+    if reference == "exhaustive":
+        out["best"] = optimum(start, goal).pairs
+    elif reference == "milp":
+        exact = certified_optimum(start, goal, time_limit=60.0)
+        out.update(best=exact.bound, uncertified=not exact.certified, ref_s=exact.seconds)
+    return out
+
+
+def _run_size(n: int, count: int, rng: np.random.Generator, reference: str | None,
+              batch: dict[str, Any]) -> tuple[list, dict]:
+    # the pairs and their seeds are drawn here, in order, from one generator
+    tasks = []
     for _ in range(count):
         start, goal = random_tree(n, rng), random_tree(n, rng)
-        seed = int(rng.integers(1 << 31))
-        began = time.perf_counter()
-        result = plan_hybrid(start, goal, seed=seed)
-        ms.append((time.perf_counter() - began) * 1e3)
-        found.append(result.pairs)
-        problems += len(check_plan(result.plan))
-        stalls += result.field.stalled
-        cuts += int(result.plan.stats["cut_for_motion"])
-        parks += int(result.plan.stats["parking_moves"])
-        if reference == "exhaustive":
-            best.append(optimum(start, goal).pairs)
-        elif reference == "milp":
-            exact = certified_optimum(start, goal, time_limit=60.0)
-            best.append(exact.bound)
-            uncertified += not exact.certified
-            ref_s.append(exact.seconds)
+        tasks.append((start, goal, int(rng.integers(1 << 31)), reference))
+    with exit_on_interrupt():
+        done = run_batch(_solve, tasks, label=f"{n}-module pairs", **batch).values()
+    found, ms = [d["pairs"] for d in done], [d["ms"] for d in done]
+    best = [d["best"] for d in done if "best" in d]
+    problems, stalls = sum(d["problems"] for d in done), sum(d["stalls"] for d in done)
+    cuts, parks = sum(d["cuts"] for d in done), sum(d["parks"] for d in done)
+    uncertified = sum(d.get("uncertified", False) for d in done)
+    ref_s = [d["ref_s"] for d in done if "ref_s" in d]
     diff = [a - b for a, b in zip(found, best, strict=True)] if best else []
     if diff and min(diff) < 0:
         raise SystemExit(f"plan below the proven optimum at {n} modules: a solver bug")
@@ -120,8 +138,9 @@ def _simulate(count: int, rng: np.random.Generator) -> list[list]:
               help="30-module runs in the PyBullet simulation.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None,
               help="Save a plot of time and optimality gap per size to this file.")
+@batch_options
 def main(seed: int, n_pairs: int, n_mid: int, runs: int, sizes: str, n_sim: int,
-         plot: Path | None) -> None:
+         plot: Path | None, workers: int, cluster: str | None) -> None:
     console.print(f"seed={seed}")
     rng = np.random.default_rng(seed)
     paper = plan_hybrid(load_configuration(CONFIGS / "cross.json"),
@@ -131,7 +150,8 @@ def main(seed: int, n_pairs: int, n_mid: int, runs: int, sizes: str, n_sim: int,
            [(n, n_mid, "milp") for n in MID if n_mid] + \
            [(int(n), runs, None) for n in sizes.split(",") if n]
     for n, count, reference in plan:
-        row, summary = _run_size(n, count, rng, reference)
+        row, summary = _run_size(n, count, rng, reference,
+                                 {"workers": workers, "cluster": cluster})
         rows.append(row)
         summaries.append(summary)
         console.print(f"  {n} modules done", style="dim")
