@@ -20,6 +20,10 @@ the first ``--fd-pairs`` pairs, and the time against the angular distance of the
 
 Usage: ``python benchmarks/ik_scaling.py --pairs 100 --seed 0 --plot fig17.png``
 (``--clock cpu`` times each solve by this process's CPU time, for a shared machine).
+Pairs are drawn in order from one generator, then solved as batch tasks
+(:mod:`msrr.core.batch`, ``--workers N`` / ``--cluster ADDRESS``; default one worker so
+times compare with earlier runs): success, iterations and restarts are the same for the
+same seed whichever backend solves them.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from rich.table import Table
 
 from msrr.core import Configuration, plugins
 from msrr.core.alignment import angles_between, rot_z
+from msrr.core.batch import exit_on_interrupt, run_batch
 from msrr.core.kinematics import (
     IKOptions,
     KinematicTree,
@@ -107,6 +112,26 @@ def solve(pair: Pair, seed: int, gradient: str = "analytic", clock: str = "wall"
                rms_deg, pair.rms_deg)
 
 
+_warmed = False
+
+
+def solve_task(task: tuple[Pair, int, str, str]) -> Run:
+    """:func:`solve` as a batch task ``(pair, seed, gradient, clock)``; the first call in a
+    process solves once unmeasured (thread pools, imports)."""
+    global _warmed
+    if not _warmed:
+        solve(*task)
+        _warmed = True
+    return solve(*task)
+
+
+def solve_all(tasks: list[tuple[Pair, int, str, str]], batch: dict[str, object],
+              label: str) -> list[Run]:
+    """Every task in order, on the backend ``batch`` selects (``workers``, ``cluster``)."""
+    with exit_on_interrupt():
+        return run_batch(solve_task, tasks, label=label, **batch).values()  # type: ignore[arg-type]
+
+
 def fit_exponent(edges: list[int], medians: list[float]) -> float:
     """Slope of log(median time) against log(edges), least squares."""
     return float(np.polyfit(np.log(edges), np.log(medians), 1)[0])
@@ -169,6 +194,10 @@ def main() -> None:
     parser.add_argument("--clock", choices=sorted(CLOCKS), default="wall",
                         help="time solves by wall clock (default) or by this process's CPU "
                              "time (steadier on a machine shared with other jobs)")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="worker processes (1: here; 0: one per core)")
+    parser.add_argument("--cluster", default=None, metavar="ADDRESS",
+                        help="run on Ray: auto, ray://HOST:PORT or local")
     args = parser.parse_args()
     clock = args.clock
     console = Console(highlight=False)
@@ -179,14 +208,15 @@ def main() -> None:
     warm = make_pair(5, np.random.default_rng(args.seed + 1), NEAR_RMS_DEG)
     solve(warm, 0)  # first-call set-up (thread pools, imports) is not measured
 
+    batch = {"workers": args.workers, "cluster": args.cluster}
     sizes = list(range(args.min_edges, args.max_edges + 1))
-    by_size: dict[int, list[Run]] = {}
-    pairs_30: list[Pair] = []
-    for n in sizes:
-        pairs = [make_pair(n, rng, NEAR_RMS_DEG) for _ in range(args.pairs)]
-        by_size[n] = [solve(p, args.seed + i, clock=clock) for i, p in enumerate(pairs)]
-        if n == args.max_edges:
-            pairs_30 = pairs
+    # pairs drawn here in order from one generator, solved as batch tasks
+    pairs_by_size = {n: [make_pair(n, rng, NEAR_RMS_DEG) for _ in range(args.pairs)]
+                     for n in sizes}
+    solved = iter(solve_all([(p, args.seed + i, "analytic", clock) for n in sizes
+                             for i, p in enumerate(pairs_by_size[n])], batch, "pairs"))
+    by_size = {n: [next(solved) for _ in pairs_by_size[n]] for n in sizes}
+    pairs_30 = pairs_by_size[args.max_edges]
 
     table = Table(title="Full-body IK, near-random pairs (Fig. 17, left)")
     for column in ("edges", "median ms", "p95 ms", "success", "iterations", "restarts"):
@@ -201,9 +231,10 @@ def main() -> None:
     console.print(table)
 
     fd_pairs = pairs_30[: args.fd_pairs]
-    analytic = [solve(p, args.seed + i, clock=clock) for i, p in enumerate(fd_pairs)]
-    numeric = [solve(p, args.seed + i, "finite_difference", clock)
-               for i, p in enumerate(fd_pairs)]
+    both = solve_all([(p, args.seed + i, gradient, clock) for gradient in
+                      ("analytic", "finite_difference") for i, p in enumerate(fd_pairs)],
+                     batch, "gradients")
+    analytic, numeric = both[:len(fd_pairs)], both[len(fd_pairs):]
     fd_speedup = sum(r.ms for r in numeric) / sum(r.ms for r in analytic)
     console.print(f"finite differences vs analytic gradient, {args.max_edges} edges, "
                   f"{len(fd_pairs)} pairs: {sum(r.ms for r in numeric) / len(fd_pairs):.1f} ms "
@@ -217,9 +248,11 @@ def main() -> None:
                         "(Fig. 17, right)")
     for column in ("RMS deg", "median ms", "p95 ms", "success", "iterations"):
         table.add_column(column, justify="right")
+    tasks = [(make_pair(args.max_edges, distance_rng, distance), args.seed + i, "analytic",
+              clock) for distance in DISTANCES_DEG for i in range(args.distance_pairs)]
+    solved = iter(solve_all(tasks, batch, "distances"))
     for distance in DISTANCES_DEG:
-        runs = [solve(make_pair(args.max_edges, distance_rng, distance), args.seed + i,
-                      clock=clock) for i in range(args.distance_pairs)]
+        runs = [next(solved) for _ in range(args.distance_pairs)]
         by_distance[distance] = runs
         ms = [r.ms for r in runs]
         table.add_row(f"{distance:.0f}", f"{np.median(ms):.2f}",
