@@ -9,7 +9,9 @@ reports its median and 95th percentile; the **real-time factor** is simulated ti
 wall time, for the physics alone and for the whole loop (reports, tick, physics).
 Targets: tick median <= 20 ms and loop RTF >= 5 at 18 modules.
 
-Usage: ``python benchmarks/freesn_control.py [--seed N] [--ticks N]``. The last line is
+Usage: ``python benchmarks/freesn_control.py [--seed N] [--ticks N] [--workers N]
+[--cluster ADDRESS]`` (one batch task per library, :mod:`msrr.core.batch`; the default
+one worker keeps the timings those of one core alone). The last line is
 ``tick_median_ms_18=... tick_p95_ms_18=... rtf_loop_18=... rtf_physics_18=...``.
 """
 
@@ -17,12 +19,14 @@ from __future__ import annotations
 
 import math
 import time
+from functools import partial
 from pathlib import Path
 
 import click
 import numpy as np
 
 from msrr.core import plugins
+from msrr.core.batch import exit_on_interrupt, run_batch
 from msrr.core.closed_loop import PhaseTracker, TrackingOptions, connection_goal, tree_for
 from msrr.core.console import console, table
 from msrr.core.kinematics import GroundModel
@@ -37,6 +41,7 @@ EDGES = {"S4N5": "S4N5:S4N5-1.1->S4N5-1.2", "S6N3": "S6N3:S6N3-1.1->S6N3-1.2",
 
 
 def measure(name: str, seed: int, ticks: int, rate: float = 10.0) -> dict[str, float]:
+    """Time ``ticks`` control ticks of ``name``'s edge (a batch task: one library each)."""
     robot = plugins.resolve("freesn")
     case = next(c for c in edge_cases(load_library(LIBRARIES / f"{name}.json"), robot)
                 if c.key == EDGES[name])
@@ -74,11 +79,19 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0) -> dict[str, f
 @click.command()
 @click.option("--seed", default=0, show_default=True)
 @click.option("--ticks", default=60, show_default=True, help="Control ticks per library.")
-def main(seed: int, ticks: int) -> None:
+@click.option("--workers", type=click.IntRange(min=0), default=1, show_default=True,
+              help="Worker processes, one library each (1: here, so the times are of one "
+                   "core alone; 0: one per core).")
+@click.option("--cluster", default=None, metavar="ADDRESS",
+              help="Run on Ray: auto, ray://HOST:PORT or local.")
+def main(seed: int, ticks: int, workers: int, cluster: str | None) -> None:
     console.print(f"seed {seed}, {ticks} ticks at 10 Hz per library, noise 2 deg, slip 0.05")
     rows, results = [], {}
-    for name in EDGES:
-        r = measure(name, seed, ticks)
+    with exit_on_interrupt():
+        measured = run_batch(partial(measure, seed=seed, ticks=ticks), list(EDGES),
+                             keys=list(EDGES), workers=workers, cluster=cluster,
+                             label="libraries").values()
+    for name, r in zip(EDGES, measured, strict=True):
         results[name] = r
         rows.append([name, EDGES[name].split(":", 1)[1], r["modules"], f"{r['first_ms']:.1f}",
                      f"{r['median_ms']:.2f}", f"{r['p95_ms']:.2f}", f"{r['rtf_physics']:.1f}",
