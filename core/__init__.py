@@ -8,33 +8,83 @@ importable from here directly. The file functions here are those of
 installed robot it names. The types a robot's own capabilities build (``Plan``,
 ``Action``, ``Driver``, ``ModuleCommand``, ``Observation``, ``Control``...) and the errors
 they raise (``PlanningError``, ``ExecutionError``) are here too.
+
+Exports load lazily (PEP 562): ``import msrr.core`` is cheap, so the console script
+(:mod:`msrr.core.launch`) can handle signals before the heavy imports.
 """
 
-from .configuration import VIRTUAL, Configuration, Edge, Signature, unit
-from .control import Control
-from .driver import Driver, ModuleCommand, Observation, Pose
-from .errors import (
-    ConfigurationError,
-    DockingRuleError,
-    ExecutionError,
-    MsrrError,
-    PlanningError,
-    PluginError,
-    UnknownNameError,
-    UnknownRobotError,
-)
-from .events import Phase
-from .hookspecs import hookimpl, hookspec
-from .io import (
-    check_configuration,
-    dump_configuration,
-    load_configuration,
-    parse_configuration,
-    save_configuration,
-)
-from .plan import Action, ActionType, ConnectionChange, Plan
-from .robot import DockingRules, ModuleKind, PortSpec, Robot, RobotSpec, Violation
-from .scenario import Scenario
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .configuration import VIRTUAL, Configuration, Edge, Signature, unit
+    from .control import Control
+    from .driver import Driver, ModuleCommand, Observation, Pose
+    from .errors import (
+        ConfigurationError,
+        DockingRuleError,
+        ExecutionError,
+        MsrrError,
+        PlanningError,
+        PluginError,
+        UnknownNameError,
+        UnknownRobotError,
+    )
+    from .events import Phase
+    from .hookspecs import hookimpl, hookspec
+    from .io import (
+        check_configuration,
+        dump_configuration,
+        load_configuration,
+        parse_configuration,
+        save_configuration,
+    )
+    from .plan import Action, ActionType, ConnectionChange, Plan
+    from .robot import DockingRules, ModuleKind, PortSpec, Robot, RobotSpec, Violation
+    from .scenario import Scenario
+
+_EXPORTS: dict[str, str] = {
+    "Action": "plan",
+    "ActionType": "plan",
+    "check_configuration": "io",
+    "Configuration": "configuration",
+    "ConfigurationError": "errors",
+    "ConnectionChange": "plan",
+    "Control": "control",
+    "DockingRuleError": "errors",
+    "DockingRules": "robot",
+    "Driver": "driver",
+    "dump_configuration": "io",
+    "Edge": "configuration",
+    "ExecutionError": "errors",
+    "hookimpl": "hookspecs",
+    "hookspec": "hookspecs",
+    "load_configuration": "io",
+    "ModuleCommand": "driver",
+    "ModuleKind": "robot",
+    "MsrrError": "errors",
+    "Observation": "driver",
+    "parse_configuration": "io",
+    "Phase": "events",
+    "Plan": "plan",
+    "PlanningError": "errors",
+    "PluginError": "errors",
+    "PortSpec": "robot",
+    "Pose": "driver",
+    "Robot": "robot",
+    "RobotSpec": "robot",
+    "save_configuration": "io",
+    "Scenario": "scenario",
+    "Signature": "configuration",
+    "unit": "configuration",
+    "UnknownNameError": "errors",
+    "UnknownRobotError": "errors",
+    "Violation": "robot",
+    "VIRTUAL": "configuration",
+}
+"""Public name -> the module of ``msrr.core`` that defines it (imported on first use)."""
 
 __all__ = [
     "Action",
@@ -75,3 +125,16 @@ __all__ = [
     "save_configuration",
     "unit",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'msrr.core' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -83,8 +83,8 @@ def test_the_guide_robot_runs_from_a_to_b_on_the_generic_runtime(package: Path,
                                                                    tmp_path: Path) -> None:
     configs = package / "msrr_example_hinge/configs"
     runner = CliRunner()
-    listed = runner.invoke(get_cli(), ["robots"], terminal_width=200)
-    row = next(line for line in listed.output.splitlines() if line.startswith("│ hinge"))
+    listed = runner.invoke(get_cli(), ["robots", "--markdown"])
+    row = next(line for line in listed.output.splitlines() if line.startswith("| hinge |"))
     assert "generic*" in row and "kinematic*" in row
     result = runner.invoke(get_cli(), [
         "run", "--robot", "hinge", "--from", str(configs / "chain3.json"),
