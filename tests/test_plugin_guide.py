@@ -120,7 +120,7 @@ def test_every_other_hook_of_the_guide_works(package: Path, tmp_path: Path) -> N
             robot = plugins.resolve("hinge")
             assert robot.joint_modes["hinge"] is extras.HingeJoint
             assert list(plugins.planners("hinge")) == ["undock-then-dock", "generic"]
-            assert list(plugins.drivers("hinge")) == ["fast", "kinematic"]
+            assert list(plugins.drivers("hinge")) == ["fast", "kinematic", "link"]
             start = plugins.load_configuration(package / "msrr_example_hinge/configs/chain3.json")
             goal = plugins.load_configuration(
                 package / "msrr_example_hinge/configs/chain3-reversed.json")

@@ -204,7 +204,7 @@ def test_items_that_do_not_fit_the_capability_are_refused(tiny) -> None:
 
 def test_hook_msrr_drivers(tiny) -> None:
     drivers = plugins.drivers(NAME)
-    assert list(drivers) == ["points", "kinematic"] and drivers["points"] is PointDriver
+    assert list(drivers) == ["points", "kinematic", "link"] and drivers["points"] is PointDriver
     with plugins.drivers.get(NAME)(gui=False, seed=0) as driver:
         assert driver.is_connected
 
