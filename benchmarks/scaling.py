@@ -22,13 +22,14 @@ Usage: ``python benchmarks/scaling.py [--library S12N6] [--runs 100] [--workers 
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
 import click
 import numpy as np
 
-from msrr.core.batch import BatchResult, ray_available, run_batch
+from msrr.core.batch import BatchResult, available_cores, ray_available, run_batch
 from msrr.core.commands.sweep import SweepTask, sweep_run
 from msrr.core.console import console, table
 from msrr.core.executor import ExecutorOptions
@@ -37,6 +38,11 @@ from msrr.core.library.check import edge_cases
 from msrr.core.plugins import load_library
 
 LIBRARIES = Path(__file__).resolve().parents[1] / "plugins" / "freesn" / "libraries"
+
+
+def _load() -> str:
+    """The 1, 5 and 15 minute load averages."""
+    return " ".join(f"{x:.1f}" for x in os.getloadavg())
 
 
 def _row(name: str, batch: BatchResult, reference: BatchResult | None,
@@ -62,7 +68,8 @@ def _row(name: str, batch: BatchResult, reference: BatchResult | None,
 def main(library: str, timeout: float, runs: int, robot: str, scenario: str, workers: int,
          seed: int, use_ray: bool) -> None:
     console.print(f"seed {seed}; library {library} (timeout {timeout:g} s); sweep {robot} "
-                  f"{scenario} x {runs} seeds (kinematic driver); {workers} workers")
+                  f"{scenario} x {runs} seeds (kinematic driver); {workers} workers; "
+                  f"{available_cores()} cores, load average {_load()}")
     runner = default_runner("freesn", options=ExecutorOptions(action_timeout=timeout,
                                                               retries=0), seed=seed)
     cases = edge_cases(load_library(LIBRARIES / f"{library}.json"), runner.robot)
@@ -105,6 +112,8 @@ def main(library: str, timeout: float, runs: int, robot: str, scenario: str, wor
     console.print(table(f"Batch work on this machine (seed {seed})",
                         ["workload", "backend", "workers", "tasks", "wall [s]", "speed-up",
                          "task mean [s]", "task max [s]", "same"], rows))
+    console.print(f"load average at the end {_load()} (other jobs share these cores: a "
+                  "load above the core count lowers every speed-up)", markup=False)
     console.print(" ".join(f"{k}={v:.2f}" for k, v in figures.items()), markup=False)
 
 

@@ -51,6 +51,7 @@ from rich.progress import (
     TextColumn,
     TimeElapsedColumn,
 )
+from threadpoolctl import threadpool_limits
 
 from .console import console, err_console
 from .errors import ConfigurationError, MsrrError
@@ -203,9 +204,20 @@ def exit_on_interrupt() -> Iterator[None]:
 
 # --- the worker side -------------------------------------------------------------------
 
+_one_thread = False
+
+
 def _call(fn: Callable[[Any], Any], item: Any) -> tuple[bool, Any, float]:
     """Run one task; ``(True, result, seconds)`` or ``(False, (error, traceback), seconds)``.
-    Exceptions are caught here so a failure carries the worker's traceback."""
+    Exceptions are caught here so a failure carries the worker's traceback.
+
+    Every worker runs BLAS and OpenMP on one thread (set on its first task): the workers
+    are the parallelism, and a task's arithmetic is then the same as in the serial
+    backend (which runs its tasks under the same limit)."""
+    global _one_thread
+    if not _one_thread:
+        threadpool_limits(limits=1)
+        _one_thread = True
     start = time.perf_counter()
     try:
         value = fn(item)
@@ -227,8 +239,16 @@ _Outcome = tuple[bool, Any, float]
 
 
 def _serial(fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, _Outcome]]:
+    """The tasks in this process, BLAS on one thread as in a worker (restored after)."""
+    global _one_thread
     for index, item in enumerate(items):
-        yield index, _call(fn, item)
+        with threadpool_limits(limits=1):
+            was, _one_thread = _one_thread, True
+            try:
+                outcome = _call(fn, item)
+            finally:
+                _one_thread = was
+        yield index, outcome
 
 
 def _pool_context() -> multiprocessing.context.BaseContext:
