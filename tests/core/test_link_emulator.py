@@ -16,9 +16,11 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 from tiny_robot import LinkRecognizer, PointDriver, chain, installed
 
 from msrr.core import save_configuration
+from msrr.core.cli import get_cli
 from msrr.core.errors import ExecutionError
 from msrr.core.link import Emulator, KeyRef, LinkDriver, parse_link_faults, write_key, write_system
 from msrr.core.run import RUN_FILES, RunRequest, execute_run, prepare_run, write_outputs
@@ -164,3 +166,29 @@ def test_runs_survive_loss_latency_and_a_reboot(tmp_path, faults) -> None:
             assert emulator.modules["b"].link.boots == 2  # and the host linked it again
         elif faults.startswith("loss"):
             assert emulator.dropped > 0
+
+
+def test_platform_emulate_writes_the_systems_file_and_platform_run_drives_it(tmp_path) -> None:
+    save_configuration(chain(("a", "b"), name="ab"), tmp_path / "ab.json")
+    system = tmp_path / "out" / "system.json"
+    with installed():
+        result = CliRunner().invoke(get_cli(), [
+            "emulate", "--robot", "tiny", str(tmp_path / "ab.json"), "--system-out", str(system),
+            "--duration", "0.3", "--speed", "3", "--faults", "loss:p=0.1"])
+        assert result.exit_code == 0, result.output
+        assert "3 emulated tiny modules (points) on 127.0.0.1" in result.output
+        assert "loss:p=0.1" in result.output and "watchdog stops" in result.output
+        key = system.with_suffix(".key")
+        assert key.stat().st_mode & 0o077 == 0 and key.read_text().strip() not in system.read_text()
+        assert json.loads(system.read_text())["key"] == {"file": "system.key"}
+        bad = CliRunner().invoke(get_cli(), ["emulate", "--robot", "tiny", str(tmp_path / "ab.json"),
+                                             "--faults", "dropout:module=z"])
+        assert bad.exit_code == 1 and "no module 'z'" in bad.output
+        with emulating(tmp_path) as (_emulator, path):
+            save_configuration(chain(("b", "c"), name="bc"), tmp_path / "bc.json")
+            run = CliRunner().invoke(get_cli(), [
+                "run", "--robot", "tiny", "--from", str(tmp_path / "ab.json"), "--to",
+                str(tmp_path / "bc.json"), "--system", str(path), "--no-log", "--out",
+                str(tmp_path / "run")], terminal_width=200)
+        assert run.exit_code == 0, run.output
+        assert "driver link" in run.output
