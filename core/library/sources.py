@@ -23,7 +23,7 @@ import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Literal, TypeVar
 
 from pydantic import Field
 
@@ -34,6 +34,8 @@ from ..io import ConfigurationFile, check_configuration, configuration_from_mode
 from ..kinematics.tree import KinematicTree
 from ..robot import Robot
 from .model import CommandGain, LibraryError
+
+_M = TypeVar("_M", bound=StrictModel)
 
 __all__ = [
     "DesignedGroup",
@@ -204,14 +206,20 @@ def _check_tree(model: TreeSourceModel, reference: Configuration, robot: Robot, 
             raise LibraryError(exc.message, source=source, field=f"{field}.tree{inner}") from None
 
 
-def _read(path: Path, robot: str | None) -> tuple[LibrarySourceFile, str]:
-    source = str(path)
+def read_model(model: type[_M], path: str | os.PathLike[str]) -> _M:
+    """A library or library-source file parsed strictly into ``model``; any error is a
+    :class:`LibraryError` naming the file and the field."""
     try:
-        model = parse_model(LibrarySourceFile, read_json(path), source)
+        return parse_model(model, read_json(path), str(path))
     except LibraryError:
         raise
     except ConfigurationError as exc:
         raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
+
+
+def _read(path: Path, robot: str | None) -> tuple[LibrarySourceFile, str]:
+    source = str(path)
+    model = read_model(LibrarySourceFile, path)
     if robot is not None and model.robot != robot:
         raise LibraryError(f"is for robot {model.robot!r}, the other sources for {robot!r}",
                            source=source, field="robot")

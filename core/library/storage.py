@@ -27,8 +27,6 @@ from ..files import (
     SchemaVersion,
     StrictModel,
     atomic_write_text,
-    parse_model,
-    read_json,
 )
 from ..io import ConfigurationFile, configuration_from_model, configuration_to_model
 from ..kinematics.tree import KinematicTree
@@ -46,7 +44,7 @@ from .model import (
     SubLibrary,
     TreeRef,
 )
-from .sources import CommandSourceModel
+from .sources import CommandSourceModel, read_model
 
 __all__ = [
     "LIBRARY_SCHEMA_VERSION",
@@ -359,12 +357,7 @@ def load_library(path: str | os.PathLike[str],
             cross-reference or rule; the message names the file and the field.
     """
     source = str(path)
-    try:
-        model = parse_model(LibraryFile, read_json(path), source)
-    except LibraryError:
-        raise
-    except ConfigurationError as exc:
-        raise LibraryError(exc.message, source=exc.source, field=exc.field) from None
+    model = read_model(LibraryFile, path)
     if robot is not None and not isinstance(robot, Robot):
         robot = robot(model.robot)
     return library_from_model(model, source, robot)
