@@ -100,6 +100,7 @@ class ModuleLink:
                 raise Refused("foreign", f"sender {frame.sender}")
             if frame.type is FrameType.HELLO:
                 if frame.session == self.session and self.host is not None:
+                    self.host = address
                     self._send(FrameType.WELCOME, clock, {"id": self.module, "version": VERSION,
                                                           "boot": self.boots})
                     return None  # the host missed our WELCOME: same link again
