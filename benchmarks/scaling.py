@@ -6,7 +6,8 @@ timing; its start-up is reported on its own line):
 
 * ``library check``: every action edge of a FreeSN library in MuJoCo
   (:func:`msrr.core.feasibility.check_edges`, seed ``--seed``, phase timeout
-  ``--timeout``) -- default S12N6, 13 edges;
+  ``--timeout``) -- default S12N6, 14 edges; as ``platform library check`` does, the
+  shipped check file (when there is one) orders the work, longest edges first;
 * ``sweep``: ``--runs`` seeds of a scenario on the kinematic driver
   (:func:`msrr.core.commands.sweep.sweep_run`) -- default MMRP ``series-t``.
 
@@ -34,7 +35,7 @@ from msrr.core.commands.sweep import SweepTask, sweep_run
 from msrr.core.console import console, table
 from msrr.core.executor import ExecutorOptions
 from msrr.core.feasibility import check_edges, default_runner
-from msrr.core.library.check import edge_cases
+from msrr.core.library.check import check_path, edge_cases, load_check
 from msrr.core.plugins import load_library
 
 LIBRARIES = Path(__file__).resolve().parents[1] / "plugins" / "freesn" / "libraries"
@@ -73,6 +74,8 @@ def main(library: str, timeout: float, runs: int, robot: str, scenario: str, wor
     runner = default_runner("freesn", options=ExecutorOptions(action_timeout=timeout,
                                                               retries=0), seed=seed)
     cases = edge_cases(load_library(LIBRARIES / f"{library}.json"), runner.robot)
+    sidecar = check_path(LIBRARIES / f"{library}.json")  # orders the work, as the command does
+    previous = load_check(sidecar) if sidecar.is_file() else None
     tasks = [SweepTask(robot=robot, scenario=scenario, start=None, goal=None, seed=seed + k,
                        driver="kinematic") for k in range(runs)]
     backends = [("serial", 1), ("pool", workers)]
@@ -93,7 +96,8 @@ def main(library: str, timeout: float, runs: int, robot: str, scenario: str, wor
         reference: BatchResult | None = None
         for backend, count in backends:
             if name == "library check":
-                checks, batch = check_edges(cases, runner, workers=count, backend=backend)
+                checks, batch = check_edges(cases, runner, workers=count, backend=backend,
+                                            previous=previous)
                 result: object = checks
             else:
                 batch = run_batch(sweep_run, tasks, keys=[t.key for t in tasks],

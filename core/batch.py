@@ -264,10 +264,10 @@ class _Pool:
         self.executor = ProcessPoolExecutor(max_workers=workers, mp_context=_pool_context(),
                                             initializer=_pool_worker_init)
 
-    def run(self, fn: Callable[[Any], Any], items: Sequence[Any]
+    def run(self, fn: Callable[[Any], Any], items: Sequence[Any], order: Sequence[int]
             ) -> Iterator[tuple[int, _Outcome]]:
         futures: dict[Future[_Outcome], int] = {
-            self.executor.submit(_call, fn, item): i for i, item in enumerate(items)}
+            self.executor.submit(_call, fn, items[i]): i for i in order}
         pending = set(futures)
         finished = False
         try:
@@ -328,11 +328,11 @@ class _Ray:
         self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         self.remote = ray.remote(num_cpus=1, max_retries=0)(_call)
 
-    def run(self, fn: Callable[[Any], Any], items: Sequence[Any]
+    def run(self, fn: Callable[[Any], Any], items: Sequence[Any], order: Sequence[int]
             ) -> Iterator[tuple[int, _Outcome]]:
         ray = self.ray
         fn_ref = ray.put(fn)
-        refs = {self.remote.remote(fn_ref, item): i for i, item in enumerate(items)}
+        refs = {self.remote.remote(fn_ref, items[i]): i for i in order}
         pending = list(refs)
         finished = False
         try:
@@ -361,7 +361,8 @@ class _Ray:
 def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] | None = None,
               workers: int = 0, cluster: str | None = None, backend: str | None = None,
               label: str = "tasks", progress: bool = True,
-              describe: Callable[[T], str] | None = None) -> BatchResult[R]:
+              describe: Callable[[T], str] | None = None,
+              cost: Sequence[float] | None = None) -> BatchResult[R]:
     """Apply ``fn`` to every item, on the backend ``workers``/``cluster`` select.
 
     Args:
@@ -377,6 +378,10 @@ def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] |
         label: what the tasks are, for the progress bar (``"edges"``, ``"runs"``).
         progress: show a progress bar.
         describe: text of a task for its failure report (default ``repr``).
+        cost: an estimate of each task's duration (any unit, e.g. an earlier run's time);
+            the pool and Ray start the longest first, so a long task does not start last
+            and leave the other workers idle. It changes when tasks run, never what they
+            return nor the order of the results.
 
     Returns:
         the results in item order, and the failures.
@@ -388,6 +393,10 @@ def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] |
     keys = [str(i) for i in range(len(items))] if keys is None else [str(k) for k in keys]
     if len(keys) != len(items):
         raise BatchError(f"{len(keys)} keys for {len(items)} tasks")
+    if cost is not None and len(cost) != len(items):
+        raise BatchError(f"{len(cost)} costs for {len(items)} tasks")
+    order = list(range(len(items))) if cost is None else \
+        sorted(range(len(items)), key=lambda i: (-cost[i], i))
     name = backend or backend_for(workers, cluster)
     if name not in BACKENDS:
         raise BatchError(f"unknown backend {name!r}; expected one of {', '.join(BACKENDS)}")
@@ -401,11 +410,11 @@ def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] |
     runner: _Pool | _Ray | None = None
     if name == "pool" and min(count, len(items)) > 1:
         runner = _Pool(min(count, len(items)))
-        stream = runner.run(fn, items)
+        stream = runner.run(fn, items, order)
     elif name == "ray":
         runner = _Ray(cluster or "local", workers)
         count = runner.workers
-        stream = runner.run(fn, items)
+        stream = runner.run(fn, items, order)
     else:  # serial, or a pool that would have one worker: this process does the work
         name, count = "serial", 1
         stream = _serial(fn, items)

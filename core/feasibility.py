@@ -120,21 +120,25 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
 
 def check_edges(cases: Sequence[EdgeCase], runner: EdgeRunner, *, workers: int = 1,
                 cluster: str | None = None, backend: str | None = None,
-                progress: bool = True) -> tuple[list[EdgeCheck], BatchResult[EdgeCheck]]:
+                progress: bool = True, previous: CheckFile | None = None,
+                ) -> tuple[list[EdgeCheck], BatchResult[EdgeCheck]]:
     """Run every case (:func:`run_edge`) as one batch (:func:`msrr.core.batch.run_batch`).
 
     Every edge runs with ``runner.seed`` on a fresh driver, so the checks are the same
     serially, on a process pool and on Ray. An edge whose run raised (a simulator's bug,
     not an infeasible edge) is recorded infeasible with reason ``error: ...`` and the
-    other edges are kept.
+    other edges are kept. ``previous`` (an earlier check of the library) only orders the
+    work: the edges that took the longest simulated time before start first.
 
     Returns:
         one :class:`EdgeCheck` per case, in case order, and the batch (timings, failures).
     """
+    before = {} if previous is None else {e.edge: e.sim_time for e in previous.edges}
     batch = run_batch(partial(run_edge, runner=runner), list(cases),
                       keys=[c.key for c in cases], workers=workers, cluster=cluster,
                       backend=backend, label="edges", progress=progress,
-                      describe=lambda case: case.key)
+                      describe=lambda case: case.key,
+                      cost=[before.get(c.key, math.inf) for c in cases] if before else None)
     checks = list(batch.results)
     for failure in batch.failures:
         case = cases[failure.index]

@@ -159,15 +159,22 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
                                                                retries=0),
                             driver_options=driver_options, seed=seed)
     cases = [c for c in edge_cases(lib, runner.robot) if not only or any(o in c.key for o in only)]
+    target = output or check_path(library)
+    previous = None  # an earlier check only orders the work: its longest edges first
+    if target.is_file():
+        try:
+            previous = load_check(target)
+        except MsrrError:
+            previous = None
     with exit_on_interrupt():
-        checks, batch = check_edges(cases, runner, workers=workers, cluster=cluster)
+        checks, batch = check_edges(cases, runner, workers=workers, cluster=cluster,
+                                    previous=previous)
     for failure in batch.failures:
         console.print(styled(f"edge {failure.key} raised {failure.error}", "red"))
     options = {"rate_hz": runner.options.rate, "action_timeout_s": action_timeout,
                "noise_deg": noise, "slip": slip}
     check = CheckFile(library=lib.name, library_sha256=library_digest(library), robot=lib.robot,
                       driver=runner.driver.name, seed=seed, options=options, edges=checks)
-    target = output or check_path(library)
     save_check(check, target)
     console.print(table(f"{lib.name}: feasibility", ["edge", "action", "feasible", "sim time [s]",
                                                       "shape error [deg]", "reason"],

@@ -51,8 +51,9 @@ def _expected(specs):
 def test_results_in_task_order_and_failures_keep_the_others(backend):
     expected, failed = _expected(SPECS)
     assert [i for i, _ in failed] == [2, 6]  # bogus and loss:p=2 are refused
+    # the cost hint starts the last tasks first on the pool: the results stay in task order
     result = run_batch(parse_faults, SPECS, keys=[f"spec{i}" for i in range(len(SPECS))],
-                       workers=2, backend=backend, progress=False)
+                       workers=2, backend=backend, progress=False, cost=range(len(SPECS)))
     assert result.backend == backend and result.workers == (2 if backend == "pool" else 1)
     assert result.results == expected
     assert [(f.index, f.error) for f in result.failures] == failed
@@ -74,6 +75,8 @@ def test_partial_functions_and_one_worker_run_here():
 def test_keys_must_match_the_tasks():
     with pytest.raises(BatchError, match="2 keys for 3 tasks"):
         run_batch(parse_faults, ["", "", ""], keys=["a", "b"], workers=1)
+    with pytest.raises(BatchError, match="1 costs for 3 tasks"):
+        run_batch(parse_faults, ["", "", ""], cost=[1.0], workers=1)
 
 
 def test_ray_missing_is_one_line_with_the_install_command(monkeypatch):
