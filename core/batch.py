@@ -318,8 +318,9 @@ class _Ray:
                                         "logging_level": "WARNING", "configure_logging": True}
             try:
                 if cluster == "local":
+                    # a cluster of this machine alone: loopback only
                     ray.init(address="local", num_cpus=workers or available_cores(),
-                             **settings)
+                             _node_ip_address="127.0.0.1", **settings)
                 else:
                     ray.init(address=cluster, **settings)
             except Exception as exc:  # Ray's own errors: no cluster there, bad address

@@ -8,6 +8,7 @@ instead when ``MSRR_REQUIRE_RAY`` is set, as ``.ci/run`` does).
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -92,3 +93,22 @@ def test_sweep_table_is_the_same_on_every_backend(tmp_path, serial_sweep, parall
     assert (tmp_path / "sweep.csv").read_text() == serial_sweep
     lines = serial_sweep.splitlines()
     assert len(lines) == 5 and [line.split(",")[1] for line in lines[1:]] == ["5", "6", "5", "6"]
+
+
+class _BrokenDriver:
+    """A driver factory whose simulator cannot start (a bug, not an infeasible edge)."""
+
+    name = "broken"
+
+    def __call__(self, **options: object) -> None:
+        raise RuntimeError("no simulator")
+
+
+def test_an_edge_that_raises_is_recorded_and_the_others_kept():
+    runner = default_runner("freesn", options=ExecutorOptions(action_timeout=10.0, retries=0))
+    cases = [c for c in edge_cases(load_library(LIBRARY), runner.robot) if EDGES[0] in c.key]
+    broken = replace(runner, driver=_BrokenDriver())
+    checks, batch = check_edges(cases, broken, workers=1, progress=False)
+    assert [c.reason for c in checks] == ["error: RuntimeError: no simulator"] * len(cases)
+    assert not any(c.feasible for c in checks) and len(batch.failures) == len(cases)
+    assert batch.failures[0].input == cases[0].key and "no simulator" in batch.failures[0].traceback
