@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from itertools import islice
-from typing import Any, Final
+from pathlib import Path
+from typing import Any, Final, TypeVar
 
 import click
 import numpy as np
@@ -28,7 +29,9 @@ from rich.text import Text
 from .configuration import Configuration
 from .errors import MsrrError, one_line
 
-__all__ = ["MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "console", "err_console", "error_line",
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+__all__ = ["run_selection_options", "MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "console", "err_console", "error_line",
            "printable", "show_configuration", "styled", "table", "vector_text"]
 
 
@@ -163,3 +166,18 @@ def show_configuration(config: Configuration, title: str = "") -> None:
             for e in edges)
     console.print(table(f"Connections ({len(edges)})",
                         ["id", "ends", "kind", "ports", "z", "x"], rows))
+
+
+def run_selection_options(command: _F) -> _F:
+    """The options that say what to run, shared by ``platform run`` and ``platform sweep``:
+    ``--robot`` with ``--scenario``, or ``--from``/``--to`` files."""
+    for option in reversed((
+            click.option("--robot", required=True, help="Robot name (see `platform robots`)."),
+            click.option("--scenario", default=None,
+                         help="Scenario name; default: the robot's default."),
+            click.option("--from", "start", type=click.Path(path_type=Path), default=None,
+                         help="Start configuration file (with --to, instead of a scenario)."),
+            click.option("--to", "goal", type=click.Path(path_type=Path), default=None,
+                         help="Goal configuration file."))):
+        command = option(command)
+    return command

@@ -9,7 +9,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from .. import plugins
-from ..console import console, err_console, table
+from ..console import console, err_console, run_selection_options, table
 from ..errors import ConfigurationError
 from ..events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
 from ..hookspecs import hookimpl
@@ -72,12 +72,7 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
 
 
 @click.command("run")
-@click.option("--robot", required=True, help="Robot name (see `platform robots`).")
-@click.option("--scenario", default=None, help="Scenario name; default: the robot's default.")
-@click.option("--from", "start", type=click.Path(path_type=Path), default=None,
-              help="Start configuration file (with --to, instead of a scenario).")
-@click.option("--to", "goal", type=click.Path(path_type=Path), default=None,
-              help="Goal configuration file.")
+@run_selection_options
 @click.option("--planner", "planner_name", default=None,
               help="Planner name; default the robot's first registered planner.")
 @click.option("--driver", "driver_name", default=None,

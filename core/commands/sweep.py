@@ -22,7 +22,7 @@ import click
 import numpy as np
 
 from ..batch import batch_options, exit_on_interrupt, run_batch
-from ..console import SEED, FiniteFloat, console, err_console, table
+from ..console import SEED, FiniteFloat, console, err_console, run_selection_options, table
 from ..errors import ConfigurationError
 from ..faults import parse_faults
 from ..files import atomic_write_text, check_output_place
@@ -200,12 +200,7 @@ def _plot(rows: list[SweepRow], path: Path, title: str) -> str:
 
 
 @click.command("sweep")
-@click.option("--robot", required=True, help="Robot name (see `platform robots`).")
-@click.option("--scenario", default=None, help="Scenario name; default: the robot's default.")
-@click.option("--from", "start", type=click.Path(path_type=Path), default=None,
-              help="Start configuration file (with --to, instead of a scenario).")
-@click.option("--to", "goal", type=click.Path(path_type=Path), default=None,
-              help="Goal configuration file.")
+@run_selection_options
 @click.option("--runs", type=click.IntRange(1, 100_000), default=10, show_default=True,
               help="Runs per fault setting: seeds --seed, --seed + 1, ...")
 @click.option("--seed", type=SEED, default=0, show_default=True, help="First seed.")
