@@ -28,7 +28,7 @@ import select
 import socket
 import time as wall
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -121,6 +121,9 @@ class LinkDriver(Driver):
         self._mark = 0.0
         self._dt = 1.0 / DEFAULT_RATE
         self.latencies: list[float] = []
+        self.held = 0
+        """Observations held because two modules' reports disagreed about a latch."""
+        self._agreed: Observation | None = None
         self.bytes_by_module: dict[str, list[int]] = {m: [0, 0] for m in self.modules}
 
     # -- connection ------------------------------------------------------------------
@@ -304,6 +307,7 @@ class LinkDriver(Driver):
                 + (f"; not in the configuration: {', '.join(extra[:6])}" if extra else ""),
                 source=str(self.path), field="modules")
         self._time = 0.0
+        self._agreed = None
         for module in self.modules.values():
             module.heard, module.report = 0.0, None  # links stay: they change by events
             module.undock.clear()
@@ -313,11 +317,17 @@ class LinkDriver(Driver):
         self._mark = wall.monotonic()
 
     def get_observation(self) -> Observation:
+        """The newest report of every module. While two modules' reports disagree about a
+        latch between them (one was sent before a dock or undock, the other after: a lost
+        or late report), the last observation on which they agreed is returned (with the
+        current time), for at most the smallest module timeout; then the disagreeing one,
+        and the recognizer says what is wrong."""
         self.require_connected()
         poses: dict[str, Pose] = {}
         sensors: dict[str, Any] = {}
         graph = nx.Graph()
         graph.add_nodes_from(self.modules)
+        claims: set[tuple[str, str, str, str]] = set()
         for name, module in self.modules.items():
             report = module.report or {}
             pose = report.get("pose")
@@ -325,11 +335,21 @@ class LinkDriver(Driver):
                 poses[name] = Pose(pose[:3].copy(), pose[3:].copy())
             sensors[name] = report.get("sensors")
             for link in module.links:
-                if isinstance(link, tuple) and len(link) == 3 and link[1] in self.modules:
+                if (isinstance(link, tuple) and len(link) == 3 and link[1] in self.modules
+                        and all(isinstance(x, str) for x in link)):
                     graph.add_edge(name, link[1])
+                    claims.add((name, link[0], link[1], link[2]))
         components = [frozenset(c) for c in nx.connected_components(graph)]
         groups = tuple(sorted(components, key=min)) if len(components) > 1 else ()
-        return Observation(time=self._time, poses=poses, sensors=sensors, groups=groups)
+        observation = Observation(time=self._time, poses=poses, sensors=sensors, groups=groups)
+        agree = all((b, pb, a, pa) in claims for a, pa, b, pb in claims)
+        limit = min(m.timeout for m in self.modules.values())
+        if agree or self._agreed is None or self._time - self._agreed.time > limit + 1e-9:
+            if agree:
+                self._agreed = observation
+            return observation
+        self.held += 1
+        return replace(self._agreed, time=self._time)
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         self.require_connected()

@@ -16,6 +16,7 @@ from msrr.core.link import (
     Endpoint,
     FrameType,
     KeyRef,
+    LinkDriver,
     ModuleEntry,
     ModuleLink,
     Refused,
@@ -190,3 +191,34 @@ def test_link_faults_parse_in_the_fault_syntax() -> None:
     assert faults[3].params["for"] == 0.5 and parse_link_faults(" ") == ()
     with pytest.raises(ConfigurationError, match="unknown kind 'dock-fail'"):
         parse_link_faults("dock-fail")
+
+
+def test_the_host_holds_the_last_observation_while_two_reports_disagree_on_a_latch(
+        tmp_path) -> None:
+    entries = [ModuleEntry(id=m, number=i + 1, address="127.0.0.1", port=47000 + i)
+               for i, m in enumerate("ab")]
+    path = write_system(tmp_path / "system.json", SystemFile(
+        system=9, robot="tiny", key=KeyRef(file="k.key"), timeout_s=0.5, modules=entries))
+    driver = LinkDriver(system=path)
+    driver._sock = _Socket()  # type: ignore[assignment]  # no traffic: reports set below
+    a, b = driver.modules["a"], driver.modules["b"]
+
+    def reports(time: float, a_links: tuple, b_links: tuple) -> None:
+        driver._time = time
+        a.report, a.links = {"sensors": {"T": a_links[0][1:] if a_links else None}}, a_links
+        b.report, b.links = {"sensors": {"B": b_links[0][1:] if b_links else None}}, b_links
+
+    reports(0.0, (), ())
+    apart = driver.get_observation()
+    assert apart.groups == (frozenset("a"), frozenset("b")) and driver.held == 0
+    reports(0.1, (("T", "b", "B"),), ())  # a reports the dock, b's report is a tick old
+    held = driver.get_observation()
+    assert held.time == 0.1 and held.sensors == apart.sensors and driver.held == 1
+    reports(0.2, (("T", "b", "B"),), (("B", "a", "T"),))  # now both
+    docked = driver.get_observation()
+    assert docked.groups == () and docked.sensors == {"a": {"T": ("b", "B")},
+                                                      "b": {"B": ("a", "T")}}
+    reports(0.3, (), (("B", "a", "T"),))
+    assert driver.get_observation().sensors == docked.sensors  # held again
+    reports(0.8, (), (("B", "a", "T"),))  # disagreeing longer than the timeout: shown
+    assert driver.get_observation().sensors == {"a": {"T": None}, "b": {"B": ("a", "T")}}
