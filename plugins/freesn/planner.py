@@ -14,18 +14,25 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from msrr.core.actions import topology_diff
+from msrr.core.closed_loop import shape_error
 from msrr.core.configuration import Configuration
-from msrr.core.library import LibraryError, RetrievalError, load_library, retrieve
+from msrr.core.errors import PlanningError
+from msrr.core.library import RetrievalError, load_library, retrieve
 from msrr.core.library.check import apply_check, check_path, library_digest, load_check
 from msrr.core.library.engine import best_match
 from msrr.core.library.retrieve import library_cost
-from msrr.core.plan import Plan
+from msrr.core.plan import ActionType, Plan
 from msrr.core.robot import Robot
 
 __all__ = ["LIBRARIES", "LibraryPlanner"]
 
 LIBRARIES = Path(__file__).resolve().parent / "libraries"
 """The shipped FreeSN libraries."""
+
+
+SAME_SHAPE = 1e-3
+"""RMS strut angle [rad] under which the system counts as already at the matched start."""
 
 
 class LibraryPlanner:
@@ -48,15 +55,19 @@ class LibraryPlanner:
         ``goal`` matches.
 
         Raises:
-            LibraryError: no shipped library for the system's module counts.
+            PlanningError: no shipped library for the system's module counts.
             RetrievalError: the goal matches nothing or cannot be reached.
         """
         began = time.perf_counter()
+        if start.modules() == goal.modules() and not topology_diff(start, goal) \
+                and shape_error(start, goal) < SAME_SHAPE:
+            return Plan(self.robot.name, self.name, start, goal, [],
+                        notes=["the system is already at the goal"])
         label = start.signature().label(self.robot.spec)
         path = self.folder / f"{label}.json"
         if not path.exists():
             known = sorted(p.stem for p in self.folder.glob("*.json") if ".check" not in p.name)
-            raise LibraryError(f"no FreeSN library for {label} (shipped: {', '.join(known)})")
+            raise PlanningError(f"no FreeSN library for {label} (shipped: {', '.join(known)})")
         library = load_library(path)
         sidecar = check_path(path)
         if sidecar.exists():
@@ -73,6 +84,9 @@ class LibraryPlanner:
             raise RetrievalError(f"the goal {goal.name or ''} matches no configuration of {label}")
         retrieval = retrieve(library, start, self.robot, to=found.key)
         actions = retrieval.actions(start)
+        if actions and actions[0].type is ActionType.MOVING \
+                and shape_error(start, actions[0].target) < SAME_SHAPE:
+            actions = actions[1:]   # the system already is the matched start: no approach
         target = retrieval.steps[-1].target
         return Plan(self.robot.name, self.name, start, target, actions,
                     notes=[f"library {label}: {retrieval.start} -> {found.key} "

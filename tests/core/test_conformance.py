@@ -11,11 +11,7 @@ from msrr.core import hookimpl, plugins
 from msrr.core.plan import Plan
 from msrr.core.testing import ConformanceError, check_robot, robot_parameters
 
-KNOWN_FAILURES = {
-    "freesn": "its library planner plans a configuration to itself with one moving action "
-              "(check 3), and answers LibraryError, not PlanningError, for module counts "
-              "without a library (triangle-leg, S4N3)",
-}
+KNOWN_FAILURES: dict[str, str] = {}
 
 
 @robot_parameters(known_failures=KNOWN_FAILURES)
