@@ -8,8 +8,8 @@ library. The verdict never trusts the recognizer: the final shape and topology c
 :meth:`Driver.faults` (the simulator's constraint state). Reasons, first found wins:
 
 * ``connector broke`` / ``self-collision`` / ``torque limit`` -- a fault the driver saw;
-* ``fell over`` -- the final shape matches the target once tilted but not after a turn
-  about the vertical alone (the robot lies on its side);
+* ``fell over`` -- the final shape is over 20 deg off after a turn about the vertical
+  but matches the target once tilted (the robot lies on its side);
 * ``timeout`` -- a phase did not finish (the executor's reason follows);
 * ``wrong topology`` / ``wrong shape`` -- the ground truth ends elsewhere (over
   ``tolerance``).
@@ -38,7 +38,11 @@ from .library.model import Library
 from .plan import Plan
 from .robot import Robot
 
-__all__ = ["EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
+__all__ = ["FELL_OVER", "EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
+
+
+FELL_OVER = math.radians(20.0)
+"""Smallest yaw-aligned error [rad] that can count as lying on the side."""
 
 
 def tilted_error(current: Configuration, goal: Configuration) -> float:
@@ -103,7 +107,7 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
     reason = ""
     if faults:
         reason = faults[0]
-    elif truth is not None and error is not None and error > runner.tolerance \
+    elif truth is not None and error is not None and error > FELL_OVER \
             and tilted_error(truth, case.target) < runner.tolerance:
         reason = f"fell over: {math.degrees(error):.1f} deg off after a yaw turn only"
     elif not result.success:
