@@ -56,7 +56,7 @@ from .kinematics import (
 from .plan import ConnectionChange
 
 __all__ = ["JointController", "PhaseTracker", "TrackingOptions", "connection_goal",
-           "extruded", "shape_error", "tree_for"]
+           "extruded", "shape_error", "shape_errors", "tree_for"]
 
 
 @runtime_checkable
@@ -105,16 +105,26 @@ class TrackingOptions:
     smoothing: float = 0.5
 
 
-def shape_error(current: Configuration, goal: Configuration) -> float:
-    """RMS angle [rad] between the ``z`` of the edges both have, after yaw alignment (eq. 8);
-    0 when they share no edge with a vector (robots without connection vectors)."""
+def shape_errors(current: Configuration, goal: Configuration
+                 ) -> tuple[float, np.ndarray, float]:
+    """The angles [rad] between the ``z`` of the edges both have, after yaw alignment
+    (eq. 8): ``(rms, per-edge angles (n,) in the goal's edge order, yaw)``, ``yaw`` [rad]
+    the turn of ``goal`` onto ``current``; ``(0, [], 0)`` when they share no edge with a
+    vector (robots without connection vectors)."""
     have = {e.id for e in current.edges() if e.z is not None}
     ids = [e.id for e in goal.edges() if e.id in have and e.z is not None]
     if not ids:
-        return 0.0
+        return 0.0, np.zeros(0), 0.0
     z, z_goal = current.vectors(ids), goal.vectors(ids)
     yaw = align_yaw(z, z_goal).theta
-    return float(np.sqrt(np.mean(angles_between(z, rot_z(yaw) @ z_goal) ** 2)))
+    angles = angles_between(z, rot_z(yaw) @ z_goal)
+    return float(np.sqrt(np.mean(angles**2))), angles, float(yaw)
+
+
+def shape_error(current: Configuration, goal: Configuration) -> float:
+    """RMS angle [rad] between the ``z`` of the edges both have, after yaw alignment (eq. 8);
+    0 when they share no edge with a vector (see :func:`shape_errors`)."""
+    return shape_errors(current, goal)[0]
 
 
 def connection_goal(topology: Configuration, target: Configuration) -> Configuration:

@@ -16,7 +16,6 @@ from .controller import (
     FreeSNController,
     connector_commands,
     driving_ends,
-    shape_error,
 )
 from .driver import FreeSNMujocoDriver
 from .options import Physical, SimOptions
@@ -38,5 +37,4 @@ __all__ = [
     "connector_commands",
     "driving_ends",
     "node_headings",
-    "shape_error",
 ]

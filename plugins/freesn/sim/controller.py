@@ -26,7 +26,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from msrr.core.alignment import align_yaw, angles_between, rot_z
+from msrr.core.alignment import rot_z
+from msrr.core.closed_loop import shape_errors
 from msrr.core.configuration import Configuration
 from msrr.core.control import Control
 from msrr.core.driver import ModuleCommand, Observation
@@ -40,29 +41,13 @@ from .recognizer import FreeSNRecognizer, Links, links_of, node_headings
 from .world import NodeReport, StrutReport
 
 __all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "FreeSNController", "connector_commands",
-           "driving_ends", "shape_error"]
+           "driving_ends"]
 
 FOLLOW_EFFORT = 0.25
 """Torque fraction of a connector that closes a loop (it follows rather than fights)."""
 
 FORWARD_MODES = frozenset({"differential_spherical", "revolute"})
 """Joint modes whose controllers also command the strut's forward vector."""
-
-
-def shape_error(current: Configuration, target: Configuration) -> tuple[float, np.ndarray, float]:
-    """RMS angle [rad] between the ``z`` of the struts both have, after yaw alignment.
-
-    Returns:
-        ``(rms, per-strut angles (n,), yaw)`` with ``yaw`` [rad] the turn of the target
-        onto ``current`` (eq. 8).
-    """
-    ids = [e for e in target.edge_ids() if e in set(current.edge_ids())]
-    if not ids:
-        return 0.0, np.zeros(0), 0.0
-    z, z_target = current.vectors(ids), target.vectors(ids)
-    yaw = align_yaw(z, z_target).theta
-    angles = angles_between(z, rot_z(yaw) @ z_target)
-    return float(np.sqrt(np.mean(angles**2))), angles, yaw
 
 
 def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
@@ -182,18 +167,18 @@ class FreeSNController:
         """
         if yaw is None:
             current = current or self._recognizer.recognize(observation.sensors)
-            yaw = shape_error(current, target)[2]
+            yaw = shape_errors(current, target)[2]
         return connector_commands(target, observation.sensors, yaw=yaw, forward=self.forward)
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
         """Fix the yaw of the action's target for this phase (eq. 8 alignment)."""
         current = self._recognizer.recognize(observation.sensors)
-        self._yaw = shape_error(current, action.target)[2]
+        self._yaw = shape_errors(current, action.target)[2]
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         """Command ``action.target`` directly; reached under ``tolerance`` RMS."""
         current = self._recognizer.recognize(observation.sensors)
-        rms, angles, _ = shape_error(current, action.target)
+        rms, angles, _ = shape_errors(current, action.target)
         ids = [e for e in action.target.edge_ids() if e in set(current.edge_ids())]
         commands = connector_commands(action.target, observation.sensors, yaw=self._yaw,
                                       forward=self.forward)
