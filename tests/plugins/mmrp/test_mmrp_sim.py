@@ -89,12 +89,15 @@ def test_faces_latch_only_within_tolerance_and_groups_move_together() -> None:
         assert math.isclose(moved["1"][0], moved["4"][0], abs_tol=2e-3)
 
 
-def test_platform_run_cross_probe(tmp_path: Path) -> None:
+def test_platform_run_records_the_run(tmp_path: Path) -> None:
+    # series -> t (4 modules, 44 s simulated); the default cross -> probe (9 modules,
+    # 178 s simulated, ~12 s wall) runs in benchmarks/mmrp_pairs.py
     out = tmp_path / "run"
-    result = CliRunner().invoke(get_cli(), ["run", "--robot", "mmrp", "--out", str(out)])
+    result = CliRunner().invoke(get_cli(), ["run", "--robot", "mmrp", "--scenario", "series-t",
+                                            "--out", str(out)])
     assert result.exit_code == 0, result.output
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["success"] and summary["docks"] == 3 and summary["undocks"] == 3
+    assert summary["success"] and summary["docks"] >= 1 and summary["undocks"] >= 1
     plan = load_plan(out / "plan.json")
     assert plan.docks == summary["docks"] and plan.undocks == summary["undocks"]
     assert "rerun " + str(out / "run.rrd") in result.output.replace("\n", "")
@@ -105,7 +108,7 @@ def test_platform_run_cross_probe(tmp_path: Path) -> None:
     assert {"tick", "sim_time"} <= recording.timelines
     assert recording.rows["/events/docks"] == plan.docks
     assert recording.rows["/events/undocks"] == plan.undocks
-    assert len(recording.entities("/world/modules/")) == 2 * 9  # bodies and their faces
+    assert len(recording.entities("/world/modules/")) == 2 * 4  # bodies and their faces
 
 
 @pytest.mark.parametrize("goal", ["probe.json", "bad-face.json"])
