@@ -14,12 +14,15 @@ def _units(rng: np.random.Generator, n: int) -> np.ndarray:
     return v / np.linalg.norm(v, axis=0)
 
 
+_ROTATIONS = np.stack([rot_z(t) for t in np.linspace(-np.pi, np.pi, 20001)])
+"""Full rotation matrices of 20001 yaws, for the brute force."""
+
+
 def _brute_force(z, zt, w, x=None, xt=None, gamma=0.0) -> float:
     """The smallest eq. 8 cost over 20001 yaws, with full rotation matrices."""
-    rotations = np.stack([rot_z(t) for t in np.linspace(-np.pi, np.pi, 20001)])
 
     def cost(a, b):
-        dots = np.einsum("in,kin->kn", a, rotations @ b)
+        dots = np.einsum("in,kin->kn", a, _ROTATIONS @ b)
         return (np.arccos(np.clip(dots, -1.0, 1.0)) ** 2) @ w
 
     total = cost(z, zt) + (gamma * cost(x, xt) if x is not None else 0.0)
