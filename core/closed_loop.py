@@ -42,7 +42,6 @@ import networkx as nx
 import numpy as np
 
 from .actions import STRUT_ENDS, topology_diff
-from .alignment import align_yaw, angles_between, rot_z
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .kinematics import (
@@ -54,9 +53,10 @@ from .kinematics import (
     default_tree,
 )
 from .plan import ConnectionChange
+from .shape import skeletal_error
 
 __all__ = ["JointController", "PhaseTracker", "TrackingOptions", "connection_goal",
-           "extruded", "shape_error", "shape_errors", "tree_for"]
+           "extruded", "tree_for"]
 
 
 @runtime_checkable
@@ -103,28 +103,6 @@ class TrackingOptions:
     stuck_ticks: int = 5
     ground: bool = True
     smoothing: float = 0.5
-
-
-def shape_errors(current: Configuration, goal: Configuration
-                 ) -> tuple[float, np.ndarray, float]:
-    """The angles [rad] between the ``z`` of the edges both have, after yaw alignment
-    (eq. 8): ``(rms, per-edge angles (n,) in the goal's edge order, yaw)``, ``yaw`` [rad]
-    the turn of ``goal`` onto ``current``; ``(0, [], 0)`` when they share no edge with a
-    vector (robots without connection vectors)."""
-    have = {e.id for e in current.edges() if e.z is not None}
-    ids = [e.id for e in goal.edges() if e.id in have and e.z is not None]
-    if not ids:
-        return 0.0, np.zeros(0), 0.0
-    z, z_goal = current.vectors(ids), goal.vectors(ids)
-    yaw = align_yaw(z, z_goal).theta
-    angles = angles_between(z, rot_z(yaw) @ z_goal)
-    return float(np.sqrt(np.mean(angles**2))), angles, float(yaw)
-
-
-def shape_error(current: Configuration, goal: Configuration) -> float:
-    """RMS angle [rad] between the ``z`` of the edges both have, after yaw alignment (eq. 8);
-    0 when they share no edge with a vector (see :func:`shape_errors`)."""
-    return shape_errors(current, goal)[0]
 
 
 def connection_goal(topology: Configuration, target: Configuration) -> Configuration:
@@ -252,7 +230,7 @@ class PhaseTracker:
         the recognized root horizontal frame)."""
         solution = self._tracker.step(current)
         self.last = solution
-        self._error = shape_error(self._smoothed(current), self.goal)
+        self._error = skeletal_error(self._smoothed(current), self.goal)
         if solution.rms_angle < self._best - 1e-4:
             self._best, self._since = solution.rms_angle, 0
         else:

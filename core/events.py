@@ -159,7 +159,7 @@ class FaultEvent:
 @dataclass(frozen=True)
 class ShapeErrors:
     """How far the final module poses are from the goal layout, after the planar rigid
-    alignment that fits them best (:func:`msrr.core.shape.shape_errors`).
+    alignment that fits them best (:func:`msrr.core.shape.pose_errors`).
 
     Attributes:
         max_position: largest module position error [m].

@@ -45,7 +45,6 @@ from .closed_loop import (
     TrackingOptions,
     connection_goal,
     extruded,
-    shape_error,
     tree_for,
 )
 from .configuration import Configuration
@@ -55,6 +54,7 @@ from .errors import ExecutionError, MsrrError
 from .events import ActionStatus, Phase, Run, RunResult, Tick, TopologyEvent
 from .kinematics import GroundModel
 from .plan import Action, ActionType, ConnectionChange
+from .shape import skeletal_error
 
 __all__ = ["Executor", "ExecutorOptions", "phases_of"]
 
@@ -196,10 +196,10 @@ class Executor:
         result.sim_time = self.driver.time
         result.wall_time = wallclock.perf_counter() - started
         result.final = self._current
-        result.shape_error = shape_error(self._current, plan.goal)
+        result.shape_error = skeletal_error(self._current, plan.goal)
         truth = self.driver.ground_truth()
         if truth is not None:
-            result.truth_shape_error = shape_error(truth, plan.goal)
+            result.truth_shape_error = skeletal_error(truth, plan.goal)
             result.truth_topology = not topology_diff(truth, plan.goal)
         return result
 

@@ -28,7 +28,6 @@ from . import plugins
 from .actions import topology_diff
 from .batch import BatchResult, run_batch
 from .capabilities import Controller, DriverFactory, Recognizer
-from .closed_loop import shape_error
 from .configuration import Configuration
 from .errors import MsrrError
 from .events import Run
@@ -37,6 +36,7 @@ from .library.check import CheckFile, EdgeCase, EdgeCheck, edge_cases
 from .library.model import Library
 from .plan import Plan
 from .robot import Robot
+from .shape import skeletal_error
 
 __all__ = ["FELL_OVER", "EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
 
@@ -103,7 +103,7 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
         faults = driver.faults()
         counts = driver.constraint_events()
         sim_time = driver.time
-    error = None if truth is None else shape_error(truth, case.target)
+    error = None if truth is None else skeletal_error(truth, case.target)
     reason = ""
     if faults:
         reason = faults[0]

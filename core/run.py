@@ -42,7 +42,7 @@ from .hookspecs import hookimpl
 from .interrupts import Interrupted, shielded
 from .plan import Action, Plan, save_plan
 from .scenario import Scenario
-from .shape import shape_errors, shape_tolerance
+from .shape import pose_errors, shape_tolerance
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
            "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
@@ -411,7 +411,7 @@ def _judge_shape(prepared: PreparedRun, result: RunResult, final: dict[str, Pose
     layout = _goal_layout(prepared)
     if not layout or set(layout) != set(final):
         return
-    result.shape = shape_errors(final, layout, tolerance)
+    result.shape = pose_errors(final, layout, tolerance)
     if result.success and not result.shape.within:
         result.success = False
         shape = result.shape

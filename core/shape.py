@@ -1,4 +1,9 @@
-"""Judging a run's final shape: module poses against the goal layout.
+"""Judging a shape: module poses against the goal layout, or skeletal vectors against
+the goal's (the FreeSN paper's eq. 8 alignment).
+
+:func:`skeletal_errors` compares the connection vectors ``z`` of two configurations
+after the yaw that aligns them best: the measure of the executor's reaching test, the
+library check and the freeform robots' runs.
 
 A run reaches the goal *shape* when, after the planar rigid motion (rotation about z and
 translation) that best fits the final module positions onto the goal layout, every
@@ -19,12 +24,14 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from .alignment import align_yaw, angles_between, rot_z
+from .configuration import Configuration
 from .driver import Pose
 from .errors import ConfigurationError
 from .events import ShapeErrors
 from .robot import RobotSpec
 
-__all__ = ["fit_planar", "shape_errors", "shape_tolerance"]
+__all__ = ["fit_planar", "pose_errors", "shape_tolerance", "skeletal_error", "skeletal_errors"]
 
 
 def shape_tolerance(spec: RobotSpec) -> tuple[float, float] | None:
@@ -88,7 +95,7 @@ def fit_planar(points: np.ndarray, goal: np.ndarray, headings: np.ndarray | None
     return theta, goal.mean(axis=0) - rotation @ points.mean(axis=0)
 
 
-def shape_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
+def pose_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
                  tolerance: tuple[float, float]) -> ShapeErrors:
     """Per-module position and heading errors of ``final`` against ``goal`` after
     :func:`fit_planar` (planar: x, y and heading about z).
@@ -118,3 +125,25 @@ def shape_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
                        rms_position=float(np.sqrt(np.mean(distance ** 2))) if ids else 0.0,
                        max_heading=float(heading.max(initial=0.0)),
                        tolerance_position=tolerance[0], tolerance_heading=tolerance[1])
+
+
+def skeletal_errors(current: Configuration, goal: Configuration
+                 ) -> tuple[float, np.ndarray, float]:
+    """The angles [rad] between the ``z`` of the edges both have, after yaw alignment
+    (eq. 8): ``(rms, per-edge angles (n,) in the goal's edge order, yaw)``, ``yaw`` [rad]
+    the turn of ``goal`` onto ``current``; ``(0, [], 0)`` when they share no edge with a
+    vector (robots without connection vectors)."""
+    have = {e.id for e in current.edges() if e.z is not None}
+    ids = [e.id for e in goal.edges() if e.id in have and e.z is not None]
+    if not ids:
+        return 0.0, np.zeros(0), 0.0
+    z, z_goal = current.vectors(ids), goal.vectors(ids)
+    yaw = align_yaw(z, z_goal).theta
+    angles = angles_between(z, rot_z(yaw) @ z_goal)
+    return float(np.sqrt(np.mean(angles**2))), angles, float(yaw)
+
+
+def skeletal_error(current: Configuration, goal: Configuration) -> float:
+    """RMS angle [rad] between the ``z`` of the edges both have, after yaw alignment (eq. 8);
+    0 when they share no edge with a vector (see :func:`skeletal_errors`)."""
+    return skeletal_errors(current, goal)[0]

@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 
 from msrr.core.actions import topology_diff
-from msrr.core.closed_loop import shape_error
 from msrr.core.configuration import Configuration
 from msrr.core.errors import PlanningError
 from msrr.core.library import RetrievalError, load_library, retrieve
@@ -24,6 +23,7 @@ from msrr.core.library.engine import best_match
 from msrr.core.library.retrieve import library_cost
 from msrr.core.plan import ActionType, Plan
 from msrr.core.robot import Robot
+from msrr.core.shape import skeletal_error
 
 __all__ = ["LIBRARIES", "LibraryPlanner"]
 
@@ -60,7 +60,7 @@ class LibraryPlanner:
         """
         began = time.perf_counter()
         if start.modules() == goal.modules() and not topology_diff(start, goal) \
-                and shape_error(start, goal) < SAME_SHAPE:
+                and skeletal_error(start, goal) < SAME_SHAPE:
             return Plan(self.robot.name, self.name, start, goal, [],
                         notes=["the system is already at the goal"])
         label = start.signature().label(self.robot.spec)
@@ -85,7 +85,7 @@ class LibraryPlanner:
         retrieval = retrieve(library, start, self.robot, to=found.key)
         actions = retrieval.actions(start)
         if actions and actions[0].type is ActionType.MOVING \
-                and shape_error(start, actions[0].target) < SAME_SHAPE:
+                and skeletal_error(start, actions[0].target) < SAME_SHAPE:
             actions = actions[1:]   # the system already is the matched start: no approach
         target = retrieval.steps[-1].target
         return Plan(self.robot.name, self.name, start, target, actions,

@@ -17,7 +17,7 @@ from msrr.core.cli import get_cli
 from msrr.core.driver import Pose
 from msrr.core.errors import ConfigurationError
 from msrr.core.robot import RobotSpec
-from msrr.core.shape import fit_planar, shape_errors, shape_tolerance
+from msrr.core.shape import fit_planar, pose_errors, shape_tolerance
 
 
 def _rot(theta: float) -> np.ndarray:
@@ -49,16 +49,16 @@ def test_errors_are_zero_for_a_moved_layout_and_measure_a_displaced_module() -> 
     turn, shift = 0.7, np.array([2.0, -1.0])
     moved = {m: Pose.planar(*(_rot(turn) @ p.position[:2] + shift), p.yaw + turn)
              for m, p in goal.items()}
-    errors = shape_errors(moved, goal, (0.01, 0.01))
+    errors = pose_errors(moved, goal, (0.01, 0.01))
     assert errors.max_position < 1e-12 and errors.max_heading < 1e-12 and errors.within
     moved["c"] = Pose.planar(*moved["c"].position[:2], moved["c"].yaw + 0.2)
-    errors = shape_errors(moved, goal, (0.01, 0.1))
+    errors = pose_errors(moved, goal, (0.01, 0.1))
     assert errors.max_heading == pytest.approx(0.2) and not errors.within
-    single = shape_errors({"a": Pose.planar(5, 5, 1.0)}, {"a": Pose.planar(0, 0, 0.2)},
+    single = pose_errors({"a": Pose.planar(5, 5, 1.0)}, {"a": Pose.planar(0, 0, 0.2)},
                           (0.01, 0.01))
     assert single.max_position < 1e-12 and single.max_heading < 1e-12
     with pytest.raises(ConfigurationError, match="differ"):
-        shape_errors({"a": goal["a"]}, goal, (0.01, 0.01))
+        pose_errors({"a": goal["a"]}, goal, (0.01, 0.01))
 
 
 def test_the_tolerance_is_read_from_the_spec_and_checked() -> None:

@@ -27,13 +27,13 @@ from collections.abc import Mapping
 import numpy as np
 
 from msrr.core.alignment import rot_z
-from msrr.core.closed_loop import shape_errors
 from msrr.core.configuration import Configuration
 from msrr.core.control import Control
 from msrr.core.driver import ModuleCommand, Observation
 from msrr.core.errors import ExecutionError
 from msrr.core.events import Phase
 from msrr.core.plan import Action
+from msrr.core.shape import skeletal_errors
 
 from .commands import connector_joints
 from .geometry import END_SIGN
@@ -167,18 +167,18 @@ class FreeSNController:
         """
         if yaw is None:
             current = current or self._recognizer.recognize(observation.sensors)
-            yaw = shape_errors(current, target)[2]
+            yaw = skeletal_errors(current, target)[2]
         return connector_commands(target, observation.sensors, yaw=yaw, forward=self.forward)
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
         """Fix the yaw of the action's target for this phase (eq. 8 alignment)."""
         current = self._recognizer.recognize(observation.sensors)
-        self._yaw = shape_errors(current, action.target)[2]
+        self._yaw = skeletal_errors(current, action.target)[2]
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         """Command ``action.target`` directly; reached under ``tolerance`` RMS."""
         current = self._recognizer.recognize(observation.sensors)
-        rms, angles, _ = shape_errors(current, action.target)
+        rms, angles, _ = skeletal_errors(current, action.target)
         ids = [e for e in action.target.edge_ids() if e in set(current.edge_ids())]
         commands = connector_commands(action.target, observation.sensors, yaw=self._yaw,
                                       forward=self.forward)

@@ -14,13 +14,14 @@ from click.testing import CliRunner
 from msrr.core.actions import topology_diff
 from msrr.core.alignment import rot_z
 from msrr.core.cli import get_cli
-from msrr.core.closed_loop import connection_goal, extruded, shape_error
+from msrr.core.closed_loop import connection_goal, extruded
 from msrr.core.events import Phase
 from msrr.core.executor import ExecutorOptions, phases_of
 from msrr.core.feasibility import default_runner, run_edge, tilted_error
 from msrr.core.library import load_library
 from msrr.core.library.check import edge_cases, load_check
 from msrr.core.plugins import resolve
+from msrr.core.shape import skeletal_error
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 S6N3 = load_library(FREESN / "libraries" / "S6N3.json")
@@ -82,8 +83,8 @@ def test_tilted_error_sees_a_robot_on_its_side():
     c, s = math.cos(1.2), math.sin(1.2)
     tipped = config.with_vectors(z={e.id: np.array([[1, 0, 0], [0, c, -s], [0, s, c]]) @ e.z
                                     for e in config.edges()})
-    assert shape_error(turned, config) < 1e-5 and tilted_error(turned, config) < 1e-6
-    assert shape_error(tipped, config) > 0.3 and tilted_error(tipped, config) < 1e-6
+    assert skeletal_error(turned, config) < 1e-5 and tilted_error(turned, config) < 1e-6
+    assert skeletal_error(tipped, config) > 0.3 and tilted_error(tipped, config) < 1e-6
 
 
 @pytest.mark.parametrize("key", ["S6N3:S6N3-1.3->S6N3-2.1", "S6N3:S6N3-2.1->S6N3-1.3",

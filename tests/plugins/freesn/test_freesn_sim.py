@@ -15,7 +15,6 @@ from scipy.spatial.transform import Rotation
 from msrr.core import Configuration, plugins
 from msrr.core.actions import detect_actions, topology_diff
 from msrr.core.alignment import rot_z
-from msrr.core.closed_loop import shape_errors
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.events import Run
@@ -24,6 +23,7 @@ from msrr.core.generic import is_generic
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
 from msrr.core.plan import Plan
+from msrr.core.shape import skeletal_errors
 from msrr.plugins.freesn.joints import JOINT_MODES
 from msrr.plugins.freesn.robot import SPEC
 from msrr.plugins.freesn.sim import (
@@ -191,9 +191,9 @@ def test_recognizer_matches_ground_truth(library, config_id):
     truth = exact.ground_truth()
     seen = recognizer.recognize(exact.reports())
     assert not topology_diff(seen, truth) and set(seen) == set(truth)
-    rms, angles, yaw = shape_errors(seen, truth)
+    rms, angles, yaw = skeletal_errors(seen, truth)
     assert angles.max() < np.radians(1.0) and abs(yaw) < np.radians(1.0)
-    rms, angles, _ = shape_errors(recognizer.recognize(noisy.reports()), noisy.ground_truth())
+    rms, angles, _ = skeletal_errors(recognizer.recognize(noisy.reports()), noisy.ground_truth())
     assert np.radians(0.5) < rms < np.radians(6.0), "2 deg noise gives a bounded error"
 
 
@@ -250,7 +250,7 @@ def test_moving_action_reaches_a_nearby_configuration(noise, slip):
     """S6N3 standing on three legs crouches (legs 45 -> 30 deg below the horizon)."""
     start = _library_config("S6N3", "S6N3-1.1")
     goal = _lowered(start, np.radians(30.0))
-    assert shape_errors(start, goal)[0] > np.radians(8.0)
+    assert skeletal_errors(start, goal)[0] > np.radians(8.0)
     controller = FreeSNController()
     with FreeSNMujocoDriver(noise=noise, slip=slip, drift=np.radians(0.5), seed=5) as driver:
         driver.reset(start)
@@ -259,7 +259,7 @@ def test_moving_action_reaches_a_nearby_configuration(noise, slip):
             driver.step(0.1)
         truth = driver.world.ground_truth()
         assert not driver.world.events
-    rms, _, _ = shape_errors(truth, goal)
+    rms, _, _ = skeletal_errors(truth, goal)
     assert rms < np.radians(5.0), f"{np.degrees(rms):.1f} deg RMS from the goal"
 
 
@@ -283,7 +283,7 @@ def test_revolute_controller_turns_a_strut_about_its_axis():
 
 def _drive(driver, controller, goal, ticks, extra=None):
     """Command ``goal`` for ``ticks`` ticks of 0.1 s, the yaw fixed at the start."""
-    yaw = shape_errors(FreeSNRecognizer().recognize(driver.get_observation().sensors), goal)[2]
+    yaw = skeletal_errors(FreeSNRecognizer().recognize(driver.get_observation().sensors), goal)[2]
     for _ in range(ticks):
         commands = dict(controller.commands(goal, driver.get_observation(), yaw=yaw))
         for strut, command in (extra or {}).items():
@@ -302,16 +302,16 @@ def test_connection_then_disconnection_by_connector_commands():
     with FreeSNMujocoDriver(noise=np.radians(2.0), slip=0.05, seed=11) as driver:
         driver.reset(flat)
         _drive(driver, controller, aimed, 20)                      # moving (150 deg swing)
-        assert shape_errors(driver.world.ground_truth(), aimed)[0] < np.radians(5.0)
+        assert skeletal_errors(driver.world.ground_truth(), aimed)[0] < np.radians(5.0)
         _drive(driver, controller, docked, 10, {"S4": ModuleCommand(dock=("b",))})
         truth = driver.world.ground_truth()
         assert not topology_diff(truth, docked), "S4's free end docked on N2"
-        assert shape_errors(truth, docked)[0] < np.radians(5.0)
+        assert skeletal_errors(truth, docked)[0] < np.radians(5.0)
         _drive(driver, controller, aimed, 3, {"S4": ModuleCommand(undock=("b",))})
         _drive(driver, controller, flat, 20)
         truth = driver.world.ground_truth()
         assert not topology_diff(truth, flat)
-        assert shape_errors(truth, flat)[0] < np.radians(5.0)
+        assert skeletal_errors(truth, flat)[0] < np.radians(5.0)
         kinds = [(e.kind, e.strut, e.end, e.node) for e in driver.world.events]
     assert kinds == [("dock", "S4", "b", "N2"), ("undock", "S4", "b", "N2")]
 
