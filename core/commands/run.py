@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -65,6 +66,9 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
                   f" m (tolerance {shape.tolerance_position:g})"],
                  ["heading error max", f"{shape.max_heading:.3f} rad (tolerance "
                   f"{shape.tolerance_heading:g})"]]
+    if result.truth_shape_error is not None:
+        rows.append(["shape error (ground truth)",
+                     f"{math.degrees(result.truth_shape_error):.2f}° RMS after yaw alignment"])
     if result.faults:
         rows.append(["faults", len(result.faults)])
     rows.append(["success", "yes" if result.success else "no"])
