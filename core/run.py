@@ -32,6 +32,7 @@ from pathlib import Path
 
 from . import plugins
 from .capabilities import Controller, DriverFactory, Recognizer
+from .configuration import Configuration
 from .driver import Driver, Pose
 from .errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
 from .events import ActionStatus, FaultEvent, Run, RunResult
@@ -77,6 +78,8 @@ class RunRequest:
         faults: fault SPEC (:func:`msrr.core.faults.parse_faults`), or ``""``.
         deadline: overall driver time the run may take [s]; ``None``:
             :func:`default_deadline`.
+        plan: a saved plan file (``platform plan --json``) to execute instead of
+            planning; validated against the robot on load.
     """
 
     robot: str
@@ -95,6 +98,7 @@ class RunRequest:
     force: bool = False
     faults: str = ""
     deadline: float | None = None
+    plan: Path | None = None
 
     def check(self) -> None:
         """Refuse non-finite or out-of-range numbers (one line naming the option)."""
@@ -278,21 +282,8 @@ class PreparedRun:
     notes: tuple[str, ...] = ()
 
 
-def prepare_run(request: RunRequest) -> PreparedRun:
-    """Check the options and the output folder, load the configurations, resolve the
-    capabilities and plan; the output folder is created only once all that succeeded.
-
-    Raises:
-        ConfigurationError: a bad option or output place, a file missing or invalid.
-        PlanningError: the goal cannot be reached.
-        UnknownNameError: unknown scenario, planner or driver, or the robot has no
-            recognizer or controller.
-    """
-    request.check()
-    faults = parse_faults(request.faults) if request.faults.strip() else ()
-    notes = check_out_dir(request.out, force=request.force)
-    spec = plugins.robot(request.robot)
-    shape_tolerance(spec)  # a malformed tolerance is refused before the run, not after
+def _configurations(request: RunRequest) -> tuple[str, Configuration, Configuration]:
+    """The run's name, start and goal from ``--from``/``--to`` or the scenario."""
     if (request.start is None) != (request.goal is None):
         raise ConfigurationError("give both --from and --to, or neither")
     if request.start is not None and request.goal is not None:
@@ -308,15 +299,47 @@ def prepare_run(request: RunRequest) -> PreparedRun:
         if config.robot != request.robot:
             raise ConfigurationError(f"is a {config.robot!r} configuration, not "
                                      f"{request.robot!r}", source=str(path))
+    return name, start, goal
+
+
+def prepare_run(request: RunRequest) -> PreparedRun:
+    """Check the options and the output folder, load the configurations, resolve the
+    capabilities and plan; the output folder is created only once all that succeeded.
+
+    Raises:
+        ConfigurationError: a bad option or output place, a file missing or invalid.
+        PlanningError: the goal cannot be reached.
+        UnknownNameError: unknown scenario, planner or driver, or the robot has no
+            recognizer or controller.
+    """
+    request.check()
+    faults = parse_faults(request.faults) if request.faults.strip() else ()
+    notes = check_out_dir(request.out, force=request.force)
+    spec = plugins.robot(request.robot)
+    shape_tolerance(spec)  # a malformed tolerance is refused before the run, not after
+    if request.plan is not None:
+        if request.start is not None or request.goal is not None or request.scenario:
+            raise ConfigurationError("give --plan, --scenario or --from/--to, one of them")
+        if request.planner is not None:
+            raise ConfigurationError("--plan executes a saved plan: it takes no --planner")
+        saved: Plan | None = plugins.load_plan(request.plan)
+        if saved.robot != request.robot:
+            raise ConfigurationError(f"is a plan for robot {saved.robot!r}, not "
+                                     f"{request.robot!r}", source=str(request.plan),
+                                     field="robot")
+        name = "plan"
+    else:
+        saved = None
+        name, start, goal = _configurations(request)
     factory = plugins.drivers.get(request.robot, request.driver)
     # a driver may name the recognizer and controller that read and command it (the
     # generic kinematic driver does); otherwise the robot's first ones
     companions = getattr(factory, "companions", {})
     controller = plugins.controllers.get(request.robot, companions.get("controller"))
     recognizer = plugins.recognizers.get(request.robot, companions.get("recognizer"))
-    planner = plugins.planners.get(request.robot, request.planner)
     options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
-    plan: Plan = planner.plan(start, goal, seed=request.seed)
+    plan: Plan = saved if saved is not None else \
+        plugins.planners.get(request.robot, request.planner).plan(start, goal, seed=request.seed)
     deadline = request.deadline or default_deadline(plan, request.action_timeout)
     if request.out is None:
         out = claim_out_dir(default_out_dir(request.robot, name), default=True)

@@ -102,11 +102,14 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
 @click.option("--system", "system_file", type=click.Path(path_type=Path), default=None,
               metavar="FILE", help="Systems file of the modules for --driver link (implies it; "
                                    "see docs/hardware.md).")
+@click.option("--plan", "plan_file", type=click.Path(path_type=Path), default=None,
+              metavar="FILE", help="Execute a saved plan (platform plan --json, or a run's "
+                                   "plan.json) instead of planning; validated on load.")
 def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None,
             planner_name: str | None, driver_name: str | None, seed: int, out: str | None,
             force: bool, no_log: bool, gui: bool, rate: float, action_timeout: float,
             deadline: float | None, faults: str, driver_options: tuple[str, ...],
-            system_file: Path | None) -> None:
+            system_file: Path | None, plan_file: Path | None) -> None:
     """Plan and execute a reconfiguration in simulation and record it.
 
     Writes DIR/run.rrd, DIR/plan.json and DIR/summary.json, also when the run fails,
@@ -125,7 +128,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
                                  planner=planner_name,
                                  driver_options=parse_driver_options(driver_options)
                                  + ((("system", str(system_file)),) if system_file else ()),
-                                 force=force, faults=faults, deadline=deadline)
+                                 force=force, faults=faults, deadline=deadline, plan=plan_file)
             prepared = prepare_run(request)
         except (Interrupted, KeyboardInterrupt) as exc:
             code = exc.exit_code if isinstance(exc, Interrupted) else 130

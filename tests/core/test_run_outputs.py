@@ -112,3 +112,27 @@ def test_snapshot_refuses_a_bad_image_place_in_one_line_before_reading(
                                             "-o", str(output)])
     lines = result.output.strip().splitlines()
     assert result.exit_code == 1 and len(lines) == 1 and "--output" in lines[0], lines
+
+
+def test_a_saved_plan_runs_as_saved_and_a_bad_one_is_one_line(tmp_path: Path) -> None:
+    first = tmp_path / "first"
+    assert _run(tmp_path, "--out", str(first), "--no-log")[0] == 0
+    saved = json.loads((first / "plan.json").read_text())
+    code, lines = _run(tmp_path, "--plan", str(first / "plan.json"), "--out",
+                       str(tmp_path / "again"), "--no-log")
+    assert code == 0, lines
+    again = json.loads((tmp_path / "again" / "plan.json").read_text())
+    assert again == saved  # executed as saved: the planner was not asked again
+    assert json.loads((tmp_path / "again" / "summary.json").read_text())["success"]
+
+    broken = tmp_path / "broken.json"
+    broken.write_text(json.dumps({**saved, "actions": [{**saved["actions"][0], "cost": "x"}]}))
+    for args, message in (
+            (["--plan", str(broken)], f"Error: {broken}: actions[0].cost:"),
+            (["--plan", str(first / "plan.json"), "--scenario", "swap"],
+             "Error: give --plan, --scenario or --from/--to, one of them"),
+            (["--plan", str(first / "plan.json"), "--planner", "line"],
+             "Error: --plan executes a saved plan: it takes no --planner")):
+        code, lines = _run(tmp_path, *args, "--out", str(tmp_path / "never"))
+        assert code == 1 and len(lines) == 1 and lines[0].startswith(message), lines
+        assert not (tmp_path / "never").exists()
