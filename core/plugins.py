@@ -276,6 +276,14 @@ def robots() -> dict[str, RobotSpec]:
     return _robot_answers()[0]
 
 
+def _robot_owner(name: str) -> str | None:
+    """The plugin that describes robot ``name``."""
+    for impl, spec in _call_each("msrr_robot"):
+        if isinstance(spec, RobotSpec) and spec.name == name:
+            return impl.plugin_name
+    return None
+
+
 def robot_clashes() -> dict[str, list[str]]:
     """Robot name -> the plugins that all describe it (such robots are refused)."""
     return _robot_answers()[1]
@@ -394,9 +402,10 @@ class Capability(Generic[T]):
         return isinstance(item, self.accepts)
 
     def __call__(self, robot_name: str) -> dict[str, T]:
-        """Everything registered for ``robot_name``, by name, in registration order; for
-        planners, drivers, recognizers and controllers then the generic runtime's items
-        (:mod:`msrr.core.generic`) under names the robot's own do not take.
+        """Everything registered for ``robot_name``, by name: the robot's own plugin's items
+        first, in registration order, then other plugins' (they add, they never take the
+        default); for planners, drivers, recognizers and controllers then the generic
+        runtime's items (:mod:`msrr.core.generic`) under names not taken.
 
         A plugin that registers an item without a name, of the wrong type or under a
         name already taken, or whose hook raises, is disabled (:func:`problems`) and
@@ -437,6 +446,10 @@ class Capability(Generic[T]):
                         del owners[taken], found[taken]
                 found[name] = item
                 owners[name] = impl
+        # the robot's own plugin's items first: another plugin may add, never take the default
+        own = _robot_owner(robot_name)
+        found = {name: item for name, item in sorted(
+            found.items(), key=lambda entry: owners[entry[0]].plugin_name != own)}
         if self.hook_name in generic.HOOKS:  # the generic runtime, after the robot's own
             for item in generic.capabilities(self.hook_name, resolve(robot_name)):
                 found.setdefault(item.name, item)  # type: ignore[attr-defined]

@@ -182,9 +182,9 @@ def test_hook_msrr_planners(tiny) -> None:
 
     assert plugins.planners.get(NAME).name == "line"
     with plugins.temporary(Second()):
-        # the plugin registered last answers first (pluggy's order), so its item leads
-        assert list(plugins.planners(NAME)) == ["exact", "line", "generic"]  # core's last
-        assert plugins.planners.get(NAME).name == "exact"  # the first item is the default
+        # another plugin adds a planner; the robot's own plugin keeps the default
+        assert list(plugins.planners(NAME)) == ["line", "exact", "generic"]  # core's last
+        assert plugins.planners.get(NAME).name == "line"  # the first item is the default
         assert plugins.planners.get(NAME, "line").name == "line"
         with pytest.raises(UnknownNameError, match=r"unknown planner for robot 'tiny' 'astar' "
                                                    r"\(known: exact, generic, line\)"):
@@ -207,6 +207,29 @@ def test_hook_msrr_drivers(tiny) -> None:
     assert list(drivers) == ["points", "kinematic", "link"] and drivers["points"] is PointDriver
     with plugins.drivers.get(NAME)(gui=False, seed=0) as driver:
         assert driver.is_connected
+
+
+class _OtherDriver:
+    """Another plugin's driver for the tiny robot (only its name matters here)."""
+
+    name = "other"
+    description = "a driver another plugin adds"
+
+    def __call__(self, **options: object) -> PointDriver:
+        return PointDriver(**options)
+
+
+class _AddsADriver:
+    @hookimpl
+    def msrr_drivers(self, robot: str, register) -> None:
+        if robot == NAME:
+            register(_OtherDriver())
+
+
+def test_another_plugins_driver_never_becomes_the_default(tiny) -> None:
+    with plugins.temporary(_AddsADriver()):  # registered last: pluggy calls it first
+        assert list(plugins.drivers(NAME)) == ["points", "other", "kinematic", "link"]
+        assert plugins.drivers.get(NAME) is PointDriver
 
 
 def test_hook_msrr_scenarios(tiny, tmp_path: Path) -> None:
