@@ -45,6 +45,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from . import plugins
 from .actions import topology_diff
 from .configuration import Configuration
@@ -54,6 +56,7 @@ from .events import Run, RunResult
 from .executor import Executor, ExecutorOptions
 from .generic import KinematicDriver, LatchController, LatchRecognizer
 from .io import check_configuration, dump_configuration, parse_configuration
+from .kinematics import Evaluator, KinematicNode, KinematicTree, tree_vectors
 from .matching import Candidate, match
 from .plan import Plan
 from .robot import RobotSpec
@@ -63,10 +66,12 @@ __all__ = [
     "ConformanceReport",
     "FakeDriver",
     "check_robot",
+    "node_jacobian_errors",
     "replay_problems",
     "robot_parameters",
     "run_kinematic",
     "shipped_configurations",
+    "tree_gradient_error",
 ]
 
 
@@ -346,3 +351,57 @@ def _zero_plan(plan: Plan) -> None:
 def _succeeds(result: RunResult) -> None:
     if not result.success:
         raise AssertionError(f"run failed: {result.reason}")
+
+
+# -- derivative checks for joint-mode authors ---------------------------------------------
+
+
+def node_jacobian_errors(node: KinematicNode, z: np.ndarray, x: np.ndarray,
+                         sigma: np.ndarray, h: float = 1e-6) -> dict[str, float]:
+    """Relative error of every analytic derivative of ``node`` against central differences.
+
+    Args:
+        node: a kinematic node (a joint mode's instance).
+        z, x: its initial vectors, shape (3, m).
+        sigma: the joint values, shape (dim,).
+        h: the difference step.
+
+    Returns:
+        ``"d<what>/dsigma[i]"`` -> relative error, for ``what`` in ``z``, ``x``, ``cost``
+        and ``rotations`` (the port rotations); errors are relative to the numeric
+        derivative's norm, floored at 1e-3.
+    """
+    jac = node.jacobian(z, x, sigma)
+    errors: dict[str, float] = {}
+    for i in range(node.dim):
+        step = np.zeros(node.dim)
+        step[i] = h
+        plus, minus = node.forward(z, x, sigma + step), node.forward(z, x, sigma - step)
+        for name, analytic in (("z", jac.z), ("x", jac.x), ("cost", jac.cost),
+                               ("rotations", jac.rotations)):
+            numeric = (getattr(plus, name) - getattr(minus, name)) / (2 * h)
+            errors[f"d{name}/dsigma[{i}]"] = float(
+                np.linalg.norm(analytic[..., i] - numeric) / max(np.linalg.norm(numeric), 1e-3))
+    return errors
+
+
+def tree_gradient_error(tree: KinematicTree, config: Configuration, seed: int,
+                        h: float = 1e-6) -> float:
+    """Relative error of the tree's reverse-mode FK gradient (Alg. 1) of a random linear
+    loss of ``Z``, ``X`` and the motion costs, against central differences, at random
+    joint values (seeded)."""
+    rng = np.random.default_rng(seed)
+    z0, x0, _ = tree_vectors(tree, config)
+    evaluator = Evaluator(tree, z0, x0)
+    n = len(tree.edges)
+    gz, gx, gc = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=n)
+    sigma = rng.normal(size=tree.dim) * 0.6
+
+    def loss(s: np.ndarray) -> float:
+        state = evaluator.evaluate(s)
+        return float(np.sum(state.z * gz) + np.sum(state.x * gx) + state.cost @ gc)
+
+    analytic = evaluator.gradient(evaluator.evaluate(sigma, derivatives=True), gz, gx, gc)
+    numeric = np.array([(loss(sigma + h * e) - loss(sigma - h * e)) / (2 * h)
+                        for e in np.eye(tree.dim)])
+    return float(np.linalg.norm(analytic - numeric) / max(np.linalg.norm(numeric), 1e-12))

@@ -11,22 +11,19 @@ from kin_helpers import (
     BraceNode,
     GimbalJoint,
     TwistJoint,
-    central_difference,
     random_stick,
-    relative_error,
     stick_tree,
     triangle_leg,
 )
 
 from msrr.core import Configuration
 from msrr.core.kinematics import (
-    Evaluator,
     FixedNode,
     KinematicTree,
     forward,
     rodrigues,
-    tree_vectors,
 )
+from msrr.core.testing import tree_gradient_error
 
 MODES = [GimbalJoint, TwistJoint]
 SETTINGS = settings(max_examples=25, deadline=None)
@@ -95,28 +92,11 @@ def test_a_twist_turns_x_and_the_subtree_about_z():
     assert np.allclose(result.z["R2"], [0, 1, 0])
 
 
-def gradient_check(tree: KinematicTree, config, seed: int) -> float:
-    """Relative error of the reverse-mode gradient of a random linear loss of Z, X, C."""
-    rng = np.random.default_rng(seed)
-    z0, x0, _ = tree_vectors(tree, config)
-    ev = Evaluator(tree, z0, x0)
-    n = len(tree.edges)
-    gz, gx, gc = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=n)
-    sigma = rng.normal(size=tree.dim) * 0.6
-
-    def loss(s: np.ndarray) -> float:
-        state = ev.evaluate(s)
-        return float(np.sum(state.z * gz) + np.sum(state.x * gx) + state.cost @ gc)
-
-    analytic = ev.gradient(ev.evaluate(sigma, derivatives=True), gz, gx, gc)
-    return relative_error(analytic, central_difference(loss, sigma))
-
-
 @pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name)
 def test_reverse_mode_gradient_matches_central_differences(mode):
     for seed in range(4):
         config = random_stick(9, seed, free=1)
-        assert gradient_check(stick_tree(config, mode), config, seed) < 1e-6
+        assert tree_gradient_error(stick_tree(config, mode), config, seed) < 1e-6
 
 
 def test_reverse_mode_gradient_with_mixed_node_types():
@@ -127,7 +107,7 @@ def test_reverse_mode_gradient_with_mixed_node_types():
     tree = KinematicTree(config, nodes)
     assert {type(n) for n in tree.nodes} == {FixedNode, GimbalJoint, TwistJoint}
     for seed in range(3):
-        assert gradient_check(tree, config, seed) < 1e-6
+        assert tree_gradient_error(tree, config, seed) < 1e-6
 
 
 def test_reverse_mode_gradient_through_a_parallel_node():
@@ -136,7 +116,7 @@ def test_reverse_mode_gradient_through_a_parallel_node():
                                   BraceNode(["R2", "R3"], ["H3"]),
                                   GimbalJoint(["R4"], ["v1"])])
     for seed in range(4):
-        assert gradient_check(tree, config, seed) < 1e-6
+        assert tree_gradient_error(tree, config, seed) < 1e-6
 
 
 def test_forward_checks_sigma_shape():

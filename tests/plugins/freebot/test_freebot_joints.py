@@ -12,6 +12,7 @@ from msrr.core.cli import get_cli
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import KinematicTree, default_tree, forward
 from msrr.core.kinematics.rotations import exp_so3, skew
+from msrr.core.testing import node_jacobian_errors
 from msrr.plugins.freebot.joints import RollingContactJoint
 
 from msrr_test_support import ROOT
@@ -28,19 +29,6 @@ def contact(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     return z[:, None], (x / np.linalg.norm(x))[:, None]
 
 
-def central_difference_errors(node, z, x, sigma, h=1e-6):
-    jac = node.jacobian(z, x, sigma)
-    for i in range(node.dim):
-        e = np.zeros(node.dim)
-        e[i] = h
-        plus, minus = node.forward(z, x, sigma + e), node.forward(z, x, sigma - e)
-        for name, analytic in (("z", jac.z), ("x", jac.x), ("cost", jac.cost),
-                               ("rotations", jac.rotations)):
-            numeric = (getattr(plus, name) - getattr(minus, name)) / (2 * h)
-            err = np.linalg.norm(analytic[..., i] - numeric) / max(np.linalg.norm(numeric), 1e-3)
-            yield f"d{name}/dsigma[{i}]", err
-
-
 def test_freebot_registers_rolling_contact_as_its_default_joint_mode():
     robot = plugins.resolve("freebot")
     assert robot.joint_modes["rolling_contact"] is RollingContactJoint
@@ -55,14 +43,14 @@ def test_jacobian_matches_central_differences(ratio):
         for _ in range(20):
             z, x = contact(rng)
             sigma = rng.uniform(-1.5, 1.5, size=2) * scale
-            for what, err in central_difference_errors(node, z, x, sigma):
+            for what, err in node_jacobian_errors(node, z, x, sigma).items():
                 assert err < 1e-6, f"{what} at |sigma|={np.linalg.norm(sigma):.1e}: {err:.2e}"
     # below 1e-4 rad the series forms are used; |sigma| itself has no useful
     # difference quotient there, the vectors and rotations do
     for _ in range(10):
         z, x = contact(rng)
         sigma = rng.uniform(-2e-5, 2e-5, size=2)
-        for what, err in central_difference_errors(node, z, x, sigma, h=1e-6):
+        for what, err in node_jacobian_errors(node, z, x, sigma, h=1e-6).items():
             if "cost" not in what:
                 assert err < 1e-6, f"{what} at |sigma|={np.linalg.norm(sigma):.1e}: {err:.2e}"
 

@@ -10,7 +10,6 @@ import pytest
 from msrr.core import Configuration, plugins
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import (
-    Evaluator,
     FixedNode,
     IKOptions,
     KinematicNode,
@@ -19,10 +18,10 @@ from msrr.core.kinematics import (
     default_tree,
     forward,
     solve_ik,
-    tree_vectors,
 )
 from msrr.core.kinematics.rotations import rodrigues, rotation_between
 from msrr.core.random_configurations import random_configuration
+from msrr.core.testing import node_jacobian_errors, tree_gradient_error
 from msrr.plugins.freesn.joints import (
     JOINT_MODES,
     DifferentialSphericalJoint,
@@ -70,20 +69,10 @@ def test_freesn_registers_its_joint_modes_with_the_default_first():
 def test_analytic_derivatives_match_central_differences(cls):
     rng = np.random.default_rng(7)
     node = make(cls)
-    h = 1e-6
     for _ in range(20):
         z, x, sigma = forward_x(node, rng)
-        jac = node.jacobian(z, x, sigma)
-        for i in range(node.dim):
-            e = np.zeros(node.dim)
-            e[i] = h
-            plus, minus = node.forward(z, x, sigma + e), node.forward(z, x, sigma - e)
-            for name, analytic in (("z", jac.z), ("x", jac.x), ("cost", jac.cost),
-                                   ("rotations", jac.rotations)):
-                numeric = (getattr(plus, name) - getattr(minus, name)) / (2 * h)
-                got = analytic[..., i]
-                err = np.linalg.norm(got - numeric) / max(np.linalg.norm(numeric), 1e-3)
-                assert err < 1e-6, f"{cls.name} d{name}/dsigma[{i}]: relative error {err:.2e}"
+        for what, err in node_jacobian_errors(node, z, x, sigma).items():
+            assert err < 1e-6, f"{cls.name} {what}: relative error {err:.2e}"
 
 
 @pytest.mark.parametrize("cls", ALL_TYPES, ids=lambda c: c.name)
@@ -203,27 +192,6 @@ def random_freesn(n_edges: int, seed: int, free: int = 0) -> Configuration:
     rng = np.random.default_rng(seed)
     return random_configuration(FREESN.spec, FREESN.rules, n_edges + 1 - free, rng,
                                 free_connectors=free)
-
-
-def tree_gradient_error(tree: KinematicTree, config: Configuration, seed: int) -> float:
-    """Relative error of the reverse-mode FK gradient of a random linear loss of Z, X, C
-    against central differences."""
-    rng = np.random.default_rng(seed)
-    z0, x0, _ = tree_vectors(tree, config)
-    ev = Evaluator(tree, z0, x0)
-    n = len(tree.edges)
-    gz, gx, gc = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.normal(size=n)
-    sigma = rng.normal(size=tree.dim) * 0.6
-
-    def loss(s: np.ndarray) -> float:
-        state = ev.evaluate(s)
-        return float(np.sum(state.z * gz) + np.sum(state.x * gx) + state.cost @ gc)
-
-    analytic = ev.gradient(ev.evaluate(sigma, derivatives=True), gz, gx, gc)
-    h = 1e-6
-    numeric = np.array([(loss(sigma + h * e) - loss(sigma - h * e)) / (2 * h)
-                        for e in np.eye(tree.dim)])
-    return float(np.linalg.norm(analytic - numeric) / max(np.linalg.norm(numeric), 1e-12))
 
 
 def test_the_default_tree_uses_the_default_mode_and_holds_the_triangle_rigid():

@@ -12,6 +12,7 @@ from msrr.core.configuration import Configuration
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import default_tree, forward
 from msrr.core.kinematics.rotations import rodrigues
+from msrr.core.testing import node_jacobian_errors
 from msrr.plugins.snailbot.joints import SphericalJoint, SuckerRevoluteJoint
 
 from msrr_test_support import ROOT
@@ -45,21 +46,11 @@ def test_snailbot_registers_both_modes_with_spherical_the_default():
 def test_jacobian_matches_central_differences(key):
     node = NODES[key]
     rng = np.random.default_rng(17)
-    h = 1e-6
     for _ in range(20):
         z, x = contact(rng)
         sigma = rng.uniform(-1.5, 1.5, size=node.dim)
-        jac = node.jacobian(z, x, sigma)
-        for i in range(node.dim):
-            e = np.zeros(node.dim)
-            e[i] = h
-            plus, minus = node.forward(z, x, sigma + e), node.forward(z, x, sigma - e)
-            for name, analytic in (("z", jac.z), ("x", jac.x), ("cost", jac.cost),
-                                   ("rotations", jac.rotations)):
-                numeric = (getattr(plus, name) - getattr(minus, name)) / (2 * h)
-                err = (np.linalg.norm(analytic[..., i] - numeric)
-                       / max(np.linalg.norm(numeric), 1e-3))
-                assert err < 1e-6, f"{key} d{name}/dsigma[{i}]: relative error {err:.2e}"
+        for what, err in node_jacobian_errors(node, z, x, sigma).items():
+            assert err < 1e-6, f"{key} {what}: relative error {err:.2e}"
 
 
 @pytest.mark.parametrize("key", list(NODES))
