@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import networkx as nx
+
 from msrr.core import plugins
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -22,3 +24,15 @@ def shipped_configurations() -> list[Path]:
     """Every configuration file shipped with a built-in robot plugin or the example."""
     files = sorted((ROOT / "plugins").glob("*/configs/*.json"))
     return files + sorted((ROOT / "examples").glob("*/*/configs/*.json"))
+
+
+def brute_force_cost(sub, start: str, target: str) -> float | None:
+    """The cheapest path cost in a sub-library by enumerating every simple path of its
+    edge list (the reference for retrieval's Dijkstra)."""
+    graph = nx.MultiDiGraph()
+    graph.add_nodes_from(sub.configurations)
+    for edge in sub.edges:
+        graph.add_edge(edge.source, edge.target, cost=edge.cost)
+    costs = [sum(graph.edges[e]["cost"] for e in path)
+             for path in nx.all_simple_edge_paths(graph, start, target)]
+    return min(costs, default=None)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import itertools
 
-import networkx as nx
 import pytest
 from stick_library import STICK, relabelled, stick_sources
 
@@ -18,6 +17,8 @@ from msrr.core.library import (
 )
 from msrr.core.plan import ActionType
 from msrr.core.robot import Robot, RobotSpec
+
+from msrr_test_support import brute_force_cost
 
 
 def system_from(library, key, seed=3, noise=0.03):
@@ -72,17 +73,6 @@ def test_mapping_behavior_commands_are_in_system_ids(stick_lib):
     assert command.module in system.edge_ids()
     last = result.steps[-1].target
     assert last.is_virtual(last.edge(command.module).target)    # the free rod spins
-
-
-def brute_force_cost(sub, start, target):
-    """The cheapest path cost by enumerating every simple path of the edge list."""
-    graph = nx.MultiDiGraph()
-    graph.add_nodes_from(sub.configurations)
-    for edge in sub.edges:
-        graph.add_edge(edge.source, edge.target, cost=edge.cost)
-    costs = [sum(graph.edges[e]["cost"] for e in path)
-             for path in nx.all_simple_edge_paths(graph, start, target)]
-    return min(costs, default=None)
 
 
 def test_shortest_path_matches_brute_force(stick_lib):

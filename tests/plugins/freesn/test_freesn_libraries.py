@@ -10,7 +10,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import networkx as nx
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -30,6 +29,8 @@ from msrr.core.library import (
 )
 from msrr.core.plan import ActionType
 from msrr.core.plugins import resolve
+
+from msrr_test_support import brute_force_cost
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 NAMES = ["S6N3", "S4N5", "S12N6"]
@@ -181,17 +182,6 @@ def test_retrieval_of_fig20_from_a_relabelled_perturbed_copy(libraries, seed):
     back = retrieve(s6n3, result.steps[-1].target, FREESN_ROBOT, to="fig20a")
     check_sequence(result.steps[-1].target, back.steps)
     assert ActionType.DISCONNECTION in {s.action for s in back.steps}
-
-
-def brute_force_cost(sub, start, target):
-    """The cheapest path cost by enumerating every simple path of the edge list."""
-    graph = nx.MultiDiGraph()
-    graph.add_nodes_from(sub.configurations)
-    for edge in sub.edges:
-        graph.add_edge(edge.source, edge.target, cost=edge.cost)
-    costs = [sum(graph.edges[e]["cost"] for e in path)
-             for path in nx.all_simple_edge_paths(graph, start, target)]
-    return min(costs, default=None)
 
 
 @pytest.mark.parametrize("name", ["S6N3", "S12N6"])
