@@ -25,7 +25,7 @@ from ..library import (
 )
 from ..library.check import (
     CheckFile,
-    apply_check,
+    apply_sidecar,
     check_path,
     edge_cases,
     library_digest,
@@ -116,14 +116,9 @@ def show(library: Path) -> None:
     Feasibility flags come from the check file beside it (``<LIB>.check.json``) when it
     is a check of this very file."""
     lib = load_library(library)
-    sidecar = check_path(library)
-    if sidecar.exists():
-        check = load_check(sidecar)
-        if check.library_sha256 == library_digest(library):
-            apply_check(lib, check)
-        else:
-            console.print(styled(f"{sidecar} checks another build of {library}; run "
-                                 "`platform library check` again", "yellow"))
+    if apply_sidecar(lib, library) == "stale":
+        console.print(styled(f"{check_path(library)} checks another build of {library}; run "
+                             "`platform library check` again", "yellow"))
     _show(lib)
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 
@@ -34,8 +35,9 @@ from ..robot import Robot
 from . import engine
 from .model import ActionEdge, Library, LibraryError
 
-__all__ = ["CHECK_REASONS", "CheckFile", "EdgeCase", "EdgeCheck", "apply_check", "check_path",
-           "edge_cases", "edge_key", "library_digest", "load_check", "save_check"]
+__all__ = ["CHECK_REASONS", "CheckFile", "EdgeCase", "EdgeCheck", "apply_check",
+           "apply_sidecar", "check_path", "edge_cases", "edge_key", "library_digest",
+           "load_check", "save_check"]
 
 CHECK_REASONS = ("timeout", "fell over", "connector broke", "self-collision", "torque limit",
                  "wrong shape", "wrong topology", "error")
@@ -177,4 +179,16 @@ def apply_check(library: Library, check: CheckFile) -> int:
     return done
 
 
-
+def apply_sidecar(library: Library, library_path: str | Path
+                  ) -> Literal["applied", "stale", "none"]:
+    """Copy the flags of the check file beside ``library_path`` onto ``library`` when it
+    is a check of that very file (same SHA-256): ``"applied"``; ``"stale"`` when it
+    checks another build (nothing copied); ``"none"`` when there is no check file."""
+    sidecar = check_path(library_path)
+    if not sidecar.exists():
+        return "none"
+    check = load_check(sidecar)
+    if check.library_sha256 != library_digest(library_path):
+        return "stale"
+    apply_check(library, check)
+    return "applied"

@@ -18,7 +18,7 @@ from msrr.core.actions import topology_diff
 from msrr.core.configuration import Configuration
 from msrr.core.errors import PlanningError
 from msrr.core.library import RetrievalError, load_library, retrieve
-from msrr.core.library.check import apply_check, check_path, library_digest, load_check
+from msrr.core.library.check import apply_sidecar
 from msrr.core.library.engine import best_match
 from msrr.core.library.retrieve import library_cost
 from msrr.core.plan import ActionType, Plan
@@ -69,11 +69,7 @@ class LibraryPlanner:
             known = sorted(p.stem for p in self.folder.glob("*.json") if ".check" not in p.name)
             raise PlanningError(f"no FreeSN library for {label} (shipped: {', '.join(known)})")
         library = load_library(path)
-        sidecar = check_path(path)
-        if sidecar.exists():
-            check = load_check(sidecar)
-            if check.library_sha256 == library_digest(path):
-                apply_check(library, check)
+        apply_sidecar(library, path)
         sub = library.sublibrary(label)
         candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
                       for c in sub.configurations.values()
