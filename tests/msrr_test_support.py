@@ -7,6 +7,8 @@ from pathlib import Path
 import networkx as nx
 
 from msrr.core import plugins
+from msrr.core.actions import classify
+from msrr.core.plan import ActionType
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -36,3 +38,19 @@ def brute_force_cost(sub, start: str, target: str) -> float | None:
     costs = [sum(graph.edges[e]["cost"] for e in path)
              for path in nx.all_simple_edge_paths(graph, start, target)]
     return min(costs, default=None)
+
+
+def check_sequence(system, steps, robot) -> None:
+    """Retrieved steps are in the system's ids, legal for ``robot`` (its rules and its
+    action rules), of the action type their topology says, and each carries the tree
+    of the configuration it moves in (the source for connections, else the target)."""
+    before = system
+    for step in steps:
+        assert set(step.target.modules()) == set(system.modules())
+        assert robot.rules.check(step.target) == []
+        assert robot.rules.check_action(before, step.target) == []
+        assert classify(before, step.target) is step.action
+        moves_in = before if step.action in (ActionType.CONNECTION,
+                                             ActionType.PARALLEL_CONNECTION) else step.target
+        assert sorted(step.tree.configuration.vertices()) == sorted(moves_in.vertices())
+        before = step.target

@@ -30,7 +30,7 @@ from msrr.core.library import (
 from msrr.core.plan import ActionType
 from msrr.core.plugins import resolve
 
-from msrr_test_support import brute_force_cost
+from msrr_test_support import brute_force_cost, check_sequence
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 NAMES = ["S6N3", "S4N5", "S12N6"]
@@ -137,20 +137,6 @@ def system_from(library, key, seed=3, noise=0.03):
     return relabelled(config.configuration, "m", noise=noise, seed=seed)
 
 
-def check_sequence(system, steps):
-    """Every step in the system's ids, legal for FreeSN, and of its topology's action type."""
-    before = system
-    for step in steps:
-        assert set(step.target.modules()) == set(system.modules())
-        assert FREESN_ROBOT.rules.check(step.target) == []
-        assert FREESN_ROBOT.rules.check_action(before, step.target) == []
-        assert classify(before, step.target) is step.action
-        moves_in = before if step.action in (ActionType.CONNECTION,
-                                             ActionType.PARALLEL_CONNECTION) else step.target
-        assert sorted(step.tree.configuration.vertices()) == sorted(moves_in.vertices())
-        before = step.target
-
-
 def test_s6n3_build_merges_the_two_directions_of_fig20(libraries):
     sources = load_sources(source_files("S6N3"), resolve)
     (sub,) = libraries["S6N3"].sublibraries.values()
@@ -177,10 +163,10 @@ def test_retrieval_of_fig20_from_a_relabelled_perturbed_copy(libraries, seed):
     result = retrieve(s6n3, system, FREESN_ROBOT, to="fig20d")
     assert result.start == "S6N3-1.1"
     assert result.steps[-1].library_id == s6n3.find_configuration("fig20d")[1].id
-    check_sequence(system, result.steps)
+    check_sequence(system, result.steps, FREESN_ROBOT)
     assert {s.action for s in result.steps} >= {ActionType.MOVING, ActionType.CONNECTION}
     back = retrieve(s6n3, result.steps[-1].target, FREESN_ROBOT, to="fig20a")
-    check_sequence(result.steps[-1].target, back.steps)
+    check_sequence(result.steps[-1].target, back.steps, FREESN_ROBOT)
     assert ActionType.DISCONNECTION in {s.action for s in back.steps}
 
 
@@ -206,7 +192,7 @@ def test_fig22_parallel_reconfiguration_and_unreachable_groups(libraries):
                        r"S12N6-4 \(open-face\), S12N6-5 \(open-face-and-edge\)"):
         retrieve(s12n6, system, FREESN_ROBOT, to="fig21a")
     result = retrieve(s12n6, system, FREESN_ROBOT, behavior="node-wheels")
-    check_sequence(system, result.steps)
+    check_sequence(system, result.steps, FREESN_ROBOT)
     assert ActionType.PARALLEL_DISCONNECTION in {s.action for s in result.steps}
     assert {c.module for c in result.commands} <= set(system.modules())
 
@@ -215,7 +201,7 @@ def test_fig19_looping_crawl_comes_back_to_its_start(libraries):
     s4n5 = libraries["S4N5"]
     system = system_from(s4n5, "star-flat")
     result = retrieve(s4n5, system, FREESN_ROBOT, behavior="crawl")
-    check_sequence(system, [*result.steps, *result.behavior_steps])
+    check_sequence(system, [*result.steps, *result.behavior_steps], FREESN_ROBOT)
     assert result.behavior_steps[-1].library_id == result.behavior.start
     assert len(result.behavior_steps) == 3
     with pytest.raises(RetrievalError, match="reachable groups: S4N5-1"):
