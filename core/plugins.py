@@ -79,6 +79,7 @@ __all__ = [
     "robots",
     "scenarios",
     "temporary",
+    "timeline_views",
 ]
 
 ENTRY_POINT_GROUP = "msrr.plugins"
@@ -517,6 +518,15 @@ class _Events:
 
 
 emit = _Events()
+
+
+def timeline_views(run: Run) -> list[object]:
+    """The viewer views plugins add to ``run``'s recording (``msrr_timeline_views``), in
+    pluggy's call order; a plugin that raises is disabled and reported, never fatal."""
+    views: list[object] = []
+    for _ in _call_each("msrr_timeline_views", run=run, register=views.append):
+        pass
+    return views
 
 
 # -- introspection --------------------------------------------------------------------
