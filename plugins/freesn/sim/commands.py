@@ -11,6 +11,19 @@ of the torque limit the connector may use (its motor current limit): a connector
 closes a loop of rigid struts is driven softly so it follows rather than fights.
 ``dock=("b",)`` extends end ``b``'s magnet array until it docks, ``undock=("a",)``
 retracts end ``a``'s.
+
+``wheels={"a": w}`` sets the wheel speed ``w`` [rad/s] of connector ``a``'s wheel pair
+(the behaviors' ``wheel_speed`` command, paper sections 4.3 and 7.3; ``"source"`` and
+``"target"``, the ends of the strut's connection, name ``a`` and ``b`` too). On a
+docked connector the two wheels run in opposition and turn the node about the strut's
+axis ``z`` (from ``a`` to ``b``) relative to the strut, right-handed, at ``w r / (b / 2)``
+[rad/s] for positive ``w`` (the strut turns the other way relative to the node) -- the
+one rotation the connection vector leaves free, so a connector
+can hold its vector and spin at once (a leaf node on the ground turns as a wheel,
+Fig. 18(a)-(c); a strut turns about its axis, Fig. 18(g)-(i)). On a free connector the
+two wheels run together about the strut's ``y`` axis (their axle) at ``w``: on the
+ground they drive the strut end (Fig. 18(d)-(f)). A wheel speed stays until changed;
+``0`` brakes the strut's twist where it is.
 """
 
 from __future__ import annotations
@@ -22,9 +35,11 @@ import numpy as np
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 
-__all__ = ["ENDS", "ConnectorTarget", "connector_joints", "parse_command"]
+__all__ = ["ENDS", "ConnectorTarget", "connector_joints", "parse_command", "parse_wheels"]
 
 ENDS = ("a", "b")
+WHEEL_PORTS = {"a": "a", "b": "b", "source": "a", "target": "b"}
+"""Names of a connector in ``ModuleCommand.wheels``: its end, or its end of the connection."""
 _AXES = ("x", "y", "z")
 
 
@@ -82,3 +97,25 @@ def _vector(strut: str, joints: Mapping[str, float], end: str, what: str) -> np.
     if not np.isfinite(norm) or norm < 1e-9:
         raise ExecutionError(f"strut {strut}: {end}.{what} must be a non-zero vector")
     return vector / norm
+
+
+def parse_wheels(strut: str, command: ModuleCommand) -> dict[str, float]:
+    """The wheel speeds [rad/s] in ``command.wheels``, by end (``a``, ``b``).
+
+    Raises:
+        ExecutionError: an unknown connector name, a non-finite speed, or both names of
+            one end.
+    """
+    speeds: dict[str, float] = {}
+    for name, value in command.wheels.items():
+        end = WHEEL_PORTS.get(name)
+        if end is None:
+            raise ExecutionError(f"strut {strut}: unknown wheel {name!r} (known: "
+                                 f"{', '.join(WHEEL_PORTS)})")
+        if end in speeds:
+            raise ExecutionError(f"strut {strut}: wheel speed of end {end} given twice")
+        speed = float(value)
+        if not np.isfinite(speed):
+            raise ExecutionError(f"strut {strut}: wheel speed {name} must be finite, got {speed}")
+        speeds[end] = speed
+    return speeds

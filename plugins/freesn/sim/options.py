@@ -75,6 +75,13 @@ class Physical:
             linear torque-speed line from stall to no-load speed).
         strength: connection strength used in simulation [N].
         dock_tolerance: [m].
+        wheel_radius: [m]. wheel_base: distance between a connector's two wheels [m].
+        max_wheel_speed: [rad/s], the bound of a ``wheel_speed`` command.
+        wheel_torque: torque limit of a connector's wheel pair about its axle [N m]: the
+            connector's drive force at the node surface (``max_torque / node_radius``)
+            times the wheel radius.
+        wheel_damping: back-EMF damping of the wheel pair [N m s/rad] (stall torque over
+            no-load speed, as ``damping``).
     """
 
     node_radius: float
@@ -89,6 +96,11 @@ class Physical:
     damping: float
     strength: float
     dock_tolerance: float
+    wheel_radius: float
+    wheel_base: float
+    max_wheel_speed: float
+    wheel_torque: float
+    wheel_damping: float
 
     @classmethod
     def from_spec(cls, spec: RobotSpec, options: SimOptions) -> Physical:
@@ -98,6 +110,7 @@ class Physical:
         wheel_speed = strut["max_wheel_speed"] * strut["wheel_radius"]  # [m/s] at the surface
         roll = wheel_speed / node["radius"]
         torque = strut["max_torque"] * options.torque_factor
+        wheel_torque = torque / node["radius"] * strut["wheel_radius"]
         return cls(
             node_radius=node["radius"], node_mass=node["mass"],
             strut_length=strut["length"], strut_radius=strut["radius"],
@@ -107,6 +120,9 @@ class Physical:
             damping=torque / roll,
             strength=strut["connection_strength"] * options.strength_factor,
             dock_tolerance=strut["dock_tolerance"],
+            wheel_radius=strut["wheel_radius"], wheel_base=strut["wheel_base"],
+            max_wheel_speed=strut["max_wheel_speed"], wheel_torque=wheel_torque,
+            wheel_damping=wheel_torque / strut["max_wheel_speed"],
         )
 
 

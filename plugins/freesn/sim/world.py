@@ -21,6 +21,17 @@ back-EMF, integrated implicitly) and a drive torque ``D * omega_cmd`` bounded by
 torque limit, with ``omega_cmd`` from a position loop toward the commanded pose,
 bounded by the wheel speed (rolling) and the differential speed (spinning).
 
+Wheels (sections 4.2, 7.3): a connector's wheel pair also takes a speed command (see
+:mod:`.commands`). Docked, the two wheels run in opposition: the twist of the ball
+joint about the strut axis is velocity-controlled (the same DC-motor model, bounded
+by the torque limit) while the connection vector stays under the position loop, so
+a leaf node turns against the ground as a wheel, or a strut turns about its axis.
+Free, the wheels are a body on a hinge about the strut's ``y`` axis at the strut end,
+whose rim stands a little past the end cap and touches only the ground (an explicit
+contact pair); a velocity-controlled hinge with bounded torque (back-EMF damping on
+the hinge, drive ``D_w * omega_cmd`` bounded by the wheel torque) drives the strut end
+through friction. Locomotion therefore comes from contact forces alone.
+
 Slip and drift: each docked connector keeps an odometry heading error ``eps`` (a
 rotation about the strut axis that its encoders do not see); it grows by ``slip``
 per radian rolled and by ``drift`` per square-root second. The connector servos its
@@ -61,6 +72,10 @@ _EZ = np.array([0.0, 0.0, 1.0])
 _ALL_BITS = 0x7FFFFFFF  # nodes and the ground touch every collision bit
 _SEAT = 0.1           # time constant of a magnet drawing a docked connector onto the centre [s]
 _SIDE_BY_SIDE_MARGIN = np.radians(8.0)  # beyond the angle at which two capsules touch
+_WHEEL_MASS = 0.005   # one connector's wheel pair [kg]
+_WHEEL_PROUD = 0.003  # wheel rim past the node surface point of the strut end [m]
+_WHEEL_FRICTION = [1.0, 1.0, 0.005, 0.0001, 0.0001]  # polyurethane on the floor
+_WHEEL_ARMATURE = 1e-5  # wheel-motor rotor through its gearbox [kg m^2]
 
 
 @dataclass(frozen=True)
@@ -166,6 +181,9 @@ class FreeSNWorld:
         self._tau = np.zeros((k, 3))
         self._effort = np.ones(k)                          # fraction of the torque limit
         self._dofs = self._dadr[:, None] + np.arange(3)
+        self._axle = np.array([m.joint(f"axle/{s}/{e}").dofadr[0] for s, e in self.ends],
+                              dtype=int)
+        self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
         self._servo_every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
         tip = phys.node_radius + _GAP + phys.strut_radius   # capsule cap centre from the node
         self._side_by_side = 2.0 * np.arcsin(min(1.0, phys.strut_radius / tip)) \
@@ -213,6 +231,8 @@ class FreeSNWorld:
             raise ExecutionError("strut mass must exceed the mass of its two connectors")
         inertia = np.array(_inertia_rod(rod, p.strut_radius, 2 * tip))
         inertia[:2] += 2.0 * p.connector_mass * tip**2
+        reach = 0.5 * p.strut_length - p.node_radius + _WHEEL_PROUD - p.wheel_radius
+        wheel_inertia = 0.5 * _WHEEL_MASS * p.wheel_radius**2
         for strut in self.struts:
             centre, rotation = placement.struts[strut]
             quat = Rotation.from_matrix(rotation).as_quat(scalar_first=True)
@@ -232,6 +252,20 @@ class FreeSNWorld:
                                            iquat=[1, 0, 0, 0])
                 roller.add_joint(name=f"ball/{strut}/{end}", type=mujoco.mjtJoint.mjJNT_BALL,
                                  damping=p.damping, armature=_ARMATURE)
+                wheel = body.add_body(name=f"wheel/{strut}/{end}",
+                                      pos=[0, 0, -END_SIGN[end] * reach],
+                                      mass=_WHEEL_MASS, inertia=[wheel_inertia] * 3,
+                                      explicitinertial=True, ipos=[0, 0, 0],
+                                      iquat=[1, 0, 0, 0])
+                wheel.add_joint(name=f"axle/{strut}/{end}", type=mujoco.mjtJoint.mjJNT_HINGE,
+                                axis=[0, 1, 0], damping=p.wheel_damping,
+                                armature=_WHEEL_ARMATURE)
+                wheel.add_geom(name=f"wheels/{strut}/{end}", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                               fromto=[0, -0.5 * p.wheel_base, 0, 0, 0.5 * p.wheel_base, 0],
+                               size=[p.wheel_radius, 0, 0], mass=0, contype=0, conaffinity=0,
+                               rgba=[0.15, 0.15, 0.15, 1.0])
+                spec.add_pair(name=f"floor/{strut}/{end}", geomname1=f"wheels/{strut}/{end}",
+                              geomname2="ground", condim=3, friction=_WHEEL_FRICTION)
         welds = {}
         for strut in self.struts:
             for end in ENDS:
@@ -347,9 +381,23 @@ class FreeSNWorld:
         """Stop ``strut``'s connectors where they are now (motors braked)."""
         for end in ENDS:
             k = self._end(strut, end)
+            self._wheel[k] = 0.0
             if self.docked[k] is not None:
                 self._effort[k] = 1.0
                 self._hold(k)
+
+    def command_wheels(self, strut: str, end: str, speed: float) -> None:
+        """Run the wheel pair of ``strut``'s ``end`` at ``speed`` [rad/s] (see :mod:`.commands`).
+
+        Bounded by the wheel motors' top speed. Setting ``0`` on a docked connector that
+        was spinning brakes its twist where it is now.
+        """
+        k = self._end(strut, end)
+        speed = float(np.clip(speed, -self.phys.max_wheel_speed, self.phys.max_wheel_speed))
+        was = self._wheel[k]
+        self._wheel[k] = speed
+        if self.docked[k] is not None and (not self._has_target[k] or (was and not speed)):
+            self._hold(k)
 
     def command_dock(self, strut: str, end: str) -> None:
         """Extend the magnet array of ``strut``'s ``end`` (kept until it docks)."""
@@ -441,13 +489,20 @@ class FreeSNWorld:
         tau[:] = 0.0
         if len(ks):
             q = self._ball(ks)
-            error = _quat_log(_quat_mul(_quat_conj(q), self._ball_target[ks]))  # child frame
-            omega = self.options.position_gain * error
+            relative = _quat_mul(_quat_conj(q), self._ball_target[ks])   # child frame
             w, x, y, z = q.T   # strut axis in the connector frame: row 3 of R(q), signed
             axis = self._sign[ks, None] * np.column_stack(
                 [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
+            wheeling = self._wheel[ks] != 0.0
+            if wheeling.any():   # the twist is under the wheels: servo the swing alone
+                relative[wheeling] = _swing(relative[wheeling], axis[wheeling])
+            omega = self.options.position_gain * _quat_log(relative)
             spin = np.einsum("ni,ni->n", omega, axis)
             roll = omega - spin[:, None] * axis
+            # wheels in opposition turn the node, and the connector welded to it, about
+            # the strut's +z = sign * axis relative to the strut
+            spin = np.where(wheeling, self._sign[ks] * self._wheel[ks] * p.wheel_radius
+                            / (0.5 * p.wheel_base), spin)
             norm = np.sqrt(np.einsum("ni,ni->n", roll, roll))
             limit = p.max_torque * self._effort[ks]
             scale = np.minimum(1.0, p.max_roll_rate / np.maximum(norm, 1e-12))
@@ -456,6 +511,9 @@ class FreeSNWorld:
             t_spin = np.minimum(np.maximum(p.damping * spin, -limit), limit)
             tau[ks] = (p.damping * scale)[:, None] * roll + t_spin[:, None] * axis
         self.data.qfrc_applied[self._dofs] = tau
+        free = np.array([node is None for node in self.docked])
+        drive = np.clip(p.wheel_damping * self._wheel, -p.wheel_torque, p.wheel_torque)
+        self.data.qfrc_applied[self._axle] = np.where(free, drive, 0.0)
 
     def _check_loads(self, steps: int = 1) -> None:
         d = self.data
@@ -646,6 +704,16 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _quat_conj(q: np.ndarray) -> np.ndarray:
     return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The swing of quaternions ``(w, x, y, z)`` (n, 4) after removing their twist about
+    unit ``axis`` (n, 3): ``q = swing * twist`` (swing-twist decomposition)."""
+    along = np.einsum("ni,ni->n", q[:, 1:], axis)[:, None] * axis
+    twist = np.column_stack([q[:, 0], along])
+    norm = np.linalg.norm(twist, axis=1, keepdims=True)
+    twist = np.where(norm > 1e-12, twist / np.maximum(norm, 1e-12), np.array([1.0, 0, 0, 0]))
+    return _quat_mul(q, _quat_conj(twist))
 
 
 def _quat_log(q: np.ndarray) -> np.ndarray:
