@@ -4,8 +4,9 @@ FreeSN paper, section 4.1: comparing the topology graphs of the current and the
 target configuration tells the action type. No change is *moving*; one connection
 made is a *connection* ("a node and a virtual node are merged"), one broken a
 *disconnection*; a leaf module that leaves its parent for one of the parent's
-neighbours is a *flow* ("the disconnection and connection happen simultaneously");
-several changes at once are a *parallel* connection or disconnection.
+neighbours is a *flow* ("the disconnection and connection happen simultaneously";
+:func:`flow_move` states the rule); several changes at once are a *parallel*
+connection or disconnection.
 
 Connections are compared by their ends, ``(module, port)`` pairs, regardless of
 edge direction and id, so a recognized configuration compares equal to a planned
@@ -22,7 +23,9 @@ disconnections. First, the disconnection commands are sent ... After all
 topological disconnection changes are detected, the system moves to the target
 configuration without connections. The connection commands are sent ..." (section
 4.1, Parallel Connection and Disconnection Action); the executor runs exactly these
-phases (release, approach, connect). It is not a flow, which moves one leaf, and
+phases (release, approach, connect). It is not a flow, which moves one leaf to a
+neighbour of its parent and keeps contact throughout (phases ``flow`` and
+``handover``, see :mod:`msrr.core.executor`), and
 MMRP's undock-then-dock (section 4.4 of the MMRP paper, Table 4) is the same order of
 commands, which an MMRP planner emits as separate single actions. The type is
 named after the phase that finishes the action; :attr:`TopologyDiff.broken` says
@@ -40,39 +43,28 @@ from dataclasses import dataclass
 from .configuration import Configuration
 from .errors import PlanningError
 from .mapping import ModuleMap, free_vertex_name
-from .plan import Action, ActionType, ConnectionChange, ConnectionKey, connection_key
+from .plan import (
+    STRUT_ENDS,
+    Action,
+    ActionType,
+    ConnectionChange,
+    ConnectionKey,
+    connection_key,
+)
+from .plan import links as _links
 
 __all__ = [
     "STRUT_ENDS",
+    "Flow",
     "TopologyDiff",
     "classify",
     "connection_key",
     "detect_action",
     "detect_actions",
+    "flow_move",
+    "flow_of",
     "topology_diff",
 ]
-
-STRUT_ENDS = ("a", "b")
-"""Names of the source and target end of a connection that is a module."""
-
-
-def _links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]:
-    """Every physical link of ``config`` with its direction-free key."""
-    links = []
-    for edge in config.edges():
-        ports = edge.ports or (None, None)
-        if edge.kind is None:
-            if not (config.is_virtual(edge.source) or config.is_virtual(edge.target)):
-                links.append((connection_key(edge.source, edge.target, ports[0], ports[1]),
-                              ConnectionChange(edge.source, edge.target, ports[0], ports[1],
-                                               edge.id)))
-            continue
-        for end, vertex, port in zip(STRUT_ENDS, (edge.source, edge.target), ports, strict=True):
-            if not config.is_virtual(vertex):
-                links.append((connection_key(edge.id, vertex, end, port),
-                              ConnectionChange(edge.id, vertex, end, port, edge.id)))
-    return links
-
 
 @dataclass(frozen=True)
 class TopologyDiff:
@@ -190,28 +182,97 @@ def _pick(links: Iterable[tuple[ConnectionKey, ConnectionChange]], surplus: Coun
     return tuple(picked)
 
 
-def _is_flow(current: Configuration, diff: TopologyDiff) -> bool:
-    """One leaf (or one strut end) leaves its module for a neighbour of it (section 4.1)."""
-    if len(diff.made) != 1 or len(diff.broken) != 1:
-        return False
-    made, broken = diff.made[0], diff.broken[0]
-    if _is_strut_end(made) or _is_strut_end(broken):  # the same strut end slides to a node
-        return (_is_strut_end(made) and _is_strut_end(broken)
-                and (made.source, made.source_port) == (broken.source, broken.source_port))
+@dataclass(frozen=True)
+class Flow:
+    """The one move of a flow action: ``leaf`` leaves ``parent`` for ``new_parent``.
+
+    Attributes:
+        leaf: the module that moves (a leaf: its one link is ``broken``).
+        parent: the module it leaves.
+        new_parent: the module it goes to, a neighbour of ``parent``.
+        broken: the link ``leaf``-``parent`` (with its ports), broken by the flow.
+        made: the link ``leaf``-``new_parent`` (with its ports), made by the flow.
+    """
+
+    leaf: str
+    parent: str
+    new_parent: str
+    broken: ConnectionChange
+    made: ConnectionChange
+
+    def port(self, change: ConnectionChange, module: str) -> str | None:
+        """``module``'s port in ``change`` (``None``: a freeform contact)."""
+        return change.source_port if change.source == module else change.target_port
+
+    def __str__(self) -> str:
+        return f"{self.leaf}: {self.parent} -> {self.new_parent}"
+
+
+def _flow(broken: ConnectionChange, made: ConnectionChange) -> Flow | None:
+    """The :class:`Flow` of one broken and one made link sharing exactly one module."""
     mover = {made.source, made.target} & {broken.source, broken.target}
     if len(mover) != 1:
-        return False
+        return None
     (leaf,) = mover
-    old_parent = broken.target if broken.source == leaf else broken.source
+    parent = broken.target if broken.source == leaf else broken.source
     new_parent = made.target if made.source == leaf else made.source
-    return (current.degree(leaf) == 1
-            and current.graph.to_undirected(as_view=True).has_edge(old_parent, new_parent))
+    return Flow(leaf, parent, new_parent, broken, made)
+
+
+def flow_move(current: Configuration, diff: TopologyDiff) -> Flow | None:
+    """The flow that ``diff`` is, if it is one (FreeSN paper, section 4.1).
+
+    Section 4.1: "The leaf module [...] can move from its parent module to the
+    neighbors of the parent module directly. The disconnection and connection happen
+    simultaneously." Read on the *link graph* of :func:`msrr.core.plan.links` (a vertex
+    per module, edge modules such as FreeSN struts included; an edge per physical link,
+    free connectors excluded), ``diff`` is a flow when
+
+    * it breaks exactly one link ``{L, P}`` and makes exactly one link ``{L, Q}``, the
+      two sharing exactly one module ``L`` (so ``Q != P``; a change of ports between
+      the same two modules is no flow);
+    * ``L`` is a *leaf*: ``{L, P}`` is its only link in ``current`` (so ``{L, Q}`` is
+      its only one in the target);
+    * ``Q`` is a *neighbour of the parent*: ``P`` and ``Q`` share a link in ``current``
+      (the same link is in the target, as only ``L``'s link changes).
+
+    Links are compared by their ends, so the direction of either connection and the
+    ports ``L`` uses do not matter. A FreeSN strut end never flows: nodes are joined
+    through struts, never directly, so no two nodes are neighbours.
+    """
+    if len(diff.made) != 1 or len(diff.broken) != 1:
+        return None
+    flow = _flow(diff.broken[0], diff.made[0])
+    if flow is None:
+        return None
+    graph: dict[str, set[str]] = {}
+    for _, link in _links(current):
+        graph.setdefault(link.source, set()).add(link.target)
+        graph.setdefault(link.target, set()).add(link.source)
+    degree = sum(1 for _, link in _links(current) if flow.leaf in (link.source, link.target))
+    if degree != 1 or flow.new_parent not in graph.get(flow.parent, set()):
+        return None
+    return flow
+
+
+def flow_of(action: Action) -> Flow:
+    """The move of a flow ``action`` (what a controller executing it needs).
+
+    Raises:
+        PlanningError: ``action`` is not one broken and one made link of one module.
+    """
+    broken, made = action.broken(), action.made()
+    flow = _flow(broken[0], made[0]) if len(broken) == 1 and len(made) == 1 else None
+    if flow is None:
+        raise PlanningError(f"{action} is not a flow: a flow breaks one link and makes one, "
+                            "both of the same module")
+    return flow
 
 
 def _classify(current: Configuration, diff: TopologyDiff) -> ActionType:
     if not diff:
         return ActionType.MOVING
-    if _is_flow(current, diff):
+    if flow_move(current, diff) is not None:
         return ActionType.FLOW
     if not diff.made:
         return (ActionType.DISCONNECTION if len(diff.broken) == 1

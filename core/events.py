@@ -38,7 +38,10 @@ class Phase(StrEnum):
     ``move``: moving to the target without topology change;
     ``approach``: moving to the pre-connection configuration S_conn;
     ``connect``: dock commands armed while pushing to the extruded S_extr;
-    ``flow``: undock and dock at once.
+    ``flow``: a flow's leaf moves over its parent, still docked, until it touches the
+    new parent (section 4.1, Flow; no dock or undock is sent);
+    ``handover``: the leaf docks to the new parent and undocks from the old at once,
+    until both changes are detected.
     """
 
     RELEASE = "release"
@@ -46,6 +49,7 @@ class Phase(StrEnum):
     APPROACH = "approach"
     CONNECT = "connect"
     FLOW = "flow"
+    HANDOVER = "handover"
 
 
 @dataclass
@@ -202,6 +206,8 @@ class RunResult:
         actions_total: actions in the plan.
         docks: connections made, counted from what the driver reported.
         undocks: connections broken, likewise.
+        flows: flow actions whose handover the driver reported (its undock and dock
+            are also counted in ``undocks`` and ``docks``).
         retries: action attempts repeated after a timeout.
         ticks: control ticks executed.
         sim_time: driver time at the end [s].
@@ -224,6 +230,7 @@ class RunResult:
     actions_total: int = 0
     docks: int = 0
     undocks: int = 0
+    flows: int = 0
     retries: int = 0
     ticks: int = 0
     sim_time: float = 0.0
@@ -241,7 +248,8 @@ class RunResult:
         return {"success": self.success, "reason": self.reason,
                 "failed_action": self.failed_action, "actions_done": self.actions_done,
                 "actions_total": self.actions_total, "docks": self.docks,
-                "undocks": self.undocks, "retries": self.retries, "ticks": self.ticks,
+                "undocks": self.undocks, "flows": self.flows, "retries": self.retries,
+                "ticks": self.ticks,
                 "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3),
                 "shape_error_deg": _degrees(self.shape_error),
                 "truth_shape_error_deg": _degrees(self.truth_shape_error),

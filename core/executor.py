@@ -13,7 +13,34 @@ Per action type:
 * connection (also parallel): ``release`` first if the action also breaks
   connections, ``approach`` S_conn until reached, then ``connect`` (dock commands
   armed while pushing toward S_extr) until every planned connection is detected;
-* flow: undock and dock at once until both changes are detected.
+* flow (section 4.1: "the leaf module [...] can move from its parent module to the
+  neighbors of the parent module directly. The disconnection and connection happen
+  simultaneously"): ``flow`` (the leaf moves over its parent, still docked, until it
+  touches the new parent), then ``handover`` (dock to the new parent and undock from
+  the old in the same tick, until both changes are detected).
+
+**Flow contract.** The paper leaves a flow's control to the hardware ("the control
+strategy depends on the hardware implementation"), so the executor only sequences it
+and the robot's controller moves the leaf. :func:`msrr.core.actions.flow_of` gives the
+controller the :class:`~msrr.core.actions.Flow`: ``leaf``, ``parent``, ``new_parent``
+and the ``broken``/``made`` links with their ports.
+
+1. ``flow``: ``controller.begin(action, Phase.FLOW, observation)``, then
+   ``controller.control(action, Phase.FLOW, observation)`` every tick, its commands sent
+   as they are (the executor adds no dock or undock). The controller keeps the leaf on
+   its parent and moves it until it touches the new parent (FreeBOT rolls its shell
+   over the parent, SnailBot crawls), then returns ``Control(reached=True)``. No IK
+   tracking runs in a flow. The only topology changes allowed are the flow's own two.
+2. ``handover``: ``controller.begin(action, Phase.HANDOVER, ...)`` and ``control`` every
+   tick (it should hold the leaf where it is); the executor adds, in the same tick,
+   ``undock`` of the broken link's ports and ``dock`` of the made link's ports for
+   links with ports; a link without ports (a freeform contact) is released and armed
+   by the controller, as in connection and disconnection actions (the generic
+   runtime's controller sends the leaf ``undock=("@parent",)`` and
+   ``dock=("@new_parent",)``). The phase ends when the recognized topology is the
+   action's target.
+
+``RunResult.flows`` counts the flow actions whose undock and dock the driver reported.
 
 **IK tracking** (section 4.1, Fig. 8; :mod:`msrr.core.closed_loop`) drives the moving
 phases when the controller is a :class:`~msrr.core.closed_loop.JointController` and
@@ -37,7 +64,7 @@ import time as wallclock
 from dataclasses import dataclass
 
 from . import plugins
-from .actions import TopologyDiff, topology_diff
+from .actions import TopologyDiff, flow_move, topology_diff
 from .capabilities import Recognizer
 from .closed_loop import (
     JointController,
@@ -94,7 +121,7 @@ def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> 
     and then moving to the target configuration").
     """
     if action.type is ActionType.FLOW:
-        return [Phase.FLOW]
+        return [Phase.FLOW, Phase.HANDOVER]
     out: list[Phase] = []
     if diff.broken:
         out.append(Phase.RELEASE)
@@ -152,6 +179,7 @@ class Executor:
         self.tick_index = 0
         self.events: list[TopologyEvent] = []
         self.retries = 0
+        self.flows = 0
         self._current: Configuration | None = None
         self._expected: set = set()
         self._tracker: PhaseTracker | None = None
@@ -191,6 +219,7 @@ class Executor:
         result.actions_done = done
         result.docks = sum(1 for e in self.events if e.kind == "dock")
         result.undocks = sum(1 for e in self.events if e.kind == "undock")
+        result.flows = self.flows
         result.retries = self.retries
         result.ticks = self.tick_index
         result.sim_time = self.driver.time
@@ -221,9 +250,15 @@ class Executor:
         finally:
             self._expected = set()
             self._tracker = None
+        if action.type is ActionType.FLOW:
+            seen = {(e.kind, e.change.key) for e in self.events if e.action_index == index}
+            wanted = ({("undock", c.key) for c in diff.broken}
+                      | {("dock", c.key) for c in diff.made})
+            self.flows += bool(wanted) and wanted <= seen
         plugins.emit.action(self.run, action, ActionStatus.SUCCEEDED)
 
     def _check_plan_consistency(self, index: int, action: Action, diff: TopologyDiff) -> None:
+        assert self._current is not None
         planned = {c.key for c in action.changes}
         needed = {c.key for c in diff.changes()}
         if action.type is ActionType.MOVING and diff:
@@ -232,6 +267,9 @@ class Executor:
         if planned and not needed <= planned:
             raise _ActionFailed(f"action {index} ({action}): the current topology needs "
                                 f"{diff}, not what the action plans")
+        if action.type is ActionType.FLOW and flow_move(self._current, diff) is None:
+            raise _ActionFailed(f"action {index} ({action}): from the current topology, "
+                                f"{diff} is not a flow (one leaf to a neighbour of its parent)")
 
     def _run_phase(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> None:
         attempts = self.options.retries + 1
@@ -259,7 +297,9 @@ class Executor:
     def _phase_goal(self, phase: Phase, diff: TopologyDiff) -> Configuration:
         """The topology expected at the end of ``phase``."""
         assert self._current is not None
-        return diff.applied_to(self._current, made=phase in (Phase.CONNECT, Phase.FLOW))
+        if phase is Phase.FLOW:
+            return self._current
+        return diff.applied_to(self._current, made=phase in (Phase.CONNECT, Phase.HANDOVER))
 
     # -- IK tracking (section 4.1) ------------------------------------------------------
 
@@ -338,9 +378,9 @@ class Executor:
         else:
             control = self.controller.control(action, phase, observation)
         extra: dict[str, ModuleCommand] = {}
-        if phase in (Phase.RELEASE, Phase.FLOW):
+        if phase in (Phase.RELEASE, Phase.HANDOVER):
             extra.update(_port_commands(diff.broken, "undock"))
-        if phase in (Phase.CONNECT, Phase.FLOW):
+        if phase in (Phase.CONNECT, Phase.HANDOVER):
             extra = _merge(Control(commands=extra), _port_commands(diff.made, "dock"))
         commands = _merge(control, extra)
         self.driver.send_action(commands)
@@ -348,7 +388,7 @@ class Executor:
         plugins.emit.tick(self.run, Tick(self.tick_index, self.driver.time, index, action, phase,
                                          observation, configuration, commands, control.errors))
         self.tick_index += 1
-        if phase is Phase.APPROACH or phase is Phase.MOVE:
+        if phase in (Phase.APPROACH, Phase.MOVE, Phase.FLOW):
             return control.reached
         return not topology_diff(configuration, self._phase_goal(phase, diff))
 

@@ -5,8 +5,9 @@ by the planner or at library retrieval), so the executor never sees a reference 
 
 Action types follow the FreeSN paper, section 4.1: *moving* (vectors change, the
 topology does not), *connection* and *disconnection* (one connection made or
-broken; MMRP's dock and undock), *flow* (a connector slides from one module to
-another), and *parallel* connection/disconnection (several at once).
+broken; MMRP's dock and undock), *flow* (a leaf module leaves its parent for a
+neighbour of the parent, disconnection and connection at once; defined in
+:mod:`msrr.core.actions`), and *parallel* connection/disconnection (several at once).
 """
 
 from __future__ import annotations
@@ -26,15 +27,17 @@ from .files import Coordinate, Cost, Number, StrictModel, atomic_write_text, par
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
 from .robot import Robot, check_structure
 
-__all__ = ["Action", "ActionType", "ConnectionChange", "ConnectionKey", "Plan", "check_plan",
-           "connection_key", "load_plan", "save_plan"]
+__all__ = ["STRUT_ENDS", "Action", "ActionType", "ConnectionChange", "ConnectionKey", "Plan",
+           "check_plan", "connection_key", "links", "load_plan", "save_plan"]
 
 
 class ActionType(StrEnum):
     """Kinds of action (FreeSN paper section 4.1), detected by :func:`msrr.core.actions.classify`.
 
     A step that breaks some connections and makes others (not a flow) is a
-    ``PARALLEL_CONNECTION``: disconnections first, then connections.
+    ``PARALLEL_CONNECTION``: disconnections first, then connections. ``FLOW``: one
+    leaf module moves its one connection from its parent to a neighbour of the parent
+    (:func:`msrr.core.actions.flow_move` has the exact rule).
     """
 
     MOVING = "moving"
@@ -74,6 +77,34 @@ class ConnectionChange:
         return f"{self.source}{self.source_port or ''}-{self.target}{self.target_port or ''}"
 
 
+STRUT_ENDS = ("a", "b")
+"""Names of the source and target end of a connection that is a module."""
+
+
+def links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]:
+    """Every physical link of ``config`` with its direction-free key.
+
+    A connection between two modules is one link; a connection that is itself a
+    module (a FreeSN strut) is one link per end resting on a module,
+    ``{(strut, end), (module, port)}``; an end at a virtual vertex (a free connector)
+    is no link.
+    """
+    found = []
+    for edge in config.edges():
+        ports = edge.ports or (None, None)
+        if edge.kind is None:
+            if not (config.is_virtual(edge.source) or config.is_virtual(edge.target)):
+                found.append((connection_key(edge.source, edge.target, ports[0], ports[1]),
+                              ConnectionChange(edge.source, edge.target, ports[0], ports[1],
+                                               edge.id)))
+            continue
+        for end, vertex, port in zip(STRUT_ENDS, (edge.source, edge.target), ports, strict=True):
+            if not config.is_virtual(vertex):
+                found.append((connection_key(edge.id, vertex, end, port),
+                              ConnectionChange(edge.id, vertex, end, port, edge.id)))
+    return found
+
+
 @dataclass
 class Action:
     """One step of a plan.
@@ -103,6 +134,16 @@ class Action:
         what = ", ".join(str(c) for c in self.changes) or ", ".join(self.modules)
         return f"{self.type.value} {what}".strip()
 
+    def made(self) -> tuple[ConnectionChange, ...]:
+        """The changes that are connections of ``target`` (connections made)."""
+        keys = {key for key, _ in links(self.target)}
+        return tuple(c for c in self.changes if c.key in keys)
+
+    def broken(self) -> tuple[ConnectionChange, ...]:
+        """The changes that are not connections of ``target`` (connections broken)."""
+        keys = {key for key, _ in links(self.target)}
+        return tuple(c for c in self.changes if c.key not in keys)
+
 
 @dataclass
 class Plan:
@@ -128,17 +169,20 @@ class Plan:
     notes: list[str] = field(default_factory=list)
     stats: dict[str, float] = field(default_factory=dict)
 
-    def count(self, *types: ActionType) -> int:
-        """Number of connection changes made by actions of the given types."""
-        return sum(len(a.changes) for a in self.actions if a.type in types)
-
     @property
     def docks(self) -> int:
-        return self.count(ActionType.CONNECTION, ActionType.PARALLEL_CONNECTION)
+        """Connections the actions make (a flow's and a reconnection's included)."""
+        return sum(len(a.made()) for a in self.actions)
 
     @property
     def undocks(self) -> int:
-        return self.count(ActionType.DISCONNECTION, ActionType.PARALLEL_DISCONNECTION)
+        """Connections the actions break (a flow's and a reconnection's included)."""
+        return sum(len(a.broken()) for a in self.actions)
+
+    @property
+    def flows(self) -> int:
+        """Flow actions (each also one dock and one undock)."""
+        return sum(1 for a in self.actions if a.type is ActionType.FLOW)
 
 
 # -- file format ------------------------------------------------------------------------

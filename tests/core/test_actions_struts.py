@@ -40,7 +40,10 @@ CASES = {
     "moving": (base(), ActionType.MOVING),
     "free end docks": (rewired(("S2", "N1", "N3")), ActionType.CONNECTION),
     "end leaves a node": (rewired(("S1", "N1", "v9")), ActionType.DISCONNECTION),
-    "end slides to another node": (rewired(("S4", "N3", "N1")), ActionType.FLOW),
+    # nodes are joined through struts, never directly: no node is a neighbour of another,
+    # so an end moving between nodes releases and docks (section 4.1 flows are FreeBOT's
+    # and SnailBot's)
+    "end moves to another node": (rewired(("S4", "N3", "N1")), ActionType.PARALLEL_CONNECTION),
     "two free ends dock": (rewired(("S2", "N1", "N3"), ("S3", "N2", "N3")),
                            ActionType.PARALLEL_CONNECTION),
     "two ends leave": (rewired(("S1", "N1", "v8"), ("S4", "N3", "v9")),
