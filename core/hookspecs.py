@@ -22,19 +22,18 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import pluggy
 
-from .capabilities import Controller, DriverFactory, Planner, Recognizer
-from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
-from .plan import Action
-from .robot import DockingRules, RobotSpec
-from .scenario import Scenario
-
-# Only type checkers need these two: every plugin imports this module through
-# ``msrr.core``, which imports neither click nor the kinematics (scipy.spatial alone
-# takes about 0.2 s to import).
+# Only type checkers need these: every plugin imports this module when it loads, and
+# plugins load on every command's --help, which must not pay for numpy, networkx,
+# pydantic or scipy (benchmarks/cli_startup.py; tests/core/test_cli_startup.py).
 if TYPE_CHECKING:
     import click
 
+    from .capabilities import Controller, DriverFactory, Planner, Recognizer
+    from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
     from .kinematics.node import KinematicNode
+    from .plan import Action
+    from .robot import DockingRules, RobotSpec
+    from .scenario import Scenario
 
 __all__ = ["Register", "hookimpl", "hookspec"]
 

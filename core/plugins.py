@@ -27,16 +27,13 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from importlib import import_module
 from importlib.metadata import entry_points
-from typing import Generic, TypeVar
+from typing import TYPE_CHECKING, Generic, TypeVar
 
-import click
 import pluggy
 
-from . import generic, hookspecs, io
-from . import plan as plan_module
-from .capabilities import Controller, DriverFactory, Planner, Recognizer
-from .configuration import Configuration
+from . import hookspecs
 from .errors import (
     ConfigurationError,
     PluginError,
@@ -44,14 +41,21 @@ from .errors import (
     UnknownRobotError,
     one_line,
 )
-from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
-from .kinematics.node import FixedNode, KinematicNode
-from .library import storage as library_storage
-from .library.model import Library
-from .link import link_driver_factory
-from .plan import Action, Plan
-from .robot import DockingRules, Robot, RobotSpec
-from .scenario import Scenario
+
+# The command line loads the plugins on every --help, which must not pay for numpy,
+# networkx, pydantic or scipy: the modules of robots, plans, files and the generic
+# runtime are imported by the functions that use them (tests/core/test_cli_startup.py).
+if TYPE_CHECKING:
+    import click
+
+    from .capabilities import Controller, DriverFactory, Planner, Recognizer
+    from .configuration import Configuration
+    from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
+    from .kinematics.node import KinematicNode
+    from .library.model import Library
+    from .plan import Action, Plan
+    from .robot import DockingRules, Robot, RobotSpec
+    from .scenario import Scenario
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -252,6 +256,7 @@ def _call_each(hook_name: str, before: Callable[[], object] | None = None, **kwa
 
 def _robot_answers() -> tuple[dict[str, RobotSpec], dict[str, list[str]]]:
     """Robots described by exactly one plugin, and robot name -> plugins for the others."""
+    from .robot import RobotSpec
     claims: dict[str, list[tuple[str, RobotSpec]]] = {}
     for impl, spec in _call_each("msrr_robot"):
         if spec is None:
@@ -279,6 +284,8 @@ def robots() -> dict[str, RobotSpec]:
 
 def _robot_owner(name: str) -> str | None:
     """The plugin that describes robot ``name``."""
+    from .robot import RobotSpec
+
     for impl, spec in _call_each("msrr_robot"):
         if isinstance(spec, RobotSpec) and spec.name == name:
             return impl.plugin_name
@@ -309,6 +316,8 @@ def robot(name: str) -> RobotSpec:
 
 def docking_rules(name: str) -> DockingRules:
     """Docking rules of robot ``name`` (permissive defaults if no plugin defines them)."""
+    from .robot import DockingRules
+
     robot(name)
     for impl, rules in _call_each("msrr_docking_rules", robot=name):
         if rules is None:
@@ -323,6 +332,8 @@ def docking_rules(name: str) -> DockingRules:
 
 def resolve(name: str) -> Robot:
     """Everything the pure layers need of robot ``name``: spec, rules, joint modes."""
+    from .kinematics.node import FixedNode
+    from .robot import Robot
     modes: dict[str, type] = {"fixed": FixedNode}
     modes.update(kinematic_nodes(name))
     return Robot(robot(name), docking_rules(name), modes)
@@ -340,6 +351,8 @@ def load_configuration(path: str | os.PathLike[str]) -> Configuration:
         UnknownRobotError: the file names a robot no installed plugin describes.
         PluginError: two plugins describe the robot the file names.
     """
+    from . import io
+
     config = io.load_configuration(path)
     try:
         io.check_configuration(config, _robot_of(config.robot, path))
@@ -365,7 +378,9 @@ def load_library(path: str | os.PathLike[str]) -> Library:
     Raises:
         LibraryError: naming the file and the field.
     """
-    return library_storage.load_library(path, lambda name: _robot_of(name, path))
+    from .library import storage
+
+    return storage.load_library(path, lambda name: _robot_of(name, path))
 
 
 def load_plan(path: str | os.PathLike[str]) -> Plan:
@@ -375,7 +390,9 @@ def load_plan(path: str | os.PathLike[str]) -> Plan:
     Raises:
         ConfigurationError: naming the file and the field.
     """
-    return plan_module.load_plan(path, lambda name: _robot_of(name, path))
+    from . import plan
+
+    return plan.load_plan(path, lambda name: _robot_of(name, path))
 
 
 # -- capabilities ---------------------------------------------------------------------
@@ -388,14 +405,22 @@ class Capability(Generic[T]):
     ``dict[str, Planner]`` in registration order, ``planners.get("mmrp")`` the default.
 
     Each registered item is checked against ``accepts`` (a protocol or class; for
-    joint modes a base class the item must subclass) when it is registered.
+    joint modes a base class the item must subclass) when it is registered. It is named
+    ``"module:Class"`` within ``msrr.core`` and imported at the first check, so loading
+    the plugin host imports no robot code.
     """
 
-    def __init__(self, hook_name: str, what: str, accepts: type, subclass: bool = False):
+    def __init__(self, hook_name: str, what: str, accepts: str, subclass: bool = False):
         self.hook_name = hook_name
         self.what = what
-        self.accepts = accepts
+        self._accepts = accepts
         self.subclass = subclass
+
+    @property
+    def accepts(self) -> type:
+        """The protocol or class every registered item must fit."""
+        module, name = self._accepts.split(":")
+        return getattr(import_module(f".{module}", __package__), name)
 
     def _fits(self, item: object) -> bool:
         if self.subclass:
@@ -451,6 +476,9 @@ class Capability(Generic[T]):
         own = _robot_owner(robot_name)
         found = {name: item for name, item in sorted(
             found.items(), key=lambda entry: owners[entry[0]].plugin_name != own)}
+        from . import generic
+        from .link import link_driver_factory
+
         if self.hook_name in generic.HOOKS:  # the generic runtime, after the robot's own
             for item in generic.capabilities(self.hook_name, resolve(robot_name)):
                 found.setdefault(item.name, item)  # type: ignore[attr-defined]
@@ -478,12 +506,15 @@ class Capability(Generic[T]):
 
 
 kinematic_nodes: Capability[type[KinematicNode]] = Capability(
-    "msrr_kinematic_nodes", "joint mode", KinematicNode, subclass=True)
-controllers: Capability[Controller] = Capability("msrr_controllers", "controller", Controller)
-recognizers: Capability[Recognizer] = Capability("msrr_recognizers", "recognizer", Recognizer)
-planners: Capability[Planner] = Capability("msrr_planners", "planner", Planner)
-drivers: Capability[DriverFactory] = Capability("msrr_drivers", "driver", DriverFactory)
-scenarios: Capability[Scenario] = Capability("msrr_scenarios", "scenario", Scenario)
+    "msrr_kinematic_nodes", "joint mode", "kinematics.node:KinematicNode", subclass=True)
+controllers: Capability[Controller] = Capability("msrr_controllers", "controller",
+                                                 "capabilities:Controller")
+recognizers: Capability[Recognizer] = Capability("msrr_recognizers", "recognizer",
+                                                 "capabilities:Recognizer")
+planners: Capability[Planner] = Capability("msrr_planners", "planner", "capabilities:Planner")
+drivers: Capability[DriverFactory] = Capability("msrr_drivers", "driver",
+                                                "capabilities:DriverFactory")
+scenarios: Capability[Scenario] = Capability("msrr_scenarios", "scenario", "scenario:Scenario")
 
 
 def register_commands(cli: click.Group, pm: pluggy.PluginManager | None = None) -> None:

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
 from ..hookspecs import hookimpl
-from ..plan import Action
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # annotations only: the plugin loads on every --help
+    from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
+    from ..plan import Action
     from .recorder import TimelineRecorder
 
 __all__ = ["abort", "msrr_on_action", "msrr_on_fault", "msrr_on_run_end", "msrr_on_run_start",

@@ -2,9 +2,7 @@
 
 Tu et al., "Locomotion and Self-reconfiguration Autonomy for Spherical Freeform
 Modular Robots" (2025); hardware: Tu et al. 2022, Tu and Lam 2023.
+
+The robot is ``robot.SPEC``; the package imports nothing, so loading the plugin
+(on every command's ``--help``) stays cheap.
 """
-
-from .robot import SPEC
-from .rules import FreeSNRules
-
-__all__ = ["SPEC", "FreeSNRules"]

@@ -1,13 +1,14 @@
-"""Hook implementations of the FreeSN robot plugin."""
+"""Hook implementations of the FreeSN robot plugin.
+
+Loaded by the command line on every ``--help``: the module imports only the hook
+marker; each hook imports what it answers with (the robot, its rules, joints, planners).
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from msrr.core import hookimpl
-
-from .robot import SPEC
-from .rules import FreeSNRules
 
 CONFIGS = Path(__file__).resolve().parent / "configs" / "library"
 """Every configuration of the shipped libraries as ``<library id>.json``."""
@@ -26,16 +27,23 @@ SCENARIOS = (
 
 @hookimpl
 def msrr_robot():
+    from .robot import SPEC
+
     return SPEC
 
 
 @hookimpl
 def msrr_docking_rules(robot: str):
+    from .robot import SPEC
+    from .rules import FreeSNRules
+
     return FreeSNRules() if robot == SPEC.name else None
 
 
 @hookimpl
 def msrr_kinematic_nodes(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from .joints import JOINT_MODES
 
@@ -45,6 +53,8 @@ def msrr_kinematic_nodes(robot: str, register):
 
 @hookimpl
 def msrr_planners(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from msrr.core.plugins import resolve
 
@@ -55,6 +65,8 @@ def msrr_planners(robot: str, register):
 
 @hookimpl
 def msrr_scenarios(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from msrr.core.scenario import Scenario
 
@@ -66,6 +78,8 @@ def msrr_scenarios(robot: str, register):
 
 @hookimpl
 def msrr_drivers(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from .sim import FreeSNMujocoDriver
 
@@ -74,6 +88,8 @@ def msrr_drivers(robot: str, register):
 
 @hookimpl
 def msrr_recognizers(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from .sim import FreeSNRecognizer
 
@@ -82,6 +98,8 @@ def msrr_recognizers(robot: str, register):
 
 @hookimpl
 def msrr_controllers(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from .joints import JOINT_MODES
         from .sim import FreeSNController

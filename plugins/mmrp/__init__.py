@@ -2,32 +2,47 @@
 
 Wei et al., "A Graph-Based Hybrid Reconfiguration Deformation Planning for Modular
 Robots", Sensors 23 (2023) 7892.
+
+Its public names load lazily (PEP 562), as :mod:`msrr.core`'s do: importing the plugin
+(on every command's ``--help``) imports neither the planner nor numpy.
 """
 
-from .check import check_plan
-from .exact import CertifiedOptimum, certified_optimum
-from .optimum import Optimum, optimum
-from .planner import HybridResult, McsHybridPlanner, plan_hybrid
-from .recognition import DistributedRecognizer, Recognition, recognize_with_stats
-from .representation import layout, to_tree
-from .robot import FACES, SPEC
-from .rules import MmrpRules
+from __future__ import annotations
 
-__all__ = [
-    "FACES",
-    "SPEC",
-    "CertifiedOptimum",
-    "DistributedRecognizer",
-    "HybridResult",
-    "McsHybridPlanner",
-    "MmrpRules",
-    "Optimum",
-    "Recognition",
-    "certified_optimum",
-    "check_plan",
-    "layout",
-    "optimum",
-    "plan_hybrid",
-    "recognize_with_stats",
-    "to_tree",
-]
+import importlib
+from typing import Any
+
+_EXPORTS: dict[str, str] = {
+    "certified_optimum": "exact",
+    "CertifiedOptimum": "exact",
+    "check_plan": "check",
+    "DistributedRecognizer": "recognition",
+    "FACES": "robot",
+    "HybridResult": "planner",
+    "layout": "representation",
+    "McsHybridPlanner": "planner",
+    "MmrpRules": "rules",
+    "Optimum": "optimum",
+    "optimum": "optimum",
+    "plan_hybrid": "planner",
+    "Recognition": "recognition",
+    "recognize_with_stats": "recognition",
+    "SPEC": "robot",
+    "to_tree": "representation",
+}
+"""Public name -> the module of this package that defines it (imported on first use)."""
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -1,25 +1,28 @@
-"""Hook implementations of the MMRP robot plugin."""
+"""Hook implementations of the MMRP robot plugin.
+
+Loaded by the command line on every ``--help``: the module imports only the hook
+marker; each hook imports what it answers with (the robot, its rules, planners).
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from msrr.core import hookimpl
-from msrr.core.scenario import Scenario
-
-from .planner import McsHybridPlanner
-from .recognition import DistributedRecognizer
-from .robot import SPEC
-from .rules import MmrpRules
 
 
 @hookimpl
 def msrr_robot():
+    from .robot import SPEC
+
     return SPEC
 
 
 @hookimpl
 def msrr_docking_rules(robot: str):
+    from .robot import SPEC
+    from .rules import MmrpRules
+
     return MmrpRules() if robot == SPEC.name else None
 
 
@@ -28,19 +31,31 @@ CONFIGS = Path(__file__).parent / "configs"
 
 @hookimpl
 def msrr_planners(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
+        from .planner import McsHybridPlanner
+
         register(McsHybridPlanner())
 
 
 @hookimpl
 def msrr_recognizers(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
+        from .recognition import DistributedRecognizer
+
         register(DistributedRecognizer())
 
 
 @hookimpl
 def msrr_scenarios(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
+        from msrr.core.scenario import Scenario
+
         register(Scenario(name="cross-probe",
                           description="cross to probe, 9 modules (paper Figs. 11-15)",
                           start=CONFIGS / "cross.json", goal=CONFIGS / "probe.json",
@@ -57,6 +72,8 @@ def msrr_scenarios(robot: str, register):
 
 @hookimpl
 def msrr_drivers(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from .sim import MmrpSimDriver
 
@@ -65,6 +82,8 @@ def msrr_drivers(robot: str, register):
 
 @hookimpl
 def msrr_controllers(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
         from .sim import MmrpController
 

@@ -1,34 +1,47 @@
-"""Hook implementations of the SnailBot robot plugin."""
+"""Hook implementations of the SnailBot robot plugin.
+
+Loaded by the command line on every ``--help``: the module imports only the hook
+marker; each hook imports what it answers with (the robot, its rules, joints, planners).
+"""
 
 from __future__ import annotations
 
 from msrr.core import hookimpl
-from msrr.core.miso import MISO_EXACT, MisoPlanner
-from msrr.core.robot import MisoRules
-
-from .joints import JOINT_MODES
-from .robot import SPEC
 
 
 @hookimpl
 def msrr_robot():
+    from .robot import SPEC
+
     return SPEC
 
 
 @hookimpl
 def msrr_docking_rules(robot: str):
+    from msrr.core.robot import MisoRules
+
+    from .robot import SPEC
+
     return MisoRules(SPEC.name) if robot == SPEC.name else None
 
 
 @hookimpl
 def msrr_kinematic_nodes(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
+        from .joints import JOINT_MODES
+
         for node_type in JOINT_MODES:
             register(node_type)
 
 
 @hookimpl
 def msrr_planners(robot: str, register):
+    from .robot import SPEC
+
     if robot == SPEC.name:
+        from msrr.core.miso import MISO_EXACT, MisoPlanner
+
         register(MisoPlanner())
         register(MISO_EXACT)
