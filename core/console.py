@@ -13,27 +13,32 @@ show at most :data:`MAX_ROWS` rows and say how many they left out.
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import os
 import sys
 from collections.abc import Callable, Iterable
 from itertools import islice
 from pathlib import Path
-from typing import Any, Final, TypeVar
+from typing import TYPE_CHECKING, Any, Final, TypeVar
 
 import click
-import numpy as np
 from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from .configuration import Configuration
 from .errors import MsrrError, one_line
+
+if TYPE_CHECKING:  # this module is on every command's --help path: no numpy, no graphs
+    import numpy as np
+
+    from .configuration import Configuration
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
-__all__ = ["run_selection_options", "MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "console", "err_console", "error_line",
-           "printable", "show_configuration", "styled", "table", "vector_text"]
-
+__all__ = ["MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "check_display", "console",
+           "counts", "err_console", "error_line", "plural", "printable", "require",
+           "run_selection_options", "show_configuration", "styled", "table", "vector_text"]
 
 
 def printable(text: str) -> str:
@@ -62,6 +67,44 @@ err_console = _LiteralConsole(stderr=True, highlight=False, soft_wrap=True, widt
 
 MAX_ROWS: Final = 200
 """Most rows a table prints; the rest are counted in a last row."""
+
+
+def plural(count: int, noun: str, many: str | None = None) -> str:
+    """``count`` with ``noun`` in the right number: ``plural(1, "connection")`` is
+    ``"1 connection"``, ``plural(3, "connection")`` ``"3 connections"``; ``many`` is the
+    plural of an irregular noun (``plural(2, "body", "bodies")``)."""
+    return f"{count} {noun if count == 1 else many or noun + 's'}"
+
+
+def counts(config: Configuration) -> str:
+    """``"7 modules, 4 connections"``: every physical module (vertex modules and modules
+    that are connections, FreeSN's struts; free ends are none) and every connection.
+    ``validate`` and ``show`` both say it this way."""
+    return f"{plural(len(config.modules()), 'module')}, {plural(len(config.edges()), 'connection')}"
+
+
+def require(module: str, extra: str, command: str) -> None:
+    """Check that the optional dependency ``module`` is installed for ``command``.
+
+    Raises:
+        MsrrError: one line, ``"platform snapshot needs matplotlib: pip install
+            'msrr-platform[plot]'"``, when it is not.
+    """
+    if importlib.util.find_spec(module) is None:
+        raise MsrrError(f"platform {command} needs {module}: pip install 'msrr-platform[{extra}]'")
+
+
+def check_display(option: str) -> None:
+    """Check that a window can open (``DISPLAY`` or ``WAYLAND_DISPLAY`` on Linux) before
+    ``option`` asks for one.
+
+    Raises:
+        MsrrError: one line naming ``option`` and what to do instead.
+    """
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        raise MsrrError(f"{option} needs a display, and DISPLAY is not set: run without "
+                        f"{option} and watch the recording (rerun run.rrd), or use xvfb-run")
 
 
 def styled(text: str, style: str) -> Text:
@@ -150,22 +193,34 @@ def vector_text(v: np.ndarray | None) -> str:
     return "" if v is None else "(" + ", ".join(f"{c:+.3f}" for c in v) + ")"
 
 
+def _filled(header: list[str], rows: list[list[Any]], optional: set[str]
+            ) -> tuple[list[str], list[list[Any]]]:
+    """``header`` and ``rows`` without the ``optional`` columns that are empty in every row."""
+    keep = [i for i, name in enumerate(header)
+            if name not in optional or any(row[i] != "" for row in rows)]
+    return [header[i] for i in keep], [[row[i] for i in keep] for row in rows]
+
+
 def show_configuration(config: Configuration, title: str = "") -> None:
-    """Print the module and connection tables of ``config``."""
-    head = f"{title} — {config.name or 'unnamed'} ({config.robot})"
+    """Print ``config``'s counts (:func:`counts`), its vertex and connection tables;
+    the position, kind, ports, z and x columns only where some row has a value."""
+    head = f"{title} — {config.name or 'unnamed'} ({config.robot}): {counts(config)}"
     if config.description:
-        head += f": {config.description}"
+        head += f"\n{config.description}"
     console.print(head)
-    modules = ([v, config.kind_of(v), config.degree(v), vector_text(config.position(v))]
-               for v in config.vertices())
-    console.print(table(f"Modules ({len(config)})", ["id", "kind", "degree", "position [m]"],
-                        modules))
+    vertices = config.vertices()
+    all_modules = len(vertices) == len(config.modules())  # no free end, no module as connection
+    header, rows = _filled(["id", "kind", "degree", "position [m]"],
+                           [[v, config.kind_of(v), config.degree(v), vector_text(config.position(v))]
+                            for v in vertices], {"position [m]"})
+    console.print(table(f"{'Modules' if all_modules else 'Vertices'} ({len(vertices)})",
+                        header, rows))
     edges = config.edges()
-    rows = ([e.id, f"{e.source} → {e.target}", e.kind or "",
-             "–".join(e.ports) if e.ports else "", vector_text(e.z), vector_text(e.x)]
-            for e in edges)
-    console.print(table(f"Connections ({len(edges)})",
-                        ["id", "ends", "kind", "ports", "z", "x"], rows))
+    header, rows = _filled(["id", "ends", "kind", "ports", "z", "x"],
+                           [[e.id, f"{e.source} → {e.target}", e.kind or "",
+                             "–".join(e.ports) if e.ports else "", vector_text(e.z),
+                             vector_text(e.x)] for e in edges], {"kind", "ports", "z", "x"})
+    console.print(table(f"Connections ({len(edges)})", header, rows))
 
 
 def run_selection_options(command: _F) -> _F:

@@ -1,30 +1,29 @@
-"""``platform run``: plan and execute a reconfiguration, record it to rerun."""
+"""``platform run``: plan and execute a reconfiguration, record it to rerun.
+
+Like every command module, it imports the run machinery (simulators, rerun, numpy) in
+the command's body, not at module level, so ``platform run --help`` starts at once.
+"""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from .. import plugins
-from ..console import console, err_console, run_selection_options, table
+from ..console import check_display, console, err_console, run_selection_options, table
 from ..errors import ConfigurationError
-from ..events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
 from ..hookspecs import hookimpl
 from ..interrupts import Interrupted, handled, shielded
-from ..plan import Action
-from ..run import (
-    PreparedRun,
-    RunRequest,
-    execute_run,
-    interrupted_result,
-    parse_driver_options,
-    prepare_run,
-    write_outputs,
-)
+
+if TYPE_CHECKING:
+    from ..events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
+    from ..plan import Action
+    from ..run import PreparedRun
 
 __all__ = ["command"]
 
@@ -39,7 +38,7 @@ class _ProgressListener:
     @hookimpl
     def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
         self.progress.update(self.task, description=f"{action} ({status})")
-        if status == ActionStatus.SUCCEEDED:
+        if status == "succeeded":  # ActionStatus.SUCCEEDED, a str enum
             self.progress.advance(self.task)
 
     @hookimpl
@@ -102,6 +101,19 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
 @click.option("--system", "system_file", type=click.Path(path_type=Path), default=None,
               metavar="FILE", help="Systems file of the modules for --driver link (implies it; "
                                    "see docs/hardware.md).")
+@click.option("--behavior", default=None, metavar="NAME",
+              help="Run a behavior of the robot's library after the goal (or from the start "
+                   "without --to): the path to its start is retrieved, then it runs.")
+@click.option("--param", "parameters", multiple=True, metavar="NAME=VALUE",
+              help="A parameter of the behavior, repeatable (speed=0.05 [m/s], yaw_rate=0 "
+                   "[rad/s]).")
+@click.option("--duration", default=None, type=float,
+              help="How long a mapping behavior runs [s of simulated time; default 30].")
+@click.option("--loops", default=None, type=int,
+              help="How many loops of a sequence behavior run [default 1; with --distance, "
+                   "at most this many].")
+@click.option("--distance", default=None, type=float,
+              help="Stop the behavior once the system's centre moved this far [m].")
 @click.option("--plan", "plan_file", type=click.Path(path_type=Path), default=None,
               metavar="FILE", help="Execute a saved plan (platform plan --json, or a run's "
                                    "plan.json) instead of planning; validated on load.")
@@ -109,13 +121,26 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
             planner_name: str | None, driver_name: str | None, seed: int, out: str | None,
             force: bool, no_log: bool, gui: bool, rate: float, action_timeout: float,
             deadline: float | None, faults: str, driver_options: tuple[str, ...],
-            system_file: Path | None, plan_file: Path | None) -> None:
+            system_file: Path | None, behavior: str | None, parameters: tuple[str, ...],
+            duration: float | None, loops: int | None, distance: float | None,
+            plan_file: Path | None) -> None:
     """Plan and execute a reconfiguration in simulation and record it.
 
     Writes DIR/run.rrd, DIR/plan.json and DIR/summary.json, also when the run fails,
     meets a fault or is interrupted. Exits 1 with the failing action named if the plan
     cannot be finished, 130 on SIGINT (Ctrl-C) and 143 on SIGTERM.
     """
+    if gui:
+        check_display("--gui")  # before any work: one line, not a simulator's traceback
+    from ..run import (
+        RunRequest,
+        interrupted_result,
+        parse_driver_options,
+        parse_parameters,
+        prepare_run,
+        write_outputs,
+    )
+
     with handled():
         try:
             if out is not None and not out.strip():
@@ -128,7 +153,9 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
                                  planner=planner_name,
                                  driver_options=parse_driver_options(driver_options)
                                  + ((("system", str(system_file)),) if system_file else ()),
-                                 force=force, faults=faults, deadline=deadline, plan=plan_file)
+                                 force=force, faults=faults, deadline=deadline, plan=plan_file,
+                                 behavior=behavior, parameters=parse_parameters(parameters),
+                                 duration=duration, loops=loops, distance=distance)
             prepared = prepare_run(request)
         except (Interrupted, KeyboardInterrupt) as exc:
             code = exc.exit_code if isinstance(exc, Interrupted) else 130
@@ -159,6 +186,8 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
 
 
 def _execute(prepared: PreparedRun) -> RunResult:
+    from ..run import execute_run
+
     run, plan = prepared.run, prepared.run.plan
     for note in prepared.notes:
         err_console.print(f"note: {note}", markup=False)

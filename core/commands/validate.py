@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .. import plugins
-from ..console import console, err_console, error_line, styled
+from ..console import console, counts, err_console, error_line, styled
 from ..errors import MsrrError
 
 __all__ = ["command"]
@@ -31,7 +31,6 @@ def command(files: tuple[Path, ...]) -> None:
             err_console.print(styled("invalid", "red"), line)
             failed += 1
             continue
-        console.print(styled("valid", "green"), f"{path}: {config.robot}, "
-                      f"{len(config.modules())} modules, {len(config.edges())} connections")
+        console.print(styled("valid", "green"), f"{path}: {config.robot}, {counts(config)}")
     if failed:
         raise SystemExit(1)
