@@ -44,6 +44,7 @@ SPEC = RobotSpec(
     ),
     reference="Wei et al., Sensors 23 (2023) 7892",
     defaults={"control_rate": 10.0, "simulator": "pybullet",
+              "planar": True,  # moves on the ground plane: the timeline adds a top view
               # final module poses against the goal layout [m], [rad]: two lateral
               # latch windows, one angular latch window (msrr.core.shape)
               "shape_tolerance": {"position": 0.02, "heading": 0.06}},
