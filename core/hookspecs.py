@@ -18,7 +18,7 @@ shows each signature (a test keeps the two in step).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import pluggy
 
@@ -248,4 +248,23 @@ def msrr_on_run_end(run: Run, result: RunResult) -> None:
     :param run: the run.
     :param result: the :class:`~msrr.core.events.RunResult` (success, counts, times,
         reason on failure).
+    """
+
+
+# -------------------------------------------------------------------------------------
+# Timeline (the rerun recording of a run)
+# -------------------------------------------------------------------------------------
+
+
+@hookspec
+def msrr_timeline_views(run: Run, register: Register[Any]) -> None:
+    """Add views to the viewer layout (blueprint) of a run's rerun recording.
+
+    Called once per recorded run, when the timeline sends its blueprint (at the first
+    tick). The views join the tabs under the plots; they may show the timeline's own
+    entities (``commands/<id>/<joint>``, ``world/...``, see ``docs/running.md``).
+
+    :param run: the :class:`~msrr.core.events.Run` being recorded (robot, spec, plan).
+    :param register: call ``register(view)`` with each ``rerun.blueprint`` view or
+        container (``rrb.TimeSeriesView(...)``, ``rrb.Spatial2DView(...)``...).
     """

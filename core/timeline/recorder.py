@@ -2,57 +2,93 @@
 
 Entity paths (stable, documented in ``docs/running.md``):
 
-* ``world/modules/<id>`` -- the module body (box) with its pose per tick;
+* ``world/modules/<id>`` -- the module body with its pose per tick: a box, sphere or
+  capsule as its kind's geometry says (:func:`msrr.core.timeline.geometry.body_of`);
   ``world/modules/<id>/faces`` -- its ports, active red, passive blue;
-  body size and ports come from the module kind in the robot spec
-  (:func:`msrr.core.robot.body_half_size`);
+  ``world/modules/<id>/connectors`` -- the two ends of an edge module (a FreeSN strut)
+  coloured by state (docked, extending, releasing, free), logged when it changes;
 * ``world/targets`` -- goal poses of the running action (wireframe boxes);
-* ``topology/current``, ``topology/target`` -- graph views (nodes and edges);
+  ``world/ghost`` -- the running action's target configuration laid out from its
+  connection vectors and placed on the robot (translucent), for robots with vectors;
+* ``top/modules``, ``top/connections``, ``top/targets`` -- the top-down 2-D view of a
+  planar robot (``spec.defaults["planar"]``); y is logged negated, as the 2-D view's
+  y axis points down;
+* ``topology/current``, ``topology/target`` -- graph views: nodes at fixed positions
+  (one layout of every configuration of the plan), a label node on each edge (ports,
+  or the edge module's id); ``topology/connections`` -- docked connections (scalar);
 * ``action`` -- the running action as text; ``plan``, ``mapping`` -- static text;
-* ``commands/<id>/<wheel or joint>``, ``errors/<id>`` -- scalars per module;
+* ``commands/<id>/<wheel or joint>`` (a ``.`` in a joint name is a ``/``),
+  ``errors/<id>`` -- scalars per module, cleared on the ticks a module is idle so the
+  plots break there; ``shape/angle`` -- RMS strut angle to the action's target [deg]
+  (eq. 8 alignment), for robots with connection vectors;
 * ``events/docks``, ``events/undocks``, ``events/actions``, ``events/faults`` -- text logs
   (faults: injected by ``--faults`` or caught by the driver guard, WARN when the run
   carries on, ERROR when it stops).
 
 Timelines: ``tick`` (sequence) and ``sim_time`` (duration of driver time). The file
 is written as ``<name>.part`` and renamed when the run ends, so no half recording
-is ever left under the final name.
+is ever left under the final name. The blueprint is sent at the first tick, when the
+module poses that frame the 3-D camera are known.
 """
 
 from __future__ import annotations
 
+import math
 import os
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 
-from ..actions import connection_key
+from .. import plugins
+from ..actions import topology_diff
 from ..configuration import Configuration
+from ..driver import Pose
 from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
-from ..plan import Action
-from ..robot import DEFAULT_HALF_SIZE, body_half_size
-from .blueprint import build_blueprint
+from ..plan import Action, links
+from ..robot import DEFAULT_HALF_SIZE
+from ..shape import skeletal_errors
+from .blueprint import build_blueprint, camera_eye
+from .geometry import (
+    Body,
+    body_of,
+    capsule_between,
+    graph_layout,
+    label_node,
+    palette,
+    place_on,
+    vector_layout,
+)
 
-__all__ = ["TimelineRecorder"]
+__all__ = ["CONNECTOR_COLORS", "TimelineRecorder", "event_name"]
 
 ACTIVE = (220, 60, 50)
 PASSIVE = (50, 90, 220)
-PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
-           (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
+CONNECTOR_COLORS = {"docked": (40, 170, 60), "extending": (250, 160, 0),
+                    "releasing": (200, 40, 200), "free": (150, 150, 150)}
+"""Colour of an edge module's connector in each state."""
+GHOST_ALPHA = 70
+_LABEL_COLOR = (120, 120, 120)
 
 
-def _graph(config: Configuration) -> tuple[rr.GraphNodes, rr.GraphEdges]:
-    nodes = config.vertices()
-    edges = [(e.source, e.target) for e in config.edges()]
-    labels = [f"{v}" for v in nodes]
-    return (rr.GraphNodes(node_ids=nodes, labels=labels),
-            rr.GraphEdges(edges=edges, graph_type="directed"))
+def event_name(event: TopologyEvent) -> str:
+    """The label of a dock or undock in the event log (``"dock 3a-1"``)."""
+    return f"{event.kind} {event.change}"
 
 
-def _topology_key(config: Configuration) -> frozenset:
-    return frozenset(connection_key(e.source, e.target, *(e.ports or (None, None)))
-                     for e in config.edges())
+def _docked(config: Configuration) -> int:
+    """Physical connections of ``config`` (:func:`msrr.core.plan.links`): vertex-vertex
+    links, and each docked end of an edge module (a strut docked at both ends is two)."""
+    return len(links(config))
+
+
+def _has_vectors(config: Configuration) -> bool:
+    return any(e.z is not None for e in config.edges())
+
+
+def _quat(pose: Pose) -> rr.Quaternion:
+    return rr.Quaternion(xyzw=pose.orientation)
 
 
 class TimelineRecorder:
@@ -68,35 +104,45 @@ class TimelineRecorder:
         self.rec = rr.RecordingStream("msrr", recording_id=f"{run.robot}-{run.scenario}-"
                                       f"{os.getpid()}-{id(run)}")
         self.rec.save(str(self.part))
-        self._topology: frozenset | None = None
+        self.rec.send_recording_name(f"{run.robot}: {run.scenario}")
+        self._topology: Configuration | None = None
         self._poses: dict[str, np.ndarray] = {}
-        self._colors = {m: PALETTE[i % len(PALETTE)]
-                        for i, m in enumerate(run.plan.start.vertices())}
-        kinds = {k.name: k for k in run.spec.module_kinds}
         start = run.plan.start
-        self._kinds = {m: kinds[start.kind_of(m)] for m in start.vertices()
-                       if start.kind_of(m) in kinds}  # virtual vertices have no body
-        self._half = {m: body_half_size(k) for m, k in self._kinds.items()}
+        modules = start.modules()
+        self._colors = dict(zip(modules, palette(len(modules)), strict=True))
+        kinds = {k.name: k for k in run.spec.module_kinds}
+        self._kinds = {m: kinds[k] for m, k in modules.items() if k in kinds}
+        self._bodies = {m: body_of(k) for m, k in self._kinds.items()}
+        spheres = [body_of(k).radius for k in run.spec.module_kinds
+                   if k.role == "vertex" and body_of(k).shape == "sphere"]
+        self._inset = max(spheres, default=0.0)  # edge modules drawn from sphere surfaces
+        self._lengths = {k.name: float(k.geometry["length"]) for k in run.spec.module_kinds
+                         if k.role == "edge" and "length" in k.geometry}
+        self._planar = bool(run.spec.defaults.get("planar", False))
+        self._vectors = _has_vectors(start) or _has_vectors(run.plan.goal)
+        self._layout = graph_layout([start, run.plan.goal, *(a.target for a in run.plan.actions)])
+        self._connectors: dict[str, tuple[str, str]] = {}
+        self._commanded: dict[str, set[str]] = {}
+        self._erroring: set[str] = set()
+        self._ghost_action: int | None = None
+        self._blueprint_sent = False
         self._write_static()
 
     # -- static -----------------------------------------------------------------------
 
     def _write_static(self) -> None:
         rec, run = self.rec, self.run
-        rec.send_blueprint(build_blueprint())
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        for module, kind in self._kinds.items():
-            path = f"world/modules/{module}"
-            half = self._half[module]
-            rec.log(path, rr.Boxes3D(half_sizes=[half], colors=[self._colors[module]],
-                                     fill_mode="solid", labels=[module]), static=True)
-            if kind.ports:
-                names = [p.name for p in kind.ports]
-                positions = [np.multiply(p.normal or (0.0, 0.0, 0.0), half) * 1.05
-                             for p in kind.ports]
-                colors = [ACTIVE if p.role == "active" else PASSIVE for p in kind.ports]
-                rec.log(f"{path}/faces", rr.Points3D(positions, colors=colors, labels=names,
-                                                     radii=0.015), static=True)
+        for module, body in self._bodies.items():
+            self._log_body(f"world/modules/{module}", body, self._colors[module], module)
+            kind = self._kinds[module]
+            ports = [p for p in kind.ports if p.normal is not None]
+            if ports and body.shape != "capsule":
+                positions = [np.multiply(p.normal, body.half_size) * 1.05 for p in ports]
+                colors = [ACTIVE if p.role == "active" else PASSIVE for p in ports]
+                rec.log(f"world/modules/{module}/faces",
+                        rr.Points3D(positions, colors=colors, labels=[p.name for p in ports],
+                                    radii=0.015), static=True)
         plan = run.plan
         lines = [f"# {run.robot}: {run.scenario}", "",
                  f"planner **{plan.planner}**, {len(plan.actions)} actions, "
@@ -112,7 +158,28 @@ class TimelineRecorder:
                 static=True)
         self._time(0, 0.0)
         self._log_topology(plan.start)
-        rec.log("topology/target", *_graph(plan.goal))
+        self._log_graph("topology/target", plan.goal)
+
+    def _log_body(self, path: str, body: Body, color: tuple[int, ...], label: str,
+                  static: bool = True) -> None:
+        if body.shape == "capsule":
+            a, b = body.ends(self._inset)
+            archetype = rr.Capsules3D(lengths=[float(b[2] - a[2])], radii=[body.radius],
+                                      translations=[a], colors=[color], labels=[label])
+        elif body.shape == "sphere":
+            archetype = rr.Ellipsoids3D(half_sizes=[body.half_size], colors=[color],
+                                        fill_mode="solid", labels=[label])
+        else:
+            archetype = rr.Boxes3D(half_sizes=[body.half_size], colors=[color],
+                                   fill_mode="solid", labels=[label])
+        self.rec.log(path, archetype, static=static)
+
+    def _send_blueprint(self, poses: Mapping[str, Pose]) -> None:
+        self._blueprint_sent = True
+        points = [np.asarray(p.position, dtype=float) for p in poses.values()]
+        self.rec.send_blueprint(build_blueprint(
+            self.run, eye=camera_eye(points) if points else None, planar=self._planar,
+            shape=self._vectors, extra=plugins.timeline_views(self.run)))
 
     # -- events -----------------------------------------------------------------------
 
@@ -120,30 +187,191 @@ class TimelineRecorder:
         self.rec.set_time("tick", sequence=tick)
         self.rec.set_time("sim_time", duration=sim_time)
 
+    def _place(self, config: Configuration) -> None:
+        """Give a vertex the plan never named (a free strut end the recognizer named) a
+        fixed place beside its neighbour, kept for the rest of the run."""
+        for e in config.edges():
+            for v, w in ((e.source, e.target), (e.target, e.source)):
+                if v not in self._layout:
+                    x, y = self._layout.get(w, (0.0, 0.0))
+                    self._layout[v] = (x + 30.0, y - 30.0)
+        for v in config.vertices():
+            self._layout.setdefault(v, (0.0, 0.0))
+
+    def _log_graph(self, path: str, config: Configuration) -> None:
+        """Nodes at their layout positions, one label node mid-edge (ports or edge id)."""
+        self._place(config)
+        ids, positions, labels, colors, radii = [], [], [], [], []
+        for v in config.vertices():
+            ids.append(v)
+            positions.append(self._layout[v])
+            virtual = config.is_virtual(v)
+            labels.append("" if virtual else v)
+            colors.append(_LABEL_COLOR if virtual else self._colors.get(v, _LABEL_COLOR))
+            radii.append(3.0 if virtual else 9.0)
+        edges = []
+        for e in config.edges():
+            node = label_node(e.id)
+            (xa, ya), (xb, yb) = self._layout[e.source], self._layout[e.target]
+            ids.append(node)
+            positions.append(((xa + xb) / 2, (ya + yb) / 2))
+            labels.append("-".join(e.ports) if e.ports else (e.id if e.kind else ""))
+            colors.append(self._colors.get(e.id, _LABEL_COLOR))
+            radii.append(2.0)
+            edges += [(e.source, node), (node, e.target)]
+        self.rec.log(path, rr.GraphNodes(node_ids=ids, positions=positions, labels=labels,
+                                         colors=colors, radii=radii, show_labels=True),
+                     rr.GraphEdges(edges=edges, graph_type="undirected"))
+
     def _log_topology(self, config: Configuration) -> None:
-        key = _topology_key(config)
-        if key != self._topology:
-            self._topology = key
-            self.rec.log("topology/current", *_graph(config))
+        last = self._topology
+        diff = None if last is None else topology_diff(last, config)
+        if diff is None or diff.made or diff.broken:
+            self._topology = config
+            self._log_graph("topology/current", config)
+            self.rec.log("topology/connections", rr.Scalars(float(_docked(config))))
 
     def tick(self, tick: Tick) -> None:
         rec = self.rec
         self._time(tick.index, tick.time)
-        for module, pose in tick.observation.poses.items():
+        poses = tick.observation.poses
+        if not self._blueprint_sent:
+            self._send_blueprint(poses)
+        moved = False
+        for module, pose in poses.items():
             state = np.concatenate([pose.position, pose.orientation])
             last = self._poses.get(module)
             if last is not None and float(np.max(np.abs(state - last))) < 1e-4:
                 continue  # unchanged: latest-at keeps the previous transform
+            moved = True
             self._poses[module] = state
             rec.log(f"world/modules/{module}",
-                    rr.Transform3D(translation=pose.position,
-                                   quaternion=rr.Quaternion(xyzw=pose.orientation)))
+                    rr.Transform3D(translation=pose.position, quaternion=_quat(pose)))
+        topology_before = self._topology
         self._log_topology(tick.configuration)
+        self._log_connectors(tick)
+        if self._planar and (moved or self._topology is not topology_before):
+            self._log_top(poses, tick.configuration)
+        self._log_scalars(tick)
+        if self._vectors:
+            if self._ghost_action != tick.action_index:
+                self._ghost_action = tick.action_index
+                self._log_ghost(tick.action.target, poses)
+            rms, angles, _ = skeletal_errors(tick.configuration, tick.action.target)
+            if len(angles):
+                rec.log("shape/angle", rr.Scalars(math.degrees(rms)))
+
+    def _log_scalars(self, tick: Tick) -> None:
+        """Commands and errors; a module idle this tick is cleared once (a plot gap)."""
+        rec = self.rec
         for module, command in tick.commands.items():
-            for name, value in {**command.wheels, **command.joints}.items():
-                rec.log(f"commands/{module}/{name}", rr.Scalars(float(value)))
+            names = {**command.wheels, **command.joints}
+            for name, value in names.items():
+                rec.log(f"commands/{module}/{name.replace('.', '/')}", rr.Scalars(float(value)))
+            for name in self._commanded.get(module, set()) - set(names):
+                rec.log(f"commands/{module}/{name.replace('.', '/')}", rr.Clear(recursive=False))
+            self._commanded[module] = set(names)
+        for module in [m for m in self._commanded if m not in tick.commands]:
+            rec.log(f"commands/{module}", rr.Clear(recursive=True))
+            del self._commanded[module]
         for module, error in tick.errors.items():
             rec.log(f"errors/{module}", rr.Scalars(float(error)))
+        for module in self._erroring - set(tick.errors):
+            rec.log(f"errors/{module}", rr.Clear(recursive=False))
+        self._erroring = set(tick.errors)
+
+    def _log_connectors(self, tick: Tick) -> None:
+        """Each end of an edge module: docked (per the recognized configuration),
+        extending or releasing (per this tick's dock/undock command), else free."""
+        config = tick.configuration
+        edges = {e.id: e for e in config.edges() if e.kind is not None}
+        for module, body in self._bodies.items():
+            if body.shape != "capsule":
+                continue
+            ports = [p.name for p in self._kinds[module].ports] or ["a", "b"]
+            edge = edges.get(module)
+            command = tick.commands.get(module)
+            states = []
+            for port, vertex in zip(ports, (edge.source, edge.target) if edge else ("", ""),
+                                    strict=False):
+                if command is not None and port in command.undock:
+                    states.append(("releasing", vertex))
+                elif vertex and not config.is_virtual(vertex):
+                    states.append(("docked", vertex))
+                elif command is not None and port in command.dock:
+                    states.append(("extending", ""))
+                else:
+                    states.append(("free", ""))
+            key = (module, repr(states))
+            if self._connectors.get(module) == key:
+                continue
+            self._connectors[module] = key
+            a, b = body.ends(self._inset)
+            labels = [f"{p}: {s}" + (f" to {v}" if v else "")
+                      for p, (s, v) in zip(ports, states, strict=False)]
+            self.rec.log(f"world/modules/{module}/connectors", rr.Points3D(
+                [a, b][:len(states)], radii=body.radius * 1.4, labels=labels,
+                colors=[CONNECTOR_COLORS[s] for s, _ in states]))
+
+    def _log_top(self, poses: Mapping[str, Pose], config: Configuration) -> None:
+        """Top-down outlines (heading: the front edge drawn twice as thick)."""
+        strips, colors, labels, fronts = [], [], [], []
+        for module, pose in poses.items():
+            body = self._bodies.get(module)
+            if body is None:
+                continue
+            x, y = float(pose.position[0]), float(pose.position[1])
+            yaw = pose.yaw
+            c, s = math.cos(yaw), math.sin(yaw)
+            hx, hy = body.half_size[0], body.half_size[1]
+            corners = [(x + c * dx - s * dy, -(y + s * dx + c * dy))
+                       for dx, dy in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy), (hx, hy))]
+            strips.append(corners)
+            fronts.append([corners[3], corners[4]])
+            colors.append(self._colors.get(module, _LABEL_COLOR))
+            labels.append(module)
+        self.rec.log("top/modules", rr.LineStrips2D(strips, colors=colors, labels=labels,
+                                                    radii=0.006))
+        self.rec.log("top/modules/fronts", rr.LineStrips2D(fronts, colors=colors, radii=0.015))
+        bars = []
+        for e in config.edges():
+            if e.source in poses and e.target in poses:
+                a, b = poses[e.source].position, poses[e.target].position
+                bars.append([(float(a[0]), -float(a[1])), (float(b[0]), -float(b[1]))])
+        self.rec.log("top/connections", rr.LineStrips2D(bars, colors=[(0, 0, 0)], radii=0.012))
+
+    def _log_ghost(self, target: Configuration, poses: Mapping[str, Pose]) -> None:
+        """``target`` laid out from its vectors, placed on the robot, drawn translucent."""
+        world = {m: np.asarray(p.position, dtype=float) for m, p in poses.items()}
+        layout = place_on(vector_layout(target, self._lengths), world)
+        nodes = [v for v in target.vertices(virtual=False) if v in layout]
+        if nodes:
+            self.rec.log("world/ghost/nodes", rr.Ellipsoids3D(
+                centers=[layout[v] for v in nodes],
+                half_sizes=[self._bodies[v].half_size if v in self._bodies
+                            else (DEFAULT_HALF_SIZE,) * 3 for v in nodes],
+                colors=[(*self._colors.get(v, _LABEL_COLOR), GHOST_ALPHA) for v in nodes],
+                fill_mode="solid"))
+        translations, quaternions, lengths, radii, colors = [], [], [], [], []
+        for e in target.edges():
+            if e.kind is None or e.source not in layout or e.target not in layout:
+                continue
+            a, b = layout[e.source], layout[e.target]
+            axis = (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
+            body = self._bodies.get(e.id)
+            radius = body.radius if body else 0.01
+            inset_a = 0.0 if target.is_virtual(e.source) else self._inset
+            inset_b = 0.0 if target.is_virtual(e.target) else self._inset
+            t, q, length = capsule_between(a + inset_a * axis, b - inset_b * axis)
+            translations.append(t)
+            quaternions.append(rr.Quaternion(xyzw=q))
+            lengths.append(length)
+            radii.append(radius)
+            colors.append((*self._colors.get(e.id, _LABEL_COLOR), GHOST_ALPHA))
+        if lengths:
+            self.rec.log("world/ghost/struts", rr.Capsules3D(
+                lengths=lengths, radii=radii, translations=translations,
+                quaternions=quaternions, colors=colors))
 
     def action(self, action: Action, status: ActionStatus) -> None:
         rec = self.rec
@@ -156,30 +384,47 @@ class TimelineRecorder:
         level = {ActionStatus.FAILED: "ERROR", ActionStatus.RETRYING: "WARN"}.get(status, "INFO")
         rec.log("events/actions", rr.TextLog(f"action {index}: {action} {status}", level=level))
         if status == ActionStatus.STARTED:
-            rec.log("topology/target", *_graph(action.target))
+            self._log_graph("topology/target", action.target)
             self._log_goals(action)
         elif status == ActionStatus.SUCCEEDED:
             rec.log("world/targets", rr.Clear(recursive=True))
+            if self._vectors:
+                rec.log("world/ghost", rr.Clear(recursive=True))
+                self._ghost_action = None
+            if self._planar:
+                rec.log("top/targets", rr.Clear(recursive=True))
 
     def _log_goals(self, action: Action) -> None:
         if not action.goals:
             return
         ids = list(action.goals)
-        half = [self._half.get(m, (DEFAULT_HALF_SIZE,) * 3) for m in ids]
+        half = [self._bodies[m].half_size if m in self._bodies else (DEFAULT_HALF_SIZE,) * 3
+                for m in ids]
         centers = [[action.goals[m][0], action.goals[m][1], h[2]] for m, h in zip(ids, half,
                                                                                  strict=True)]
         quats = [rr.Quaternion(xyzw=[0, 0, np.sin(action.goals[m][2] / 2),
                                      np.cos(action.goals[m][2] / 2)]) for m in ids]
+        colors = [self._colors.get(m, (200, 200, 200)) for m in ids]
         self.rec.log("world/targets", rr.Boxes3D(
-            centers=centers, half_sizes=half,
-            quaternions=quats, colors=[self._colors.get(m, (200, 200, 200)) for m in ids],
+            centers=centers, half_sizes=half, quaternions=quats, colors=colors,
             fill_mode="majorwireframe", labels=[f"goal {m}" for m in ids]))
+        if self._planar:
+            strips = []
+            for m, h in zip(ids, half, strict=True):
+                x, y, yaw = action.goals[m][:3]
+                c, s = math.cos(yaw), math.sin(yaw)
+                strips.append([(x + c * dx - s * dy, -(y + s * dx + c * dy))
+                               for dx, dy in ((h[0], h[1]), (-h[0], h[1]), (-h[0], -h[1]),
+                                              (h[0], -h[1]), (h[0], h[1]))])
+            self.rec.log("top/targets", rr.LineStrips2D(strips, colors=colors, radii=0.003,
+                                                        labels=[f"goal {m}" for m in ids]))
 
     def topology_change(self, event: TopologyEvent) -> None:
         self._time(event.tick, event.time)
         path = "events/docks" if event.kind == "dock" else "events/undocks"
         level = "INFO" if event.expected else "WARN"
-        self.rec.log(path, rr.TextLog(f"{event} at t={event.time:.1f} s", level=level))
+        self.rec.log(path, rr.TextLog(f"{event_name(event)} at t={event.time:.1f} s",
+                                      level=level))
 
     def fault(self, event: FaultEvent) -> None:
         self.rec.set_time("sim_time", duration=event.time)
@@ -188,6 +433,8 @@ class TimelineRecorder:
 
     def finish(self, result: RunResult) -> Path:
         """Log the summary, close the file and move it to its final name."""
+        if not self._blueprint_sent:
+            self._send_blueprint({})
         status = "succeeded" if result.success else f"FAILED: {result.reason}"
         self.rec.log("action", rr.TextDocument(
             f"**run {status}**\n\n{result.actions_done}/{result.actions_total} actions, "

@@ -10,6 +10,8 @@ from pathlib import Path
 
 from msrr.core import hookimpl
 
+from .timeline import msrr_timeline_views  # noqa: F401 - the timeline's connector plots
+
 CONFIGS = Path(__file__).resolve().parent / "configs" / "library"
 """Every configuration of the shipped libraries as ``<library id>.json``."""
 
