@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -28,7 +29,7 @@ from .io import ConfigurationFile, configuration_from_model, configuration_to_mo
 from .robot import Robot, check_structure
 
 __all__ = ["STRUT_ENDS", "Action", "ActionType", "ConnectionChange", "ConnectionKey", "Plan",
-           "check_plan", "connection_key", "links", "load_plan", "save_plan"]
+           "check_plan", "connection_key", "links", "load_plan", "natural_key", "save_plan"]
 
 
 class ActionType(StrEnum):
@@ -58,9 +59,19 @@ def connection_key(source: str, target: str, source_port: str | None = None,
     return frozenset({(source, source_port), (target, target_port)})
 
 
+def natural_key(text: str) -> tuple[str | int, ...]:
+    """Sort key of an id with its digit runs compared as numbers (``"2" < "10"``,
+    ``"S2" < "S10"``): even positions hold text, odd positions numbers."""
+    return tuple(int(part) if i % 2 else part for i, part in enumerate(re.split(r"(\d+)", text)))
+
+
 @dataclass(frozen=True)
 class ConnectionChange:
-    """One connection made or broken: ``connect(source source_port, target target_port)``."""
+    """One connection made or broken: ``connect(source source_port, target target_port)``.
+
+    Its one name everywhere a user reads it (run output, plan files, the viewer) is
+    :attr:`label`; ``str(change)`` is that label.
+    """
 
     source: str
     target: str
@@ -73,8 +84,17 @@ class ConnectionChange:
         """Its direction-free identity (:func:`connection_key`)."""
         return connection_key(self.source, self.target, self.source_port, self.target_port)
 
+    @property
+    def label(self) -> str:
+        """The connection's one name: its two ends, module id then port, in natural
+        order (:func:`natural_key`) joined by ``-``: ``3T-8B`` whichever end a planner or
+        driver names first, ``N1p2-S4a`` for a FreeSN strut end ``a`` on node ``N1``."""
+        ends = sorted(((self.source, self.source_port or ""), (self.target, self.target_port or "")),
+                      key=lambda end: (natural_key(end[0]), natural_key(end[1])))
+        return "-".join(module + port for module, port in ends)
+
     def __str__(self) -> str:
-        return f"{self.source}{self.source_port or ''}-{self.target}{self.target_port or ''}"
+        return self.label
 
 
 STRUT_ENDS = ("a", "b")
@@ -130,9 +150,21 @@ class Action:
     kinematic_tree: Any | None = None
     note: str = ""
 
+    @property
+    def label(self) -> str:
+        """The action's one name in run output, plan files and the viewer: ``dock 3T-8B``,
+        ``undock 3T-8B``, ``undock 5T-7B; dock 6T-7B`` (a flow or parallel step: broken
+        first, as executed), ``move 2, 5``; connections by :attr:`ConnectionChange.label`."""
+        if not self.changes:
+            return f"move {', '.join(self.modules)}".strip()
+        made = set(self.made())
+        broken = [c.label for c in self.changes if c not in made]
+        docked = [c.label for c in self.changes if c in made]
+        return "; ".join(f"{verb} {', '.join(names)}"
+                         for verb, names in (("undock", broken), ("dock", docked)) if names)
+
     def __str__(self) -> str:
-        what = ", ".join(str(c) for c in self.changes) or ", ".join(self.modules)
-        return f"{self.type.value} {what}".strip()
+        return self.label
 
     def made(self) -> tuple[ConnectionChange, ...]:
         """The changes that are connections of ``target`` (connections made)."""

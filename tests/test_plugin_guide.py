@@ -135,7 +135,7 @@ def test_every_other_hook_of_the_guide_works(package: Path, tmp_path: Path) -> N
             assert "by undock-then-dock" in result.output and "driver fast" in result.output
             assert extras.LOG[0] == "start reverse: 4 actions"
             assert extras.LOG[1] == "first tick in phase release"
-            assert "dock h3head-h2tail" in extras.LOG and extras.LOG[-1] == "end: success"
+            assert "dock h2tail-h3head" in extras.LOG and extras.LOG[-1] == "end: success"
             made = CliRunner().invoke(cli, ["hinge-chain", "4", str(tmp_path / "c4.json")])
             assert made.exit_code == 0 and plugins.load_configuration(
                 tmp_path / "c4.json").signature().count("hinge") == 4

@@ -73,7 +73,7 @@ def test_a_face_swap_is_one_parallel_connection_that_releases_first() -> None:
     after = chain(("1", "T", "4", "B"), ("3", "T", "2", "B"), ("2", "T", "3", "B"))
     action = detect_action(before, after)
     assert action.type is ActionType.PARALLEL_CONNECTION
-    assert [str(c) for c in action.changes] == ["1T-2B", "3T-4B", "1T-4B", "3T-2B"]
+    assert [str(c) for c in action.changes] == ["1T-2B", "3T-4B", "1T-4B", "2B-3T"]
     diff = topology_diff(before, after)
     assert phases_of(action, diff) == [Phase.RELEASE, Phase.APPROACH, Phase.CONNECT]
 

@@ -46,7 +46,7 @@ def test_plan_runs_closed_loop_and_counts_what_the_driver_did() -> None:
     assert (result.docks, result.undocks, result.actions_done) == (1, 1, 3)
     assert [e for k, e in events if k == "topology"] == ["undock aT-bB", "dock bT-cB"]
     statuses = [e for k, e in events if k == "action"]
-    assert statuses[0] == "disconnection aT-bB started" and statuses[-1].endswith("succeeded")
+    assert statuses[0] == "undock aT-bB started" and statuses[-1].endswith("succeeded")
     ticks = [e for k, e in events if k == "tick"]
     assert ticks == list(range(result.ticks)) and result.sim_time == pytest.approx(
         result.ticks * 0.1)
@@ -57,8 +57,8 @@ def test_unreachable_dock_times_out_retries_and_names_the_action() -> None:
                              reach=1.05)
     assert not result.success
     assert result.failed_action == 1 and result.retries == 1
-    assert "action 1 (moving c)" in result.reason and "within 2 s" in result.reason
-    assert ("action", "moving c retrying") in events and ("action", "moving c failed") in events
+    assert "action 1 (move c)" in result.reason and "within 2 s" in result.reason
+    assert ("action", "move c retrying") in events and ("action", "move c failed") in events
 
 
 def test_dock_out_of_reach_fails_with_missing_change() -> None:
@@ -87,4 +87,4 @@ def test_a_face_swap_runs_as_one_parallel_connection() -> None:
     assert (result.undocks, result.docks, result.actions_done) == (2, 2, 1)
     topology = [e for k, e in events if k == "topology"]
     assert sorted(topology[:2]) == ["undock aT-bB", "undock cT-dB"]
-    assert sorted(topology[2:]) == ["dock aT-dB", "dock cT-bB"]
+    assert sorted(topology[2:]) == ["dock aT-dB", "dock bB-cT"]

@@ -113,9 +113,9 @@ def test_sigint_sigterm_and_sigkill_sent_to_real_subprocesses(tmp_path: Path) ->
         _wait_for(process, marker)
         process.send_signal(signum)
     _check_interrupted(tmp_path / "int", started["int"][0], signal.SIGINT,
-                       "interrupted during action 2/3: moving c")
+                       "interrupted during action 2/3: move c")
     _check_interrupted(tmp_path / "term", started["term"][0], signal.SIGTERM,
-                       "interrupted during action 3/3: connection bT-cB")
+                       "interrupted during action 3/3: dock bT-cB")
     _check_killed(tmp_path / "kill", started["kill"][0])
 
 
@@ -153,9 +153,9 @@ def own_handlers() -> Iterator[None]:
 
 
 @pytest.mark.parametrize(("signum", "moment", "where"), [
-    (signal.SIGTERM, "action:0", "action 1/3: disconnection aT-bB"),
+    (signal.SIGTERM, "action:0", "action 1/3: undock aT-bB"),
     (signal.SIGINT, "run_start", "start-up"),
-    (signal.SIGINT, "tick:2", "action 2/3: moving c"),
+    (signal.SIGINT, "tick:2", "action 2/3: move c"),
 ])
 def test_in_process_signals_at_more_moments(tmp_path: Path, own_handlers: None, signum: int,
                                            moment: str, where: str) -> None:
