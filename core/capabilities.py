@@ -27,7 +27,7 @@ from .control import Controller
 from .driver import DriverFactory
 from .plan import Plan
 
-__all__ = ["Controller", "DriverFactory", "Planner", "Recognizer"]
+__all__ = ["BehaviorPlanner", "Controller", "DriverFactory", "Planner", "Recognizer"]
 
 
 @runtime_checkable
@@ -42,6 +42,25 @@ class Planner(Protocol):
 
         Raises:
             PlanningError: the goal cannot be reached (module counts differ, illegal goal).
+        """
+        ...
+
+
+@runtime_checkable
+class BehaviorPlanner(Planner, Protocol):
+    """A planner that also plans behaviors of the robot's library (``platform run
+    --behavior NAME``): the path to the behavior's start configuration, then the
+    behavior itself (FreeSN paper, sections 4.3 and 6.3)."""
+
+    def plan_behavior(self, start: Configuration, behavior: str, *,
+                      parameters: Mapping[str, float] | None = None,
+                      duration: float | None = None, loops: int | None = None,
+                      distance: float | None = None, seed: int = 0) -> Plan:
+        """Plan from ``start`` to the behavior's start, then ``ActionType.BEHAVIOR``
+        action (mapping behaviors) or the behavior's loops (sequence behaviors).
+
+        Raises:
+            PlanningError: no such behavior, or its start cannot be reached.
         """
         ...
 

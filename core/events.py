@@ -18,8 +18,8 @@ from .driver import ModuleCommand, Observation
 from .plan import Action, ConnectionChange, Plan
 from .robot import RobotSpec
 
-__all__ = ["ActionStatus", "FaultEvent", "Phase", "Run", "RunResult", "ShapeErrors", "Tick",
-           "TopologyEvent"]
+__all__ = ["ActionStatus", "FaultEvent", "LocomotionResult", "Phase", "Run", "RunResult",
+           "ShapeErrors", "TargetResult", "Tick", "TopologyEvent"]
 
 
 class ActionStatus(StrEnum):
@@ -38,6 +38,8 @@ class Phase(StrEnum):
     ``move``: moving to the target without topology change;
     ``approach``: moving to the pre-connection configuration S_conn;
     ``connect``: dock commands armed while pushing to the extruded S_extr;
+    ``behavior``: a mapping behavior's module commands sent every tick while the shape
+    is held, for its duration or distance (sections 4.3, 6.3);
     ``flow``: a flow's leaf moves over its parent, still docked, until it touches the
     new parent (section 4.1, Flow; no dock or undock is sent);
     ``handover``: the leaf docks to the new parent and undocks from the old at once,
@@ -45,6 +47,7 @@ class Phase(StrEnum):
     """
 
     RELEASE = "release"
+    BEHAVIOR = "behavior"
     MOVE = "move"
     APPROACH = "approach"
     CONNECT = "connect"
@@ -193,6 +196,65 @@ class ShapeErrors:
                 "heading_tolerance_rad": self.tolerance_heading}
 
 
+@dataclass(frozen=True)
+class TargetResult:
+    """A goal of the run reached (an action with ``reaches``), as judged there.
+
+    Attributes:
+        name: the goal's name (``"S6N3-4.1"``).
+        action_index: the action that ended at it.
+        time: driver time when it was reached [s].
+        shape_error: RMS angle [rad] between the recognized configuration and the
+            action's target after yaw alignment (eq. 8); ``None`` for a robot without
+            connection vectors.
+        truth_shape_error: the same from the driver's ground truth, or ``None``.
+        truth_topology: whether the ground truth's topology is the target's, or ``None``.
+    """
+
+    name: str
+    action_index: int
+    time: float
+    shape_error: float | None
+    truth_shape_error: float | None = None
+    truth_topology: bool | None = None
+
+    def summary(self) -> dict[str, object]:
+        return {"name": self.name, "action": self.action_index, "time_s": round(self.time, 3),
+                "shape_error_deg": _degrees(self.shape_error),
+                "truth_shape_error_deg": _degrees(self.truth_shape_error),
+                "truth_topology": self.truth_topology}
+
+
+@dataclass(frozen=True)
+class LocomotionResult:
+    """What a behavior did to the system's position (FreeSN paper, section 7.3).
+
+    Attributes:
+        name: the behavior (``"wheeled-move(speed=0.05, yaw_rate=0)"``).
+        first_action: index of its first action.
+        actions: actions it ran (loops x steps for a sequence, 1 for a mapping).
+        duration: driver time it ran [s].
+        distance: horizontal distance the centre of the modules moved [m] (mean of the
+            driver's module positions).
+        heading_error: angle [rad] between the direction travelled and the commanded
+            direction, or ``None`` when the behavior states none or the driver has no
+            ground truth to place it.
+    """
+
+    name: str
+    first_action: int
+    actions: int
+    duration: float
+    distance: float
+    heading_error: float | None = None
+
+    def summary(self) -> dict[str, object]:
+        return {"behavior": self.name, "first_action": self.first_action,
+                "actions": self.actions, "duration_s": round(self.duration, 3),
+                "distance_m": round(self.distance, 4),
+                "heading_error_deg": _degrees(self.heading_error)}
+
+
 @dataclass
 class RunResult:
     """The summary of a run.
@@ -204,6 +266,8 @@ class RunResult:
         failed_action: index of the failing action, if one failed.
         actions_done: actions that succeeded.
         actions_total: actions in the plan.
+        actions_skipped: loops of a sequence behavior left out once its distance was
+            covered.
         docks: connections made, counted from what the driver reported.
         undocks: connections broken, likewise.
         flows: flow actions whose handover the driver reported (its undock and dock
@@ -221,6 +285,8 @@ class RunResult:
             declares no ``shape_tolerance`` or the driver cannot lay out the goal.
         faults: the faults met, in order.
         interrupted: the signal that stopped the run (``"SIGINT"``), or ``""``.
+        targets: every goal reached on the way (a scenario's stages), judged there.
+        locomotion: every behavior run, with the distance travelled.
     """
 
     success: bool
@@ -228,6 +294,7 @@ class RunResult:
     failed_action: int | None = None
     actions_done: int = 0
     actions_total: int = 0
+    actions_skipped: int = 0
     docks: int = 0
     undocks: int = 0
     flows: int = 0
@@ -242,12 +309,15 @@ class RunResult:
     shape: ShapeErrors | None = None
     faults: list[FaultEvent] = field(default_factory=list)
     interrupted: str = ""
+    targets: list[TargetResult] = field(default_factory=list)
+    locomotion: list[LocomotionResult] = field(default_factory=list)
 
     def summary(self) -> dict[str, object]:
         """JSON-ready numbers (for ``summary.json``)."""
         return {"success": self.success, "reason": self.reason,
                 "failed_action": self.failed_action, "actions_done": self.actions_done,
-                "actions_total": self.actions_total, "docks": self.docks,
+                "actions_total": self.actions_total,
+                "actions_skipped": self.actions_skipped, "docks": self.docks,
                 "undocks": self.undocks, "flows": self.flows, "retries": self.retries,
                 "ticks": self.ticks,
                 "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3),
@@ -257,7 +327,9 @@ class RunResult:
                 "shape": None if self.shape is None else self.shape.summary(),
                 "faults": [{"kind": f.kind, "text": f.text, "time_s": round(f.time, 3),
                             "recovered": f.recovered} for f in self.faults],
-                "interrupted": self.interrupted or None}
+                "interrupted": self.interrupted or None,
+                "targets": [t.summary() for t in self.targets],
+                "locomotion": [m.summary() for m in self.locomotion]}
 
 
 def _degrees(angle: float | None) -> float | None:

@@ -42,6 +42,21 @@ and the ``broken``/``made`` links with their ports.
 
 ``RunResult.flows`` counts the flow actions whose undock and dock the driver reported.
 
+* behavior (mapping behaviors, sections 4.3 and 6.3): ``behavior`` -- every tick the
+  shape is held (IK tracking toward the target where it applies) and each
+  :class:`~msrr.core.plan.CommandGain`'s value ``sum(gain * parameter)`` goes into
+  ``ModuleCommand.wheels[key]`` (:func:`behavior_commands`), for the call's duration
+  or until the centre of the modules moved its distance. The steps of a *sequence*
+  behavior are ordinary actions; with a distance, the loops left once it is covered
+  are skipped (``RunResult.actions_skipped``).
+
+Every action with ``reaches`` (a goal of a scenario stage) is judged when it ends: the
+recognized and the ground-truth shape error (eq. 8) and topology go to
+``RunResult.targets``, and a goal off by more than ``target_tolerance`` fails the run.
+Every behavior run adds a :class:`~msrr.core.events.LocomotionResult` (distance the
+centre of the driver's module poses moved, heading error against the commanded
+direction).
+
 **IK tracking** (section 4.1, Fig. 8; :mod:`msrr.core.closed_loop`) drives the moving
 phases when the controller is a :class:`~msrr.core.closed_loop.JointController` and
 the action carries a kinematic tree or the robot has joint modes: every tick the
@@ -60,11 +75,15 @@ through :data:`msrr.core.plugins.emit`.
 
 from __future__ import annotations
 
+import math
 import time as wallclock
 from dataclasses import dataclass
 
+import numpy as np
+
 from . import plugins
 from .actions import TopologyDiff, flow_move, topology_diff
+from .alignment import rot_z
 from .capabilities import Recognizer
 from .closed_loop import (
     JointController,
@@ -78,12 +97,21 @@ from .configuration import Configuration
 from .control import Control, Controller
 from .driver import Driver, ModuleCommand, Observation
 from .errors import ExecutionError, MsrrError
-from .events import ActionStatus, Phase, Run, RunResult, Tick, TopologyEvent
+from .events import (
+    ActionStatus,
+    LocomotionResult,
+    Phase,
+    Run,
+    RunResult,
+    TargetResult,
+    Tick,
+    TopologyEvent,
+)
 from .kinematics import GroundModel
 from .plan import Action, ActionType, ConnectionChange
-from .shape import skeletal_error
+from .shape import skeletal_error, skeletal_errors
 
-__all__ = ["Executor", "ExecutorOptions", "phases_of"]
+__all__ = ["Executor", "ExecutorOptions", "behavior_commands", "phases_of"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +124,9 @@ class ExecutorOptions:
         retries: attempts repeated after a timeout before the action fails.
         tracking: IK tracking settings (robots with joint modes).
         ik: use IK tracking where it applies (``False``: the controller's own path).
+        target_tolerance: RMS shape error [rad] (eq. 8, from the driver's ground truth)
+            every goal of the run (an action with ``reaches``) must be within, or the
+            run fails; ``None``: not judged. Drivers without ground truth are not judged.
     """
 
     rate: float = 10.0
@@ -103,6 +134,7 @@ class ExecutorOptions:
     retries: int = 1
     tracking: TrackingOptions = TrackingOptions()
     ik: bool = True
+    target_tolerance: float | None = math.radians(5.0)
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -122,6 +154,8 @@ def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> 
     """
     if action.type is ActionType.FLOW:
         return [Phase.FLOW, Phase.HANDOVER]
+    if action.type is ActionType.BEHAVIOR:
+        return [Phase.BEHAVIOR]
     out: list[Phase] = []
     if diff.broken:
         out.append(Phase.RELEASE)
@@ -157,6 +191,42 @@ class _ActionFailed(Exception):
         self.reason = reason
 
 
+def behavior_commands(action: Action) -> dict[str, dict[str, float]]:
+    """A mapping behavior's wheel values for this tick, per module: each
+    :class:`~msrr.core.plan.CommandGain`'s ``sum(gain * parameter)`` under its
+    :attr:`~msrr.core.plan.CommandGain.key` (``{"S4": {"a": 12.5, "b": 12.5}}``)."""
+    call = action.behavior
+    out: dict[str, dict[str, float]] = {}
+    if call is None or call.kind != "mapping":
+        return out
+    for command in call.commands:
+        wheels = out.setdefault(command.module, {})
+        wheels[command.key] = wheels.get(command.key, 0.0) + command.value(call.parameters)
+    return out
+
+
+def _with_wheels(commands: dict[str, ModuleCommand], wheels: dict[str, dict[str, float]]
+                 ) -> dict[str, ModuleCommand]:
+    merged = dict(commands)
+    for module, values in wheels.items():
+        base = merged.get(module, ModuleCommand())
+        merged[module] = ModuleCommand(joints=base.joints, wheels={**base.wheels, **values},
+                                       dock=base.dock, undock=base.undock)
+    return merged
+
+
+@dataclass
+class _Locomotion:
+    """A behavior under way: where and when it began (the driver's module poses)."""
+
+    name: str
+    first_action: int
+    time: float
+    centre: np.ndarray | None
+    direction: np.ndarray | None
+    actions: int = 0
+
+
 class Executor:
     """Runs one plan on one driver.
 
@@ -186,6 +256,9 @@ class Executor:
         self._joint_mode: type | None = None
         self._controllers: dict[str, JointController] = {}
         self._ik = self.options.ik and isinstance(controller, JointController)
+        self._moving: _Locomotion | None = None
+        self._skipping = False
+        self._phase_began = 0.0
         if self._ik:
             try:
                 self._joint_mode = plugins.resolve(run.robot).default_joint_mode()
@@ -201,22 +274,41 @@ class Executor:
         started = wallclock.perf_counter()
         result = RunResult(success=False, actions_total=len(plan.actions))
         self._current = self._recognize(self.driver.get_observation())
-        done = 0
+        done = skipped = 0
+        index = -1
         try:
             for index, action in enumerate(plan.actions):
-                self._execute_action(index, action)
-                done += 1
+                if self._skips(index, action):
+                    skipped += 1
+                else:
+                    if self._starts_behavior(index):
+                        self._open_behavior(index, action)
+                    self._execute_action(index, action)
+                    done += 1
+                    if self._moving is not None:
+                        self._moving.actions += 1
+                    if action.reaches:
+                        result.targets.append(self._judge_target(index, action))
+                if self._moving is not None and self._ends_behavior(index):
+                    result.locomotion.append(self._close_behavior())
+            index = len(plan.actions)
             final = self._current
             remaining = topology_diff(final, plan.goal)
             if remaining:
                 raise _ActionFailed(f"final topology differs from the goal: {remaining}")
+            off = [t for t in result.targets if not self._within(t)]
+            if off:
+                raise _ActionFailed("; ".join(self._miss(t) for t in off))
             result.success = True
         except _ActionFailed as failure:
             result.reason = failure.reason
-            result.failed_action = done if done < len(plan.actions) else None
+            result.failed_action = index if 0 <= index < len(plan.actions) else None
+            if self._moving is not None:
+                result.locomotion.append(self._close_behavior())
         finally:
             self.driver.send_action({})
         result.actions_done = done
+        result.actions_skipped = skipped
         result.docks = sum(1 for e in self.events if e.kind == "dock")
         result.undocks = sum(1 for e in self.events if e.kind == "undock")
         result.flows = self.flows
@@ -278,9 +370,14 @@ class Executor:
                 self.retries += 1
                 plugins.emit.action(self.run, action, ActionStatus.RETRYING)
             observation = self.driver.get_observation()
-            if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0):
+            if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0) \
+                    and phase is not Phase.BEHAVIOR:
                 self.controller.begin(action, phase, observation)
+            self._phase_began = self.driver.time
             deadline = self.driver.time + self.options.action_timeout
+            if phase is Phase.BEHAVIOR and action.behavior is not None \
+                    and action.behavior.duration is not None:
+                deadline = self.driver.time + action.behavior.duration + self.dt
             while self.driver.time < deadline - 1e-9:
                 if self._tick(index, action, phase, diff):
                     return
@@ -375,6 +472,8 @@ class Executor:
             control = Control()
         elif self._tracker is not None:
             control = self._track(configuration, observation)
+        elif phase is Phase.BEHAVIOR:  # nothing holds the shape: the behavior's commands only
+            control = Control()
         else:
             control = self.controller.control(action, phase, observation)
         extra: dict[str, ModuleCommand] = {}
@@ -383,6 +482,8 @@ class Executor:
         if phase in (Phase.CONNECT, Phase.HANDOVER):
             extra = _merge(Control(commands=extra), _port_commands(diff.made, "dock"))
         commands = _merge(control, extra)
+        if phase is Phase.BEHAVIOR:
+            commands = _with_wheels(commands, behavior_commands(action))
         self.driver.send_action(commands)
         self.driver.step(self.dt)
         plugins.emit.tick(self.run, Tick(self.tick_index, self.driver.time, index, action, phase,
@@ -390,7 +491,126 @@ class Executor:
         self.tick_index += 1
         if phase in (Phase.APPROACH, Phase.MOVE, Phase.FLOW):
             return control.reached
+        if phase is Phase.BEHAVIOR:
+            return self._behavior_done(action)
         return not topology_diff(configuration, self._phase_goal(phase, diff))
+
+    # -- goals and behaviors ------------------------------------------------------------
+
+    def _behavior_done(self, action: Action) -> bool:
+        """A mapping behavior ran its duration, or moved the centre its distance."""
+        call = action.behavior
+        if call is None:
+            return True
+        if call.duration is not None and \
+                self.driver.time - self._phase_began >= call.duration - 1e-9:
+            return True
+        return call.distance is not None and self._moved() >= call.distance
+
+    def _centre(self) -> np.ndarray | None:
+        """Mean horizontal position of the driver's module poses [m], shape (2,)."""
+        poses = self.driver.get_observation().poses
+        if not poses:
+            return None
+        return np.mean([np.asarray(p.position, dtype=float)[:2] for p in poses.values()],
+                       axis=0)
+
+    def _moved(self) -> float:
+        """Horizontal distance [m] the centre moved since the running behavior began."""
+        moving = self._moving
+        now = self._centre()
+        if moving is None or moving.centre is None or now is None:
+            return 0.0
+        return float(np.linalg.norm(now - moving.centre))
+
+    def _starts_behavior(self, index: int) -> bool:
+        """Whether action ``index`` begins a behavior run (a mapping behavior, or the
+        first action of a sequence behavior's loops)."""
+        actions = self.run.plan.actions
+        call = actions[index].behavior
+        if call is None:
+            return False
+        before = actions[index - 1].behavior if index else None
+        return (before is None or before.name != call.name or call.kind == "mapping"
+                or before.loop > call.loop)
+
+    def _ends_behavior(self, index: int) -> bool:
+        """Whether the behavior run of action ``index`` ends with it."""
+        actions = self.run.plan.actions
+        return (index + 1 >= len(actions) or actions[index + 1].behavior is None
+                or self._starts_behavior(index + 1))
+
+    def _skips(self, index: int, action: Action) -> bool:
+        """Whether ``action`` is in a loop of a sequence behavior left out because the
+        behavior's distance was covered (checked when each loop begins)."""
+        call = action.behavior
+        if call is None or self._starts_behavior(index):
+            self._skipping = False
+            return False
+        if self._skipping:
+            return True
+        before = self.run.plan.actions[index - 1].behavior
+        if call.kind == "sequence" and call.distance is not None and before is not None \
+                and before.loop != call.loop and self._moved() >= call.distance:
+            self._skipping = True
+        return self._skipping
+
+    def _open_behavior(self, index: int, action: Action) -> None:
+        """Note where and when a behavior run begins and its commanded direction in the
+        world (the call's direction in the target's frame, turned by the yaw that aligns
+        the target with the driver's ground truth, eq. 8)."""
+        call = action.behavior
+        assert call is not None
+        direction = None
+        truth = self.driver.ground_truth() if call.direction is not None else None
+        if truth is not None and call.direction is not None:
+            yaw = skeletal_errors(truth, action.target)[2]
+            world = (rot_z(yaw) @ np.asarray(call.direction, dtype=float))[:2]
+            if np.linalg.norm(world) > 1e-9:
+                direction = world / np.linalg.norm(world)
+        self._moving = _Locomotion(str(call), index, self.driver.time, self._centre(),
+                                   direction)
+
+    def _close_behavior(self) -> LocomotionResult:
+        moving = self._moving
+        assert moving is not None
+        self._moving = None
+        now = self._centre()
+        shift = (np.zeros(2) if now is None or moving.centre is None
+                 else now - moving.centre)
+        distance = float(np.linalg.norm(shift))
+        heading = None
+        if moving.direction is not None and distance > 1e-6:
+            cosine = float(np.clip(shift @ moving.direction / distance, -1.0, 1.0))
+            heading = math.acos(cosine)
+        return LocomotionResult(moving.name, moving.first_action, moving.actions,
+                                self.driver.time - moving.time, distance, heading)
+
+    def _judge_target(self, index: int, action: Action) -> TargetResult:
+        """The shape error at a goal of the run: recognized, and from ground truth."""
+        assert self._current is not None
+        vectors = any(e.z is not None for e in action.target.edges())
+        truth = self.driver.ground_truth()
+        return TargetResult(
+            action.reaches, index, self.driver.time,
+            skeletal_error(self._current, action.target) if vectors else None,
+            None if truth is None or not vectors else skeletal_error(truth, action.target),
+            None if truth is None else not topology_diff(truth, action.target))
+
+    def _within(self, target: TargetResult) -> bool:
+        tolerance = self.options.target_tolerance
+        if target.truth_topology is False:
+            return False
+        return (tolerance is None or target.truth_shape_error is None
+                or target.truth_shape_error <= tolerance)
+
+    def _miss(self, target: TargetResult) -> str:
+        where = f"goal {target.name} (action {target.action_index})"
+        if target.truth_topology is False:
+            return f"{where}: the simulator's topology is not the goal's"
+        assert target.truth_shape_error is not None and self.options.target_tolerance
+        return (f"{where}: {math.degrees(target.truth_shape_error):.1f} deg RMS shape error "
+                f"from ground truth (tolerance {math.degrees(self.options.target_tolerance):g})")
 
     def _recognize(self, observation: Observation) -> Configuration:
         """The recognized configuration; separate groups recognized one by one and joined."""

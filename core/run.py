@@ -24,14 +24,14 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
 from . import plugins
-from .capabilities import Controller, DriverFactory, Recognizer
+from .capabilities import BehaviorPlanner, Controller, DriverFactory, Planner, Recognizer
 from .configuration import Configuration
 from .driver import Driver, Pose
 from .errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
@@ -41,13 +41,13 @@ from .faults import Fault, FaultyDriver, GuardedDriver, parse_faults
 from .files import atomic_write_text, check_output_place
 from .hookspecs import hookimpl
 from .interrupts import Interrupted, shielded
-from .plan import Action, Plan, save_plan
-from .scenario import Scenario
+from .plan import Action, Plan, join_plans, save_plan
+from .scenario import Scenario, Stage
 from .shape import pose_errors, shape_tolerance
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
            "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
-           "prepare_run", "resolve_scenario", "write_outputs"]
+           "parse_parameters", "plan_stages", "prepare_run", "resolve_scenario", "write_outputs"]
 
 RUN_FILES = ("run.rrd", "plan.json", "summary.json")
 """The files a finished run leaves in its folder."""
@@ -80,6 +80,12 @@ class RunRequest:
             :func:`default_deadline`.
         plan: a saved plan file (``platform plan --json``) to execute instead of
             planning; validated against the robot on load.
+        behavior: a behavior of the robot's library to run after the goal (or from the
+            start, without one): ``platform run --behavior NAME``.
+        parameters: the behavior's parameter values (``--param speed=0.05``).
+        duration: how long a mapping behavior runs [s of driver time] (``--duration``).
+        loops: how many loops of a sequence behavior run (``--loops``).
+        distance: the behavior stops once the system's centre moved this far [m].
     """
 
     robot: str
@@ -99,6 +105,11 @@ class RunRequest:
     faults: str = ""
     deadline: float | None = None
     plan: Path | None = None
+    behavior: str | None = None
+    parameters: tuple[tuple[str, float], ...] = ()
+    duration: float | None = None
+    loops: int | None = None
+    distance: float | None = None
 
     def check(self) -> None:
         """Refuse non-finite or out-of-range numbers (one line naming the option)."""
@@ -115,13 +126,100 @@ class RunRequest:
                                          field=name)
             if high is not None and value > high:
                 raise ConfigurationError(f"must be at most {high:g}, got {value:g}", field=name)
+        if self.behavior is None:
+            for name, given in (("--param", bool(self.parameters)),
+                                ("--duration", self.duration is not None),
+                                ("--loops", self.loops is not None),
+                                ("--distance", self.distance is not None)):
+                if given:
+                    raise ConfigurationError("applies to a behavior; give --behavior NAME",
+                                             field=name)
+        else:
+            try:
+                Stage(behavior=self.behavior, parameters=self.parameters,
+                      duration=self.duration, loops=self.loops, distance=self.distance)
+            except ConfigurationError as exc:
+                raise ConfigurationError(exc.message, field=f"--{exc.field}"
+                                         if exc.field in ("duration", "loops", "distance")
+                                         else "--param") from None
 
 
 def default_deadline(plan: Plan, action_timeout: float) -> float:
     """The overall driver time [s] a run of ``plan`` may take by default: one
-    ``action_timeout`` per action plus one, so a run whose every action runs to its
-    timeout still ends, and no run can go on forever."""
-    return (len(plan.actions) + 1) * action_timeout
+    ``action_timeout`` per action plus one, and every behavior's duration, so a run
+    whose every action runs to its timeout still ends, and no run can go on forever."""
+    behaviors = sum(a.behavior.duration or 0.0 for a in plan.actions if a.behavior is not None)
+    return (len(plan.actions) + 1) * action_timeout + behaviors
+
+
+def parse_parameters(items: tuple[str, ...] | list[str]) -> tuple[tuple[str, float], ...]:
+    """``("speed=0.05", "yaw_rate=0")`` -> ``(("speed", 0.05), ("yaw_rate", 0.0))``.
+
+    Raises:
+        ConfigurationError: an item without ``=`` or whose value is not a finite number.
+    """
+    out = []
+    for item in items:
+        key, sep, text = item.partition("=")
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not sep or not key.strip() or not math.isfinite(value):
+            raise ConfigurationError(f"{item!r} is not NAME=NUMBER", field="--param")
+        out.append((key.strip(), value))
+    return tuple(out)
+
+
+def plan_stages(robot: str, planner: Planner, start: Configuration,
+                stages: Sequence[tuple[Stage, Configuration | None]], *, seed: int = 0
+                ) -> Plan:
+    """One plan through every stage (a scenario's goal, its further goals, behaviors):
+    stage ``i`` is planned from where stage ``i - 1`` ends (the plan's goal, in the
+    system's ids), and the plans are joined (:func:`msrr.core.plan.join_plans`). A goal
+    stage's last action is marked ``reaches`` with the stage's name, so the executor
+    judges the shape there. Behavior stages go to ``planner`` if it plans behaviors
+    (:class:`~msrr.core.capabilities.BehaviorPlanner`), else to the robot's first
+    planner that does.
+
+    Args:
+        robot: the robot's name.
+        planner: the planner of goal stages.
+        start: the system's start configuration, in its own ids.
+        stages: each stage with its loaded goal configuration (``None`` for behaviors).
+        seed: seed of every planner call.
+
+    Raises:
+        PlanningError: a stage cannot be planned.
+        UnknownNameError: a behavior stage, and no planner of the robot plans behaviors.
+    """
+    plans: list[Plan] = []
+    here = start
+    for stage, goal in stages:
+        if goal is not None:
+            plan = planner.plan(here, goal, seed=seed)
+            if plan.actions:
+                plan.actions[-1].reaches = stage.name or goal.name or \
+                    (stage.goal.stem if stage.goal else "goal")
+        else:
+            assert stage.behavior is not None
+            plan = _behavior_planner(robot, planner).plan_behavior(
+                here, stage.behavior, parameters=dict(stage.parameters),
+                duration=stage.duration, loops=stage.loops, distance=stage.distance, seed=seed)
+        plans.append(plan)
+        here = plan.goal
+    return join_plans(plans)
+
+
+def _behavior_planner(robot: str, planner: Planner) -> BehaviorPlanner:
+    if isinstance(planner, BehaviorPlanner):
+        return planner
+    found = plugins.planners(robot)
+    for candidate in found.values():
+        if isinstance(candidate, BehaviorPlanner):
+            return candidate
+    raise UnknownNameError(f"planner of behaviors for robot {robot!r} (one that ships a "
+                           "behavior library)", "(default)", found)
 
 
 def resolve_scenario(robot: str, name: str | None) -> Scenario:
@@ -282,24 +380,41 @@ class PreparedRun:
     notes: tuple[str, ...] = ()
 
 
-def _configurations(request: RunRequest) -> tuple[str, Configuration, Configuration]:
-    """The run's name, start and goal from ``--from``/``--to`` or the scenario."""
-    if (request.start is None) != (request.goal is None):
-        raise ConfigurationError("give both --from and --to, or neither")
-    if request.start is not None and request.goal is not None:
+def _configurations(request: RunRequest
+                    ) -> tuple[str, Configuration, list[tuple[Stage, Configuration | None]]]:
+    """The run's name, start and stages (each goal stage with its configuration loaded)
+    from ``--from``/``--to``/``--behavior`` or the scenario."""
+    behavior = () if request.behavior is None else (Stage(
+        behavior=request.behavior, parameters=request.parameters, duration=request.duration,
+        loops=request.loops, distance=request.distance),)
+    if request.start is not None or request.goal is not None:
         if request.scenario is not None:
             raise ConfigurationError("give --scenario or --from/--to, not both")
-        name, start_path, goal_path = "custom", request.start, request.goal
+        if request.start is None:
+            raise ConfigurationError("give --from with --to")
+        if request.goal is None and not behavior:
+            raise ConfigurationError("give --to or --behavior with --from")
+        name, start_path = "custom", request.start
+        stages = ((Stage(goal=request.goal),) if request.goal is not None else ()) + behavior
     else:
         scenario = resolve_scenario(request.robot, request.scenario)
-        name, start_path, goal_path = scenario.name, scenario.start, scenario.goal
+        name, start_path = scenario.name, scenario.start
+        if behavior:
+            stages = ((Stage(goal=scenario.goal),) if scenario.goal is not None
+                      and request.scenario is not None else ()) + behavior
+            name = request.behavior if request.scenario is None else f"{name}+{request.behavior}"
+        else:
+            stages = scenario.all_stages()
     start = plugins.load_configuration(start_path)
-    goal = plugins.load_configuration(goal_path)
-    for config, path in ((start, start_path), (goal, goal_path)):
+    loaded: list[tuple[Stage, Configuration | None]] = []
+    for stage in stages:
+        loaded.append((stage, None if stage.goal is None
+                       else plugins.load_configuration(stage.goal)))
+    for config, path in [(start, start_path), *((g, s.goal) for s, g in loaded if g)]:
         if config.robot != request.robot:
             raise ConfigurationError(f"is a {config.robot!r} configuration, not "
                                      f"{request.robot!r}", source=str(path))
-    return name, start, goal
+    return name, start, loaded
 
 
 def prepare_run(request: RunRequest) -> PreparedRun:
@@ -318,8 +433,10 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     spec = plugins.robot(request.robot)
     shape_tolerance(spec)  # a malformed tolerance is refused before the run, not after
     if request.plan is not None:
-        if request.start is not None or request.goal is not None or request.scenario:
-            raise ConfigurationError("give --plan, --scenario or --from/--to, one of them")
+        if request.start is not None or request.goal is not None or request.scenario \
+                or request.behavior is not None:
+            raise ConfigurationError("give --plan, --scenario, --behavior or --from/--to, "
+                                     "one of them")
         if request.planner is not None:
             raise ConfigurationError("--plan executes a saved plan: it takes no --planner")
         saved: Plan | None = plugins.load_plan(request.plan)
@@ -330,7 +447,7 @@ def prepare_run(request: RunRequest) -> PreparedRun:
         name = "plan"
     else:
         saved = None
-        name, start, goal = _configurations(request)
+        name, start, stages = _configurations(request)
     factory = plugins.drivers.get(request.robot, request.driver)
     # a driver may name the recognizer and controller that read and command it (the
     # generic kinematic driver does); otherwise the robot's first ones
@@ -338,8 +455,9 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     controller = plugins.controllers.get(request.robot, companions.get("controller"))
     recognizer = plugins.recognizers.get(request.robot, companions.get("recognizer"))
     options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
-    plan: Plan = saved if saved is not None else \
-        plugins.planners.get(request.robot, request.planner).plan(start, goal, seed=request.seed)
+    plan: Plan = saved if saved is not None else plan_stages(
+        request.robot, plugins.planners.get(request.robot, request.planner), start, stages,
+        seed=request.seed)
     deadline = request.deadline or default_deadline(plan, request.action_timeout)
     if request.out is None:
         out = claim_out_dir(default_out_dir(request.robot, name), default=True)

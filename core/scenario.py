@@ -1,27 +1,96 @@
-"""Named runs that ``platform run --robot ROBOT --scenario NAME`` starts."""
+"""Named runs that ``platform run --robot ROBOT --scenario NAME`` starts.
+
+A scenario starts from a configuration in the system's own ids and goes through
+*stages*: its ``goal`` (if any) is the first, then each of ``stages`` in order -- another
+goal configuration, or a behavior of the robot's library run for a duration, a number
+of loops or a distance. ``platform run`` plans every stage at prepare time, stage ``i``
+from where stage ``i - 1`` ends (in the system's ids), and joins the plans into one
+(:func:`msrr.core.plan.join_plans`), so the executor, ``plan.json``, the progress bar
+and the summary see one list of actions.
+"""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Scenario"]
+from .errors import ConfigurationError
+
+__all__ = ["Scenario", "Stage"]
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of a scenario: reach a goal configuration, or run a behavior.
+
+    Attributes:
+        goal: path to a goal configuration file (its ids need not be the system's: the
+            planner matches it).
+        behavior: name of a behavior of the robot's library (``"wheeled-move"``); the
+            planner retrieves the path to its start configuration, then runs it.
+        parameters: a mapping behavior's parameter values (``(("speed", 0.05),)`` [m/s]).
+        duration: how long a mapping behavior runs [s of driver time].
+        loops: how many times a sequence behavior runs (at most, with ``distance``).
+        distance: the behavior stops once the system's centre moved this far [m].
+        name: how the stage's goal is called in the summary; default the goal file's
+            configuration name or the behavior's.
+    """
+
+    goal: Path | None = None
+    behavior: str | None = None
+    parameters: tuple[tuple[str, float], ...] = ()
+    duration: float | None = None
+    loops: int | None = None
+    distance: float | None = None
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if (self.goal is None) == (self.behavior is None):
+            raise ConfigurationError("a stage has either a goal or a behavior")
+        for what, value in (("duration", self.duration), ("distance", self.distance)):
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ConfigurationError(f"must be a finite number > 0, got {value!r}",
+                                         field=what)
+        if self.loops is not None and self.loops < 1:
+            raise ConfigurationError(f"must be >= 1, got {self.loops}", field="loops")
+        for key, value in self.parameters:
+            if not math.isfinite(value):
+                raise ConfigurationError(f"must be finite, got {value!r}", field=key)
+
+    def __str__(self) -> str:
+        if self.goal is not None:
+            return self.name or self.goal.stem
+        params = ", ".join(f"{k}={v:g}" for k, v in self.parameters)
+        return f"{self.behavior}({params})"
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """A start configuration, a goal configuration and the words to describe them.
+    """A start configuration, what to reach from it, and the words to describe it.
 
     Attributes:
         name: identifier on the command line (``"cross-probe"``).
         description: one line for tables and progress output.
         start: path to the start configuration file.
-        goal: path to the goal configuration file.
+        goal: path to the goal configuration file (the first stage), or ``None`` when
+            the scenario begins with a behavior stage.
         default: whether ``platform run --robot ROBOT`` runs this one.
+        stages: what follows the goal, in order.
     """
 
     name: str
     description: str
     start: Path
-    goal: Path
+    goal: Path | None = None
     default: bool = False
+    stages: tuple[Stage, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.goal is None and not self.stages:
+            raise ConfigurationError(f"scenario {self.name!r} has neither a goal nor stages")
+
+    def all_stages(self) -> tuple[Stage, ...]:
+        """The goal (as a stage, when there is one) then :attr:`stages`."""
+        first = () if self.goal is None else (Stage(goal=self.goal),)
+        return first + self.stages

@@ -135,7 +135,8 @@ def shipped_configurations(name: str) -> list[Path]:
     """The configuration files robot ``name`` ships (see the module docstring), sorted."""
     found = set()
     for scenario in plugins.scenarios(name).values():
-        found |= {Path(scenario.start), Path(scenario.goal)}
+        found |= {Path(scenario.start)} | {Path(s.goal) for s in scenario.all_stages()
+                                            if s.goal is not None}
     for folder in _config_folders(name):
         for path in folder.glob("*.json"):
             try:

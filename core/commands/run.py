@@ -52,7 +52,9 @@ class _ProgressListener:
 
 def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Table:
     rows: list[list[object]] = [
-        ["actions", f"{result.actions_done}/{result.actions_total}"],
+        ["actions", f"{result.actions_done}/{result.actions_total}"
+         + (f" ({result.actions_skipped} skipped: distance covered)"
+            if result.actions_skipped else "")],
         ["docks", f"{result.docks} (planned {planned_docks})"],
         ["undocks", f"{result.undocks} (planned {planned_undocks})"],
         ["retries", result.retries],
@@ -68,6 +70,20 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Tab
     if result.truth_shape_error is not None:
         rows.append(["shape error (ground truth)",
                      f"{math.degrees(result.truth_shape_error):.2f}° RMS after yaw alignment"])
+    for target in result.targets:
+        error = target.truth_shape_error if target.truth_shape_error is not None \
+            else target.shape_error
+        if error is None:
+            continue
+        source = "ground truth" if target.truth_shape_error is not None else "recognized"
+        topology = "" if target.truth_topology is not False else ", topology differs"
+        rows.append([f"goal {target.name}", f"{math.degrees(error):.2f}° RMS ({source}) at "
+                     f"t={target.time:.1f} s{topology}"])
+    for moved in result.locomotion:
+        heading = "" if moved.heading_error is None else \
+            f", heading error {math.degrees(moved.heading_error):.1f}°"
+        rows.append([f"behavior {moved.name}", f"{moved.distance:.3f} m in "
+                     f"{moved.duration:.1f} s{heading}"])
     if result.faults:
         rows.append(["faults", len(result.faults)])
     rows.append(["success", "yes" if result.success else "no"])

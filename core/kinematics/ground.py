@@ -200,16 +200,14 @@ class GroundOp:
             normals = hull.equations[:, :3]
         except (QhullError, ValueError):
             return self._planar_support(points, com)
-        best, best_key = None, None
-        for simplex, normal in zip(faces, normals, strict=True):
-            a, b, c = (int(i) for i in simplex)
-            if np.dot(cross(points[b] - points[a], points[c] - points[a]), normal) < 0:
-                b, c = c, b
-            stable = _inside(points[a], points[b], points[c], com, normal)
-            key = (not stable, float(normal[2]))   # stable first, then most downward
-            if best_key is None or key < best_key:
-                best, best_key = ((a, b, c), stable), key
-        return best
+        a, b, c = faces.T.astype(np.intp)
+        flip = np.einsum("ij,ij->i", cross(points[b] - points[a], points[c] - points[a]),
+                         normals) < 0
+        b, c = np.where(flip, c, b), np.where(flip, b, c)
+        stable = _inside_all(points[a], points[b], points[c], com, normals)
+        # stable first, then the most downward normal; ties: the first face (stable sort)
+        best = int(np.lexsort((normals[:, 2], ~stable))[0])
+        return (int(a[best]), int(b[best]), int(c[best])), bool(stable[best])
 
     def _planar_support(self, points: np.ndarray, com: np.ndarray
                         ) -> tuple[tuple[int, int, int], bool] | None:
@@ -234,6 +232,16 @@ class GroundOp:
             if _inside(points[a], points[b], points[c], com, normal):
                 return (a, b, c), True
         return (fans[0], False) if fans else None
+
+
+def _inside_all(a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray,
+                normal: np.ndarray) -> np.ndarray:
+    """:func:`_inside` for many triangles at once: rows of ``a``, ``b``, ``c``, ``normal``
+    (m, 3) and one point ``p`` (3,); shape (m,)."""
+    inside = np.ones(len(a), dtype=bool)
+    for u, v in ((a, b), (b, c), (c, a)):
+        inside &= np.einsum("ij,ij->i", cross(v - u, p - u), normal) >= -1e-12
+    return inside
 
 
 def _inside(a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray,

@@ -107,17 +107,14 @@ class IKTracker:
     def _track(self, current: Configuration, target: Configuration) -> IKSolution:
         assert self.last is not None
         options = replace(self.options, time_budget=self.tick_budget, max_restarts=0)
-        problem = IKProblem(self.tree, current, target, options)
-        starts = [(self.last.sigma, self.last.yaw)]
+        sigma, yaw = self.last.sigma, self.last.yaw
         with self._lock:
             offer, self._offer, self._offer_cost = self._offer, None, np.inf
-        if offer is not None:
-            starts.append(offer)
-        costs = [problem.evaluate(sigma, yaw)[0] for sigma, yaw in starts]
-        best = int(np.argmin(costs))
-        if best == 1:
-            self.handovers += 1
-        sigma, yaw = starts[best]
+        if offer is not None:   # compare on this tick's configuration: the better start wins
+            problem = IKProblem(self.tree, current, target, options)
+            if problem.evaluate(*offer)[0] < problem.evaluate(sigma, yaw)[0]:
+                self.handovers += 1
+                sigma, yaw = offer
         return solve_ik(self.tree, current, target,
                         replace(options, initial_sigma=sigma, initial_yaw=yaw))
 

@@ -26,7 +26,7 @@ import networkx as nx
 from ..configuration import Configuration
 from ..errors import ConfigurationError, PlanningError
 from ..mapping import ModuleMap
-from ..plan import ActionType
+from ..plan import ActionType, CommandGain
 
 __all__ = [
     "ActionEdge",
@@ -102,27 +102,6 @@ class LibraryConfiguration:
     @property
     def name(self) -> str:
         return self.names[0] if self.names else ""
-
-
-@dataclass(frozen=True)
-class CommandGain:
-    """One module command of a parameter behavior: ``value = sum(gains[p] * params[p])``.
-
-    Attributes:
-        module: module id (reference ids of the behavior's group).
-        command: controller command name (``"wheel_speed"`` [rad/s]).
-        gains: parameter name -> gain.
-        connector: for an edge module, ``"source"`` or ``"target"`` end of its edge.
-    """
-
-    module: str
-    command: str
-    gains: tuple[tuple[str, float], ...]
-    connector: Literal["source", "target"] | None = None
-
-    def value(self, parameters: dict[str, float]) -> float:
-        """The command value for the given parameter values (missing ones count 0)."""
-        return sum(g * float(parameters.get(p, 0.0)) for p, g in self.gains)
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,8 @@ ground model, bounded and deterministic search."""
 
 from __future__ import annotations
 
+from itertools import combinations
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -308,6 +310,36 @@ def test_ground_contact_rests_on_three_points_with_the_centre_of_mass_inside():
     heights = (op.paths @ (z0.T @ contact.rotation.T))[:, 2]
     on_ground = [op.vertices.index(v) for v in contact.contacts]
     assert np.allclose(heights[on_ground], heights.min())   # the contacts are lowest
+
+
+def test_support_face_is_the_brute_force_choice_over_every_triangle():
+    """Reference: every triple of points whose plane has all points on one side is a hull
+    face; among those whose centre-of-mass projection falls inside, the most downward."""
+    op = GroundOp.__new__(GroundOp)
+    rng = np.random.default_rng(7)
+    for _ in range(25):
+        points = rng.normal(size=(int(rng.integers(4, 10)), 3))
+        com = points.mean(axis=0) + rng.normal(size=3) * 0.2
+        best = None
+        for a, b, c in combinations(range(len(points)), 3):
+            normal = np.cross(points[b] - points[a], points[c] - points[a])
+            normal /= np.linalg.norm(normal)
+            side = (points - points[a]) @ normal
+            if side.max() > 1e-9:
+                normal, b, c = -normal, c, b
+                side = -side
+            if side.max() > 1e-9:
+                continue   # not a hull face
+            corners = points[[a, b, c]]
+            stable = all(np.cross(corners[(i + 1) % 3] - corners[i], com - corners[i]) @ normal
+                         >= 0 for i in range(3))
+            key = (not stable, normal[2])
+            if best is None or key < best[0]:
+                best = (key, {a, b, c}, stable)
+        (a, b, c), stable = op._support(points, com)
+        assert {a, b, c} == best[1] and stable == best[2]
+        face = np.cross(points[b] - points[a], points[c] - points[a])
+        assert ((points - points[a]) @ face).max() < 1e-9   # outward order: all points below
 
 
 def test_ground_model_of_a_flat_triangle_is_its_own_plane():
