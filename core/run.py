@@ -433,10 +433,10 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     spec = plugins.robot(request.robot)
     shape_tolerance(spec)  # a malformed tolerance is refused before the run, not after
     if request.plan is not None:
-        if request.start is not None or request.goal is not None or request.scenario \
-                or request.behavior is not None:
-            raise ConfigurationError("give --plan, --scenario, --behavior or --from/--to, "
-                                     "one of them")
+        if request.start is not None or request.goal is not None or request.scenario:
+            raise ConfigurationError("give --plan, --scenario or --from/--to, one of them")
+        if request.behavior is not None:
+            raise ConfigurationError("--plan executes a saved plan: it takes no --behavior")
         if request.planner is not None:
             raise ConfigurationError("--plan executes a saved plan: it takes no --planner")
         saved: Plan | None = plugins.load_plan(request.plan)
