@@ -147,6 +147,11 @@ class FreeSNMujocoDriver(Driver):
         out += [f"self-collision: {a} in {b} by {1000 * d:.1f} mm" for a, b, d in new]
         return out
 
+    def saturation(self) -> dict[str, float]:
+        """Connectors whose motors are saturated now and for how long [s]
+        (:meth:`FreeSNWorld.saturation`)."""
+        return self._world().saturation()
+
     def constraint_events(self) -> dict[str, int]:
         """Docks and undocks (commanded or broken) from the world's constraint switches."""
         events = self._world().events

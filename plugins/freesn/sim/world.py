@@ -72,6 +72,7 @@ _EZ = np.array([0.0, 0.0, 1.0])
 _ALL_BITS = 0x7FFFFFFF  # nodes and the ground touch every collision bit
 _SEAT = 0.1           # time constant of a magnet drawing a docked connector onto the centre [s]
 _SIDE_BY_SIDE_MARGIN = np.radians(8.0)  # beyond the angle at which two capsules touch
+_SATURATED = 0.8      # fraction of the torque limit a saturated (stalled) motor delivers
 _WHEEL_MASS = 0.005   # one connector's wheel pair [kg]
 _WHEEL_PROUD = 0.003  # wheel rim past the node surface point of the strut end [m]
 _WHEEL_FRICTION = [1.0, 1.0, 0.005, 0.0001, 0.0001]  # polyurethane on the floor
@@ -180,6 +181,7 @@ class FreeSNWorld:
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
         self._tau = np.zeros((k, 3))
         self._effort = np.ones(k)                          # fraction of the torque limit
+        self._saturated_since = np.full(k, np.nan)        # start of each saturation streak [s]
         self._dofs = self._dadr[:, None] + np.arange(3)
         self._axle = np.array([m.joint(f"axle/{s}/{e}").dofadr[0] for s, e in self.ends],
                               dtype=int)
@@ -510,10 +512,23 @@ class FreeSNWorld:
             spin = np.minimum(np.maximum(spin, -p.max_spin_rate), p.max_spin_rate)
             t_spin = np.minimum(np.maximum(p.damping * spin, -limit), limit)
             tau[ks] = (p.damping * scale)[:, None] * roll + t_spin[:, None] * axis
+        self._track_saturation(ks)
         self.data.qfrc_applied[self._dofs] = tau
         free = np.array([node is None for node in self.docked])
         drive = np.clip(p.wheel_damping * self._wheel, -p.wheel_torque, p.wheel_torque)
         self.data.qfrc_applied[self._axle] = np.where(free, drive, 0.0)
+
+    def _track_saturation(self, ks: np.ndarray) -> None:
+        """Start or end each connector's saturation streak: a driven connector at full
+        effort whose motors deliver at least ``_SATURATED`` of the torque limit (drive
+        minus back-EMF ``D omega``: stalled against a load)."""
+        saturated = np.zeros(len(self.ends), dtype=bool)
+        if len(ks):
+            net = self._tau[ks] - self.phys.damping * self.data.qvel[self._dofs[ks]]
+            saturated[ks] = ((np.sqrt(np.einsum("ni,ni->n", net, net))
+                              >= _SATURATED * self.phys.max_torque) & (self._effort[ks] >= 1.0))
+        self._saturated_since = np.where(saturated, np.fmin(self._saturated_since, self.time),
+                                         np.nan)
 
     def _check_loads(self, steps: int = 1) -> None:
         d = self.data
@@ -640,6 +655,13 @@ class FreeSNWorld:
             rot = frame @ d.xmat[self._strut_body[j]].reshape(3, 3)
             config.connect(ends[0], ends[1], id=strut, kind="strut", z=rot[:, 2], x=rot[:, 0])
         return config
+
+    def saturation(self) -> dict[str, float]:
+        """Connectors whose motors are saturated now: ``"<strut>:<end>"`` -> how long
+        without a break [s] (see :meth:`_track_saturation`)."""
+        return {f"{strut}:{end}": self.time - float(t)
+                for (strut, end), t in zip(self.ends, self._saturated_since, strict=True)
+                if not np.isnan(t)}
 
     def docked_pairs(self) -> set[tuple[str, str, str]]:
         """``(strut, end, node)`` of every active dock constraint (simulator state)."""

@@ -374,3 +374,22 @@ def test_a_strut_left_out_of_the_commands_stops_where_it_is():
     swing = np.degrees(np.arccos(np.clip(stopped @ start.edge("S4").z, -1, 1)))
     assert 5.0 < swing < 80.0, "stopped half way"
     assert np.degrees(np.arccos(np.clip(stopped @ after, -1, 1))) < 2.0
+
+
+def test_saturation_is_reported_while_motors_stall_against_a_load():
+    """S6N3 on three legs asked to stand up straighter: with a fifth of a percent of the
+    torque the driving connectors stall at their limit for the whole try; with the
+    nominal torque they reach the pose and nothing is saturated at the end."""
+    start = _library_config("S6N3", "S6N3-1.1")
+    goal = _lowered(start, np.radians(60.0))
+    controller = FreeSNController()
+    streaks = []
+    for torque_factor in (0.002, 0.6):
+        with FreeSNMujocoDriver(torque_factor=torque_factor) as driver:
+            driver.reset(start)
+            assert driver.saturation() == {}
+            _drive(driver, controller, goal, 20)
+            streaks.append(driver.saturation())
+    assert streaks[0] and max(streaks[0].values()) > 1.5
+    assert all(key.split(":")[1] in ("a", "b") for key in streaks[0])
+    assert streaks[1] == {}
