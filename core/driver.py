@@ -145,6 +145,13 @@ class Driver(ABC):
         broke: ..."``); empty where there are none or the driver cannot tell."""
         return []
 
+    def saturation(self) -> dict[str, float]:
+        """Actuators saturated now (at their torque limit, stalled against a load):
+        ``"<module>:<port>"`` -> how long without a break [s]; empty where there are none
+        or the driver cannot tell. A long streak at the end of a run that did not finish
+        is the ``"torque limit"`` reason of a feasibility check."""
+        return {}
+
     def constraint_events(self) -> dict[str, int]:
         """Docks and undocks since :meth:`reset` counted from the simulator's constraint
         state (``{"dock": n, "undock": m}``); empty where the driver cannot tell."""
