@@ -7,7 +7,10 @@ library. The verdict never trusts the recognizer: the final shape and topology c
 :meth:`Driver.ground_truth`, the docks and undocks and any fault from
 :meth:`Driver.faults` (the simulator's constraint state). Reasons, first found wins:
 
-* ``connector broke`` / ``self-collision`` / ``torque limit`` -- a fault the driver saw;
+* ``connector broke`` / ``self-collision`` -- a fault the driver saw;
+* ``torque limit`` -- the run did not finish and a connector's motors had been saturated
+  (:meth:`Driver.saturation`) for the last ``SATURATION_TIME`` seconds or more: the motion
+  stopped because a motor could not deliver more, not because the controller gave up;
 * ``fell over`` -- the final shape is over 20 deg off after a turn about the vertical
   but matches the target once tilted (the robot lies on its side);
 * ``timeout`` -- a phase did not finish (the executor's reason follows);
@@ -38,11 +41,14 @@ from .plan import Plan
 from .robot import Robot
 from .shape import skeletal_error
 
-__all__ = ["FELL_OVER", "EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
+__all__ = ["FELL_OVER", "SATURATION_TIME", "EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
 
 
 FELL_OVER = math.radians(20.0)
 """Smallest yaw-aligned error [rad] that can count as lying on the side."""
+
+SATURATION_TIME = 3.0
+"""Saturation streak [s] at the end of an unfinished run that counts as ``torque limit``."""
 
 
 def tilted_error(current: Configuration, goal: Configuration) -> float:
@@ -102,6 +108,7 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
         truth = driver.ground_truth()
         faults = driver.faults()
         counts = driver.constraint_events()
+        saturated = driver.saturation()
         sim_time = driver.time
     error = None if truth is None else skeletal_error(truth, case.target)
     reason = ""
@@ -110,6 +117,11 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
     elif truth is not None and error is not None and error > FELL_OVER \
             and tilted_error(truth, case.target) < runner.tolerance:
         reason = f"fell over: {math.degrees(error):.1f} deg off after a yaw turn only"
+    elif not result.success and "did not finish" in result.reason and saturated \
+            and max(saturated.values()) >= SATURATION_TIME:
+        worst = sorted(saturated.items(), key=lambda kv: (-kv[1], kv[0]))
+        reason = (f"torque limit: {', '.join(k for k, t in worst if t >= SATURATION_TIME)} "
+                  f"saturated for the last {worst[0][1]:.1f} s; " + result.reason)
     elif not result.success:
         reason = ("timeout: " if "did not finish" in result.reason else "error: ") + result.reason
     elif truth is not None and topology_diff(truth, case.target):
