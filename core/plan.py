@@ -13,23 +13,27 @@ neighbour of the parent, disconnection and connection at once; defined in
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Annotated, Any
+from itertools import pairwise
+from typing import Annotated, Literal
 
-from pydantic import Field, Strict
+from pydantic import AllowInfNan, Field, Strict
 
 from .configuration import Configuration
 from .errors import ConfigurationError
 from .files import Coordinate, Cost, Number, StrictModel, atomic_write_text, parse_model, read_json
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
+from .kinematics import KinematicTree, KinematicTreeFile
 from .robot import Robot, check_structure
 
-__all__ = ["STRUT_ENDS", "Action", "ActionType", "ConnectionChange", "ConnectionKey", "Plan",
-           "check_plan", "connection_key", "links", "load_plan", "natural_key", "save_plan"]
+__all__ = ["STRUT_ENDS", "Action", "ActionType", "BehaviorCall", "CommandGain",
+           "ConnectionChange", "ConnectionKey", "Plan", "check_plan", "connection_key",
+           "join_plans", "links", "load_plan", "natural_key", "save_plan"]
 
 
 class ActionType(StrEnum):
@@ -47,6 +51,7 @@ class ActionType(StrEnum):
     FLOW = "flow"
     PARALLEL_CONNECTION = "parallel_connection"
     PARALLEL_DISCONNECTION = "parallel_disconnection"
+    BEHAVIOR = "behavior"
 
 
 ConnectionKey = frozenset[tuple[str, str | None]]
@@ -85,13 +90,20 @@ class ConnectionChange:
         return connection_key(self.source, self.target, self.source_port, self.target_port)
 
     @property
+    def ends(self) -> tuple[tuple[str, str], tuple[str, str]]:
+        """Its two ``(module, port)`` ends (``""`` for no port) in natural order
+        (:func:`natural_key`): the order every listing of the connection uses."""
+        first, second = sorted(((self.source, self.source_port or ""),
+                                (self.target, self.target_port or "")),
+                               key=lambda end: (natural_key(end[0]), natural_key(end[1])))
+        return first, second
+
+    @property
     def label(self) -> str:
-        """The connection's one name: its two ends, module id then port, in natural
-        order (:func:`natural_key`) joined by ``-``: ``3T-8B`` whichever end a planner or
-        driver names first, ``N1p2-S4a`` for a FreeSN strut end ``a`` on node ``N1``."""
-        ends = sorted(((self.source, self.source_port or ""), (self.target, self.target_port or "")),
-                      key=lambda end: (natural_key(end[0]), natural_key(end[1])))
-        return "-".join(module + port for module, port in ends)
+        """The connection's one name: its :attr:`ends`, module id then port, joined by
+        ``-``: ``3T-8B`` whichever end a planner or driver names first, ``N1p2-S4a`` for a
+        FreeSN strut end ``a`` on node ``N1``."""
+        return "-".join(module + port for module, port in self.ends)
 
     def __str__(self) -> str:
         return self.label
@@ -125,6 +137,89 @@ def links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]
     return found
 
 
+@dataclass(frozen=True)
+class CommandGain:
+    """One module command of a mapping behavior: ``value = sum(gains[p] * params[p])``.
+
+    Attributes:
+        module: module id (the library's reference ids in a library, the system's in a
+            plan).
+        command: controller command name (``"wheel_speed"`` [rad/s]).
+        gains: ``(parameter name, gain)`` pairs.
+        connector: for an edge module, ``"source"`` or ``"target"`` end of its edge.
+    """
+
+    module: str
+    command: str
+    gains: tuple[tuple[str, float], ...]
+    connector: Literal["source", "target"] | None = None
+
+    def value(self, parameters: Mapping[str, float]) -> float:
+        """The command value for the given parameter values (missing ones count 0)."""
+        return sum(g * float(parameters.get(p, 0.0)) for p, g in self.gains)
+
+    @property
+    def key(self) -> str:
+        """The name the value travels under in ``ModuleCommand.wheels``: the connector's
+        end (``"a"`` the source end of an edge module, ``"b"`` its target end, as in
+        :data:`STRUT_ENDS`), else the command's name."""
+        if self.connector is None:
+            return self.command
+        return STRUT_ENDS[0 if self.connector == "source" else 1]
+
+
+@dataclass(frozen=True)
+class BehaviorCall:
+    """A behavior an action runs (FreeSN paper, sections 4.3 and 6.3).
+
+    A *mapping* behavior is one :attr:`ActionType.BEHAVIOR` action: every tick for
+    ``duration`` seconds of driver time (or until the system's centre moved
+    ``distance``) the executor sends each :class:`CommandGain`'s value for
+    ``parameters`` while holding the action's target shape. A *sequence* behavior is a
+    run of ordinary actions (moving, mostly), one loop after the other, each carrying
+    the call with its ``loop`` number; with ``distance`` the executor skips the loops
+    left once the centre has moved that far.
+
+    Attributes:
+        name: the behavior's label (``"wheeled-move"``).
+        kind: ``"sequence"`` or ``"mapping"``.
+        parameters: parameter name -> value (``speed`` [m/s], ``yaw_rate`` [rad/s]).
+        commands: a mapping behavior's linear map, in the system's ids.
+        duration: how long a mapping behavior runs [s of driver time].
+        loops: loops of a sequence behavior in the plan.
+        loop: which loop this action belongs to (from 0).
+        distance: the behavior ends once the system's centre moved this far [m].
+        direction: the commanded direction of travel in the action target's frame
+            (unit, 3 numbers), for the heading error; ``None`` when not known.
+    """
+
+    name: str
+    kind: Literal["sequence", "mapping"]
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    commands: tuple[CommandGain, ...] = ()
+    duration: float | None = None
+    loops: int = 1
+    loop: int = 0
+    distance: float | None = None
+    direction: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        for what, value in (("duration", self.duration), ("distance", self.distance)):
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ConfigurationError(f"behavior {self.name}: {what} must be a finite "
+                                         f"number > 0, got {value!r}", field=what)
+        if self.kind == "mapping" and self.duration is None and self.distance is None:
+            raise ConfigurationError(f"behavior {self.name}: a mapping behavior needs a "
+                                     "duration or a distance", field="duration")
+        if self.loops < 1 or not 0 <= self.loop < self.loops:
+            raise ConfigurationError(f"behavior {self.name}: loop {self.loop} of "
+                                     f"{self.loops}", field="loops")
+
+    def __str__(self) -> str:
+        params = ", ".join(f"{k}={v:g}" for k, v in self.parameters.items())
+        return f"{self.name}({params})"
+
+
 @dataclass
 class Action:
     """One step of a plan.
@@ -139,6 +234,12 @@ class Action:
         cost: motion cost of the step (library edge cost, or path length [m]).
         kinematic_tree: the tree that executes the step (freeform robots), if any.
         note: one line for logs ("free module 7 to the slot of 5").
+        behavior: the behavior this action runs (a ``BEHAVIOR`` action) or belongs to (a
+            step of a sequence behavior), else ``None``.
+        reaches: the name of a goal of the run this action ends at (a scenario stage's
+            goal: the executor reports the shape error there); ``""`` for steps between.
+        retrieved: where a retrieved step comes from, for the recording (``"S6N3-2.1
+            <- S6N3-1.3; N1=n7, ..."``); ``""`` when planned otherwise.
     """
 
     type: ActionType
@@ -147,14 +248,20 @@ class Action:
     changes: tuple[ConnectionChange, ...] = ()
     goals: dict[str, list[float]] = field(default_factory=dict)
     cost: float = 0.0
-    kinematic_tree: Any | None = None
+    kinematic_tree: KinematicTree | None = None
     note: str = ""
+    behavior: BehaviorCall | None = None
+    reaches: str = ""
+    retrieved: str = ""
 
     @property
     def label(self) -> str:
         """The action's one name in run output, plan files and the viewer: ``dock 3T-8B``,
         ``undock 3T-8B``, ``undock 5T-7B; dock 6T-7B`` (a flow or parallel step: broken
-        first, as executed), ``move 2, 5``; connections by :attr:`ConnectionChange.label`."""
+        first, as executed), ``move 2, 5``, ``behavior wheeled-move(speed=0.05)``;
+        connections by :attr:`ConnectionChange.label`."""
+        if self.type is ActionType.BEHAVIOR and self.behavior is not None:
+            return f"behavior {self.behavior}"
         if not self.changes:
             return f"move {', '.join(self.modules)}".strip()
         made = set(self.made())
@@ -217,6 +324,35 @@ class Plan:
         return sum(1 for a in self.actions if a.type is ActionType.FLOW)
 
 
+def join_plans(plans: Sequence[Plan]) -> Plan:
+    """One plan that runs ``plans`` one after the other (a scenario's stages): the first
+    one's start and mapping, the last one's goal, every action in order, the notes
+    kept, the stats summed, the planner names joined (``"library"``, ``"library+mcs"``).
+
+    Raises:
+        ConfigurationError: no plans, plans of different robots, or a plan that does not
+            start with the modules the previous one ended with.
+    """
+    if not plans:
+        raise ConfigurationError("no plans to join")
+    for before, after in pairwise(plans):
+        if after.robot != before.robot:
+            raise ConfigurationError(f"cannot join a plan for {after.robot!r} to one for "
+                                     f"{before.robot!r}")
+        if after.start.modules() != before.goal.modules():
+            raise ConfigurationError("a stage starts with other modules than the one before "
+                                     "ends with")
+    stats: dict[str, float] = {}
+    for plan in plans:
+        for key, value in plan.stats.items():
+            stats[key] = stats.get(key, 0.0) + value
+    names = list(dict.fromkeys(p.planner for p in plans))
+    return Plan(robot=plans[0].robot, planner="+".join(names), start=plans[0].start,
+                goal=plans[-1].goal, actions=[a for p in plans for a in p.actions],
+                mapping=dict(plans[0].mapping), notes=[n for p in plans for n in p.notes],
+                stats=stats)
+
+
 # -- file format ------------------------------------------------------------------------
 
 
@@ -228,6 +364,27 @@ class ChangeModel(StrictModel):
     edge_id: str | None = None
 
 
+class CommandGainModel(StrictModel):
+    module: str = Field(min_length=1)
+    command: str = Field(min_length=1)
+    gains: dict[str, Number]
+    connector: Literal["source", "target"] | None = None
+
+
+class BehaviorModel(StrictModel):
+    """A :class:`BehaviorCall` in a plan file."""
+
+    name: str = Field(min_length=1)
+    kind: Literal["sequence", "mapping"]
+    parameters: dict[str, Number] = {}
+    commands: list[CommandGainModel] = []
+    duration: Annotated[float, Strict(), AllowInfNan(False), Field(gt=0)] | None = None
+    loops: Annotated[int, Strict(), Field(ge=1)] = 1
+    loop: Annotated[int, Strict(), Field(ge=0)] = 0
+    distance: Annotated[float, Strict(), AllowInfNan(False), Field(gt=0)] | None = None
+    direction: Annotated[list[Number], Field(min_length=3, max_length=3)] | None = None
+
+
 class ActionModel(StrictModel):
     type: ActionType
     target: ConfigurationFile
@@ -235,8 +392,11 @@ class ActionModel(StrictModel):
     changes: list[ChangeModel] = []
     goals: dict[str, list[Coordinate]] = {}
     cost: Cost = 0.0
-    kinematic_tree: dict[str, Any] | None = None
+    kinematic_tree: KinematicTreeFile | None = None
     note: str = ""
+    behavior: BehaviorModel | None = None
+    reaches: str = ""
+    retrieved: str = ""
 
 
 class PlanFile(StrictModel):
@@ -253,18 +413,50 @@ class PlanFile(StrictModel):
     stats: dict[str, Number] = {}
 
 
-def plan_to_model(plan: Plan) -> PlanFile:
-    def tree(action: Action) -> Any:
-        t = action.kinematic_tree
-        return t.to_dict() if hasattr(t, "to_dict") else t
+def _behavior_model(call: BehaviorCall | None) -> BehaviorModel | None:
+    if call is None:
+        return None
+    return BehaviorModel(
+        name=call.name, kind=call.kind, parameters=dict(call.parameters),
+        commands=[CommandGainModel(module=c.module, command=c.command, gains=dict(c.gains),
+                                   connector=c.connector) for c in call.commands],
+        duration=call.duration, loops=call.loops, loop=call.loop, distance=call.distance,
+        direction=None if call.direction is None else list(call.direction))
 
+
+def _behavior_call(model: BehaviorModel | None, source: str | None, field: str
+                   ) -> BehaviorCall | None:
+    if model is None:
+        return None
+    try:
+        return BehaviorCall(
+            name=model.name, kind=model.kind, parameters=dict(model.parameters),
+            commands=tuple(CommandGain(c.module, c.command, tuple(c.gains.items()), c.connector)
+                           for c in model.commands),
+            duration=model.duration, loops=model.loops, loop=model.loop,
+            distance=model.distance,
+            direction=None if model.direction is None else
+            (model.direction[0], model.direction[1], model.direction[2]))
+    except ConfigurationError as exc:
+        raise ConfigurationError(exc.message, source=source,
+                                 field=f"{field}.{exc.field}" if exc.field else field) from None
+
+
+def _tree_model(tree: KinematicTree | None) -> KinematicTreeFile | None:
+    return None if tree is None else KinematicTreeFile.model_validate(tree.to_dict())
+
+
+def plan_to_model(plan: Plan) -> PlanFile:
     return PlanFile(
         robot=plan.robot, planner=plan.planner,
         start=configuration_to_model(plan.start), goal=configuration_to_model(plan.goal),
         actions=[ActionModel(type=a.type, target=configuration_to_model(a.target),
                              modules=list(a.modules),
                              changes=[ChangeModel(**c.__dict__) for c in a.changes],
-                             goals=a.goals, cost=a.cost, kinematic_tree=tree(a), note=a.note)
+                             goals=a.goals, cost=a.cost,
+                             kinematic_tree=_tree_model(a.kinematic_tree), note=a.note,
+                             behavior=_behavior_model(a.behavior), reaches=a.reaches,
+                             retrieved=a.retrieved)
                  for a in plan.actions],
         mapping=plan.mapping, notes=plan.notes, stats=plan.stats,
     )
@@ -284,8 +476,8 @@ def _configuration(model: ConfigurationFile, robot: str, source: str | None, fie
 
 
 def _check_action(action: Action, i: int, source: str | None) -> None:
-    """The ids an action names exist in its target."""
-    target = action.target
+    """The ids an action names exist in its target (vertices, or edges that are modules)."""
+    target = set(action.target.vertices()) | set(action.target.edge_ids())
     for j, module in enumerate(action.modules):
         if module not in target:
             raise ConfigurationError(f"module {module!r} is not in the action's target",
@@ -299,19 +491,56 @@ def _check_action(action: Action, i: int, source: str | None) -> None:
             if end not in target:
                 raise ConfigurationError(f"module {end!r} is not in the action's target",
                                          source=source, field=f"actions[{i}].changes[{j}]")
+    for j, command in enumerate(action.behavior.commands if action.behavior else ()):
+        if command.module not in target:
+            raise ConfigurationError(f"module {command.module!r} is not in the action's "
+                                     "target", source=source,
+                                     field=f"actions[{i}].behavior.commands[{j}]")
 
 
-def plan_from_model(model: PlanFile, source: str | None = None) -> Plan:
+def _tree(model: KinematicTreeFile | None, robot: str, modes: Mapping[str, type],
+          source: str | None, field: str) -> KinematicTree | None:
+    if model is None:
+        return None
+    try:
+        tree = KinematicTree.from_dict(model.model_dump(mode="json", exclude_none=True),
+                                       modes=modes, source=source)
+    except ConfigurationError as exc:
+        raise ConfigurationError(exc.message, source=source,
+                                 field=f"{field}.{exc.field}" if exc.field else field) from None
+    if tree.configuration.robot != robot:
+        raise ConfigurationError(f"a tree of robot {tree.configuration.robot!r} in a plan for "
+                                 f"{robot!r}", source=source, field=f"{field}.robot")
+    return tree
+
+
+def plan_from_model(model: PlanFile, source: str | None = None,
+                    modes: Mapping[str, type] | None = None) -> Plan:
     """A :class:`Plan` from its file model; every configuration names the plan's robot,
-    every id an action names is in its target; errors name ``source`` and the field."""
+    every id an action names is in its target; errors name ``source`` and the field.
+
+    Args:
+        model: the parsed file.
+        source: file name for error messages.
+        modes: the robot's joint modes (``Robot.joint_modes``), to read the actions'
+            kinematic trees back as :class:`~msrr.core.kinematics.KinematicTree` s.
+    """
     actions = []
     for i, a in enumerate(model.actions):
+        where = f"actions[{i}]"
         action = Action(type=a.type,
-                        target=_configuration(a.target, model.robot, source,
-                                              f"actions[{i}].target"),
+                        target=_configuration(a.target, model.robot, source, f"{where}.target"),
                         modules=tuple(a.modules),
                         changes=tuple(ConnectionChange(**c.model_dump()) for c in a.changes),
-                        goals=a.goals, cost=a.cost, kinematic_tree=a.kinematic_tree, note=a.note)
+                        goals=a.goals, cost=a.cost,
+                        kinematic_tree=_tree(a.kinematic_tree, model.robot, modes or {}, source,
+                                             f"{where}.kinematic_tree"),
+                        note=a.note,
+                        behavior=_behavior_call(a.behavior, source, f"{where}.behavior"),
+                        reaches=a.reaches, retrieved=a.retrieved)
+        if action.type is ActionType.BEHAVIOR and action.behavior is None:
+            raise ConfigurationError("a behavior action names no behavior", source=source,
+                                     field=f"{where}.behavior")
         _check_action(action, i, source)
         actions.append(action)
     start = _configuration(model.start, model.robot, source, "start")
@@ -363,9 +592,10 @@ def load_plan(path: str | os.PathLike[str],
         ConfigurationError: a bad file, field or id, or a broken rule of ``robot``;
             naming the file and the field.
     """
-    plan = plan_from_model(parse_model(PlanFile, read_json(path), str(path)), str(path))
+    model = parse_model(PlanFile, read_json(path), str(path))
     if robot is not None and not isinstance(robot, Robot):
-        robot = robot(plan.robot)
+        robot = robot(model.robot)
+    plan = plan_from_model(model, str(path), None if robot is None else robot.joint_modes)
     if robot is not None:
         try:
             check_plan(plan, robot)
