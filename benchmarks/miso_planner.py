@@ -6,10 +6,13 @@ generated like Luo and Lam's: modules join a random placed module with in-degree
 
 1. **Optimality**, ``n = 5..10``: ``--instances`` pairs per size with ``b = 3``; the
    heuristic's step count against the exact branch and bound (every exact run proves
-   its optimum). Also the exact search's time.
+   its optimum), and the flows each plan holds (steps that move a leaf to a
+   neighbour of its parent, FreeSN section 4.1: a flow is one step like any other;
+   both planners prefer flows among orders of equal length). Also the exact search's
+   time.
 2. **Time**, ``n`` from 5 to 1000 with ``b`` in ``--branching`` (default 3, 10, 50):
-   the heuristic's wall time and steps, and ``d``-lower-bound gap (the steps beyond
-   one per mismatched module of its own pairing).
+   the heuristic's wall time, steps and flows, and ``d``-lower-bound gap (the steps
+   beyond one per mismatched module of its own pairing).
 
 The last line is machine-readable::
 
@@ -33,7 +36,13 @@ from rich.console import Console
 from rich.table import Table
 
 from msrr.core.batch import exit_on_interrupt, run_batch
-from msrr.core.miso import MisoProblem, random_miso_tree, solve_exact, solve_heuristic
+from msrr.core.miso import (
+    MisoProblem,
+    count_flows,
+    random_miso_tree,
+    solve_exact,
+    solve_heuristic,
+)
 
 SMALL = tuple(range(5, 11))
 LARGE = (5, 10, 20, 50, 100, 200, 500, 1000)
@@ -46,6 +55,8 @@ class Compared:
     exact: int
     proved: bool
     exact_ms: float
+    heuristic_flows: int
+    exact_flows: int
 
 
 @dataclass
@@ -55,6 +66,7 @@ class Timed:
     ms: float
     steps: int
     lower_bound: int
+    flows: int
 
 
 def instance(n: int, b: int, rng: np.random.Generator) -> MisoProblem:
@@ -68,8 +80,10 @@ def compare(task: tuple[int, MisoProblem]) -> Compared:
     heuristic = solve_heuristic(problem)
     t0 = time.perf_counter()
     exact = solve_exact(problem)
-    return Compared(n, heuristic.cost, exact.cost, exact.optimal,
-                    1e3 * (time.perf_counter() - t0))
+    ms = 1e3 * (time.perf_counter() - t0)
+    return Compared(n, heuristic.cost, exact.cost, exact.optimal, ms,
+                    count_flows(problem.start, heuristic.steps),
+                    count_flows(problem.start, exact.steps))
 
 
 def timed(task: tuple[int, int, MisoProblem]) -> Timed:
@@ -77,7 +91,9 @@ def timed(task: tuple[int, int, MisoProblem]) -> Timed:
     n, b, problem = task
     t0 = time.perf_counter()
     solution = solve_heuristic(problem)
-    return Timed(n, b, 1e3 * (time.perf_counter() - t0), solution.cost, solution.lower_bound)
+    ms = 1e3 * (time.perf_counter() - t0)
+    return Timed(n, b, ms, solution.cost, solution.lower_bound,
+                 count_flows(problem.start, solution.steps))
 
 
 def plot(compared: list[Compared], runs: list[Timed], path: str) -> None:
@@ -138,7 +154,7 @@ def main() -> None:
         compared = run_batch(compare, small, label="exact comparisons", **batch).values()
     table = Table(title="Heuristic vs exact (fewest steps), random MISO trees, b <= 3")
     for column in ("n", "instances", "optimal", "mean extra steps", "mean exact steps",
-                   "proved", "exact median ms", "exact max ms"):
+                   "flows heur.", "flows exact", "proved", "exact median ms", "exact max ms"):
         table.add_column(column, justify="right")
     for n in SMALL:
         rows = [c for c in compared if c.n == n]
@@ -146,6 +162,8 @@ def main() -> None:
                       f"{np.mean([c.heuristic == c.exact for c in rows]):.3f}",
                       f"{np.mean([c.heuristic - c.exact for c in rows]):.3f}",
                       f"{np.mean([c.exact for c in rows]):.2f}",
+                      f"{np.mean([c.heuristic_flows for c in rows]):.2f}",
+                      f"{np.mean([c.exact_flows for c in rows]):.2f}",
                       f"{np.mean([c.proved for c in rows]):.2f}",
                       f"{np.median([c.exact_ms for c in rows]):.1f}",
                       f"{max(c.exact_ms for c in rows):.1f}")
@@ -154,7 +172,8 @@ def main() -> None:
     with exit_on_interrupt():
         runs = run_batch(timed, large, label="timed instances", **batch).values()
     table = Table(title="Heuristic time, random MISO trees")
-    for column in ("n", "b <=", "median ms", "max ms", "mean steps", "steps above d"):
+    for column in ("n", "b <=", "median ms", "max ms", "mean steps", "mean flows",
+                   "steps above d"):
         table.add_column(column, justify="right")
     for b in args.branching:
         for n in LARGE:
@@ -162,6 +181,7 @@ def main() -> None:
             table.add_row(str(n), str(b), f"{np.median([r.ms for r in rows]):.1f}",
                           f"{max(r.ms for r in rows):.1f}",
                           f"{np.mean([r.steps for r in rows]):.1f}",
+                          f"{np.mean([r.flows for r in rows]):.1f}",
                           f"{np.mean([r.steps - r.lower_bound for r in rows]):.2f}")
     console.print(table)
     if args.plot:

@@ -66,6 +66,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from .actions import flow_move, topology_diff
 from .configuration import Configuration
 from .errors import PlanningError
 from .plan import Action, ActionType, ConnectionChange, Plan
@@ -77,6 +78,9 @@ __all__ = [
     "Step",
     "brute_force_steps",
     "canonical_form",
+    "count_flows",
+    "is_flow",
+    "order_steps",
     "plan_miso",
     "random_miso_tree",
     "solve_exact",
@@ -317,6 +321,16 @@ class _State:
         self.parent = list(parent)
         self.sink = self.parent.index(FREE) if FREE in self.parent else FREE
         self.cycle: set[int] = set() if self.sink != FREE else _cycle(self.parent)
+        self.indeg = [0] * len(self.parent)
+        for p in self.parent:
+            if p != FREE:
+                self.indeg[p] += 1
+
+    def flows(self, module: int, new: int) -> bool:
+        """Whether re-targeting ``module`` to ``new`` is a flow (:func:`is_flow`)."""
+        old = self.parent[module]
+        return (old != FREE and new != FREE and new != module and self.indeg[module] == 0
+                and (self.parent[new] == old or self.parent[old] == new))
 
     def legal(self, module: int, new: int) -> bool:
         parent = self.parent
@@ -338,6 +352,10 @@ class _State:
 
     def apply(self, module: int, new: int) -> Step:
         step = Step(module, self.parent[module], new)
+        if step.old != FREE:
+            self.indeg[step.old] -= 1
+        if new != FREE:
+            self.indeg[new] += 1
         self.parent[module] = new
         if new == FREE:
             self.sink, self.cycle = module, set()
@@ -548,12 +566,29 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
     depth, each straight onto its target once that is legal. When none is legal, one
     temporary move unblocks the shallowest blocked module (module docstring).
 
+    Flows first: the same greedy is also run preferring, at every step, a pending
+    module whose move is a flow (:func:`is_flow`; each flow can make its parent's other
+    leaves flow next, as a chain collapsing into a star), and that order is kept unless
+    it needs more steps. Both orders move every pending module straight to its target,
+    so the flows cost nothing in steps.
+
     Raises:
         PlanningError: no progress (a bug: the order always terminates).
     """
-    n = len(start)
     if goal_depth is None:
         goal_depth = _bfs(goal)[1]
+    plain = _greedy_order(start, goal, goal_depth, flows_first=False)
+    flowing = _greedy_order(start, goal, goal_depth, flows_first=True)
+    if len(flowing) > len(plain):
+        return plain
+    if len(flowing) == len(plain) and count_flows(start, flowing) < count_flows(start, plain):
+        return plain
+    return flowing
+
+
+def _greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence[int],
+                  *, flows_first: bool) -> list[Step]:
+    n = len(start)
     state = _State(start)
     steps: list[Step] = []
     pending = sorted((i for i in range(n) if start[i] != goal[i]), key=lambda i: goal_depth[i])
@@ -562,18 +597,46 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
         if len(steps) > limit:
             raise PlanningError("MISO step ordering made no progress")
         moved = False
-        for idx, i in enumerate(pending):
-            if state.legal(i, goal[i]):
-                steps.append(state.apply(i, goal[i]))
-                del pending[idx]
-                moved = True
-                break
+        if flows_first:
+            for idx, i in enumerate(pending):
+                if state.flows(i, goal[i]):
+                    steps.append(state.apply(i, goal[i]))
+                    del pending[idx]
+                    moved = True
+                    break
+        if not moved:
+            for idx, i in enumerate(pending):
+                if state.legal(i, goal[i]):
+                    steps.append(state.apply(i, goal[i]))
+                    del pending[idx]
+                    moved = True
+                    break
         if moved:
             continue
         steps.append(_unblock(state, pending, goal))
         pending = sorted((i for i in range(n) if state.parent[i] != goal[i]),
                          key=lambda i: goal_depth[i])
     return steps
+
+
+def is_flow(parent: Sequence[int], module: int, new: int) -> bool:
+    """Whether re-targeting ``module``'s connector to ``new`` is a flow (section 4.1) in
+    the pointer array ``parent``: ``module`` is a leaf (connected to its parent only, no
+    module on it) and ``new`` is a neighbour of its parent (the parent sits on ``new``,
+    or ``new`` sits on the parent). The pointer-array form of
+    :func:`msrr.core.actions.flow_move` (tests check they agree on every step)."""
+    old = parent[module]
+    return (old != FREE and new != FREE and new != module and module not in parent
+            and (parent[new] == old or parent[old] == new))
+
+
+def count_flows(start: Sequence[int], steps: Iterable[Step]) -> int:
+    """How many of ``steps``, applied from ``start``, are flows."""
+    parent, flows = list(start), 0
+    for step in steps:
+        flows += is_flow(parent, step.module, step.new)
+        parent[step.module] = step.new
+    return flows
 
 
 def _unblock(state: _State, pending: list[int], goal: Sequence[int]) -> Step:
@@ -642,7 +705,9 @@ def _shortest(start: Sequence[int], goal: Sequence[int], bound: int,
     """Fewest legal steps from ``start`` to ``goal`` if fewer than ``bound``, else None.
 
     The goal-depth order first (optimal when it needs only ``d`` steps), then A* with
-    the consistent heuristic ``d`` over every legal step.
+    the consistent heuristic ``d`` over every legal step; among paths of equal length
+    A* keeps the one with fewer steps that are not flows (lexicographic cost
+    ``(steps, non-flows)``, still admissible and consistent with ``(d, 0)``).
     """
     d = mismatches(start, goal)
     if d >= bound:
@@ -654,12 +719,12 @@ def _shortest(start: Sequence[int], goal: Sequence[int], bound: int,
     best_known = min(bound, len(greedy))
     origin = tuple(start)
     came: dict[tuple[int, ...], tuple[tuple[int, ...], Step] | None] = {origin: None}
-    cost = {origin: 0}
-    heap = [(d, 0, origin)]
+    cost = {origin: (0, 0)}
+    heap = [(d, 0, 0, origin)]
     target = tuple(goal)
     while heap:
-        f, g, state = heapq.heappop(heap)
-        if g > cost[state]:
+        f, rough, g, state = heapq.heappop(heap)
+        if (g, rough) > cost[state]:
             continue
         if state == target:
             steps = []
@@ -676,13 +741,13 @@ def _shortest(start: Sequence[int], goal: Sequence[int], bound: int,
                 nxt = list(state)
                 nxt[i] = k
                 key = tuple(nxt)
-                ng = g + 1
-                if ng < cost.get(key, 1 << 30):
-                    cost[key] = ng
+                ng, nrough = g + 1, rough + (not is_flow(state, i, k))
+                if (ng, nrough) < cost.get(key, (1 << 30, 0)):
+                    cost[key] = (ng, nrough)
                     came[key] = (state, Step(i, state[i], k))
                     h = mismatches(key, target)
                     if ng + h < best_known:
-                        heapq.heappush(heap, (ng + h, ng, key))
+                        heapq.heappush(heap, (ng + h, nrough, ng, key))
     return greedy if len(greedy) < bound else None
 
 
@@ -812,20 +877,14 @@ def _same_shape(a: Configuration, b: Configuration) -> bool:
     return links(a) == links(b)
 
 
-def _is_flow(parent: Sequence[int], step: Step) -> bool:
-    """A leaf moves from its parent onto a module touching that parent (paper 4.1)."""
-    if step.old == FREE or step.new == FREE or step.module in parent:
-        return False
-    return parent[step.new] == step.old or parent[step.old] == step.new
-
-
 def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
               planner: str = "miso", node_limit: int = 2_000_000) -> Plan:
     """A :class:`~msrr.core.plan.Plan` of MISO connection changes from ``start`` to ``goal``.
 
-    Each step becomes one action, typed as :func:`msrr.core.actions.classify` types
-    it: a *connection* (the free module connects), a *disconnection* (a module on the
-    cycle frees itself), a *flow* (a leaf moves to a module touching its parent) or,
+    Each step becomes one action, typed by the one rule of
+    :mod:`msrr.core.actions`: a *connection* (the free module connects), a
+    *disconnection* (a module on the cycle frees itself), a *flow*
+    (:func:`~msrr.core.actions.flow_move`: a leaf moves to a neighbour of its parent) or,
     for any other re-targeting, a break-and-make *parallel connection* (disconnection
     first, then connection; the module carries its in-tree). A last *moving* action
     sets the goal's vectors. Kept connections keep their ids and vectors; new ones take
@@ -856,10 +915,9 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
         i = step.module
         broken = (ConnectionChange(ids[i], ids[step.old]),) if step.old != FREE else ()
         made = (ConnectionChange(ids[i], ids[step.new]),) if step.new != FREE else ()
-        flow = _is_flow(parent, step)
         parent[i] = step.new
         after = _configuration(start, ids, parent, vectors, edge_ids, f"step {t}")
-        if flow:
+        if broken and made and flow_move(current, topology_diff(current, after)) is not None:
             flows += 1
             kind, verb = ActionType.FLOW, "flow"
         elif not made:

@@ -7,7 +7,7 @@ sensors) and commands pose targets (``joints={"x", "y", "z", "yaw"}``) and docks
   its group) lifts clear of every other body, travels and turns, and lowers onto its
   goal (its height kept); an action without goals is reached at once (the kinematic
   world has no joints to move);
-* **approach** (and **flow**): for each connection the action makes, one side's group
+* **approach**: for each connection the action makes, one side's group
   is carried so that the two ports face each other (or the bodies touch, along the
   target's ``z`` or, if that place is taken, along an axis or a horizontal diagonal,
   for connections without ports): the smaller group moves, the target's on a tie,
@@ -21,8 +21,17 @@ sensors) and commands pose targets (``joints={"x", "y", "z", "yaw"}``) and docks
   where the executor arms its ports);
 * **release**: connections without ports are released with ``undock=("@other",)``
   (the executor sends the port commands of every other change, in release, connect
-  and flow);
-* **connect**: keeps the docks of the action armed.
+  and handover);
+* **connect**: keeps the docks of the action armed;
+* **flow** (section 4.1; the executor's flow contract): when the leaf's links are
+  contacts (no port normals: FreeBOT, SnailBot), the leaf slides over its parent
+  (``joints={"slide_x", "slide_y", "slide_z"}``, see the kinematic driver) to where
+  it touches the new parent as well (:func:`~msrr.core.generic.geometry.touching_direction`),
+  in the plane of parent, new parent and leaf, else over the top or around the side,
+  whichever sweep is free, in arcs of at most 60 degrees; then in **handover** it
+  sends the leaf ``undock=("@parent",)`` and ``dock=("@new parent",)`` in one tick.
+  A leaf held by a rigid port cannot slide: its flow is reached at once and the
+  handover carries the released leaf to its new place like an approach.
 """
 
 from __future__ import annotations
@@ -35,17 +44,21 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
+from ..actions import Flow, flow_of
 from ..control import Control
 from ..driver import ModuleCommand, Observation
 from ..events import Phase
 from ..plan import Action, ConnectionChange, ConnectionKey, connection_key
 from ..robot import ModuleKind, RobotSpec, body_half_size
-from .driver import FREEFORM_PREFIX, ModuleReading
+from .driver import FREEFORM_PREFIX, SLIDE_KEYS, ModuleReading
 from .geometry import (
     BodyPose,
+    contact_distance,
     inscribed_radius,
     place_for_contact,
     place_for_ports,
+    slide_toward,
+    touching_direction,
     wrap_angle,
 )
 
@@ -57,6 +70,19 @@ REACHED = 1e-6
 CONTACT_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1),
                       (1, 1, 0), (1, -1, 0), (-1, 1, 0), (-1, -1, 0))
 """Connection directions tried after the target's own for a contact dock."""
+
+
+SLIDE_ARC = math.pi / 3
+"""Largest arc [rad] between two waypoints of a slide (each arc's great circle unique)."""
+
+
+@dataclass
+class _Slide:
+    """A flow's leaf sliding over its parent through unit directions ``waypoints``."""
+
+    leaf: str
+    parent: str
+    waypoints: deque = field(default_factory=deque)
 
 
 @dataclass
@@ -86,6 +112,7 @@ class LatchController:
         self.jobs: deque[_Job | ConnectionChange | tuple[str, list[float]]] = deque()
         self.job: _Job | None = None
         self.parked = 0
+        self.slide: _Slide | None = None
 
     # -- the controller protocol -------------------------------------------------------------
 
@@ -93,24 +120,143 @@ class LatchController:
         self.job = None
         self.jobs = deque()
         self.parked = 0
+        self.slide = None
         if phase is Phase.MOVE:
             self.jobs.extend(sorted(action.goals.items()))
-        elif phase in (Phase.APPROACH, Phase.FLOW):
+        elif phase is Phase.APPROACH:
             self.jobs.extend(self._made(action))
+        elif phase is Phase.FLOW:
+            flow = flow_of(action)
+            if self._slides(observation, flow):
+                self.slide = self._plan_slide(observation, flow)
+        elif phase is Phase.HANDOVER:
+            flow = flow_of(action)
+            if not self._slides(observation, flow) or not self._touching(observation, flow):
+                self.jobs.extend(self._made(action))  # a rigid latch: carry the leaf over
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         commands: dict[str, ModuleCommand] = {}
-        if phase in (Phase.RELEASE, Phase.FLOW):
+        if phase in (Phase.RELEASE, Phase.HANDOVER):
             for change in self._broken(action):
                 if change.source_port is None and change.target_port is None:
                     self._add(commands, change.source, undock=f"{FREEFORM_PREFIX}{change.target}")
         if phase is Phase.CONNECT:
             for change in self._made(action):
                 self._arm(commands, change)
+        if phase is Phase.HANDOVER:
+            for change in self._made(action):
+                if change.source_port is None and change.target_port is None:
+                    self._arm(commands, change)
         errors: dict[str, float] = {}
-        if phase in (Phase.MOVE, Phase.APPROACH, Phase.FLOW):
+        if phase is Phase.FLOW:
+            self._advance_slide(observation, commands, errors)
+        if phase in (Phase.MOVE, Phase.APPROACH, Phase.HANDOVER):
             self._advance(action, phase, observation, commands, errors)
-        return Control(commands, errors, reached=self.job is None and not self.jobs)
+        return Control(commands, errors, reached=self.job is None and not self.jobs
+                       and (self.slide is None or not self.slide.waypoints))
+
+    # -- flows --------------------------------------------------------------------------------
+
+    def _slides(self, observation: Observation, flow: Flow) -> bool:
+        """Whether the flow's links are contacts (no port normals), so the leaf can slide."""
+        for change in (flow.broken, flow.made):
+            for module in (change.source, change.target):
+                port = flow.port(change, module)
+                if port is not None and self._kind(observation, module).port(port).normal \
+                        is not None:
+                    return False
+        return True
+
+    def _touching(self, observation: Observation, flow: Flow) -> bool:
+        """Whether the leaf touches the new parent (a slide ended there)."""
+        leaf, other = _body(observation, flow.leaf), _body(observation, flow.new_parent)
+        between = other.position - leaf.position
+        span = float(np.linalg.norm(between))
+        reach = contact_distance(self._kind(observation, flow.leaf), leaf.yaw,
+                                 self._kind(observation, flow.new_parent), other.yaw,
+                                 between / span)
+        return abs(span - reach) <= 1e-3
+
+    def _plan_slide(self, observation: Observation, flow: Flow) -> _Slide | None:
+        """Waypoints (unit directions from the parent) that bring the leaf to touch the new
+        parent: in the plane of parent, new parent and leaf, over the top, or around the
+        side, the first whose sweep is free; ``None`` when no place touches both."""
+        parent, leaf = _body(observation, flow.parent), _body(observation, flow.leaf)
+        other = _body(observation, flow.new_parent)
+        kinds = {m: self._kind(observation, m) for m in (flow.parent, flow.leaf,
+                                                         flow.new_parent)}
+        here = leaf.position - parent.position
+        here = here / np.linalg.norm(here)
+        e1 = other.position - parent.position
+        e1 = e1 / np.linalg.norm(e1)
+        sides = []
+        for side in (here, np.array([0.0, 0.0, 1.0]), np.cross([0.0, 0.0, 1.0], e1),
+                     -np.cross([0.0, 0.0, 1.0], e1)):
+            side = side - float(side @ e1) * e1
+            if float(np.linalg.norm(side)) > 1e-6:
+                sides.append(side / np.linalg.norm(side))
+        first: _Slide | None = None
+        for side in sides:
+            goal = touching_direction(kinds[flow.parent], parent, kinds[flow.leaf], leaf.yaw,
+                                      kinds[flow.new_parent], other, side)
+            if goal is None:
+                continue
+            start = math.atan2(float(here @ side), float(here @ e1)) % (2 * math.pi)
+            end = math.atan2(float(goal @ side), float(goal @ e1)) % (2 * math.pi)
+            count = max(1, math.ceil(abs(end - start) / SLIDE_ARC))
+            waypoints = deque(math.cos(a) * e1 + math.sin(a) * side
+                              for a in np.linspace(start, end, count + 1)[1:])
+            slide = _Slide(flow.leaf, flow.parent, waypoints)
+            if self._slide_free(observation, slide):
+                return slide
+            first = first or slide
+        return first  # the driver refuses the move and says where
+
+    def _slide_free(self, observation: Observation, slide: _Slide) -> bool:
+        """Whether the leaf's sweep along ``slide`` stays clear of every body but its
+        parent (sampled finer than the smallest body)."""
+        parent = _body(observation, slide.parent)
+        leaf = _body(observation, slide.leaf)
+        kinds = {m: self._kind(observation, m) for m in observation.poses}
+        others = [m for m in observation.poses if m not in (slide.leaf, slide.parent)]
+        if not others:
+            return True
+        fixed = np.array([observation.poses[m].position for m in others])
+        limit = np.array([inscribed_radius(kinds[m]) for m in others]) \
+            + inscribed_radius(kinds[slide.leaf]) - 1e-9
+        offset = leaf.position - parent.position
+        radius = float(np.linalg.norm(offset))
+        step = min(inscribed_radius(k) for k in kinds.values()) / 2 / radius
+        direction = offset / radius
+        for goal in slide.waypoints:
+            while True:
+                direction = slide_toward(direction, goal, step)
+                at = parent.position + direction * contact_distance(
+                    kinds[slide.parent], parent.yaw, kinds[slide.leaf], leaf.yaw, direction)
+                if np.any(np.linalg.norm(fixed - at, axis=1) < limit):
+                    return False
+                if float(direction @ goal) >= 1 - 1e-12:
+                    break
+        return True
+
+    def _advance_slide(self, observation: Observation, commands: dict[str, ModuleCommand],
+                       errors: dict[str, float]) -> None:
+        slide = self.slide
+        if slide is None:
+            return
+        offset = _body(observation, slide.leaf).position - _body(observation,
+                                                                 slide.parent).position
+        radius = float(np.linalg.norm(offset))
+        here = offset / radius
+        while slide.waypoints and float(here @ slide.waypoints[0]) >= math.cos(REACHED):
+            slide.waypoints.popleft()
+        if not slide.waypoints:
+            return
+        goal = slide.waypoints[0]
+        errors[slide.leaf] = radius * math.acos(max(-1.0, min(1.0, float(here @ goal))))
+        commands[slide.leaf] = ModuleCommand(joints=dict(zip(SLIDE_KEYS, (float(v)
+                                                                           for v in goal),
+                                                             strict=True)))
 
     # -- jobs ---------------------------------------------------------------------------------
 
@@ -358,14 +504,12 @@ class LatchController:
         return {m: group for group in nx.connected_components(graph) for m in group}
 
     @staticmethod
-    def _made(action: Action) -> list[ConnectionChange]:
-        keys = _target_keys(action)
-        return [c for c in action.changes if c.key in keys]
+    def _made(action: Action) -> tuple[ConnectionChange, ...]:
+        return action.made()
 
     @staticmethod
-    def _broken(action: Action) -> list[ConnectionChange]:
-        keys = _target_keys(action)
-        return [c for c in action.changes if c.key not in keys]
+    def _broken(action: Action) -> tuple[ConnectionChange, ...]:
+        return action.broken()
 
     def _arm(self, commands: dict[str, ModuleCommand], change: ConnectionChange) -> None:
         if change.source_port is None or change.target_port is None:
@@ -400,11 +544,6 @@ def _latched(observation: Observation) -> set[ConnectionKey]:
             for latch in reading.latches:
                 found.add(connection_key(module, latch.other, latch.port, latch.other_port))
     return found
-
-
-def _target_keys(action: Action) -> set[ConnectionKey]:
-    return {connection_key(e.source, e.target, *(e.ports or (None, None)))
-            for e in action.target.edges() if e.kind is None}
 
 
 def _target_z(action: Action, change: ConnectionChange) -> np.ndarray | None:

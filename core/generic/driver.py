@@ -12,6 +12,12 @@ modules, and so is a start whose bodies overlap.
 
 * ``joints={"x": m, "y": m, "z": m, "yaw": rad}`` -- the pose target of the module
   (missing keys keep the current value); one commanded module per group leads it;
+* ``joints={"slide_x": .., "slide_y": .., "slide_z": ..}`` -- a *slide*: a module
+  whose one link is a contact (no port normals: FreeBOT, SnailBot) moves alone over
+  the surface of the module it rests on, its direction from that module's centre
+  turning toward this unit vector (world frame) along a great circle at the bounded
+  speed, contact kept; the link stays latched and its sensed ``z`` turns with it
+  (a flow's first phase, see :mod:`msrr.core.executor`);
 * ``dock=(port, ...)`` arms ports: a port latches to a free port of another module
   whose position is within ``tolerance`` and whose normal is opposite; a connector
   without ports is named ``"@<other module>"`` and latches when the two bodies touch;
@@ -43,17 +49,19 @@ from ..errors import ExecutionError
 from ..robot import ModuleKind, RobotSpec, body_half_size
 from .geometry import (
     BodyPose,
+    contact_distance,
     contact_reach,
     inscribed_radius,
     place_for_contact,
     place_for_ports,
     port_frame,
     rotate_z,
+    slide_toward,
     wrap_angle,
 )
 
 __all__ = ["DEFAULT_SPEED", "DEFAULT_TOLERANCE", "DEFAULT_TURN_RATE", "FREEFORM_PREFIX",
-           "KinematicDriver", "KinematicDriverFactory", "Latch", "ModuleReading"]
+           "SLIDE_KEYS", "KinematicDriver", "KinematicDriverFactory", "Latch", "ModuleReading"]
 
 DEFAULT_SPEED = 0.5
 """Largest speed [m/s] of a commanded module (and its group)."""
@@ -71,6 +79,7 @@ FREEFORM_PREFIX = "@"
 """Dock/undock commands for connections without ports name the other module: ``"@b"``."""
 
 POSE_KEYS = ("x", "y", "z", "yaw")
+SLIDE_KEYS = ("slide_x", "slide_y", "slide_z")
 
 
 @dataclass(frozen=True)
@@ -153,6 +162,7 @@ class KinematicDriver(Driver):
         self.links: list[_Link] = []
         self.struts: dict[str, _Strut] = {}
         self.targets: dict[str, dict[str, float]] = {}
+        self.slides: dict[str, np.ndarray] = {}
         self.armed: set[tuple[str, str]] = set()
         self._time = 0.0
 
@@ -188,7 +198,7 @@ class KinematicDriver(Driver):
                 ports = e.ports or (None, None)
                 self.links.append(_Link(e.source, e.target, ports[0], ports[1], z))
         self.poses = self._layout(start)
-        self.targets, self.armed, self._time = {}, set(), 0.0
+        self.targets, self.slides, self.armed, self._time = {}, {}, set(), 0.0
         for link in self.links:
             if link.z is None:
                 link.z = _unit(self.poses[link.target].position - self.poses[link.source].position)
@@ -288,15 +298,16 @@ class KinematicDriver(Driver):
         """Release what is commanded at once; remember pose targets and armed ports.
 
         Raises:
-            ExecutionError: a command for an unknown module, an unknown pose key, or a
-                dock of an edge module's end.
+            ExecutionError: a command for an unknown module, an unknown pose key, a
+                dock of an edge module's end, or a slide of a module whose one link is
+                not a contact (or mixed with pose keys).
         """
         self.require_connected()
         unknown = set(commands) - set(self.kinds) - set(self.struts)
         if unknown:
             raise ExecutionError(f"kinematic driver: commands for unknown module(s) "
                                  f"{sorted(unknown)}")
-        self.targets, self.armed = {}, set()
+        self.targets, self.slides, self.armed = {}, {}, set()
         for module, command in sorted(commands.items()):
             for port in command.undock:
                 self._release(module, port)
@@ -305,13 +316,59 @@ class KinematicDriver(Driver):
                     raise ExecutionError(f"kinematic driver: cannot dock the ends of edge module "
                                          f"{module} (edge modules have no body here)")
                 continue
-            bad = set(command.joints) - set(POSE_KEYS)
+            bad = set(command.joints) - set(POSE_KEYS) - set(SLIDE_KEYS)
             if bad:
                 raise ExecutionError(f"kinematic driver: module {module}: unknown pose key(s) "
-                                     f"{sorted(bad)} (known: x, y, z, yaw)")
-            if command.joints:
+                                     f"{sorted(bad)} (known: x, y, z, yaw; or slide_x, "
+                                     "slide_y, slide_z)")
+            if set(command.joints) & set(SLIDE_KEYS):
+                self.slides[module] = self._slide_goal(module, command.joints)
+            elif command.joints:
                 self.targets[module] = {k: float(v) for k, v in command.joints.items()}
             self.armed |= {(module, port) for port in command.dock}
+
+    def _slide_goal(self, module: str, joints: Mapping[str, float]) -> np.ndarray:
+        if set(joints) != set(SLIDE_KEYS):
+            raise ExecutionError(f"kinematic driver: module {module}: a slide takes exactly "
+                                 f"slide_x, slide_y, slide_z, got {sorted(joints)}")
+        self._contact_of(module)
+        goal = np.array([float(joints[k]) for k in SLIDE_KEYS])
+        if not np.all(np.isfinite(goal)) or float(np.linalg.norm(goal)) < 1e-9:
+            raise ExecutionError(f"kinematic driver: module {module}: slide direction "
+                                 f"{goal.tolist()} is not a direction")
+        return goal / np.linalg.norm(goal)
+
+    def _contact_of(self, module: str) -> tuple[_Link, str]:
+        """The one link of ``module`` and the module at its other end, if a contact."""
+        mine = [lk for lk in self.links if module in (lk.source, lk.target)]
+        mine_struts = [s for s in self.struts.values() if module in s.ends.values()]
+        if len(mine) != 1 or mine_struts:
+            raise ExecutionError(f"kinematic driver: module {module} cannot slide: it has "
+                                 f"{len(mine) + len(mine_struts)} links, a slide needs one")
+        link = mine[0]
+        other = link.target if link.source == module else link.source
+        for end, port in ((link.source, link.source_port), (link.target, link.target_port)):
+            if port is not None and self.kinds[end].port(port).normal is not None:
+                raise ExecutionError(f"kinematic driver: module {module} cannot slide on "
+                                     f"{other}: port {end}{port} is a rigid latch, not a contact")
+        return link, other
+
+    def _slide(self, module: str, dt: float) -> None:
+        """Turn ``module`` over the surface of the module it rests on (module docstring)."""
+        link, other = self._contact_of(module)
+        centre, here = self.poses[other], self.poses[module]
+        offset = here.position - centre.position
+        radius = float(np.linalg.norm(offset))
+        direction = slide_toward(offset / radius, self.slides[module], self.speed * dt / radius)
+        distance = contact_distance(self.kinds[other], centre.yaw, self.kinds[module],
+                                    here.yaw, direction)
+        self.poses[module] = BodyPose(centre.position + direction * distance, here.yaw)
+        overlap = self._overlap({module}, set(self.poses) - {module})
+        if overlap:
+            self.poses[module] = here
+            raise ExecutionError(f"kinematic driver: sliding {module} over {other} would "
+                                 f"overlap {overlap[1]} at t={self._time:.2f} s (refused)")
+        link.z = direction if link.target == module else -direction
 
     def _release(self, module: str, port: str) -> None:
         if module in self.struts:
@@ -327,7 +384,8 @@ class KinematicDriver(Driver):
             self.links = [lk for lk in self.links if (module, port) not in lk.ends()]
 
     def step(self, dt: float) -> None:
-        """Move each commanded group toward its target, then latch armed aligned ports.
+        """Move each commanded group toward its target, slide each sliding module, then
+        latch armed aligned ports.
 
         Raises:
             ExecutionError: a move would make two bodies overlap (nothing moves then).
@@ -339,6 +397,8 @@ class KinematicDriver(Driver):
             leaders = sorted(m for m in group if m in self.targets)
             if leaders:
                 self._move_group(group, leaders[0], dt)
+        for module in sorted(self.slides):
+            self._slide(module, dt)
         self._latch()
         self._time += dt
 

@@ -14,7 +14,10 @@ runtime). Its size comes from its :class:`~msrr.core.robot.ModuleKind`'s ``geome
 * a port without a normal, or a connection without ports (freeform connectors,
   FreeBOT, SnailBot), joins two bodies that touch: the target's centre is the
   source's plus ``z * (reach_source + reach_target)``, ``reach`` the distance from
-  a centre to its surface along ``z``.
+  a centre to its surface along ``z``; such a contact can *slide*: the moving body
+  stays on the other's surface while its direction from the other's centre turns
+  (:func:`slide_toward`), which is how a flow's leaf reaches a neighbour of its
+  parent (:func:`touching_direction`).
 """
 
 from __future__ import annotations
@@ -29,12 +32,15 @@ from ..robot import ModuleKind, body_half_size
 
 __all__ = [
     "BodyPose",
+    "contact_distance",
     "contact_reach",
     "inscribed_radius",
     "place_for_contact",
     "place_for_ports",
     "port_frame",
     "rotate_z",
+    "slide_toward",
+    "touching_direction",
     "wrap_angle",
 ]
 
@@ -130,12 +136,77 @@ def place_for_ports(fixed_kind: ModuleKind, fixed_port: str, fixed: BodyPose,
     return BodyPose(position - rotate_z(offset, yaw), yaw)
 
 
+def contact_distance(fixed_kind: ModuleKind, fixed_yaw: float, moving_kind: ModuleKind,
+                     moving_yaw: float, direction: np.ndarray) -> float:
+    """Distance [m] between the centres of two bodies that touch along the unit
+    ``direction`` (world frame, from the fixed body's centre to the moving one's)."""
+    return (contact_reach(fixed_kind, rotate_z(direction, -fixed_yaw))
+            + contact_reach(moving_kind, rotate_z(-direction, -moving_yaw)))
+
+
 def place_for_contact(fixed_kind: ModuleKind, fixed: BodyPose, moving_kind: ModuleKind,
                       moving_yaw: float, z: np.ndarray, fixed_is_source: bool) -> BodyPose:
     """The pose of the moving body that touches the fixed one along the connection
     vector ``z`` (unit, world frame, pointing from the source to the target)."""
     direction = np.asarray(z, dtype=float) / np.linalg.norm(z)
     toward_moving = direction if fixed_is_source else -direction
-    distance = (contact_reach(fixed_kind, rotate_z(toward_moving, -fixed.yaw))
-                + contact_reach(moving_kind, rotate_z(-toward_moving, -moving_yaw)))
+    distance = contact_distance(fixed_kind, fixed.yaw, moving_kind, moving_yaw, toward_moving)
     return BodyPose(fixed.position + toward_moving * distance, moving_yaw)
+
+
+def slide_toward(direction: np.ndarray, goal: np.ndarray, max_angle: float) -> np.ndarray:
+    """``direction`` (unit, shape (3,)) turned toward ``goal`` (unit) along their great
+    circle by at most ``max_angle`` [rad]; exactly ``goal`` once within it. Opposite
+    directions turn about a horizontal axis (over the top), or about y when vertical."""
+    u = np.asarray(direction, dtype=float)
+    g = np.asarray(goal, dtype=float)
+    angle = math.acos(max(-1.0, min(1.0, float(u @ g))))
+    if angle <= max_angle:
+        return g.copy()
+    axis = np.cross(u, g)
+    if float(np.linalg.norm(axis)) < 1e-9:
+        axis = np.cross(u, np.array([0.0, 0.0, 1.0]))
+        if float(np.linalg.norm(axis)) < 1e-9:
+            axis = np.array([0.0, 1.0, 0.0])
+    axis = axis / np.linalg.norm(axis)
+    c, s = math.cos(max_angle), math.sin(max_angle)
+    turned = u * c + np.cross(axis, u) * s + axis * float(axis @ u) * (1 - c)
+    return turned / np.linalg.norm(turned)
+
+
+def touching_direction(parent_kind: ModuleKind, parent: BodyPose, leaf_kind: ModuleKind,
+                       leaf_yaw: float, other_kind: ModuleKind, other: BodyPose,
+                       side: np.ndarray) -> np.ndarray | None:
+    """Where on ``parent`` a leaf touching it also touches ``other``: the unit direction
+    ``d`` from the parent's centre, in the plane of ``e1`` (toward ``other``'s centre) and
+    ``side`` (a unit vector normal to ``e1``), on ``side``'s half, with
+    ``|p + d * contact_distance(d) - o| = contact_distance`` of leaf and other.
+
+    Found by bisection on the angle from ``e1`` (the gap to ``other`` grows with it);
+    ``None`` when the leaf cannot touch both (``other`` too far from ``parent``).
+    """
+    e1 = other.position - parent.position
+    e1 = e1 / np.linalg.norm(e1)
+    e2 = np.asarray(side, dtype=float)
+
+    def gap(theta: float) -> float:
+        d = math.cos(theta) * e1 + math.sin(theta) * e2
+        leaf = parent.position + d * contact_distance(parent_kind, parent.yaw, leaf_kind,
+                                                      leaf_yaw, d)
+        between = leaf - other.position
+        span = float(np.linalg.norm(between))
+        if span < 1e-12:
+            return -1.0
+        return span - contact_distance(other_kind, other.yaw, leaf_kind, leaf_yaw,
+                                       between / span)
+
+    low, high = 0.0, math.pi
+    if gap(low) > 0 or gap(high) < 0:
+        return None
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        if gap(mid) < 0:
+            low = mid
+        else:
+            high = mid
+    return math.cos(high) * e1 + math.sin(high) * e2
