@@ -652,6 +652,7 @@ def write_outputs(run: Run, result: RunResult) -> None:
     summary = {"robot": run.robot, "scenario": run.scenario, "planner": run.plan.planner,
                "driver": run.driver, "seed": run.seed, "rate_hz": run.rate,
                "planned_docks": run.plan.docks, "planned_undocks": run.plan.undocks,
+               "planned_flows": run.plan.flows,
                "recording": None if run.recording is None else run.recording.name,
                **result.summary()}
     text = json.dumps(_finite(summary), indent=2, allow_nan=False) + "\n"

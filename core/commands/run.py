@@ -50,13 +50,16 @@ class _ProgressListener:
         self.progress.console.print(f"  fault {fault}", markup=False)
 
 
-def _summary(result: RunResult, planned_docks: int, planned_undocks: int) -> Table:
+def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
+             planned_flows: int = 0) -> Table:
     rows: list[list[object]] = [
         ["actions", f"{result.actions_done}/{result.actions_total}"
          + (f" ({result.actions_skipped} skipped: distance covered)"
             if result.actions_skipped else "")],
         ["docks", f"{result.docks} (planned {planned_docks})"],
         ["undocks", f"{result.undocks} (planned {planned_undocks})"],
+        *([["flows", f"{result.flows} (planned {planned_flows})"]]
+          if planned_flows or result.flows else []),
         ["retries", result.retries],
         ["simulated time", f"{result.sim_time:.1f} s"],
         ["wall time", f"{result.wall_time:.1f} s"],
@@ -190,7 +193,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
             raise SystemExit(exc.exit_code if isinstance(exc, Interrupted) else 130) from None
         run = prepared.run
         write_outputs(run, result)
-        console.print(_summary(result, run.plan.docks, run.plan.undocks))
+        console.print(_summary(result, run.plan.docks, run.plan.undocks, run.plan.flows))
         assert run.out_dir is not None
         console.print(f"wrote {run.out_dir / 'plan.json'}, {run.out_dir / 'summary.json'}",
                       markup=False)
@@ -209,7 +212,9 @@ def _execute(prepared: PreparedRun) -> RunResult:
         err_console.print(f"note: {note}", markup=False)
     console.print(f"{run.robot} {run.scenario}: {plan.start.name or 'start'} -> "
                   f"{plan.goal.name or 'goal'}, {len(plan.actions)} actions by {plan.planner} "
-                  f"({plan.undocks} undocks, {plan.docks} docks), driver {run.driver}"
+                  f"({plan.undocks} undocks, {plan.docks} docks"
+                  + (f", {plan.flows} of them in flows" if plan.flows else "")
+                  + f"), driver {run.driver}"
                   + (f", faults {'; '.join(map(str, prepared.faults))}" if prepared.faults else ""),
                   markup=False)
     progress = Progress(TextColumn("{task.description}", markup=False), BarColumn(),
