@@ -10,12 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
-import networkx as nx
-
-from .configuration import VIRTUAL, Configuration
 from .errors import UnknownNameError
+
+if TYPE_CHECKING:  # a plugin builds its RobotSpec when it loads, on every --help: no graphs
+    from .configuration import Configuration
 
 __all__ = [
     "DEFAULT_HALF_SIZE",
@@ -243,7 +243,7 @@ def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:
         found.append(Violation("robot", f"is {config.robot!r}, expected {spec.name!r}"))
     for vertex in config.vertices():
         kind = config.kind_of(vertex)
-        if kind == VIRTUAL:
+        if config.is_virtual(vertex):
             if config.degree(vertex) != 1:
                 found.append(Violation(f"module {vertex}", "a virtual vertex needs exactly one "
                                        f"connection, it has {config.degree(vertex)}"))
@@ -262,7 +262,7 @@ def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:
             continue
         for end, port in zip((edge.source, edge.target), edge.ports, strict=True):
             kind = config.kind_of(end)
-            if kind == VIRTUAL or kind not in vertex_kinds:
+            if config.is_virtual(end) or kind not in vertex_kinds:
                 continue
             names = {p.name for p in spec.kind(kind).ports}
             if port not in names:
@@ -273,6 +273,8 @@ def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:
 
 def tree_violations(config: Configuration) -> list[Violation]:
     """Violations of "the topology is one tree" (connected, no cycle, no parallel edge)."""
+    import networkx as nx  # for the message only; robot descriptions load without it
+
     if len(config) == 0:
         return [Violation("modules", "a configuration needs at least one module")]
     found = []

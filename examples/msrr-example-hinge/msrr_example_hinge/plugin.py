@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from msrr.core import (
-    Configuration,
     DockingRules,
     ModuleKind,
     PortSpec,
@@ -16,6 +16,9 @@ from msrr.core import (
 )
 from msrr.core.hookspecs import Register
 from msrr.core.robot import port_reuse_violations, tree_violations
+
+if TYPE_CHECKING:  # annotations only: configurations import numpy and networkx
+    from msrr.core import Configuration
 
 CONFIGS = Path(__file__).parent / "configs"
 
