@@ -36,8 +36,8 @@ if TYPE_CHECKING:  # this module is on every command's --help path: no numpy, no
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
-__all__ = ["MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "check_display", "console",
-           "counts", "err_console", "error_line", "plural", "printable", "require",
+__all__ = ["COSTS", "MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "check_display", "console",
+           "counts", "drop_empty_columns", "err_console", "error_line", "plural", "printable", "require",
            "run_selection_options", "show_configuration", "styled", "table", "vector_text"]
 
 
@@ -165,6 +165,11 @@ class FiniteFloat(click.ParamType):
 SEED = click.IntRange(0, 2**32 - 1)
 """Option type of every ``--seed``: numpy's seed range."""
 
+COSTS = ("ik", "distance")
+"""Choices of every ``--cost`` (motion cost of matching and library builds): the values of
+:data:`msrr.core.matching.cost.COST_KINDS`, spelled here so a command's ``--help`` does not
+import the matching code (tests/core/test_cli_startup.py checks that they are equal)."""
+
 
 def _cell(value: Any) -> Text:
     return value if isinstance(value, Text) else Text(printable(str(value)))
@@ -193,9 +198,10 @@ def vector_text(v: np.ndarray | None) -> str:
     return "" if v is None else "(" + ", ".join(f"{c:+.3f}" for c in v) + ")"
 
 
-def _filled(header: list[str], rows: list[list[Any]], optional: set[str]
+def drop_empty_columns(header: list[str], rows: list[list[Any]], optional: set[str]
             ) -> tuple[list[str], list[list[Any]]]:
-    """``header`` and ``rows`` without the ``optional`` columns that are empty in every row."""
+    """``header`` and ``rows`` without the ``optional`` columns that are ``""`` in every row
+    (a table shows a column only where it has something to say)."""
     keep = [i for i, name in enumerate(header)
             if name not in optional or any(row[i] != "" for row in rows)]
     return [header[i] for i in keep], [[row[i] for i in keep] for row in rows]
@@ -210,13 +216,13 @@ def show_configuration(config: Configuration, title: str = "") -> None:
     console.print(head)
     vertices = config.vertices()
     all_modules = len(vertices) == len(config.modules())  # no free end, no module as connection
-    header, rows = _filled(["id", "kind", "degree", "position [m]"],
+    header, rows = drop_empty_columns(["id", "kind", "degree", "position [m]"],
                            [[v, config.kind_of(v), config.degree(v), vector_text(config.position(v))]
                             for v in vertices], {"position [m]"})
     console.print(table(f"{'Modules' if all_modules else 'Vertices'} ({len(vertices)})",
                         header, rows))
     edges = config.edges()
-    header, rows = _filled(["id", "ends", "kind", "ports", "z", "x"],
+    header, rows = drop_empty_columns(["id", "ends", "kind", "ports", "z", "x"],
                            [[e.id, f"{e.source} → {e.target}", e.kind or "",
                              "–".join(e.ports) if e.ports else "", vector_text(e.z),
                              vector_text(e.x)] for e in edges], {"kind", "ports", "z", "x"})

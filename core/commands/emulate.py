@@ -13,8 +13,6 @@ from ..console import SEED, FiniteFloat, console, err_console, table
 from ..errors import ConfigurationError
 from ..files import check_output_place
 from ..interrupts import Interrupted, handled
-from ..link.emulator import Emulator, parse_link_faults
-from ..link.system import KeyRef, new_key, parse_key, write_key, write_system
 
 __all__ = ["command"]
 
@@ -47,6 +45,9 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
 
     Writes the systems file, then serves until Ctrl-C (or --duration); drive the
     modules with `platform run --robot ROBOT --system FILE ...` from another shell."""
+    from ..link.emulator import Emulator, parse_link_faults  # the link loads when it starts
+    from ..link.system import KeyRef, new_key, parse_key, write_key, write_system
+
     with handled():
         start = plugins.load_configuration(config)
         if start.robot != robot:

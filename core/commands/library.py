@@ -1,41 +1,31 @@
-"""``platform library``: build, show and retrieve from behavior libraries (paper section 6)."""
+"""``platform library``: build, show and retrieve from behavior libraries (paper section 6).
+
+Each subcommand imports the library, matching and simulation code in its body, so
+``platform library ... --help`` starts at once; the option vocabulary below is checked
+against those modules' constants by ``tests/core/test_cli_startup.py``.
+"""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
-import numpy as np
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from ..batch import batch_options, exit_on_interrupt
-from ..console import SEED, FiniteFloat, MsrrGroup, console, styled, table
+from ..console import COSTS, SEED, FiniteFloat, MsrrGroup, console, plural, styled, table
 from ..errors import ConfigurationError, MsrrError
-from ..executor import ExecutorOptions
-from ..feasibility import check_edges, default_runner
-from ..library import (
-    DEFAULT_MERGE_THRESHOLD,
-    Library,
-    RetrievalError,
-    build_library,
-    build_steps,
-    load_sources,
-    retrieve,
-    save_library,
-)
-from ..library.check import (
-    CheckFile,
-    apply_sidecar,
-    check_path,
-    edge_cases,
-    library_digest,
-    load_check,
-    save_check,
-)
-from ..matching import COST_DISTANCE, COST_KINDS
 from ..plugins import load_configuration, load_library, resolve
 
-__all__ = ["command"]
+if TYPE_CHECKING:
+    from ..library import Library
+
+__all__ = ["MERGE_THRESHOLD", "command"]
+
+MERGE_THRESHOLD = 1e-5
+"""``--merge-threshold`` default: :data:`msrr.core.library.build.DEFAULT_MERGE_THRESHOLD`."""
 
 
 @click.group("library", cls=MsrrGroup)
@@ -47,14 +37,16 @@ def command() -> None:
 @click.argument("sources", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path),
               help="Library file to write (atomically).")
-@click.option("--merge-threshold", type=FiniteFloat(0.0, 100.0), default=DEFAULT_MERGE_THRESHOLD,
+@click.option("--merge-threshold", type=FiniteFloat(0.0, 100.0), default=MERGE_THRESHOLD,
               show_default=True, help="Largest motion cost at which two configurations are "
               "merged, in [0, 100].")
-@click.option("--cost", type=click.Choice(COST_KINDS), default=COST_DISTANCE, show_default=True,
+@click.option("--cost", type=click.Choice(COSTS), default="distance", show_default=True,
               help="Motion cost: aligned distance (eq. 8; identical builds on every machine) "
                    "or full-body IK (eq. 6; reproducible on one BLAS kernel only).")
 def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost: str) -> None:
     """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14)."""
+    from ..library import build_library, build_steps, load_sources, save_library
+
     _check_output(output)
     inputs = load_sources(sources, resolve)
     columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
@@ -66,8 +58,9 @@ def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost:
                                 progress=lambda _: bar.advance(task))
     save_library(library, output)
     for sub in library.sublibraries.values():
-        console.print(f"{sub.name}: {len(sub.groups)} groups, {len(sub.configurations)} "
-                      f"configurations, {len(sub.behaviors)} behaviors, {len(sub.edges)} edges")
+        console.print(f"{sub.name}: {plural(len(sub.groups), 'group')}, "
+                      f"{plural(len(sub.configurations), 'configuration')}, "
+                      f"{plural(len(sub.behaviors), 'behavior')}, {plural(len(sub.edges), 'edge')}")
     console.print(f"wrote {output}")
 
 
@@ -115,6 +108,8 @@ def show(library: Path) -> None:
 
     Feasibility flags come from the check file beside it (``<LIB>.check.json``) when it
     is a check of this very file."""
+    from ..library.check import apply_sidecar, check_path
+
     lib = load_library(library)
     if apply_sidecar(lib, library) == "stale":
         console.print(styled(f"{check_path(library)} checks another build of {library}; run "
@@ -144,10 +139,21 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
 
     One simulation per edge, on every core (--workers) or a Ray cluster (--cluster);
     the check file is the same whichever runs it."""
+    from ..executor import ExecutorOptions
+    from ..feasibility import check_edges, default_runner
+    from ..library.check import (
+        CheckFile,
+        check_path,
+        edge_cases,
+        library_digest,
+        load_check,
+        save_check,
+    )
+
     lib = load_library(library)
     driver_options: tuple[tuple[str, float], ...] = ()
     if noise:
-        driver_options += (("noise", float(np.radians(noise))),)
+        driver_options += (("noise", math.radians(noise)),)
     if slip:
         driver_options += (("slip", slip),)
     runner = default_runner(lib.robot, options=ExecutorOptions(action_timeout=action_timeout,
@@ -177,7 +183,7 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
                           "" if c.shape_error_deg is None else f"{c.shape_error_deg:.2f}",
                           c.reason] for c in checks]))
     done = sum(c.feasible for c in checks)
-    console.print(f"{done}/{len(checks)} edges feasible; wrote {target}")
+    console.print(f"{done}/{plural(len(checks), 'edge')} feasible; wrote {target}")
 
 
 @command.command("retrieve")
@@ -189,6 +195,8 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
 def retrieve_command(library: Path, system: Path, target: str | None,
                      behavior: str | None) -> None:
     """Retrieve the cheapest sequence from the system to a target (Fig. 15)."""
+    from ..library import RetrievalError, retrieve
+
     lib = load_library(library)
     config = load_configuration(system)
     try:

@@ -2,25 +2,24 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
-import numpy as np
 
-from ..console import FiniteFloat, console, table
+from ..console import COSTS, FiniteFloat, console, plural, table
 from ..errors import MsrrError
-from ..matching import (
-    CONFIDENCE,
-    COST_KINDS,
-    Candidate,
-    MatchingError,
-    MatchResult,
-    RankedMatch,
-    match,
-)
 from ..plugins import load_configuration, resolve
 
-__all__ = ["command"]
+if TYPE_CHECKING:
+    from ..matching import MatchResult, RankedMatch
+
+__all__ = ["CONFIDENCE", "command"]
+
+CONFIDENCE = 4.0
+"""``--confidence`` default: :data:`msrr.core.matching.CONFIDENCE` (a test keeps them equal;
+the matching code is imported when the command runs, not at ``--help``)."""
 
 
 def _mapping_table(system_name: str, ranked: RankedMatch, title: str):
@@ -34,8 +33,8 @@ def _mapping_table(system_name: str, ranked: RankedMatch, title: str):
 def _summary(result: MatchResult, ranked: RankedMatch, rank: int) -> str:
     m = ranked.mapping
     return (f"#{rank} {ranked.candidate.key}: cost {ranked.cost:.6g} ({result.cost_kind}), "
-            f"distance {m.distance:.6g} rad^2, RMS angle {np.rad2deg(m.rms_angle):.2f} deg, "
-            f"yaw {np.rad2deg(m.yaw):.2f} deg")
+            f"distance {m.distance:.6g} rad^2, RMS angle {math.degrees(m.rms_angle):.2f} deg, "
+            f"yaw {math.degrees(m.yaw):.2f} deg")
 
 
 @click.command("match")
@@ -47,12 +46,14 @@ def _summary(result: MatchResult, ranked: RankedMatch, rank: int) -> str:
               help="Stop a reference's search when distance > best cost * confidence (>= 1).")
 @click.option("--time-budget", type=FiniteFloat(0.0, 86400.0, open_low=True), default=None,
               help="Stop the search after this long [s] and print the best so far.")
-@click.option("--cost", type=click.Choice(COST_KINDS), default=None,
+@click.option("--cost", type=click.Choice(COSTS), default=None,
               help="Motion cost: full-body IK (eq. 6; the default for robots with joint "
                    "modes) or aligned distance (eq. 8; the default otherwise).")
 def command(system: Path, references: tuple[Path, ...], top: int, confidence: float,
             time_budget: float | None, cost: str | None) -> None:
     """Match SYSTEM.json against REFERENCE.json files: best reference, cost and mapping."""
+    from ..matching import Candidate, MatchingError, match
+
     current = load_configuration(system)
     candidates = [Candidate(load_configuration(path), None, str(path)) for path in references]
     try:
@@ -72,4 +73,4 @@ def command(system: Path, references: tuple[Path, ...], top: int, confidence: fl
         console.print(_summary(result, ranked, rank))
         console.print(_mapping_table(str(system), ranked, f"Module mapping #{rank}"))
     note = "" if result.complete else " (time budget reached: best so far)"
-    console.print(f"{result.evaluated} mappings evaluated{note}")
+    console.print(f"{plural(result.evaluated, 'mapping')} evaluated{note}")

@@ -9,58 +9,92 @@ JSON Schema).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from .. import plugins
-from ..console import SEED, console, table
+from ..console import SEED, console, drop_empty_columns, plural, table
 from ..errors import ConfigurationError, PlanningError
-from ..plan import Action, ActionType, Plan, save_plan
-from ..plugins import load_configuration
 
-__all__ = ["action_rows", "command"]
+if TYPE_CHECKING:
+    from ..plan import Action, Plan
+
+__all__ = ["action_rows", "command", "print_plan"]
 
 VERBS = {
-    ActionType.CONNECTION: "Dock",
-    ActionType.PARALLEL_CONNECTION: "Dock",
-    ActionType.DISCONNECTION: "Undock",
-    ActionType.PARALLEL_DISCONNECTION: "Undock",
-    ActionType.MOVING: "Move",
-    ActionType.FLOW: "Flow",
+    "connection": "Dock",
+    "parallel_connection": "Dock",
+    "disconnection": "Undock",
+    "parallel_disconnection": "Undock",
+    "moving": "Move",
+    "flow": "Flow",
 }
+"""Table verb of each :class:`~msrr.core.plan.ActionType` (by value: the type module loads
+with the planner, not at ``--help``)."""
+
+HEADER = ["#", "Action", "ID", "Face", "ID", "Face", "x [m]", "y [m]", "yaw [deg]", "goal"]
+"""Columns of the action table: the MMRP paper's Table 4 (Action | ID | Face | ID | Face)
+with the action's number, then a moving module's goal: planar ``[x, y, yaw]`` goals in
+their own columns, any other goal as one vector."""
 
 
-def _pose(values: list[float]) -> str:
-    return "(" + ", ".join(f"{v:+.3f}" for v in values) + ")"
+def _goal(values: list[float]) -> list[str]:
+    """The x, y, yaw and goal cells of one goal pose."""
+    if len(values) == 3:
+        x, y, yaw = values
+        return [f"{x:+.3f}", f"{y:+.3f}", f"{math.degrees(yaw):+.1f}", ""]
+    return ["", "", "", "(" + ", ".join(f"{v:+.3f}" for v in values) + ")"]
 
 
 def action_rows(actions: list[Action]) -> list[list[str]]:
-    """One ``[action, id, face, id, face]`` row per connection change or moving module."""
+    """One row per connection change of an action, per moving module with a goal, or per
+    action otherwise; the first column is the action's number (from 1), so a move of two
+    modules is two rows of one action."""
     rows = []
-    for action in actions:
-        verb = VERBS.get(action.type, action.type.value)
+    for number, action in enumerate(actions, start=1):
+        verb = VERBS.get(action.type.value, action.type.value)
         if action.changes:
-            rows += [[verb, c.source, c.source_port or "", c.target, c.target_port or ""]
-                     for c in action.changes]
+            made = set(action.made())
+            rows += [[str(number), verb if action.type.value != "flow" else
+                      f"Flow ({'dock' if c in made else 'undock'})",
+                      *c.ends[0], *c.ends[1], "", "", "", ""] for c in action.changes]
         elif action.goals:
-            rows += [[verb, module, "", "to", _pose(pose)] for module, pose in action.goals.items()]
+            rows += [[str(number), verb, module, "", "", "", *_goal(pose)]
+                     for module, pose in action.goals.items()]
         else:
-            rows.append([verb, ",".join(action.modules), "", "", ""])
+            rows.append([str(number), verb, ", ".join(action.modules), "", "", "", "", "", "",
+                         ""])
     return rows
 
 
 def print_plan(plan: Plan) -> None:
-    """Print a plan's notes, mapping and action table."""
+    """Print a plan's notes, mapping, action table and counts (:func:`plan_counts`)."""
     for note in plan.notes:
         console.print(f"- {note}", soft_wrap=True)
     if plan.mapping:
         pairs = sorted(plan.mapping.items(), key=lambda pair: (len(pair[0]), pair[0]))
         console.print(table("Mapping (start -> goal)", ["start", "goal"], pairs))
-    console.print(table(f"Actions ({plan.planner})", ["Action", "ID", "Face", "ID", "Face"],
-                        action_rows(plan.actions)))
-    console.print(f"{plan.undocks} undock, {plan.docks} dock, "
-                  f"{sum(a.type is ActionType.MOVING for a in plan.actions)} move actions")
+    header, rows = drop_empty_columns(HEADER, action_rows(plan.actions),
+                                      {"x [m]", "y [m]", "yaw [deg]", "goal"})
+    console.print(table(f"Actions ({plan.planner})", header, rows))
+    console.print(plan_counts(plan))
+
+
+def plan_counts(plan: Plan) -> str:
+    """``"7 actions: 3 undocks, 3 docks, 1 move (2 modules)"``: the actions of the table
+    (its ``#`` column), the connections they break and make, the moving actions and the
+    modules those move (their rows)."""
+    moves = [a for a in plan.actions if a.type.value == "moving"]
+    moved = sum(len(a.goals) or len(a.modules) for a in moves)
+    text = (f"{plural(len(plan.actions), 'action')}: {plural(plan.undocks, 'undock')}, "
+            f"{plural(plan.docks, 'dock')}, {plural(len(moves), 'move')}")
+    if moved != len(moves):
+        text += f" ({plural(moved, 'module')})"
+    flows = sum(1 for a in plan.actions if a.type.value == "flow")
+    return text + (f", {plural(flows, 'flow')}" if flows else "")
 
 
 @click.command("plan")
@@ -77,10 +111,12 @@ def command(robot: str, start: Path, goal: Path, planner_name: str | None, seed:
     """Plan the reconfiguration from configuration file START to GOAL."""
     if json_out is not None and json_out.is_dir():
         raise ConfigurationError("is a directory, expected a file to write", source=str(json_out))
+    from ..plan import save_plan
+
     planner = plugins.planners.get(robot, planner_name)
     configs = []
     for path in (start, goal):
-        config = load_configuration(path)
+        config = plugins.load_configuration(path)
         if config.robot != robot:
             raise PlanningError(f"{path}: a configuration of robot {config.robot!r}, "
                                 f"not {robot!r}")

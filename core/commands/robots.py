@@ -9,7 +9,6 @@ import click
 from .. import plugins
 from ..console import NONE, console, styled, table
 from ..errors import MsrrError
-from ..generic import is_generic
 
 __all__ = ["command"]
 
@@ -26,6 +25,8 @@ CAPABILITIES: tuple[tuple[str, plugins.Capability], ...] = (
 
 
 def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> object:
+    from ..generic import is_generic  # the generic runtime loads when a robot is listed
+
     try:
         items = lookup(robot)
     except MsrrError as exc:  # one broken plugin must not hide the others' rows

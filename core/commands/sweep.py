@@ -17,20 +17,29 @@ import tempfile
 from dataclasses import asdict, dataclass, fields
 from datetime import datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
-import numpy as np
 
 from ..batch import batch_options, exit_on_interrupt, run_batch
-from ..console import SEED, FiniteFloat, console, err_console, run_selection_options, table
+from ..console import (
+    SEED,
+    FiniteFloat,
+    console,
+    err_console,
+    plural,
+    run_selection_options,
+    table,
+)
 from ..errors import ConfigurationError
-from ..faults import parse_faults
 from ..files import atomic_write_text, check_output_place
-from ..run import RunRequest, execute_run, parse_driver_options, prepare_run
+
+if TYPE_CHECKING:
+    from ..run import RunRequest
 
 __all__ = ["SweepRow", "SweepTask", "command", "summarize", "sweep_csv", "sweep_run"]
 
-MATPLOTLIB_HINT = 'pip install "msrr-platform[dev]" (or: pip install matplotlib)'
+MATPLOTLIB_HINT = "pip install 'msrr-platform[plot]'"
 
 
 @dataclass(frozen=True)
@@ -98,6 +107,8 @@ def _nan(value: float | None, scale: float = 1.0) -> float:
 
 def _request(task: SweepTask, folder: str) -> RunRequest:
     """The ``platform run`` request of ``task``: no recording, into ``folder``."""
+    from ..run import RunRequest  # the run machinery loads when a run starts, not at --help
+
     return RunRequest(robot=task.robot, scenario=task.scenario,
                       start=None if task.start is None else Path(task.start),
                       goal=None if task.goal is None else Path(task.goal),
@@ -109,6 +120,8 @@ def _request(task: SweepTask, folder: str) -> RunRequest:
 
 def sweep_run(task: SweepTask) -> SweepRow:
     """Plan and execute one run of a sweep (no recording; the run's folder is temporary)."""
+    from ..run import execute_run, prepare_run
+
     with tempfile.TemporaryDirectory(prefix="msrr-sweep-") as folder:
         result = execute_run(prepare_run(_request(task, folder)))
     shape = result.shape
@@ -139,6 +152,8 @@ def sweep_csv(rows: list[SweepRow]) -> str:
 
 def _spread(values: list[float], scale: float, digits: int) -> str:
     """``"median / p90 / max"`` of the finite values, or ``"-"``."""
+    import numpy as np
+
     finite = np.array([v for v in values if math.isfinite(v)])
     if not finite.size:
         return "-"
@@ -231,6 +246,9 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
         raise ConfigurationError("give both --from and --to, or neither")
     if start is not None and scenario is not None:
         raise ConfigurationError("give --scenario or --from/--to, not both")
+    from ..faults import parse_faults
+    from ..run import parse_driver_options
+
     settings = [("" if s.strip().lower() in ("", "none") else s.strip())
                 for s in (fault_settings or ("",))]
     for setting in settings:
@@ -261,13 +279,13 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
     rows = [r for r in batch.results if r is not None]
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_text(table_path, sweep_csv(rows))
-    console.print(table(f"{robot} {name}: {runs} seeds from {seed} per fault setting "
-                        f"({batch.backend}, {batch.workers} workers, {batch.wall_time:.1f} s)",
+    console.print(table(f"{robot} {name}: {plural(runs, 'seed')} from {seed} per fault setting "
+                        f"({batch.backend}, {plural(batch.workers, 'worker')}, {batch.wall_time:.1f} s)",
                         ["faults", "runs", "success", "position RMS [mm] med/p90/max",
                          "shape error [deg] med/p90/max", "sim time [s] med/p90/max",
                          "most common failure"], summarize(rows)))
     console.print(f"wrote {table_path}", markup=False)
-    console.print(_plot(rows, plot_path, f"{robot} {name}: {runs} seeds"), markup=False)
+    console.print(_plot(rows, plot_path, f"{robot} {name}: {plural(runs, 'seed')}"), markup=False)
     if batch.failures:
         raise SystemExit(1)
 
@@ -275,5 +293,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
 def prepare_check(task: SweepTask) -> None:
     """Prepare (plan, without running) ``task`` here: the options, files and names are
     checked once, before the workers start."""
+    from ..run import prepare_run
+
     with tempfile.TemporaryDirectory(prefix="msrr-sweep-") as folder:
         prepare_run(_request(task, folder))

@@ -126,8 +126,8 @@ def test_names_and_paths_with_markup_print_literally(tiny, tmp_path: Path) -> No
     save_configuration(config, folder / "[red]f.json")
     result = run("show", str(folder / "[red]f.json"))
     assert result.exit_code == 0, result.output
-    assert f"{folder / '[red]f.json'} — [/red] (tiny): [bold]vector [nan, 0.0, 1.0]" \
-        in result.output
+    assert f"{folder / '[red]f.json'} — [/red] (tiny): 2 modules, 1 connection\n" \
+        "[bold]vector [nan, 0.0, 1.0]" in result.output
     result = run("validate", str(folder / "[red]f.json"))
     assert result.output.startswith(f"valid {folder / '[red]f.json'}: tiny")
 

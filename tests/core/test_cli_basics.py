@@ -59,7 +59,7 @@ def test_validate_accepts_a_good_file(tiny, tmp_path: Path) -> None:
     result = run("validate", str(tmp_path / "start.json"))
     assert result.exit_code == 0, result.output
     assert result.output.strip() == f"valid {tmp_path / 'start.json'}: tiny, 3 modules, " \
-                                    "1 connections"
+                                    "1 connection"
 
 
 def _bad_files(tmp_path: Path) -> dict[str, tuple[Path, str]]:
@@ -150,7 +150,7 @@ def test_plan_prints_the_actions_and_writes_the_plan(tiny, tmp_path: Path) -> No
                  str(tmp_path / "goal.json"), "--json", str(out))
     assert result.exit_code == 0, result.output
     assert "Undock │ a" in result.output and "Dock   │ b" in result.output
-    assert "1 undock, 1 dock, 1 move actions" in result.output
+    assert "3 actions: 1 undock, 1 dock, 1 move" in result.output
     assert json.loads(out.read_text())["planner"] == "line"
 
 

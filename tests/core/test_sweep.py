@@ -60,7 +60,7 @@ def test_sweep_writes_the_table_and_says_how_to_get_the_plot(tmp_path, monkeypat
     assert [r["seed"] for r in rows] == ["3", "4"] and all(r["success"] == "True" for r in rows)
     assert all(r["actions_done"] == r["actions_total"] != "0" for r in rows)
     assert "2/2 (100%)" in result.output
-    assert 'no plot: matplotlib is missing; pip install "msrr-platform[dev]"' in result.output
+    assert "no plot: matplotlib is missing; pip install 'msrr-platform[plot]'" in result.output
     assert not (out / "sweep.png").exists()
     again = CliRunner().invoke(get_cli(), [*BASE, "--runs", "1", "--out", str(out)])
     assert again.exit_code == 1 and "use --force" in again.output
