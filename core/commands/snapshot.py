@@ -19,12 +19,15 @@ __all__ = ["command"]
               help="PNG file to write.")
 @click.option("--title", default="", help="Figure title [default: the recording's name].")
 def command(recording: Path, output: Path, title: str) -> None:
-    """Draw RECORDING (a run.rrd) to a PNG without a display.
+    """Draw a run's recording (RECORDING, a run.rrd) to a PNG, without a display.
 
-    Top-down module footprints with ids, headings and docked connections at the start,
-    before the first and the last topology change, and at the end; below, the number
-    of connections and each module's distance to its goal over simulated time.
-    Needs matplotlib (the dev extra).
+    Top row: the robot seen from above at four moments (start, one and two thirds of
+    the run, end): each module's body (boxes, spheres, struts with their connectors)
+    with its id and heading, the docked connections, and the running action's target
+    dashed. Bottom row, over simulated time: the number of docked connections (docks
+    and undocks marked) and the error to the target (each moving module's distance
+    [m], or the RMS strut angle [deg] for strut robots). The title names the robot and
+    the scenario. Needs matplotlib: pip install 'msrr-platform[plot]'.
     """
     check_output_place(output, option="--output")  # before reading and drawing
     path = write_snapshot(recording, output, title)
