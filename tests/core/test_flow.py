@@ -30,7 +30,7 @@ from msrr.core.miso import (
     random_miso_tree,
     targets,
 )
-from msrr.core.plan import ActionType, Plan
+from msrr.core.plan import ActionType, Plan, load_plan, save_plan
 from msrr.core.testing import run_kinematic
 
 BALL = ModuleKind(name="ball", symbol="O", role="vertex", ports=(PortSpec("magnet"),),
@@ -372,3 +372,14 @@ def test_every_miso_step_is_typed_by_the_one_classifier(exact):
             current = action.target
         flows += plan.flows
     assert flows > 0
+
+
+def test_a_flow_round_trips_through_a_plan_file(tmp_path):
+    plan = plan_miso(line(5), star_goal(5))
+    save_plan(plan, tmp_path / "plan.json")
+    again = load_plan(tmp_path / "plan.json")
+    assert [a.type for a in again.actions] == [a.type for a in plan.actions]
+    assert again.flows == plan.flows == 1
+    (flow,) = [a for a in again.actions if a.type is ActionType.FLOW]
+    assert str(flow_of(flow)) == "m3: m4 -> m5"
+    assert (again.docks, again.undocks) == (plan.docks, plan.undocks)
