@@ -19,8 +19,19 @@ be ``-1``: a pure connection or disconnection); the module's own in-tree moves w
 A step is legal when the configuration after it is connected: in a tree, the sink
 may connect anywhere, another module only onto a module outside its own in-tree
 ``T_i``; in a unicyclic configuration a module on the cycle may go anywhere (or free
-itself), another only outside ``T_i``. A step whose module is a leaf and whose new
-target touches the old one is the FreeSN paper's *flow* (section 4.1).
+itself), another only outside ``T_i``. A step whose module is a leaf (no module on it)
+and whose new target is a neighbour of the old one (one sits on the other) is the
+FreeSN paper's *flow* (section 4.1; :func:`is_flow`, the pointer-array form of
+:func:`msrr.core.actions.flow_move`).
+
+**Metric.** The number of steps: every re-targeting counts one, flow or not. A flow is
+one step because section 4.1 makes it one action ("the disconnection and connection
+happen simultaneously") and Luo and Lam count reconfiguration steps by the connection
+changes of one module; both planners use this metric, so the exact planner's optimum
+is the heuristic's yardstick. Flows break ties: among step orders of equal length the
+heuristic keeps the one with more flows, the exact planner's A* the one with fewer
+non-flow steps (:func:`order_steps`, :func:`_shortest`). Maximising flows across
+pairings is not attempted.
 
 **Problem.** Modules are identical, so the goal's ids are labels to assign: find a
 pairing ``pi`` (start module -> goal module) and a legal step sequence from the
