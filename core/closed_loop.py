@@ -13,6 +13,12 @@ Exploration runs when tracking is *stuck* (the residual has not improved for
 configuration, handed over when it beats the tracked solution (section 3.4). It runs
 in the control thread, so a run is reproducible from its seed.
 
+The edges of the tree's fixed nodes (no joints: the root's rigid part, loops) are
+commanded at the *goal's* vectors, turned by the solution's yaw, not at the recognized
+ones: a "hold where you are seen" command follows recognition noise and the structure's
+own sag, so the held part random-walks (under 2 deg of noise S12N6's ring folded 40 deg
+in 10 s) instead of staying put.
+
 The phase goals (pure functions, :func:`connection_goal` and :func:`extruded`):
 
 * ``S_conn`` -- the target's vectors on the topology the system has now (no new
@@ -42,9 +48,11 @@ import networkx as nx
 import numpy as np
 
 from .actions import STRUT_ENDS, topology_diff
+from .alignment import rot_z
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .kinematics import (
+    FixedNode,
     GroundModel,
     IKOptions,
     IKSolution,
@@ -218,6 +226,8 @@ class PhaseTracker:
                        max_restarts=options.initial_restarts, seed=seed,
                        ground=ground if options.ground else None)
         self._tracker = IKTracker(tree, goal, ik, tick_budget=None, explore=False)
+        self._held = [e for node in tree.nodes if isinstance(node, FixedNode)
+                      for e in node.edges]
         self._best = np.inf
         self._since = 0
         self._error = np.inf
@@ -230,6 +240,19 @@ class PhaseTracker:
         the recognized root horizontal frame)."""
         solution = self._tracker.step(current)
         self.last = solution
+        joint = solution.configuration
+        if self._held:
+            # a fixed node holds its goal's vectors (yaw-aligned by the solution), not the
+            # recognized ones: commanding "stay where you are seen" lets recognition noise
+            # random-walk the held structure (S12N6 4.3 -> 4.1 folded 40 deg under 2 deg)
+            turn = rot_z(solution.yaw)
+            z = {e.id: e.z for e in joint.edges()}
+            x = {e.id: e.x for e in joint.edges()}
+            for e in self._held:
+                held = self.goal.edge(e)
+                z[e] = z[e] if held.z is None else turn @ held.z
+                x[e] = x[e] if held.x is None else turn @ held.x
+            joint = joint.with_vectors(z=z, x=x)
         self._error = skeletal_error(self._smoothed(current), self.goal)
         if solution.rms_angle < self._best - 1e-4:
             self._best, self._since = solution.rms_angle, 0
@@ -239,7 +262,7 @@ class PhaseTracker:
                 self.options.reach_tolerance and self._since % self.options.stuck_ticks == 0:
             self._tracker.explore_once()   # one sampled start every stuck_ticks ticks
             self.explorations += 1
-        return solution.configuration
+        return joint
 
     def _smoothed(self, current: Configuration) -> Configuration:
         """``current`` with each edge's ``z`` low-passed over the ticks (factor
