@@ -88,7 +88,7 @@ def label_node(edge_id: str) -> str:
     return f"edge:{edge_id}"
 
 
-def graph_layout(configs: Iterable[Configuration], scale: float = 120.0
+def graph_layout(configs: Iterable[Configuration], scale: float = 70.0
                  ) -> dict[str, tuple[float, float]]:
     """One 2-D position per vertex of any of ``configs`` (graph-view units).
 

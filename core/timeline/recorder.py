@@ -165,7 +165,8 @@ class TimelineRecorder:
         if body.shape == "capsule":
             a, b = body.ends(self._inset)
             archetype = rr.Capsules3D(lengths=[float(b[2] - a[2])], radii=[body.radius],
-                                      translations=[a], colors=[color], labels=[label])
+                                      translations=[a], colors=[color], labels=[label],
+                                      fill_mode="solid")
         elif body.shape == "sphere":
             archetype = rr.Ellipsoids3D(half_sizes=[body.half_size], colors=[color],
                                         fill_mode="solid", labels=[label])
@@ -311,7 +312,7 @@ class TimelineRecorder:
                       for p, (s, v) in zip(ports, states, strict=False)]
             self.rec.log(f"world/modules/{module}/connectors", rr.Points3D(
                 [a, b][:len(states)], radii=body.radius * 1.4, labels=labels,
-                colors=[CONNECTOR_COLORS[s] for s, _ in states]))
+                show_labels=False, colors=[CONNECTOR_COLORS[s] for s, _ in states]))
 
     def _log_top(self, poses: Mapping[str, Pose], config: Configuration) -> None:
         """Top-down outlines (heading: the front edge drawn twice as thick)."""
@@ -371,7 +372,7 @@ class TimelineRecorder:
         if lengths:
             self.rec.log("world/ghost/struts", rr.Capsules3D(
                 lengths=lengths, radii=radii, translations=translations,
-                quaternions=quaternions, colors=colors))
+                quaternions=quaternions, colors=colors, fill_mode="solid"))
 
     def action(self, action: Action, status: ActionStatus) -> None:
         rec = self.rec

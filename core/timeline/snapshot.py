@@ -67,7 +67,8 @@ class Track:
     half extents or a sphere's radius twice [m]; ``capsules``: a capsule's ``(z of its
     first end, z of its second end, radius)`` in its body frame [m]; ``connectors``: the
     connector rows of edge modules; ``connections``: docked-connection count rows;
-    ``title``: robot and scenario, as the recording names itself.
+    ``title``: robot and scenario, as the recording names itself; ``angle``: RMS strut
+    angle to the running action's target [deg] (robots with connection vectors).
     """
 
     modules: list[str]
@@ -87,6 +88,7 @@ class Track:
     connections: list[Row] = field(default_factory=list)
     ghost: dict[str, list[Row]] = field(default_factory=dict)
     title: str = ""
+    angle: list[Row] = field(default_factory=list)
 
     @property
     def last_tick(self) -> int:
@@ -226,6 +228,7 @@ def load_track(path: str | Path) -> Track:
     errors = {m: [r for r in rows.get(f"/errors/{m}", []) if r.tick is not None]
               for m in modules}
     errors = {m: e for m, e in errors.items() if any("Scalars:scalars" in r.values for r in e)}
+    angle = [r for r in rows.get("/shape/angle", []) if r.tick is not None]
     connectors = {m: rows[f"/world/modules/{m}/connectors"] for m in modules
                   if f"/world/modules/{m}/connectors" in rows}
     name = next((r.values["RecordingInfo:name"][0] for r in rows.get("/__properties", [])
@@ -237,7 +240,7 @@ def load_track(path: str | Path) -> Track:
     return Track(modules, half, colors, faces, poses, rows.get("/topology/current", []),
                  rows.get("/action", []), rows.get("/world/targets", []), errors,
                  sorted(events), times, shapes, capsules, connectors,
-                 rows.get("/topology/connections", []), ghost, name)
+                 rows.get("/topology/connections", []), ghost, name, angle)
 
 
 def _pick_ticks(track: Track) -> list[int]:
@@ -317,7 +320,7 @@ def _capsule(ax: Any, track: Track, module: str, tick: int) -> None:
     states = track.connector_states(module, tick)
     for i, (x, y) in enumerate(ends):
         fc = states[i][1] if i < len(states) else color
-        ax.add_patch(Circle((x, y), r * 1.3, fc=fc, ec="black", lw=0.5, zorder=5))
+        ax.add_patch(Circle((x, y), r * 0.9, fc=fc, ec="black", lw=0.4, zorder=5))
     ax.text((xa + xb) / 2, (ya + yb) / 2, module, ha="center", va="center", fontsize=6,
             zorder=7, bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
                             "alpha": 0.7})
@@ -396,14 +399,23 @@ def render_snapshot(track: Track, title: str = "") -> Any:
     conn.set_ylabel("docked connections", fontsize=8)
     conn.yaxis.get_major_locator().set_params(integer=True)
     err = fig.add_subplot(grid[1, half:])
-    for m, rows in track.errors.items():  # a cleared row (module idle) breaks the line
-        err.plot([r.sim_time for r in rows],
-                 [r.values["Scalars:scalars"][0] if "Scalars:scalars" in r.values
-                  else math.nan for r in rows], lw=1, color=track.colors[m], label=m)
-    err.set_title("distance of each moving module to its goal [m]", fontsize=8)
+    if track.angle:
+        err.plot([r.sim_time for r in track.angle],
+                 [r.values.get("Scalars:scalars", [math.nan])[0] for r in track.angle],
+                 lw=1.2, color="black")
+        err.set_title("RMS strut angle to the running action's target [deg] (eq. 8)",
+                      fontsize=8)
+    else:
+        for m, rows in track.errors.items():  # a cleared row (module idle) breaks the line
+            err.plot([r.sim_time for r in rows],
+                     [r.values["Scalars:scalars"][0] if "Scalars:scalars" in r.values
+                      else math.nan for r in rows], lw=1, color=track.colors[m], label=m)
+        err.set_title("distance of each moving module to its goal [m]", fontsize=8)
+        if track.errors:
+            err.legend(fontsize=7, ncols=2, title="module", title_fontsize=7)
+    for tick in ticks:
+        err.axvline(track.sim_time(tick), color="0.6", lw=0.6)
     err.set_xlabel("sim time [s]", fontsize=8)
-    if track.errors:
-        err.legend(fontsize=7, ncols=2, title="module", title_fontsize=7)
     for ax in (conn, err):
         ax.tick_params(labelsize=7)
         ax.grid(True, lw=0.3, alpha=0.5)
