@@ -455,7 +455,10 @@ class Executor:
         commands: dict[str, ModuleCommand] = {}
         for name, edges in by_controller.items():
             sent = self._controller_for(name).commands(joint, observation, yaw=0.0)
-            commands.update({m: c for m, c in sent.items() if m in edges})
+            # an edge module (a strut) takes its commands under its own id; a connection
+            # between two modules moves through its source's connector (FreeBOT, SnailBot)
+            owners = edges | {joint.edge(e).source for e in edges}
+            commands.update({m: c for m, c in sent.items() if m in owners})
         solution = tracker.last
         errors = {} if solution is None else {"ik_motion_cost": solution.motion_cost,
                                               "ik_residual": solution.rms_angle}
