@@ -73,8 +73,9 @@ _LABEL_COLOR = (120, 120, 120)
 
 
 def event_name(event: TopologyEvent) -> str:
-    """The label of a dock or undock in the event log (``"dock 3a-1"``)."""
-    return f"{event.kind} {event.change}"
+    """A dock or undock in the event log: its kind and the connection's one name
+    (:attr:`msrr.core.plan.ConnectionChange.label`), ``"dock N2-S4b"``."""
+    return f"{event.kind} {event.change.label}"
 
 
 def _docked(config: Configuration) -> int:
@@ -378,12 +379,13 @@ class TimelineRecorder:
         rec = self.rec
         index = next((i for i, a in enumerate(self.run.plan.actions) if a is action), -1)
         total = len(self.run.plan.actions)
-        text = f"**{index + 1}/{total}: {action}** -- {status}"
+        text = f"**{index + 1}/{total}: {action.label}** -- {status}"
         if action.note:
             text += f"\n\n{action.note}"
         rec.log("action", rr.TextDocument(text, media_type="text/markdown"))
         level = {ActionStatus.FAILED: "ERROR", ActionStatus.RETRYING: "WARN"}.get(status, "INFO")
-        rec.log("events/actions", rr.TextLog(f"action {index}: {action} {status}", level=level))
+        rec.log("events/actions", rr.TextLog(f"action {index}: {action.label} {status}",
+                                             level=level))
         if status == ActionStatus.STARTED:
             self._log_graph("topology/target", action.target)
             self._log_goals(action)
