@@ -429,6 +429,12 @@ class FreeSNWorld:
         current = self._believed(np.array([k]))[0]   # node -> strut, believed
         u = self._sign[k] * _EZ
         if forward is None:
+            # a leaf strut's connector keeps the twist it holds (its wheels braked in
+            # that rotation) rather than the one it was pushed to: the morphology of
+            # its free end's wheels; a strut in a loop follows its other end's pull
+            other = self.docked[self._end_index[(strut, "b" if end == "a" else "a")]]
+            if other is None and self._has_target[k] and not self._wheel[k]:
+                current = self._target[k]
             have = current @ u
             self._target[k] = _minimal(have, want) @ current
         else:
@@ -510,7 +516,10 @@ class FreeSNWorld:
             scale = np.minimum(1.0, p.max_roll_rate / np.maximum(norm, 1e-12))
             scale *= np.minimum(1.0, limit / np.maximum(p.damping * norm * scale, 1e-12))
             spin = np.minimum(np.maximum(spin, -p.max_spin_rate), p.max_spin_rate)
-            t_spin = np.minimum(np.maximum(p.damping * spin, -limit), limit)
+            # a reduced effort softens the position loop of a loop-closing connector; its
+            # wheels, when commanded, still run at the full torque
+            spin_limit = np.where(wheeling, p.max_torque, limit)
+            t_spin = np.minimum(np.maximum(p.damping * spin, -spin_limit), spin_limit)
             tau[ks] = (p.damping * scale)[:, None] * roll + t_spin[:, None] * axis
         self._track_saturation(ks)
         self.data.qfrc_applied[self._dofs] = tau
