@@ -383,3 +383,31 @@ def test_a_flow_round_trips_through_a_plan_file(tmp_path):
     (flow,) = [a for a in again.actions if a.type is ActionType.FLOW]
     assert str(flow_of(flow)) == "m3: m4 -> m5"
     assert (again.docks, again.undocks) == (plan.docks, plan.undocks)
+
+
+def test_a_leaf_on_a_rigid_latch_flows_by_release_and_carry():
+    """Ports with normals cannot slide: the flow phase is reached at once and the
+    handover releases the leaf and carries it to its new parent's port, docking there."""
+    cube = ModuleKind(name="cube", symbol="C", role="vertex",
+                      ports=(PortSpec("T", "active", (1.0, 0.0, 0.0)),
+                             PortSpec("B", "passive", (-1.0, 0.0, 0.0))),
+                      geometry={"length": 0.1, "width": 0.1, "height": 0.1})
+    spec = RobotSpec("cubes", "Cubes", (cube,))
+
+    def config(*links: tuple[str, str, str, str]) -> Configuration:
+        out = Configuration("cubes")
+        for m in "abc":
+            out.add_module(m, "cube")
+        for u, pu, v, pv in links:
+            out.connect(u, v, ports=(pu, pv))
+        return out
+
+    start = config(("a", "T", "b", "B"), ("b", "T", "c", "B"))
+    goal = config(("c", "T", "a", "B"), ("b", "T", "c", "B"))
+    action = detect_action(start, goal)
+    assert action.type is ActionType.FLOW
+    plan = Plan("cubes", "hand", start, goal, [action])
+    result = run_kinematic(plan, spec)
+    assert result.success, result.reason
+    assert (result.flows, result.docks, result.undocks) == (1, 1, 1)
+    assert not topology_diff(result.final, goal)
