@@ -881,6 +881,36 @@ def _configuration(template: Configuration, ids: Sequence[str], parent: Sequence
     return config
 
 
+KEEP_LABELS_LIMIT = 64
+"""Largest module count for which :func:`_keep_labels` searches a plan."""
+
+
+def _keep_labels(solution: MisoSolution, problem: MisoProblem) -> MisoSolution:
+    """``solution``, or the plan in which every module keeps its own id when the goal
+    uses the start's ids and that plan has no more steps and no fewer flows.
+
+    Modules are identical, so the pairing is the planner's choice; but a goal written in
+    the system's ids says where each module should end, and an equally short plan that
+    relabels two arms of a star would make them swap places physically.
+    """
+    n = len(problem.start)
+    if sorted(problem.start_ids) != sorted(problem.goal_ids) or n > KEEP_LABELS_LIMIT:
+        return solution
+    index = {m: b for b, m in enumerate(problem.goal_ids)}
+    identity = [index[m] for m in problem.start_ids]
+    if identity == list(solution.pairing):
+        return solution
+    goal = targets(problem, identity)
+    depth = _bfs(problem.goal)[1]
+    steps = _shortest(problem.start, goal, solution.cost + 1, [depth[b] for b in identity])
+    if steps is None or len(steps) > solution.cost or \
+            count_flows(problem.start, steps) < count_flows(problem.start, solution.steps):
+        return solution
+    return MisoSolution(identity, steps, solution.lower_bound,
+                        optimal=solution.optimal and len(steps) == solution.cost,
+                        stats=solution.stats)
+
+
 def _same_shape(a: Configuration, b: Configuration) -> bool:
     """Same connections (by ends) with the same vectors."""
     def links(c: Configuration) -> dict[tuple[str, str], tuple]:
@@ -902,8 +932,8 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     the goal's vectors.
     """
     problem = MisoProblem.from_configurations(start, goal)
-    solution = (solve_exact(problem, node_limit=node_limit) if exact
-                else solve_heuristic(problem))
+    solution = _keep_labels((solve_exact(problem, node_limit=node_limit) if exact
+                             else solve_heuristic(problem)), problem)
     ids = problem.start_ids
     final = targets(problem, solution.pairing)
     goal_vectors = {}
