@@ -1,9 +1,10 @@
 """FreeSN's views in the rerun timeline: one plot per connector end.
 
 A strut's command carries, per connector end, the target connection vector (and
-forward vector, effort) in the docked node's horizontal frame
-(:mod:`msrr.plugins.freesn.sim.commands`); the timeline logs joint ``a.dir_x`` as
-``commands/<strut>/a/dir_x``, so each end's targets fall under ``*/a/**`` or ``*/b/**``.
+effort) in the docked node's horizontal frame (:mod:`msrr.plugins.freesn.sim.commands`);
+the timeline logs joint ``a.dir_x`` of strut ``S4`` as ``commands/S4/a/dir_x``. Rerun's
+view contents take no wildcard inside a path (only a ``/**`` suffix), so each view
+names every strut of the run.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ def msrr_timeline_views(run, register) -> None:
         return
     import rerun.blueprint as rrb  # only a recorded run pays for the rerun import
 
+    struts = [e.id for e in run.plan.start.edges() if e.kind == STRUT.name]
     for end in (p.name for p in STRUT.ports):
-        register(rrb.TimeSeriesView(name=f"Connector {end} targets",
-                                    origin="commands", contents=f"$origin/*/{end}/**"))
+        register(rrb.TimeSeriesView(name=f"Connector {end} targets", origin="commands",
+                                    contents=[f"$origin/{s}/{end}/**" for s in struts]))
