@@ -77,7 +77,7 @@ from __future__ import annotations
 
 import math
 import time as wallclock
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -330,6 +330,8 @@ class Executor:
         assert self._current is not None
         diff = topology_diff(self._current, action.target)
         self._check_plan_consistency(index, action, diff)
+        if action.type is ActionType.FLOW and not action.changes:
+            action = replace(action, changes=diff.changes())  # what flow_of reads
         plugins.emit.action(self.run, action, ActionStatus.STARTED)
         self._expected = {c.key for c in diff.changes()}
         tracking = self._tracks(action)

@@ -30,7 +30,7 @@ from msrr.core.miso import (
     random_miso_tree,
     targets,
 )
-from msrr.core.plan import ActionType, Plan, load_plan, save_plan
+from msrr.core.plan import Action, ActionType, Plan, load_plan, save_plan
 from msrr.core.testing import run_kinematic
 
 BALL = ModuleKind(name="ball", symbol="O", role="vertex", ports=(PortSpec("magnet"),),
@@ -411,3 +411,15 @@ def test_a_leaf_on_a_rigid_latch_flows_by_release_and_carry():
     assert result.success, result.reason
     assert (result.flows, result.docks, result.undocks) == (1, 1, 1)
     assert not topology_diff(result.final, goal)
+
+
+def test_a_flow_without_its_changes_in_the_plan_file_still_runs():
+    """A hand-written plan may give a flow's target only: the executor completes the
+    changes from the topology difference before the controller reads them."""
+    plan = plan_miso(line(3), star_goal(3))
+    (flow,) = plan.actions[:1]
+    assert flow.type is ActionType.FLOW
+    bare = Plan("spheres", "hand", plan.start, flow.target,
+                [Action(ActionType.FLOW, flow.target)])
+    result = run_kinematic(bare, SPHERES)
+    assert result.success and result.flows == 1, result.reason
