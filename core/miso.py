@@ -976,7 +976,8 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
         current = after
     reached = _configuration(start, ids, final, goal_vectors, edge_ids,
                              goal.name or "goal")
-    if not _same_shape(current, reached):
+    if actions or not _same_shape(current, reached):   # a step's own motion (a flow
+        # ends where the leaf touches its new parent) does not set the goal's vectors
         actions.append(Action(ActionType.MOVING, reached, ids, note="take the goal's shape"))
     mapping = {ids[a]: problem.goal_ids[b] for a, b in enumerate(solution.pairing)}
     notes = []
