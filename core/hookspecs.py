@@ -26,6 +26,8 @@ import pluggy
 # plugins load on every command's --help, which must not pay for numpy, networkx,
 # pydantic or scipy (benchmarks/cli_startup.py; tests/core/test_cli_startup.py).
 if TYPE_CHECKING:
+    from pathlib import Path
+
     import click
 
     from .capabilities import Controller, DriverFactory, Planner, Recognizer
@@ -170,6 +172,22 @@ def msrr_scenarios(robot: str, register: Register[Scenario]) -> None:
     :param register: call ``register(scenario)`` with a
         :class:`~msrr.core.scenario.Scenario`; the one with ``default=True`` (else
         the first) runs when no scenario is named.
+    """
+
+
+@hookspec
+def msrr_libraries(robot: str, register: Register[Path]) -> None:
+    """Register the behavior library files of ``robot`` (FreeSN paper, section 6).
+
+    A robot that registers libraries gets the core's ``library`` planner
+    (:class:`~msrr.core.library.planner.LibraryPlanner`: match, shortest action path,
+    remap; behaviors with ``platform run --behavior``), after its own planners. Called
+    when the robot's planners are listed.
+
+    :param robot: the robot's name.
+    :param register: call ``register(path)`` with each library file (``platform library
+        build`` output, one or more sub-libraries); a check file beside it
+        (``<name>.check.json``, ``platform library check``) sets the edges' feasibility.
     """
 
 

@@ -29,6 +29,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib import import_module
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 import pluggy
@@ -68,6 +69,7 @@ __all__ = [
     "emit",
     "get_plugin_manager",
     "kinematic_nodes",
+    "libraries",
     "load_configuration",
     "load_errors",
     "load_library",
@@ -479,6 +481,12 @@ class Capability(Generic[T]):
         from . import generic
         from .link import link_driver_factory
 
+        if self.hook_name == "msrr_planners" and "library" not in found:
+            paths = libraries(robot_name)   # the core's library planner, before the generic
+            if paths:
+                from .library.planner import LibraryPlanner
+
+                found["library"] = LibraryPlanner(resolve(robot_name), paths)  # type: ignore[assignment]
         if self.hook_name in generic.HOOKS:  # the generic runtime, after the robot's own
             for item in generic.capabilities(self.hook_name, resolve(robot_name)):
                 found.setdefault(item.name, item)  # type: ignore[attr-defined]
@@ -515,6 +523,20 @@ planners: Capability[Planner] = Capability("msrr_planners", "planner", "capabili
 drivers: Capability[DriverFactory] = Capability("msrr_drivers", "driver",
                                                 "capabilities:DriverFactory")
 scenarios: Capability[Scenario] = Capability("msrr_scenarios", "scenario", "scenario:Scenario")
+
+
+def libraries(robot_name: str) -> list[Path]:
+    """The behavior library files registered for ``robot_name`` (``msrr_libraries``), in
+    pluggy's call order; a plugin that raises is disabled and reported.
+
+    Raises:
+        UnknownRobotError: no plugin describes ``robot_name``.
+    """
+    robot(robot_name)
+    found: list[object] = []
+    for _ in _call_each("msrr_libraries", robot=robot_name, register=found.append):
+        pass
+    return [Path(p) for p in found]  # type: ignore[arg-type]
 
 
 def register_commands(cli: click.Group, pm: pluggy.PluginManager | None = None) -> None:

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .alignment import rot_z
 from .configuration import Configuration
 from .robot import DockingRules, RobotSpec
 
-__all__ = ["random_configuration", "random_unit"]
+__all__ = ["newly_built", "random_configuration", "random_unit"]
 
 
 def random_unit(rng: np.random.Generator) -> np.ndarray:
@@ -107,3 +108,53 @@ def random_configuration(spec: RobotSpec, rules: DockingRules, n_vertices: int,
             config.add_virtual(free)
             config.connect(vertices[int(rng.integers(len(vertices)))], free, **edge_attrs())
     return config
+
+
+def newly_built(config: Configuration, rng: np.random.Generator, *, noise: float,
+                yaw: float | None = None, prefixes: dict[str, str] | None = None,
+                name: str = "") -> Configuration:
+    """``config`` as a newly built system would report it (FreeSN paper, section 7: "a
+    newly constructed system with any isomorphic labelling"): its modules renamed in a
+    random order (``n0, n1, ...`` per kind prefix), the whole turned about the vertical
+    by ``yaw``, and each ``z`` tilted by a random angle of standard deviation ``noise``
+    about a random axis perpendicular to it. Free connectors (virtual vertices) are
+    named after their edge's new id (``s3:b``); forward vectors are turned, not tilted.
+
+    Args:
+        config: the configuration (a library configuration, say).
+        rng: the random generator (seeded by the caller).
+        noise: standard deviation of each vector's tilt [rad].
+        yaw: the turn [rad]; uniform in [-pi, pi) when ``None``.
+        prefixes: new id prefix per module kind (default its kind's first letter).
+        name: the new configuration's name.
+    """
+    prefixes = prefixes or {}
+    vertices: dict[str, str] = {}
+    edges: dict[str, str] = {}
+    by_kind: dict[str, list[str]] = {}
+    for module, kind in config.modules().items():
+        by_kind.setdefault(kind, []).append(module)
+    for kind, ids in by_kind.items():
+        order = rng.permutation(len(ids))
+        prefix = prefixes.get(kind, kind[:1])
+        for k, j in enumerate(order):
+            target = edges if ids[j] in config.edge_ids() else vertices
+            target[ids[j]] = f"{prefix}{k}"
+    for edge in config.edges():
+        new = edges.get(edge.id, edge.id)
+        for vertex, end in ((edge.source, "a"), (edge.target, "b")):
+            if config.is_virtual(vertex):
+                vertices[vertex] = f"{new}:{end}"
+    z = {}
+    for edge in config.edges():
+        if edge.z is None:
+            continue
+        axis = np.cross(edge.z, random_unit(rng))
+        axis /= np.linalg.norm(axis)
+        angle = float(rng.normal(scale=noise))
+        # Rodrigues: z turned by angle about an axis perpendicular to it
+        z[edge.id] = np.cos(angle) * edge.z + np.sin(angle) * np.cross(axis, edge.z)
+    turn = float(rng.uniform(-np.pi, np.pi)) if yaw is None else yaw
+    return config.derive(z=z, x={e.id: e.x for e in config.edges() if e.x is not None},
+                         rotation=rot_z(turn), vertices=vertices, edges=edges,
+                         name=name or config.name)

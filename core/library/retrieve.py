@@ -6,6 +6,15 @@ Fig. 15(a)), the cheapest action path by motion cost is found in the action grap
 (Dijkstra), and every configuration and kinematic tree of the path is mapped into the
 system's own ids by composing the match mapping with the edges' module mappings
 (Fig. 15(b), (c)). The result is ready for the executor (section 4, Fig. 15(d)).
+
+**One frame.** Every library configuration is stored in its own root horizontal frame,
+so two consecutive configurations of a path may differ by an arbitrary yaw (S6N3's
+rigid triangle turns by 120 degrees between steps when the root node changes). The
+retrieved targets are therefore expressed one after the other in the frame of the
+previous one: each is turned by the yaw that best aligns it with its predecessor on the
+connections both have (eq. 8, :func:`msrr.core.alignment.align_yaw`), starting from the
+match yaw that aligns the first with the system. A docking strut then aims where it
+will dock, and the executor's goals never jump by a frame change.
 """
 
 from __future__ import annotations
@@ -14,9 +23,10 @@ from dataclasses import dataclass, field
 from itertools import pairwise
 
 import networkx as nx
+import numpy as np
 
 from ..actions import detect_action
-from ..alignment import rot_z
+from ..alignment import align_yaw, angles_between, rot_z
 from ..configuration import Configuration
 from ..kinematics import KinematicTree
 from ..mapping import ModuleMap
@@ -35,7 +45,8 @@ from .model import (
     TreeRef,
 )
 
-__all__ = ["Retrieval", "RetrievedStep", "retrieve", "shortest_path"]
+__all__ = ["INLIER", "Retrieval", "RetrievedStep", "align_to", "frame_turn", "locate",
+           "retrieve", "shortest_path"]
 
 
 @dataclass(frozen=True)
@@ -44,11 +55,13 @@ class RetrievedStep:
 
     Attributes:
         library_id: the library configuration this step reaches.
-        target: that configuration in the system's ids (vectors turned by the match yaw).
+        target: that configuration in the system's ids and frame (turned by :attr:`yaw`).
         tree: the kinematic tree that executes the step, in the system's ids.
         tree_ref: which library tree it is.
         action: the action type (section 4.1).
         cost: motion cost of the step (the match cost for the first, approach step).
+        yaw: the turn [rad] from the library configuration's own frame to the frame of
+            ``target`` (the system's, shared by every step of a retrieval).
     """
 
     library_id: str
@@ -57,6 +70,7 @@ class RetrievedStep:
     tree_ref: TreeRef
     action: ActionType
     cost: float
+    yaw: float = 0.0
 
 
 @dataclass
@@ -90,18 +104,75 @@ class Retrieval:
         return float(sum(s.cost for s in self.steps))
 
     def actions(self, system: Configuration) -> list[Action]:
-        """The steps (then the behavior's steps) as executor actions starting at ``system``."""
+        """The steps (then the behavior's steps) as executor actions starting at ``system``;
+        each says where it comes from in :attr:`~msrr.core.plan.Action.retrieved`."""
         out, before = [], system
         for step in [*self.steps, *self.behavior_steps]:
-            out.append(_action(before, step))
+            out.append(_action(before, step, self.sublibrary))
             before = step.target
         return out
 
+    def mapping_text(self, system: Configuration) -> str:
+        """``"N1->n3, N2->n1, ..."``: the system's modules -> the matched configuration's."""
+        return ", ".join(f"{k}->{v}" for k, v in sorted(self.mapping.nodes.items())
+                         if not system.is_virtual(k))
 
-def _action(before: Configuration, step: RetrievedStep) -> Action:
+
+def _action(before: Configuration, step: RetrievedStep, sublibrary: str) -> Action:
     action = detect_action(before, step.target, note=f"library {step.library_id}")
     action.cost, action.kinematic_tree = step.cost, step.tree
+    action.retrieved = f"{sublibrary} {step.library_id} (tree {step.tree_ref})"
     return action
+
+
+INLIER = np.radians(10.0)
+"""A connection counts as unmoved between two steps when, after the frame turn, its ``z``
+is within this angle of the previous one [rad]."""
+
+
+def frame_turn(config: Configuration, previous: Configuration) -> float:
+    """The yaw [rad] that takes ``config``'s frame onto ``previous``'s: the turn that
+    brings the most connections (both have) within :data:`INLIER` of their previous
+    direction, refined by eq. 8 on those (:func:`~msrr.core.alignment.align_yaw`).
+
+    A step moves some connections and keeps the rest (a strut swings 150 degrees to dock,
+    the triangle holds), so a least-squares yaw over all of them would turn the
+    unmoved part by a compromise; the consensus over candidate turns (one per
+    connection with a horizontal component) ignores the moved ones. 0 when they share
+    no vector.
+    """
+    both = {e.id for e in previous.edges() if e.z is not None}
+    ids = [e.id for e in config.edges() if e.id in both and e.z is not None]
+    if not ids:
+        return 0.0
+    old, new = previous.vectors(ids), config.vectors(ids)
+    candidates = [0.0]
+    for j in range(len(ids)):
+        if np.hypot(*old[:2, j]) > 0.2 and np.hypot(*new[:2, j]) > 0.2:
+            candidates.append(float(np.arctan2(old[1, j], old[0, j])
+                                    - np.arctan2(new[1, j], new[0, j])))
+    best, best_key = 0.0, None
+    for yaw in candidates:
+        angles = angles_between(old, rot_z(yaw) @ new)
+        inliers = angles < INLIER
+        key = (-int(inliers.sum()), float(np.sum(angles[inliers] ** 2)))
+        if best_key is None or key < best_key:
+            best, best_key = yaw, key
+    inliers = angles_between(old, rot_z(best) @ new) < INLIER
+    if inliers.any():
+        best = align_yaw(old[:, inliers], new[:, inliers]).theta
+    return float(np.arctan2(np.sin(best), np.cos(best)))
+
+
+def align_to(config: Configuration, previous: Configuration) -> tuple[Configuration, float]:
+    """``config`` in ``previous``'s frame (turned by :func:`frame_turn`), and the turn."""
+    yaw = frame_turn(config, previous)
+    if yaw == 0.0:
+        return config, 0.0
+    turn = rot_z(yaw)
+    z = {e.id: turn @ e.z for e in config.edges() if e.z is not None}
+    x = {e.id: turn @ e.x for e in config.edges() if e.x is not None}
+    return config.with_vectors(z=z, x=x or None), float(yaw)
 
 
 def shortest_path(sub: SubLibrary, start: str, target: str) -> list[str]:
@@ -127,6 +198,7 @@ class _Mapper:
 
     def __init__(self, sub: SubLibrary, yaw: float, modes: engine.Modes):
         self.sub, self.modes = sub, modes
+        self.yaw = yaw
         self.rotation = rot_z(yaw)
 
     def express(self, config_id: str, to_system: ModuleMap) -> tuple[Configuration, ModuleMap]:
@@ -152,11 +224,14 @@ class _Mapper:
             forward = edge.module_map(before)
             next_map = forward.inverse().then(to_system)
             target, used = self.express(v, next_map)
+            target, turn = align_to(target, config)   # into the previous step's frame
+            yaw = self.yaw + turn
             if edge.tree.group == self.sub.configurations[u].group:
                 tree = self.tree(edge.tree, config, to_system)
             else:
                 tree = self.tree(edge.tree, target, used)
-            steps.append(RetrievedStep(v, target, tree, edge.tree, edge.action, edge.cost))
+            steps.append(RetrievedStep(v, target, tree, edge.tree, edge.action, edge.cost,
+                                       float(np.arctan2(np.sin(yaw), np.cos(yaw)))))
             to_system, config = used, target
         return steps, to_system
 
@@ -172,6 +247,30 @@ def _commands(behavior: Behavior, to_system: ModuleMap) -> tuple[CommandGain, ..
 def library_cost(library: Library) -> str:
     """The motion cost a library was built with (``build.cost``; IK when not recorded)."""
     return engine.cost_kind(str(library.build.get("cost", COST_IK)))
+
+
+def locate(library: Library, configuration: Configuration, robot: Robot
+           ) -> engine.MatchOutcome:
+    """The library configuration ``configuration`` matches best (Alg. 4, Fig. 15(a)),
+    with the mapping of its ids and the yaw that aligns the two.
+
+    Raises:
+        LibraryError: no sub-library of its module counts.
+        RetrievalError: it is isomorphic to no group of its sub-library.
+    """
+    label = configuration.signature().label(robot.spec)
+    sub = library.sublibrary(label)
+    signature = configuration.signature()
+    candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
+                  for c in sub.configurations.values()
+                  if sub.groups[c.group].reference.signature() == signature]
+    outcome = (engine.best_match(configuration, candidates, library_cost(library),
+                                 robot.joint_modes) if candidates else None)
+    if outcome is None:
+        groups = ", ".join(f"{g.id} ({g.name})" for g in sub.groups.values())
+        raise RetrievalError(f"{configuration.name or 'the configuration'} is not isomorphic "
+                             f"to any group of sub-library {label} (groups: {groups})")
+    return outcome
 
 
 def retrieve(library: Library, system: Configuration, robot: Robot, *, to: str | None = None,
@@ -210,15 +309,7 @@ def retrieve(library: Library, system: Configuration, robot: Robot, *, to: str |
     else:
         assert to is not None
         target = sub.configuration(to).id
-    signature = system.signature()
-    candidates = [(c.id, c.configuration, next(iter(sub.groups[c.group].trees.values())))
-                  for c in sub.configurations.values()
-                  if sub.groups[c.group].reference.signature() == signature]
-    outcome = (engine.best_match(system, candidates, library_cost(library), robot.joint_modes)
-               if candidates else None)
-    if outcome is None:
-        raise RetrievalError(f"the system is not isomorphic to any group of sub-library {label} "
-                             f"(groups: {', '.join(f'{g.id} ({g.name})' for g in sub.groups.values())})")
+    outcome = locate(library, system, robot)
     path = shortest_path(sub, outcome.key, target)
     mapper = _Mapper(sub, outcome.yaw, robot.joint_modes)
     start_config, to_system = mapper.express(outcome.key, outcome.mapping.inverse())
@@ -226,7 +317,7 @@ def retrieve(library: Library, system: Configuration, robot: Robot, *, to: str |
     first_tree = TreeRef(group.id, next(iter(group.trees)))
     steps = [RetrievedStep(outcome.key, start_config, mapper.tree(first_tree, start_config,
                                                                    to_system),
-                           first_tree, ActionType.MOVING, outcome.cost)]
+                           first_tree, ActionType.MOVING, outcome.cost, outcome.yaw)]
     path_steps, final_map = mapper.follow(path, to_system, start_config)
     steps += path_steps
     retrieval = Retrieval(sub.name, outcome.key, outcome.cost, outcome.mapping, steps, chosen)

@@ -1,7 +1,8 @@
 """Hook implementations of the FreeSN robot plugin.
 
 Loaded by the command line on every ``--help``: the module imports only the hook
-marker; each hook imports what it answers with (the robot, its rules, joints, planners).
+marker; each hook imports what it answers with (the robot, its rules, joints, drivers).
+Its planner is the core's ``library`` planner over the libraries it registers.
 """
 
 from __future__ import annotations
@@ -15,8 +16,26 @@ from .timeline import msrr_timeline_views  # noqa: F401 - the timeline's connect
 CONFIGS = Path(__file__).resolve().parent / "configs" / "library"
 """Every configuration of the shipped libraries as ``<library id>.json``."""
 
+LIBRARIES = Path(__file__).resolve().parent / "libraries"
+"""The shipped behavior libraries, one file per sub-library (``S6N3.json``) with its
+feasibility check file (``S6N3.check.json``)."""
+
+STARTS = Path(__file__).resolve().parent / "configs" / "scenarios"
+"""Start configurations of the figure scenarios: library configurations as newly built
+systems report them (relabelled, yawed, tilted; ``generate.py`` there writes them)."""
+
+FIGURES = (
+    ("fig20", "fig20-start", ("S6N3-4.1", "S6N3-1.1"),
+     "Fig. 20: S6N3 triangle with three legs -> the doubled triangle (d) by retrieval -> back",
+     True),
+    ("fig21", "fig21-start", ("S12N6-3.1", "S12N6-2.1"),
+     "Fig. 21: S12N6 hexagonal star -> tree -> hexagonal star", False),
+)
+"""``(name, start file, goals (library ids) in order, description, default)``: the
+reconfiguration scenarios of the paper's figures, each goal a stage."""
+
 SCENARIOS = (
-    ("s6n3-connect", "S6N3-1.3", "S6N3-2.1", "S6N3: a leg docks to a node (connection)", True),
+    ("s6n3-connect", "S6N3-1.3", "S6N3-2.1", "S6N3: a leg docks to a node (connection)", False),
     ("s6n3-disconnect", "S6N3-2.1", "S6N3-1.3", "S6N3: a docked leg undocks (disconnection)",
      False),
     ("s6n3-crouch", "S6N3-1.1", "S6N3-1.2", "S6N3: the triangle lowers onto its legs (moving)",
@@ -54,15 +73,13 @@ def msrr_kinematic_nodes(robot: str, register):
 
 
 @hookimpl
-def msrr_planners(robot: str, register):
+def msrr_libraries(robot: str, register):
     from .robot import SPEC
 
-    if robot == SPEC.name:
-        from msrr.core.plugins import resolve
-
-        from .planner import LibraryPlanner
-
-        register(LibraryPlanner(resolve(SPEC.name)))
+    if robot == SPEC.name:  # the core's library planner plans with these
+        for path in sorted(LIBRARIES.glob("*.json")):
+            if not path.name.endswith(".check.json"):
+                register(path)
 
 
 @hookimpl
@@ -70,8 +87,13 @@ def msrr_scenarios(robot: str, register):
     from .robot import SPEC
 
     if robot == SPEC.name:
-        from msrr.core.scenario import Scenario
+        from msrr.core.scenario import Scenario, Stage
 
+        for name, start, goals, what, default in FIGURES:
+            register(Scenario(name=name, start=STARTS / f"{start}.json",
+                              goal=CONFIGS / f"{goals[0]}.json", description=what,
+                              default=default,
+                              stages=tuple(Stage(goal=CONFIGS / f"{g}.json") for g in goals[1:])))
         for name, start, goal, what, default in SCENARIOS:
             register(Scenario(name=name, start=CONFIGS / f"{start}.json",
                               goal=CONFIGS / f"{goal}.json", description=what,

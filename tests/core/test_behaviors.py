@@ -1,0 +1,185 @@
+"""Scenario stages, behavior actions and what the executor reports about them (issue 13).
+
+Everything runs on the tiny robot's point driver (modules move along x at the wheel
+speed ``v`` they are sent), so the expected distances are exact: ``speed * time``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from tiny_robot import (
+    NAME,
+    SPEC,
+    GoalController,
+    LinePlanner,
+    LinkRecognizer,
+    PointDriver,
+    chain,
+    installed,
+)
+
+from msrr.core.errors import ConfigurationError, UnknownNameError
+from msrr.core.events import Phase, Run
+from msrr.core.executor import Executor, ExecutorOptions, behavior_commands, phases_of
+from msrr.core.plan import (
+    Action,
+    ActionType,
+    BehaviorCall,
+    CommandGain,
+    Plan,
+    join_plans,
+    load_plan,
+    save_plan,
+)
+from msrr.core.run import parse_parameters, plan_stages
+from msrr.core.scenario import Scenario, Stage
+
+DRIVE = (CommandGain("a", "v", (("speed", 2.0),)), CommandGain("b", "v", (("speed", 2.0),)),
+         CommandGain("c", "v", (("speed", 2.0), ("yaw_rate", 0.5))))
+"""Every module's wheel ``v`` = 2 speed (+ 0.5 yaw_rate for c)."""
+
+
+class TruthDriver(PointDriver):
+    """The point driver with a ground truth: its own latch state, recognized."""
+
+    def ground_truth(self):
+        return LinkRecognizer().recognize(self.get_observation().sensors)
+
+
+def execute(plan: Plan, driver: PointDriver | None = None, **options):
+    run = Run(robot=NAME, scenario="test", plan=plan, spec=SPEC, driver="points")
+    with driver or PointDriver() as world:
+        world.reset(plan.start)
+        executor = Executor(run, world, LinkRecognizer(), GoalController(),
+                            ExecutorOptions(rate=10.0, action_timeout=5.0, **options))
+        return executor.execute(), world
+
+
+def drive(duration: float | None = 2.0, distance: float | None = None, speed: float = 0.5,
+          direction=(1.0, 0.0, 0.0)) -> Action:
+    here = chain(("a", "b"))
+    call = BehaviorCall("drive", "mapping", {"speed": speed, "yaw_rate": 0.0}, DRIVE,
+                        duration=duration, distance=distance, direction=direction)
+    return Action(ActionType.BEHAVIOR, here, behavior=call)
+
+
+def test_a_mapping_behavior_sends_the_linear_map_every_tick_for_its_duration():
+    action = drive()
+    assert behavior_commands(action) == {"a": {"v": 1.0}, "b": {"v": 1.0}, "c": {"v": 1.0}}
+    start = chain(("a", "b"))
+    result, world = execute(Plan(NAME, "test", start, start, [action]), TruthDriver())
+    assert result.success, result.reason
+    assert result.ticks == 20 and math.isclose(world.time, 2.0)      # 2 s at 10 Hz
+    (moved,) = result.locomotion
+    assert moved.actions == 1 and math.isclose(moved.duration, 2.0)
+    assert math.isclose(moved.distance, 2.0, abs_tol=1e-9)            # 1 m/s for 2 s
+    assert moved.heading_error == pytest.approx(0.0, abs=1e-9)        # along +x as told
+
+
+def test_distance_ends_a_mapping_behavior_and_a_wrong_way_shows_as_heading_error():
+    start = chain(("a", "b"))
+    action = drive(duration=None, distance=0.75, speed=-0.5)
+    result, world = execute(Plan(NAME, "test", start, start, [action]), TruthDriver())
+    assert result.success, result.reason
+    (moved,) = result.locomotion
+    assert 0.75 <= moved.distance < 0.75 + 0.1 + 1e-9                 # stops at the first tick past it
+    assert moved.heading_error == pytest.approx(math.pi)              # -x, commanded +x
+
+
+def sequence_plan(loops: int, distance: float | None) -> Plan:
+    """A sequence behavior of one step per loop: every module 0.6 m further along x."""
+    start = chain(("a", "b"))
+    actions = []
+    for k in range(loops):
+        call = BehaviorCall("creep", "sequence", {}, loops=loops, loop=k, distance=distance)
+        goals = {m: [i + 0.6 * (k + 1), 0.0, 0.0] for i, m in enumerate(start.vertices())}
+        actions.append(Action(ActionType.MOVING, start, tuple(goals), goals=goals, behavior=call))
+    return Plan(NAME, "test", start, start, actions)
+
+
+def test_a_sequence_behavior_skips_its_loops_once_the_distance_is_covered():
+    result, _ = execute(sequence_plan(5, distance=1.0))
+    assert result.success, result.reason
+    assert (result.actions_done, result.actions_skipped) == (2, 3)    # 1.2 m after two loops
+    (moved,) = result.locomotion
+    assert moved.actions == 2 and moved.distance == pytest.approx(1.2, abs=2e-3)
+    full, _ = execute(sequence_plan(3, distance=None))
+    assert (full.actions_done, full.actions_skipped) == (3, 0)
+    assert full.locomotion[0].distance == pytest.approx(1.8, abs=3e-3)
+
+
+def test_a_goal_is_judged_on_the_ground_truth_topology():
+    class Broken(TruthDriver):
+        def ground_truth(self):
+            return chain()                                            # says nothing is docked
+
+    start = chain(("a", "b"))
+    still = Action(ActionType.MOVING, start, ("c",), goals={"c": [2.0, 0.0, 0.0]},
+                   reaches="ab")
+    ok, _ = execute(Plan(NAME, "test", start, start, [still]), TruthDriver())
+    assert ok.success and [t.name for t in ok.targets] == ["ab"] and ok.targets[0].truth_topology
+    assert ok.targets[0].shape_error is None                          # a robot without vectors
+    bad, _ = execute(Plan(NAME, "test", start, start, [still]), Broken())
+    assert not bad.success and "goal ab (action 0)" in bad.reason and "topology" in bad.reason
+
+
+def test_behavior_phase_and_plan_file_round_trip(tmp_path: Path):
+    action = drive(duration=3.0)
+    assert phases_of(action, None, tracking=True) == [Phase.BEHAVIOR]  # type: ignore[arg-type]
+    start = chain(("a", "b"))
+    plan = Plan(NAME, "test", start, start, [action])
+    save_plan(plan, tmp_path / "plan.json")
+    again = load_plan(tmp_path / "plan.json").actions[0]
+    assert again.type is ActionType.BEHAVIOR and again.behavior == action.behavior
+    assert str(again) == "behavior drive(speed=0.5, yaw_rate=0)"
+
+
+def test_behavior_calls_refuse_what_cannot_run():
+    with pytest.raises(ConfigurationError, match="duration or a distance"):
+        BehaviorCall("drive", "mapping", {}, DRIVE)
+    with pytest.raises(ConfigurationError, match="finite number > 0"):
+        BehaviorCall("drive", "mapping", {}, DRIVE, duration=-1.0)
+    with pytest.raises(ConfigurationError, match="either a goal or a behavior"):
+        Stage(goal=Path("a.json"), behavior="drive")
+    with pytest.raises(ConfigurationError):
+        Scenario("empty", "nothing", Path("a.json"))
+    assert parse_parameters(["speed=0.05", "yaw_rate=0"]) == (("speed", 0.05), ("yaw_rate", 0.0))
+    for bad in ("speed", "speed=fast", "=1", "speed=nan"):
+        with pytest.raises(ConfigurationError, match="NAME=NUMBER"):
+            parse_parameters([bad])
+
+
+def test_stages_are_planned_from_the_previous_goal_and_joined():
+    ab, bc = chain(("a", "b"), name="ab"), chain(("b", "c"), name="bc")
+    calls = []
+
+    class Recording(LinePlanner):
+        def plan(self, start, goal, *, seed=0):
+            calls.append((start.name, goal.name))
+            plan = super().plan(start, goal, seed=seed)
+            plan.goal = goal
+            return plan
+
+    plan = plan_stages(NAME, Recording(), ab, [(Stage(goal=Path("bc.json")), bc),
+                                               (Stage(goal=Path("ab.json"), name="back"), ab)])
+    assert calls == [("ab", "bc"), ("bc", "ab")]                      # stage 2 from stage 1's goal
+    first = len(LinePlanner().plan(ab, bc).actions)
+    assert [a.reaches for a in plan.actions if a.reaches] == ["bc", "back"]
+    assert plan.actions[first - 1].reaches == "bc" and plan.goal is ab
+    with installed(), pytest.raises(UnknownNameError, match="planner of behaviors"):
+        plan_stages(NAME, Recording(), ab, [(Stage(behavior="drive"), None)])
+
+
+def test_join_plans_keeps_the_order_and_refuses_a_gap():
+    ab, bc, ca = chain(("a", "b")), chain(("b", "c")), chain(("c", "a"))
+    one, two = LinePlanner().plan(ab, bc), LinePlanner().plan(bc, ca)
+    one.stats, two.stats = {"time_ms": 1.0}, {"time_ms": 2.5}
+    joined = join_plans([one, two])
+    assert joined.actions == one.actions + two.actions
+    assert joined.start is ab and joined.goal is two.goal and joined.stats == {"time_ms": 3.5}
+    other = chain(("a", "b"), modules="abd")
+    with pytest.raises(ConfigurationError, match="other modules"):
+        join_plans([one, LinePlanner().plan(other, other)])

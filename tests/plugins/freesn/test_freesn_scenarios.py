@@ -1,0 +1,73 @@
+"""The FreeSN figure scenarios (issue 13): registered, their start files reproducible,
+planned stage by stage at prepare time (no simulation here; the runs are in
+docs/freesn.md)."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+
+from msrr.core import plugins
+from msrr.core.io import save_configuration
+from msrr.core.plan import ActionType
+from msrr.core.random_configurations import newly_built
+from msrr.core.run import RunRequest, prepare_run, resolve_scenario
+from msrr.core.shape import skeletal_error
+
+FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
+GENERATE = FREESN / "configs" / "scenarios" / "generate.py"
+
+
+def generator():
+    spec = importlib.util.spec_from_file_location("freesn_scenario_starts", GENERATE)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_fig20_is_the_default_and_starts_from_the_systems_own_ids():
+    scenario = resolve_scenario("freesn", None)
+    assert scenario.name == "fig20"
+    start = plugins.load_configuration(scenario.start)
+    library = plugins.load_configuration(FREESN / "configs" / "library" / "S6N3-1.1.json")
+    assert not set(start.modules()) & set(library.modules())        # relabelled
+    tilts = [abs(e.z[2]) for e in start.edges()]                     # the triangle's struts
+    assert sorted(tilts)[0] > 1e-3 and start.signature() == library.signature()
+    assert [s.goal.stem for s in scenario.all_stages()] == ["S6N3-4.1", "S6N3-1.1"]
+
+
+def test_the_start_files_are_what_the_seeded_script_writes():
+    module = generator()
+    for name in module.STARTS:
+        assert (GENERATE.parent / f"{name}.json").read_text() == module.start_document(name)
+
+
+def test_fig20_plans_both_stages_at_prepare_time(tmp_path):
+    prepared = prepare_run(RunRequest(robot="freesn", out=tmp_path / "run", log=False))
+    plan = prepared.run.plan
+    assert prepared.run.scenario == "fig20" and plan.planner == "library"
+    assert [a.reaches for a in plan.actions if a.reaches] == ["S6N3-4.1", "S6N3-1.1"]
+    assert (plan.docks, plan.undocks) == (3, 3)
+    home = plugins.load_configuration(FREESN / "configs" / "library" / "S6N3-1.1.json")
+    assert skeletal_error(plan.goal, home) < 1e-9                    # back where it began
+
+
+def test_an_unseen_start_given_with_from_reaches_the_scenarios_target(tmp_path):
+    library = FREESN / "configs" / "library"
+    unseen = newly_built(plugins.load_configuration(library / "S6N3-1.1.json"),
+                         np.random.default_rng(2026), noise=math.radians(6.0), name="mine")
+    save_configuration(unseen, tmp_path / "mine.json")
+    prepared = prepare_run(RunRequest(robot="freesn", start=tmp_path / "mine.json",
+                                      goal=library / "S6N3-4.1.json",
+                                      out=tmp_path / "run", log=False))
+    plan = prepared.run.plan
+    first = plan.actions[0]
+    assert first.type is ActionType.MOVING                           # approach the match
+    assert skeletal_error(unseen, first.target) < math.radians(12.0)
+    target = plugins.load_configuration(library / "S6N3-4.1.json")
+    assert skeletal_error(plan.goal, target) < 1e-9 and plan.docks == 3
+    assert plan.actions[-1].reaches == "S6N3-4.1"
