@@ -59,7 +59,7 @@ def build_blueprint(run: Run | None = None, *,
              if planar else world)
     plots: list[object] = [
         rrb.TimeSeriesView(name="Commands", origin="commands"),
-        rrb.TimeSeriesView(name="Errors [m]", origin="errors"),
+        rrb.TimeSeriesView(name="Controller errors", origin="errors"),
         rrb.TimeSeriesView(name="Docked connections", origin="topology/connections"),
     ]
     if shape:

@@ -32,7 +32,7 @@ from msrr.core.plan import Action, ActionType, ConnectionChange, Plan, load_plan
 from msrr.core.robot import DEFAULT_HALF_SIZE, body_half_size
 from msrr.core.timeline import read_recording, summarize_recording
 from msrr.core.timeline import recorder as recorder_module
-from msrr.core.timeline.blueprint import build_blueprint
+from msrr.core.timeline.blueprint import build_blueprint, camera_eye
 from msrr.core.timeline.geometry import body_of
 from msrr.core.timeline.recorder import CONNECTOR_COLORS, TimelineRecorder
 
@@ -307,3 +307,12 @@ def test_hook_msrr_timeline_views(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     with plugins.temporary(Panels()):
         _record(tmp_path / "run.rrd")
     assert [[str(v.name) for v in extra] for extra in sent] == [[f"{NAME} panel"]]
+
+
+def test_camera_looks_at_the_middle_of_the_modules_from_above() -> None:
+    points = [np.array([0.0, 0.0, 0.0]), np.array([2.0, 1.0, 0.1]), np.array([1.0, -1.0, 0.0])]
+    eye, target = camera_eye(points)
+    assert target == pytest.approx([1.0, 0.0, 0.05])
+    size = float(np.linalg.norm([2.0, 2.0, 0.1]))  # the bounding box diagonal
+    assert np.linalg.norm(eye - target) == pytest.approx(1.8 * size)
+    assert eye[2] - target[2] > 0.6 * np.linalg.norm(eye - target)  # from well above
