@@ -10,7 +10,7 @@ connectors), plus connections and errors over time, under a title naming the rob
 the scenario.
 
 matplotlib is imported inside the drawing functions: it is an optional dependency
-(the ``dev`` extra), and a missing one is reported as one line by
+(the ``plot`` extra), and a missing one is reported as one line by
 :func:`write_snapshot`.
 """
 
@@ -440,7 +440,8 @@ def write_snapshot(recording: str | Path, image: str | Path, title: str = "") ->
     try:
         import matplotlib  # noqa: F401
     except ImportError:
-        raise MsrrError("install matplotlib: pip install msrr-platform[dev]") from None
+        raise MsrrError("platform snapshot needs matplotlib: pip install 'msrr-platform[plot]'"
+                        ) from None
     track = load_track(recording)
     fig = render_snapshot(track, title or track.title or Path(recording).name)
     buffer = io.BytesIO()
