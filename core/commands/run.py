@@ -15,7 +15,14 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from .. import plugins
-from ..console import check_display, console, err_console, run_selection_options, table
+from ..console import (
+    check_display,
+    console,
+    err_console,
+    plural,
+    run_selection_options,
+    table,
+)
 from ..errors import ConfigurationError
 from ..hookspecs import hookimpl
 from ..interrupts import Interrupted, handled, shielded
@@ -213,7 +220,7 @@ def _execute(prepared: PreparedRun) -> RunResult:
     console.print(f"{run.robot} {run.scenario}: {plan.start.name or 'start'} -> "
                   f"{plan.goal.name or 'goal'}, {len(plan.actions)} actions by {plan.planner} "
                   f"({plan.undocks} undocks, {plan.docks} docks"
-                  + (f", {plan.flows} of them in flows" if plan.flows else "")
+                  + (f"; {plural(plan.flows, 'flow')}" if plan.flows else "")
                   + f"), driver {run.driver}"
                   + (f", faults {'; '.join(map(str, prepared.faults))}" if prepared.faults else ""),
                   markup=False)
