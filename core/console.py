@@ -13,7 +13,7 @@ show at most :data:`MAX_ROWS` rows and say how many they left out.
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import math
 import os
 import sys
@@ -36,9 +36,10 @@ if TYPE_CHECKING:  # this module is on every command's --help path: no numpy, no
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
-__all__ = ["COSTS", "MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "check_display", "console",
-           "counts", "drop_empty_columns", "err_console", "error_line", "plural", "printable", "require",
-           "run_selection_options", "show_configuration", "styled", "table", "vector_text"]
+__all__ = ["COSTS", "MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "check_display",
+           "console", "counts", "drop_empty_columns", "err_console", "error_line", "plural",
+           "printable", "require", "run_selection_options", "show_configuration", "styled",
+           "table", "vector_text"]
 
 
 def printable(text: str) -> str:
@@ -83,15 +84,19 @@ def counts(config: Configuration) -> str:
     return f"{plural(len(config.modules()), 'module')}, {plural(len(config.edges()), 'connection')}"
 
 
-def require(module: str, extra: str, command: str) -> None:
-    """Check that the optional dependency ``module`` is installed for ``command``.
+def require(module: str, extra: str, needed_by: str) -> None:
+    """Check that the optional dependency ``module`` (of the install extra ``extra``) is
+    installed before ``needed_by`` (``"platform snapshot"``, ``"--plot"``) starts work.
 
     Raises:
         MsrrError: one line, ``"platform snapshot needs matplotlib: pip install
             'msrr-platform[plot]'"``, when it is not.
     """
-    if importlib.util.find_spec(module) is None:
-        raise MsrrError(f"platform {command} needs {module}: pip install 'msrr-platform[{extra}]'")
+    try:
+        importlib.import_module(module)  # the command is about to use it anyway
+    except ImportError:
+        raise MsrrError(f"{needed_by} needs {module}: pip install 'msrr-platform[{extra}]'"
+                        ) from None
 
 
 def check_display(option: str) -> None:
