@@ -149,7 +149,9 @@ class TimelineRecorder:
                  f"planner **{plan.planner}**, {len(plan.actions)} actions, "
                  f"{plan.docks} docks, {plan.undocks} undocks", ""]
         lines += [f"{i}. {a}" + (f" -- {a.note}" if a.note else "")
+                  + (f" -- retrieved: {a.retrieved}" if a.retrieved else "")
                   for i, a in enumerate(plan.actions)]
+        lines += ["", *plan.notes] if plan.notes else []
         rec.log("plan", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
                 static=True)
         mapping = plan.mapping or {m: m for m in plan.start.vertices()}
@@ -382,6 +384,8 @@ class TimelineRecorder:
         text = f"**{index + 1}/{total}: {action.label}** -- {status}"
         if action.note:
             text += f"\n\n{action.note}"
+        if action.retrieved:   # the library configuration (and mapping) it comes from
+            text += f"\n\nretrieved: {action.retrieved}"
         rec.log("action", rr.TextDocument(text, media_type="text/markdown"))
         level = {ActionStatus.FAILED: "ERROR", ActionStatus.RETRYING: "WARN"}.get(status, "INFO")
         rec.log("events/actions", rr.TextLog(f"action {index}: {action.label} {status}",
