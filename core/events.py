@@ -237,8 +237,8 @@ class LocomotionResult:
         distance: horizontal distance the centre of the modules moved [m] (mean of the
             driver's module positions).
         heading_error: angle [rad] between the direction travelled and the commanded
-            direction, or ``None`` when the behavior states none or the driver has no
-            ground truth to place it.
+            direction, or ``None`` when the behavior states none, the driver has no
+            ground truth to place it, or the centre moved less than 1 cm.
     """
 
     name: str

@@ -186,6 +186,11 @@ def _merge(control: Control, extra: dict[str, ModuleCommand]) -> dict[str, Modul
     return merged
 
 
+HEADING_DISTANCE = 0.01
+"""Below this distance travelled [m] a behavior reports no heading error (a direction of
+millimetres of jitter means nothing)."""
+
+
 class _ActionFailed(Exception):
     def __init__(self, reason: str):
         self.reason = reason
@@ -585,7 +590,7 @@ class Executor:
                  else now - moving.centre)
         distance = float(np.linalg.norm(shift))
         heading = None
-        if moving.direction is not None and distance > 1e-6:
+        if moving.direction is not None and distance >= HEADING_DISTANCE:
             cosine = float(np.clip(shift @ moving.direction / distance, -1.0, 1.0))
             heading = math.acos(cosine)
         return LocomotionResult(moving.name, moving.first_action, moving.actions,

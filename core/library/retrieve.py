@@ -179,7 +179,8 @@ def shortest_path(sub: SubLibrary, start: str, target: str) -> list[str]:
     """Configuration ids of the cheapest action path from ``start`` to ``target``.
 
     Raises:
-        RetrievalError: ``target`` is unreachable; names the groups that are reachable.
+        RetrievalError: ``target`` is unreachable; names the groups that are reachable
+            and the edges leaving them that a simulation found infeasible.
     """
     graph = sub.graph()
     try:
@@ -188,9 +189,14 @@ def shortest_path(sub: SubLibrary, start: str, target: str) -> list[str]:
         reachable = nx.descendants(graph, start) | {start}
         groups = sorted({graph.nodes[n]["group"] for n in reachable})
         names = ", ".join(f"{g} ({sub.groups[g].name})" for g in groups)
+        blocked = [f"{e.source}->{e.target} ({e.action.value})" for e in sub.edges
+                   if e.feasible is False and e.source in reachable
+                   and e.target not in reachable]
         raise RetrievalError(
             f"{target} (group {sub.configurations[target].group}) cannot be reached from "
-            f"{start} in sub-library {sub.name}; reachable groups: {names}") from None
+            f"{start} in sub-library {sub.name}; reachable groups: {names}"
+            + (f"; left out as infeasible by the library's check: {', '.join(blocked)}"
+               if blocked else "")) from None
 
 
 class _Mapper:
