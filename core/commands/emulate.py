@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from .. import plugins
-from ..console import SEED, FiniteFloat, console, err_console, table
+from ..console import SEED, FiniteFloat, console, err_console, plural, table
 from ..errors import ConfigurationError
 from ..files import check_output_place
 from ..interrupts import Interrupted, handled
@@ -74,7 +74,7 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
                 write_key(key_path, key)
             write_system(system_out, emulator.system_file(ref, robot))
             ports = sorted(e.sock.getsockname()[1] for e in emulator.modules.values())
-            console.print(f"{len(ports)} emulated {robot} modules ({factory.name}) on 127.0.0.1 "
+            console.print(f"{plural(len(ports), f'emulated {robot} module')} ({factory.name}) on 127.0.0.1 "
                           f"ports {ports[0]}-{ports[-1]}, {rate:g} Hz x{speed:g}"
                           + (f", faults {'; '.join(map(str, spec))}" if spec else "")
                           + f"; systems file {system_out}; Ctrl-C to stop", markup=False)

@@ -218,8 +218,8 @@ def _execute(prepared: PreparedRun) -> RunResult:
     for note in prepared.notes:
         err_console.print(f"note: {note}", markup=False)
     console.print(f"{run.robot} {run.scenario}: {plan.start.name or 'start'} -> "
-                  f"{plan.goal.name or 'goal'}, {len(plan.actions)} actions by {plan.planner} "
-                  f"({plan.undocks} undocks, {plan.docks} docks"
+                  f"{plan.goal.name or 'goal'}, {plural(len(plan.actions), 'action')} by {plan.planner} "
+                  f"({plural(plan.undocks, 'undock')}, {plural(plan.docks, 'dock')}"
                   + (f"; {plural(plan.flows, 'flow')}" if plan.flows else "")
                   + f"), driver {run.driver}"
                   + (f", faults {'; '.join(map(str, prepared.faults))}" if prepared.faults else ""),

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .. import plugins
-from ..console import console, show_configuration, styled
+from ..console import console, plural, show_configuration, styled
 
 __all__ = ["command"]
 
@@ -26,6 +26,6 @@ def command(file: Path) -> None:
     signature = config.signature()
     degrees = "; ".join(f"{k} {list(d)}" for k, d in signature.degrees)
     if len(degrees) > 300:
-        degrees = degrees[:300] + f" … ({len(config)} modules)"
+        degrees = degrees[:300] + f" … ({plural(len(config), 'vertex', 'vertices')})"
     console.print(f"signature: {signature.label(robot.spec)}  degrees: {degrees}")
     console.print(styled("valid", "green"), f"for {robot.spec.title}")
