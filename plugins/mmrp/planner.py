@@ -18,6 +18,7 @@ import time
 from dataclasses import dataclass
 
 from msrr.core import Configuration, plugins
+from msrr.core.console import plural
 from msrr.core.errors import ConfigurationError, PlanningError
 from msrr.core.io import check_configuration
 from msrr.core.plan import ActionType, Plan
@@ -211,10 +212,10 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     recognition = recognize_with_stats(observe(start), seed=seed)
     notes = [
         f"recognition (section 3.2): started at {recognition.starter}, "
-        f"{recognition.rounds} message rounds, {recognition.messages} messages",
+        f"{plural(recognition.rounds, 'message round')}, {plural(recognition.messages, 'message')}",
         f"roots: tau_c={tau_c}, tau_g={tau_g}",
         f"MCS({decomposition.roots[0]}, {decomposition.roots[1]}): {_arrows(common)} "
-        f"({decomposition.kept} connections kept)",
+        f"({plural(decomposition.kept, 'connection')} kept)",
         "CS subconfigurations: current " + _subs(decomposition.current) + "; goal "
         + _subs(decomposition.goal) + "; free vertices: current "
         + (", ".join(decomposition.free_current) or "none") + "; goal "
