@@ -15,7 +15,9 @@ MODULE = ModuleKind(
     symbol="F",
     role="vertex",
     ports=(PortSpec("magnet"),),
-    geometry={"radius": 0.05, "mass": 0.25, "max_speed": 0.5},  # [m], [kg], [rad/s]
+    # [m], [kg], [kg], [rad/s] about the parent's centre, [N m] drive torque limit
+    geometry={"radius": 0.05, "mass": 0.25, "connector_mass": 0.1, "max_speed": 0.5,
+              "max_torque": 1.5},
     description="steel sphere; internal magnet rolls on any point of another module",
 )
 

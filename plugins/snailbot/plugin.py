@@ -45,3 +45,34 @@ def msrr_planners(robot: str, register):
 
         register(MisoPlanner())
         register(MISO_EXACT)
+
+
+@hookimpl
+def msrr_drivers(robot: str, register):
+    from .robot import SPEC
+
+    if robot == SPEC.name:
+        from .sim import DRIVER
+
+        register(DRIVER)
+
+
+@hookimpl
+def msrr_recognizers(robot: str, register):
+    from .robot import SPEC
+
+    if robot == SPEC.name:
+        from .sim import recognizer
+
+        register(recognizer())
+
+
+@hookimpl
+def msrr_controllers(robot: str, register):
+    from .robot import SPEC
+
+    if robot == SPEC.name:
+        from .sim import controllers
+
+        for controller in controllers():  # one per joint mode, named as its ``controller``
+            register(controller)

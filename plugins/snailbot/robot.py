@@ -15,7 +15,9 @@ MODULE = ModuleKind(
     symbol="B",
     role="vertex",
     ports=(PortSpec("foot"),),
-    geometry={"radius": 0.05, "mass": 0.35, "max_speed": 0.3},  # [m], [kg], [rad/s]
+    # [m], [kg], [kg], [rad/s] about the substrate's centre, [N m] crawling torque limit
+    geometry={"radius": 0.05, "mass": 0.35, "connector_mass": 0.1, "max_speed": 0.3,
+              "max_torque": 2.0},
     description="shell with a magnetic crawling foot and a vacuum sucker",
 )
 

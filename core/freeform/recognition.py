@@ -1,0 +1,269 @@
+"""Recognition and control of single-connector freeform modules from their reports.
+
+**Recognition** (FreeSN paper, section 2.1: modules sense their connections and
+orientations; the configuration is identified from those readings). Each module
+reports the module its connector holds, its IMU tilt ``T_i`` (connector frame in its
+own horizontal frame ``H_i``) and, when docked on ``j``, the odometry ``Q_i`` of its
+connector frame in ``j``'s connector frame (drive and bearing encoders). With the
+connector frames ``R_i = Rz(psi_i) T_i`` in the world,
+
+    T_j Q_i T_i^T = Rz(-psi_j) R_j R_j^T R_i R_i^T Rz(psi_i) = Rz(psi_i - psi_j),
+
+so each connection gives the yaw between the two horizontal frames; headings follow
+breadth-first from each group's root (its free module, the MISO sink; else its
+smallest id) and the connection vector is the connector axis
+``z_{i->j} = Rz(psi_i) T_i e_z`` in the root's horizontal frame.
+
+**Control**: a connection vector in the root frame becomes, for the module that owns
+the connector, the same vector in its parent's horizontal frame,
+``Rz(-psi_j) Rz(yaw) z`` (the command ``dir_x/y/z``). A **flow** (section 4.1) of
+module ``i`` from ``P`` to a neighbour ``Q`` of ``P`` rolls ``i`` over ``P`` to the place
+where it touches both -- the direction ``w`` from ``P``'s centre at 60 degrees from the
+direction to ``Q`` (equal spheres: an equilateral triangle), nearest to where ``i`` is --
+with its connector armed to dock on ``Q`` and to leave ``P``, which the world does at once.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..actions import flow_of, topology_diff
+from ..alignment import rot_z
+from ..configuration import Configuration
+from ..control import Control
+from ..driver import ModuleCommand, Observation
+from ..errors import ConfigurationError, ExecutionError
+from ..events import Phase
+from ..kinematics.rotations import canonical_perpendicular
+from ..plan import Action, ActionType
+from ..shape import skeletal_errors
+from .mujoco import yaw_of
+from .world import ModuleReport
+
+__all__ = ["ContactController", "ContactRecognizer", "flow_direction", "links_of",
+           "module_headings"]
+
+Reports = Mapping[str, ModuleReport]
+FLOW_ANGLE = np.pi / 3
+"""Angle between the directions to the old and the new parent where a flowing sphere
+touches both (equal radii)."""
+
+
+SIDE_TIE = np.radians(5.0)
+"""A flowing module within this angle of straight opposite its new parent takes the
+level side on its left (seen from the parent toward the new parent), not a side that
+measurement noise picks."""
+_EZ = np.array([0.0, 0.0, 1.0])
+
+
+def links_of(reports: Reports) -> dict[str, str]:
+    """``module -> the module its connector holds``, for modules both reporting."""
+    return {m: r.attached for m, r in reports.items()
+            if r.attached is not None and r.attached in reports and r.relative is not None}
+
+
+def module_headings(reports: Reports, links: Mapping[str, str] | None = None
+                    ) -> dict[str, float]:
+    """Heading [rad] of every module's horizontal frame in its group's root frame."""
+    links = links_of(reports) if links is None else links
+    neighbours: dict[str, list[tuple[str, float]]] = {m: [] for m in reports}
+    for i, j in links.items():
+        ri, rj = reports[i], reports[j]
+        assert ri.relative is not None
+        delta = yaw_of(rj.tilt @ ri.relative @ ri.tilt.T)     # psi_i - psi_j
+        neighbours[j].append((i, delta))
+        neighbours[i].append((j, -delta))
+    heading: dict[str, float] = {}
+    sinks = sorted(m for m in reports if m not in links)
+    for start in [*sinks, *sorted(reports)]:
+        if start in heading:
+            continue
+        heading[start] = 0.0
+        queue = deque([start])
+        while queue:
+            u = queue.popleft()
+            for v, delta in neighbours[u]:
+                if v not in heading:
+                    heading[v] = heading[u] + delta
+                    queue.append(v)
+    return heading
+
+
+class ContactRecognizer:
+    """Configuration identification from single-connector module reports.
+
+    Args:
+        robot: robot name of the configurations made. kind: their module kind.
+    """
+
+    description = "connector contact + IMU tilt + drive odometry -> configuration"
+
+    def __init__(self, robot: str, kind: str):
+        self.name = robot
+        self.robot = robot
+        self.kind = kind
+
+    def recognize(self, observation: Reports, *, seed: int = 0) -> Configuration:
+        """The configuration the reports show, in the root's horizontal frame.
+
+        Raises:
+            ConfigurationError: a report of another type.
+        """
+        for module, report in observation.items():
+            if not isinstance(report, ModuleReport):
+                raise ConfigurationError(f"module {module!r}: not a freeform module report "
+                                         f"({type(report).__name__})")
+        links = links_of(observation)
+        heading = module_headings(observation, links)
+        config = Configuration(self.robot)
+        for module in sorted(observation):
+            config.add_module(module, self.kind)
+        for i in sorted(links):
+            z = rot_z(heading[i]) @ observation[i].tilt[:, 2]
+            config.connect(i, links[i], z=z / np.linalg.norm(z))
+        return config
+
+
+def flow_direction(config: Configuration, module: str, old: str, new: str) -> np.ndarray:
+    """Where ``module`` must sit on ``old`` to touch ``new`` too: the unit direction (3,)
+    from ``old``'s centre, in ``config``'s frame (at :data:`FLOW_ANGLE` from the direction
+    to ``new``, nearest to ``module``'s place; see :data:`SIDE_TIE` when every side is as
+    near).
+
+    Raises:
+        ConfigurationError: ``module`` is not on ``old``, or ``new`` is not next to ``old``.
+    """
+    here = next((e for e in config.edges() if e.source == module and e.target == old), None)
+    if here is None or here.z is None:
+        raise ConfigurationError(f"flow of {module}: it is not docked on {old}")
+    towards = None
+    for e in config.edges():
+        if e.z is not None and {e.source, e.target} == {old, new}:
+            towards = np.asarray(e.z) if e.source == old else -np.asarray(e.z)
+    if towards is None:
+        raise ConfigurationError(f"flow of {module}: {new} is not next to {old}")
+    u = -np.asarray(here.z)
+    side = u - (u @ towards) * towards
+    norm = np.linalg.norm(side)
+    if norm < np.sin(SIDE_TIE):   # (nearly) opposite the new parent: stay level, go left
+        side = np.cross(towards, _EZ)
+        norm = np.linalg.norm(side)
+        if norm < 1e-9:
+            side, norm = canonical_perpendicular(towards), 1.0
+    side = side / norm
+    return np.cos(FLOW_ANGLE) * towards + np.sin(FLOW_ANGLE) * side
+
+
+def _direction(vector: np.ndarray) -> dict[str, float]:
+    return {f"dir_{a}": float(c) for a, c in zip("xyz", vector, strict=True)}
+
+
+class ContactController:
+    """Controller of one single-connector joint mode (registered as its ``controller``).
+
+    :meth:`commands` turns IK joint vectors into each module's connection vector in its
+    parent's horizontal frame (the executor's tracking path); :meth:`control` runs the
+    phases without IK: flows, releases, docks, and a move straight to the target.
+
+    Args:
+        name: registered name (the joint mode's ``controller``).
+        recognizer: the robot's recognizer (same frames as the commands).
+        sucker: engage the sucker of every commanded module (sucker-revolute mode).
+        tolerance: RMS angle [rad] under which a direct move is reached.
+        flow_tolerance: angle [rad] from the place touching the new parent under which a
+            flow's rolling is reached.
+    """
+
+    def __init__(self, name: str, recognizer: ContactRecognizer, *, sucker: bool = False,
+                 tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0)):
+        self.name = name
+        self.description = (f"{recognizer.robot} connection vectors -> drive commands"
+                             + (" (sucker engaged)" if sucker else ""))
+        self.recognizer = recognizer
+        self.sucker = sucker
+        self.tolerance = tolerance
+        self.flow_tolerance = flow_tolerance
+        self._yaw = 0.0
+
+    def commands(self, target: Configuration, observation: Observation, *,
+                 yaw: float | None = None, current: Configuration | None = None
+                 ) -> dict[str, ModuleCommand]:
+        """Commands toward ``target``'s vectors (root horizontal frame).
+
+        ``yaw`` [rad] turns them into the recognized frame; on top of it, the common turn
+        about the vertical that is left between them and the recognized configuration is
+        removed (eq. 8 alignment): turning every module about its parent by the same yaw
+        would only spin the whole robot on the ground, and the reaction on the free root
+        would make the IK's yaw-aligned goal chase it round."""
+        reports = observation.sensors
+        current = current or self.recognizer.recognize(reports)
+        yaw = (yaw or 0.0) + skeletal_errors(current, target.derive(
+            rotation=rot_z(yaw or 0.0)))[2]
+        links = links_of(reports)
+        heading = module_headings(reports, links)
+        turn = rot_z(yaw)
+        out: dict[str, ModuleCommand] = {}
+        for e in target.edges():
+            if e.z is None or links.get(e.source) != e.target:
+                continue
+            joints = _direction(rot_z(-heading[e.target]) @ turn @ np.asarray(e.z))
+            if self.sucker:
+                joints["sucker"] = 1.0
+            out[e.source] = ModuleCommand(joints=joints)
+        return out
+
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+        """Fix the yaw of the action's target for this phase (eq. 8 alignment)."""
+        current = self.recognizer.recognize(observation.sensors)
+        self._yaw = skeletal_errors(current, action.target)[2]
+
+    def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
+        """One tick of ``phase`` without IK (the executor's flow contract for flows).
+
+        * ``flow``: roll the leaf over its parent to where it touches the new parent
+          (:func:`flow_direction`); reached within ``flow_tolerance``;
+        * ``handover``: hold, and tell the leaf's connector to dock on the new parent and
+          leave the old (the world switches both in one step);
+        * ``release``/``connect``: undock or arm the links the action breaks or makes;
+        * ``move``: drive every connector straight to the target (reached under
+          ``tolerance`` RMS after eq. 8 yaw alignment).
+
+        Raises:
+            ExecutionError: a flow whose leaf is not the owner of both links' connector.
+        """
+        reports = observation.sensors
+        if action.type is ActionType.FLOW and phase in (Phase.FLOW, Phase.HANDOVER):
+            flow = flow_of(action)
+            if flow.broken.source != flow.leaf or flow.made.source != flow.leaf:
+                raise ExecutionError(f"flow {flow}: a {self.recognizer.robot} moves by its own "
+                                     f"connector, but {flow.leaf} is not the source of both links")
+            if phase is Phase.HANDOVER:
+                return Control(commands={flow.leaf: ModuleCommand(
+                    dock=(f"@{flow.new_parent}",), undock=(f"@{flow.parent}",))})
+            current = self.recognizer.recognize(reports)
+            w = flow_direction(current, flow.leaf, flow.parent, flow.new_parent)
+            u = -np.asarray(current.edge(_edge_id(current, flow.leaf, flow.parent)).z)
+            angle = float(np.arccos(np.clip(u @ w, -1.0, 1.0)))
+            heading = module_headings(reports)
+            command = ModuleCommand(joints=_direction(rot_z(-heading[flow.parent]) @ -w))
+            return Control(commands={flow.leaf: command}, errors={flow.leaf: angle},
+                           reached=angle < self.flow_tolerance)
+        current = self.recognizer.recognize(reports)
+        diff = topology_diff(current, action.target)
+        commands: dict[str, ModuleCommand] = {}
+        if phase is Phase.RELEASE:
+            commands = {c.source: ModuleCommand(undock=(f"@{c.target}",)) for c in diff.broken}
+        elif phase is Phase.CONNECT:
+            commands = {c.source: ModuleCommand(dock=(f"@{c.target}",)) for c in diff.made}
+        reached = False
+        if phase is Phase.MOVE and not diff:
+            commands = self.commands(action.target, observation, yaw=self._yaw)
+            reached = skeletal_errors(current, action.target)[0] < self.tolerance
+        return Control(commands=commands, reached=reached)
+
+
+def _edge_id(config: Configuration, source: str, target: str) -> str:
+    return next(e.id for e in config.edges() if e.source == source and e.target == target)

@@ -1,0 +1,671 @@
+"""The MuJoCo world of single-connector freeform modules (FreeBOT, SnailBot), with ``MjSpec``.
+
+FreeSN paper, section 2.1: a FreeBOT is a steel sphere whose internal magnet attaches
+anywhere on another module and rolls on it (Fig. 1a); a SnailBot crawls on another
+module's shell with a magnetic foot and can lock with a vacuum sucker (Fig. 1b). Both
+have one connector (MISO: at most one out-connection). Bodies of module ``i``:
+
+* ``module/i`` -- a free sphere (the shell), radius ``r``;
+* ``connector/i`` -- the part that carries the connector and the IMU: FreeBOT's magnet
+  and drive unit, on a passive ball joint (``bearing/i``) about the shell's centre, so
+  the shell turns freely around it (``ModuleDesign.bearing``); SnailBot's body frame,
+  rigid with the shell. Its ``+z`` axis is the connector's axis;
+* ``foot/i`` -- a small body at ``L = 2 r + gap`` along that axis, on a ball joint
+  (``drive/i``) whose centre is where the centre of the module it docks on lies.
+
+**Docking** welds ``foot/i`` to ``module/j`` (a weld equality switched on through
+``data.eq_active``, as FreeSN's connectors): ``i`` then turns about ``j``'s centre on the
+``drive`` ball joint -- the SRC joint's (and the SnailBot spherical joint's) motion
+about the parent's centre, with the connector staying pointed at ``j``. The motors are
+a DC-motor model as in the FreeSN world: a damping ``D = max_torque / max_rate`` on the
+drive joint and a drive torque ``D * omega`` bounded by the torque limit, ``omega`` from a
+position loop toward the commanded connection vector. ``gap`` keeps docked shells
+apart by a millimetre, so a docked pair has no shell contact to fight the drive.
+
+**Flow** (paper 4.1): a module whose connector is told to dock on ``Q`` while it sits
+on ``P`` keeps the magnet on ``P`` until its shell comes within ``dock_tolerance`` of
+touching ``Q``; then the weld switches from ``P`` to ``Q`` in the same step (the magnet
+slides over the seam), and the foot is drawn onto ``Q``'s centre (time constant
+``seat``). An undock of ``P`` sent meanwhile waits for that switch.
+
+**Sucker** (SnailBot): a connect equality pins the contact point (``r`` along the
+connector axis) to the substrate; with the foot on the substrate's centre, the module
+can then only turn about the line through both -- the sucker's revolute joint.
+
+Module reports (:class:`ModuleReport`) carry only what a module senses: the module its
+connector holds, its IMU tilt, the connector's odometry relative to that module, the
+sucker state and the constraint events; the recognizer never sees the bodies.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..alignment import rot_z
+from ..configuration import Configuration
+from ..errors import ExecutionError
+from ..kinematics.rotations import rotation_between
+from ..robot import RobotSpec
+from .mujoco import GROUND_FRICTION, SensorNoise, Switches, add_ground, heading
+
+__all__ = ["ConstraintEvent", "FreeformOptions", "FreeformWorld", "ModuleDesign",
+           "ModuleReport", "place"]
+
+_WELD_SOLREF = (0.004, 1.0)
+_WELD_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+_ARMATURE = 1e-3      # drive motor rotors reflected through the gearbox [kg m^2]
+_FOOT_MASS = 0.005    # [kg]
+_TINY = 1e-6          # inertia of small bodies [kg m^2]
+_EZ = np.array([0.0, 0.0, 1.0])
+_ROLLING = np.radians(0.5)  # a drive further than this from its target rolls its shell
+_BEARING_FREE = 1e-3  # damping of a rolling shell's bearing [N m s/rad]
+_BRAKE = 10.0         # braked bearing damping, in units of the drive's
+
+
+@dataclass(frozen=True)
+class ModuleDesign:
+    """The physical module of one robot.
+
+    Attributes:
+        robot: robot name. kind: module kind name. radius: shell radius [m]. mass: whole module [kg].
+        connector_mass: the connector body (magnet and drive, FreeBOT) [kg].
+        max_rate: fastest turn about the parent's centre [rad/s].
+        max_torque: drive torque limit [N m].
+        bearing: the connector turns freely inside the shell (FreeBOT).
+        sucker: the module has a vacuum sucker (SnailBot).
+        rgba: shell colour.
+    """
+
+    robot: str
+    kind: str
+    radius: float
+    mass: float
+    connector_mass: float
+    max_rate: float
+    max_torque: float
+    bearing: bool
+    sucker: bool
+    rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)
+
+    @classmethod
+    def from_spec(cls, spec: RobotSpec, kind: str, *, bearing: bool, sucker: bool,
+                  rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)
+                  ) -> ModuleDesign:
+        """Read ``radius``, ``mass``, ``connector_mass``, ``max_speed`` and ``max_torque``
+        from the kind's geometry; an error names the missing key."""
+        geometry = spec.kind(kind).geometry
+        for key in ("radius", "mass", "connector_mass", "max_speed", "max_torque"):
+            if key not in geometry:
+                raise ExecutionError(f"robot {spec.name!r}: module kind {kind!r} has no "
+                                     f"geometry {key!r}, which the MuJoCo world needs")
+        g = {k: float(v) for k, v in geometry.items()}
+        return cls(spec.name, kind, g["radius"], g["mass"], g["connector_mass"], g["max_speed"],
+                   g["max_torque"], bearing, sucker, rgba)
+
+
+@dataclass(frozen=True)
+class FreeformOptions:
+    """How one freeform simulation runs.
+
+    Attributes:
+        timestep: physics step [s].
+        noise: standard deviation of every reported angle [rad].
+        position_gain: drive position loop gain [1/s].
+        servo_rate: rate of the drive loops [Hz].
+        gap: shell-to-shell gap of a docked pair [m].
+        dock_tolerance: a connector told to dock latches when the shells are this close
+            to touching [m].
+        seat: time constant of a fresh dock drawing the foot onto the centre [s].
+        seed: seed of the noise.
+    """
+
+    timestep: float = 0.002
+    noise: float = 0.0
+    position_gain: float = 8.0
+    servo_rate: float = 250.0
+    gap: float = 0.001
+    dock_tolerance: float = 0.006
+    seat: float = 0.15
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("timestep", "position_gain", "servo_rate", "gap", "dock_tolerance", "seat"):
+            if not getattr(self, name) > 0:
+                raise ExecutionError(f"simulation option {name} must be positive, "
+                                     f"got {getattr(self, name)}")
+        if self.noise < 0:
+            raise ExecutionError(f"simulation option noise must be >= 0, got {self.noise}")
+
+
+@dataclass(frozen=True)
+class ConstraintEvent:
+    """A switch of a dock constraint, as the simulator made it.
+
+    Attributes:
+        time: [s]. module: whose connector. kind: ``"dock"``, ``"undock"`` or ``"flow"``.
+        target: the module docked on (dock, flow) or left (undock).
+        previous: the module left by a flow.
+    """
+
+    time: float
+    module: str
+    kind: str
+    target: str
+    previous: str | None = None
+
+
+@dataclass(frozen=True)
+class ModuleReport:
+    """What one module reports.
+
+    Attributes:
+        attached: the module its connector holds (magnetic contact), or ``None``.
+        tilt: rotation (3, 3) of its connector frame in its own horizontal frame (IMU);
+            column 2 is the connector's axis.
+        relative: rotation (3, 3) of its connector frame in the connector frame of
+            ``attached`` (drive and bearing encoders), or ``None`` when free.
+        sucker: whether the sucker holds.
+        events: its connector's constraint events since the previous report.
+    """
+
+    attached: str | None
+    tilt: np.ndarray
+    relative: np.ndarray | None
+    sucker: bool = False
+    events: tuple[ConstraintEvent, ...] = field(default_factory=tuple)
+
+
+def place(config: Configuration, length: float, radius: float
+          ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Centres (3,) and connector frames (3, 3) of ``config``'s modules in the world.
+
+    Breadth-first from each group's smallest id, a connection ``i -> j`` puts ``j`` at
+    ``p_i + length z``; groups are set side by side along ``y``, each lifted so its lowest
+    shell rests on the ground. A connector's axis points along its connection's ``z``;
+    a module without one points its connector down.
+
+    Raises:
+        ExecutionError: a connection without ``z``, or two shells overlapping.
+    """
+    modules = [v for v in config.vertices() if not config.is_virtual(v)]
+    adjacent: dict[str, list[tuple[str, np.ndarray]]] = {m: [] for m in modules}
+    axis: dict[str, np.ndarray] = {}
+    for e in config.edges():
+        if e.z is None:
+            raise ExecutionError(f"connection {e.id} has no vector z; the world cannot place it")
+        z = np.asarray(e.z, dtype=np.float64)
+        adjacent[e.source].append((e.target, z))
+        adjacent[e.target].append((e.source, -z))
+        axis[e.source] = z
+    centres: dict[str, np.ndarray] = {}
+    offset = 0.0
+    for start in sorted(modules):
+        if start in centres:
+            continue
+        group = {start: np.zeros(3)}
+        queue = deque([start])
+        while queue:
+            u = queue.popleft()
+            for v, z in adjacent[u]:
+                if v not in group:
+                    group[v] = group[u] + length * z
+                    queue.append(v)
+        points = np.array(list(group.values()))
+        shift = np.array([0.0, offset - points[:, 1].min(), radius - points[:, 2].min()])
+        for m, p in group.items():
+            centres[m] = p + shift
+        offset += points[:, 1].max() - points[:, 1].min() + 4 * radius
+    names = sorted(centres)
+    for a in range(len(names)):
+        for b in range(a + 1, len(names)):
+            if np.linalg.norm(centres[names[a]] - centres[names[b]]) < 2 * radius - 1e-3:
+                raise ExecutionError(f"modules {names[a]} and {names[b]} overlap in this "
+                                     f"configuration")
+    frames = {m: _frame_along(axis.get(m, -_EZ)) for m in modules}
+    return centres, frames
+
+
+def _frame_along(z: np.ndarray) -> np.ndarray:
+    """A rotation (3, 3) whose ``z`` column is ``z``: the minimal turn from the vertical."""
+    return rotation_between(_EZ, z / np.linalg.norm(z))
+
+
+class FreeformWorld:
+    """One configuration of single-connector freeform modules in MuJoCo.
+
+    Args:
+        config: the starting configuration; its connections start docked.
+        design: the module (see :class:`ModuleDesign`).
+        options: the run's options.
+    """
+
+    def __init__(self, config: Configuration, design: ModuleDesign, options: FreeformOptions):
+        self.design = design
+        self.options = options
+        self.noise = SensorNoise(options.noise, options.seed)
+        self.length = 2.0 * design.radius + options.gap
+        self.modules = sorted(v for v in config.vertices() if not config.is_virtual(v))
+        self._index = {m: i for i, m in enumerate(self.modules)}
+        centres, frames = place(config, self.length, design.radius)
+        self._conn0 = [frames[m] if design.bearing else np.eye(3) for m in self.modules]
+        self._welds = Switches()
+        self._suckers = Switches()
+        self.model = self._build(centres, frames)
+        self._welds.bind(self.model)
+        self._suckers.bind(self.model)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self._shell = np.array([m.body(f"module/{i}").id for i in self.modules])
+        self._conn = np.array([m.body(f"connector/{i}").id for i in self.modules])
+        self._foot = np.array([m.body(f"foot/{i}").id for i in self.modules])
+        drives = [m.joint(f"drive/{i}") for i in self.modules]
+        self._qadr = np.array([j.qposadr[0] for j in drives])
+        self._dofs = np.array([j.dofadr[0] for j in drives])[:, None] + np.arange(3)
+        n = len(self.modules)
+        self.docked: list[str | None] = [None] * n
+        self.armed: list[str | None] = [None] * n    # dock target ("" = any touching module)
+        self.release: list[bool] = [False] * n        # undock waiting for a flow's switch
+        self.sucker = [False] * n
+        self._target = np.tile(np.array([1.0, 0, 0, 0]), (n, 1))
+        self._rolling = np.zeros(n, dtype=bool)   # bearing free: the shell rolls
+        self._bearing = np.array([m.joint(f"bearing/{i}").dofadr[0] for i in self.modules]
+                                 )[:, None] + np.arange(3) if design.bearing else None
+        self._damping = design.max_torque / design.max_rate
+        self._every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
+        self.events: list[ConstraintEvent] = []
+        self._reported = 0
+        self.time = 0.0
+        mujoco.mj_forward(self.model, self.data)
+        self._upright = np.array([_upright(r) for r in self.data.xmat[self._conn].reshape(-1, 3, 3)])
+        for e in config.edges():
+            self._dock(self._index[e.source], e.target, kind="")
+        mujoco.mj_forward(self.model, self.data)
+
+    # -- building ---------------------------------------------------------------------
+
+    def _build(self, centres: dict[str, np.ndarray], frames: dict[str, np.ndarray]
+               ) -> mujoco.MjModel:
+        d, o = self.design, self.options
+        spec = mujoco.MjSpec()
+        spec.modelname = f"freeform-{d.kind}"
+        spec.option.timestep = o.timestep
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        add_ground(spec)
+        shell_mass = d.mass - d.connector_mass - _FOOT_MASS
+        if shell_mass <= 0:
+            raise ExecutionError(f"module kind {d.kind!r}: mass must exceed the connector's")
+        shell = 2.0 / 3.0 * shell_mass * d.radius**2        # thin shell
+        core = 0.4 * d.connector_mass * (0.5 * d.radius) ** 2  # compact drive unit
+        for name in self.modules:
+            quat = Rotation.from_matrix(frames[name]).as_quat(scalar_first=True)
+            body = spec.worldbody.add_body(name=f"module/{name}", pos=centres[name],
+                                           quat=quat if not d.bearing else [1, 0, 0, 0],
+                                           mass=shell_mass, inertia=[shell] * 3,
+                                           explicitinertial=True, ipos=[0, 0, 0],
+                                           iquat=[1, 0, 0, 0])
+            body.add_freejoint(name=f"free/{name}")
+            body.add_geom(name=f"shell/{name}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                          size=[d.radius, 0, 0], friction=list(GROUND_FRICTION), mass=0,
+                          rgba=list(d.rgba))
+            inner = quat if d.bearing else [1, 0, 0, 0]
+            conn = body.add_body(name=f"connector/{name}", quat=inner, mass=d.connector_mass,
+                                 inertia=[core] * 3, explicitinertial=True, ipos=[0, 0, 0],
+                                 iquat=[1, 0, 0, 0])
+            if d.bearing:
+                conn.add_joint(name=f"bearing/{name}", type=mujoco.mjtJoint.mjJNT_BALL,
+                               damping=_BRAKE * d.max_torque / d.max_rate, armature=_ARMATURE)
+            conn.add_geom(name=f"mark/{name}", type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                          fromto=[0, 0, 0.55 * d.radius, 0, 0, 0.95 * d.radius],
+                          size=[0.35 * d.radius, 0, 0], mass=0, contype=0, conaffinity=0,
+                          rgba=[0.15, 0.15, 0.2, 1.0])
+            foot = conn.add_body(name=f"foot/{name}", pos=[0, 0, self.length], mass=_FOOT_MASS,
+                                 inertia=[_TINY] * 3, explicitinertial=True, ipos=[0, 0, 0],
+                                 iquat=[1, 0, 0, 0])
+            foot.add_joint(name=f"drive/{name}", type=mujoco.mjtJoint.mjJNT_BALL,
+                           damping=d.max_torque / d.max_rate, armature=_ARMATURE)
+        for a in self.modules:
+            for b in self.modules:
+                if a == b:
+                    continue
+                self._welds.add(spec, (a, b), f"dock/{a}/{b}", type=mujoco.mjtEq.mjEQ_WELD,
+                                objtype=mujoco.mjtObj.mjOBJ_BODY, name1=f"foot/{a}",
+                                name2=f"module/{b}", solref=list(_WELD_SOLREF),
+                                solimp=list(_WELD_SOLIMP))
+                if d.sucker:
+                    self._suckers.add(spec, (a, b), f"sucker/{a}/{b}",
+                                      type=mujoco.mjtEq.mjEQ_CONNECT,
+                                      objtype=mujoco.mjtObj.mjOBJ_BODY, name1=f"connector/{a}",
+                                      name2=f"module/{b}", solref=list(_WELD_SOLREF),
+                                      solimp=list(_WELD_SOLIMP))
+        return spec.compile()
+
+    # -- commands -----------------------------------------------------------------------
+
+    def _k(self, module: str) -> int:
+        try:
+            return self._index[module]
+        except KeyError:
+            raise ExecutionError(f"no module {module!r} in this world (modules: "
+                                 f"{', '.join(self.modules)})") from None
+
+    def command_direction(self, module: str, direction: np.ndarray) -> None:
+        """Drive ``module`` so its connection vector (unit, from it toward the module it
+        is docked on) becomes ``direction``, given in that module's horizontal frame;
+        ignored when the connector is free or the sucker holds."""
+        k = self._k(module)
+        parent = self.docked[k]
+        if parent is None or self.sucker[k]:
+            return
+        d = self.data
+        j = self._index[parent]
+        want = rot_z(float(self._headings()[j])) @ direction
+        want = want / np.linalg.norm(want)
+        r_conn = d.xmat[self._conn[k]].reshape(3, 3)
+        turn = rotation_between(r_conn[:, 2], want)   # about the parent's centre
+        r_foot = d.xmat[self._foot[k]].reshape(3, 3)
+        joint = (turn @ r_conn).T @ r_foot               # foot in the turned connector frame
+        self._target[k] = Rotation.from_matrix(joint).as_quat(scalar_first=True)
+        self._rolling[k] = float(np.arccos(np.clip(want @ r_conn[:, 2], -1, 1))) > _ROLLING
+
+    def command_hold(self, module: str) -> None:
+        """Brake ``module``'s drive where it is now."""
+        k = self._k(module)
+        self._target[k] = self.data.qpos[self._qadr[k]:self._qadr[k] + 4]
+        self._rolling[k] = False
+
+    def command_dock(self, module: str, target: str = "") -> None:
+        """Arm ``module``'s connector to latch on ``target`` (``""``: any module it touches)."""
+        k = self._k(module)
+        if target and target not in self._index:
+            self._k(target)
+        if self.docked[k] != target or not target:
+            self.armed[k] = target
+
+    def command_undock(self, module: str, target: str = "") -> None:
+        """Release ``module``'s connector (from ``target`` if given); while it is armed to
+        dock elsewhere, the release waits for that switch (a flow)."""
+        k = self._k(module)
+        if self.docked[k] is None or (target and self.docked[k] != target):
+            return
+        if self.armed[k] is not None:
+            self.release[k] = True
+            return
+        self._release(k)
+
+    def command_sucker(self, module: str, on: bool) -> None:
+        """Engage or release ``module``'s vacuum sucker on the module it is docked on."""
+        k = self._k(module)
+        if not self.design.sucker:
+            raise ExecutionError(f"module {module}: a {self.design.kind} has no sucker")
+        parent = self.docked[k]
+        if on == self.sucker[k] or (on and parent is None):
+            return
+        if not on:
+            self._suckers.off(self.data, (module, parent))
+            self.sucker[k] = False
+            return
+        d = self.data
+        eq = self._suckers.on(d, (module, parent))
+        j = self._index[parent]
+        contact = d.xpos[self._conn[k]] + d.xmat[self._conn[k]].reshape(3, 3)[:, 2] * (
+            self.design.radius + 0.5 * self.options.gap)
+        self.model.eq_data[eq, :3] = [0.0, 0.0, self.design.radius + 0.5 * self.options.gap]
+        self.model.eq_data[eq, 3:6] = d.xmat[self._shell[j]].reshape(3, 3).T @ (
+            contact - d.xpos[self._shell[j]])
+        self.sucker[k] = True
+        self.command_hold(module)
+
+    # -- docking ------------------------------------------------------------------------
+
+    def _dock(self, k: int, target: str, *, kind: str = "dock") -> None:
+        d = self.data
+        module = self.modules[k]
+        previous = self.docked[k]
+        if previous is not None:
+            self._unlatch(k)
+        eq = self._welds.on(d, (module, target))
+        j = self._index[target]
+        r_foot = d.xmat[self._foot[k]].reshape(3, 3)
+        rel, inv = np.empty(4), np.empty(4)
+        mujoco.mju_negQuat(inv, d.xquat[self._foot[k]])
+        mujoco.mju_mulQuat(rel, inv, d.xquat[self._shell[j]])
+        data = self.model.eq_data[eq]
+        data[:3] = 0.0
+        data[3:6] = r_foot.T @ (d.xpos[self._shell[j]] - d.xpos[self._foot[k]])
+        data[6:10] = rel
+        data[10] = 1.0
+        self.docked[k] = target
+        self.armed[k] = None
+        self.release[k] = False
+        self.command_hold(module)
+        if kind:
+            self.events.append(ConstraintEvent(self.time, module, kind, target,
+                                               previous if kind == "flow" else None))
+
+    def _turn_connector(self, k: int, towards: np.ndarray) -> None:
+        """Point ``k``'s connector at ``towards`` (world, (3,)) about its own centre: the
+        magnet slides over the seam of a flow (FreeBOT: inside the shell, on the bearing;
+        SnailBot: the body turns in place). The flowing module is a leaf, so nothing
+        hangs on it; the foot keeps its world orientation."""
+        d, m = self.data, self.model
+        r_conn = d.xmat[self._conn[k]].reshape(3, 3)
+        turn = rotation_between(r_conn[:, 2], towards / np.linalg.norm(towards))
+        r_foot = d.xmat[self._foot[k]].reshape(3, 3)
+        new_conn = turn @ r_conn
+        if self.design.bearing:
+            joint = m.joint(f"bearing/{self.modules[k]}")
+            r_shell = d.xmat[self._shell[k]].reshape(3, 3)
+            local = self._conn0[k].T @ r_shell.T @ new_conn   # relative to the body's rest
+        else:
+            joint = m.joint(f"free/{self.modules[k]}")
+            local = turn @ d.xmat[self._shell[k]].reshape(3, 3)
+        adr = joint.qposadr[0] + (0 if self.design.bearing else 3)
+        d.qpos[adr:adr + 4] = Rotation.from_matrix(local).as_quat(scalar_first=True)
+        drive = new_conn.T @ r_foot
+        d.qpos[self._qadr[k]:self._qadr[k] + 4] = Rotation.from_matrix(drive).as_quat(
+            scalar_first=True)
+        mujoco.mj_forward(m, d)
+
+    def _unlatch(self, k: int) -> None:
+        module, parent = self.modules[k], self.docked[k]
+        if parent is None:
+            return
+        self._welds.off(self.data, (module, parent))
+        if self.sucker[k]:
+            self._suckers.off(self.data, (module, parent))
+            self.sucker[k] = False
+        self.docked[k] = None
+
+    def _release(self, k: int) -> None:
+        parent = self.docked[k]
+        if parent is None:
+            return
+        self._unlatch(k)
+        self.release[k] = False
+        self.events.append(ConstraintEvent(self.time, self.modules[k], "undock", parent))
+
+    def _check_docks(self) -> None:
+        centres = self.data.xpos[self._shell]
+        reach = 2.0 * self.design.radius + self.options.gap + self.options.dock_tolerance
+        for k, want in enumerate(self.armed):
+            if want is None:
+                continue
+            gaps = np.linalg.norm(centres - centres[k], axis=1)
+            gaps[k] = np.inf
+            if self.docked[k] is not None:
+                gaps[self._index[self.docked[k]]] = np.inf
+            j = self._index[want] if want else int(np.argmin(gaps))
+            if gaps[j] <= reach:
+                flow = self.docked[k] is not None
+                if flow:
+                    self._turn_connector(k, centres[j] - centres[k])
+                self._dock(k, self.modules[j], kind="flow" if flow else "dock")
+
+    def _seat(self, duration: float) -> None:
+        """Draw fresh docks' feet onto the centres (time constant ``seat``)."""
+        active = [self._welds.id(key) for key in self._welds.active(self.data)]
+        if active:
+            offsets = self.model.eq_data[active, 3:6]
+            if np.any(offsets):
+                self.model.eq_data[active, 3:6] = offsets * max(
+                    0.0, 1.0 - duration / self.options.seat)
+
+    # -- stepping -----------------------------------------------------------------------
+
+    def step(self, duration: float) -> None:
+        """Advance by ``duration`` [s] (whole physics steps, at least one)."""
+        n = max(1, round(duration / self.options.timestep))
+        every = self._every
+        if self._bearing is not None:   # the shells of modules at rest are braked
+            self.model.dof_damping[self._bearing] = np.where(
+                self._rolling, _BEARING_FREE, _BRAKE * self._damping)[:, None]
+        for i in range(n):
+            if i % every == 0:
+                self._servo()
+            mujoco.mj_step(self.model, self.data)
+            self.time += self.options.timestep
+            if i % every == every - 1 or i == n - 1:
+                self._seat(min(every, i % every + 1) * self.options.timestep)
+            if any(a is not None for a in self.armed):
+                self._check_docks()
+
+    def _servo(self) -> None:
+        """Drive motors: position loop on the drive joints of docked modules, bounded
+        rate and torque (a DC motor's damping is the joint's own)."""
+        tau = np.zeros((len(self.modules), 3))
+        ks = np.array([k for k, p in enumerate(self.docked) if p is not None], dtype=int)
+        if len(ks):
+            q = self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
+            error = _quat_log(_quat_mul(_quat_conj(q), self._target[ks]))
+            omega = self.options.position_gain * error
+            norm = np.linalg.norm(omega, axis=1, keepdims=True)
+            omega *= np.minimum(1.0, self.design.max_rate / np.maximum(norm, 1e-12))
+            torque = self._damping * omega
+            size = np.linalg.norm(torque, axis=1, keepdims=True)
+            tau[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
+        self.data.qfrc_applied[self._dofs] = tau
+
+    # -- reading ------------------------------------------------------------------------
+
+    def _headings(self) -> np.ndarray:
+        """Heading [rad] of each module's horizontal frame: the twist about the vertical of
+        its connector frame turned so that the body axis that was most upright at the start
+        is its ``z`` (an IMU's yaw stays continuous; the twist of a frame whose reference
+        axis points down would not)."""
+        rot = self.data.xmat[self._conn].reshape(-1, 3, 3) @ self._upright
+        quat = Rotation.from_matrix(rot).as_quat(scalar_first=True)
+        return heading(quat)
+
+    def reports(self) -> dict[str, ModuleReport]:
+        """Every module's report, with the run's noise; events since the previous call."""
+        d = self.data
+        rot = d.xmat[self._conn].reshape(-1, 3, 3)
+        yaw = self._headings()
+        new = self.events[self._reported:]
+        self._reported = len(self.events)
+        out = {}
+        for k, module in enumerate(self.modules):
+            parent = self.docked[k]
+            relative = None
+            if parent is not None:
+                relative = self.noise.rotation(rot[self._index[parent]].T @ rot[k])
+            out[module] = ModuleReport(parent, self.noise.rotation(rot_z(-yaw[k]) @ rot[k]),
+                                       relative, self.sucker[k],
+                                       tuple(e for e in new if e.module == module))
+        return out
+
+    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """World pose of every shell: ``(position (3,), quaternion (x, y, z, w))``."""
+        out = {}
+        for k, module in enumerate(self.modules):
+            w, x, y, z = self.data.xquat[self._shell[k]]
+            out[module] = (self.data.xpos[self._shell[k]].copy(), np.array([x, y, z, w]))
+        return out
+
+    def centre(self, module: str) -> np.ndarray:
+        """World position (3,) of ``module``'s centre [m] (ground truth, for tests)."""
+        return self.data.xpos[self._shell[self._k(module)]].copy()
+
+    def ground_truth(self, *, name: str = "") -> Configuration:
+        """The configuration the bodies form (simulator state, never reports): the active
+        dock constraints and the centre-to-centre directions, in the horizontal frame of
+        the smallest module id's connector."""
+        d = self.data
+        root = self.modules[0]
+        frame = rot_z(-float(self._headings()[self._index[root]]))
+        config = Configuration(self.design.robot, name=name)
+        for module in self.modules:
+            config.add_module(module, self.design.kind)
+        for a, b in sorted(self._welds.active(d)):
+            z = d.xpos[self._shell[self._index[b]]] - d.xpos[self._shell[self._index[a]]]
+            config.connect(a, b, z=frame @ (z / np.linalg.norm(z)))
+        return config
+
+    def docked_pairs(self) -> set[tuple[str, str]]:
+        """``(module, target)`` of every active dock constraint (simulator state)."""
+        return set(self._welds.active(self.data))  # type: ignore[arg-type]
+
+    def constraint_residual(self) -> float:
+        """Largest distance [m] between a docked foot and its target's centre."""
+        worst = 0.0
+        for a, b in self._welds.active(self.data):
+            gap = self.data.xpos[self._foot[self._index[a]]] - \
+                self.data.xpos[self._shell[self._index[b]]]
+            worst = max(worst, float(np.linalg.norm(gap)))
+        return worst
+
+    def groups(self) -> list[frozenset[str]]:
+        """Modules of each physically separate system (connected through docks)."""
+        parent = {m: m for m in self.modules}
+
+        def find(m: str) -> str:
+            while parent[m] != m:
+                parent[m] = parent[parent[m]]
+                m = parent[m]
+            return m
+
+        for k, target in enumerate(self.docked):
+            if target is not None:
+                parent[find(self.modules[k])] = find(target)
+        groups: dict[str, set[str]] = {}
+        for m in self.modules:
+            groups.setdefault(find(m), set()).add(m)
+        return [frozenset(g) for g in groups.values()]
+
+
+def _upright(rotation: np.ndarray) -> np.ndarray:
+    """A rotation (3, 3) of body axes taking ``z`` to the axis (of +-x, +-y, +-z) of
+    ``rotation`` that points most upward."""
+    up = rotation.T @ _EZ                       # world up in the body frame
+    axis = np.zeros(3)
+    i = int(np.argmax(np.abs(up)))
+    axis[i] = np.sign(up[i])
+    return rotation_between(_EZ, axis)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products of quaternions ``(w, x, y, z)``, shape (n, 4)."""
+    aw, ax, ay, az = a.T
+    bw, bx, by, bz = b.T
+    return np.column_stack([aw * bw - ax * bx - ay * by - az * bz,
+                            aw * bx + ax * bw + ay * bz - az * by,
+                            aw * by - ax * bz + ay * bw + az * bx,
+                            aw * bz + ax * by - ay * bx + az * bw])
+
+
+def _quat_conj(q: np.ndarray) -> np.ndarray:
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _quat_log(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (n, 3) of unit quaternions (n, 4), angles in [0, pi]."""
+    q = np.where(q[:, :1] < 0, -q, q)
+    v = q[:, 1:]
+    s = np.sqrt(np.einsum("ni,ni->n", v, v))
+    angle = 2.0 * np.arctan2(s, q[:, 0])
+    return v * np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)[:, None]

@@ -1,0 +1,40 @@
+"""FreeBOT's named runs (``platform run --robot freebot [--scenario NAME]``).
+
+Six FreeBOTs lie in a row on the ground (``line6``: every magnet holds on towards F3,
+whose magnet is free). One stage per flow (FreeSN paper, section 4.1): F1 rolls over F2
+onto F3, F6 over F5 onto F4 and then onto F3, F5 over F4 onto F3 -- a five-armed star
+around F3 (``star6-flat``) -- and the same four flows in reverse bring the row back.
+Each intermediate configuration is a goal the run is judged on (ground truth).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from msrr.core.scenario import Scenario, Stage
+
+__all__ = ["CONFIGS", "SCENARIOS"]
+
+CONFIGS = Path(__file__).resolve().parent / "configs"
+
+_TO_STAR = ("line6-a", "line6-b", "line6-c", "star6-flat")
+_BACK = ("line6-c", "line6-b", "line6-a", "line6")
+
+
+def _stages(names: tuple[str, ...]) -> tuple[Stage, ...]:
+    return tuple(Stage(goal=CONFIGS / f"{name}.json") for name in names)
+
+
+SCENARIOS = (
+    Scenario(name="chain-star", start=CONFIGS / "line6.json",
+             goal=CONFIGS / f"{_TO_STAR[0]}.json", stages=_stages(_TO_STAR[1:] + _BACK),
+             description="six FreeBOTs: a row becomes a star and a row again, by eight flows",
+             default=True),
+    Scenario(name="chain-to-star", start=CONFIGS / "line6.json",
+             goal=CONFIGS / f"{_TO_STAR[0]}.json", stages=_stages(_TO_STAR[1:]),
+             description="six FreeBOTs: a row becomes a star by four flows"),
+    Scenario(name="star-to-chain", start=CONFIGS / "star6-flat.json",
+             goal=CONFIGS / f"{_BACK[0]}.json", stages=_stages(_BACK[1:]),
+             description="six FreeBOTs: a star becomes a row by four flows"),
+)
+"""The default first."""
