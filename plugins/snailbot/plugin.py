@@ -76,3 +76,14 @@ def msrr_controllers(robot: str, register):
 
         for controller in controllers():  # one per joint mode, named as its ``controller``
             register(controller)
+
+
+@hookimpl
+def msrr_scenarios(robot: str, register):
+    from .robot import SPEC
+
+    if robot == SPEC.name:
+        from .scenarios import SCENARIOS
+
+        for scenario in SCENARIOS:
+            register(scenario)

@@ -1,0 +1,37 @@
+"""SnailBot's named runs (``platform run --robot snailbot [--scenario NAME]``).
+
+Five SnailBots in a row on the ground (``chain5``: each crawls on the next, B5's foot
+free). One stage per flow (FreeSN paper, section 4.1): B1 crawls over B2 onto B3, then
+B2 over B3 onto B4 -- a branching tree (``tree5-flat``: B1 on B3, B2 and B3 on B4) --
+and the same two flows in reverse bring the row back. Each intermediate configuration
+is a goal the run is judged on (ground truth).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from msrr.core.scenario import Scenario, Stage
+
+__all__ = ["CONFIGS", "SCENARIOS"]
+
+CONFIGS = Path(__file__).resolve().parent / "configs"
+
+
+def _stages(*names: str) -> tuple[Stage, ...]:
+    return tuple(Stage(goal=CONFIGS / f"{name}.json") for name in names)
+
+
+SCENARIOS = (
+    Scenario(name="chain-tree", start=CONFIGS / "chain5.json", goal=CONFIGS / "chain5-a.json",
+             stages=_stages("tree5-flat", "chain5-a", "chain5"),
+             description="five SnailBots: a row becomes a tree and a row again, by four flows",
+             default=True),
+    Scenario(name="chain-to-tree", start=CONFIGS / "chain5.json",
+             goal=CONFIGS / "chain5-a.json", stages=_stages("tree5-flat"),
+             description="five SnailBots: a row becomes a tree by two flows"),
+    Scenario(name="tree-to-chain", start=CONFIGS / "tree5-flat.json",
+             goal=CONFIGS / "chain5-a.json", stages=_stages("chain5"),
+             description="five SnailBots: a tree becomes a row by two flows"),
+)
+"""The default first."""
