@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections import Counter
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -42,7 +43,6 @@ import numpy as np
 import rerun as rr
 
 from .. import plugins
-from ..actions import topology_diff
 from ..configuration import Configuration
 from ..driver import Pose
 from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
@@ -70,18 +70,14 @@ CONNECTOR_COLORS = {"docked": (40, 170, 60), "extending": (250, 160, 0),
 """Colour of an edge module's connector in each state."""
 GHOST_ALPHA = 70
 _LABEL_COLOR = (120, 120, 120)
+_RECTANGLE = np.array([(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (1.0, 1.0)])
+"""Corners of a closed rectangle in units of its half extents; 3 -> 4 is the front."""
 
 
 def event_name(event: TopologyEvent) -> str:
     """A dock or undock in the event log: its kind and the connection's one name
     (:attr:`msrr.core.plan.ConnectionChange.label`), ``"dock N2-S4b"``."""
     return f"{event.kind} {event.change.label}"
-
-
-def _docked(config: Configuration) -> int:
-    """Physical connections of ``config`` (:func:`msrr.core.plan.links`): vertex-vertex
-    links, and each docked end of an edge module (a strut docked at both ends is two)."""
-    return len(links(config))
 
 
 def _has_vectors(config: Configuration) -> bool:
@@ -107,6 +103,7 @@ class TimelineRecorder:
         self.rec.save(str(self.part))
         self.rec.send_recording_name(f"{run.robot}: {run.scenario}")
         self._topology: Configuration | None = None
+        self._links: Counter | None = None  # physical links: docked connections
         self._poses: dict[str, np.ndarray] = {}
         start = run.plan.start
         modules = start.modules()
@@ -122,11 +119,12 @@ class TimelineRecorder:
         self._planar = bool(run.spec.defaults.get("planar", False))
         self._vectors = _has_vectors(start) or _has_vectors(run.plan.goal)
         self._layout = graph_layout([start, run.plan.goal, *(a.target for a in run.plan.actions)])
-        self._connectors: dict[str, tuple[str, str]] = {}
+        self._connectors: dict[str, str] = {}  # last logged states, by edge module
         self._commanded: dict[str, set[str]] = {}
         self._erroring: set[str] = set()
         self._ghost_action: int | None = None
         self._blueprint_sent = False
+        self._top_ids: list[str] | None = None
         self._write_static()
 
     # -- static -----------------------------------------------------------------------
@@ -228,12 +226,13 @@ class TimelineRecorder:
                      rr.GraphEdges(edges=edges, graph_type="undirected"))
 
     def _log_topology(self, config: Configuration) -> None:
-        last = self._topology
-        diff = None if last is None else topology_diff(last, config)
-        if diff is None or diff.made or diff.broken:
+        """The graph and the docked count, when the physical links change."""
+        found = Counter(key for key, _ in links(config))
+        if found != self._links:
+            self._links = found
             self._topology = config
             self._log_graph("topology/current", config)
-            self.rec.log("topology/connections", rr.Scalars(float(_docked(config))))
+            self.rec.log("topology/connections", rr.Scalars(float(found.total())))
 
     def tick(self, tick: Tick) -> None:
         rec = self.rec
@@ -306,10 +305,9 @@ class TimelineRecorder:
                     states.append(("extending", ""))
                 else:
                     states.append(("free", ""))
-            key = (module, repr(states))
-            if self._connectors.get(module) == key:
+            if self._connectors.get(module) == repr(states):
                 continue
-            self._connectors[module] = key
+            self._connectors[module] = repr(states)
             a, b = body.ends(self._inset)
             labels = [f"{p}: {s}" + (f" to {v}" if v else "")
                       for p, (s, v) in zip(ports, states, strict=False)]
@@ -318,31 +316,32 @@ class TimelineRecorder:
                 show_labels=False, colors=[CONNECTOR_COLORS[s] for s, _ in states]))
 
     def _log_top(self, poses: Mapping[str, Pose], config: Configuration) -> None:
-        """Top-down outlines (heading: the front edge drawn twice as thick)."""
-        strips, colors, labels, fronts = [], [], [], []
-        for module, pose in poses.items():
-            body = self._bodies.get(module)
-            if body is None:
-                continue
-            x, y = float(pose.position[0]), float(pose.position[1])
-            yaw = pose.yaw
-            c, s = math.cos(yaw), math.sin(yaw)
-            hx, hy = body.half_size[0], body.half_size[1]
-            corners = [(x + c * dx - s * dy, -(y + s * dx + c * dy))
-                       for dx, dy in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy), (hx, hy))]
-            strips.append(corners)
-            fronts.append([corners[3], corners[4]])
-            colors.append(self._colors.get(module, _LABEL_COLOR))
-            labels.append(module)
-        self.rec.log("top/modules", rr.LineStrips2D(strips, colors=colors, labels=labels,
-                                                    radii=0.006))
-        self.rec.log("top/modules/fronts", rr.LineStrips2D(fronts, colors=colors, radii=0.015))
-        bars = []
-        for e in config.edges():
-            if e.source in poses and e.target in poses:
-                a, b = poses[e.source].position, poses[e.target].position
-                bars.append([(float(a[0]), -float(a[1])), (float(b[0]), -float(b[1]))])
-        self.rec.log("top/connections", rr.LineStrips2D(bars, colors=[(0, 0, 0)], radii=0.012))
+        """Top-down outlines and docked connections (y negated: the 2-D view's y points
+        down); colours and labels are logged once, the outlines per tick as one array."""
+        if self._top_ids is None:
+            self._top_ids = [m for m in poses if m in self._bodies]
+            colors = [self._colors.get(m, _LABEL_COLOR) for m in self._top_ids]
+            self.rec.log("top/modules", rr.LineStrips2D.from_fields(
+                colors=colors, labels=self._top_ids, radii=0.006), static=True)
+            self.rec.log("top/modules/fronts", rr.LineStrips2D.from_fields(
+                colors=colors, radii=0.015), static=True)
+        ids = [m for m in self._top_ids if m in poses]
+        xy = np.array([poses[m].position[:2] for m in ids], dtype=float).reshape(-1, 2)
+        yaw = np.array([poses[m].yaw for m in ids], dtype=float)
+        local = _RECTANGLE[None] * np.array([self._bodies[m].half_size[:2] for m in ids]
+                                            ).reshape(-1, 1, 2)
+        c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+        x = xy[:, :1] + c * local[..., 0] - s * local[..., 1]
+        y = xy[:, 1:] + s * local[..., 0] + c * local[..., 1]
+        outline = np.stack([x, -y], axis=-1)  # (n, 5, 2): closed rectangles
+        self.rec.log("top/modules", rr.LineStrips2D.from_fields(strips=outline))
+        self.rec.log("top/modules/fronts", rr.LineStrips2D.from_fields(
+            strips=outline[:, 3:5]))  # the front (+x) edge, drawn thick
+        bars = [[poses[e.source].position[:2], poses[e.target].position[:2]]
+                for e in config.edges() if e.source in poses and e.target in poses]
+        bars_xy = np.array(bars, dtype=float).reshape(-1, 2, 2) * (1.0, -1.0)
+        self.rec.log("top/connections", rr.LineStrips2D(bars_xy, colors=[(0, 0, 0)],
+                                                        radii=0.012))
 
     def _log_ghost(self, target: Configuration, poses: Mapping[str, Pose]) -> None:
         """``target`` laid out from its vectors, placed on the robot, drawn translucent."""

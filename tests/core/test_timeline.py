@@ -288,7 +288,9 @@ def test_a_planar_robot_records_the_top_view(tmp_path: Path) -> None:
         result = Executor(run, driver, LinkRecognizer(), GoalController()).execute()
         plugins.emit.run_end(run, result)
     rows = read_recording(tmp_path / "run.rrd", "/top").rows
-    outline = rows["/top/modules"][0].values["LineStrips2D:strips"]
+    static, first = rows["/top/modules"][:2]
+    assert static.tick is None and static.values["LineStrips2D:labels"] == ["a", "b", "c"]
+    outline = first.values["LineStrips2D:strips"]
     assert len(outline) == 3 and len(outline[0]) == 5  # three closed rectangles
     xs = sorted(p[0] for p in outline[0])
     assert xs[-1] - xs[0] == pytest.approx(0.4)  # the cube's 0.4 m length
