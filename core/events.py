@@ -272,6 +272,9 @@ class RunResult:
         undocks: connections broken, likewise.
         flows: flow actions whose handover the driver reported (its undock and dock
             are also counted in ``undocks`` and ``docks``).
+        simulator: docks, undocks and flows counted from the simulator's own constraint
+            switches (:meth:`~msrr.core.driver.Driver.constraint_events`), ``{}`` where the
+            driver cannot tell.
         retries: action attempts repeated after a timeout.
         ticks: control ticks executed.
         sim_time: driver time at the end [s].
@@ -298,6 +301,7 @@ class RunResult:
     docks: int = 0
     undocks: int = 0
     flows: int = 0
+    simulator: dict[str, int] = field(default_factory=dict)
     retries: int = 0
     ticks: int = 0
     sim_time: float = 0.0
@@ -318,7 +322,8 @@ class RunResult:
                 "failed_action": self.failed_action, "actions_done": self.actions_done,
                 "actions_total": self.actions_total,
                 "actions_skipped": self.actions_skipped, "docks": self.docks,
-                "undocks": self.undocks, "flows": self.flows, "retries": self.retries,
+                "undocks": self.undocks, "flows": self.flows,
+                "simulator_events": dict(self.simulator) or None, "retries": self.retries,
                 "ticks": self.ticks,
                 "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3),
                 "shape_error_deg": _degrees(self.shape_error),

@@ -588,6 +588,7 @@ def execute_run(prepared: PreparedRun) -> RunResult:
                     result = executor.execute()
                 finally:
                     result.sim_time = driver.time
+                    result.simulator = driver.constraint_events()
                 final = dict(driver.get_observation().poses) if result.success else {}
             _judge_shape(prepared, result, final)
         except (Interrupted, KeyboardInterrupt) as exc:

@@ -67,6 +67,9 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
         ["undocks", f"{result.undocks} (planned {planned_undocks})"],
         *([["flows", f"{result.flows} (planned {planned_flows})"]]
           if planned_flows or result.flows else []),
+        *([["simulator switches", ", ".join(f"{n} {kind}s" for kind, n in
+                                            result.simulator.items())]]
+          if result.simulator else []),
         ["retries", result.retries],
         ["simulated time", f"{result.sim_time:.1f} s"],
         ["wall time", f"{result.wall_time:.1f} s"],
