@@ -11,7 +11,6 @@ import click
 from .. import plugins
 from ..console import SEED, FiniteFloat, console, err_console, plural, table
 from ..errors import ConfigurationError
-from ..files import check_output_place
 from ..interrupts import Interrupted, handled
 
 __all__ = ["command"]
@@ -45,6 +44,7 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
 
     Writes the systems file, then serves until Ctrl-C (or --duration); drive the
     modules with `platform run --robot ROBOT --system FILE ...` from another shell."""
+    from ..files import check_output_place  # pydantic: loads when the command runs
     from ..link.emulator import Emulator, parse_link_faults  # the link loads when it starts
     from ..link.system import KeyRef, new_key, parse_key, write_key, write_system
 

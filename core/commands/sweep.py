@@ -32,7 +32,6 @@ from ..console import (
     table,
 )
 from ..errors import ConfigurationError
-from ..files import atomic_write_text, check_output_place
 
 if TYPE_CHECKING:
     from ..run import RunRequest
@@ -247,6 +246,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
     if start is not None and scenario is not None:
         raise ConfigurationError("give --scenario or --from/--to, not both")
     from ..faults import parse_faults
+    from ..files import atomic_write_text, check_output_place
     from ..run import parse_driver_options
 
     settings = [("" if s.strip().lower() in ("", "none") else s.strip())
