@@ -34,7 +34,8 @@ def command() -> None:
     """Behavior libraries: build from sources, show, retrieve sequences (paper section 6)."""
 
 
-@command.command("build")
+@command.command("build",
+                 short_help="Build a library from designed groups and recorded sequences.")
 @click.argument("sources", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path),
               help="Library file to write (atomically).")
@@ -102,7 +103,8 @@ def _show(library: Library) -> None:
                              for e in sub.edges]))
 
 
-@command.command("show")
+@command.command("show",
+                 short_help="Show a library: groups, configurations, behaviors, edges.")
 @click.argument("library", type=click.Path(path_type=Path))
 def show(library: Path) -> None:
     """Show a LIBRARY file: sub-libraries, groups, configurations, behaviors, edges.
@@ -118,7 +120,8 @@ def show(library: Path) -> None:
     _show(lib)
 
 
-@command.command("check")
+@command.command("check",
+                 short_help="Run every action edge in simulation; write the check file.")
 @click.argument("library", type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path),
               help="Check file to write (atomically); default <LIB>.check.json beside it.")
@@ -187,7 +190,8 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
     console.print(f"{done}/{plural(len(checks), 'edge')} feasible; wrote {target}")
 
 
-@command.command("retrieve")
+@command.command("retrieve",
+                 short_help="Retrieve the cheapest sequence from a system to a target.")
 @click.argument("library", type=click.Path(path_type=Path))
 @click.option("--from", "system", required=True, type=click.Path(path_type=Path),
               help="The system configuration file (its own module ids).")
