@@ -4,8 +4,9 @@ Runs ``platform <command> --help`` as a user does (the installed console script,
 process each time) for the top level, every built-in command, every subcommand of a
 group (``library build``...) and every command a plugin registers, ``--runs`` times
 each, round-robin so a busy moment hits every command alike. Prints a table of the
-median and the largest wall time per command against the goal (0.5 s, issue 16), and
-the bare interpreter's start for scale. Nothing is random: the seed line says so.
+median and the largest wall time per command, the median against the goal (0.5 s,
+issue 16; the largest shows how much a busy machine adds), and the bare interpreter's
+start for scale. Nothing is random: the seed line says so.
 
 The last line is machine-readable::
 
@@ -124,10 +125,11 @@ def main() -> None:
     console.print(f"script: {platform}", markup=False)
     times = measure(paths, args.runs, platform)
     table = Table(title="Start-up of --help [s]", title_justify="left")
-    for column in ("command", "median", "max", f"<= {GOAL_S} s"):
+    for column in ("command", "median", "max", f"median <= {GOAL_S} s"):
         table.add_column(column, justify="left" if column == "command" else "right")
     for label, values in times.items():
-        ok = "" if label.startswith("python") else ("yes" if max(values) <= GOAL_S else "NO")
+        ok = "" if label.startswith("python") else (
+            "yes" if statistics.median(values) <= GOAL_S else "NO")
         table.add_row(label, f"{statistics.median(values):.3f}", f"{max(values):.3f}", ok)
     console.print(table)
     helps = {k: v for k, v in times.items() if not k.startswith("python")}
