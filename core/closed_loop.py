@@ -14,10 +14,10 @@ configuration, handed over when it beats the tracked solution (section 3.4). It 
 in the control thread, so a run is reproducible from its seed.
 
 The edges of the tree's fixed nodes (no joints: the root's rigid part, loops) are
-commanded at the *goal's* vectors, turned by the solution's yaw, not at the recognized
-ones: a "hold where you are seen" command follows recognition noise and the structure's
-own sag, so the held part random-walks (under 2 deg of noise S12N6's ring folded 40 deg
-in 10 s) instead of staying put.
+commanded at the *goal's* shape (turned about the vertical onto the solution's heading
+of those edges), not at the recognized vectors: a "hold where you are seen" command
+follows recognition noise and the structure's own sag, so the held part random-walks
+(under 2 deg of noise S12N6's ring folded 40 deg in 10 s) instead of staying put.
 
 The phase goals (pure functions, :func:`connection_goal` and :func:`extruded`):
 
@@ -48,7 +48,7 @@ import networkx as nx
 import numpy as np
 
 from .actions import STRUT_ENDS, topology_diff
-from .alignment import rot_z
+from .alignment import align_yaw, rot_z
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .kinematics import (
@@ -92,8 +92,11 @@ class TrackingOptions:
         shrink: ``S_extr`` brings the merged nodes this fraction of a strut length closer.
         max_iterations: L-BFGS-B iterations of one tracking step (bounds the tick's time
             without a wall-clock budget, so runs are reproducible).
-        ftol: L-BFGS-B relative objective tolerance of a tracking step (1e-8 halves the
-            tick time but the S4N5 squirm-up then stalls at 18 deg).
+        ftol: L-BFGS-B relative objective tolerance of a tracking step. A tracking step
+            starts at last tick's optimum, so at 1e-12 most of its iterations polish
+            below the recognition noise with failing line searches (~3 evaluations per
+            iteration); 1e-7 (an eq. 6 change of 1e-7 rad^2, 0.02 deg RMS) cuts the
+            evaluations per tick by 3x with the same library checks.
         initial_restarts: sampled starts of a phase's first solve.
         stuck_ticks: while the residual has not improved for this many ticks, one
             exploration run every this many ticks.
@@ -106,7 +109,7 @@ class TrackingOptions:
     reach_tolerance: float = float(np.radians(3.0))
     shrink: float = 0.1
     max_iterations: int = 30
-    ftol: float = 1e-12
+    ftol: float = 1e-7
     initial_restarts: int = 8
     stuck_ticks: int = 5
     ground: bool = True
@@ -242,17 +245,7 @@ class PhaseTracker:
         self.last = solution
         joint = solution.configuration
         if self._held:
-            # a fixed node holds its goal's vectors (yaw-aligned by the solution), not the
-            # recognized ones: commanding "stay where you are seen" lets recognition noise
-            # random-walk the held structure (S12N6 4.3 -> 4.1 folded 40 deg under 2 deg)
-            turn = rot_z(solution.yaw)
-            z = {e.id: e.z for e in joint.edges()}
-            x = {e.id: e.x for e in joint.edges()}
-            for e in self._held:
-                held = self.goal.edge(e)
-                z[e] = z[e] if held.z is None else turn @ held.z
-                x[e] = x[e] if held.x is None else turn @ held.x
-            joint = joint.with_vectors(z=z, x=x)
+            joint = self._hold(joint)
         self._error = skeletal_error(self._smoothed(current), self.goal)
         if solution.rms_angle < self._best - 1e-4:
             self._best, self._since = solution.rms_angle, 0
@@ -263,6 +256,25 @@ class PhaseTracker:
             self._tracker.explore_once()   # one sampled start every stuck_ticks ticks
             self.explorations += 1
         return joint
+
+    def _hold(self, joint: Configuration) -> Configuration:
+        """``joint`` with the fixed nodes' edges at the goal's shape, turned about the
+        vertical onto where the solution has them (eq. 8 over those edges alone).
+
+        The solution carries them where they are recognized (a fixed node has no joint),
+        and commanding "stay where you are seen" lets recognition noise and the
+        structure's own sag random-walk the held part (S12N6 4.3 -> 4.1 folded 40 deg
+        under 2 deg of noise). Their heading stays the solution's: taking the IK's yaw
+        instead would turn the held part after a drifting yaw (a one-strut root spins).
+        """
+        held = [e for e in self._held if self.goal.edge(e).z is not None]
+        if not held:
+            return joint
+        goal = np.array([self.goal.edge(e).z for e in held]).T
+        turn = rot_z(align_yaw(joint.vectors(held), goal).theta)
+        z = {e.id: e.z for e in joint.edges()}
+        z.update({e: turn @ goal[:, i] for i, e in enumerate(held)})
+        return joint.with_vectors(z=z)
 
     def _smoothed(self, current: Configuration) -> Configuration:
         """``current`` with each edge's ``z`` low-passed over the ticks (factor
