@@ -396,7 +396,17 @@ class Executor:
     def _pending(self, phase: Phase, diff: TopologyDiff) -> str:
         assert self._current is not None
         left = topology_diff(self._current, self._phase_goal(phase, diff))
-        return f"; still missing: {left}" if left else "; target not reached"
+        if left:
+            return f"; still missing: {left}"
+        tracker = self._tracker
+        if tracker is None or tracker.last is None:
+            return "; target not reached"
+        # how far the robot is, and how far the IK's best answer is (a tree that cannot
+        # reach the goal shows as a large residual)
+        return (f"; target not reached ("
+                f"{math.degrees(skeletal_error(self._current, tracker.goal)):.1f} deg RMS "
+                f"from the phase goal, IK residual {math.degrees(tracker.last.rms_angle):.1f}"
+                f" deg)")
 
     def _phase_goal(self, phase: Phase, diff: TopologyDiff) -> Configuration:
         """The topology expected at the end of ``phase``."""
