@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -79,6 +79,9 @@ class EdgeRunner:
         driver_options: keyword options of the driver (noise, slip, ...).
         seed: the run's seed.
         tolerance: largest final RMS strut angle to the target [rad] (ground truth).
+        timeout_per_rad: extra driver time per phase for each radian of RMS angle between
+            the edge's source and target [s/rad]: a big motion (S12N6's tree -> ring, 57
+            deg) moves nodes over the floor for a minute, a small one should not get as long.
     """
 
     robot: Robot
@@ -89,10 +92,16 @@ class EdgeRunner:
     driver_options: tuple[tuple[str, float | int | bool], ...] = ()
     seed: int = 0
     tolerance: float = math.radians(5.0)
+    timeout_per_rad: float = 90.0
 
 
 def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
-    """Execute one edge from its source configuration; the verdict from ground truth."""
+    """Execute one edge from its source configuration; the verdict from ground truth.
+
+    Each phase may take ``runner.options.action_timeout`` plus ``runner.timeout_per_rad``
+    per radian of RMS angle between the source and the target (after yaw alignment)."""
+    options = replace(runner.options, action_timeout=runner.options.action_timeout
+                      + runner.timeout_per_rad * skeletal_error(case.start, case.target))
     plan = Plan(robot=runner.robot.name, planner="library-check", start=case.start,
                 goal=case.target, actions=[case.action])
     run = Run(robot=runner.robot.name, scenario=case.key, plan=plan, spec=runner.robot.spec,
@@ -101,7 +110,7 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
         driver.reset(case.start)
         try:
             result = Executor(run, driver, runner.recognizer, runner.controller,
-                              runner.options).execute()
+                              options).execute()
         except MsrrError as exc:
             return EdgeCheck(edge=case.key, action=case.edge.action.value, feasible=False,
                              reason=f"error: {exc}", sim_time=round(driver.time, 3))
@@ -177,6 +186,7 @@ def check_library(library: Library, runner: EdgeRunner, *, digest: str,
     options: dict[str, float | int | str | bool] = {
         "rate_hz": runner.options.rate, "action_timeout_s": runner.options.action_timeout,
         "retries": runner.options.retries, "tolerance_deg": round(math.degrees(runner.tolerance), 6),
+        "timeout_per_rad_s": runner.timeout_per_rad,
         **dict(runner.driver_options)}
     return CheckFile(library=library.name, library_sha256=digest, robot=library.robot,
                      driver=runner.driver.name, seed=runner.seed, options=options, edges=checks)
