@@ -24,16 +24,11 @@ if TYPE_CHECKING:
 
 __all__ = ["action_rows", "command", "print_plan"]
 
-VERBS = {
-    "connection": "Dock",
-    "parallel_connection": "Dock",
-    "disconnection": "Undock",
-    "parallel_disconnection": "Undock",
-    "moving": "Move",
-    "flow": "Flow",
-}
-"""Table verb of each :class:`~msrr.core.plan.ActionType` (by value: the type module loads
-with the planner, not at ``--help``)."""
+VERBS = {"moving": "Move", "behavior": "Behavior"}
+"""Table verb of the action types without connection changes (by
+:class:`~msrr.core.plan.ActionType` value: the type module loads with the planner, not at
+``--help``); a change is a ``Dock`` or an ``Undock`` row by what it does, whatever its
+action's type (a parallel step holds both), ``Flow (dock)``/``Flow (undock)`` in a flow."""
 
 HEADER = ["#", "Action", "ID", "Face", "ID", "Face", "x [m]", "y [m]", "yaw [deg]", "goal"]
 """Columns of the action table: the MMRP paper's Table 4 (Action | ID | Face | ID | Face)
@@ -50,23 +45,27 @@ def _goal(values: list[float]) -> list[str]:
 
 
 def action_rows(actions: list[Action]) -> list[list[str]]:
-    """One row per connection change of an action, per moving module with a goal, or per
-    action otherwise; the first column is the action's number (from 1), so a move of two
-    modules is two rows of one action."""
+    """One row per connection change of an action (``Dock`` or ``Undock``, ends in the
+    connection's :attr:`~msrr.core.plan.ConnectionChange.ends` order), per moving module
+    with a goal, or per action otherwise; the first column is the action's number (from
+    1), so a move of two modules is two rows of one action."""
     rows = []
     for number, action in enumerate(actions, start=1):
-        verb = VERBS.get(action.type.value, action.type.value)
         if action.changes:
             made = set(action.made())
-            rows += [[str(number), verb if action.type.value != "flow" else
-                      f"Flow ({'dock' if c in made else 'undock'})",
-                      *c.ends[0], *c.ends[1], "", "", "", ""] for c in action.changes]
-        elif action.goals:
+            for c in action.changes:
+                verb = "Dock" if c in made else "Undock"
+                if action.type.value == "flow":
+                    verb = f"Flow ({verb.lower()})"
+                rows.append([str(number), verb, *c.ends[0], *c.ends[1], "", "", "", ""])
+            continue
+        verb = VERBS.get(action.type.value, action.type.value)
+        if action.goals:
             rows += [[str(number), verb, module, "", "", "", *_goal(pose)]
                      for module, pose in action.goals.items()]
-        else:
-            rows.append([str(number), verb, ", ".join(action.modules), "", "", "", "", "", "",
-                         ""])
+        else:  # no module named: the target configuration says how every module moves
+            rows.append([str(number), verb, ", ".join(action.modules) or "all", "", "", "",
+                         "", "", "", ""])
     return rows
 
 
@@ -85,13 +84,13 @@ def print_plan(plan: Plan) -> None:
 
 def plan_counts(plan: Plan) -> str:
     """``"7 actions: 3 undocks, 3 docks, 1 move (2 modules)"``: the actions of the table
-    (its ``#`` column), the connections they break and make, the moving actions and the
-    modules those move (their rows)."""
+    (its ``#`` column), the connections they break and make (its ``Undock`` and ``Dock``
+    rows), the moving actions and, when it differs, the modules those name."""
     moves = [a for a in plan.actions if a.type.value == "moving"]
-    moved = sum(len(a.goals) or len(a.modules) for a in moves)
+    moved = sum(len(a.goals) or len(a.modules) for a in moves)  # 0: targets say it all
     text = (f"{plural(len(plan.actions), 'action')}: {plural(plan.undocks, 'undock')}, "
             f"{plural(plan.docks, 'dock')}, {plural(len(moves), 'move')}")
-    if moved != len(moves):
+    if moved and moved != len(moves):
         text += f" ({plural(moved, 'module')})"
     flows = sum(1 for a in plan.actions if a.type.value == "flow")
     return text + (f", {plural(flows, 'flow')}" if flows else "")

@@ -137,3 +137,16 @@ def test_a_missing_optional_package_is_named_with_its_extra(monkeypatch: pytest.
                                         r"pip install 'msrr-platform\[plot\]'$"):
         require("matplotlib", "plot", "platform snapshot")
     require("json", "plot", "platform snapshot")  # installed: nothing said
+
+
+def test_a_parallel_step_is_an_undock_row_and_a_dock_row_as_counted() -> None:
+    start = chain(("a", "b"))
+    swap = Action(ActionType.PARALLEL_CONNECTION, chain(("a", "c")),
+                  changes=(ConnectionChange("b", "a", "B", "T"), ConnectionChange("a", "c", "T", "B")))
+    plan = Plan("tiny", "hand", start, swap.target, [swap])
+    rows = action_rows(plan.actions)
+    assert [r[:6] for r in rows] == [["1", "Undock", "a", "T", "b", "B"],
+                                    ["1", "Dock", "a", "T", "c", "B"]]
+    assert plan_counts(plan) == "1 action: 1 undock, 1 dock, 0 moves"
+    assert sum(r[1] == "Undock" for r in rows) == plan.undocks
+    assert sum(r[1] == "Dock" for r in rows) == plan.docks
