@@ -28,7 +28,9 @@ Entity paths (stable, documented in ``docs/running.md``):
 Timelines: ``tick`` (sequence) and ``sim_time`` (duration of driver time). The file
 is written as ``<name>.part`` and renamed when the run ends, so no half recording
 is ever left under the final name. The blueprint is sent at the first tick, when the
-module poses that frame the 3-D camera are known.
+module poses that frame the 3-D camera are known. Module poses and the top view are
+kept per tick and sent as columns when the run ends (``send_columns``: one call per
+entity rather than one per tick and module).
 """
 
 from __future__ import annotations
@@ -84,10 +86,6 @@ def _has_vectors(config: Configuration) -> bool:
     return any(e.z is not None for e in config.edges())
 
 
-def _quat(pose: Pose) -> rr.Quaternion:
-    return rr.Quaternion(xyzw=pose.orientation)
-
-
 class TimelineRecorder:
     """Listens to the events of one run and logs them to ``run.recording``."""
 
@@ -125,6 +123,8 @@ class TimelineRecorder:
         self._ghost_action: int | None = None
         self._blueprint_sent = False
         self._top_ids: list[str] | None = None
+        self._pose_rows: dict[str, list[tuple[int, float, np.ndarray]]] = {}
+        self._top_rows: list[tuple[int, float, np.ndarray, np.ndarray]] = []
         self._write_static()
 
     # -- static -----------------------------------------------------------------------
@@ -248,13 +248,12 @@ class TimelineRecorder:
                 continue  # unchanged: latest-at keeps the previous transform
             moved = True
             self._poses[module] = state
-            rec.log(f"world/modules/{module}",
-                    rr.Transform3D(translation=pose.position, quaternion=_quat(pose)))
+            self._pose_rows.setdefault(module, []).append((tick.index, tick.time, state))
         topology_before = self._topology
         self._log_topology(tick.configuration)
         self._log_connectors(tick)
         if self._planar and (moved or self._topology is not topology_before):
-            self._log_top(poses, tick.configuration)
+            self._top_rows.append((tick.index, tick.time, *self._top(poses, tick.configuration)))
         self._log_scalars(tick)
         if self._vectors:
             if self._ghost_action != tick.action_index:
@@ -315,16 +314,12 @@ class TimelineRecorder:
                 [a, b][:len(states)], radii=body.radius * 1.4, labels=labels,
                 show_labels=False, colors=[CONNECTOR_COLORS[s] for s, _ in states]))
 
-    def _log_top(self, poses: Mapping[str, Pose], config: Configuration) -> None:
-        """Top-down outlines and docked connections (y negated: the 2-D view's y points
-        down); colours and labels are logged once, the outlines per tick as one array."""
+    def _top(self, poses: Mapping[str, Pose], config: Configuration
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """Top-down outlines, shape (n, 5, 2), and docked-connection bars, (m, 2, 2), with
+        y negated (the 2-D view's y axis points down)."""
         if self._top_ids is None:
             self._top_ids = [m for m in poses if m in self._bodies]
-            colors = [self._colors.get(m, _LABEL_COLOR) for m in self._top_ids]
-            self.rec.log("top/modules", rr.LineStrips2D.from_fields(
-                colors=colors, labels=self._top_ids, radii=0.006), static=True)
-            self.rec.log("top/modules/fronts", rr.LineStrips2D.from_fields(
-                colors=colors, radii=0.015), static=True)
         ids = [m for m in self._top_ids if m in poses]
         xy = np.array([poses[m].position[:2] for m in ids], dtype=float).reshape(-1, 2)
         yaw = np.array([poses[m].yaw for m in ids], dtype=float)
@@ -333,15 +328,42 @@ class TimelineRecorder:
         c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
         x = xy[:, :1] + c * local[..., 0] - s * local[..., 1]
         y = xy[:, 1:] + s * local[..., 0] + c * local[..., 1]
-        outline = np.stack([x, -y], axis=-1)  # (n, 5, 2): closed rectangles
-        self.rec.log("top/modules", rr.LineStrips2D.from_fields(strips=outline))
-        self.rec.log("top/modules/fronts", rr.LineStrips2D.from_fields(
-            strips=outline[:, 3:5]))  # the front (+x) edge, drawn thick
         bars = [[poses[e.source].position[:2], poses[e.target].position[:2]]
                 for e in config.edges() if e.source in poses and e.target in poses]
-        bars_xy = np.array(bars, dtype=float).reshape(-1, 2, 2) * (1.0, -1.0)
-        self.rec.log("top/connections", rr.LineStrips2D(bars_xy, colors=[(0, 0, 0)],
-                                                        radii=0.012))
+        return (np.stack([x, -y], axis=-1),
+                np.array(bars, dtype=float).reshape(-1, 2, 2) * (1.0, -1.0))
+
+    def _send_buffered(self) -> None:
+        """Module poses and the top view, buffered per tick, sent as columns (one call per
+        entity instead of one per tick: the recorder's main cost on long runs)."""
+        for module, rows in self._pose_rows.items():
+            states = np.array([state for _, _, state in rows])
+            self.rec.send_columns(
+                f"world/modules/{module}", indexes=self._index(rows),
+                columns=rr.Transform3D.columns(translation=states[:, :3],
+                                               quaternion=states[:, 3:]))
+        self._pose_rows = {}
+        rows = self._top_rows
+        if rows and self._top_ids is not None:
+            colors = [self._colors.get(m, _LABEL_COLOR) for m in self._top_ids]
+            self.rec.log("top/modules", rr.LineStrips2D.from_fields(
+                colors=colors, labels=self._top_ids, radii=0.006), static=True)
+            self.rec.log("top/modules/fronts", rr.LineStrips2D.from_fields(
+                colors=colors, radii=0.015), static=True)
+            self.rec.log("top/connections", rr.LineStrips2D.from_fields(
+                colors=[(0, 0, 0)], radii=0.012), static=True)
+            for path, strips in (("top/modules", [r[2] for r in rows]),
+                                 ("top/modules/fronts", [r[2][:, 3:5] for r in rows]),
+                                 ("top/connections", [r[3] for r in rows])):
+                flat = [strip for row in strips for strip in row]
+                self.rec.send_columns(path, indexes=self._index(rows), columns=(
+                    rr.LineStrips2D.columns(strips=flat).partition([len(s) for s in strips])))
+        self._top_rows = []
+
+    @staticmethod
+    def _index(rows: list[tuple]) -> list[rr.TimeColumn]:
+        return [rr.TimeColumn("tick", sequence=[r[0] for r in rows]),
+                rr.TimeColumn("sim_time", duration=[r[1] for r in rows])]
 
     def _log_ghost(self, target: Configuration, poses: Mapping[str, Pose]) -> None:
         """``target`` laid out from its vectors, placed on the robot, drawn translucent."""
@@ -441,6 +463,7 @@ class TimelineRecorder:
         """Log the summary, close the file and move it to its final name."""
         if not self._blueprint_sent:
             self._send_blueprint({})
+        self._send_buffered()
         status = "succeeded" if result.success else f"FAILED: {result.reason}"
         self.rec.log("action", rr.TextDocument(
             f"**run {status}**\n\n{result.actions_done}/{result.actions_total} actions, "
