@@ -18,14 +18,42 @@ import functools
 
 import click
 
-from . import interrupts, plugins
-from .commands import add_builtin_commands
+from . import commands, interrupts, plugins
 from .console import MsrrGroup, err_console, styled
 
-__all__ = ["cli", "command_paths", "get_cli", "main"]
+__all__ = ["TopGroup", "cli", "command_paths", "get_cli", "main"]
 
 
-@click.group(cls=MsrrGroup, context_settings={"help_option_names": ["-h", "--help"]})
+class TopGroup(MsrrGroup):
+    """The ``platform`` group: the built-in commands of :data:`msrr.core.commands.BUILTIN`
+    load on first use, plugin commands are added by their plugins; ``--help`` lists both
+    without importing a built-in command's module."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*commands.BUILTIN, *self.commands})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in self.commands and cmd_name in commands.BUILTIN:
+            self.add_command(commands.load(cmd_name), cmd_name)
+        return self.commands.get(cmd_name)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        names = self.list_commands(ctx)
+        if not names:
+            return
+        limit = formatter.width - 6 - max(len(name) for name in names)
+        rows = []
+        for name in names:
+            command = self.commands.get(name)
+            if command is None:  # a built-in not loaded: its line from the table
+                rows.append((name, commands.BUILTIN[name][1]))
+            elif not command.hidden:
+                rows.append((name, command.get_short_help_str(limit)))
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=TopGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="msrr-platform", prog_name="platform")
 def cli() -> None:
     """msrr: locomotion and self-reconfiguration for modular robots.
@@ -38,8 +66,8 @@ def cli() -> None:
 
 @functools.cache
 def get_cli() -> click.Group:
-    """The CLI with the built-in commands of :mod:`msrr.core.commands` and plugin commands."""
-    add_builtin_commands(cli)
+    """The CLI: the built-in commands of :mod:`msrr.core.commands` (loaded on first use)
+    and the commands plugins add."""
     plugins.register_commands(cli)
     return cli
 

@@ -16,7 +16,7 @@ from ..interrupts import Interrupted, handled
 __all__ = ["command"]
 
 
-@click.command("emulate", short_help="Run simulated modules behind the network link, on loopback.")
+@click.command("emulate")
 @click.option("--robot", required=True, help="Robot name (see `platform robots`).")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("--faults", default="", metavar="SPEC",

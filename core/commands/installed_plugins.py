@@ -10,7 +10,7 @@ from ..console import NONE, console, styled, table
 __all__ = ["command"]
 
 
-@click.command("plugins", short_help="List loaded plugins, their hooks and their state.")
+@click.command("plugins")
 def command() -> None:
     """List loaded plugins, the hooks each implements and their state: ok, disabled (a
     hook raised or answered with the wrong type), or describing a robot another plugin

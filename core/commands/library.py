@@ -28,8 +28,7 @@ MERGE_THRESHOLD = 1e-5
 """``--merge-threshold`` default: :data:`msrr.core.library.build.DEFAULT_MERGE_THRESHOLD`."""
 
 
-@click.group("library", cls=MsrrGroup,
-             short_help="Build, show, check and retrieve from behavior libraries.")
+@click.group("library", cls=MsrrGroup)
 def command() -> None:
     """Behavior libraries: build from sources, show, retrieve sequences (paper section 6)."""
 

@@ -37,7 +37,7 @@ def _summary(result: MatchResult, ranked: RankedMatch, rank: int) -> str:
             f"yaw {math.degrees(m.yaw):.2f} deg")
 
 
-@click.command("match", short_help="Find the best reference, module mapping and cost for a system.")
+@click.command("match")
 @click.argument("system", type=click.Path(path_type=Path))
 @click.argument("references", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("--top", type=click.IntRange(1, 1000), default=1, show_default=True,

@@ -41,7 +41,7 @@ def _markdown(rows: list[list[object]], header: list[str]) -> str:
     return "\n".join(lines)
 
 
-@click.command("robots", short_help="List installed robots and what each can do.")
+@click.command("robots")
 @click.option("--markdown", is_flag=True,
               help="Print the capability table as Markdown (docs/architecture.md holds it).")
 def command(markdown: bool) -> None:

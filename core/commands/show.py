@@ -12,7 +12,7 @@ from ..console import console, plural, show_configuration, styled
 __all__ = ["command"]
 
 
-@click.command("show", short_help="Print a configuration's modules, connections and signature.")
+@click.command("show")
 @click.argument("file", type=click.Path(path_type=Path))
 def command(file: Path) -> None:
     """Summarise a valid configuration FILE: modules, connections, signature.

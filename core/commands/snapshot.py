@@ -13,7 +13,7 @@ from ..timeline.snapshot import write_snapshot
 __all__ = ["command"]
 
 
-@click.command("snapshot", short_help="Draw a recorded run to a PNG, without a display.")
+@click.command("snapshot")
 @click.argument("recording", type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
               help="PNG file to write.")

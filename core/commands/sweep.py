@@ -213,7 +213,7 @@ def _plot(rows: list[SweepRow], path: Path, title: str) -> str:
     return f"wrote {path}"
 
 
-@click.command("sweep", short_help="Run a scenario over many seeds and faults: success, errors.")
+@click.command("sweep")
 @run_selection_options
 @click.option("--runs", type=click.IntRange(1, 100_000), default=10, show_default=True,
               help="Runs per fault setting: seeds --seed, --seed + 1, ...")

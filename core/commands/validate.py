@@ -13,7 +13,7 @@ from ..errors import MsrrError
 __all__ = ["command"]
 
 
-@click.command("validate", short_help="Check configuration files against their robots.")
+@click.command("validate")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
 def command(files: tuple[Path, ...]) -> None:
     """Check configuration FILES against their robots' module kinds and docking rules.

@@ -9,11 +9,12 @@ every installed plugin did load (its commands are part of the help).
 from __future__ import annotations
 
 import json
+import pkgutil
 import subprocess
 import sys
 from importlib.metadata import entry_points
 
-from msrr.core import plugins
+from msrr.core import commands, plugins
 from msrr.core.commands import library as library_command
 from msrr.core.commands import match as match_command
 from msrr.core.console import COSTS
@@ -55,3 +56,12 @@ def test_the_option_vocabulary_spelled_for_help_is_the_cores() -> None:
     assert COSTS == COST_KINDS
     assert match_command.CONFIDENCE == CONFIDENCE
     assert library_command.MERGE_THRESHOLD == DEFAULT_MERGE_THRESHOLD
+
+
+def test_the_builtin_table_names_every_command_module() -> None:
+    modules = {info.name for info in pkgutil.iter_modules(commands.__path__)}
+    assert {module for module, _ in commands.BUILTIN.values()} == modules
+    for name, (_, line) in commands.BUILTIN.items():
+        command = commands.load(name)
+        assert command.name == name and command.short_help is None  # one line, one place
+        assert line.endswith(".") and len(line) <= 66, line  # whole in an 80-column --help
