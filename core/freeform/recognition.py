@@ -16,11 +16,13 @@ smallest id) and the connection vector is the connector axis
 
 **Control**: a connection vector in the root frame becomes, for the module that owns
 the connector, the same vector in its parent's horizontal frame,
-``Rz(-psi_j) Rz(yaw) z`` (the command ``dir_x/y/z``). A **flow** (section 4.1) of
-module ``i`` from ``P`` to a neighbour ``Q`` of ``P`` rolls ``i`` over ``P`` to the place
-where it touches both -- the direction ``w`` from ``P``'s centre at 60 degrees from the
-direction to ``Q`` (equal spheres: an equilateral triangle), nearest to where ``i`` is --
-with its connector armed to dock on ``Q`` and to leave ``P``, which the world does at once.
+``Rz(-psi_j) Rz(yaw) z`` (the command ``dir_x/y/z``), after the common turn about the
+vertical between the goal and the recognized configuration is taken out (eq. 8). A
+**flow** (section 4.1; the executor's ``flow`` then ``handover`` phases) of module ``i``
+from ``P`` to a neighbour ``Q`` of ``P`` first rolls ``i`` over ``P`` to the place where it
+touches both -- the direction ``w`` from ``P``'s centre at 60 degrees from the direction
+to ``Q`` (equal spheres: an equilateral triangle), nearest to where ``i`` is -- and then
+tells its connector to dock on ``Q`` and leave ``P``, which the world does in one step.
 """
 
 from __future__ import annotations

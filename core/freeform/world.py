@@ -7,26 +7,31 @@ have one connector (MISO: at most one out-connection). Bodies of module ``i``:
 
 * ``module/i`` -- a free sphere (the shell), radius ``r``;
 * ``connector/i`` -- the part that carries the connector and the IMU: FreeBOT's magnet
-  and drive unit, on a passive ball joint (``bearing/i``) about the shell's centre, so
-  the shell turns freely around it (``ModuleDesign.bearing``); SnailBot's body frame,
-  rigid with the shell. Its ``+z`` axis is the connector's axis;
+  and drive unit, on a ball joint (``bearing/i``) about the shell's centre
+  (``ModuleDesign.bearing``); SnailBot's body frame, rigid with the shell. Its ``+z``
+  axis is the connector's axis;
 * ``foot/i`` -- a small body at ``L = 2 r + gap`` along that axis, on a ball joint
   (``drive/i``) whose centre is where the centre of the module it docks on lies.
 
 **Docking** welds ``foot/i`` to ``module/j`` (a weld equality switched on through
 ``data.eq_active``, as FreeSN's connectors): ``i`` then turns about ``j``'s centre on the
 ``drive`` ball joint -- the SRC joint's (and the SnailBot spherical joint's) motion
-about the parent's centre, with the connector staying pointed at ``j``. The motors are
-a DC-motor model as in the FreeSN world: a damping ``D = max_torque / max_rate`` on the
-drive joint and a drive torque ``D * omega`` bounded by the torque limit, ``omega`` from a
-position loop toward the commanded connection vector. ``gap`` keeps docked shells
-apart by a millimetre, so a docked pair has no shell contact to fight the drive.
+about the parent's centre, with the connector staying pointed at ``j``. The drives are
+the FreeSN world's DC-motor model: a damping ``D = max_torque / max_rate`` on the joint
+(back-EMF, integrated implicitly) and a drive torque ``D * omega`` bounded by the torque
+limit, ``omega`` from a position loop toward the commanded connection vector. ``gap``
+keeps docked shells a millimetre apart, so a docked pair has no shell contact to fight
+the drive. A FreeBOT's bearing is braked (damping ``10 D``: its internal wheels hold the
+shell) unless its drive is moving it; then the shell turns freely about the magnet
+unit and rolls on the ground instead of sliding.
 
 **Flow** (paper 4.1): a module whose connector is told to dock on ``Q`` while it sits
 on ``P`` keeps the magnet on ``P`` until its shell comes within ``dock_tolerance`` of
-touching ``Q``; then the weld switches from ``P`` to ``Q`` in the same step (the magnet
-slides over the seam), and the foot is drawn onto ``Q``'s centre (time constant
-``seat``). An undock of ``P`` sent meanwhile waits for that switch.
+touching ``Q``; then the connector turns about the module's own centre to point at
+``Q`` (the magnet slides over the seam inside the shell; a SnailBot turns in place --
+the flowing module is a leaf, nothing hangs on it) and the weld switches from ``P`` to
+``Q`` in the same step. An undock of ``P`` sent meanwhile waits for that switch. Other
+docks draw the foot onto the centre (time constant ``seat``).
 
 **Sucker** (SnailBot): a connect equality pins the contact point (``r`` along the
 connector axis) to the substrate; with the foot on the substrate's centre, the module
@@ -34,7 +39,9 @@ can then only turn about the line through both -- the sucker's revolute joint.
 
 Module reports (:class:`ModuleReport`) carry only what a module senses: the module its
 connector holds, its IMU tilt, the connector's odometry relative to that module, the
-sucker state and the constraint events; the recognizer never sees the bodies.
+sucker state and the constraint events; the recognizer never sees the bodies. The
+IMU's yaw reference is the body axis most upright at the start, so it stays continuous
+(the twist of a frame whose reference axis points straight down is not defined).
 """
 
 from __future__ import annotations
