@@ -3,7 +3,8 @@
 The time itself is a benchmark (``benchmarks/cli_startup.py``); here one fresh
 interpreter asks every command for its help, and the modules it then holds are
 checked: no numpy, scipy, networkx, rerun, MuJoCo, PyBullet, matplotlib or Ray, while
-every installed plugin did load (its commands are part of the help).
+every installed plugin did load (its commands are part of the help); after the top-level
+``platform --help`` alone, no command module and no pydantic either.
 """
 
 from __future__ import annotations
@@ -30,12 +31,15 @@ from click.testing import CliRunner
 from msrr.core.cli import command_paths, get_cli
 
 cli = get_cli()
+top = CliRunner().invoke(cli, ["--help"], prog_name="platform")
+assert top.exit_code == 0, top.output
+after_top = sorted(sys.modules)
 paths = command_paths(cli)
 for path in paths:
     result = CliRunner().invoke(cli, [*path, "--help"], prog_name="platform")
     assert result.exit_code == 0, (path, result.output)
     assert result.output.startswith("Usage: platform"), (path, result.output)
-print(json.dumps({"paths": [" ".join(p) for p in paths],
+print(json.dumps({"paths": [" ".join(p) for p in paths], "after_top": after_top,
                   "modules": sorted(sys.modules)}))
 """
 
@@ -48,6 +52,9 @@ def test_every_help_imports_no_heavy_package() -> None:
     assert {"", "run", "plan", "library build", "snapshot", "sweep"} <= set(report["paths"])
     loaded = {name.split(".")[0] for name in report["modules"]}
     assert not loaded & set(HEAVY), f"--help imported {sorted(loaded & set(HEAVY))}"
+    top = set(report["after_top"])  # platform --help: no command module, no pydantic models
+    assert not {m for m in top if m.startswith("msrr.core.commands.")}
+    assert "pydantic" not in {name.split(".")[0] for name in top}
     wanted = {ep.value for ep in entry_points(group=plugins.ENTRY_POINT_GROUP)}
     assert wanted and wanted <= set(report["modules"]), "a plugin was not loaded"
 
