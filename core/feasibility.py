@@ -92,7 +92,7 @@ class EdgeRunner:
     driver_options: tuple[tuple[str, float | int | bool], ...] = ()
     seed: int = 0
     tolerance: float = math.radians(5.0)
-    timeout_per_rad: float = 90.0
+    timeout_per_rad: float = 30.0
 
 
 def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
