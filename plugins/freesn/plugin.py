@@ -34,6 +34,17 @@ FIGURES = (
 """``(name, start file, goals (library ids) in order, description, default)``: the
 reconfiguration scenarios of the paper's figures, each goal a stage."""
 
+LOCOMOTION = (
+    ("fig18-node-wheels", "fig18-node-wheels-start", "node-wheels", 0.03, 60.0,
+     "Fig. 18(a)-(c): S4N5 stands up, then its four leaf nodes drive as wheels"),
+    ("fig18-strut-wheels", "fig18-strut-wheels-start", "strut-wheels", 0.03, 60.0,
+     "Fig. 18(d)-(f): S4N1 drives on the wheels of its four leaf struts"),
+    ("fig18-struts-as-wheels", "fig18-struts-as-wheels-start", "struts-as-wheels", 0.03, 60.0,
+     "Fig. 18(g)-(i): S4N1 rolls its four leaf struts about their axes"),
+)
+"""``(name, start file, behavior, speed [m/s], duration [s], description)``: the
+locomotion scenarios (section 7.3): the path to the behavior's start, then the behavior."""
+
 SCENARIOS = (
     ("s6n3-connect", "S6N3-1.3", "S6N3-2.1", "S6N3: a leg docks to a node (connection)", False),
     ("s6n3-disconnect", "S6N3-2.1", "S6N3-1.3", "S6N3: a docked leg undocks (disconnection)",
@@ -94,6 +105,10 @@ def msrr_scenarios(robot: str, register):
                               goal=CONFIGS / f"{goals[0]}.json", description=what,
                               default=default,
                               stages=tuple(Stage(goal=CONFIGS / f"{g}.json") for g in goals[1:])))
+        for name, start, behavior, speed, duration, what in LOCOMOTION:
+            register(Scenario(name=name, start=STARTS / f"{start}.json", description=what,
+                              stages=(Stage(behavior=behavior, parameters=(("speed", speed),),
+                                            duration=duration),)))
         for name, start, goal, what, default in SCENARIOS:
             register(Scenario(name=name, start=CONFIGS / f"{start}.json",
                               goal=CONFIGS / f"{goal}.json", description=what,

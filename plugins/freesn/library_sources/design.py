@@ -52,22 +52,26 @@ def configuration(name: str, nodes: dict[str, np.ndarray], struts: list[tuple],
     Args:
         nodes: node id -> centre position [m].
         struts: ``(id, source node, target node)`` for docked struts (z from positions)
-            or ``(id, source node, None, direction)`` for a strut with a free end.
+            or ``(id, source node, None, direction[, forward])`` for a strut with a free
+            end (``forward``: its x vector, where the morphology matters).
     """
     modules = [{"id": n, "kind": "node", "position": [round(float(c), 12) for c in p]}
                for n, p in nodes.items()]
     connections = []
     for strut in struts:
         sid, source, target = strut[:3]
+        forward = None
         if target is None:
             free = f"{sid}:b"
             modules.append({"id": free, "kind": "virtual"})
             z = unit(strut[3])
             target = free
+            if len(strut) > 4:   # a designed forward vector x (morphology, Fig. 18(d))
+                forward = unit(strut[4])
         else:
             z = unit(nodes[target] - nodes[source])
         connections.append({"id": sid, "kind": "strut", "source": source, "target": target,
-                            "z": z})
+                            "z": z, **({"x": forward} if forward is not None else {})})
     return {"schema_version": 1, "robot": "freesn", "name": name, "description": description,
             "modules": modules, "connections": connections}
 
@@ -289,6 +293,75 @@ def s4n5() -> None:
                                          sequences=sequences, behaviors=behaviors))
 
 
+# -- S4N1: a node on four leaf struts, wheeled (Fig. 18(d)-(i)) --------------------------
+
+R_STRUT = STRUT.geometry["radius"]
+HALF_BASE = STRUT.geometry["wheel_base"] / 2.0
+SPIDER = [45.0, 135.0, 225.0, 315.0]   # leg azimuths [deg]; x is the driving direction
+
+
+def spider(name: str, tilt: float, description: str = "") -> tuple[dict, list[np.ndarray]]:
+    """Centre N0 with free legs S1-S4 at :data:`SPIDER`, tilted ``tilt`` [deg] below the
+    horizon. The morphology the wheel behaviors assume: each leg's wheel axle (its y)
+    is horizontal and tangential (counter-clockwise), so its connector wheels roll
+    radially on the floor; tilting a leg in its vertical plane keeps it so, and the
+    library stores skeletal vectors only, so the system is built with its legs' wheels
+    facing down (x = -e_z when level). Returns the file and the leg axes."""
+    axes = [horizontal(math.radians(a), math.radians(tilt)) for a in SPIDER]
+    struts = []
+    for i, (a, u) in enumerate(zip(SPIDER, axes, strict=True)):
+        axle = np.array([-math.sin(math.radians(a)), math.cos(math.radians(a)), 0.0])
+        struts.append((f"S{i + 1}", "N0", None, u, np.cross(axle, u)))
+    return configuration(name, {"N0": np.zeros(3)}, struts, description), axes
+
+
+def s4n1() -> None:
+    """Fig. 18(d)-(f): standing on the free connectors' wheels, driven as a differential
+    drive; Fig. 18(g)-(i): legs low, their capsules on the floor, each rolled about its
+    axis by the connector on N0."""
+    out = HERE / "S4N1"
+    flat, _ = spider("spider-flat", 0.0, "four leaf struts level around the node")
+    wheels, down = spider("spider-wheels", 55.0, "Fig. 18(d): standing on the four leaf "
+                          "struts' connector wheels")
+    rollers, low = spider("spider-rollers", 20.0, "Fig. 18(g): the leaf struts low, lying on "
+                          "the floor by their ends")
+    groups = [{"name": "spider", "description": "one node with four leaf struts",
+               "reference": flat, "trees": [tree("K1")]}]
+    write(out / "designs.json", source("S4N1", "FreeSN sub-library S4N1 (paper Fig. 18(d)-(i)): "
+                                       "four struts, one node", groups=groups))
+    sequences = [
+        {"name": "stand-on-wheels", "description": "Fig. 18(d): onto the connector wheels",
+         "steps": [step(flat), step(wheels), step(flat)]},
+        {"name": "lie-on-struts", "description": "Fig. 18(g): the struts down to the floor",
+         "steps": [step(flat), step(rollers), step(flat)]},
+    ]
+    drive, roll = [], []
+    for i, (az, u) in enumerate(zip(SPIDER, low, strict=True)):
+        # free connector wheels, axle y tangential: +1 rad/s rolls the end radially
+        # outward by r; the body's speed v along x needs v cos(azimuth) of it (the
+        # tangential part slips). Radial wheels exert no yaw moment: no yaw_rate.
+        drive.append({"module": f"S{i + 1}", "command": "wheel_speed", "connector": "target",
+                      "gains": {"speed": round(math.cos(math.radians(az)) / R_WHEEL, 9)}})
+        # the docked connector turns N0 about +z relative to the strut, so the strut turns
+        # about -u and rolls its end (radius r_s) along -(u x e_z) at r_s w r / (b/2)
+        rate = R_STRUT * R_WHEEL / HALF_BASE
+        lever = L * math.cos(math.radians(20.0))
+        roll.append({"module": f"S{i + 1}", "command": "wheel_speed", "connector": "source",
+                     "gains": {"speed": round(-float(u[1]) / rate, 9),
+                               "yaw_rate": round(lever / rate, 9)}})
+    behaviors = [
+        {"name": "strut-wheels", "start": "spider-wheels", "parameters": ["speed"],
+         "description": "Fig. 18(d)-(f): the leaf struts' wheels on the floor drive",
+         "commands": drive},
+        {"name": "struts-as-wheels", "start": "spider-rollers",
+         "parameters": ["speed", "yaw_rate"],
+         "description": "Fig. 18(g)-(i): the leaf struts rolled about their axes",
+         "commands": roll},
+    ]
+    write(out / "sequences.json", source("S4N1", "recorded sequences of S4N1",
+                                         sequences=sequences, behaviors=behaviors))
+
+
 # -- S12N6: octahedron, hexagonal star, tree (Figs. 21, 22) -----------------------------
 
 
@@ -469,4 +542,5 @@ def s12n6() -> None:
 if __name__ == "__main__":
     s6n3()
     s4n5()
+    s4n1()
     s12n6()
