@@ -100,3 +100,25 @@ def test_wheel_names_and_values_are_checked():
                             ({"b": float("nan")}, "finite")):
         with pytest.raises(ExecutionError, match=message):
             parse_wheels("S1", ModuleCommand(wheels=wheels))
+
+
+@pytest.mark.parametrize("behavior", ["strut-wheels", "struts-as-wheels"])
+def test_s4n1_wheel_behaviors_drive_along_the_library_x(behavior):
+    """Fig. 18(d)-(i): the S4N1 library's gains (from the design's geometry) drive the
+    simulated spider along its ``+x`` -- the sign and rough size of ``speed`` hold."""
+    library = load_library(FREESN / "libraries" / "S4N1.json")
+    chosen = library.sublibraries["S4N1"].behaviors[behavior]
+    start = load_configuration(FREESN / "configs" / "library" / f"{chosen.start}.json")
+    speed = 0.03
+    wheels: dict[str, dict[str, float]] = {}
+    for command in chosen.commands:
+        wheels.setdefault(command.module, {})[command.connector] = command.value({"speed": speed})
+    with FreeSNMujocoDriver() as driver:
+        driver.reset(start)
+        driver.step(0.5)
+        before = _centre(driver)
+        driver.send_action({m: ModuleCommand(wheels=w) for m, w in wheels.items()})
+        driver.step(2.0)
+        moved = (_centre(driver) - before) / 2.0
+    assert 0.25 * speed < moved[0] < 1.5 * speed
+    assert abs(moved[1]) < 0.2 * moved[0]
