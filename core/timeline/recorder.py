@@ -18,7 +18,7 @@ Entity paths (stable, documented in ``docs/running.md``):
   or the edge module's id); ``topology/connections`` -- docked connections (scalar);
 * ``action`` -- the running action as text; ``plan``, ``mapping`` -- static text;
 * ``commands/<id>/<wheel or joint>`` (a ``.`` in a joint name is a ``/``),
-  ``errors/<id>`` -- scalars per module, cleared on the ticks a module is idle so the
+  ``errors/<id>`` -- scalars per module, NaN on the first tick a module is idle so the
   plots break there; ``shape/angle`` -- RMS strut angle to the action's target [deg]
   (eq. 8 alignment), for robots with connection vectors;
 * ``events/docks``, ``events/undocks``, ``events/actions``, ``events/faults`` -- text logs
@@ -28,9 +28,9 @@ Entity paths (stable, documented in ``docs/running.md``):
 Timelines: ``tick`` (sequence) and ``sim_time`` (duration of driver time). The file
 is written as ``<name>.part`` and renamed when the run ends, so no half recording
 is ever left under the final name. The blueprint is sent at the first tick, when the
-module poses that frame the 3-D camera are known. Module poses and the top view are
-kept per tick and sent as columns when the run ends (``send_columns``: one call per
-entity rather than one per tick and module).
+module poses that frame the 3-D camera are known. Module poses, scalars and the top
+view are kept per tick and sent as columns when the run ends (``send_columns``: one
+call per entity rather than one per tick and module).
 """
 
 from __future__ import annotations
@@ -124,6 +124,7 @@ class TimelineRecorder:
         self._blueprint_sent = False
         self._top_ids: list[str] | None = None
         self._pose_rows: dict[str, list[tuple[int, float, np.ndarray]]] = {}
+        self._scalar_rows: dict[str, list[tuple[int, float, float]]] = {}
         self._top_rows: list[tuple[int, float, np.ndarray, np.ndarray]] = []
         self._write_static()
 
@@ -235,7 +236,6 @@ class TimelineRecorder:
             self.rec.log("topology/connections", rr.Scalars(float(found.total())))
 
     def tick(self, tick: Tick) -> None:
-        rec = self.rec
         self._time(tick.index, tick.time)
         poses = tick.observation.poses
         if not self._blueprint_sent:
@@ -261,26 +261,32 @@ class TimelineRecorder:
                 self._log_ghost(tick.action.target, poses)
             rms, angles, _ = skeletal_errors(tick.configuration, tick.action.target)
             if len(angles):
-                rec.log("shape/angle", rr.Scalars(math.degrees(rms)))
+                self._scalar("shape/angle", (tick.index, tick.time), math.degrees(rms))
 
     def _log_scalars(self, tick: Tick) -> None:
-        """Commands and errors; a module idle this tick is cleared once (a plot gap)."""
-        rec = self.rec
+        """Commands and errors; a series idle this tick gets one NaN (the viewer's plots,
+        like matplotlib's, break a line at a NaN rather than bridge the idle ticks)."""
+        at = (tick.index, tick.time)
         for module, command in tick.commands.items():
-            names = {**command.wheels, **command.joints}
+            names = {name.replace(".", "/"): value
+                     for name, value in {**command.wheels, **command.joints}.items()}
             for name, value in names.items():
-                rec.log(f"commands/{module}/{name.replace('.', '/')}", rr.Scalars(float(value)))
+                self._scalar(f"commands/{module}/{name}", at, float(value))
             for name in self._commanded.get(module, set()) - set(names):
-                rec.log(f"commands/{module}/{name.replace('.', '/')}", rr.Clear(recursive=False))
+                self._scalar(f"commands/{module}/{name}", at, math.nan)
             self._commanded[module] = set(names)
         for module in [m for m in self._commanded if m not in tick.commands]:
-            rec.log(f"commands/{module}", rr.Clear(recursive=True))
-            del self._commanded[module]
+            for name in self._commanded.pop(module):
+                self._scalar(f"commands/{module}/{name}", at, math.nan)
         for module, error in tick.errors.items():
-            rec.log(f"errors/{module}", rr.Scalars(float(error)))
+            self._scalar(f"errors/{module}", at, float(error))
         for module in self._erroring - set(tick.errors):
-            rec.log(f"errors/{module}", rr.Clear(recursive=False))
+            self._scalar(f"errors/{module}", at, math.nan)
         self._erroring = set(tick.errors)
+
+    def _scalar(self, path: str, at: tuple[int, float], value: float) -> None:
+        """Buffer one scalar at ``(tick, sim_time)``; sent as a column at the end."""
+        self._scalar_rows.setdefault(path, []).append((*at, value))
 
     def _log_connectors(self, tick: Tick) -> None:
         """Each end of an edge module: docked (per the recognized configuration),
@@ -334,8 +340,8 @@ class TimelineRecorder:
                 np.array(bars, dtype=float).reshape(-1, 2, 2) * (1.0, -1.0))
 
     def _send_buffered(self) -> None:
-        """Module poses and the top view, buffered per tick, sent as columns (one call per
-        entity instead of one per tick: the recorder's main cost on long runs)."""
+        """Module poses, scalars and the top view, buffered per tick, sent as columns (one
+        call per entity instead of one per tick: the recorder's main cost on long runs)."""
         for module, rows in self._pose_rows.items():
             states = np.array([state for _, _, state in rows])
             self.rec.send_columns(
@@ -343,6 +349,10 @@ class TimelineRecorder:
                 columns=rr.Transform3D.columns(translation=states[:, :3],
                                                quaternion=states[:, 3:]))
         self._pose_rows = {}
+        for path, rows in self._scalar_rows.items():
+            self.rec.send_columns(path, indexes=self._index(rows),
+                                  columns=rr.Scalars.columns(scalars=[r[2] for r in rows]))
+        self._scalar_rows = {}
         rows = self._top_rows
         if rows and self._top_ids is not None:
             colors = [self._colors.get(m, _LABEL_COLOR) for m in self._top_ids]

@@ -224,14 +224,15 @@ def test_docked_count_counts_each_strut_end(truss_rows) -> None:
     assert counts == [3.0, 4.0]  # s on n1, t on both; then s docks its end b too
 
 
-def test_idle_ticks_clear_commands_and_errors_so_plots_break(truss_rows) -> None:
-    joint = truss_rows["/commands/s/b/dir_x"]
-    assert [r.tick for r in joint] == [0, 1] and all("Scalars:scalars" in r.values for r in joint)
-    cleared = truss_rows["/commands/s"]
-    assert [(r.tick, r.values["Clear:is_recursive"]) for r in cleared] == [(2, [True])]
-    errors = truss_rows["/errors/s"]
-    assert [(r.tick, "Scalars:scalars" in r.values) for r in errors] == [
-        (0, True), (1, True), (2, False)]
+def test_idle_ticks_log_one_nan_so_plots_break(truss_rows) -> None:
+    def values(path: str) -> list[tuple[int, float]]:
+        return [(r.tick, r.values["Scalars:scalars"][0]) for r in truss_rows[path]]
+
+    # strut s is commanded at ticks 0 and 1, idle at 2: one NaN there, nothing after
+    for path in ("/commands/s/b/dir_x", "/errors/s"):
+        found = values(path)
+        assert [t for t, _ in found] == [0, 1, 2], path
+        assert all(np.isfinite(v) for _, v in found[:2]) and np.isnan(found[2][1]), path
 
 
 def test_ghost_target_is_laid_out_on_the_robot(truss_rows) -> None:
