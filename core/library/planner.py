@@ -116,13 +116,19 @@ class LibraryPlanner:
             raise RetrievalError(f"the goal {goal.name or ''} has other modules than the "
                                  f"system ({goal.signature().label(self.robot.spec)}, not {label})")
         try:
-            target = locate(library, goal, self.robot).key
+            located = locate(library, goal, self.robot)
         except RetrievalError:
             raise RetrievalError(f"the goal {goal.name or ''} matches no configuration of "
                                  f"{label}") from None
-        retrieval = retrieve(library, start, self.robot, to=target)
+        retrieval = retrieve(library, start, self.robot, to=located.key)
         actions = self._path(retrieval, start)
-        return self._plan(start, retrieval, actions, began, target)
+        plan = self._plan(start, retrieval, actions, began, located.key)
+        # the system's ids -> the goal file's: through the target's library ids
+        assert retrieval.target_mapping is not None
+        to_goal = retrieval.target_mapping.inverse().then(located.mapping.inverse())
+        plan.mapping = {m: to_goal.nodes[m] for m in start.vertices()
+                        if not start.is_virtual(m) and m in to_goal.nodes}
+        return plan
 
     def plan_behavior(self, start: Configuration, behavior: str, *,
                       parameters: Mapping[str, float] | None = None,
@@ -195,7 +201,10 @@ class LibraryPlanner:
     def _plan(self, start: Configuration, retrieval: Retrieval, actions: list[Action],
               began: float, target: str) -> Plan:
         goal = retrieval.steps[-1].target
-        mapping = {k: v for k, v in retrieval.mapping.nodes.items() if not start.is_virtual(k)}
+        assert retrieval.target_mapping is not None   # system ids -> the target's library ids
+        back = retrieval.target_mapping.inverse()
+        mapping = {m: back.nodes[m] for m in start.vertices()
+                   if not start.is_virtual(m) and m in back.nodes}
         path = " -> ".join(s.library_id for s in retrieval.steps)
         return Plan(self.robot.name, self.name, start, goal, actions, mapping=mapping,
                     notes=[f"library {retrieval.sublibrary}: {path} to {target} "

@@ -87,6 +87,7 @@ class Retrieval:
         behavior_steps: a sequence behavior's steps after the target, in system ids
             (for a looping behavior, ending back at its start).
         commands: a mapping behavior's commands, in system ids.
+        target_mapping: ids of the target configuration's group -> system ids.
     """
 
     sublibrary: str
@@ -97,6 +98,7 @@ class Retrieval:
     behavior: Behavior | None = None
     behavior_steps: list[RetrievedStep] = field(default_factory=list)
     commands: tuple[CommandGain, ...] = ()
+    target_mapping: ModuleMap | None = None
 
     @property
     def cost(self) -> float:
@@ -326,7 +328,8 @@ def retrieve(library: Library, system: Configuration, robot: Robot, *, to: str |
                            first_tree, ActionType.MOVING, outcome.cost, outcome.yaw)]
     path_steps, final_map = mapper.follow(path, to_system, start_config)
     steps += path_steps
-    retrieval = Retrieval(sub.name, outcome.key, outcome.cost, outcome.mapping, steps, chosen)
+    retrieval = Retrieval(sub.name, outcome.key, outcome.cost, outcome.mapping, steps, chosen,
+                          target_mapping=final_map)
     if chosen is not None:
         if chosen.kind == "sequence":
             loop = [chosen.start, *chosen.steps] + ([chosen.start] if chosen.loop else [])

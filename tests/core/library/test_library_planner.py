@@ -62,6 +62,13 @@ def test_hook_msrr_libraries(planner):
         planner.library_for(lonely)
 
 
+def node_pairs(config: Configuration, rename: dict[str, str]) -> list[frozenset[str]]:
+    """The node pairs each strut between two nodes joins, renamed, sorted."""
+    return sorted((frozenset({rename[e.source], rename[e.target]}) for e in config.edges()
+                   if not (config.is_virtual(e.source) or config.is_virtual(e.target))),
+                  key=sorted)
+
+
 def triangle(config: Configuration) -> list[str]:
     return [e.id for e in config.edges()
             if not (config.is_virtual(e.source) or config.is_virtual(e.target))][:3]
@@ -146,6 +153,12 @@ def test_an_unseen_start_reaches_the_target(planner, start_key, goal_key, seed):
     assert set(plan.goal.modules()) == set(start.modules())          # in the system's ids
     assert all(isinstance(a.kinematic_tree, KinematicTree) for a in plan.actions)
     assert "system -> " in plan.actions[0].retrieved
+    # Plan.mapping takes the system's ids to the goal file's: node pairs joined by a
+    # strut in the goal file are the pairs joined in the plan's goal
+    to_system = {g: m for m, g in plan.mapping.items()}
+    assert len(to_system) == len(plan.mapping) == sum(1 for v in goal.vertices()
+                                                      if not goal.is_virtual(v))
+    assert node_pairs(goal, to_system) == node_pairs(plan.goal, {m: m for m in to_system.values()})
 
 
 def test_a_plan_with_trees_and_a_behavior_survives_its_file(planner, tmp_path):
