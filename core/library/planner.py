@@ -157,6 +157,12 @@ class LibraryPlanner:
         if unknown:
             raise PlanningError(f"behavior {behavior} has no parameter {', '.join(unknown)} "
                                 f"(its parameters: {', '.join(chosen.parameters) or 'none'})")
+        if chosen.kind == "mapping" and loops is not None:
+            raise PlanningError(f"behavior {chosen.name} is a mapping: it runs for a duration "
+                                "or a distance, not loops")
+        if chosen.kind == "sequence" and duration is not None:
+            raise PlanningError(f"behavior {chosen.name} is a sequence: it runs loops or a "
+                                "distance, not a duration")
         actions = self._path(retrieval, start)
         at = retrieval.steps[-1]
         if chosen.kind == "mapping":

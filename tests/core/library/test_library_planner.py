@@ -191,3 +191,5 @@ def test_a_mapping_behavior_is_planned_in_the_system_ids(planner):
         planner.plan_behavior(start, "wheeled-move", parameters={"spin": 1.0})
     with pytest.raises(PlanningError, match="wheeled-move"):
         planner.plan_behavior(start, "moonwalk")
+    with pytest.raises(PlanningError, match="not loops"):
+        planner.plan_behavior(start, "wheeled-move", loops=3)
