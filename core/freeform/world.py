@@ -72,6 +72,11 @@ _EZ = np.array([0.0, 0.0, 1.0])
 _ROLLING = np.radians(0.5)  # a drive further than this from its target rolls its shell
 _BEARING_FREE = 1e-3  # damping of a rolling shell's bearing [N m s/rad]
 _BRAKE = 10.0         # braked bearing damping, in units of the drive's
+_PENDULUM = 0.5       # centre of mass of a FreeBOT's magnet unit along its axis [radii]
+_ROLL_SPEED_GAIN = 5.0  # pendulum drive: lead angle per speed error [rad / (m/s)]
+_ROLL_TILT = 0.5        # largest lead angle of the hanging magnet unit [rad]
+_ROLL_KP = 0.1          # its angle loop [N m / rad]
+_ROLL_KD = 0.005        # [N m s / rad]
 
 
 @dataclass(frozen=True)
@@ -280,6 +285,8 @@ class FreeformWorld:
         self.sucker = [False] * n
         self._target = np.tile(np.array([1.0, 0, 0, 0]), (n, 1))
         self._rolling = np.zeros(n, dtype=bool)   # bearing free: the shell rolls
+        self._roll = np.zeros((n, 3))              # ground velocity of a free module [m/s]
+        self._free_adr = np.array([m.joint(f"free/{i}").dofadr[0] for i in self.modules])
         self._bearing = np.array([m.joint(f"bearing/{i}").dofadr[0] for i in self.modules]
                                  )[:, None] + np.arange(3) if design.bearing else None
         self._damping = design.max_torque / design.max_rate
@@ -320,9 +327,10 @@ class FreeformWorld:
                           size=[d.radius, 0, 0], friction=list(GROUND_FRICTION), mass=0,
                           rgba=list(d.rgba))
             inner = quat if d.bearing else [1, 0, 0, 0]
+            offset = _PENDULUM * d.radius if d.bearing else 0.0   # the magnet's end is heavy
             conn = body.add_body(name=f"connector/{name}", quat=inner, mass=d.connector_mass,
-                                 inertia=[core] * 3, explicitinertial=True, ipos=[0, 0, 0],
-                                 iquat=[1, 0, 0, 0])
+                                 inertia=[core] * 3, explicitinertial=True,
+                                 ipos=[0, 0, offset], iquat=[1, 0, 0, 0])
             if d.bearing:
                 conn.add_joint(name=f"bearing/{name}", type=mujoco.mjtJoint.mjJNT_BALL,
                                damping=_BRAKE * d.max_torque / d.max_rate, armature=_ARMATURE)
@@ -379,11 +387,29 @@ class FreeformWorld:
         self._target[k] = Rotation.from_matrix(joint).as_quat(scalar_first=True)
         self._rolling[k] = float(np.arccos(np.clip(want @ r_conn[:, 2], -1, 1))) > _ROLLING
 
+    def command_roll(self, module: str, velocity: np.ndarray) -> None:
+        """Roll a free FreeBOT on the ground at ``velocity`` (3,) [m/s], given in its own
+        horizontal frame (its vertical part is ignored): the magnet unit, heavier at its
+        magnet's end, hangs as a pendulum, and the drive turns the shell against it; the
+        shell speed is servoed to ``v / r`` about the horizontal axis across ``v``."""
+        k = self._k(module)
+        if not self.design.bearing:
+            raise ExecutionError(f"module {module}: a {self.design.kind} does not roll on the "
+                                 "ground (it has no bearing)")
+        if self.docked[k] is not None:
+            raise ExecutionError(f"module {module} is docked on {self.docked[k]}; only a free "
+                                 "module rolls on the ground")
+        v = rot_z(float(self._headings()[k])) @ np.asarray(velocity, dtype=np.float64)
+        v[2] = 0.0
+        self._roll[k] = v
+        self._rolling[k] = bool(np.any(v))
+
     def command_hold(self, module: str) -> None:
         """Brake ``module``'s drive where it is now."""
         k = self._k(module)
         self._target[k] = self.data.qpos[self._qadr[k]:self._qadr[k] + 4]
         self._rolling[k] = False
+        self._roll[k] = 0.0
 
     def command_dock(self, module: str, target: str = "") -> None:
         """Arm ``module``'s connector to latch on ``target`` (``""``: any module it touches)."""
@@ -556,6 +582,42 @@ class FreeformWorld:
             size = np.linalg.norm(torque, axis=1, keepdims=True)
             tau[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
         self.data.qfrc_applied[self._dofs] = tau
+        if self._bearing is not None:
+            self.data.qfrc_applied[self._bearing] = self._roll_torques()
+
+    def _roll_torques(self) -> np.ndarray:
+        """Bearing torques (n, 3), connector frames, of free FreeBOTs rolling on the ground.
+
+        A pendulum drive in two loops: the centre's horizontal speed error sets how far
+        ahead of the vertical the magnet unit (heavier at its magnet's end) should hang,
+        ``phi = clip(K_v (v - v_now), +-phi_max)``; a PD loop turns the unit there
+        against the shell, whose reaction rolls the shell.
+        """
+        out = np.zeros((len(self.modules), 3))
+        d = self.data
+        for k in np.flatnonzero(np.any(self._roll, axis=1)):
+            if self.docked[k] is not None:
+                continue
+            v = self._roll[k]
+            speed = d.qvel[self._free_adr[k]:self._free_adr[k] + 3].copy()
+            speed[2] = 0.0
+            lead = _ROLL_SPEED_GAIN * (v - speed)
+            size = np.linalg.norm(lead)
+            if size > _ROLL_TILT:
+                lead *= _ROLL_TILT / size
+            # the unit's axis should point down, turned by |lead| towards ``lead``
+            tilt = float(np.linalg.norm(lead))
+            want = -_EZ * np.cos(tilt) + (lead / tilt * np.sin(tilt) if tilt > 1e-12 else 0.0)
+            r_conn = d.xmat[self._conn[k]].reshape(3, 3)
+            axis = r_conn[:, 2]
+            error = np.cross(axis, want)
+            omega = d.cvel[self._conn[k], :3]       # world angular velocity of the unit
+            torque = _ROLL_KP * error - _ROLL_KD * omega
+            size = np.linalg.norm(torque)
+            if size > self.design.max_torque:
+                torque *= self.design.max_torque / size
+            out[k] = r_conn.T @ torque       # on the magnet unit; the shell gets the reaction
+        return out
 
     # -- reading ------------------------------------------------------------------------
 

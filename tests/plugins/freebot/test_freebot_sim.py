@@ -121,3 +121,23 @@ def test_a_flow_rolls_the_leaf_and_switches_its_magnet_in_one_step():
     assert world.docked_pairs() == {(e.source, e.target) for e in goal.edges()}
     assert driver.constraint_events() == {"dock": 0, "undock": 0, "flow": 1}
     assert skeletal_error(world.ground_truth(), goal) < np.radians(2.0)
+
+
+def test_a_free_freebot_rolls_on_the_ground_at_the_commanded_speed():
+    from msrr.core.configuration import Configuration
+    from msrr.core.driver import ModuleCommand
+
+    alone = Configuration("freebot")
+    alone.add_module("F1", "freebot")
+    driver = FreeBOTMujocoDriver()
+    driver.connect()
+    driver.reset(alone)
+    world = driver.world
+    start = world.centre("F1")
+    driver.send_action({"F1": ModuleCommand(joints={"roll_x": 0.05, "roll_y": 0.0})})
+    driver.step(3.0)
+    moved = world.centre("F1") - start
+    assert moved[0] == pytest.approx(0.15, abs=0.02)                 # [m]
+    assert abs(moved[1]) < 0.005 and abs(moved[2]) < 0.002
+    w = abs(world.data.xquat[world._shell[0], 0])
+    assert 2.0 * np.arccos(min(w, 1.0)) == pytest.approx(moved[0] / 0.05, abs=0.3)  # rolled
