@@ -140,7 +140,7 @@ def test_generic_plans_run_to_the_goal_and_a_jammed_port_fails_the_run() -> None
     assert not topology_diff(result.final, goal)
     jammed = FakeDriver(SPEC, jammed={("c", "T"), ("a", "B")})
     failed = run_kinematic(plan, SPEC, action_timeout=3.0, driver=jammed)
-    assert not failed.success and "still missing: +cT-aB" in failed.reason
+    assert not failed.success and "still missing: +aB-cT" in failed.reason
     assert any(cmd.dock for sent in jammed.sent for cmd in sent.values())
 
 
