@@ -33,8 +33,7 @@ from rich.console import Console
 from rich.table import Table
 
 from msrr.core.cli import command_paths, get_cli
-from msrr.core.console import require
-from msrr.core.errors import MsrrError
+from msrr.core.console import exit_unless_installed
 
 GOAL_S = 0.5
 """Issue 16: every ``--help`` starts within this [s]."""
@@ -111,10 +110,7 @@ def main() -> None:
     if args.runs < 1:
         parser.error("--runs must be at least 1")
     if args.plot:
-        try:
-            require("matplotlib", "plot", "--plot")
-        except MsrrError as exc:
-            raise SystemExit(f"Error: {exc}") from None
+        exit_unless_installed("matplotlib", "plot", "--plot")
     console = Console(highlight=False)
     paths = command_paths(get_cli())
     console.print("seed: none (nothing random; wall times of new processes)", markup=False)

@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # this module is on every command's --help path: no numpy, no
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 __all__ = ["COSTS", "MAX_ROWS", "NONE", "SEED", "FiniteFloat", "MsrrGroup", "check_display",
-           "console", "counts", "drop_empty_columns", "err_console", "error_line", "plural",
+           "console", "counts", "drop_empty_columns", "err_console", "error_line", "exit_unless_installed", "plural",
            "printable", "require", "run_selection_options", "show_configuration", "styled",
            "table", "vector_text"]
 
@@ -110,6 +110,15 @@ def check_display(option: str) -> None:
                                                  or os.environ.get("WAYLAND_DISPLAY")):
         raise MsrrError(f"{option} needs a display, and DISPLAY is not set: run without "
                         f"{option} and watch the recording (rerun run.rrd), or use xvfb-run")
+
+
+def exit_unless_installed(module: str, extra: str, needed_by: str) -> None:
+    """:func:`require` for scripts (the benchmarks' ``--plot``): its one line on stderr and
+    exit status 1, no traceback, before any work."""
+    try:
+        require(module, extra, needed_by)
+    except MsrrError as exc:
+        raise SystemExit(f"Error: {exc}") from None
 
 
 def styled(text: str, style: str) -> Text:
