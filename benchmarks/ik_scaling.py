@@ -39,6 +39,7 @@ from rich.table import Table
 from msrr.core import Configuration, plugins
 from msrr.core.alignment import angles_between, rot_z
 from msrr.core.batch import exit_on_interrupt, run_batch
+from msrr.core.console import exit_unless_installed
 from msrr.core.kinematics import (
     IKOptions,
     KinematicTree,
@@ -199,6 +200,8 @@ def main() -> None:
     parser.add_argument("--cluster", default=None, metavar="ADDRESS",
                         help="run on Ray: auto, ray://HOST:PORT or local")
     args = parser.parse_args()
+    if args.plot:  # before the work: a missing matplotlib is one line
+        exit_unless_installed("matplotlib", "plot", "--plot")
     clock = args.clock
     console = Console(highlight=False)
     console.print(f"seed={args.seed} pairs={args.pairs} per size, edges "

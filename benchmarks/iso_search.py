@@ -38,6 +38,7 @@ from fig16 import FIG16_TOPOLOGIES, TopologySpec
 from msrr.core.alignment import rot_z
 from msrr.core.batch import exit_on_interrupt, run_batch
 from msrr.core.configuration import Configuration
+from msrr.core.console import exit_unless_installed
 from msrr.core.matching import brute_force_isomorphisms, iso_search
 
 KINDS = ("isomorphic", "near-random", "full-random")
@@ -196,6 +197,8 @@ def main() -> None:
     parser.add_argument("--cluster", default=None, metavar="ADDRESS",
                         help="run on Ray: auto, ray://HOST:PORT or local")
     args = parser.parse_args()
+    if args.plot:  # before the work: a missing matplotlib is one line
+        exit_unless_installed("matplotlib", "plot", "--plot")
     print(f"seed={args.seed} pairs={args.pairs} per kind over {len(FIG16_TOPOLOGIES)} topologies")
     rng = np.random.default_rng(args.seed)
     pairs = [make_task(FIG16_TOPOLOGIES[-1 - i % len(FIG16_TOPOLOGIES)],  # largest first

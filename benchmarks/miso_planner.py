@@ -36,6 +36,7 @@ from rich.console import Console
 from rich.table import Table
 
 from msrr.core.batch import exit_on_interrupt, run_batch
+from msrr.core.console import exit_unless_installed
 from msrr.core.miso import (
     MisoProblem,
     count_flows,
@@ -140,6 +141,8 @@ def main() -> None:
     parser.add_argument("--cluster", default=None, metavar="ADDRESS",
                         help="run on Ray: auto, ray://HOST:PORT or local")
     args = parser.parse_args()
+    if args.plot:  # before the work: a missing matplotlib is one line
+        exit_unless_installed("matplotlib", "plot", "--plot")
     console = Console(highlight=False)
     console.print(f"seed={args.seed} instances={args.instances} per size (n=5..10, b<=3), "
                   f"repeats={args.repeats} per size and bound {args.branching}")

@@ -36,7 +36,7 @@ import numpy as np
 
 from msrr.core.batch import batch_options, exit_on_interrupt, run_batch
 from msrr.core.configuration import Configuration
-from msrr.core.console import console, table
+from msrr.core.console import console, exit_unless_installed, table
 from msrr.core.io import load_configuration, save_configuration
 from msrr.plugins.mmrp.check import check_plan
 from msrr.plugins.mmrp.exact import certified_optimum
@@ -141,6 +141,8 @@ def _simulate(count: int, rng: np.random.Generator) -> list[list]:
 @batch_options
 def main(seed: int, n_pairs: int, n_mid: int, runs: int, sizes: str, n_sim: int,
          plot: Path | None, workers: int, cluster: str | None) -> None:
+    if plot is not None:  # before the work: a missing matplotlib is one line
+        exit_unless_installed("matplotlib", "plot", "--plot")
     console.print(f"seed={seed}")
     rng = np.random.default_rng(seed)
     paper = plan_hybrid(load_configuration(CONFIGS / "cross.json"),
