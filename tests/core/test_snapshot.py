@@ -9,6 +9,7 @@ import matplotlib.image
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from matplotlib.patches import Circle
 from test_timeline import _truss_ticks
 from tiny_robot import NAME, GoalController, LinkRecognizer, PointDriver, make_run, swap_plan
 
@@ -16,7 +17,7 @@ from msrr.core import Configuration, plugins
 from msrr.core.cli import get_cli
 from msrr.core.executor import Executor
 from msrr.core.timeline.geometry import capsule_between, palette, place_on, vector_layout
-from msrr.core.timeline.snapshot import load_track, render_snapshot, write_snapshot
+from msrr.core.timeline.snapshot import load_track, render_snapshot
 
 
 @pytest.fixture(scope="module")
@@ -87,9 +88,15 @@ def test_snapshot_draws_struts_and_counts_their_docked_ends(tmp_path: Path) -> N
     assert sorted(track.edges_with_ids(last)) == [("n1", "n2", "s"), ("n2", "n1", "t")]
     assert [label for label, _ in track.connector_states("s", first)] == [
         "a: docked to n1", "b: extending"]
-    image = tmp_path / "truss.png"
-    write_snapshot(tmp_path / "run.rrd", image)
-    assert matplotlib.image.imread(image)[..., :3].std() > 0.05
+    first_panel = render_snapshot(track).axes[0]
+    circles = [p for p in first_panel.patches if isinstance(p, Circle)]
+    solid = [c for c in circles if c.get_fill()]  # nodes and connectors; dashed: the ghost
+    assert sorted(round(c.radius, 3) for c in solid) == [0.018] * 4 + [0.05, 0.05]
+    nodes = sorted(c.center for c in solid if round(c.radius, 3) == 0.05)
+    assert np.array(nodes) == pytest.approx(np.array([(1.0, 2.0), (1.0, 2.2)]), abs=1e-6)
+    ghost = [c for c in circles if not c.get_fill()]
+    assert np.array(sorted(c.center for c in ghost)) == pytest.approx(
+        np.array([(1.0, 2.0), (1.0, 2.2)]), abs=1e-6)
 
 
 def test_vector_layout_round_trips_positions() -> None:
