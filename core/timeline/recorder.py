@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
+import rerun.blueprint as rrb
 
 from .. import plugins
 from ..configuration import Configuration
@@ -178,11 +179,21 @@ class TimelineRecorder:
         self.rec.log(path, archetype, static=static)
 
     def _send_blueprint(self, poses: Mapping[str, Pose]) -> None:
+        """The layout, with the views plugins add; an item that is not a rerun view or
+        container is left out and named in the event log (a WARN), never fatal."""
         self._blueprint_sent = True
         points = [np.asarray(p.position, dtype=float) for p in poses.values()]
+        extra = []
+        for view in plugins.timeline_views(self.run):
+            if isinstance(view, rrb.View | rrb.Container):
+                extra.append(view)
+            else:
+                self.rec.log("events/actions", rr.TextLog(
+                    f"msrr_timeline_views: left out a {type(view).__name__} (not a "
+                    f"rerun.blueprint view or container)", level="WARN"))
         self.rec.send_blueprint(build_blueprint(
             self.run, eye=camera_eye(points) if points else None, planar=self._planar,
-            shape=self._vectors, extra=plugins.timeline_views(self.run)))
+            shape=self._vectors, extra=extra))
 
     # -- events -----------------------------------------------------------------------
 

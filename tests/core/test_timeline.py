@@ -304,12 +304,17 @@ def test_hook_msrr_timeline_views(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
         @hookimpl
         def msrr_timeline_views(self, run, register) -> None:
             register(rrb.TimeSeriesView(name=f"{run.robot} panel", origin="commands"))
+            register("not a view")
 
     monkeypatch.setattr(recorder_module, "build_blueprint",
                         lambda *a, **k: sent.append(k["extra"]) or build_blueprint(*a, **k))
     with plugins.temporary(Panels()):
         _record(tmp_path / "run.rrd")
     assert [[str(v.name) for v in extra] for extra in sent] == [[f"{NAME} panel"]]
+    log = read_recording(tmp_path / "run.rrd", "/events/actions").rows["/events/actions"]
+    left_out = [r.values["TextLog:text"][0] for r in log if "left out" in r.values["TextLog:text"][0]]
+    assert left_out == ["msrr_timeline_views: left out a str (not a rerun.blueprint view or "
+                        "container)"]
 
 
 def test_camera_looks_at_the_middle_of_the_modules_from_above() -> None:
