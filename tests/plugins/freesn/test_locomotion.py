@@ -8,11 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from msrr.core import plugins
 from msrr.core.configuration import Configuration
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
+from msrr.core.plan import ActionType
+from msrr.core.run import RunRequest, prepare_run, resolve_scenario
 from msrr.plugins.freesn.robot import NODE, STRUT
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim.commands import parse_wheels
@@ -122,3 +125,20 @@ def test_s4n1_wheel_behaviors_drive_along_the_library_x(behavior):
         moved = (_centre(driver) - before) / 2.0
     assert 0.25 * speed < moved[0] < 1.5 * speed
     assert abs(moved[1]) < 0.2 * moved[0]
+
+
+@pytest.mark.parametrize("name", ["fig18-node-wheels", "fig18-strut-wheels",
+                                  "fig18-struts-as-wheels"])
+def test_locomotion_scenarios_plan_a_path_then_their_behavior(name, tmp_path):
+    """Planning only: a new system (relabelled) retrieves the path to the behavior's start
+    and ends in one mapping behavior whose wheel commands name its own struts."""
+    scenario = resolve_scenario("freesn", name)
+    start = plugins.load_configuration(scenario.start)
+    prepared = prepare_run(RunRequest(robot="freesn", scenario=name, out=tmp_path / "run",
+                                      log=False))
+    actions = prepared.run.plan.actions
+    assert all(a.type is ActionType.MOVING for a in actions[:-1])
+    last = actions[-1]
+    assert last.type is ActionType.BEHAVIOR and last.behavior is not None
+    assert last.behavior.parameters == {"speed": 0.03} and last.behavior.duration == 60.0
+    assert {c.module for c in last.behavior.commands} <= set(start.edge_ids())
