@@ -37,6 +37,12 @@ def test_ci_installs_with_the_readme_command() -> None:
     assert readme == _install_command((ROOT / ".ci/run").read_text())
 
 
+def test_ci_tests_with_the_readme_command() -> None:
+    readme = (ROOT / "README.md").read_text().split("## Test", 1)[1]
+    command = re.search(r"^pytest.*$", readme, re.MULTILINE).group(0)
+    assert re.search(rf"^{re.escape(command)}$", (ROOT / ".ci/run").read_text(), re.MULTILINE)
+
+
 def test_readme_links_resolve() -> None:
     for target in re.findall(r"\]\(((?:docs|examples)/[^)#]+)\)", (ROOT / "README.md").read_text()):
         assert (ROOT / target).exists(), target
