@@ -176,7 +176,7 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
     for failure in batch.failures:
         console.print(styled(f"edge {failure.key} raised {failure.error}", "red"))
     options = {"rate_hz": runner.options.rate, "action_timeout_s": action_timeout,
-               "noise_deg": noise, "slip": slip}
+               "timeout_per_rad_s": runner.timeout_per_rad, "noise_deg": noise, "slip": slip}
     check = CheckFile(library=lib.name, library_sha256=library_digest(library), robot=lib.robot,
                       driver=runner.driver.name, seed=seed, options=options, edges=checks)
     save_check(check, target)
