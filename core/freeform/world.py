@@ -289,6 +289,10 @@ class FreeformWorld:
         self._free_adr = np.array([m.joint(f"free/{i}").dofadr[0] for i in self.modules])
         self._bearing = np.array([m.joint(f"bearing/{i}").dofadr[0] for i in self.modules]
                                  )[:, None] + np.arange(3) if design.bearing else None
+        self._bearing_q = np.array([m.joint(f"bearing/{i}").qposadr[0] for i in self.modules]
+                                   ) if design.bearing else None
+        self._braked = np.zeros(n, dtype=bool)     # bearing held at ``_brake_at``
+        self._brake_at = np.tile(np.array([1.0, 0, 0, 0]), (n, 1))
         self._damping = design.max_torque / design.max_rate
         self._every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
         self.events: list[ConstraintEvent] = []
@@ -327,10 +331,9 @@ class FreeformWorld:
                           size=[d.radius, 0, 0], friction=list(GROUND_FRICTION), mass=0,
                           rgba=list(d.rgba))
             inner = quat if d.bearing else [1, 0, 0, 0]
-            offset = _PENDULUM * d.radius if d.bearing else 0.0   # the magnet's end is heavy
             conn = body.add_body(name=f"connector/{name}", quat=inner, mass=d.connector_mass,
-                                 inertia=[core] * 3, explicitinertial=True,
-                                 ipos=[0, 0, offset], iquat=[1, 0, 0, 0])
+                                 inertia=[core] * 3, explicitinertial=True, ipos=[0, 0, 0],
+                                 iquat=[1, 0, 0, 0])
             if d.bearing:
                 conn.add_joint(name=f"bearing/{name}", type=mujoco.mjtJoint.mjJNT_BALL,
                                damping=_BRAKE * d.max_torque / d.max_rate, armature=_ARMATURE)
@@ -403,13 +406,25 @@ class FreeformWorld:
         v[2] = 0.0
         self._roll[k] = v
         self._rolling[k] = bool(np.any(v))
+        self._pendulum(k, self._rolling[k])
+
+    def _pendulum(self, k: int, on: bool) -> None:
+        """Put the magnet unit's weight on its magnet's end (the drive climbs the inside
+        of the shell, as in a hamster ball) while a free module rolls; centred otherwise,
+        where a hanging weight under a braked bearing would rock the shell."""
+        offset = _PENDULUM * self.design.radius if on else 0.0
+        if self.model.body_ipos[self._conn[k], 2] != offset:
+            self.model.body_ipos[self._conn[k]] = [0.0, 0.0, offset]
+            mujoco.mj_forward(self.model, self.data)
 
     def command_hold(self, module: str) -> None:
         """Brake ``module``'s drive where it is now."""
         k = self._k(module)
         self._target[k] = self.data.qpos[self._qadr[k]:self._qadr[k] + 4]
         self._rolling[k] = False
-        self._roll[k] = 0.0
+        if np.any(self._roll[k]):
+            self._roll[k] = 0.0
+            self._pendulum(k, False)
 
     def command_dock(self, module: str, target: str = "") -> None:
         """Arm ``module``'s connector to latch on ``target`` (``""``: any module it touches)."""
@@ -557,6 +572,10 @@ class FreeformWorld:
         if self._bearing is not None:   # the shells of modules at rest are braked
             self.model.dof_damping[self._bearing] = np.where(
                 self._rolling, _BEARING_FREE, _BRAKE * self._damping)[:, None]
+            newly = ~self._rolling & ~self._braked    # hold where the shell is now
+            adr = self._bearing_q[newly][:, None] + np.arange(4)
+            self._brake_at[newly] = self.data.qpos[adr]
+            self._braked = ~self._rolling
         for i in range(n):
             if i % every == 0:
                 self._servo()
@@ -583,7 +602,21 @@ class FreeformWorld:
             tau[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
         self.data.qfrc_applied[self._dofs] = tau
         if self._bearing is not None:
-            self.data.qfrc_applied[self._bearing] = self._roll_torques()
+            self.data.qfrc_applied[self._bearing] = self._roll_torques() + self._brakes()
+
+    def _brakes(self) -> np.ndarray:
+        """Bearing torques (n, 3), connector frames, holding braked shells where they were
+        braked: a geared motor holds its position (a damping alone would let the shell
+        creep under the reactions of the modules docked on it)."""
+        out = np.zeros((len(self.modules), 3))
+        ks = np.flatnonzero(self._braked)
+        if len(ks):
+            q = self.data.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
+            error = _quat_log(_quat_mul(_quat_conj(q), self._brake_at[ks]))
+            torque = _BRAKE * self._damping * self.options.position_gain * error
+            size = np.linalg.norm(torque, axis=1, keepdims=True)
+            out[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
+        return out
 
     def _roll_torques(self) -> np.ndarray:
         """Bearing torques (n, 3), connector frames, of free FreeBOTs rolling on the ground.
