@@ -361,13 +361,13 @@ class Executor:
         planned = {c.key for c in action.changes}
         needed = {c.key for c in diff.changes()}
         if action.type is ActionType.MOVING and diff:
-            raise _ActionFailed(f"action {index} ({action}): a moving action cannot change "
+            raise _ActionFailed(f"action {index + 1} ({action}): a moving action cannot change "
                                 f"the topology ({diff})")
         if planned and not needed <= planned:
-            raise _ActionFailed(f"action {index} ({action}): the current topology needs "
+            raise _ActionFailed(f"action {index + 1} ({action}): the current topology needs "
                                 f"{diff}, not what the action plans")
         if action.type is ActionType.FLOW and flow_move(self._current, diff) is None:
-            raise _ActionFailed(f"action {index} ({action}): from the current topology, "
+            raise _ActionFailed(f"action {index + 1} ({action}): from the current topology, "
                                 f"{diff} is not a flow (one leaf to a neighbour of its parent)")
 
     def _run_phase(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> None:
@@ -389,7 +389,7 @@ class Executor:
                 if self._tick(index, action, phase, diff):
                     return
         raise _ActionFailed(
-            f"action {index} ({action}) failed: phase {phase.value} did not finish within "
+            f"action {index + 1} ({action}) failed: phase {phase.value} did not finish within "
             f"{self.options.action_timeout:g} s of driver time after {attempts} attempt(s)"
             + self._pending(phase, diff))
 
@@ -625,7 +625,7 @@ class Executor:
                 or target.truth_shape_error <= tolerance)
 
     def _miss(self, target: TargetResult) -> str:
-        where = f"goal {target.name} (action {target.action_index})"
+        where = f"goal {target.name} (action {target.action_index + 1})"
         if target.truth_topology is False:
             return f"{where}: the simulator's topology is not the goal's"
         assert target.truth_shape_error is not None and self.options.target_tolerance
@@ -655,5 +655,5 @@ class Executor:
                 self.events.append(event)
                 plugins.emit.topology_change(self.run, event)
                 if not event.expected:
-                    raise _ActionFailed(f"action {index}: unexpected {event} detected at "
+                    raise _ActionFailed(f"action {index + 1}: unexpected {event} detected at "
                                         f"t={event.time:.1f} s")

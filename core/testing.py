@@ -176,9 +176,9 @@ def replay_problems(plan: Plan) -> list[str]:
         needed = {c.key for c in topology_diff(current, action.target).changes()}
         planned = {c.key for c in action.changes}
         if planned and not needed <= planned:
-            problems.append(f"action {index} ({action}) needs {topology_diff(current, action.target)}")
+            problems.append(f"action {index + 1} ({action}) needs {topology_diff(current, action.target)}")
         if not planned and needed:
-            problems.append(f"action {index} ({action}) changes the topology but lists no change")
+            problems.append(f"action {index + 1} ({action}) changes the topology but lists no change")
         current = action.target
     left = topology_diff(current, plan.goal)
     if left:

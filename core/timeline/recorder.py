@@ -430,7 +430,7 @@ class TimelineRecorder:
             text += f"\n\nretrieved: {action.retrieved}"
         rec.log("action", rr.TextDocument(text, media_type="text/markdown"))
         level = {ActionStatus.FAILED: "ERROR", ActionStatus.RETRYING: "WARN"}.get(status, "INFO")
-        rec.log("events/actions", rr.TextLog(f"action {index}: {action.label} {status}",
+        rec.log("events/actions", rr.TextLog(f"action {index + 1}: {action.label} {status}",
                                              level=level))
         if status == ActionStatus.STARTED:
             self._log_graph("topology/target", action.target)

@@ -83,7 +83,7 @@ def check_plan(plan: Plan, *, limit: int = 20) -> list[str]:
     for k, action in enumerate(plan.actions):
         if len(problems) >= limit:
             break
-        where = f"action {k} ({action.type.value})"
+        where = f"action {k + 1} ({action.type.value})"
         if action.type is ActionType.DISCONNECTION:
             for ch in action.changes:
                 edge = edges.pop(ch.edge_id, None)

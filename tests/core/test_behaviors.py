@@ -123,7 +123,7 @@ def test_a_goal_is_judged_on_the_ground_truth_topology():
     assert ok.success and [t.name for t in ok.targets] == ["ab"] and ok.targets[0].truth_topology
     assert ok.targets[0].shape_error is None                          # a robot without vectors
     bad, _ = execute(Plan(NAME, "test", start, start, [still]), Broken())
-    assert not bad.success and "goal ab (action 0)" in bad.reason and "topology" in bad.reason
+    assert not bad.success and "goal ab (action 1)" in bad.reason and "topology" in bad.reason
 
 
 def test_behavior_phase_and_plan_file_round_trip(tmp_path: Path):

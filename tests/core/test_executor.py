@@ -57,7 +57,7 @@ def test_unreachable_dock_times_out_retries_and_names_the_action() -> None:
                              reach=1.05)
     assert not result.success
     assert result.failed_action == 1 and result.retries == 1
-    assert "action 1 (move c)" in result.reason and "within 2 s" in result.reason
+    assert "action 2 (move c)" in result.reason and "within 2 s" in result.reason
     assert ("action", "move c retrying") in events and ("action", "move c failed") in events
 
 
