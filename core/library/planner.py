@@ -32,6 +32,7 @@ import numpy as np
 from ..actions import topology_diff
 from ..alignment import rot_z
 from ..configuration import Configuration
+from ..console import plural
 from ..errors import PlanningError
 from ..plan import Action, ActionType, BehaviorCall, Plan
 from ..robot import Robot
@@ -214,5 +215,5 @@ class LibraryPlanner:
         path = " -> ".join(s.library_id for s in retrieval.steps)
         return Plan(self.robot.name, self.name, start, goal, actions, mapping=mapping,
                     notes=[f"library {retrieval.sublibrary}: {path} to {target} "
-                           f"({len(actions)} actions, motion cost {retrieval.cost:.4g})"],
+                           f"({plural(len(actions), 'action')}, motion cost {retrieval.cost:.4g})"],
                     stats={"time_ms": (time.perf_counter() - began) * 1e3})
