@@ -73,6 +73,7 @@ _ALL_BITS = 0x7FFFFFFF  # nodes and the ground touch every collision bit
 _SEAT = 0.1           # time constant of a magnet drawing a docked connector onto the centre [s]
 _SIDE_BY_SIDE_MARGIN = np.radians(8.0)  # beyond the angle at which two capsules touch
 _SATURATED = 0.8      # fraction of the torque limit a saturated (stalled) motor delivers
+_SATURATION_FILTER = 0.2  # time constant of the net motor torque for the saturation test [s]
 _WHEEL_MASS = 0.005   # one connector's wheel pair [kg]
 _WHEEL_PROUD = 0.003  # wheel rim past the node surface point of the strut end [m]
 _WHEEL_FRICTION = [1.0, 1.0, 0.005, 0.0001, 0.0001]  # polyurethane on the floor
@@ -182,6 +183,7 @@ class FreeSNWorld:
         self._tau = np.zeros((k, 3))
         self._effort = np.ones(k)                          # fraction of the torque limit
         self._saturated_since = np.full(k, np.nan)        # start of each saturation streak [s]
+        self._net_torque = np.zeros(k)                     # low-passed motor torque net of EMF
         self._dofs = self._dadr[:, None] + np.arange(3)
         self._axle = np.array([m.joint(f"axle/{s}/{e}").dofadr[0] for s, e in self.ends],
                               dtype=int)
@@ -530,12 +532,15 @@ class FreeSNWorld:
     def _track_saturation(self, ks: np.ndarray) -> None:
         """Start or end each connector's saturation streak: a driven connector at full
         effort whose motors deliver at least ``_SATURATED`` of the torque limit (drive
-        minus back-EMF ``D omega``: stalled against a load)."""
-        saturated = np.zeros(len(self.ends), dtype=bool)
+        minus back-EMF ``D omega``: stalled against a load), low-passed over
+        ``_SATURATION_FILTER`` so contact chatter does not break a streak."""
+        net = np.zeros(len(self.ends))
         if len(ks):
-            net = self._tau[ks] - self.phys.damping * self.data.qvel[self._dofs[ks]]
-            saturated[ks] = ((np.sqrt(np.einsum("ni,ni->n", net, net))
-                              >= _SATURATED * self.phys.max_torque) & (self._effort[ks] >= 1.0))
+            torque = self._tau[ks] - self.phys.damping * self.data.qvel[self._dofs[ks]]
+            net[ks] = np.sqrt(np.einsum("ni,ni->n", torque, torque)) * (self._effort[ks] >= 1.0)
+        alpha = min(1.0, self._servo_every * self.options.timestep / _SATURATION_FILTER)
+        self._net_torque += alpha * (net - self._net_torque)
+        saturated = self._net_torque >= _SATURATED * self.phys.max_torque
         self._saturated_since = np.where(saturated, np.fmin(self._saturated_since, self.time),
                                          np.nan)
 
