@@ -45,8 +45,8 @@ from ..shape import skeletal_errors
 from .mujoco import yaw_of
 from .world import ModuleReport
 
-__all__ = ["ContactController", "ContactRecognizer", "flow_direction", "links_of",
-           "module_headings"]
+__all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
+           "links_of", "module_headings"]
 
 Reports = Mapping[str, ModuleReport]
 FLOW_ANGLE = np.pi / 3
@@ -159,6 +159,26 @@ def flow_direction(config: Configuration, module: str, old: str, new: str) -> np
     return np.cos(FLOW_ANGLE) * towards + np.sin(FLOW_ANGLE) * side
 
 
+def common_turn(current: Configuration, target: Configuration) -> float:
+    """The turn [rad] about the vertical shared by most connections: the median over the
+    connections of both (with a horizontal part) of the yaw from ``target``'s vector to
+    ``current``'s. Robust where the least-squares yaw of eq. 8 is not: while one module
+    still has far to go, the eq. 8 yaw would turn the whole goal part of the way towards
+    it, and every other module would start moving the wrong way."""
+    angles = []
+    for e in target.edges():
+        if e.z is None or e.id not in current.edge_ids():
+            continue
+        have, want = current.edge(e.id).z, e.z
+        if have is None or np.hypot(*have[:2]) < 0.2 or np.hypot(*want[:2]) < 0.2:
+            continue
+        angles.append(np.arctan2(have[1], have[0]) - np.arctan2(want[1], want[0]))
+    if not angles:
+        return 0.0
+    wrapped = (np.asarray(angles) + np.pi) % (2 * np.pi) - np.pi
+    return float(np.median(wrapped))
+
+
 def _direction(vector: np.ndarray) -> dict[str, float]:
     return {f"dir_{a}": float(c) for a, c in zip("xyz", vector, strict=True)}
 
@@ -197,13 +217,13 @@ class ContactController:
 
         ``yaw`` [rad] turns them into the recognized frame; on top of it, the common turn
         about the vertical that is left between them and the recognized configuration is
-        removed (eq. 8 alignment): turning every module about its parent by the same yaw
-        would only spin the whole robot on the ground, and the reaction on the free root
-        would make the IK's yaw-aligned goal chase it round."""
+        removed (:func:`common_turn`): turning every module about its parent by the same
+        yaw would only spin the whole robot on the ground, and the reaction on the free
+        root would make the IK's yaw-aligned goal chase it round."""
         reports = observation.sensors
         current = current or self.recognizer.recognize(reports)
-        yaw = (yaw or 0.0) + skeletal_errors(current, target.derive(
-            rotation=rot_z(yaw or 0.0)))[2]
+        yaw = (yaw or 0.0)
+        yaw += common_turn(current, target.derive(rotation=rot_z(yaw)))
         links = links_of(reports)
         heading = module_headings(reports, links)
         turn = rot_z(yaw)

@@ -22,8 +22,8 @@ the FreeSN world's DC-motor model: a damping ``D = max_torque / max_rate`` on th
 limit, ``omega`` from a position loop toward the commanded connection vector. ``gap``
 keeps docked shells a millimetre apart, so a docked pair has no shell contact to fight
 the drive. A FreeBOT's bearing is braked (damping ``10 D``: its internal wheels hold the
-shell) unless its drive is moving it; then the shell turns freely about the magnet
-unit and rolls on the ground instead of sliding.
+shell) unless its drive is moving it and no module is docked on it; then the shell
+turns freely about the magnet unit and rolls on the ground instead of sliding.
 
 **Flow** (paper 4.1): a module whose connector is told to dock on ``Q`` while it sits
 on ``P`` keeps the magnet on ``P`` until its shell comes within ``dock_tolerance`` of
@@ -570,12 +570,15 @@ class FreeformWorld:
         n = max(1, round(duration / self.options.timestep))
         every = self._every
         if self._bearing is not None:   # the shells of modules at rest are braked
+            # so are those others dock on: a shell that turned freely would swing them
+            carrying = np.isin(self.modules, [p for p in self.docked if p is not None])
+            free = self._rolling & ~carrying
             self.model.dof_damping[self._bearing] = np.where(
-                self._rolling, _BEARING_FREE, _BRAKE * self._damping)[:, None]
-            newly = ~self._rolling & ~self._braked    # hold where the shell is now
+                free, _BEARING_FREE, _BRAKE * self._damping)[:, None]
+            newly = ~free & ~self._braked    # hold where the shell is now
             adr = self._bearing_q[newly][:, None] + np.arange(4)
             self._brake_at[newly] = self.data.qpos[adr]
-            self._braked = ~self._rolling
+            self._braked = ~free
         for i in range(n):
             if i % every == 0:
                 self._servo()
