@@ -14,6 +14,7 @@ from .driver import FreeformDriver
 from .recognition import (
     ContactController,
     ContactRecognizer,
+    common_turn,
     flow_direction,
     links_of,
     module_headings,
@@ -36,6 +37,7 @@ __all__ = [
     "FreeformWorld",
     "ModuleDesign",
     "ModuleReport",
+    "common_turn",
     "flow_direction",
     "links_of",
     "module_headings",

@@ -143,3 +143,15 @@ def test_a_free_freebot_rolls_on_the_ground_at_the_commanded_speed():
     moved = world.centre("F1") - start
     assert (moved[0] - (middle - start)[0]) / 2.0 == pytest.approx(0.05, abs=0.008)  # [m/s]
     assert abs(moved[1]) < 0.005 and abs(moved[2]) < 0.002
+
+
+def test_common_turn_is_the_median_turn_not_dragged_by_one_far_module():
+    from msrr.core.alignment import rot_z
+    from msrr.core.freeform import common_turn
+
+    goal = load_configuration(CONFIGS / "line6.json")
+    turned = goal.derive(rotation=rot_z(np.radians(10.0)))
+    z = {e.id: e.z for e in turned.edges()}
+    z["F1-F2"] = rot_z(np.radians(90.0)) @ goal.edge("F1-F2").z   # one module far behind
+    current = goal.with_vectors(z=z)
+    assert np.degrees(common_turn(current, goal)) == pytest.approx(10.0, abs=1e-6)
