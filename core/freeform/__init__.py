@@ -16,6 +16,7 @@ from .recognition import (
     ContactRecognizer,
     common_turn,
     flow_direction,
+    goal_side,
     links_of,
     module_headings,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "ModuleReport",
     "common_turn",
     "flow_direction",
+    "goal_side",
     "links_of",
     "module_headings",
     "place",

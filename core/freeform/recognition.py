@@ -46,7 +46,7 @@ from .mujoco import yaw_of
 from .world import ModuleReport
 
 __all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
-           "links_of", "module_headings"]
+           "goal_side", "links_of", "module_headings"]
 
 Reports = Mapping[str, ModuleReport]
 FLOW_ANGLE = np.pi / 3
@@ -55,9 +55,11 @@ touches both (equal radii)."""
 
 
 SIDE_TIE = np.radians(5.0)
-"""A flowing module within this angle of straight opposite its new parent takes the
-level side on its left (seen from the parent toward the new parent), not a side that
-measurement noise picks."""
+"""A flowing module within this angle of straight opposite its new parent, with no goal
+side, takes the level side on the right (seen from the old parent towards the new one),
+not a side that measurement noise picks."""
+SIDE_GOAL = 0.1
+"""Smallest :func:`goal_side` (unit spacing) that decides a flow's side."""
 _EZ = np.array([0.0, 0.0, 1.0])
 
 
@@ -129,11 +131,33 @@ class ContactRecognizer:
         return config
 
 
-def flow_direction(config: Configuration, module: str, old: str, new: str) -> np.ndarray:
+def _towards(config: Configuration, old: str, new: str) -> np.ndarray | None:
+    """The unit vector (3,) from ``old`` to ``new`` along their connection, or ``None``."""
+    for e in config.edges():
+        if e.z is not None and {e.source, e.target} == {old, new}:
+            return np.asarray(e.z) if e.source == old else -np.asarray(e.z)
+    return None
+
+
+def goal_side(goal: Configuration, module: str, old: str, new: str) -> float:
+    """On which side of the line from ``old`` to ``new`` ``goal`` puts ``module``, seen
+    from above: ``(t x p) . e_z`` with ``t`` the direction from ``old`` to ``new`` and ``p``
+    the place of ``module`` from ``old`` (unit spacing); positive: to the left. 0 when
+    ``goal`` does not connect the three (a turn about the vertical leaves it unchanged)."""
+    t = _towards(goal, old, new)
+    on = next((e for e in goal.edges() if e.source == module and e.target == new), None)
+    if t is None or on is None or on.z is None:
+        return 0.0
+    return float(np.cross(t, t - np.asarray(on.z))[2])
+
+
+def flow_direction(config: Configuration, module: str, old: str, new: str,
+                   side: float = 0.0) -> np.ndarray:
     """Where ``module`` must sit on ``old`` to touch ``new`` too: the unit direction (3,)
-    from ``old``'s centre, in ``config``'s frame (at :data:`FLOW_ANGLE` from the direction
-    to ``new``, nearest to ``module``'s place; see :data:`SIDE_TIE` when every side is as
-    near).
+    from ``old``'s centre, in ``config``'s frame, at :data:`FLOW_ANGLE` from the direction
+    to ``new``. Of the circle of such places, the level one on the side ``side`` gives
+    (:func:`goal_side`: the side where the module is headed), else the one nearest to
+    ``module``'s place; see :data:`SIDE_TIE` when every side is as near.
 
     Raises:
         ConfigurationError: ``module`` is not on ``old``, or ``new`` is not next to ``old``.
@@ -141,22 +165,23 @@ def flow_direction(config: Configuration, module: str, old: str, new: str) -> np
     here = next((e for e in config.edges() if e.source == module and e.target == old), None)
     if here is None or here.z is None:
         raise ConfigurationError(f"flow of {module}: it is not docked on {old}")
-    towards = None
-    for e in config.edges():
-        if e.z is not None and {e.source, e.target} == {old, new}:
-            towards = np.asarray(e.z) if e.source == old else -np.asarray(e.z)
+    towards = _towards(config, old, new)
     if towards is None:
         raise ConfigurationError(f"flow of {module}: {new} is not next to {old}")
+    left = np.cross(_EZ, towards)
+    if abs(side) > SIDE_GOAL and np.linalg.norm(left) > 0.5:
+        along = np.sign(side) * left / np.linalg.norm(left)
+        return np.cos(FLOW_ANGLE) * towards + np.sin(FLOW_ANGLE) * along
     u = -np.asarray(here.z)
-    side = u - (u @ towards) * towards
-    norm = np.linalg.norm(side)
-    if norm < np.sin(SIDE_TIE):   # (nearly) opposite the new parent: stay level, go left
-        side = np.cross(towards, _EZ)
-        norm = np.linalg.norm(side)
+    along = u - (u @ towards) * towards
+    norm = np.linalg.norm(along)
+    if norm < np.sin(SIDE_TIE):   # (nearly) opposite the new parent: stay level
+        along = np.cross(towards, _EZ)
+        norm = np.linalg.norm(along)
         if norm < 1e-9:
-            side, norm = canonical_perpendicular(towards), 1.0
-    side = side / norm
-    return np.cos(FLOW_ANGLE) * towards + np.sin(FLOW_ANGLE) * side
+            along, norm = canonical_perpendicular(towards), 1.0
+    along = along / norm
+    return np.cos(FLOW_ANGLE) * towards + np.sin(FLOW_ANGLE) * along
 
 
 def common_turn(current: Configuration, target: Configuration) -> float:
@@ -266,7 +291,9 @@ class ContactController:
                 return Control(commands={flow.leaf: ModuleCommand(
                     dock=(f"@{flow.new_parent}",), undock=(f"@{flow.parent}",))})
             current = self.recognizer.recognize(reports)
-            w = flow_direction(current, flow.leaf, flow.parent, flow.new_parent)
+            w = flow_direction(current, flow.leaf, flow.parent, flow.new_parent,
+                               goal_side(action.target, flow.leaf, flow.parent,
+                                         flow.new_parent))
             u = -np.asarray(current.edge(_edge_id(current, flow.leaf, flow.parent)).z)
             angle = float(np.arccos(np.clip(u @ w, -1.0, 1.0)))
             heading = module_headings(reports)

@@ -12,7 +12,7 @@ import pytest
 from msrr.core import plugins
 from msrr.core.actions import topology_diff
 from msrr.core.events import Phase
-from msrr.core.freeform import flow_direction
+from msrr.core.freeform import flow_direction, goal_side
 from msrr.core.io import load_configuration
 from msrr.core.plan import Action, ActionType
 from msrr.core.shape import skeletal_error
@@ -98,7 +98,13 @@ def test_flow_direction_touches_both_parents():
     w = flow_direction(config, "F1", "F2", "F3")
     to_new = np.array([-1.0, 0.0, 0.0])                 # F2 -> F3
     assert np.linalg.norm(w - to_new) == pytest.approx(1.0)   # unit spacing: touching
-    assert w[1] > 0 and abs(w[2]) < 1e-12               # level, on the left
+    assert w[1] > 0 and abs(w[2]) < 1e-12               # level, on the right of F2 -> F3
+    goal = load_configuration(CONFIGS / "line6-a.json")   # F1 ends on F3 at +y
+    side = goal_side(goal, "F1", "F2", "F3")
+    assert side < -0.5                                  # right of F2 -> F3 (-x) is +y
+    mirrored = goal.derive(rotation=np.diag([1.0, -1.0, 1.0]))
+    assert goal_side(mirrored, "F1", "F2", "F3") == pytest.approx(-side)
+    assert flow_direction(config, "F1", "F2", "F3", -side)[1] < 0    # the goal decides
 
 
 def test_a_flow_rolls_the_leaf_and_switches_its_magnet_in_one_step():
