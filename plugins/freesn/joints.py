@@ -30,6 +30,7 @@ import numpy as np
 
 from msrr.core.kinematics.joints import RevoluteJoint as CoreRevoluteJoint
 from msrr.core.kinematics.node import (
+    FixedNode,
     KinematicTreeError,
     ModuleJointNode,
     NodeBatch,
@@ -48,11 +49,14 @@ from msrr.core.kinematics.rotations import (
 
 __all__ = [
     "JOINT_MODES",
+    "BrakedNode",
     "DifferentialSphericalJoint",
     "FullOppositeJoint",
     "OppositeSteeringJoint",
     "ParallelStrutNode",
+    "PlantedJoint",
     "RevoluteJoint",
+    "SwingJoint",
 ]
 
 _EYE = np.eye(3)
@@ -320,11 +324,60 @@ class ParallelStrutNode(ParallelNode):
         return out
 
 
+class PlantedJoint(OppositeSteeringJoint):
+    """A leg planted on its foot: the opposite steering joint (eq. 4) whose strut ends on
+    a leaf node (the foot) with that connector braked.
+
+    The kinematics are the opposite steering mode's; only the controller differs: the
+    connector on the foot holds where it is on the node, so the foot sphere turns with
+    the leg and grips (it can only rock as the leg pitches), while a foot under an
+    ``opposite_steering`` leg is re-aimed every tick and rolls freely. Choosing which
+    legs are planted in each step of a sequence gives a crawl its friction asymmetry
+    (FreeSN paper, Fig. 19(f)-(o)).
+    """
+
+    name = "planted"
+    controller = "freesn.planted"
+    description = "opposite steering with the foot's connector braked (the foot grips)"
+
+
+class SwingJoint(OppositeSteeringJoint):
+    """A swing leg: the opposite steering joint (eq. 4) whose foot connector (on a leaf
+    node) coasts, its motors off, so the foot sphere rolls freely under the leg.
+
+    The counterpart of :class:`PlantedJoint`: a connector that is driven, even softly,
+    brakes the node by its motors' back-EMF, and a foot dragged at the legs' speed slides
+    as much as a planted one; only a coasting foot gives way.
+    """
+
+    name = "swing"
+    controller = "freesn.swing"
+    description = "opposite steering with the foot's connector coasting (the foot rolls)"
+
+
+class BrakedNode(FixedNode):
+    """A fixed node whose struts are braked: every connector of its edges holds where it
+    is on its node, so the struts and the nodes they join move as one rigid body.
+
+    The paper's squirm (Fig. 19(a)-(e)) disables one stem strut with a fixed node to set
+    the direction: a plain fixed node is only rigid in the IK (its struts are still
+    re-aimed in each node's horizontal frame, and the node spheres roll freely), a
+    braked one also locks the node bodies to the strut, so those nodes grip.
+    """
+
+    name = "braked"
+    controller = "freesn.braked"
+    description = "fixed, its struts' connectors braked: struts and nodes one rigid body"
+
+
 JOINT_MODES: tuple[type, ...] = (
     OppositeSteeringJoint,
     DifferentialSphericalJoint,
     FullOppositeJoint,
     RevoluteJoint,
     ParallelStrutNode,
+    PlantedJoint,
+    SwingJoint,
+    BrakedNode,
 )
 """FreeSN node types in registration order; the first is the default joint mode."""

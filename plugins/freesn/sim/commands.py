@@ -6,9 +6,14 @@ A strut module has two connectors, ``a`` (the source end of its connection) and
 docked to -- the unit vector from the node centre to the strut end -- as the joints
 ``"<end>.dir_x"``, ``"<end>.dir_y"``, ``"<end>.dir_z"``, and optionally the strut's
 forward vector in the same frame (``"<end>.fwd_x"``...) which sets the rotation of
-the strut about its axis, and optionally ``"<end>.effort"`` in ``(0, 1]``, the fraction
+the strut about its axis, and optionally ``"<end>.effort"`` in ``[0, 1]``, the fraction
 of the torque limit the connector may use (its motor current limit): a connector that
-closes a loop of rigid struts is driven softly so it follows rather than fights.
+closes a loop of rigid struts is driven softly so it follows rather than fights; ``0``
+switches its motor drivers off (coasting: no drive and no back-EMF braking, the node
+turns freely under the connector, e.g. a foot that should roll). ``"<end>.effort"``
+without a direction brakes the connector: it holds where it is on its node when the
+brake begins (its target from then on), at that effort -- the strut end stays put on the
+node, and the node turns with the strut (a planted foot grips).
 ``dock=("b",)`` extends end ``b``'s magnet array until it docks, ``undock=("a",)``
 retracts end ``a``'s.
 
@@ -35,7 +40,8 @@ import numpy as np
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 
-__all__ = ["ENDS", "ConnectorTarget", "connector_joints", "parse_command", "parse_wheels"]
+__all__ = ["ENDS", "ConnectorTarget", "connector_joints", "parse_brakes", "parse_command",
+           "parse_wheels"]
 
 ENDS = ("a", "b")
 WHEEL_PORTS = {"a": "a", "b": "b", "source": "a", "target": "b"}
@@ -78,11 +84,18 @@ def parse_command(strut: str, command: ModuleCommand) -> dict[str, ConnectorTarg
     for end in ENDS:
         direction = _vector(strut, command.joints, end, "dir")
         effort = float(command.joints.get(f"{end}.effort", 1.0))
-        if not 0.0 < effort <= 1.0:
-            raise ExecutionError(f"strut {strut}: {end}.effort must be in (0, 1], got {effort}")
+        if not 0.0 <= effort <= 1.0:
+            raise ExecutionError(f"strut {strut}: {end}.effort must be in [0, 1], got {effort}")
         if direction is not None:
             targets[end] = (direction, _vector(strut, command.joints, end, "fwd"), effort)
     return targets
+
+
+def parse_brakes(strut: str, command: ModuleCommand) -> dict[str, float]:
+    """The braked connectors of ``command`` (an effort without a direction), by end:
+    their effort. Checked by :func:`parse_command`."""
+    return {end: float(command.joints[f"{end}.effort"]) for end in ENDS
+            if f"{end}.effort" in command.joints and f"{end}.dir_x" not in command.joints}
 
 
 def _vector(strut: str, joints: Mapping[str, float], end: str, what: str) -> np.ndarray | None:

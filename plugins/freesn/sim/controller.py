@@ -16,13 +16,21 @@ The joint modes (Figs. 6-7) differ in what the connectors are told:
   vectors only; each connector reaches its vector by the minimal rotation (the
   opposite connector cancelling the steering), and the strut keeps its roll;
 * ``differential_spherical``, ``revolute``: the strut's forward vector ``x`` too (the
-  steering, or the rotation about the axis, is part of the motion).
+  steering, or the rotation about the axis, is part of the motion);
+* ``planted``: as ``opposite_steering``, but the connector on a leaf node (the leg's
+  foot) is braked (an effort without a direction: it holds where it is on the node),
+  so the foot turns with the leg and grips instead of rolling;
+* ``swing``: as ``opposite_steering``, with the connector on a leaf node coasting
+  (effort 0: motors off), so the foot rolls freely;
+* ``braked`` (a fixed node): no command at all for its struts; the driver brakes a
+  strut that drops out of the commands where it is, so its nodes are locked to it.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Mapping
+from dataclasses import replace
 
 import numpy as np
 
@@ -35,19 +43,56 @@ from msrr.core.events import Phase
 from msrr.core.plan import Action
 from msrr.core.shape import skeletal_errors
 
-from .commands import connector_joints
+from .commands import ENDS, connector_joints
 from .geometry import END_SIGN
 from .recognizer import FreeSNRecognizer, Links, links_of, node_headings
 from .world import NodeReport, StrutReport
 
-__all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "FreeSNController", "connector_commands",
-           "driving_ends"]
+__all__ = ["BRAKED_MODE", "FOLLOW_EFFORT", "FORWARD_MODES", "PLANTED_MODE", "SWING_MODE",
+           "FreeSNController", "connector_commands", "driving_ends", "feet", "plant_feet"]
 
 FOLLOW_EFFORT = 0.25
 """Torque fraction of a connector that closes a loop (it follows rather than fights)."""
 
 FORWARD_MODES = frozenset({"differential_spherical", "revolute"})
 """Joint modes whose controllers also command the strut's forward vector."""
+
+BRAKED_MODE = "braked"
+"""The fixed node whose struts are braked (no command: every connector holds)."""
+
+PLANTED_MODE = "planted"
+"""The leg joint whose foot connector (on a leaf node) is braked."""
+
+SWING_MODE = "swing"
+"""The leg joint whose foot connector (on a leaf node) coasts."""
+
+
+def feet(links: Links) -> set[tuple[str, str]]:
+    """The connectors docked at a leaf node (a node with one connector docked): feet."""
+    degree: dict[str, int] = {}
+    for node in links.values():
+        degree[node] = degree.get(node, 0) + 1
+    return {end for end, node in links.items() if degree[node] == 1}
+
+
+def plant_feet(commands: Mapping[str, ModuleCommand], links: Links, *, coast: bool = False
+               ) -> dict[str, ModuleCommand]:
+    """``commands`` with the feet's connectors (:func:`feet`) braked at full effort (an
+    effort without a direction: they hold where they are on the node when the brake
+    begins); with ``coast``, switched off instead (effort 0: the foot rolls freely).
+    """
+    at = feet(links)
+    out: dict[str, ModuleCommand] = {}
+    for strut, command in commands.items():
+        ends = {end for end in ENDS if (strut, end) in at}
+        if coast:
+            joints = dict(command.joints)
+            joints.update({f"{end}.effort": 0.0 for end in ends if f"{end}.dir_x" in joints})
+        else:
+            joints = {k: v for k, v in command.joints.items() if k.split(".")[0] not in ends}
+            joints.update({f"{end}.effort": 1.0 for end in ends})
+        out[strut] = replace(command, joints=joints)
+    return out
 
 
 def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
@@ -165,10 +210,17 @@ class FreeSNController:
                 omitted). Keep it fixed over an action: re-aligning every tick lets a
                 blocked strut turn the whole goal.
         """
+        if self.mode == BRAKED_MODE:
+            return {}
         if yaw is None:
             current = current or self._recognizer.recognize(observation.sensors)
             yaw = skeletal_errors(current, target)[2]
-        return connector_commands(target, observation.sensors, yaw=yaw, forward=self.forward)
+        commands = connector_commands(target, observation.sensors, yaw=yaw,
+                                      forward=self.forward)
+        if self.mode in (PLANTED_MODE, SWING_MODE):
+            commands = plant_feet(commands, links_of(observation.sensors),
+                                  coast=self.mode == SWING_MODE)
+        return commands
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
         """Fix the yaw of the action's target for this phase (eq. 8 alignment)."""

@@ -12,7 +12,7 @@ from msrr.core.errors import ExecutionError
 from msrr.core.robot import RobotSpec
 
 from ..robot import SPEC
-from .commands import parse_command, parse_wheels
+from .commands import parse_brakes, parse_command, parse_wheels
 from .options import SimOptions
 from .world import FreeSNWorld
 
@@ -32,7 +32,8 @@ class FreeSNMujocoDriver(Driver):
     Commands (per strut, see :mod:`.commands`): ``joints`` with the connection vector
     (and forward vector) of each docked connector in its node's horizontal frame;
     ``dock=("b",)`` extends a magnet array, ``undock=("a",)`` retracts one;
-    ``wheels={"a": w}`` runs a connector's wheel pair at ``w`` [rad/s]. A strut that
+    ``wheels={"a": w}`` runs a connector's wheel pair at ``w`` [rad/s]; an
+    ``"a.effort"`` without a direction brakes connector ``a`` where it is. A strut that
     drops out of the commands stops where it is (motors braked); one commanded without
     joints keeps its last targets. Node modules take no command.
     Sensors: module id -> :class:`~.world.NodeReport` or :class:`~.world.StrutReport`.
@@ -121,6 +122,8 @@ class FreeSNMujocoDriver(Driver):
                 world.command_dock(strut, end)
             for end, target in targets.items():
                 world.command_target(strut, end, target)
+            for end, effort in parse_brakes(strut, command).items():
+                world.command_brake(strut, end, effort)
             for end, speed in parse_wheels(strut, command).items():
                 world.command_wheels(strut, end, speed)
 

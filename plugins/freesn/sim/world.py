@@ -182,6 +182,7 @@ class FreeSNWorld:
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
         self._tau = np.zeros((k, 3))
         self._effort = np.ones(k)                          # fraction of the torque limit
+        self._braked = np.zeros(k, dtype=bool)             # held by command_brake
         self._saturated_since = np.full(k, np.nan)        # start of each saturation streak [s]
         self._net_torque = np.zeros(k)                     # low-passed motor torque net of EMF
         self._dofs = self._dadr[:, None] + np.arange(3)
@@ -325,9 +326,10 @@ class FreeSNWorld:
         strut, end = self.ends[k]
         self.data.eq_active[self._welds[(strut, end, node)]] = 0
         self._eq[k] = -1
-        self._effort[k] = 1.0
+        self._set_effort(k, 1.0)
         self.docked[k] = None
         self._has_target[k] = False
+        self._braked[k] = False
         self._refresh_driven()
         self._eps[k] = 0.0
         self.events.append(DockEvent(self.time, strut, end, node, kind, float(self._load[k])))
@@ -386,8 +388,9 @@ class FreeSNWorld:
         for end in ENDS:
             k = self._end(strut, end)
             self._wheel[k] = 0.0
+            self._braked[k] = False
             if self.docked[k] is not None:
-                self._effort[k] = 1.0
+                self._set_effort(k, 1.0)
                 self._hold(k)
 
     def command_wheels(self, strut: str, end: str, speed: float) -> None:
@@ -415,6 +418,17 @@ class FreeSNWorld:
         self.magnet[k] = "retracted"
         self._release(k, "undock")
 
+    def command_brake(self, strut: str, end: str, effort: float = 1.0) -> None:
+        """Brake a docked connector where it is on its node (kept while repeated: the
+        pose when the brake began), at ``effort``; ignored when the end is free."""
+        k = self._end(strut, end)
+        if self.docked[k] is None:
+            return
+        self._set_effort(k, effort)
+        if not self._braked[k]:
+            self._hold(k)
+            self._braked[k] = True
+
     def command_target(self, strut: str, end: str, target: ConnectorTarget) -> None:
         """Drive a docked connector to a connection vector (and forward vector) given in
         the horizontal frame of its node; ignored when the end is free."""
@@ -423,7 +437,8 @@ class FreeSNWorld:
         if node is None:
             return
         direction, forward, effort = target
-        self._effort[k] = effort
+        self._set_effort(k, effort)
+        self._braked[k] = False
         r_wn = self.data.xmat[self._node_body[self._node_index[node]]].reshape(3, 3)
         tilt = rot_z(-float(heading(self.data.xquat[self._node_body[self._node_index[node]]])))
         to_node = r_wn.T @ tilt.T          # horizontal frame -> node frame
@@ -433,9 +448,12 @@ class FreeSNWorld:
         if forward is None:
             # a leaf strut's connector keeps the twist it holds (its wheels braked in
             # that rotation) rather than the one it was pushed to: the morphology of
-            # its free end's wheels; a strut in a loop follows its other end's pull
+            # its free end's wheels, or the leg of a foot (a leaf node), which would
+            # otherwise let the foot roll sideways by twisting the leg; a strut in a loop
+            # follows its other end's pull
             other = self.docked[self._end_index[(strut, "b" if end == "a" else "a")]]
-            if other is None and self._has_target[k] and not self._wheel[k]:
+            leaf = other is None or self.docked.count(other) == 1
+            if leaf and self._has_target[k] and not self._wheel[k]:
                 current = self._target[k]
             have = current @ u
             self._target[k] = _minimal(have, want) @ current
@@ -443,6 +461,12 @@ class FreeSNWorld:
             self._target[k] = _frame(self._sign[k] * want, to_node @ forward)
         self._has_target[k] = True
         self._refresh_driven()
+
+    def _set_effort(self, k: int, effort: float) -> None:
+        """Connector ``k``'s torque fraction; ``0`` coasts: its drivers off, so neither
+        drive nor back-EMF damping (the ball joint turns freely)."""
+        self._effort[k] = effort
+        self.model.dof_damping[self._dofs[k]] = self.phys.damping if effort > 0.0 else 0.0
 
     def _end(self, strut: str, end: str) -> int:
         try:

@@ -1,0 +1,74 @@
+"""FreeSN gaits (issue 13, Fig. 19): planted feet grip, swinging feet roll, braked struts
+hold their nodes -- the connector brake and coast that give a crawl or a squirm its
+friction asymmetry, judged on the simulator's ground truth."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msrr.core.driver import ModuleCommand
+from msrr.core.errors import ExecutionError
+from msrr.core.io import load_configuration
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver
+from msrr.plugins.freesn.sim.commands import parse_brakes, parse_command
+from msrr.plugins.freesn.sim.controller import connector_commands, feet, plant_feet
+from msrr.plugins.freesn.sim.recognizer import links_of
+
+FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
+STANDUP = FREESN / "configs" / "library" / "S4N5-1.2.json"
+
+
+def test_an_effort_without_a_direction_brakes_and_zero_effort_coasts():
+    command = ModuleCommand(joints={"a.dir_x": 1.0, "a.dir_y": 0.0, "a.dir_z": 0.0,
+                                    "a.effort": 0.0, "b.effort": 1.0})
+    assert set(parse_command("S1", command)) == {"a"}      # a: a target, coasting
+    assert parse_command("S1", command)["a"][2] == 0.0
+    assert parse_brakes("S1", command) == {"b": 1.0}        # b: braked
+    with pytest.raises(ExecutionError, match=r"in \[0, 1\]"):
+        parse_command("S1", ModuleCommand(joints={"b.effort": 1.5}))
+
+
+def test_planted_feet_are_braked_and_swinging_feet_coast():
+    with FreeSNMujocoDriver() as driver:
+        driver.reset(load_configuration(STANDUP))
+        reports = driver.get_observation().sensors
+    links = links_of(reports)
+    at = {node for end, node in links.items() if end in feet(links)}
+    assert at == {"N1", "N2", "N3", "N4"}                   # the leaf nodes, not N0
+    move = {"S1": ModuleCommand(joints={f"{e}.dir_{a}": 1.0 if a == "z" else 0.0
+                                        for e in ("a", "b") for a in "xyz"})}
+    foot = next(e for s, e in feet(links) if s == "S1")
+    hip = "a" if foot == "b" else "b"
+    planted = plant_feet(move, links)["S1"].joints
+    assert planted[f"{foot}.effort"] == 1.0 and f"{foot}.dir_x" not in planted
+    assert f"{hip}.dir_x" in planted and f"{hip}.effort" not in planted
+    swinging = plant_feet(move, links, coast=True)["S1"].joints
+    assert swinging[f"{foot}.effort"] == 0.0 and f"{foot}.dir_x" in swinging
+
+
+def test_a_braked_connector_holds_its_node_and_a_coasting_one_lets_it_turn():
+    """Each foot spun about the vertical (5 rad/s) under the standup's own commands:
+    braked, the node is locked to its leg and stops; coasting (motors off, no back-EMF
+    damping), it keeps turning."""
+    start = load_configuration(STANDUP)
+    spins = {}
+    for coast in (False, True):
+        with FreeSNMujocoDriver() as driver:
+            driver.reset(start)
+            driver.step(0.3)
+            world = driver.world
+            reports = driver.get_observation().sensors
+            commands = plant_feet(connector_commands(start, reports), links_of(reports),
+                                  coast=coast)
+            driver.send_action(commands)
+            driver.step(0.1)
+            dofs = [world.model.body_dofadr[world._node_body[world.nodes.index(n)]] + 5
+                    for n in ("N1", "N2", "N3", "N4")]
+            world.data.qvel[dofs] = 5.0
+            driver.send_action(commands)
+            driver.step(0.2)
+            spins[coast] = float(np.abs(world.data.qvel[dofs]).min())
+    assert spins[False] < 0.1 and spins[True] > 1.0   # from 5 rad/s in 0.2 s
