@@ -166,13 +166,14 @@ class LibraryPlanner:
                                 "distance, not a duration")
         actions = self._path(retrieval, start)
         at = retrieval.steps[-1]
+        # ``speed`` (a mapping) or the sequence's travel (its designed direction) is +x
+        direction = rot_z(at.yaw) @ np.array([1.0, 0.0, 0.0])
+        heading = (float(direction[0]), float(direction[1]), float(direction[2]))
         if chosen.kind == "mapping":
-            direction = rot_z(at.yaw) @ np.array([1.0, 0.0, 0.0])  # ``speed`` is along +x
             call = BehaviorCall(
                 chosen.name, "mapping", values, retrieval.commands,
                 duration=duration if duration is not None or distance is not None
-                else DEFAULT_DURATION, distance=distance,
-                direction=(float(direction[0]), float(direction[1]), float(direction[2])))
+                else DEFAULT_DURATION, distance=distance, direction=heading)
             actions.append(Action(ActionType.BEHAVIOR, at.target, kinematic_tree=at.tree,
                                   note=f"behavior {chosen.name}", behavior=call,
                                   retrieved=f"{retrieval.sublibrary} {at.library_id} "
@@ -184,7 +185,7 @@ class LibraryPlanner:
             steps = retrieval.actions(start)[len(retrieval.steps):]
             for loop in range(count):
                 call = BehaviorCall(chosen.name, "sequence", values, loops=count, loop=loop,
-                                    distance=distance)
+                                    distance=distance, direction=heading)
                 actions += [replace(a, behavior=call) for a in steps]
         plan = self._plan(start, retrieval, actions, began, f"behavior {chosen.name}")
         plan.goal = actions[-1].target if actions else start
