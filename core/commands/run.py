@@ -88,7 +88,8 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
             else target.shape_error
         if error is None:
             continue
-        source = "ground truth" if target.truth_shape_error is not None else "recognized"
+        source = ("ground truth" if target.truth_shape_error is not None
+                  else "recognized; not judged: the driver has no ground truth")
         topology = "" if target.truth_topology is not False else ", topology differs"
         rows.append([f"goal {target.name}", f"{math.degrees(error):.2f}° RMS ({source}) at "
                      f"t={target.time:.1f} s{topology}"])
