@@ -21,6 +21,7 @@ __all__ = [
     "UnknownNameError",
     "UnknownRobotError",
     "one_line",
+    "short_source",
 ]
 
 MAX_MESSAGE: Final = 300
@@ -42,6 +43,18 @@ def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
     head = (limit - 3) * 2 // 3
     tail = limit - 3 - head
     return f"{flat[:head]} … {flat[len(flat) - tail:]}"
+
+
+def short_source(path: str, limit: int = 120) -> str:
+    """A file path on one line of at most ``limit`` characters, shortened in the
+    folders, never in the file's own name (that is what a reader looks for)."""
+    flat = one_line(path, 10 * limit)
+    if len(flat) <= limit:
+        return flat
+    name = flat.rsplit("/", 1)[-1]
+    if len(name) + 4 >= limit:
+        return one_line(name, limit)
+    return f"{flat[:limit - 4 - len(name)]} …/{name}"
 
 
 class MsrrError(Exception):
@@ -68,7 +81,7 @@ class ConfigurationError(MsrrError):
 
     def __str__(self) -> str:
         # file and field stay readable: each gets a share, the message the rest
-        source = one_line(self.source, 120) if self.source else ""
+        source = short_source(self.source) if self.source else ""
         field = one_line(self.field, 80) if self.field else ""
         where = ": ".join(p for p in (source, field) if p)
         room = MAX_MESSAGE - len(where) - (2 if where else 0)
@@ -100,7 +113,9 @@ class UnknownNameError(MsrrError, KeyError):
 
     def __str__(self) -> str:
         known = ", ".join(self.choices) if self.choices else "none"
-        where = "".join(f"{one_line(p, 120)}: " for p in (self.source, self.field) if p)
+        where = "".join(f"{text}: " for text in (
+            short_source(self.source) if self.source else "",
+            one_line(self.field, 120) if self.field else "") if text)
         return one_line(f"{where}unknown {self.what} {self.name!r} (known: {known})")
 
 

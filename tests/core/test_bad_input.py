@@ -14,7 +14,14 @@ from tiny_robot import NAME, SPEC, chain, hookimpl, installed, swap_plan
 from msrr.core import plugins, save_configuration
 from msrr.core.cli import get_cli
 from msrr.core.configuration import Configuration
-from msrr.core.errors import MAX_MESSAGE, ConfigurationError, MsrrError, PluginError, one_line
+from msrr.core.errors import (
+    MAX_MESSAGE,
+    ConfigurationError,
+    MsrrError,
+    PluginError,
+    one_line,
+    short_source,
+)
 from msrr.core.files import MAX_DEPTH, read_json
 from msrr.core.io import load_configuration
 from msrr.core.matching import MatchingError
@@ -113,6 +120,14 @@ def test_errors_are_one_line_of_at_most_300_characters() -> None:
     text = str(error)
     assert "\n" not in text and len(text) <= MAX_MESSAGE and "f.json" in text
     assert one_line("a\ud800b") == "a\\ud800b"
+
+
+def test_a_long_path_is_shortened_in_its_folders_never_in_the_file_name() -> None:
+    name = "in [red] 00259 fig18-struts-as-wheels-start.json"
+    for folders in ("/tmp", "/tmp/" + "d" * 300):
+        text = str(ConfigurationError("bad", source=f"{folders}/{name}", field="modules[2].id"))
+        assert name in text and len(text) <= MAX_MESSAGE and text.startswith("/tmp")
+    assert short_source("/" + "n" * 300).endswith("n") and len(short_source("/" + "n" * 300)) <= 120
 
 
 # -- literal output -------------------------------------------------------------------------
