@@ -19,7 +19,7 @@ Entity paths (stable, documented in ``docs/running.md``):
 * ``action`` -- the running action as text; ``plan``, ``mapping`` -- static text;
 * ``commands/<id>/<wheel or joint>`` (a ``.`` in a joint name is a ``/``),
   ``errors/<id>`` -- scalars per module, NaN on the first tick a module is idle so the
-  plots break there; ``shape/angle`` -- RMS strut angle to the action's target [deg]
+  plots break there; ``shape/angle`` -- RMS connection angle to the action's target [deg]
   (eq. 8 alignment), for robots with connection vectors;
 * ``events/docks``, ``events/undocks``, ``events/actions``, ``events/faults`` -- text logs
   (faults: injected by ``--faults`` or caught by the driver guard, WARN when the run

@@ -403,7 +403,7 @@ def render_snapshot(track: Track, title: str = "") -> Any:
         err.plot([r.sim_time for r in track.angle],
                  [r.values.get("Scalars:scalars", [math.nan])[0] for r in track.angle],
                  lw=1.2, color="black")
-        err.set_title("RMS strut angle to the running action's target [deg] (eq. 8)",
+        err.set_title("RMS connection angle to the running action's target [deg] (eq. 8)",
                       fontsize=8)
     else:
         for m, rows in track.errors.items():  # a cleared row (module idle) breaks the line
