@@ -45,6 +45,14 @@ LOCOMOTION = (
 """``(name, start file, behavior, speed [m/s], duration [s], description)``: the
 locomotion scenarios (section 7.3): the path to the behavior's start, then the behavior."""
 
+GAITS = (
+    ("fig19-crawl", "fig19-crawl-start", "crawl", 0.5, 20,
+     "Fig. 19(f)-(j): S4N5 stands up, then crawls on its four leaf struts as legs"),
+)
+"""``(name, start file, sequence behavior, distance [m], at most loops, description)``: the
+gait scenarios (section 7.3): the path to the behavior's start, then its configuration
+sequence looped until the centre moved the distance."""
+
 SCENARIOS = (
     ("s6n3-connect", "S6N3-1.3", "S6N3-2.1", "S6N3: a leg docks to a node (connection)", False),
     ("s6n3-disconnect", "S6N3-2.1", "S6N3-1.3", "S6N3: a docked leg undocks (disconnection)",
@@ -109,6 +117,10 @@ def msrr_scenarios(robot: str, register):
             register(Scenario(name=name, start=STARTS / f"{start}.json", description=what,
                               stages=(Stage(behavior=behavior, parameters=(("speed", speed),),
                                             duration=duration),)))
+        for name, start, behavior, distance, loops, what in GAITS:
+            register(Scenario(name=name, start=STARTS / f"{start}.json", description=what,
+                              stages=(Stage(behavior=behavior, distance=distance,
+                                            loops=loops),)))
         for name, start, goal, what, default in SCENARIOS:
             register(Scenario(name=name, start=CONFIGS / f"{start}.json",
                               goal=CONFIGS / f"{goal}.json", description=what,

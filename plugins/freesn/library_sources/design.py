@@ -233,44 +233,90 @@ def chain_tree(name: str, held: str) -> dict:
     are opposite-steering module joints. Holding one stem strut steers the squirm.
     """
     neighbour = {"S2": "N2", "S3": "N4"}[held]
-    topology = chain("chain-flat", 0.0)
     joints = [("S2", "N2"), ("S3", "N4"), ("S1", "N1"), ("S4", "N5")]
     nodes = [{"type": "fixed", "edges": [held], "vertices": ["N3", neighbour]}]
     nodes += [{"type": "opposite_steering", "edges": [e], "vertices": [v]}
               for e, v in joints if e != held]
+    return tree_file(name, chain("chain-flat", 0.0), nodes)
+
+
+def tree_file(name: str, topology: dict, nodes: list[dict]) -> dict:
+    """A designed kinematic tree ``name`` over ``topology`` (a configuration file)."""
     return {"name": name, "tree": {
-        "schema_version": 1, "robot": "freesn", "configuration": "chain-flat",
+        "schema_version": 1, "robot": "freesn", "configuration": topology["name"],
         "modules": [{"id": m["id"], "kind": m["kind"]} for m in topology["modules"]],
         "connections": [{k: c[k] for k in ("id", "source", "target", "kind")}
                         for c in topology["connections"]],
         "nodes": nodes}}
 
 
+def legs_tree(name: str, topology: dict, root: list[str], legs: dict[str, str],
+              planted: set[str]) -> dict:
+    """A tree with a fixed root over ``root`` (vertices) and one leg joint per strut of
+    ``legs`` (strut -> its foot node): ``planted`` legs grip with their feet (the foot's
+    connector braked, :class:`~msrr.plugins.freesn.joints.PlantedJoint`), the others
+    swing, their feet coasting so they roll (:class:`~.SwingJoint`, Fig. 19(f)-(o))."""
+    nodes = [{"type": "fixed", "edges": [], "vertices": root}]
+    nodes += [{"type": "planted" if s in planted else "swing", "edges": [s],
+               "vertices": [foot]} for s, foot in legs.items()]
+    return tree_file(name, topology, nodes)
+
+
+STAR_LEGS = {"S1": "N1", "S2": "N2", "S3": "N3", "S4": "N4"}
+FRONT = {"S1", "S4"}   # legs at azimuths 45 and 315 deg: the +x side, the crawl's front
+REAR = {"S2", "S3"}
+CRAWL_HALF_STRIDE = 0.04  # body travel of one crawl phase [m]; a loop moves it twice that
+
+
+def crawl_low(height: float, stride: float, azimuth: float = 45.0) -> dict:
+    """The low stance of the S4N5 crawl: the standup star (legs at ``azimuth`` [deg] from
+    +x, centre ``height`` [m] above the feet) with the centre moved ``stride`` [m] along
+    +x while the two rear feet stay where they are, so every foot lies ``stride``
+    further out along x and the centre lowers to keep the legs' length. From here the
+    front feet staying put bring the body back to the standup shape another ``stride``
+    ahead: the loop moves it ``2 stride``.
+    """
+    reach = math.sqrt(L * L - height * height)
+    ax = reach * math.cos(math.radians(azimuth)) + stride
+    ay = reach * math.sin(math.radians(azimuth))
+    low = math.sqrt(L * L - ax * ax - ay * ay)
+    a = math.degrees(math.atan2(ay, ax))
+    return star("crawl-low", low, [a, 180.0 - a, 180.0 + a, 360.0 - a],
+                f"Fig. 19(h): the body {stride:g} m ahead of the standup over the rear feet, "
+                "lowered")
+
+
 def s4n5() -> None:
     out = HERE / "S4N5"
     square = [45.0, 135.0, 225.0, 315.0]
     flat = star("star-flat", 0.0, square, "four struts lying flat around the centre node")
-    stand = star("standup", L * math.sin(math.radians(40)), square,
+    stand_height = L * math.sin(math.radians(40))
+    stand = star("standup", stand_height, square,
                  "Fig. 18(a)-(c): standing on the four leaf nodes")
     groups = [
         {"name": "star", "description": "a centre node with four struts to leaf nodes",
-         "reference": flat, "trees": [tree("K1")]},
+         "reference": flat,
+         "trees": [tree("K1"), legs_tree("K-plant-front", flat, ["N0"], STAR_LEGS, FRONT),
+                   legs_tree("K-plant-rear", flat, ["N0"], STAR_LEGS, REAR)]},
         {"name": "chain", "description": "five nodes in a row, squirming (Fig. 19(a)-(e))",
          "reference": chain("chain-flat", 0.0),
          "trees": [tree("K1"), chain_tree("K-hold-front", "S3"), chain_tree("K-hold-rear", "S2")]},
     ]
     write(out / "designs.json", source("S4N5", "FreeSN sub-library S4N5 (paper Figs. 18, 19): "
                                        "four struts, five nodes", groups=groups))
-    h = L * math.sin(math.radians(40))
-    crawl = [stand,
-             star("crawl-reach", h, [30.0, 150.0, 225.0, 315.0], "front legs reach forward"),
-             star("crawl-pull", h * 0.9, [60.0, 120.0, 210.0, 330.0], "pull, rear legs push")]
+    low = crawl_low(stand_height, CRAWL_HALF_STRIDE)
     sequences = [
         {"name": "standup", "description": "Fig. 18(a): stand up from lying flat",
          "steps": [step(flat), step(stand)]},
+        # standup -> low under K-plant-rear: the rear feet grip, the body moves forward
+        # and down, the front feet roll; low -> standup (the loop back, under the first
+        # step's tree) under K-plant-front: the front feet grip, the body rises forward,
+        # the rear feet roll. Each phase is kinematically consistent with its planted
+        # feet standing still (crawl_low), so a cycle moves the body 2 x half stride
         {"name": "crawl", "behavior": "crawl", "loop": True,
-         "description": "Fig. 19(f)-(j): crawl with the four leaf struts as legs",
-         "steps": [step(c) for c in crawl]},
+         "description": "Fig. 19(f)-(j): crawl with the four leaf struts as legs, the rear "
+         "and the front pair planted in turn",
+         "steps": [step(stand, "K-plant-front"), step(low, "K-plant-rear")]},
         {"name": "squirm", "behavior": "squirm", "loop": True,
          "description": "Fig. 19(a)-(e): squirm up and down with alternating trees",
          "steps": [step(chain("squirm-up", 0.08, "middle node raised"), "K-hold-front"),

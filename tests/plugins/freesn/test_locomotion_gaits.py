@@ -4,14 +4,20 @@ friction asymmetry, judged on the simulator's ground truth."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
+from msrr.core import plugins
+from msrr.core.cli import get_cli
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
+from msrr.core.plan import ActionType
+from msrr.core.run import RunRequest, prepare_run, resolve_scenario
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim.commands import parse_brakes, parse_command
 from msrr.plugins.freesn.sim.controller import connector_commands, feet, plant_feet
@@ -72,3 +78,32 @@ def test_a_braked_connector_holds_its_node_and_a_coasting_one_lets_it_turn():
             driver.step(0.2)
             spins[coast] = float(np.abs(world.data.qvel[dofs]).min())
     assert spins[False] < 0.1 and spins[True] > 1.0   # from 5 rad/s in 0.2 s
+
+
+def test_fig19_crawl_plans_the_path_then_loops_of_planted_pairs(tmp_path):
+    """A new system (relabelled, yawed, tilted) retrieves standup, then loops of the crawl
+    whose two steps plant the rear pair, then the front pair, of its own legs."""
+    prepared = prepare_run(RunRequest(robot="freesn", scenario="fig19-crawl",
+                                      out=tmp_path / "run", log=False))
+    actions = prepared.run.plan.actions
+    start = plugins.load_configuration(resolve_scenario("freesn", "fig19-crawl").start)
+    gait = [a for a in actions if a.behavior is not None]
+    assert gait and all(a.type is ActionType.MOVING for a in actions)
+    assert all(a.behavior.distance == 0.5 and a.behavior.direction is not None for a in gait)
+    assert {a.behavior.loops for a in gait} == {20} and len(gait) == 40
+    for first, second in zip(gait[::2], gait[1::2], strict=True):
+        planted = [{e for n in a.kinematic_tree.nodes if n.name == "planted" for e in n.edges}
+                   for a in (first, second)]
+        assert planted[0] and planted[1] and not planted[0] & planted[1]
+        assert planted[0] | planted[1] == set(start.edge_ids())
+
+
+def test_one_crawl_loop_moves_the_standup_forward(tmp_path):
+    """Fig. 19(f)-(j) on the simulator's ground truth: one loop of the library crawl from
+    its standup moves the centre along the library's +x (design: 2 x 0.04 m)."""
+    result = CliRunner().invoke(get_cli(), [
+        "run", "--robot", "freesn", "--from", str(STANDUP), "--behavior", "crawl",
+        "--loops", "1", "--out", str(tmp_path / "run"), "--no-log"])
+    assert result.exit_code == 0, result.output
+    moved = json.loads((tmp_path / "run" / "summary.json").read_text())["locomotion"][0]
+    assert 0.05 < moved["distance_m"] < 0.15 and moved["heading_error_deg"] < 15.0

@@ -37,6 +37,8 @@ STARTS = {
                                  "relabelled, yawed, tilted"),
     "fig18-struts-as-wheels-start": ("S4N1-1.3", 187, 3.0, "Fig. 18(g) as built: S4N1 with its "
                                      "leaf struts low on the floor, relabelled, yawed, tilted"),
+    "fig19-crawl-start": ("S4N5-1.1", 191, 3.0, "Fig. 19(f) as built: S4N5 star lying flat, "
+                          "relabelled, yawed, tilted"),
 }
 """The start files and how each is made."""
 
