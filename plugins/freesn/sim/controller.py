@@ -80,11 +80,17 @@ def plant_feet(commands: Mapping[str, ModuleCommand], links: Links, *, coast: bo
     """``commands`` with the feet's connectors (:func:`feet`) braked at full effort (an
     effort without a direction: they hold where they are on the node when the brake
     begins); with ``coast``, switched off instead (effort 0: the foot rolls freely).
+    The leg's other end (its hip) drives at full effort, whichever end
+    :func:`driving_ends` chose (the foot, when the root is a foot node).
     """
     at = feet(links)
     out: dict[str, ModuleCommand] = {}
     for strut, command in commands.items():
         ends = {end for end in ENDS if (strut, end) in at}
+        if len(ends) == 1:   # the leg's other end (its hip) drives it, at full effort
+            command = replace(command, joints={k: v for k, v in command.joints.items()
+                                               if k.split(".")[0] in ends
+                                               or not k.endswith(".effort")})
         if coast:
             joints = dict(command.joints)
             joints.update({f"{end}.effort": 0.0 for end in ends if f"{end}.dir_x" in joints})

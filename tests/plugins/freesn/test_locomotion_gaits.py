@@ -44,10 +44,11 @@ def test_planted_feet_are_braked_and_swinging_feet_coast():
     links = links_of(reports)
     at = {node for end, node in links.items() if end in feet(links)}
     assert at == {"N1", "N2", "N3", "N4"}                   # the leaf nodes, not N0
-    move = {"S1": ModuleCommand(joints={f"{e}.dir_{a}": 1.0 if a == "z" else 0.0
-                                        for e in ("a", "b") for a in "xyz"})}
     foot = next(e for s, e in feet(links) if s == "S1")
     hip = "a" if foot == "b" else "b"
+    move = {"S1": ModuleCommand(joints={**{f"{e}.dir_{a}": 1.0 if a == "z" else 0.0
+                                           for e in ("a", "b") for a in "xyz"},
+                                        f"{hip}.effort": 0.25})}   # as a follower
     planted = plant_feet(move, links)["S1"].joints
     assert planted[f"{foot}.effort"] == 1.0 and f"{foot}.dir_x" not in planted
     assert f"{hip}.dir_x" in planted and f"{hip}.effort" not in planted
