@@ -46,6 +46,9 @@ LOCOMOTION = (
 locomotion scenarios (section 7.3): the path to the behavior's start, then the behavior."""
 
 GAITS = (
+    ("fig19-squirm", "fig19-squirm-start", "squirm", 0.55, 30,
+     "Fig. 19(a)-(e): S4N5 chain squirms, a fixed stem strut and a planted end leg "
+     "alternating front and rear"),
     ("fig19-crawl", "fig19-crawl-start", "crawl", 0.5, 20,
      "Fig. 19(f)-(j): S4N5 stands up, then crawls on its four leaf struts as legs"),
 )

@@ -215,27 +215,39 @@ def star(name: str, centre_height: float, azimuths: list[float], description: st
 
 
 def chain(name: str, hump: float, description: str = "") -> dict:
-    """Nodes N1-N5 along x, struts S1-S4; the middle node N3 raised by ``hump`` [m]."""
+    """Nodes N1-N5, struts S1-S4 along x, the middle node N3 raised by ``hump`` [m].
+
+    The end struts S1 and S4 are splayed :data:`CHAIN_SPLAY` in plan to either side (a
+    Z, point-symmetric about N3): the contacts N1 N2 N4 N5 span an area, so the raised
+    chain cannot tip, nor the flat one roll, about its line, as four collinear contacts
+    let it (squirm-up then tipped over and the chain rolled sideways for metres).
+    """
     rise = min(hump, L * 0.9)
     run = math.sqrt(L * L - rise * rise)
-    xs = [0.0, L, L + run, L + 2 * run, 2 * L + 2 * run]
-    zs = [0.0, 0.0, rise, 0.0, 0.0]
-    nodes = {f"N{i + 1}": np.array([x, 0.0, z]) for i, (x, z) in enumerate(zip(xs, zs,
-                                                                               strict=True))}
+    splay = math.radians(CHAIN_SPLAY)
+    side = np.array([math.cos(splay), -math.sin(splay), 0.0]) * L   # N4 -> N5
+    nodes = {"N2": np.array([L, 0.0, 0.0]), "N3": np.array([L + run, 0.0, rise]),
+             "N4": np.array([L + 2 * run, 0.0, 0.0])}
+    nodes = {"N1": nodes["N2"] - side, **nodes, "N5": nodes["N4"] + side}
     struts = [(f"S{i + 1}", f"N{i + 1}", f"N{i + 2}") for i in range(4)]
     return configuration(name, nodes, struts, description)
 
 
 def chain_tree(name: str, held: str) -> dict:
-    """A chain tree whose root fixed node holds strut ``held`` still (Fig. 19(a)-(e)).
+    """A chain tree whose fixed root holds strut ``held`` still (Fig. 19(a)-(e)).
 
-    The root owns N3 and, through ``held`` (S2 or S3), its neighbour; the other struts
-    are opposite-steering module joints. Holding one stem strut steers the squirm.
+    The root owns N3 and, through ``held`` (S2 or S3), its neighbour; S2 and S3 are
+    otherwise opposite-steering joints. Holding one stem strut steers the squirm; the
+    end leg on the held side is planted (its foot, N1 or N5, grips) and the other
+    swings (its foot rolls), so the held half stands still while the other half is
+    drawn in (squirm-up, front held) or pushed out (squirm-down, rear held).
     """
     neighbour = {"S2": "N2", "S3": "N4"}[held]
+    planted = {"S2": "S1", "S3": "S4"}[held]
     joints = [("S2", "N2"), ("S3", "N4"), ("S1", "N1"), ("S4", "N5")]
     nodes = [{"type": "fixed", "edges": [held], "vertices": ["N3", neighbour]}]
-    nodes += [{"type": "opposite_steering", "edges": [e], "vertices": [v]}
+    nodes += [{"type": ("planted" if e == planted else "swing") if e in ("S1", "S4")
+               else "opposite_steering", "edges": [e], "vertices": [v]}
               for e, v in joints if e != held]
     return tree_file(name, chain("chain-flat", 0.0), nodes)
 
@@ -265,6 +277,8 @@ def legs_tree(name: str, topology: dict, root: list[str], legs: dict[str, str],
 STAR_LEGS = {"S1": "N1", "S2": "N2", "S3": "N3", "S4": "N4"}
 FRONT = {"S1", "S4"}   # legs at azimuths 45 and 315 deg: the +x side, the crawl's front
 REAR = {"S2", "S3"}
+SQUIRM_HUMP = 0.13        # rise of the middle node in squirm-up [m] (0.1 flipped the chain)
+CHAIN_SPLAY = 60.0        # plan angle of the chain's end struts off its line [deg]
 CRAWL_HALF_STRIDE = 0.04  # body travel of one crawl phase [m]; a loop moves it twice that
 
 
@@ -319,7 +333,7 @@ def s4n5() -> None:
          "steps": [step(stand, "K-plant-front"), step(low, "K-plant-rear")]},
         {"name": "squirm", "behavior": "squirm", "loop": True,
          "description": "Fig. 19(a)-(e): squirm up and down with alternating trees",
-         "steps": [step(chain("squirm-up", 0.08, "middle node raised"), "K-hold-front"),
+         "steps": [step(chain("squirm-up", SQUIRM_HUMP, "middle node raised"), "K-hold-front"),
                    step(chain("squirm-down", 0.0, "flat"), "K-hold-rear")]},
     ]
     nodes = {f"N{i + 1}": np.array([L * math.cos(math.radians(a)), L * math.sin(math.radians(a)),
@@ -524,6 +538,41 @@ def tree_state(name: str, description: str = "") -> dict:
     return configuration(name, nodes, struts, description)
 
 
+def ear_nodes() -> dict[str, np.ndarray]:
+    """The ring nodes folded into a regular pentagon T1-T2-B2-T3-B3 (side L) with B1 an
+    equilateral ear on the edge T1-T2, where the hexagon had it: T1 and T2 are L apart,
+    so chord C1 (T1 -> T2) spans them (Fig. 21(b)-(d))."""
+    rp = L / (2.0 * math.sin(math.radians(36.0)))   # the pentagon's circumradius
+    nodes = {}
+    for n, a in zip(("T1", "T2", "B2", "T3", "B3"), (24.0, 96.0, 168.0, 240.0, 312.0),
+                    strict=True):
+        nodes[n] = np.array([rp * math.cos(math.radians(a)), rp * math.sin(math.radians(a)),
+                             0.0])
+    apex = rp * math.cos(math.radians(36.0)) + L * math.sqrt(3.0) / 2.0
+    nodes["B1"] = np.array([apex * math.cos(math.radians(60.0)),
+                            apex * math.sin(math.radians(60.0)), 0.0])
+    return {n: nodes[n] for n in RING_NODES}
+
+
+def ear_state(name: str, docked: set[str], description: str = "") -> dict:
+    """The ear layout (:func:`ear_nodes`) with the ring struts and C1 in ``docked`` docked
+    and the others free: a free ring strut or C1 aims at the node it docks to (``S_conn``,
+    or the vectors a disconnection keeps); chords C2-C6 are legs along the floor, away
+    from the centre."""
+    nodes = ear_nodes()
+    struts: list[tuple] = []
+    for sid, s, t in ring_struts() + [chord(0)]:
+        struts.append((sid, s, t) if sid in docked else (sid, s, None, nodes[t] - nodes[s]))
+    for i in range(1, 6):
+        cid, s, _ = chord(i)
+        struts.append((cid, s, None, horizontal(math.atan2(nodes[s][1], nodes[s][0]))))
+    return configuration(name, nodes, struts, description)
+
+
+RING_IDS = {f"R{i + 1}" for i in range(6)}
+BRANCHED = (RING_IDS - {"R1", "R4"}) | {"C1"}   # the Fig. 21 tree: R2, R3, R5, R6, C1 docked
+
+
 def s12n6() -> None:
     out = HERE / "S12N6"
     octa = octa_state("fig22a", set(range(6)), "Fig. 22(a): octahedron")
@@ -541,13 +590,35 @@ def s12n6() -> None:
         {"name": "open-face-and-edge", "description": "Fig. 22(j): ring strut R6 free too",
          "reference": octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5})),
          "trees": [tree("K1")]},
+        {"name": "ear", "description": "Fig. 21(c): the ring folded to a pentagon with an ear, "
+         "chord C1 docked across it (two loops)",
+         "reference": ear_state("ear-closed", RING_IDS | {"C1"}), "trees": [tree("K1")]},
+        {"name": "branched-tree", "description": "Fig. 21(e): the two loops opened in "
+         "parallel at R1 and R4, a tree",
+         "reference": ear_state("fig21-tree", BRANCHED), "trees": [tree("K1")]},
     ]
+    ear_aim = ear_state("ear-aim", RING_IDS - {"R6"}, "Fig. 21(b): the open ring folded, R6 "
+                        "and C1 aimed at T1 and T2")
     write(out / "designs.json", source("S12N6", "FreeSN sub-library S12N6 (paper Figs. 18, 21, "
                                        "22): twelve struts, six nodes", groups=groups))
     sequences = [
         {"name": "fig21-star-to-tree", "description": "Fig. 21(a)-(e): open the ring",
          "steps": [step(star_), step(hex_star("ring-open", open_ring=True)),
                    step(tree_state("fig21e"))]},
+        # Fig. 21 with parallel actions (section 6.3): the open ring folds so that R6 and
+        # chord C1 both aim at their nodes and dock in one parallel connection; then R1
+        # and R4 undock in one parallel disconnection, leaving a branched tree. Back: the
+        # same two parallel actions reversed, the fold undone, R6 docked.
+        {"name": "fig21-star-to-branched-tree", "description": "Fig. 21(a)-(e) with parallel "
+         "actions: open the ring, fold it, dock R6 and C1, undock R1 and R4",
+         "steps": [step(star_), step(hex_star("ring-open", open_ring=True)), step(ear_aim),
+                   step(ear_state("ear-closed", RING_IDS | {"C1"})),
+                   step(ear_state("fig21-tree", BRANCHED))]},
+        {"name": "fig21-branched-tree-to-star", "description": "Fig. 21(e)-(i) with parallel "
+         "actions: dock R1 and R4, undock R6 and C1, unfold, dock R6",
+         "steps": [step(ear_state("fig21-tree", BRANCHED)),
+                   step(ear_state("ear-closed", RING_IDS | {"C1"})), step(ear_aim),
+                   step(hex_star("ring-aim", open_ring=True)), step(star_)]},
         {"name": "fig21-tree-to-star", "description": "Fig. 21(e)-(i): close the ring again",
          "steps": [step(tree_state("fig21e")), step(hex_star("ring-aim", open_ring=True)),
                    step(star_)]},

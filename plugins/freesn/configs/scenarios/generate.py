@@ -39,6 +39,8 @@ STARTS = {
                                      "leaf struts low on the floor, relabelled, yawed, tilted"),
     "fig19-crawl-start": ("S4N5-1.1", 191, 3.0, "Fig. 19(f) as built: S4N5 star lying flat, "
                           "relabelled, yawed, tilted"),
+    "fig19-squirm-start": ("S4N5-2.1", 193, 3.0, "Fig. 19(a) as built: S4N5 chain lying flat "
+                           "(end struts splayed), relabelled, yawed, tilted"),
 }
 """The start files and how each is made."""
 
