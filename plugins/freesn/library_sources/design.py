@@ -277,8 +277,8 @@ def legs_tree(name: str, topology: dict, root: list[str], legs: dict[str, str],
 STAR_LEGS = {"S1": "N1", "S2": "N2", "S3": "N3", "S4": "N4"}
 FRONT = {"S1", "S4"}   # legs at azimuths 45 and 315 deg: the +x side, the crawl's front
 REAR = {"S2", "S3"}
-SQUIRM_HUMP = 0.13        # rise of the middle node in squirm-up [m] (0.1 flipped the chain)
-CHAIN_SPLAY = 60.0        # plan angle of the chain's end struts off its line [deg]
+SQUIRM_HUMP = 0.12        # rise of the middle node in squirm-up [m]
+CHAIN_SPLAY = 45.0        # plan angle of the chain's end struts off its line [deg]
 CRAWL_HALF_STRIDE = 0.04  # body travel of one crawl phase [m]; a loop moves it twice that
 
 
