@@ -30,7 +30,6 @@ import numpy as np
 
 from msrr.core.kinematics.joints import RevoluteJoint as CoreRevoluteJoint
 from msrr.core.kinematics.node import (
-    FixedNode,
     KinematicTreeError,
     ModuleJointNode,
     NodeBatch,
@@ -49,7 +48,6 @@ from msrr.core.kinematics.rotations import (
 
 __all__ = [
     "JOINT_MODES",
-    "BrakedNode",
     "DifferentialSphericalJoint",
     "FullOppositeJoint",
     "OppositeSteeringJoint",
@@ -355,21 +353,6 @@ class SwingJoint(OppositeSteeringJoint):
     description = "opposite steering with the foot's connector coasting (the foot rolls)"
 
 
-class BrakedNode(FixedNode):
-    """A fixed node whose struts are braked: every connector of its edges holds where it
-    is on its node, so the struts and the nodes they join move as one rigid body.
-
-    The paper's squirm (Fig. 19(a)-(e)) disables one stem strut with a fixed node to set
-    the direction: a plain fixed node is only rigid in the IK (its struts are still
-    re-aimed in each node's horizontal frame, and the node spheres roll freely), a
-    braked one also locks the node bodies to the strut, so those nodes grip.
-    """
-
-    name = "braked"
-    controller = "freesn.braked"
-    description = "fixed, its struts' connectors braked: struts and nodes one rigid body"
-
-
 JOINT_MODES: tuple[type, ...] = (
     OppositeSteeringJoint,
     DifferentialSphericalJoint,
@@ -378,6 +361,5 @@ JOINT_MODES: tuple[type, ...] = (
     ParallelStrutNode,
     PlantedJoint,
     SwingJoint,
-    BrakedNode,
 )
 """FreeSN node types in registration order; the first is the default joint mode."""

@@ -21,9 +21,7 @@ The joint modes (Figs. 6-7) differ in what the connectors are told:
   foot) is braked (an effort without a direction: it holds where it is on the node),
   so the foot turns with the leg and grips instead of rolling;
 * ``swing``: as ``opposite_steering``, with the connector on a leaf node coasting
-  (effort 0: motors off), so the foot rolls freely;
-* ``braked`` (a fixed node): no command at all for its struts; the driver brakes a
-  strut that drops out of the commands where it is, so its nodes are locked to it.
+  (effort 0: motors off), so the foot rolls freely.
 """
 
 from __future__ import annotations
@@ -48,7 +46,7 @@ from .geometry import END_SIGN
 from .recognizer import FreeSNRecognizer, Links, links_of, node_headings
 from .world import NodeReport, StrutReport
 
-__all__ = ["BRAKED_MODE", "FOLLOW_EFFORT", "FORWARD_MODES", "PLANTED_MODE", "SWING_MODE",
+__all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "PLANTED_MODE", "SWING_MODE",
            "FreeSNController", "connector_commands", "driving_ends", "feet", "plant_feet"]
 
 FOLLOW_EFFORT = 0.25
@@ -56,9 +54,6 @@ FOLLOW_EFFORT = 0.25
 
 FORWARD_MODES = frozenset({"differential_spherical", "revolute"})
 """Joint modes whose controllers also command the strut's forward vector."""
-
-BRAKED_MODE = "braked"
-"""The fixed node whose struts are braked (no command: every connector holds)."""
 
 PLANTED_MODE = "planted"
 """The leg joint whose foot connector (on a leaf node) is braked."""
@@ -216,8 +211,6 @@ class FreeSNController:
                 omitted). Keep it fixed over an action: re-aligning every tick lets a
                 blocked strut turn the whole goal.
         """
-        if self.mode == BRAKED_MODE:
-            return {}
         if yaw is None:
             current = current or self._recognizer.recognize(observation.sensors)
             yaw = skeletal_errors(current, target)[2]

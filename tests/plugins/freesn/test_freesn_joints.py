@@ -59,9 +59,9 @@ def forward_x(node: KinematicNode, rng: np.random.Generator
 def test_freesn_registers_its_joint_modes_with_the_default_first():
     modes = plugins.kinematic_nodes("freesn")
     assert list(modes) == ["opposite_steering", "differential_spherical", "full_opposite",
-                           "revolute", "parallel_strut", "planted", "swing", "braked"]
+                           "revolute", "parallel_strut", "planted", "swing"]
     assert plugins.resolve("freesn").default_joint_mode() is OppositeSteeringJoint
-    assert {m.family for m in modes.values()} == {"module_joint", "parallel", "fixed"}
+    assert {m.family for m in modes.values()} == {"module_joint", "parallel"}
     assert all(m.controller for m in modes.values())
 
 

@@ -1,6 +1,6 @@
-"""FreeSN gaits (issue 13, Fig. 19): planted feet grip, swinging feet roll, braked struts
-hold their nodes -- the connector brake and coast that give a crawl or a squirm its
-friction asymmetry, judged on the simulator's ground truth."""
+"""FreeSN gaits (issue 13, Fig. 19): planted feet grip (their connector braked), swinging
+feet roll (their connector coasting) -- the friction asymmetry of the crawl and the
+squirm, judged on the simulator's ground truth."""
 
 from __future__ import annotations
 
