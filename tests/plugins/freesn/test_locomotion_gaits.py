@@ -108,3 +108,18 @@ def test_one_crawl_loop_moves_the_standup_forward(tmp_path):
     assert result.exit_code == 0, result.output
     moved = json.loads((tmp_path / "run" / "summary.json").read_text())["locomotion"][0]
     assert 0.05 < moved["distance_m"] < 0.15 and moved["heading_error_deg"] < 15.0
+
+
+def test_fig19_squirm_alternates_the_held_half(tmp_path):
+    """Squirm-up plants one end leg, squirm-down the other; each step's fixed root holds
+    one stem strut (two kinematic trees, Fig. 19(a)-(e))."""
+    actions = prepare_run(RunRequest(robot="freesn", scenario="fig19-squirm",
+                                     out=tmp_path / "run", log=False)).run.plan.actions
+    gait = [a for a in actions if a.behavior is not None]
+    assert len(gait) == 60 and all(a.behavior.distance == 0.55 for a in gait)
+    planted = [{e for n in a.kinematic_tree.nodes if n.name == "planted" for e in n.edges}
+               for a in gait[:2]]
+    held = [{e for n in a.kinematic_tree.nodes if n.family == "fixed" for e in n.edges}
+            for a in gait[:2]]
+    assert all(len(p) == 1 for p in planted + held) and planted[0] != planted[1]
+    assert held[0] != held[1]
