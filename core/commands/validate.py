@@ -8,7 +8,7 @@ import click
 
 from .. import plugins
 from ..console import console, counts, err_console, error_line, styled
-from ..errors import MsrrError
+from ..errors import MAX_MESSAGE, MsrrError, one_line
 
 __all__ = ["command"]
 
@@ -28,6 +28,8 @@ def command(files: tuple[Path, ...]) -> None:
             line = error_line(exc)
             if not line.startswith(str(path)):  # every line names its file
                 line = error_line(f"{path}: {line}")
+            # the whole line, "invalid " included, fits what "Error: " + a message does
+            line = one_line(line, MAX_MESSAGE + len("Error: ") - len("invalid "))
             err_console.print(styled("invalid", "red"), line)
             failed += 1
             continue
