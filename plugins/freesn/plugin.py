@@ -28,8 +28,9 @@ FIGURES = (
     ("fig20", "fig20-start", ("S6N3-4.1", "S6N3-1.1"),
      "Fig. 20: S6N3 triangle with three legs -> the doubled triangle (d) by retrieval -> back",
      True),
-    ("fig21", "fig21-start", ("S12N6-3.1", "S12N6-2.1"),
-     "Fig. 21: S12N6 hexagonal star -> tree -> hexagonal star", False),
+    ("fig21", "fig21-start", ("S12N6-7.1", "S12N6-2.1"),
+     "Fig. 21: S12N6 hexagonal star -> tree -> hexagonal star, by moves and parallel "
+     "connections and disconnections", False),
 )
 """``(name, start file, goals (library ids) in order, description, default)``: the
 reconfiguration scenarios of the paper's figures, each goal a stage."""

@@ -569,6 +569,23 @@ def ear_state(name: str, docked: set[str], description: str = "") -> dict:
     return configuration(name, nodes, struts, description)
 
 
+def rooted_tree(name: str, topology: dict, root: str) -> dict:
+    """A kinematic tree over a tree-shaped ``topology`` with the fixed root at node
+    ``root`` and one opposite-steering joint per strut, at its end away from the root
+    (section 3.2's default tree, rooted elsewhere than the centre)."""
+    ends = {c["id"]: (c["source"], c["target"]) for c in topology["connections"]}
+    nodes, seen, frontier = [{"type": "fixed", "edges": [], "vertices": [root]}], {root}, [root]
+    while frontier:
+        v = frontier.pop(0)
+        for sid, (a, b) in ends.items():
+            if v in (a, b) and (b if v == a else a) not in seen:
+                far = b if v == a else a
+                seen.add(far)
+                frontier.append(far)
+                nodes.append({"type": "opposite_steering", "edges": [sid], "vertices": [far]})
+    return tree_file(name, topology, nodes)
+
+
 RING_IDS = {f"R{i + 1}" for i in range(6)}
 BRANCHED = (RING_IDS - {"R1", "R4"}) | {"C1"}   # the Fig. 21 tree: R2, R3, R5, R6, C1 docked
 
@@ -583,7 +600,8 @@ def s12n6() -> None:
         {"name": "hexagonal-star", "description": "Fig. 21(a): hexagon ring with six legs",
          "reference": star_, "trees": [tree("K1")]},
         {"name": "tree", "description": "Fig. 21(e): the opened ring, a tree",
-         "reference": tree_state("fig21e"), "trees": [tree("K1")]},
+         "reference": tree_state("fig21e"),
+         "trees": [tree("K1"), rooted_tree("K-root-T1", tree_state("fig21e"), "T1")]},
         {"name": "open-face", "description": "Fig. 22(e): octahedron with one face's struts "
          "free as wheels", "reference": octa_legs_down("fig22e", {0, 2, 4}),
          "trees": [tree("K1")]},
@@ -605,6 +623,9 @@ def s12n6() -> None:
         {"name": "fig21-star-to-tree", "description": "Fig. 21(a)-(e): open the ring",
          "steps": [step(star_), step(hex_star("ring-open", open_ring=True)),
                    step(tree_state("fig21e"))]},
+        # The ear -> ring move runs under K-root-T1: with the default root (the chain's
+        # centre T2) or B2, T3, B3 it stalls 5-25 deg short (R4 17 deg off, IK residual
+        # 0.1 deg); rooted at T1, where R6 docks, it finishes in 3.2 s.
         # Fig. 21 with parallel actions (section 6.3): the open ring folds so that R6 and
         # chord C1 both aim at their nodes and dock in one parallel connection; then R1
         # and R4 undock in one parallel disconnection, leaving a branched tree. Back: the
@@ -618,10 +639,14 @@ def s12n6() -> None:
          "actions: dock R1 and R4, undock R6 and C1, unfold, dock R6",
          "steps": [step(ear_state("fig21-tree", BRANCHED)),
                    step(ear_state("ear-closed", RING_IDS | {"C1"})), step(ear_aim),
-                   step(hex_star("ring-aim", open_ring=True)), step(star_)]},
+                   step(hex_star("ring-aim", open_ring=True), "K-root-T1"),
+                   step(star_, "K-root-T1")]},
+        # the tree -> ring stretch stalls with R4 ~20 deg off (IK residual 0.1 deg) under
+        # K1 and under K-root-T1 alike (library check): infeasible, fig21 takes the ear
         {"name": "fig21-tree-to-star", "description": "Fig. 21(e)-(i): close the ring again",
-         "steps": [step(tree_state("fig21e")), step(hex_star("ring-aim", open_ring=True)),
-                   step(star_)]},
+         "steps": [step(tree_state("fig21e")),
+                   step(hex_star("ring-aim", open_ring=True)),
+                   step(star_, "K-root-T1")]},
         {"name": "star-to-octahedron", "description": "fold the ring and dock the legs in "
          "two parallel connections",
          "steps": [step(star_), step(octa_state("folded", set())),
