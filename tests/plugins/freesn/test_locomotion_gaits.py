@@ -58,8 +58,8 @@ def test_planted_feet_are_braked_and_swinging_feet_coast():
 
 def test_a_braked_connector_holds_its_node_and_a_coasting_one_lets_it_turn():
     """Each foot spun about the vertical (5 rad/s) under the standup's own commands:
-    braked, the node is locked to its leg and stops; coasting (motors off, no back-EMF
-    damping), it keeps turning."""
+    braked, every node is locked to its leg and stops; coasting (motors off, no back-EMF
+    damping), each keeps turning."""
     start = load_configuration(STANDUP)
     spins = {}
     for coast in (False, True):
@@ -77,8 +77,9 @@ def test_a_braked_connector_holds_its_node_and_a_coasting_one_lets_it_turn():
             world.data.qvel[dofs] = 5.0
             driver.send_action(commands)
             driver.step(0.2)
-            spins[coast] = float(np.abs(world.data.qvel[dofs]).min())
-    assert spins[False] < 0.1 and spins[True] > 1.0   # from 5 rad/s in 0.2 s
+            spins[coast] = np.abs(world.data.qvel[dofs])
+    # from 5 rad/s, after 0.2 s (coasting: 1.3 rad/s)
+    assert spins[False].max() < 0.1 and spins[True].min() > 0.5
 
 
 def test_fig19_crawl_plans_the_path_then_loops_of_planted_pairs(tmp_path):
