@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from msrr.plugins.freesn.robot import STRUT
+from msrr.plugins.freesn.robot import NODE, STRUT
 
 L = STRUT.geometry["length"]               # strut length, node centre to node centre [m]
 R_WHEEL = STRUT.geometry["wheel_radius"]   # connector wheel radius [m]
@@ -356,6 +356,7 @@ def s4n5() -> None:
 # -- S4N1: a node on four leaf struts, wheeled (Fig. 18(d)-(i)) --------------------------
 
 R_STRUT = STRUT.geometry["radius"]
+R_NODE = NODE.geometry["radius"]
 HALF_BASE = STRUT.geometry["wheel_base"] / 2.0
 SPIDER = [45.0, 135.0, 225.0, 315.0]   # leg azimuths [deg]; x is the driving direction
 
@@ -586,6 +587,32 @@ def rooted_tree(name: str, topology: dict, root: str) -> dict:
     return tree_file(name, topology, nodes)
 
 
+def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -> list[dict]:
+    """Gains of ring struts' target connectors that roll their (bottom) node as a wheel.
+
+    A docked connector turns its node about the strut's ``+z`` = ``u`` (source to target
+    node) at ``w r / (b/2)`` per rad/s of wheel speed ``w``; a node of radius ``R``
+    rolling without slip about ``u`` moves its centre at ``R w r / (b/2) (u x e_z)``,
+    along the floor at right angles to the strut's plan direction, at speed
+    ``R w r / (b/2) |u_h|``. Each node takes the part of the body's velocity along its
+    rolling direction ``d``: ``v_x d_x`` for ``speed`` (along +x) and ``yaw_rate`` times
+    the node's tangential velocity ``(e_z x p) . d``; the rest slips.
+    """
+    rate = R_NODE * R_WHEEL / HALF_BASE   # centre speed [m/s] per rad/s of w, per |u_h|
+    out = []
+    for sid in struts:
+        source, target = next((s, t) for i, s, t in ring_struts() if i == sid)
+        u = (nodes[target] - nodes[source]) / L
+        roll = np.cross(u, UP)                 # centre velocity per unit node spin
+        scale = rate * float(np.linalg.norm(roll))
+        d = roll / np.linalg.norm(roll)
+        tangential = np.cross(UP, nodes[target])
+        out.append({"module": sid, "command": "wheel_speed", "connector": "target",
+                    "gains": {"speed": round(float(d[0]) / scale, 9),
+                              "yaw_rate": round(float(tangential @ d) / scale, 9)}})
+    return out
+
+
 RING_IDS = {f"R{i + 1}" for i in range(6)}
 BRANCHED = (RING_IDS - {"R1", "R4"}) | {"C1"}   # the Fig. 21 tree: R2, R3, R5, R6, C1 docked
 
@@ -672,10 +699,7 @@ def s12n6() -> None:
          "commands": wheel_commands(nodes, wheels)},
         {"name": "node-wheels", "start": "fig22j", "parameters": ["speed", "yaw_rate"],
          "description": "Fig. 22(j): nodes driven as wheels by their ring struts",
-         "commands": [{"module": rid, "command": "wheel_speed", "connector": "target",
-                       "gains": {"speed": round(float(np.cos(k * 2.0944)) / R_WHEEL, 9),
-                                 "yaw_rate": round(L / math.sqrt(3.0) / R_WHEEL, 9)}}
-                      for k, rid in enumerate(("R1", "R3", "R5"))]},
+         "commands": node_wheel_commands(nodes, ("R1", "R3", "R5"))},
     ]
     write(out / "sequences.json", source("S12N6", "recorded sequences of S12N6",
                                          sequences=sequences, behaviors=behaviors))
