@@ -19,6 +19,7 @@ A module that drops out of the commands brakes where it is. Sensors: module id -
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from collections.abc import Mapping
 from dataclasses import fields, replace
 from typing import Any, ClassVar
@@ -30,42 +31,48 @@ from ..driver import Driver, ModuleCommand, Observation, Pose
 from ..errors import ExecutionError
 from .world import FreeformOptions, FreeformWorld, ModuleDesign
 
-__all__ = ["FreeformDriver"]
+__all__ = ["FreeformDriver", "MujocoDriver"]
 
 _JOINTS = ("dir_x", "dir_y", "dir_z")
 _ROLL = ("roll_x", "roll_y")
 
 
-class FreeformDriver(Driver):
-    """Single-connector freeform modules simulated in MuJoCo, headless unless ``gui``.
+class MujocoDriver(Driver):
+    """What every MuJoCo driver shares: its options (a dataclass, with keyword overrides
+    of its fields and the seed), a world built by :meth:`build` at each :meth:`reset`,
+    MuJoCo's passive viewer where asked, and the observation, time and ground truth read
+    from the world. A subclass names its options type and builds its world.
 
     Args:
-        design: the module.
         gui: open MuJoCo's passive viewer (needs a display).
-        seed: seed of the sensor noise (overrides ``options.seed``).
-        options: :class:`~msrr.core.freeform.world.FreeformOptions`; keyword overrides of
-            its fields (``noise=0.02``) may be given directly.
+        seed: seed of the world's noise (overrides ``options.seed``).
+        options: an ``options_type`` instance; keyword overrides of its fields
+            (``noise=0.02``) may be given directly.
     """
 
-    name: ClassVar[str] = "mujoco"
-    description: ClassVar[str] = "MuJoCo: spheres with one connector on a motor-driven joint"
+    options_type: ClassVar[type]
+    arguments: ClassVar[tuple[str, ...]] = ("gui", "seed", "options")
+    """The constructor's own keywords, named when an unknown option is refused."""
 
-    def __init__(self, design: ModuleDesign, *, gui: bool = False, seed: int | None = None,
-                 options: FreeformOptions | None = None, **overrides: Any):
-        known = {f.name for f in fields(FreeformOptions)}
+    def __init__(self, *, gui: bool = False, seed: int | None = None,
+                 options: Any = None, **overrides: Any):
+        known = {f.name for f in fields(self.options_type)}
         unknown = set(overrides) - known
         if unknown:
             raise ExecutionError(f"unknown MuJoCo driver option(s) {sorted(unknown)} (known: "
-                                 f"gui, seed, options, {', '.join(sorted(known))})")
+                                 f"{', '.join([*self.arguments, *sorted(known - set(self.arguments))])})")
         if seed is not None:
             overrides["seed"] = seed
-        self.options = replace(options or FreeformOptions(), **overrides)
-        self.design = design
+        self.options = replace(options or self.options_type(), **overrides)
         self.gui = gui
-        self.world: FreeformWorld | None = None
+        self.world: Any = None
         self._connected = False
         self._viewer: Any = None
         self._moving: set[str] = set()
+
+    @abstractmethod
+    def build(self, start: Configuration) -> Any:
+        """The world of ``start`` (its connections docked, time 0)."""
 
     @property
     def is_connected(self) -> bool:
@@ -81,20 +88,22 @@ class FreeformDriver(Driver):
         self.world = None
         self._connected = False
 
-    def _world(self) -> FreeformWorld:
+    def _world(self) -> Any:
         self.require_connected()
         if self.world is None:
             raise ExecutionError(f"driver {self.name!r} has no world yet; call reset(start) first")
         return self.world
 
     def reset(self, start: Configuration) -> None:
-        """Build the world of ``start`` (its connections docked); time becomes 0."""
+        """Build the world of ``start``; time becomes 0."""
         self.require_connected()
-        self.world = FreeformWorld(start, self.design, self.options)
+        self.world = self.build(start)
         self._moving = set()
         if self.gui:
-            from mujoco import viewer  # needs a display; imported only then
+            from mujoco import viewer  # the viewer needs a display; imported only then
 
+            if self._viewer is not None:
+                self._viewer.close()
             self._viewer = viewer.launch_passive(self.world.model, self.world.data)
 
     def get_observation(self) -> Observation:
@@ -103,6 +112,41 @@ class FreeformDriver(Driver):
         groups = world.groups()
         return Observation(time=world.time, poses=poses, sensors=world.reports(),
                            groups=tuple(groups) if len(groups) > 1 else ())
+
+    def step(self, dt: float) -> None:
+        self._world().step(dt)
+        if self._viewer is not None:
+            self._viewer.sync()
+
+    @property
+    def time(self) -> float:
+        return self._world().time
+
+    def ground_truth(self) -> Configuration | None:
+        """The world's ground truth, for judging runs (never for recognition)."""
+        return self._world().ground_truth()
+
+
+class FreeformDriver(MujocoDriver):
+    """Single-connector freeform modules simulated in MuJoCo, headless unless ``gui``.
+
+    Args:
+        design: the module.
+        gui, seed, options, overrides: as :class:`MujocoDriver`, with
+            :class:`~msrr.core.freeform.world.FreeformOptions`.
+    """
+
+    name: ClassVar[str] = "mujoco"
+    description: ClassVar[str] = "MuJoCo: spheres with one connector on a motor-driven joint"
+    options_type = FreeformOptions
+
+    def __init__(self, design: ModuleDesign, *, gui: bool = False, seed: int | None = None,
+                 options: FreeformOptions | None = None, **overrides: Any):
+        super().__init__(gui=gui, seed=seed, options=options, **overrides)
+        self.design = design
+
+    def build(self, start: Configuration) -> FreeformWorld:
+        return FreeformWorld(start, self.design, self.options)
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         world = self._world()
@@ -143,19 +187,6 @@ class FreeformDriver(Driver):
         """The module named by a dock/undock entry (``"@Q"``), or ``""`` for a port name
         (the one connector: any module it touches, or whichever it is docked on)."""
         return port[1:] if port.startswith("@") else ""
-
-    def step(self, dt: float) -> None:
-        self._world().step(dt)
-        if self._viewer is not None:
-            self._viewer.sync()
-
-    @property
-    def time(self) -> float:
-        return self._world().time
-
-    def ground_truth(self) -> Configuration | None:
-        """The world's ground truth (:meth:`FreeformWorld.ground_truth`), for judging runs."""
-        return self._world().ground_truth()
 
     def constraint_events(self) -> dict[str, int]:
         """Docks, undocks and flows since :meth:`reset`, from the world's constraint switches

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import fields, replace
 from typing import Any, ClassVar
 
 from msrr.core.configuration import Configuration
-from msrr.core.driver import Driver, ModuleCommand, Observation, Pose
+from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
+from msrr.core.freeform.driver import MujocoDriver
 from msrr.core.robot import RobotSpec
 
 from ..robot import SPEC
@@ -19,14 +19,13 @@ from .world import FreeSNWorld
 __all__ = ["FreeSNMujocoDriver"]
 
 
-class FreeSNMujocoDriver(Driver):
+class FreeSNMujocoDriver(MujocoDriver):
     """FreeSN modules simulated in MuJoCo, headless unless ``gui=True``.
 
     Args:
-        gui: open MuJoCo's passive viewer (needs a display).
-        seed: seed of the noise, drift and slip (overrides ``options.seed``).
-        options: the run's :class:`~.options.SimOptions`; keyword overrides of its
-            fields (``noise=np.radians(2)``, ``slip=0.05``) may be given directly.
+        gui, seed, options, overrides: as :class:`~msrr.core.freeform.driver.MujocoDriver`,
+            with the run's :class:`~.options.SimOptions` (``noise=np.radians(2)``,
+            ``slip=0.05``; the seed drives noise, drift and slip).
         spec: the robot description whose geometry builds the world.
 
     Commands (per strut, see :mod:`.commands`): ``joints`` with the connection vector
@@ -43,64 +42,23 @@ class FreeSNMujocoDriver(Driver):
     description: ClassVar[str] = ("MuJoCo: node spheres, struts on motor-driven spherical "
                                   "joints, magnets as weld constraints")
 
+    options_type = SimOptions
+    arguments = ("gui", "seed", "options", "spec")
+
     def __init__(self, *, gui: bool = False, seed: int | None = None,
                  options: SimOptions | None = None, spec: RobotSpec = SPEC, **overrides: Any):
-        options = options or SimOptions()
-        known = {f.name for f in fields(SimOptions)}
-        unknown = set(overrides) - known
-        if unknown:
-            raise ExecutionError(f"unknown MuJoCo driver option(s) {sorted(unknown)} (known: "
-                                 f"gui, seed, options, spec, {', '.join(sorted(known))})")
-        if seed is not None:
-            overrides["seed"] = seed
-        self.options = replace(options, **overrides)
-        self.gui = gui
+        super().__init__(gui=gui, seed=seed, options=options, **overrides)
         self.spec = spec
-        self.world: FreeSNWorld | None = None
-        self._connected = False
-        self._viewer: Any = None
-        self._moving: set[str] = set()
         self._overlaps: set[tuple[str, str]] = set()
 
-    @property
-    def is_connected(self) -> bool:
-        return self._connected
-
-    def connect(self) -> None:
-        self._connected = True
-
-    def disconnect(self) -> None:
-        if self._viewer is not None:
-            self._viewer.close()
-            self._viewer = None
-        self.world = None
-        self._connected = False
-
-    def _world(self) -> FreeSNWorld:
-        self.require_connected()
-        if self.world is None:
-            raise ExecutionError("driver 'mujoco' has no world yet; call reset(start) first")
-        return self.world
+    def build(self, start: Configuration) -> FreeSNWorld:
+        return FreeSNWorld(start, self.spec, self.options)
 
     def reset(self, start: Configuration) -> None:
-        """Build the world of ``start`` (its docked ends docked); time becomes 0."""
-        self.require_connected()
-        self.world = FreeSNWorld(start, self.spec, self.options)
-        self._moving = set()
+        """Build the world of ``start`` (its docked ends docked); time becomes 0. Bodies
+        that overlap at the start are not reported as self-collisions later."""
+        super().reset(start)
         self._overlaps = {p[:2] for p in self.world.penetrations(0.003)}
-        if self.gui:
-            from mujoco import viewer  # the viewer needs a display; imported only then
-
-            if self._viewer is not None:
-                self._viewer.close()
-            self._viewer = viewer.launch_passive(self.world.model, self.world.data)
-
-    def get_observation(self) -> Observation:
-        world = self._world()
-        poses = {m: Pose(p, q) for m, (p, q) in world.poses().items()}
-        groups = world.groups()
-        return Observation(time=world.time, poses=poses, sensors=world.reports(),
-                           groups=tuple(groups) if len(groups) > 1 else ())
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         world = self._world()
@@ -126,20 +84,6 @@ class FreeSNMujocoDriver(Driver):
                 world.command_brake(strut, end, effort)
             for end, speed in parse_wheels(strut, command).items():
                 world.command_wheels(strut, end, speed)
-
-    def step(self, dt: float) -> None:
-        world = self._world()
-        world.step(dt)
-        if self._viewer is not None:
-            self._viewer.sync()
-
-    @property
-    def time(self) -> float:
-        return self._world().time
-
-    def ground_truth(self) -> Configuration | None:
-        """The world's ground truth (:meth:`FreeSNWorld.ground_truth`), for judging runs."""
-        return self._world().ground_truth()
 
     def faults(self) -> list[str]:
         """Connector breaks, then overlaps of bodies that did not overlap at the start."""
