@@ -28,6 +28,9 @@ class SimOptions:
             on the robot.
         torque_factor: connector torque limit as a fraction of the hardware's (6.2).
         position_gain: connector position loop gain [1/s] (speed command per rad of error).
+        integral_gain: its integral gain [1/s^2] (speed command per rad s of error;
+            bounded by the roll rate), which removes the static error a friction load
+            leaves; 0 is a pure position loop.
         servo_rate: rate of the connectors' motor loops and of the load check [Hz].
         break_filter: time constant of the connection-load low-pass before the strength
             check [s] (a magnet does not let go on a one-step impulse).
@@ -41,6 +44,7 @@ class SimOptions:
     strength_factor: float = 0.5
     torque_factor: float = 0.6
     position_gain: float = 40.0
+    integral_gain: float = 400.0
     servo_rate: float = 250.0
     break_filter: float = 0.05
     seed: int = 0
@@ -51,7 +55,7 @@ class SimOptions:
             if not getattr(self, name) > 0:
                 raise ExecutionError(f"simulation option {name} must be positive, "
                                      f"got {getattr(self, name)}")
-        for name in ("noise", "drift", "slip"):
+        for name in ("noise", "drift", "slip", "integral_gain"):
             if getattr(self, name) < 0:
                 raise ExecutionError(f"simulation option {name} must be >= 0, "
                                      f"got {getattr(self, name)}")

@@ -181,6 +181,7 @@ class FreeSNWorld:
         self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
         self._tau = np.zeros((k, 3))
+        self._integral = np.zeros((k, 3))                  # position loop's error integral [rad s]
         self._effort = np.ones(k)                          # fraction of the torque limit
         self._braked = np.zeros(k, dtype=bool)             # held by command_brake
         self._saturated_since = np.full(k, np.nan)        # start of each saturation streak [s]
@@ -382,6 +383,9 @@ class FreeSNWorld:
 
     def _refresh_driven(self) -> None:
         self._driven = np.flatnonzero(self._has_target & (self._eq >= 0))
+        idle = np.ones(len(self._integral), dtype=bool)
+        idle[self._driven] = False
+        self._integral[idle] = 0.0
 
     def command_stop(self, strut: str) -> None:
         """Stop ``strut``'s connectors where they are now (motors braked)."""
@@ -530,7 +534,16 @@ class FreeSNWorld:
             wheeling = self._wheel[ks] != 0.0
             if wheeling.any():   # the twist is under the wheels: servo the swing alone
                 relative[wheeling] = _swing(relative[wheeling], axis[wheeling])
-            omega = self.options.position_gain * _quat_log(relative)
+            error = _quat_log(relative)
+            omega = self.options.position_gain * error
+            if self.options.integral_gain > 0.0:
+                dt = self._servo_every * self.options.timestep
+                integral = self._integral[ks] + error * dt
+                size = np.sqrt(np.einsum("ni,ni->n", integral, integral))
+                bound = p.max_roll_rate / self.options.integral_gain   # anti-windup
+                integral *= np.minimum(1.0, bound / np.maximum(size, 1e-12))[:, None]
+                self._integral[ks] = integral
+                omega = omega + self.options.integral_gain * integral
             spin = np.einsum("ni,ni->n", omega, axis)
             roll = omega - spin[:, None] * axis
             # wheels in opposition turn the node, and the connector welded to it, about

@@ -393,3 +393,20 @@ def test_saturation_is_reported_while_motors_stall_against_a_load():
     assert streaks[0] and max(streaks[0].values()) > 1.5
     assert all(key.split(":")[1] in ("a", "b") for key in streaks[0])
     assert streaks[1] == {}
+
+
+def test_the_integral_action_removes_the_static_error_a_load_leaves():
+    """S6N3 standing on three legs crouches under its own weight: the pure position loop
+    stops short where its torque balances the load; the integral action (the default)
+    goes on to the goal."""
+    start = _library_config("S6N3", "S6N3-1.1")
+    goal = _lowered(start, np.radians(30.0))
+    controller = FreeSNController()
+    errors = []
+    for integral_gain in (0.0, SimOptions().integral_gain):
+        with FreeSNMujocoDriver(integral_gain=integral_gain) as driver:
+            driver.reset(start)
+            _drive(driver, controller, goal, 30)
+            errors.append(skeletal_errors(driver.world.ground_truth(), goal)[0])
+    assert SimOptions().integral_gain > 0.0
+    assert errors[1] < 0.5 * errors[0], [f"{np.degrees(e):.2f} deg" for e in errors]
