@@ -256,6 +256,17 @@ def _call_each(hook_name: str, before: Callable[[], object] | None = None, **kwa
         yield impl, answer
 
 
+def _registered(hook_name: str, **kwargs: object) -> list[object]:
+    """What every enabled implementation of a ``register``-style hook registers, in
+    pluggy's order; the items of a call that raises are dropped with its plugin."""
+    found: list[object] = []
+    pending: list[object] = []
+    for _impl, _answer in _call_each(hook_name, pending.clear, register=pending.append,
+                                     **kwargs):
+        found.extend(pending)
+    return found
+
+
 def _robot_answers() -> tuple[dict[str, RobotSpec], dict[str, list[str]]]:
     """Robots described by exactly one plugin, and robot name -> plugins for the others."""
     from .robot import RobotSpec
@@ -533,10 +544,7 @@ def libraries(robot_name: str) -> list[Path]:
         UnknownRobotError: no plugin describes ``robot_name``.
     """
     robot(robot_name)
-    found: list[object] = []
-    for _ in _call_each("msrr_libraries", robot=robot_name, register=found.append):
-        pass
-    return [Path(p) for p in found]  # type: ignore[arg-type]
+    return [Path(p) for p in _registered("msrr_libraries", robot=robot_name)]  # type: ignore[arg-type]
 
 
 def register_commands(cli: click.Group, pm: pluggy.PluginManager | None = None) -> None:
@@ -576,10 +584,7 @@ emit = _Events()
 def timeline_views(run: Run) -> list[object]:
     """The viewer views plugins add to ``run``'s recording (``msrr_timeline_views``), in
     pluggy's call order; a plugin that raises is disabled and reported, never fatal."""
-    views: list[object] = []
-    for _ in _call_each("msrr_timeline_views", run=run, register=views.append):
-        pass
-    return views
+    return _registered("msrr_timeline_views", run=run)
 
 
 # -- introspection --------------------------------------------------------------------

@@ -134,6 +134,26 @@ def test_hook_msrr_robot(tiny) -> None:
     assert plugins.problems() == []
 
 
+def test_a_register_hook_that_raises_loses_what_it_registered(tiny, tmp_path: Path) -> None:
+    class Good:
+        @hookimpl
+        def msrr_libraries(self, robot, register):
+            register(tmp_path / "kept.json")
+
+    class Broken:
+        @hookimpl
+        def msrr_libraries(self, robot, register):
+            register(tmp_path / "dropped.json")
+            raise RuntimeError("library index unreadable")
+
+    with plugins.temporary(Good(), "good"), plugins.temporary(Broken(), "broken"):
+        assert plugins.libraries(NAME) == [tmp_path / "kept.json"]
+        assert [str(p) for p in plugins.problems()] == [
+            "plugin 'broken' (registered in code, test_plugin_host) disabled: msrr_libraries "
+            "raised RuntimeError: library index unreadable"]
+    assert plugins.problems() == []
+
+
 def test_hook_msrr_docking_rules(tiny) -> None:
     assert isinstance(plugins.docking_rules(NAME), TinyRules)
 
