@@ -17,7 +17,8 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["GROUND_FRICTION", "SensorNoise", "Switches", "add_ground", "heading", "yaw_of"]
+__all__ = ["GROUND_FRICTION", "SensorNoise", "Switches", "add_ground", "heading", "quat_conj",
+           "quat_log", "quat_mul", "yaw_of"]
 
 GROUND_FRICTION = (0.8, 0.02, 0.001)
 """Sliding, torsional and rolling friction of the floor and the module shells."""
@@ -105,3 +106,27 @@ def heading(quat: np.ndarray) -> np.ndarray:
 def yaw_of(rotation: np.ndarray) -> float:
     """The yaw [rad] of the rotation about ``z`` nearest to ``rotation`` (3, 3) (Frobenius)."""
     return float(np.arctan2(rotation[1, 0] - rotation[0, 1], rotation[0, 0] + rotation[1, 1]))
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products of quaternions ``(w, x, y, z)``, shape (n, 4)."""
+    aw, ax, ay, az = a.T
+    bw, bx, by, bz = b.T
+    return np.column_stack([aw * bw - ax * bx - ay * by - az * bz,
+                            aw * bx + ax * bw + ay * bz - az * by,
+                            aw * by - ax * bz + ay * bw + az * bx,
+                            aw * bz + ax * by - ay * bx + az * bw])
+
+
+def quat_conj(q: np.ndarray) -> np.ndarray:
+    """Conjugates (inverses of unit quaternions) ``(w, x, y, z)``, shape (n, 4)."""
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def quat_log(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (n, 3) of unit quaternions (n, 4), angles in [0, pi]."""
+    q = np.where(q[:, :1] < 0, -q, q)
+    v = q[:, 1:]
+    s = np.sqrt(np.einsum("ni,ni->n", v, v))
+    angle = 2.0 * np.arctan2(s, q[:, 0])
+    return v * np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)[:, None]

@@ -58,7 +58,16 @@ from ..configuration import Configuration
 from ..errors import ExecutionError
 from ..kinematics.rotations import rotation_between
 from ..robot import RobotSpec
-from .mujoco import GROUND_FRICTION, SensorNoise, Switches, add_ground, heading
+from .mujoco import (
+    GROUND_FRICTION,
+    SensorNoise,
+    Switches,
+    add_ground,
+    heading,
+    quat_conj,
+    quat_log,
+    quat_mul,
+)
 
 __all__ = ["ConstraintEvent", "FreeformOptions", "FreeformWorld", "ModuleDesign",
            "ModuleReport", "place"]
@@ -596,7 +605,7 @@ class FreeformWorld:
         ks = np.array([k for k, p in enumerate(self.docked) if p is not None], dtype=int)
         if len(ks):
             q = self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
-            error = _quat_log(_quat_mul(_quat_conj(q), self._target[ks]))
+            error = quat_log(quat_mul(quat_conj(q), self._target[ks]))
             omega = self.options.position_gain * error
             norm = np.linalg.norm(omega, axis=1, keepdims=True)
             omega *= np.minimum(1.0, self.design.max_rate / np.maximum(norm, 1e-12))
@@ -615,7 +624,7 @@ class FreeformWorld:
         ks = np.flatnonzero(self._braked)
         if len(ks):
             q = self.data.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
-            error = _quat_log(_quat_mul(_quat_conj(q), self._brake_at[ks]))
+            error = quat_log(quat_mul(quat_conj(q), self._brake_at[ks]))
             torque = _BRAKE * self._damping * self.options.position_gain * error
             size = np.linalg.norm(torque, axis=1, keepdims=True)
             out[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
@@ -751,26 +760,3 @@ def _upright(rotation: np.ndarray) -> np.ndarray:
     i = int(np.argmax(np.abs(up)))
     axis[i] = np.sign(up[i])
     return rotation_between(_EZ, axis)
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products of quaternions ``(w, x, y, z)``, shape (n, 4)."""
-    aw, ax, ay, az = a.T
-    bw, bx, by, bz = b.T
-    return np.column_stack([aw * bw - ax * bx - ay * by - az * bz,
-                            aw * bx + ax * bw + ay * bz - az * by,
-                            aw * by - ax * bz + ay * bw + az * bx,
-                            aw * bz + ax * by - ay * bx + az * bw])
-
-
-def _quat_conj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def _quat_log(q: np.ndarray) -> np.ndarray:
-    """Rotation vectors (n, 3) of unit quaternions (n, 4), angles in [0, pi]."""
-    q = np.where(q[:, :1] < 0, -q, q)
-    v = q[:, 1:]
-    s = np.sqrt(np.einsum("ni,ni->n", v, v))
-    angle = 2.0 * np.arctan2(s, q[:, 0])
-    return v * np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)[:, None]

@@ -20,34 +20,18 @@ from scipy.optimize import least_squares
 from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.errors import ConfigurationError
+from msrr.core.freeform.mujoco import heading
 from msrr.core.kinematics.rotations import canonical_perpendicular
 
 __all__ = [
     "END_SIGN",
     "Placement",
     "frame_from",
-    "heading",
     "place",
-    "yaw_of",
 ]
 
 END_SIGN = {"a": 1.0, "b": -1.0}
 """Direction from a docked end's node centre into the strut, as a multiple of body ``z``."""
-
-
-def heading(quat: np.ndarray) -> np.ndarray:
-    """Yaw [rad] of the twist about world ``z`` of quaternions ``(w, x, y, z)``, shape (..., 4).
-
-    With ``q = twist (x) swing``, the twist about ``z`` is ``normalise(w, 0, 0, z)``,
-    so the heading is ``2 atan2(z, w)`` (swing-twist decomposition).
-    """
-    q = np.asarray(quat, dtype=np.float64)
-    return 2.0 * np.arctan2(q[..., 3], q[..., 0])
-
-
-def yaw_of(rotation: np.ndarray) -> float:
-    """The yaw [rad] of the rotation about ``z`` nearest to ``rotation`` (3, 3) (Frobenius)."""
-    return float(np.arctan2(rotation[1, 0] - rotation[0, 1], rotation[0, 0] + rotation[1, 1]))
 
 
 def frame_from(z: np.ndarray, x: np.ndarray | None) -> np.ndarray:

@@ -29,9 +29,10 @@ import numpy as np
 from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.errors import ConfigurationError
+from msrr.core.freeform.mujoco import yaw_of
 
 from .commands import ENDS
-from .geometry import END_SIGN, yaw_of
+from .geometry import END_SIGN
 from .world import NodeReport, StrutReport
 
 __all__ = ["FreeSNRecognizer", "Links", "links_of", "node_headings"]

@@ -54,10 +54,11 @@ from scipy.spatial.transform import Rotation
 from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.errors import ExecutionError
+from msrr.core.freeform.mujoco import heading, quat_conj, quat_log, quat_mul
 from msrr.core.robot import RobotSpec
 
 from .commands import ENDS, ConnectorTarget
-from .geometry import END_SIGN, Placement, heading, place
+from .geometry import END_SIGN, Placement, place
 from .options import Physical, SimOptions
 
 __all__ = ["DockEvent", "FreeSNWorld", "NodeReport", "StrutReport"]
@@ -527,14 +528,14 @@ class FreeSNWorld:
         tau[:] = 0.0
         if len(ks):
             q = self._ball(ks)
-            relative = _quat_mul(_quat_conj(q), self._ball_target[ks])   # child frame
+            relative = quat_mul(quat_conj(q), self._ball_target[ks])   # child frame
             w, x, y, z = q.T   # strut axis in the connector frame: row 3 of R(q), signed
             axis = self._sign[ks, None] * np.column_stack(
                 [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
             wheeling = self._wheel[ks] != 0.0
             if wheeling.any():   # the twist is under the wheels: servo the swing alone
                 relative[wheeling] = _swing(relative[wheeling], axis[wheeling])
-            error = _quat_log(relative)
+            error = quat_log(relative)
             omega = self.options.position_gain * error
             if self.options.integral_gain > 0.0:
                 dt = self._servo_every * self.options.timestep
@@ -765,20 +766,6 @@ class FreeSNWorld:
         return [frozenset(g) for g in groups.values()]
 
 
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products of quaternions ``(w, x, y, z)``, shape (n, 4)."""
-    aw, ax, ay, az = a.T
-    bw, bx, by, bz = b.T
-    return np.column_stack([aw * bw - ax * bx - ay * by - az * bz,
-                            aw * bx + ax * bw + ay * bz - az * by,
-                            aw * by - ax * bz + ay * bw + az * bx,
-                            aw * bz + ax * by - ay * bx + az * bw])
-
-
-def _quat_conj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
 def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """The swing of quaternions ``(w, x, y, z)`` (n, 4) after removing their twist about
     unit ``axis`` (n, 3): ``q = swing * twist`` (swing-twist decomposition)."""
@@ -786,16 +773,7 @@ def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
     twist = np.column_stack([q[:, 0], along])
     norm = np.linalg.norm(twist, axis=1, keepdims=True)
     twist = np.where(norm > 1e-12, twist / np.maximum(norm, 1e-12), np.array([1.0, 0, 0, 0]))
-    return _quat_mul(q, _quat_conj(twist))
-
-
-def _quat_log(q: np.ndarray) -> np.ndarray:
-    """Rotation vectors (n, 3) of unit quaternions (n, 4), angles in [0, pi]."""
-    q = np.where(q[:, :1] < 0, -q, q)
-    v = q[:, 1:]
-    s = np.sqrt(np.einsum("ni,ni->n", v, v))
-    angle = 2.0 * np.arctan2(s, q[:, 0])
-    return v * np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)[:, None]
+    return quat_mul(q, quat_conj(twist))
 
 
 def _minimal(v: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.events import Run
 from msrr.core.executor import Executor, ExecutorOptions
+from msrr.core.freeform.mujoco import heading
 from msrr.core.generic import is_generic
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
@@ -38,7 +39,7 @@ from msrr.plugins.freesn.sim import (
     connector_commands,
     driving_ends,
 )
-from msrr.plugins.freesn.sim.geometry import heading, place
+from msrr.plugins.freesn.sim.geometry import place
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 LIBRARIES = {name: load_library(FREESN / "libraries" / f"{name}.json")
