@@ -28,7 +28,7 @@ tells its connector to dock on ``Q`` and leave ``P``, which the world does in on
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -46,7 +46,7 @@ from .mujoco import yaw_of
 from .world import ModuleReport
 
 __all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
-           "goal_side", "links_of", "module_headings"]
+           "goal_side", "links_of", "module_headings", "spread_headings"]
 
 Reports = Mapping[str, ModuleReport]
 FLOW_ANGLE = np.pi / 3
@@ -80,12 +80,25 @@ def module_headings(reports: Reports, links: Mapping[str, str] | None = None
         delta = yaw_of(rj.tilt @ ri.relative @ ri.tilt.T)     # psi_i - psi_j
         neighbours[j].append((i, delta))
         neighbours[i].append((j, -delta))
-    heading: dict[str, float] = {}
     sinks = sorted(m for m in reports if m not in links)
-    for start in [*sinks, *sorted(reports)]:
+    heading, _roots = spread_headings(neighbours, [*sinks, *sorted(reports)])
+    return heading
+
+
+def spread_headings(neighbours: Mapping[str, Sequence[tuple[str, float]]],
+                    order: Sequence[str]) -> tuple[dict[str, float], list[str]]:
+    """Headings [rad] from measured relative yaws, breadth first over each group.
+
+    ``neighbours[u]`` lists ``(v, psi_v - psi_u)``; each group's root is its first
+    module in ``order`` (heading 0). Returns the headings and the roots.
+    """
+    heading: dict[str, float] = {}
+    roots: list[str] = []
+    for start in order:
         if start in heading:
             continue
         heading[start] = 0.0
+        roots.append(start)
         queue = deque([start])
         while queue:
             u = queue.popleft()
@@ -93,7 +106,7 @@ def module_headings(reports: Reports, links: Mapping[str, str] | None = None
                 if v not in heading:
                     heading[v] = heading[u] + delta
                     queue.append(v)
-    return heading
+    return heading, roots
 
 
 class ContactRecognizer:

@@ -21,7 +21,6 @@ The root is the smallest node id of each connected group (or the one given).
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Mapping
 
 import numpy as np
@@ -30,6 +29,7 @@ from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.errors import ConfigurationError
 from msrr.core.freeform.mujoco import yaw_of
+from msrr.core.freeform.recognition import spread_headings
 
 from .commands import ENDS
 from .geometry import END_SIGN
@@ -86,21 +86,7 @@ def node_headings(reports: Reports, links: Links | None = None,
     for i, j, delta in measured:
         neighbours[i].append((j, delta))
         neighbours[j].append((i, -delta))
-    heading: dict[str, float] = {}
-    roots: set[str] = set()
-    order = ([root] if root is not None else []) + nodes
-    for start in order:
-        if start in heading:
-            continue
-        heading[start] = 0.0
-        roots.add(start)
-        queue = deque([start])
-        while queue:
-            u = queue.popleft()
-            for v, delta in neighbours[u]:
-                if v not in heading:
-                    heading[v] = heading[u] + delta
-                    queue.append(v)
+    heading, roots = spread_headings(neighbours, ([root] if root is not None else []) + nodes)
     free = [n for n in nodes if n not in roots]
     if measured and free:
         column = {n: c for c, n in enumerate(free)}
