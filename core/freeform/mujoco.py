@@ -10,14 +10,16 @@ is the seeded white noise of every reported angle; :func:`add_ground` the floor.
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Iterator
+from collections.abc import Hashable, Iterable, Iterator
 from typing import Any
 
 import mujoco
+import networkx as nx
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["GROUND_FRICTION", "SensorNoise", "Switches", "add_ground", "heading", "quat_conj",
+__all__ = ["GROUND_FRICTION", "SensorNoise", "Switches", "add_ground", "connected_groups",
+           "heading", "quat_conj",
            "quat_log", "quat_mul", "yaw_of"]
 
 GROUND_FRICTION = (0.8, 0.02, 0.001)
@@ -130,3 +132,13 @@ def quat_log(q: np.ndarray) -> np.ndarray:
     s = np.sqrt(np.einsum("ni,ni->n", v, v))
     angle = 2.0 * np.arctan2(s, q[:, 0])
     return v * np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)[:, None]
+
+
+def connected_groups(modules: Iterable[str], links: Iterable[tuple[str, str]]
+                     ) -> list[frozenset[str]]:
+    """The modules of each physically separate system, joined by ``links`` (docks), in
+    the order of each group's first module in ``modules``."""
+    graph = nx.Graph()
+    graph.add_nodes_from(modules)
+    graph.add_edges_from(links)
+    return [frozenset(c) for c in nx.connected_components(graph)]

@@ -63,6 +63,7 @@ from .mujoco import (
     SensorNoise,
     Switches,
     add_ground,
+    connected_groups,
     heading,
     quat_conj,
     quat_log,
@@ -735,21 +736,9 @@ class FreeformWorld:
 
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""
-        parent = {m: m for m in self.modules}
-
-        def find(m: str) -> str:
-            while parent[m] != m:
-                parent[m] = parent[parent[m]]
-                m = parent[m]
-            return m
-
-        for k, target in enumerate(self.docked):
-            if target is not None:
-                parent[find(self.modules[k])] = find(target)
-        groups: dict[str, set[str]] = {}
-        for m in self.modules:
-            groups.setdefault(find(m), set()).add(m)
-        return [frozenset(g) for g in groups.values()]
+        return connected_groups(self.modules, ((self.modules[k], target)
+                                               for k, target in enumerate(self.docked)
+                                               if target is not None))
 
 
 def _upright(rotation: np.ndarray) -> np.ndarray:

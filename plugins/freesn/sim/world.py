@@ -54,7 +54,13 @@ from scipy.spatial.transform import Rotation
 from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.errors import ExecutionError
-from msrr.core.freeform.mujoco import heading, quat_conj, quat_log, quat_mul
+from msrr.core.freeform.mujoco import (
+    connected_groups,
+    heading,
+    quat_conj,
+    quat_log,
+    quat_mul,
+)
 from msrr.core.robot import RobotSpec
 
 from .commands import ENDS, ConnectorTarget
@@ -749,21 +755,9 @@ class FreeSNWorld:
 
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""
-        parent = {m: m for m in [*self.nodes, *self.struts]}
-
-        def find(m: str) -> str:
-            while parent[m] != m:
-                parent[m] = parent[parent[m]]
-                m = parent[m]
-            return m
-
-        for k, node in enumerate(self.docked):
-            if node is not None:
-                parent[find(self.ends[k][0])] = find(node)
-        groups: dict[str, set[str]] = {}
-        for m in parent:
-            groups.setdefault(find(m), set()).add(m)
-        return [frozenset(g) for g in groups.values()]
+        return connected_groups([*self.nodes, *self.struts],
+                                ((self.ends[k][0], node) for k, node in enumerate(self.docked)
+                                 if node is not None))
 
 
 def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
