@@ -608,20 +608,13 @@ def _greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequenc
         if len(steps) > limit:
             raise PlanningError("MISO step ordering made no progress")
         moved = False
-        if flows_first:
-            for idx, i in enumerate(pending):
-                if state.flows(i, goal[i]):
-                    steps.append(state.apply(i, goal[i]))
-                    del pending[idx]
-                    moved = True
-                    break
-        if not moved:
-            for idx, i in enumerate(pending):
-                if state.legal(i, goal[i]):
-                    steps.append(state.apply(i, goal[i]))
-                    del pending[idx]
-                    moved = True
-                    break
+        for allowed in ((state.flows, state.legal) if flows_first else (state.legal,)):
+            idx = next((k for k, i in enumerate(pending) if allowed(i, goal[i])), None)
+            if idx is not None:
+                i = pending.pop(idx)
+                steps.append(state.apply(i, goal[i]))
+                moved = True
+                break
         if moved:
             continue
         steps.append(_unblock(state, pending, goal))
