@@ -124,7 +124,7 @@ class Straight:
     description = "straight to planar goals"
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
-        pass
+        """Nothing to prepare: every tick steers straight at the action's goal."""
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         commands, errors = {}, {}
