@@ -31,9 +31,15 @@ FIGURES = (
     ("fig21", "fig21-start", ("S12N6-7.1", "S12N6-2.1"),
      "Fig. 21: S12N6 hexagonal star -> tree -> hexagonal star, by moves and parallel "
      "connections and disconnections", False),
+    ("fig22", "fig22-start",
+     (("wheeled-move", 0.05, 60.0), ("node-wheels", 0.03, 60.0), "S12N6-1.1"),
+     "Fig. 22: S12N6 octahedron -> wheeled move on its freed chords -> moving with node "
+     "modules as wheels -> back to the octahedron, by parallel disconnections and "
+     "connections", False),
 )
-"""``(name, start file, goals (library ids) in order, description, default)``: the
-reconfiguration scenarios of the paper's figures, each goal a stage."""
+"""``(name, start file, stages in order, description, default)``: the scenarios of the
+paper's self-reconfiguration figures; a stage is a goal (a library id) or a behavior
+``(name, speed [m/s], duration [s])``."""
 
 LOCOMOTION = (
     ("fig18-node-wheels", "fig18-node-wheels-start", "node-wheels", 0.03, 60.0,
@@ -112,11 +118,18 @@ def msrr_scenarios(robot: str, register):
     if robot == SPEC.name:
         from msrr.core.scenario import Scenario, Stage
 
-        for name, start, goals, what, default in FIGURES:
+        def stage(step: str | tuple[str, float, float]) -> Stage:
+            if isinstance(step, str):
+                return Stage(goal=CONFIGS / f"{step}.json")
+            behavior, speed, duration = step
+            return Stage(behavior=behavior, parameters=(("speed", speed),), duration=duration)
+
+        for name, start, steps, what, default in FIGURES:
+            first = steps[0] if isinstance(steps[0], str) else None
             register(Scenario(name=name, start=STARTS / f"{start}.json",
-                              goal=CONFIGS / f"{goals[0]}.json", description=what,
-                              default=default,
-                              stages=tuple(Stage(goal=CONFIGS / f"{g}.json") for g in goals[1:])))
+                              goal=CONFIGS / f"{first}.json" if first else None,
+                              description=what, default=default,
+                              stages=tuple(stage(s) for s in steps[1 if first else 0:])))
         for name, start, behavior, speed, duration, what in LOCOMOTION:
             register(Scenario(name=name, start=STARTS / f"{start}.json", description=what,
                               stages=(Stage(behavior=behavior, parameters=(("speed", speed),),

@@ -480,8 +480,23 @@ def octa_state(name: str, docked: set[int], description: str = "", *,
     return configuration(name, nodes, struts, description)
 
 
+ROLLER_TILT = math.radians(16.0)
+"""How far the freed chords of fig22e point below the horizon: their far caps press on
+the floor (they touch at ~13.7 deg; at 24 deg the pressing tipped the structure)."""
+
+
+def roller_legs() -> dict[str, tuple[str, np.ndarray]]:
+    """fig22e's freed bottom chords C2, C4, C6 as rollers: all along +-y (parallel, so
+    rolling them drives along x without slip between them), tilted onto the floor."""
+    out = {}
+    for i, side in ((1, 1.0), (3, -1.0), (5, -1.0)):
+        cid, s, _ = chord(i)
+        out[cid] = (s, np.array([0.0, side * math.cos(ROLLER_TILT), -math.sin(ROLLER_TILT)]))
+    return out
+
+
 def octa_legs_down(name: str, docked: set[int], description: str = "", *,
-                   free_ring: frozenset[int] = frozenset()) -> dict:
+                   free_ring: frozenset[int] = frozenset(), rollers: bool = False) -> dict:
     """Octahedron layout with the chords not in ``docked`` free, pointing outward along the
     floor (Fig. 22(e): the bottom face's struts freed as wheels; the top face stays
     docked, so each bottom node and its two ring struts form a rigid flap hinged on a
@@ -493,6 +508,8 @@ def octa_legs_down(name: str, docked: set[int], description: str = "", *,
         cid, s, t = chord(i)
         if i in docked:
             struts.append((cid, s, t))
+        elif rollers:
+            struts.append((cid, s, None, roller_legs()[cid][1]))
         else:
             struts.append((cid, s, None, horizontal(math.atan2(nodes[s][1], nodes[s][0]))))
     return configuration(name, nodes, struts, description)
@@ -613,6 +630,35 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
     return out
 
 
+def roller_commands(nodes: dict[str, np.ndarray], legs: dict[str, tuple[str, np.ndarray]]
+                    ) -> list[dict]:
+    """Gains of free struts rolled about their axes on the floor (Fig. 18(g)-(i)).
+
+    As in S4N1's ``struts-as-wheels``: the docked connector turns the node about the
+    strut's ``+z = u`` relative to the strut, so the strut turns about ``-u`` and, lying
+    on the floor, rolls along ``d = -(u x e_z)`` at ``r_s w r / (b/2)`` per rad/s of
+    ``w``. Each strut takes the part of its contact's velocity along ``d``: ``d_x`` per
+    m/s of ``speed`` and ``(e_z x p_c) . d`` per rad/s of ``yaw_rate``, ``p_c`` the
+    contact (the strut's far cap) about the centre.
+
+    Args:
+        legs: strut id -> (the node its docked source end holds, its direction ``u``).
+    """
+    rate = R_STRUT * R_WHEEL / HALF_BASE
+    centre = np.mean([p for p in nodes.values()], axis=0)
+    out = []
+    for sid, (node, u) in legs.items():
+        u = np.asarray(u, dtype=float) / np.linalg.norm(u)
+        d = -np.cross(u, UP)
+        d /= np.linalg.norm(d)
+        contact = nodes[node] + (L - R_NODE - R_STRUT) * u - centre
+        out.append({"module": sid, "command": "wheel_speed", "connector": "source",
+                    "gains": {"speed": round(float(d[0]) / rate, 9) or 0.0,
+                              "yaw_rate": round(float(np.cross(UP, contact) @ d) / rate, 9)
+                              or 0.0}})
+    return out
+
+
 RING_IDS = {f"R{i + 1}" for i in range(6)}
 BRANCHED = (RING_IDS - {"R1", "R4"}) | {"C1"}   # the Fig. 21 tree: R2, R3, R5, R6, C1 docked
 
@@ -630,7 +676,7 @@ def s12n6() -> None:
          "reference": tree_state("fig21e"),
          "trees": [tree("K1"), rooted_tree("K-root-T1", tree_state("fig21e"), "T1")]},
         {"name": "open-face", "description": "Fig. 22(e): octahedron with one face's struts "
-         "free as wheels", "reference": octa_legs_down("fig22e", {0, 2, 4}),
+         "free as wheels", "reference": octa_legs_down("fig22e", {0, 2, 4}, rollers=True),
          "trees": [tree("K1")]},
         {"name": "open-face-and-edge", "description": "Fig. 22(j): ring strut R6 free too",
          "reference": octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5})),
@@ -681,9 +727,9 @@ def s12n6() -> None:
         {"name": "fig22-a-to-e", "description": "Fig. 22(a)-(e): free one face in parallel, "
          "legs down",
          "steps": [step(octa), step(octa_state("face-free", {0, 2, 4})),
-                   step(octa_legs_down("fig22e", {0, 2, 4}))]},
+                   step(octa_legs_down("fig22e", {0, 2, 4}, rollers=True))]},
         {"name": "fig22-e-to-j", "description": "Fig. 22(f)-(j): free one more strut",
-         "steps": [step(octa_legs_down("fig22e", {0, 2, 4})),
+         "steps": [step(octa_legs_down("fig22e", {0, 2, 4}, rollers=True)),
                    step(octa_state("aim-j", {0, 2, 4}, free_ring=frozenset({5}))),
                    step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5})))]},
         {"name": "fig22-j-to-a", "description": "Fig. 22(k)-(p): back to the octahedron",
@@ -692,11 +738,11 @@ def s12n6() -> None:
                    step(octa_state("three-docked-j", {0, 2, 4})), step(octa)]},
     ]
     nodes = octahedron_nodes()
-    wheels = {cid: (s, t) for cid, s, t in (chord(i) for i in (1, 3, 5))}
     behaviors = [
         {"name": "wheeled-move", "start": "fig22e", "parameters": ["speed", "yaw_rate"],
-         "description": "Fig. 18(g)-(i), 22(e): free struts rolled as wheels",
-         "commands": wheel_commands(nodes, wheels)},
+         "description": "Fig. 22(e): the freed bottom chords rolled about their axes on "
+         "the floor",
+         "commands": roller_commands(nodes, roller_legs())},
         {"name": "node-wheels", "start": "fig22j", "parameters": ["speed", "yaw_rate"],
          "description": "Fig. 22(j): nodes driven as wheels by their ring struts",
          "commands": node_wheel_commands(nodes, ("R1", "R3", "R5"))},

@@ -30,6 +30,8 @@ STARTS = {
                     "Fig. 20(a) as built: a triangle with three legs, relabelled, yawed, tilted"),
     "fig21-start": ("S12N6-2.1", 21, 4.0,
                     "Fig. 21(a) as built: a hexagonal star, relabelled, yawed, tilted"),
+    "fig22-start": ("S12N6-1.1", 22, 4.0,
+                    "Fig. 22(a) as built: an octahedron, relabelled, yawed, tilted"),
     "fig18-node-wheels-start": ("S4N5-1.1", 181, 3.0, "Fig. 18(a) as built: S4N5 star lying "
                                 "flat, relabelled, yawed, tilted"),
     "fig18-strut-wheels-start": ("S4N1-1.2", 184, 3.0, "Fig. 18(d) as built: S4N1 standing on "
