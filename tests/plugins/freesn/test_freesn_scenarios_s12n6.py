@@ -1,15 +1,22 @@
-"""The S12N6 figure scenario fig21 (issue 13, paper Fig. 21): planned at prepare time
-through the parallel connections and disconnections of the library (no simulation
-here; the runs are in docs/freesn.md)."""
+"""The S12N6 figure scenarios fig21 and fig22 (issue 13, paper Figs. 21, 22): planned at
+prepare time through the parallel connections and disconnections of the library; the
+fig22 rollers' gains checked in simulation (the full runs are in docs/freesn.md)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 from msrr.core import plugins
+from msrr.core.driver import ModuleCommand
+from msrr.core.io import load_configuration
+from msrr.core.library import load_library
 from msrr.core.plan import ActionType
-from msrr.core.run import RunRequest, prepare_run
+from msrr.core.run import RunRequest, prepare_run, resolve_scenario
 from msrr.core.shape import skeletal_error
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 PARALLEL = (ActionType.PARALLEL_CONNECTION, ActionType.PARALLEL_DISCONNECTION)
@@ -32,3 +39,50 @@ def test_fig21_reaches_the_tree_and_the_star_by_parallel_actions(tmp_path):
     star = plugins.load_configuration(FREESN / "configs" / "library" / "S12N6-2.1.json")
     assert skeletal_error(plan.goal, star) < 1e-9                    # back where it began
     assert (plan.docks, plan.undocks) == (5, 5)
+
+
+def test_fig22_frees_a_face_drives_twice_and_closes_the_octahedron(tmp_path):
+    prepared = prepare_run(RunRequest(robot="freesn", scenario="fig22", out=tmp_path / "run",
+                                      log=False))
+    plan = prepared.run.plan
+    behaviors = [a for a in plan.actions if a.type is ActionType.BEHAVIOR]
+    assert [(a.behavior.name, a.behavior.parameters["speed"]) for a in behaviors] == [
+        ("wheeled-move", 0.05), ("node-wheels", 0.03)]
+    assert plan.actions[0].type is ActionType.MOVING   # onto the octahedron of the library
+    first = plan.actions[1]     # then the bottom face's three chords undock at once
+    assert first.type is ActionType.PARALLEL_DISCONNECTION and len(first.changes) == 3
+    assert plan.actions[-1].type is ActionType.PARALLEL_CONNECTION
+    assert (plan.docks, plan.undocks) == (4, 4)
+    # the rollers are the three struts the first action freed, in the system's own ids
+    assert {c.module for c in behaviors[0].behavior.commands} == {c.edge_id
+                                                                  for c in first.changes}
+    start = plugins.load_configuration(resolve_scenario("freesn", "fig22").start)
+    assert sorted(plan.goal.edge_ids()) == sorted(start.edge_ids())  # its own ids
+    octahedron = plugins.load_configuration(FREESN / "configs" / "library" / "S12N6-1.1.json")
+    assert skeletal_error(plan.goal, octahedron) < 1e-9             # back where it began
+
+
+@pytest.mark.parametrize("speed", [0.05, -0.05])
+def test_fig22e_rollers_drive_the_octahedron_along_the_library_x(speed):
+    """Fig. 22(e): the wheeled move's gains (``design.py: roller_commands``) roll the three
+    freed chords, pressed onto the floor, about their axes: the structure goes along
+    ``+x`` for a positive speed (ground truth; the other connectors hold)."""
+    library = load_library(FREESN / "libraries" / "S12N6.json")
+    behavior = library.sublibraries["S12N6"].behaviors["wheeled-move"]
+    start = load_configuration(FREESN / "configs" / "library" / f"{behavior.start}.json")
+    wheels: dict[str, dict[str, float]] = {}
+    for command in behavior.commands:
+        wheels.setdefault(command.module, {})[command.connector] = command.value(
+            {"speed": speed, "yaw_rate": 0.0})
+    assert set(wheels) == {"C2", "C4", "C6"}
+    with FreeSNMujocoDriver() as driver:
+        driver.reset(start)
+        driver.step(0.5)
+        world = driver.world
+        before = world.data.xpos[world._node_body].mean(axis=0).copy()
+        driver.send_action({m: ModuleCommand(wheels=w) for m, w in wheels.items()})
+        driver.step(2.0)
+        velocity = (world.data.xpos[world._node_body].mean(axis=0) - before) / 2.0
+    assert 0.25 < velocity[0] / speed < 1.2
+    assert abs(velocity[1]) < 0.1 * abs(velocity[0])
+    assert np.ptp(world.data.xpos[world._node_body][:, 2]) > 0.15   # still standing
