@@ -376,6 +376,35 @@ def spider(name: str, tilt: float, description: str = "") -> tuple[dict, list[np
     return configuration(name, {"N0": np.zeros(3)}, struts, description), axes
 
 
+def roller_commands(nodes: dict[str, np.ndarray], legs: dict[str, tuple[str, np.ndarray]]
+                    ) -> list[dict]:
+    """Gains of free struts rolled about their axes on the floor (Fig. 18(g)-(i)).
+
+    As in S4N1's ``struts-as-wheels``: the docked connector turns the node about the
+    strut's ``+z = u`` relative to the strut, so the strut turns about ``-u`` and, lying
+    on the floor, rolls along ``d = -(u x e_z)`` at ``r_s w r / (b/2)`` per rad/s of
+    ``w``. Each strut takes the part of its contact's velocity along ``d``: ``d_x`` per
+    m/s of ``speed`` and ``(e_z x p_c) . d`` per rad/s of ``yaw_rate``, ``p_c`` the
+    contact (the strut's far cap) about the centre.
+
+    Args:
+        legs: strut id -> (the node its docked source end holds, its direction ``u``).
+    """
+    rate = R_STRUT * R_WHEEL / HALF_BASE
+    centre = np.mean([p for p in nodes.values()], axis=0)
+    out = []
+    for sid, (node, u) in legs.items():
+        u = np.asarray(u, dtype=float) / np.linalg.norm(u)
+        d = -np.cross(u, UP)
+        d /= np.linalg.norm(d)
+        contact = nodes[node] + (L - R_NODE - R_STRUT) * u - centre
+        out.append({"module": sid, "command": "wheel_speed", "connector": "source",
+                    "gains": {"speed": round(float(d[0]) / rate, 9) or 0.0,
+                              "yaw_rate": round(float(np.cross(UP, contact) @ d) / rate, 9)
+                              or 0.0}})
+    return out
+
+
 def s4n1() -> None:
     """Fig. 18(d)-(f): standing on the free connectors' wheels, driven as a differential
     drive; Fig. 18(g)-(i): legs low, their capsules on the floor, each rolled about its
@@ -396,20 +425,13 @@ def s4n1() -> None:
         {"name": "lie-on-struts", "description": "Fig. 18(g): the struts down to the floor",
          "steps": [step(flat), step(rollers), step(flat)]},
     ]
-    drive, roll = [], []
-    for i, (az, u) in enumerate(zip(SPIDER, low, strict=True)):
+    drive = []
+    for i, az in enumerate(SPIDER):
         # free connector wheels, axle y tangential: +1 rad/s rolls the end radially
         # outward by r; the body's speed v along x needs v cos(azimuth) of it (the
         # tangential part slips). Radial wheels exert no yaw moment: no yaw_rate.
         drive.append({"module": f"S{i + 1}", "command": "wheel_speed", "connector": "target",
                       "gains": {"speed": round(math.cos(math.radians(az)) / R_WHEEL, 9)}})
-        # the docked connector turns N0 about +z relative to the strut, so the strut turns
-        # about -u and rolls its end (radius r_s) along -(u x e_z) at r_s w r / (b/2)
-        rate = R_STRUT * R_WHEEL / HALF_BASE
-        lever = L * math.cos(math.radians(20.0))
-        roll.append({"module": f"S{i + 1}", "command": "wheel_speed", "connector": "source",
-                     "gains": {"speed": round(-float(u[1]) / rate, 9),
-                               "yaw_rate": round(lever / rate, 9)}})
     behaviors = [
         {"name": "strut-wheels", "start": "spider-wheels", "parameters": ["speed"],
          "description": "Fig. 18(d)-(f): the leaf struts' wheels on the floor drive",
@@ -417,7 +439,8 @@ def s4n1() -> None:
         {"name": "struts-as-wheels", "start": "spider-rollers",
          "parameters": ["speed", "yaw_rate"],
          "description": "Fig. 18(g)-(i): the leaf struts rolled about their axes",
-         "commands": roll},
+         "commands": roller_commands({"N0": np.zeros(3)},
+                                     {f"S{i + 1}": ("N0", u) for i, u in enumerate(low)})},
     ]
     write(out / "sequences.json", source("S4N1", "recorded sequences of S4N1",
                                          sequences=sequences, behaviors=behaviors))
@@ -627,35 +650,6 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
         out.append({"module": sid, "command": "wheel_speed", "connector": "target",
                     "gains": {"speed": round(float(d[0]) / scale, 9),
                               "yaw_rate": round(float(tangential @ d) / scale, 9)}})
-    return out
-
-
-def roller_commands(nodes: dict[str, np.ndarray], legs: dict[str, tuple[str, np.ndarray]]
-                    ) -> list[dict]:
-    """Gains of free struts rolled about their axes on the floor (Fig. 18(g)-(i)).
-
-    As in S4N1's ``struts-as-wheels``: the docked connector turns the node about the
-    strut's ``+z = u`` relative to the strut, so the strut turns about ``-u`` and, lying
-    on the floor, rolls along ``d = -(u x e_z)`` at ``r_s w r / (b/2)`` per rad/s of
-    ``w``. Each strut takes the part of its contact's velocity along ``d``: ``d_x`` per
-    m/s of ``speed`` and ``(e_z x p_c) . d`` per rad/s of ``yaw_rate``, ``p_c`` the
-    contact (the strut's far cap) about the centre.
-
-    Args:
-        legs: strut id -> (the node its docked source end holds, its direction ``u``).
-    """
-    rate = R_STRUT * R_WHEEL / HALF_BASE
-    centre = np.mean([p for p in nodes.values()], axis=0)
-    out = []
-    for sid, (node, u) in legs.items():
-        u = np.asarray(u, dtype=float) / np.linalg.norm(u)
-        d = -np.cross(u, UP)
-        d /= np.linalg.norm(d)
-        contact = nodes[node] + (L - R_NODE - R_STRUT) * u - centre
-        out.append({"module": sid, "command": "wheel_speed", "connector": "source",
-                    "gains": {"speed": round(float(d[0]) / rate, 9) or 0.0,
-                              "yaw_rate": round(float(np.cross(UP, contact) @ d) / rate, 9)
-                              or 0.0}})
     return out
 
 
