@@ -43,7 +43,7 @@ from msrr.core.shape import skeletal_errors
 
 from .commands import ENDS, connector_joints
 from .geometry import END_SIGN
-from .recognizer import FreeSNRecognizer, Links, links_of, node_headings
+from .recognizer import FreeSNRecognizer, Links, links_of, node_headings, root_order
 from .world import NodeReport, StrutReport
 
 __all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "PLANTED_MODE", "SWING_MODE",
@@ -101,8 +101,8 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
 
     A strut docked at both ends is two spherical joints in a loop of rigid struts; if
     every connector held its own target, measurement noise alone would set them
-    against each other. Breadth-first from the root node (the smallest id of each
-    group), the strut that first reaches a node is driven from the node it comes
+    against each other. Breadth-first from the root node (each group's
+    :func:`~.recognizer.root_order` first, as the recognizer's), the strut that first reaches a node is driven from the node it comes
     from; every other end of a strut docked at both ends (the child end, and both ends
     of a strut that closes a loop) follows softly. A strut with one free end is driven
     from its docked end. This is the kinematic tree's choice of which connector is the
@@ -116,7 +116,7 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
         ends_of.setdefault(strut, {})[end] = node
     driving = {(s, next(iter(e))) for s, e in ends_of.items() if len(e) == 1}
     reached: set[str] = set()
-    for start in ([root] if root else []) + sorted(at):
+    for start in ([root] if root else []) + root_order(set(at), links):
         if start in reached:
             continue
         reached.add(start)

@@ -16,7 +16,10 @@ The recognizer reads only what modules report (:class:`~.world.NodeReport`,
 4. ``z = Rz(psi_i) d`` from each docked end (averaged when both are), ``x`` from the
    attitude; free ends become virtual vertices ``"<strut>:<end>"``.
 
-The root is the smallest node id of each connected group (or the one given).
+The root of each connected group is its best-connected node, the smallest id among
+equals (:func:`root_order`), or the one given: a leaf node may be a wheel or a foot, and
+its frame turns as it rolls, which would turn the whole recognized configuration and the
+commands given in it.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from .commands import ENDS
 from .geometry import END_SIGN
 from .world import NodeReport, StrutReport
 
-__all__ = ["FreeSNRecognizer", "Links", "links_of", "node_headings"]
+__all__ = ["FreeSNRecognizer", "Links", "links_of", "node_headings", "root_order"]
 
 Reports = Mapping[str, "NodeReport | StrutReport"]
 Links = dict[tuple[str, str], str]
@@ -59,6 +62,20 @@ def links_of(reports: Reports) -> Links:
     return links
 
 
+def root_order(nodes: list[str] | set[str], links: Links) -> list[str]:
+    """``nodes`` in the order groups take their root from: most docked connectors
+    first, then by id. The frames of a group's root anchor the recognized configuration
+    (:func:`node_headings`) and the driving connectors' spanning tree
+    (:func:`~.controller.driving_ends`) alike: a node spinning as a wheel (Fig. 18(a))
+    or rolling as a foot (Fig. 19) is a leaf and never the root of a group that has more.
+    """
+    degree = dict.fromkeys(nodes, 0)
+    for node in links.values():
+        if node in degree:
+            degree[node] += 1
+    return sorted(degree, key=lambda n: (-degree[n], n))
+
+
 def _wrap(angle: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
@@ -70,7 +87,7 @@ def node_headings(reports: Reports, links: Links | None = None,
     Args:
         reports: module reports by id.
         links: docked connectors (computed when omitted).
-        root: the root node of its group (default: each group's smallest node id).
+        root: the root node of its group (default: :func:`root_order`'s first).
     """
     links = links_of(reports) if links is None else links
     nodes = sorted(m for m, r in reports.items() if isinstance(r, NodeReport))
@@ -86,7 +103,8 @@ def node_headings(reports: Reports, links: Links | None = None,
     for i, j, delta in measured:
         neighbours[i].append((j, delta))
         neighbours[j].append((i, -delta))
-    heading, roots = spread_headings(neighbours, ([root] if root is not None else []) + nodes)
+    heading, roots = spread_headings(neighbours, ([root] if root is not None else [])
+                                     + root_order(nodes, links))
     free = [n for n in nodes if n not in roots]
     if measured and free:
         column = {n: c for c, n in enumerate(free)}

@@ -40,6 +40,7 @@ from msrr.plugins.freesn.sim import (
     driving_ends,
 )
 from msrr.plugins.freesn.sim.geometry import place
+from msrr.plugins.freesn.sim.recognizer import node_headings, root_order
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 LIBRARIES = {name: load_library(FREESN / "libraries" / f"{name}.json")
@@ -325,7 +326,8 @@ def test_driving_ends_form_one_spanning_tree_of_locks():
     loops = [e.id for e in config.edges() if not config.is_virtual(e.target)]
     tree = [(s, end) for s, end in driving if s in loops]
     assert len(tree) == 2, "three nodes: two struts lock them, the rest follow"
-    reached = {"N1"} | {links[(s, "b" if end == "a" else "a")] for s, end in tree}
+    root = root_order({"N1", "N2", "N3"}, links)[0]
+    reached = {root} | {links[(s, "b" if end == "a" else "a")] for s, end in tree}
     assert reached == {"N1", "N2", "N3"}
     assert ("S6", "a") in driving  # the leg is driven from its docked end
     commands = connector_commands(config, _reports(config.with_vectors(
@@ -335,6 +337,24 @@ def test_driving_ends_form_one_spanning_tree_of_locks():
                for end in ("a", "b") if f"{end}.dir_x" in c.joints}
     assert {k for k, v in efforts.items() if v == 1.0} == driving
     assert all(v == FOLLOW_EFFORT for k, v in efforts.items() if k not in driving)
+
+
+def test_the_root_is_the_best_connected_node_never_a_wheel_or_a_foot():
+    """A leaf node rolls (a wheel, Fig. 18(a)) or a foot turns (Fig. 19): the group's root
+    frame, in which the configuration is recognized and the commands are given, must not
+    turn with it. The S4N5 star's centre (degree 4) roots it whatever its id; between
+    equals the smallest id does; the driving connectors' tree starts there too."""
+    star = _library_config("S4N5", "S4N5-1.2").relabel({"N0": "N9", "N1": "N0"})
+    links = {(e.id, end): n for e in star.edges()
+             for end, n in (("a", e.source), ("b", e.target)) if not star.is_virtual(n)}
+    assert root_order(set(links.values()), links)[0] == "N9"
+    assert root_order({"N3", "N2"}, {("S1", "a"): "N3", ("S1", "b"): "N2"}) == ["N2", "N3"]
+    star = star.with_vectors(x={e.id: np.cross(e.z, [0.0, 0.0, 1.0])
+                                / np.linalg.norm(np.cross(e.z, [0.0, 0.0, 1.0]))
+                                for e in star.edges()})
+    headings = node_headings(_reports(star, np.random.default_rng(1))[0], links)
+    assert headings["N9"] == 0.0 and any(h != 0.0 for h in headings.values())
+    assert all((s, "a") in driving_ends(links) for s in ("S1", "S2", "S3", "S4"))
 
 
 def test_core_executor_runs_a_connection_and_a_disconnection():
