@@ -58,6 +58,9 @@ GAITS = (
      "alternating front and rear"),
     ("fig19-crawl", "fig19-crawl-start", "crawl", 0.5, 20,
      "Fig. 19(f)-(j): S4N5 stands up, then crawls on its four leaf struts as legs"),
+    ("fig19-crawl-s12n6", "fig19-crawl-s12n6-start", "crawl", 0.5, 40,
+     "Fig. 19(k)-(o): the S12N6 quadruped crawls on four legs with leaf-node feet, the "
+     "diagonal pairs planted in turn"),
 )
 """``(name, start file, sequence behavior, distance [m], at most loops, description)``: the
 gait scenarios (section 7.3): the path to the behavior's start, then its configuration

@@ -653,6 +653,100 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
     return out
 
 
+# The S12N6 crawl (Fig. 19(k)-(o)): a quadruped that crawls as the S4N5 star does, its
+# legs planted and swinging in turn. Two body nodes N1 (front) and N2 (rear), joined by
+# two parallel bars; each carries two legs to leaf-node feet (F1, F2 under N1; F3, F4
+# under N2) leaning aside, and three free masts up. A hip connector holds about (load
+# on its foot) x (horizontal reach of its leg): 4.8 kg on four feet is ~12 N each, so
+# the legs stand steep, reaching aside only as far as keeps two feet apart (~0.5 N m
+# against the 1.2 N m of the simulated connectors). The feet move in diagonal pairs (a
+# trot): every body node keeps one foot gripping while its other foot rolls.
+QUAD_SPLAY = math.radians(16.0)   # sideways lean of a leg from the vertical [rad]
+QUAD_STRIDE = 0.015               # foot ahead of / behind its hip in the stances [m]
+QUAD_MAST_TILT = math.radians(25.0)  # masts' lean from the vertical (42 deg apart) [rad]
+QUAD_LEGS = {"L1": ("N1", "F1", 1.0), "L2": ("N1", "F2", -1.0),
+             "L3": ("N2", "F3", 1.0), "L4": ("N2", "F4", -1.0)}
+"""leg -> (hip node, foot node, side: +1 left (+y), -1 right)."""
+QUAD_DIAGONALS = ({"L1", "L4"}, {"L2", "L3"})
+"""The trot's pairs: front-left with rear-right, front-right with rear-left."""
+QUAD_MASTS = {"M1": ("N1", 0.0), "M2": ("N1", 120.0), "M3": ("N1", 240.0),
+              "M4": ("N2", 0.0), "M5": ("N2", 120.0), "M6": ("N2", 240.0)}
+"""mast -> (node, azimuth [deg]), the same on both nodes: no two tips meet, and the
+stances have no symmetry (turned by 180 deg, a trot stance is the other one relabelled;
+the library then matched them so, an equally short motion)."""
+
+
+def quadruped(name: str, ahead: dict[str, float], description: str = "") -> dict:
+    """The S12N6 quadruped with each leg's foot ``ahead[leg]`` [m] ahead of its hip
+    along +x (every ``|ahead|`` equal, so the body is level) and
+    :data:`QUAD_SPLAY` aside; N1 at ``+L/2``, N2 at ``-L/2`` on x."""
+    side = L * math.sin(QUAD_SPLAY)
+    reach = max(abs(a) for a in ahead.values())
+    drop = math.sqrt(L * L - side * side - reach * reach)
+    nodes = {"N1": np.array([L / 2, 0.0, drop]), "N2": np.array([-L / 2, 0.0, drop])}
+    struts: list[tuple] = [("S1", "N1", "N2"), ("S2", "N2", "N1")]
+    for leg, (hip, foot, y) in QUAD_LEGS.items():
+        nodes[foot] = nodes[hip] + np.array([ahead[leg], y * side, -drop])
+        struts.append((leg, hip, foot))
+    for mast, (node, azimuth) in QUAD_MASTS.items():
+        struts.append((mast, node, None, horizontal(math.radians(azimuth),
+                                                    QUAD_MAST_TILT - math.pi / 2)))
+    return configuration(name, nodes, struts, description)
+
+
+def quad_tree(name: str, topology: dict, planted: set[str]) -> dict:
+    """A crawl tree of the quadruped: the body (N1, N2 and their bars) a fixed root,
+    the masts opposite-steering joints, ``planted`` legs gripping with their feet and
+    the others swinging (:func:`legs_tree`'s joints, Fig. 19(f)-(o))."""
+    nodes = [{"type": "fixed", "edges": ["S1", "S2"], "vertices": ["N1", "N2"]}]
+    nodes += [{"type": "opposite_steering", "edges": [mast], "vertices": [f"{mast}:b"]}
+              for mast in QUAD_MASTS]
+    nodes += [{"type": "planted" if leg in planted else "swing", "edges": [leg],
+               "vertices": [foot]} for leg, (_, foot, _) in QUAD_LEGS.items()]
+    return tree_file(name, topology, nodes)
+
+
+def trot_stances() -> tuple[dict, dict]:
+    """The two stances of the trot: in the first, front-left and rear-right feet stand
+    :data:`QUAD_STRIDE` behind their hips and the other two as far ahead; the second
+    is the first with the diagonals swapped."""
+    first = {leg: -QUAD_STRIDE if leg in QUAD_DIAGONALS[0] else QUAD_STRIDE
+             for leg in QUAD_LEGS}
+    return (quadruped("trot-1", first, "Fig. 19(k): front-left and rear-right feet behind "
+                      "their hips, the others ahead"),
+            quadruped("trot-2", {leg: -a for leg, a in first.items()}, "Fig. 19(l): the "
+                      "diagonals swapped, the body two strides on"))
+
+
+def s12n6_crawl_group() -> dict:
+    """The quadruped group of S12N6 with its two crawl trees (one diagonal planted)."""
+    first = trot_stances()[0]
+    one, two = QUAD_DIAGONALS
+    return {"name": "quadruped", "description": "Fig. 19(k): two body nodes on four legs "
+            "to leaf-node feet, six free masts up", "reference": first,
+            "trees": [tree("K1"), quad_tree("K-quad-plant-L1-L4", first, one),
+                      quad_tree("K-quad-plant-L2-L3", first, two)]}
+
+
+def s12n6_crawl_sequences() -> list[dict]:
+    """Fig. 19(k)-(o): the S12N6 crawl, the S4N5 crawl's approach on four legs.
+
+    trot-1 -> trot-2 under ``K-quad-plant-L2-L3``: those feet grip and stay, their legs
+    turn from ``QUAD_STRIDE`` ahead to as far behind, so the body moves ``2 QUAD_STRIDE``
+    and the other two feet roll ``4 QUAD_STRIDE``; trot-2 -> trot-1 under
+    ``K-quad-plant-L1-L4`` the same with the diagonals swapped. Every ``|ahead|`` is
+    equal, so each step keeps the body level at one height and its planted feet still
+    (their legs keep length ``L`` about a fixed foot): a loop moves the body
+    ``4 QUAD_STRIDE``.
+    """
+    first, second = trot_stances()
+    return [{"name": "crawl", "behavior": "crawl", "loop": True,
+             "description": "Fig. 19(k)-(o): crawl on four legs with leaf-node feet, the "
+             "diagonal pairs planted in turn",
+             "steps": [step(first, "K-quad-plant-L1-L4"),
+                       step(second, "K-quad-plant-L2-L3")]}]
+
+
 RING_IDS = {f"R{i + 1}" for i in range(6)}
 BRANCHED = (RING_IDS - {"R1", "R4"}) | {"C1"}   # the Fig. 21 tree: R2, R3, R5, R6, C1 docked
 
@@ -681,6 +775,7 @@ def s12n6() -> None:
         {"name": "branched-tree", "description": "Fig. 21(e): the two loops opened in "
          "parallel at R1 and R4, a tree",
          "reference": ear_state("fig21-tree", BRANCHED), "trees": [tree("K1")]},
+        s12n6_crawl_group(),
     ]
     ear_aim = ear_state("ear-aim", RING_IDS - {"R6"}, "Fig. 21(b): the open ring folded, R6 "
                         "and C1 aimed at T1 and T2")
@@ -730,6 +825,7 @@ def s12n6() -> None:
          "steps": [step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5}))),
                    step(octa_state("aim-j", {0, 2, 4}, free_ring=frozenset({5}))),
                    step(octa_state("three-docked-j", {0, 2, 4})), step(octa)]},
+        *s12n6_crawl_sequences(),
     ]
     nodes = octahedron_nodes()
     behaviors = [

@@ -43,6 +43,9 @@ STARTS = {
                           "relabelled, yawed, tilted"),
     "fig19-squirm-start": ("S4N5-2.1", 193, 3.0, "Fig. 19(a) as built: S4N5 chain lying flat "
                            "(end struts splayed), relabelled, yawed, tilted"),
+    "fig19-crawl-s12n6-start": ("S12N6-8.1", 196, 3.0, "Fig. 19(k) as built: the S12N6 "
+                                "quadruped standing in its first crawl stance, relabelled, "
+                                "yawed, tilted (n0 a body node)"),
 }
 """The start files and how each is made."""
 
