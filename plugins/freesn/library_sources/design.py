@@ -660,9 +660,15 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
 # on its foot) x (horizontal reach of its leg): 4.8 kg on four feet is ~12 N each, so
 # the legs stand steep, reaching aside only as far as keeps two feet apart (~0.5 N m
 # against the 1.2 N m of the simulated connectors). The feet move in diagonal pairs (a
-# trot): every body node keeps one foot gripping while its other foot rolls.
+# trot): every body node keeps one foot gripping while its other foot rolls. Tried and
+# dropped (docs/freesn.md): a tripod (16-19 N on a foot's connection, over the 20 N
+# strength), front and rear pairs in turn (the rolling pair's hips folded), one leg at a
+# time (the weight shifted onto a planted diagonal and broke a foot's connection).
 QUAD_SPLAY = math.radians(16.0)   # sideways lean of a leg from the vertical [rad]
-QUAD_STRIDE = 0.015               # foot ahead of / behind its hip in the stances [m]
+QUAD_STRIDE = 0.01                # foot ahead of / behind its hip in the stances [m]
+"""At 0.015 m a foot's connection broke in 9 of 10 newly built starts (the longer, faster
+steps rock the body onto a diagonal); under ~0.009 m a step's 3 deg RMS change is within
+the executor's reaching tolerance, so every step would end at its first tick."""
 QUAD_MAST_TILT = math.radians(25.0)  # masts' lean from the vertical (42 deg apart) [rad]
 QUAD_LEGS = {"L1": ("N1", "F1", 1.0), "L2": ("N1", "F2", -1.0),
              "L3": ("N2", "F3", 1.0), "L4": ("N2", "F4", -1.0)}

