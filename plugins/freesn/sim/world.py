@@ -40,7 +40,9 @@ per radian rolled and by ``drift`` per square-root second. The connector servos 
 Docking (Fig. 11c-d): a dock command extends the magnet array; an extended free end
 docks when its joint centre is within ``dock_tolerance`` of a node centre. An undock
 command retracts the array and releases the weld. A connection breaks (weld released,
-``break`` event) when its low-passed constraint force exceeds the connection strength.
+``break`` event) when its low-passed constraint force exceeds the connection strength;
+a compressive force (the connector pressed onto its node) is carried by contact, not by
+the magnet, so only the pull-off and shear parts count.
 """
 
 from __future__ import annotations
@@ -595,7 +597,16 @@ class FreeSNWorld:
         force = np.zeros(self.model.neq)
         if n:  # equality rows come first, six per weld, in the order of the equality ids
             rows = d.efc_force[:n].reshape(-1, 6)
-            force[d.efc_id[:n:6]] = np.sqrt(np.einsum("ni,ni->n", rows[:, :3], rows[:, :3]))
+            ks = np.flatnonzero(docked)
+            on_connector = np.zeros((self.model.neq, 3))   # force on the connector [N]
+            on_connector[d.efc_id[:n:6]] = rows[:, :3]
+            on_connector = on_connector[self._eq[ks]]
+            # outward, node centre -> strut: the strut's +z at end a, -z at end b
+            out = self._sign[ks, None] * d.xmat[self._strut_body[ks // 2]].reshape(-1, 3, 3)[
+                :, :, 2]
+            pressed = np.maximum(np.einsum("ni,ni->n", on_connector, out), 0.0)
+            held = on_connector - pressed[:, None] * out   # pull-off and shear
+            force[self._eq[ks]] = np.sqrt(np.einsum("ni,ni->n", held, held))
         alpha = min(1.0, steps * self.options.timestep / self.options.break_filter)
         self._load[docked] += alpha * (force[self._eq[docked]] - self._load[docked])
         self._load[~docked] = 0.0

@@ -131,6 +131,20 @@ def test_connector_breaks_when_its_load_exceeds_the_connection_strength():
     assert {(e.strut, e.end, e.node) for e in broken}.isdisjoint(world.docked_pairs())
 
 
+def test_a_connector_pressed_onto_its_node_does_not_count_the_press_against_the_magnet():
+    """The S4N5 standup's feet carry their legs: ~3.9 N on each foot's connection, ~2.6 N
+    of it pressing the connector onto the node (contact carries that), ~3 N shear. At a
+    3.5 N strength none breaks; the whole force would have broken all four."""
+    config = _library_config("S4N5", "S4N5-1.2")
+    strength = 3.5
+    hardware = SPEC.kind("strut").geometry["connection_strength"]
+    world = FreeSNWorld(config, SPEC, SimOptions(strength_factor=strength / hardware))
+    world.step(1.0)
+    assert not [e for e in world.events if e.kind == "break"]
+    feet = [k for k, node in enumerate(world.docked) if node in {"N1", "N2", "N3", "N4"}]
+    assert len(feet) == 4 and all(2.5 < world._load[k] < strength for k in feet)
+
+
 # -- actuation: docking ----------------------------------------------------------------
 
 
