@@ -135,8 +135,7 @@ def msrr_scenarios(robot: str, register):
                               stages=tuple(stage(s) for s in steps[1 if first else 0:])))
         for name, start, behavior, speed, duration, what in LOCOMOTION:
             register(Scenario(name=name, start=STARTS / f"{start}.json", description=what,
-                              stages=(Stage(behavior=behavior, parameters=(("speed", speed),),
-                                            duration=duration),)))
+                              stages=(stage((behavior, speed, duration)),)))
         for name, start, behavior, distance, loops, what in GAITS:
             register(Scenario(name=name, start=STARTS / f"{start}.json", description=what,
                               stages=(Stage(behavior=behavior, distance=distance,

@@ -391,7 +391,7 @@ def roller_commands(nodes: dict[str, np.ndarray], legs: dict[str, tuple[str, np.
         legs: strut id -> (the node its docked source end holds, its direction ``u``).
     """
     rate = R_STRUT * R_WHEEL / HALF_BASE
-    centre = np.mean([p for p in nodes.values()], axis=0)
+    centre = np.mean(list(nodes.values()), axis=0)
     out = []
     for sid, (node, u) in legs.items():
         u = np.asarray(u, dtype=float) / np.linalg.norm(u)

@@ -593,22 +593,21 @@ class FreeSNWorld:
     def _check_loads(self, steps: int = 1) -> None:
         d = self.data
         docked = self._eq >= 0
-        n = 6 * int(np.count_nonzero(docked))
-        force = np.zeros(self.model.neq)
-        if n:  # equality rows come first, six per weld, in the order of the equality ids
-            rows = d.efc_force[:n].reshape(-1, 6)
-            ks = np.flatnonzero(docked)
-            on_connector = np.zeros((self.model.neq, 3))   # force on the connector [N]
-            on_connector[d.efc_id[:n:6]] = rows[:, :3]
-            on_connector = on_connector[self._eq[ks]]
+        ks = np.flatnonzero(docked)
+        load = np.zeros(len(ks))
+        if len(ks):  # equality rows come first, six per weld, in the order of the equality ids
+            n = 6 * len(ks)
+            by_weld = np.zeros((self.model.neq, 3))
+            by_weld[d.efc_id[:n:6]] = d.efc_force[:n].reshape(-1, 6)[:, :3]
+            on_connector = by_weld[self._eq[ks]]   # force on each docked connector [N]
             # outward, node centre -> strut: the strut's +z at end a, -z at end b
             out = self._sign[ks, None] * d.xmat[self._strut_body[ks // 2]].reshape(-1, 3, 3)[
                 :, :, 2]
             pressed = np.maximum(np.einsum("ni,ni->n", on_connector, out), 0.0)
             held = on_connector - pressed[:, None] * out   # pull-off and shear
-            force[self._eq[ks]] = np.sqrt(np.einsum("ni,ni->n", held, held))
+            load = np.sqrt(np.einsum("ni,ni->n", held, held))
         alpha = min(1.0, steps * self.options.timestep / self.options.break_filter)
-        self._load[docked] += alpha * (force[self._eq[docked]] - self._load[docked])
+        self._load[docked] += alpha * (load - self._load[docked])
         self._load[~docked] = 0.0
         for k in np.flatnonzero(self._load > self.phys.strength):
             self._release(int(k), "break")
