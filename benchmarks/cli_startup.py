@@ -32,7 +32,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from msrr.core.cli import command_paths, get_cli
+from msrr.core.app.cli import command_paths, get_cli
 from msrr.core.console import exit_unless_installed
 
 GOAL_S = 0.5

@@ -11,7 +11,7 @@ Targets at 18 modules (issue 12): tick median <= 20 ms and the simulation's real
 factor (physics) >= 5; the loop RTF (reports + tick + physics, one core) is shown too.
 
 Usage: ``python benchmarks/freesn_control.py [--seed N] [--ticks N] [--workers N]
-[--cluster ADDRESS]`` (one batch task per library, :mod:`msrr.core.batch`; the default
+[--cluster ADDRESS]`` (one batch task per library, :mod:`msrr.core.app.batch`; the default
 one worker keeps the timings those of one core alone). The last line is
 ``tick_median_ms_18=... tick_p95_ms_18=... rtf_loop_18=... rtf_physics_18=...``.
 """
@@ -27,7 +27,7 @@ import click
 import numpy as np
 
 from msrr.core import plugins
-from msrr.core.batch import exit_on_interrupt, run_batch
+from msrr.core.app.batch import exit_on_interrupt, run_batch
 from msrr.core.closed_loop import PhaseTracker, TrackingOptions, connection_goal, tree_for
 from msrr.core.console import console, table
 from msrr.core.kinematics import GroundModel

@@ -21,7 +21,7 @@ the first ``--fd-pairs`` pairs, and the time against the angular distance of the
 Usage: ``python benchmarks/ik_scaling.py --pairs 100 --seed 0 --plot fig17.png``
 (``--clock cpu`` times each solve by this process's CPU time, for a shared machine).
 Pairs are drawn in order from one generator, then solved as batch tasks
-(:mod:`msrr.core.batch`, ``--workers N`` / ``--cluster ADDRESS``; default one worker so
+(:mod:`msrr.core.app.batch`, ``--workers N`` / ``--cluster ADDRESS``; default one worker so
 times compare with earlier runs): success, iterations and restarts are the same for the
 same seed whichever backend solves them.
 """
@@ -38,7 +38,7 @@ from rich.table import Table
 
 from msrr.core import Configuration, plugins
 from msrr.core.alignment import angles_between, rot_z
-from msrr.core.batch import exit_on_interrupt, run_batch
+from msrr.core.app.batch import exit_on_interrupt, run_batch
 from msrr.core.console import exit_unless_installed
 from msrr.core.kinematics import (
     IKOptions,

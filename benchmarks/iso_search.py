@@ -17,7 +17,7 @@ feeds the table and plot). The last line is machine-readable::
     exact=... exact_near=... speedup_57600=... median_ms_57600=...
 
 The pairs are drawn first, in order, from one generator; then each is timed as one batch
-task (:mod:`msrr.core.batch`): ``--workers N`` / ``--cluster ADDRESS`` time several pairs
+task (:mod:`msrr.core.app.batch`): ``--workers N`` / ``--cluster ADDRESS`` time several pairs
 at once and print the same table columns (timings vary run to run anyway; ``exact`` and
 ``rms deg`` are the same for the same seed). Default: one worker, so timings are
 comparable to the published ones.
@@ -36,7 +36,7 @@ import numpy as np
 from fig16 import FIG16_TOPOLOGIES, TopologySpec
 
 from msrr.core.alignment import rot_z
-from msrr.core.batch import exit_on_interrupt, run_batch
+from msrr.core.app.batch import exit_on_interrupt, run_batch
 from msrr.core.configuration import Configuration
 from msrr.core.console import exit_unless_installed
 from msrr.core.matching import brute_force_isomorphisms, iso_search

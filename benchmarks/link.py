@@ -37,7 +37,7 @@ from msrr.core import plugins
 from msrr.core.console import console, table
 from msrr.core.driver import ModuleCommand
 from msrr.core.link import LinkDriver
-from msrr.core.run import RunRequest, execute_run, prepare_run, resolve_scenario
+from msrr.core.app.run import RunRequest, execute_run, prepare_run, resolve_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER_BITS = 60_000
@@ -51,7 +51,7 @@ def emulated(robot: str, start_path: Path, folder: Path, *, faults: str = "", se
     once written, and ends the emulator with SIGINT (as Ctrl-C) afterwards."""
     system = folder / "system.json"
     system.unlink(missing_ok=True)
-    command = [sys.executable, "-c", "from msrr.core.cli import main; main()", "emulate",
+    command = [sys.executable, "-c", "from msrr.core.app.cli import main; main()", "emulate",
                "--robot", robot, str(start_path), "--system-out", str(system), "--seed",
                str(seed), "--speed", str(speed), "--timeout", str(timeout), "--duration",
                "3600"] + (["--faults", faults] if faults else [])

@@ -19,7 +19,7 @@ The last line is machine-readable::
     optimal_rate=... max_ms_1000=... median_ms_1000=...
 
 Instances are drawn in order from one generator, then solved as batch tasks
-(:mod:`msrr.core.batch`, ``--workers N`` / ``--cluster ADDRESS``; default one worker so
+(:mod:`msrr.core.app.batch`, ``--workers N`` / ``--cluster ADDRESS``; default one worker so
 times compare with earlier runs): the step counts are the same for the same seed.
 
 Usage: ``python benchmarks/miso_planner.py --seed 0 --plot docs/images/miso-planner.png``
@@ -35,7 +35,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from msrr.core.batch import exit_on_interrupt, run_batch
+from msrr.core.app.batch import exit_on_interrupt, run_batch
 from msrr.core.console import exit_unless_installed
 from msrr.core.miso import (
     MisoProblem,

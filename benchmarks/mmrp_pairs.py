@@ -22,7 +22,7 @@ import click
 
 from msrr.core.console import console, table
 from msrr.core.errors import PlanningError
-from msrr.core.run import RunRequest, execute_run, prepare_run
+from msrr.core.app.run import RunRequest, execute_run, prepare_run
 
 CONFIGS = Path(__file__).resolve().parents[1] / "plugins/mmrp/configs"
 SHIPPED = ("cross", "probe", "series", "t")

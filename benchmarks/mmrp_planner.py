@@ -14,7 +14,7 @@ Per size, on seeded random pairs of legal planar MMRP trees:
 Usage: ``python benchmarks/mmrp_planner.py [--seed N] [--pairs N] [--mid N] [--runs N]
 [--sizes 50,100,...] [--sim N] [--plot FILE] [--workers N] [--cluster ADDRESS]``. The
 pairs are drawn in order from one generator, then planned as batch tasks
-(:mod:`msrr.core.batch`; ``--workers 0``, the default, uses every core): the table's
+(:mod:`msrr.core.app.batch`; ``--workers 0``, the default, uses every core): the table's
 counts are the same for the same seed whichever backend runs them. The last line is
 ``paper_cross_probe_pairs=... optimal_rate=... max_excess=... checker_problems=...
 median_ms_500=... median_ms_1000=...``.
@@ -34,7 +34,7 @@ from typing import Any
 import click
 import numpy as np
 
-from msrr.core.batch import batch_options, exit_on_interrupt, run_batch
+from msrr.core.app.batch import batch_options, exit_on_interrupt, run_batch
 from msrr.core.configuration import Configuration
 from msrr.core.console import console, exit_unless_installed, table
 from msrr.core.io import load_configuration, save_configuration
@@ -112,7 +112,7 @@ def _simulate(count: int, rng: np.random.Generator) -> list[list]:
             save_configuration(goal, b)
             out = Path(tmp) / f"run{k}"
             began = time.perf_counter()
-            done = subprocess.run([sys.executable, "-c", "from msrr.core.cli import main; main()",
+            done = subprocess.run([sys.executable, "-c", "from msrr.core.app.cli import main; main()",
                                    "run", "--robot",
                                    "mmrp", "--from", str(a), "--to", str(b), "--out", str(out),
                                    "--no-log"], capture_output=True, text=True)

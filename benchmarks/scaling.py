@@ -5,11 +5,11 @@ Two workloads, each run serially (one worker, in this process), on a process poo
 timing; its start-up is reported on its own line):
 
 * ``library check``: every action edge of a FreeSN library in MuJoCo
-  (:func:`msrr.core.feasibility.check_edges`, seed ``--seed``, phase timeout
+  (:func:`msrr.core.app.feasibility.check_edges`, seed ``--seed``, phase timeout
   ``--timeout``) -- default S12N6, 14 edges; as ``platform library check`` does, the
   shipped check file (when there is one) orders the work, longest edges first;
 * ``sweep``: ``--runs`` seeds of a scenario on the kinematic driver
-  (:func:`msrr.core.commands.sweep.sweep_run`) -- default MMRP ``series-t``.
+  (:func:`msrr.core.app.commands.sweep.sweep_run`) -- default MMRP ``series-t``.
 
 Every backend's results are compared with the serial ones (``same`` column). Per-task
 costs (mean and max of the tasks' own wall time) feed ``docs/scaling.md``. Target: the
@@ -30,11 +30,11 @@ from pathlib import Path
 import click
 import numpy as np
 
-from msrr.core.batch import BatchResult, available_cores, ray_available, run_batch
-from msrr.core.commands.sweep import SweepTask, sweep_run
+from msrr.core.app.batch import BatchResult, available_cores, ray_available, run_batch
+from msrr.core.app.commands.sweep import SweepTask, sweep_run
 from msrr.core.console import console, table
 from msrr.core.executor import ExecutorOptions
-from msrr.core.feasibility import check_edges, default_runner
+from msrr.core.app.feasibility import check_edges, default_runner
 from msrr.core.library.check import check_path, edge_cases, load_check
 from msrr.core.plugins import load_library
 

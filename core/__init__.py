@@ -10,7 +10,7 @@ installed robot it names. The types a robot's own capabilities build (``Plan``,
 they raise (``PlanningError``, ``ExecutionError``) are here too.
 
 Exports load lazily (PEP 562): ``import msrr.core`` is cheap, so the console script
-(:mod:`msrr.core.launch`) can handle signals before the heavy imports.
+(:mod:`msrr.core.app.launch`) can handle signals before the heavy imports.
 """
 
 from __future__ import annotations

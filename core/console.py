@@ -1,6 +1,6 @@
 """Presentation helpers of the command line: consoles, tables, one-line errors.
 
-Shared by :mod:`msrr.core.cli` and every module of :mod:`msrr.core.commands`; it
+Shared by :mod:`msrr.core.app.cli` and every module of :mod:`msrr.core.app.commands`; it
 imports neither, so the command modules and the top-level group never import each
 other.
 

@@ -6,7 +6,7 @@ import re
 
 from click.testing import CliRunner
 
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 
 from msrr_test_support import BUILTIN_ROBOTS, ROOT
 

@@ -7,7 +7,7 @@ from importlib.metadata import PackageNotFoundError, distribution
 from click.testing import CliRunner
 
 from msrr.core import plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.plugins import load_configuration
 
 from msrr_test_support import ROOT

@@ -21,8 +21,8 @@ import pytest
 from click.testing import CliRunner
 
 from msrr.core import Action, ActionType, Phase, plugins
-from msrr.core.cli import get_cli
-from msrr.core.testing import FakeDriver, check_robot
+from msrr.core.app.cli import get_cli
+from msrr.core.app.testing import FakeDriver, check_robot
 
 from msrr_test_support import ROOT
 

@@ -3,7 +3,7 @@
 "The feasibility of the configuration sequences are evaluated using the simulation
 during the library build" (FreeSN paper, section 6.2). A check runs every action edge
 of a library from its source configuration in a simulator (the executor's closed loop,
-:mod:`msrr.core.feasibility`) and records, per edge, whether it is feasible, why not,
+:mod:`msrr.core.app.feasibility`) and records, per edge, whether it is feasible, why not,
 and the simulated time.
 
 **Where the flags live.** In a *sidecar* file beside the library, ``<LIB>.check.json``

@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from tiny_robot import NAME, SPEC, chain, hookimpl, installed, swap_plan
 
 from msrr.core import plugins, save_configuration
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.configuration import Configuration
 from msrr.core.errors import (
     MAX_MESSAGE,

@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from msrr.core import plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.errors import MAX_MESSAGE
 from msrr.core.library import LibraryError, load_library
 

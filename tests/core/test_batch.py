@@ -1,4 +1,4 @@
-"""core/batch.py on the serial and pool backends (Ray: test_batch_backends.py)."""
+"""core/app/batch.py on the serial and pool backends (Ray: test_batch_backends.py)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from msrr.core import batch
-from msrr.core.batch import BatchError, backend_for, run_batch, task_seed
+from msrr.core.app import batch
+from msrr.core.app.batch import BatchError, backend_for, run_batch, task_seed
 from msrr.core.errors import ConfigurationError
 from msrr.core.faults import parse_faults
 
@@ -90,7 +90,7 @@ SCRIPT = """
 import sys
 sys.path.insert(0, {here!r})
 from batch_tasks import mark_and_sleep
-from msrr.core.batch import exit_on_interrupt, run_batch
+from msrr.core.app.batch import exit_on_interrupt, run_batch
 from msrr.core.interrupts import install
 if __name__ == "__main__":
     install()

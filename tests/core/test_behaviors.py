@@ -34,7 +34,7 @@ from msrr.core.plan import (
     load_plan,
     save_plan,
 )
-from msrr.core.run import parse_parameters, plan_stages
+from msrr.core.app.run import parse_parameters, plan_stages
 from msrr.core.scenario import Scenario, Stage
 
 DRIVE = (CommandGain("a", "v", (("speed", 2.0),)), CommandGain("b", "v", (("speed", 2.0),)),

@@ -18,7 +18,7 @@ from click.testing import CliRunner
 from tiny_robot import chain, installed
 
 from msrr.core import save_configuration
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 
 
 def run(*args: str):

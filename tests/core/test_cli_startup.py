@@ -15,9 +15,10 @@ import subprocess
 import sys
 from importlib.metadata import entry_points
 
-from msrr.core import commands, plugins
-from msrr.core.commands import library as library_command
-from msrr.core.commands import match as match_command
+from msrr.core import plugins
+from msrr.core.app import commands
+from msrr.core.app.commands import library as library_command
+from msrr.core.app.commands import match as match_command
 from msrr.core.console import COSTS
 from msrr.core.library.build import DEFAULT_MERGE_THRESHOLD
 from msrr.core.matching import CONFIDENCE, COST_KINDS
@@ -28,7 +29,7 @@ HEAVY = ("numpy", "scipy", "networkx", "rerun", "mujoco", "pybullet", "matplotli
 EVERY_HELP = """
 import json, sys
 from click.testing import CliRunner
-from msrr.core.cli import command_paths, get_cli
+from msrr.core.app.cli import command_paths, get_cli
 
 cli = get_cli()
 top = CliRunner().invoke(cli, ["--help"], prog_name="platform")
@@ -53,7 +54,7 @@ def test_every_help_imports_no_heavy_package() -> None:
     loaded = {name.split(".")[0] for name in report["modules"]}
     assert not loaded & set(HEAVY), f"--help imported {sorted(loaded & set(HEAVY))}"
     top = set(report["after_top"])  # platform --help: no command module, no pydantic models
-    assert not {m for m in top if m.startswith("msrr.core.commands.")}
+    assert not {m for m in top if m.startswith("msrr.core.app.commands.")}
     assert "pydantic" not in {name.split(".")[0] for name in top}
     wanted = {ep.value for ep in entry_points(group=plugins.ENTRY_POINT_GROUP)}
     assert wanted and wanted <= set(report["modules"]), "a plugin was not loaded"

@@ -16,8 +16,8 @@ from click.testing import CliRunner
 from tiny_robot import chain, installed, swap_plan
 
 from msrr.core import Action, ActionType, ConnectionChange, MsrrError, Plan
-from msrr.core.cli import get_cli
-from msrr.core.commands.plan import action_rows, plan_counts
+from msrr.core.app.cli import get_cli
+from msrr.core.app.commands.plan import action_rows, plan_counts
 from msrr.core.console import counts, plural, require
 from msrr.core.plan import natural_key
 from msrr.core.plugins import load_configuration

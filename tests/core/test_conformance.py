@@ -9,7 +9,7 @@ from tiny_robot import NAME, LinePlanner, chain, installed
 
 from msrr.core import hookimpl, plugins
 from msrr.core.plan import Plan
-from msrr.core.testing import ConformanceError, check_robot, robot_parameters
+from msrr.core.app.testing import ConformanceError, check_robot, robot_parameters
 
 KNOWN_FAILURES: dict[str, str] = {}
 

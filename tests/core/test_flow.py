@@ -31,7 +31,7 @@ from msrr.core.miso import (
     targets,
 )
 from msrr.core.plan import Action, ActionType, Plan, load_plan, save_plan
-from msrr.core.testing import run_kinematic
+from msrr.core.app.testing import run_kinematic
 
 BALL = ModuleKind(name="ball", symbol="O", role="vertex", ports=(PortSpec("magnet"),),
                   geometry={"radius": 0.05})

@@ -17,7 +17,7 @@ from msrr.core.errors import PlanningError
 from msrr.core.generic import GenericPlanner
 from msrr.core.plan import ActionType, connection_key
 from msrr.core.robot import Robot, tree_violations
-from msrr.core.testing import replay_problems
+from msrr.core.app.testing import replay_problems
 
 
 class TreeRules(TinyRules):

@@ -22,7 +22,7 @@ from click.testing import CliRunner
 from tiny_robot import LinePlanner, installed
 
 from msrr.core import hookimpl, plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.events import ActionStatus, Run, Tick
 from msrr.core.interrupts import SIGNALS
 from msrr.core.plan import Action, load_plan

@@ -10,7 +10,7 @@ import pytest
 
 CHILD = """
 import os, signal, sys, time
-from msrr.core import launch
+from msrr.core.app import launch
 
 def load_slowly():  # a signal lands while the heavy imports run
     os.kill(os.getpid(), signal.{name})
@@ -32,7 +32,7 @@ def test_a_signal_during_start_up_is_one_line(name: str, code: int) -> None:
 
 def test_the_entry_point_imports_only_the_standard_library_before_its_handlers() -> None:
     done = subprocess.run(
-        [sys.executable, "-c", "import sys, msrr.core.launch; "
+        [sys.executable, "-c", "import sys, msrr.core.app.launch; "
          "print(sorted(m for m in ('numpy', 'click', 'rich', 'pluggy', 'pydantic') "
          "if m in sys.modules))"], capture_output=True, text=True, timeout=30)
     assert done.returncode == 0, done.stderr

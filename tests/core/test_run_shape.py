@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 from tiny_robot import SPEC, installed
 
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.driver import Pose
 from msrr.core.errors import ConfigurationError
 from msrr.core.robot import RobotSpec

@@ -14,7 +14,7 @@ from test_timeline import _truss_ticks
 from tiny_robot import NAME, GoalController, LinkRecognizer, PointDriver, make_run, swap_plan
 
 from msrr.core import Configuration, plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.executor import Executor
 from msrr.core.timeline.geometry import capsule_between, palette, place_on, vector_layout
 from msrr.core.timeline.snapshot import load_track, render_snapshot

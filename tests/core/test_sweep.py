@@ -9,8 +9,8 @@ import sys
 import pytest
 from click.testing import CliRunner
 
-from msrr.core.cli import get_cli
-from msrr.core.commands.sweep import SweepRow, summarize, sweep_csv
+from msrr.core.app.cli import get_cli
+from msrr.core.app.commands.sweep import SweepRow, summarize, sweep_csv
 
 BASE = ["sweep", "--robot", "mmrp", "--scenario", "series-t", "--driver", "kinematic",
         "--workers", "1"]

@@ -24,7 +24,7 @@ from tiny_robot import (
 )
 
 from msrr.core import Configuration, ModuleKind, MsrrError, PortSpec, RobotSpec, hookimpl, plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.driver import ModuleCommand, Observation, Pose
 from msrr.core.events import ActionStatus, Phase, Run, RunResult, Tick
 from msrr.core.executor import Executor

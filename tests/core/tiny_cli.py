@@ -20,7 +20,7 @@ from pathlib import Path
 from tiny_robot import LinePlanner, PointDriver, installed
 
 from msrr.core import hookimpl, plugins
-from msrr.core.cli import main
+from msrr.core.app.cli import main
 from msrr.core.driver import ModuleCommand
 from msrr.core.events import ActionStatus, Run, Tick
 from msrr.core.plan import Action

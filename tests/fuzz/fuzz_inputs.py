@@ -42,7 +42,7 @@ from typing import Any
 from click.testing import CliRunner
 
 from msrr.core import plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.errors import MAX_MESSAGE, MsrrError
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import default_tree

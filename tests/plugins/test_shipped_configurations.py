@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from msrr.core import DockingRuleError, parse_configuration, plugins, save_configuration
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.io import check_configuration
 
 from msrr_test_support import BUILTIN_ROBOTS, ROOT, shipped_configurations

@@ -1,6 +1,6 @@
 """The hinge robot keeps the platform's contract."""
 
-from msrr.core.testing import check_robot
+from msrr.core.app.testing import check_robot
 
 
 def test_hinge_conforms() -> None:

@@ -23,7 +23,7 @@ from msrr.core.kinematics import (
     forward,
     rodrigues,
 )
-from msrr.core.testing import tree_gradient_error
+from msrr.core.app.testing import tree_gradient_error
 
 MODES = [GimbalJoint, TwistJoint]
 SETTINGS = settings(max_examples=25, deadline=None)

@@ -8,7 +8,7 @@ import os
 import pytest
 from click.testing import CliRunner
 
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.library import LibraryError, dump_library, load_library, save_library
 
 

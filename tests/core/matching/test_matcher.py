@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 from matching_helpers import BARS, assert_isomorphism, random_freesn, scrambled, stick
 
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.io import save_configuration
 from msrr.core.matching import (
     Candidate,

@@ -12,9 +12,9 @@ import numpy as np
 from click.testing import CliRunner
 
 from msrr.core import plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.plan import ActionType
-from msrr.core.run import RunRequest, prepare_run, resolve_scenario
+from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 TROT = FREESN / "configs" / "library" / "S12N6-8.1.json"

@@ -21,7 +21,7 @@ from msrr.core.kinematics import (
 )
 from msrr.core.kinematics.rotations import rodrigues, rotation_between
 from msrr.core.random_configurations import random_configuration
-from msrr.core.testing import node_jacobian_errors, tree_gradient_error
+from msrr.core.app.testing import node_jacobian_errors, tree_gradient_error
 from msrr.plugins.freesn.joints import (
     JOINT_MODES,
     DifferentialSphericalJoint,

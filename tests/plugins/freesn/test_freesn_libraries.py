@@ -15,7 +15,7 @@ import pytest
 from click.testing import CliRunner
 
 from msrr.core.actions import classify
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.configuration import Configuration
 from msrr.core.io import save_configuration
 from msrr.core.library import (

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from msrr.core import plugins
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.configuration import Configuration
 from msrr.core.errors import PlanningError
 from msrr.core.io import load_configuration

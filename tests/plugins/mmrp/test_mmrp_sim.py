@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from msrr.core.cli import get_cli
+from msrr.core.app.cli import get_cli
 from msrr.core.driver import ModuleCommand
 from msrr.core.io import load_configuration
 from msrr.core.plan import load_plan

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import click
 
-from .. import plugins
-from ..console import console, counts, err_console, error_line, styled
-from ..errors import MAX_MESSAGE, MsrrError, one_line
+from ... import plugins
+from ...console import console, counts, err_console, error_line, styled
+from ...errors import MAX_MESSAGE, MsrrError, one_line
 
 __all__ = ["command"]
 

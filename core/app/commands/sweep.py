@@ -1,8 +1,8 @@
 """``platform sweep``: one scenario (or a ``--from/--to`` pair) over many seeds and faults.
 
-Each run is ``platform run`` without the recording (:func:`msrr.core.run.prepare_run`,
-:func:`msrr.core.run.execute_run` in a temporary folder), one batch task per
-(fault setting, seed) (:mod:`msrr.core.batch`). Run ``k`` of a setting uses seed
+Each run is ``platform run`` without the recording (:func:`msrr.core.app.run.prepare_run`,
+:func:`msrr.core.app.run.execute_run` in a temporary folder), one batch task per
+(fault setting, seed) (:mod:`msrr.core.app.batch`). Run ``k`` of a setting uses seed
 ``--seed + k``, so any row can be replayed with ``platform run --seed S --faults F``,
 and the table is the same serially, on the pool and on Ray. Writes ``sweep.csv``
 (one row per run) and ``sweep.png`` (distributions; needs matplotlib).
@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import click
 
 from ..batch import batch_options, exit_on_interrupt, run_batch
-from ..console import (
+from ...console import (
     SEED,
     FiniteFloat,
     console,
@@ -31,7 +31,7 @@ from ..console import (
     run_selection_options,
     table,
 )
-from ..errors import ConfigurationError
+from ...errors import ConfigurationError
 
 if TYPE_CHECKING:
     from ..run import RunRequest
@@ -43,7 +43,7 @@ MATPLOTLIB_HINT = "pip install 'msrr-platform[plot]'"
 
 @dataclass(frozen=True)
 class SweepTask:
-    """One run of a sweep (the fields of :class:`~msrr.core.run.RunRequest` it sets)."""
+    """One run of a sweep (the fields of :class:`~msrr.core.app.run.RunRequest` it sets)."""
 
     robot: str
     scenario: str | None
@@ -245,8 +245,8 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
         raise ConfigurationError("give both --from and --to, or neither")
     if start is not None and scenario is not None:
         raise ConfigurationError("give --scenario or --from/--to, not both")
-    from ..faults import parse_faults
-    from ..files import atomic_write_text, check_output_place
+    from ...faults import parse_faults
+    from ...files import atomic_write_text, check_output_place
     from ..run import parse_driver_options
 
     settings = [("" if s.strip().lower() in ("", "none") else s.strip())

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from .. import plugins
-from ..console import NONE, console, styled, table
+from ... import plugins
+from ...console import NONE, console, styled, table
 
 __all__ = ["command"]
 

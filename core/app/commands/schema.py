@@ -19,5 +19,5 @@ command runs, not at ``--help``)."""
 def command(file_format: str) -> None:
     """Print the JSON Schema of a file FORMAT (configuration or plan)."""
     module, name = FORMATS[file_format].split(":")
-    model = getattr(importlib.import_module(f"..{module}", __package__), name)
+    model = getattr(importlib.import_module(f"...{module}", __package__), name)
     click.echo(json.dumps(model.model_json_schema(), indent=2))

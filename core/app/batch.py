@@ -53,9 +53,9 @@ from rich.progress import (
 )
 from threadpoolctl import threadpool_limits
 
-from .console import console, err_console
-from .errors import ConfigurationError, MsrrError
-from .interrupts import Interrupted
+from ..console import console, err_console
+from ..errors import ConfigurationError, MsrrError
+from ..interrupts import Interrupted
 
 __all__ = ["BACKENDS", "BatchError", "BatchResult", "TaskFailure", "available_cores",
            "backend_for", "batch_options", "exit_on_interrupt", "ray_available", "run_batch",

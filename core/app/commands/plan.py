@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING
 
 import click
 
-from .. import plugins
-from ..console import SEED, console, drop_empty_columns, plural, table
-from ..errors import ConfigurationError, PlanningError
+from ... import plugins
+from ...console import SEED, console, drop_empty_columns, plural, table
+from ...errors import ConfigurationError, PlanningError
 
 if TYPE_CHECKING:
-    from ..plan import Action, Plan
+    from ...plan import Action, Plan
 
 __all__ = ["action_rows", "command", "print_plan"]
 
@@ -110,7 +110,7 @@ def command(robot: str, start: Path, goal: Path, planner_name: str | None, seed:
     """Plan the reconfiguration from configuration file START to GOAL."""
     if json_out is not None and json_out.is_dir():
         raise ConfigurationError("is a directory, expected a file to write", source=str(json_out))
-    from ..plan import save_plan
+    from ...plan import save_plan
 
     planner = plugins.planners.get(robot, planner_name)
     configs = []

@@ -6,9 +6,9 @@ from collections.abc import Callable, Mapping
 
 import click
 
-from .. import plugins
-from ..console import NONE, console, styled, table
-from ..errors import MsrrError
+from ... import plugins
+from ...console import NONE, console, styled, table
+from ...errors import MsrrError
 
 __all__ = ["command"]
 
@@ -25,7 +25,7 @@ CAPABILITIES: tuple[tuple[str, plugins.Capability], ...] = (
 
 
 def _capability(lookup: Callable[[str], Mapping[str, object]], robot: str) -> object:
-    from ..generic import is_generic  # the generic runtime loads when a robot is listed
+    from ...generic import is_generic  # the generic runtime loads when a robot is listed
 
     try:
         items = lookup(robot)

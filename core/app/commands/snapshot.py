@@ -25,9 +25,9 @@ def command(recording: Path, output: Path, title: str) -> None:
     [m], or the RMS strut angle [deg] for strut robots). The title names the robot and
     the scenario. Needs matplotlib: pip install 'msrr-platform[plot]'.
     """
-    from ..console import console
-    from ..files import check_output_place
-    from ..timeline.snapshot import write_snapshot
+    from ...console import console
+    from ...files import check_output_place
+    from ...timeline.snapshot import write_snapshot
 
     check_output_place(output, option="--output")  # before reading and drawing
     path = write_snapshot(recording, output, title)

@@ -2,7 +2,7 @@
 
 Every :class:`~msrr.core.errors.MsrrError` raised by a command becomes one line on
 stderr and exit status 1; no traceback reaches the user. The built-in commands are
-the modules of :mod:`msrr.core.commands`; plugins add theirs through the historic
+the modules of :mod:`msrr.core.app.commands`; plugins add theirs through the historic
 hook ``msrr_register_commands(cli)``, so a plugin registered after the CLI was
 built still gets its commands.
 
@@ -18,14 +18,15 @@ import functools
 
 import click
 
-from . import commands, interrupts, plugins
-from .console import MsrrGroup, err_console, styled
+from . import commands
+from .. import interrupts, plugins
+from ..console import MsrrGroup, err_console, styled
 
 __all__ = ["TopGroup", "cli", "command_paths", "get_cli", "main"]
 
 
 class TopGroup(MsrrGroup):
-    """The ``platform`` group: the built-in commands of :data:`msrr.core.commands.BUILTIN`
+    """The ``platform`` group: the built-in commands of :data:`msrr.core.app.commands.BUILTIN`
     load on first use, plugin commands are added by their plugins; ``--help`` lists both
     without importing a built-in command's module."""
 
@@ -66,7 +67,7 @@ def cli() -> None:
 
 @functools.cache
 def get_cli() -> click.Group:
-    """The CLI: the built-in commands of :mod:`msrr.core.commands` (loaded on first use)
+    """The CLI: the built-in commands of :mod:`msrr.core.app.commands` (loaded on first use)
     and the commands plugins add."""
     plugins.register_commands(cli)
     return cli

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import click
 
-from .. import plugins
-from ..console import SEED, FiniteFloat, console, err_console, plural, table
-from ..errors import ConfigurationError
-from ..interrupts import Interrupted, handled
+from ... import plugins
+from ...console import SEED, FiniteFloat, console, err_console, plural, table
+from ...errors import ConfigurationError
+from ...interrupts import Interrupted, handled
 
 __all__ = ["command"]
 
@@ -44,9 +44,9 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
 
     Writes the systems file, then serves until Ctrl-C (or --duration); drive the
     modules with `platform run --robot ROBOT --system FILE ...` from another shell."""
-    from ..files import check_output_place  # pydantic: loads when the command runs
-    from ..link.emulator import Emulator, parse_link_faults  # the link loads when it starts
-    from ..link.system import KeyRef, new_key, parse_key, write_key, write_system
+    from ...files import check_output_place  # pydantic: loads when the command runs
+    from ...link.emulator import Emulator, parse_link_faults  # the link loads when it starts
+    from ...link.system import KeyRef, new_key, parse_key, write_key, write_system
 
     with handled():
         start = plugins.load_configuration(config)

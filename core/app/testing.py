@@ -4,7 +4,7 @@ In the spirit of dm_control's one suite over every task: :func:`check_robot` ass
 for one installed robot, what the platform promises of every robot. A plugin's own
 tests run it with one line::
 
-    from msrr.core.testing import check_robot
+    from msrr.core.app.testing import check_robot
 
     def test_conformance():
         check_robot("hinge")
@@ -47,19 +47,19 @@ from typing import Any
 
 import numpy as np
 
-from . import plugins
-from .actions import topology_diff
-from .configuration import Configuration
-from .driver import ModuleCommand
-from .errors import MsrrError, PlanningError
-from .events import Run, RunResult
-from .executor import Executor, ExecutorOptions
-from .generic import KinematicDriver, LatchController, LatchRecognizer
-from .io import check_configuration, dump_configuration, parse_configuration
-from .kinematics import Evaluator, KinematicNode, KinematicTree, tree_vectors
-from .matching import Candidate, match
-from .plan import Plan
-from .robot import RobotSpec
+from .. import plugins
+from ..actions import topology_diff
+from ..configuration import Configuration
+from ..driver import ModuleCommand
+from ..errors import MsrrError, PlanningError
+from ..events import Run, RunResult
+from ..executor import Executor, ExecutorOptions
+from ..generic import KinematicDriver, LatchController, LatchRecognizer
+from ..io import check_configuration, dump_configuration, parse_configuration
+from ..kinematics import Evaluator, KinematicNode, KinematicTree, tree_vectors
+from ..matching import Candidate, match
+from ..plan import Plan
+from ..robot import RobotSpec
 
 __all__ = [
     "ConformanceError",

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 
-from . import interrupts
+from .. import interrupts
 
 __all__ = ["main"]
 

@@ -14,8 +14,8 @@ import click
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from .. import plugins
-from ..console import (
+from ... import plugins
+from ...console import (
     check_display,
     console,
     err_console,
@@ -23,13 +23,13 @@ from ..console import (
     run_selection_options,
     table,
 )
-from ..errors import ConfigurationError
-from ..hookspecs import hookimpl
-from ..interrupts import Interrupted, handled, shielded
+from ...errors import ConfigurationError
+from ...hookspecs import hookimpl
+from ...interrupts import Interrupted, handled, shielded
 
 if TYPE_CHECKING:
-    from ..events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
-    from ..plan import Action
+    from ...events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
+    from ...plan import Action
     from ..run import PreparedRun
 
 __all__ = ["command"]

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import click
 
-from .. import plugins
-from ..console import console, plural, show_configuration, styled
+from ... import plugins
+from ...console import console, plural, show_configuration, styled
 
 __all__ = ["command"]
 

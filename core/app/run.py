@@ -30,20 +30,20 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from . import plugins
-from .capabilities import BehaviorPlanner, Controller, DriverFactory, Planner, Recognizer
-from .configuration import Configuration
-from .driver import Driver, Pose
-from .errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
-from .events import ActionStatus, FaultEvent, Run, RunResult
-from .executor import Executor, ExecutorOptions
-from .faults import Fault, FaultyDriver, GuardedDriver, parse_faults
-from .files import atomic_write_text, check_output_place
-from .hookspecs import hookimpl
-from .interrupts import Interrupted, shielded
-from .plan import Action, Plan, join_plans, save_plan
-from .scenario import Scenario, Stage
-from .shape import pose_errors, shape_tolerance
+from .. import plugins
+from ..capabilities import BehaviorPlanner, Controller, DriverFactory, Planner, Recognizer
+from ..configuration import Configuration
+from ..driver import Driver, Pose
+from ..errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
+from ..events import ActionStatus, FaultEvent, Run, RunResult
+from ..executor import Executor, ExecutorOptions
+from ..faults import Fault, FaultyDriver, GuardedDriver, parse_faults
+from ..files import atomic_write_text, check_output_place
+from ..hookspecs import hookimpl
+from ..interrupts import Interrupted, shielded
+from ..plan import Action, Plan, join_plans, save_plan
+from ..scenario import Scenario, Stage
+from ..shape import pose_errors, shape_tolerance
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
            "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",

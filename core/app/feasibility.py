@@ -27,19 +27,19 @@ from functools import partial
 
 import numpy as np
 
-from . import plugins
-from .actions import topology_diff
+from .. import plugins
+from ..actions import topology_diff
 from .batch import BatchResult, run_batch
-from .capabilities import Controller, DriverFactory, Recognizer
-from .configuration import Configuration
-from .errors import MsrrError
-from .events import Run
-from .executor import Executor, ExecutorOptions
-from .library.check import CheckFile, EdgeCase, EdgeCheck, edge_cases
-from .library.model import Library
-from .plan import Plan
-from .robot import Robot
-from .shape import skeletal_error
+from ..capabilities import Controller, DriverFactory, Recognizer
+from ..configuration import Configuration
+from ..errors import MsrrError
+from ..events import Run
+from ..executor import Executor, ExecutorOptions
+from ..library.check import CheckFile, EdgeCase, EdgeCheck, edge_cases
+from ..library.model import Library
+from ..plan import Plan
+from ..robot import Robot
+from ..shape import skeletal_error
 
 __all__ = ["FELL_OVER", "SATURATION_TIME", "EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
 
@@ -147,7 +147,7 @@ def check_edges(cases: Sequence[EdgeCase], runner: EdgeRunner, *, workers: int =
                 cluster: str | None = None, backend: str | None = None,
                 progress: bool = True, previous: CheckFile | None = None,
                 ) -> tuple[list[EdgeCheck], BatchResult[EdgeCheck]]:
-    """Run every case (:func:`run_edge`) as one batch (:func:`msrr.core.batch.run_batch`).
+    """Run every case (:func:`run_edge`) as one batch (:func:`msrr.core.app.batch.run_batch`).
 
     Every edge runs with ``runner.seed`` on a fresh driver, so the checks are the same
     serially, on a process pool and on Ray. An edge whose run raised (a simulator's bug,

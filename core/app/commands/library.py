@@ -15,12 +15,12 @@ import click
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from ..batch import batch_options, exit_on_interrupt
-from ..console import COSTS, SEED, FiniteFloat, MsrrGroup, console, plural, styled, table
-from ..errors import ConfigurationError, MsrrError
-from ..plugins import load_configuration, load_library, resolve
+from ...console import COSTS, SEED, FiniteFloat, MsrrGroup, console, plural, styled, table
+from ...errors import ConfigurationError, MsrrError
+from ...plugins import load_configuration, load_library, resolve
 
 if TYPE_CHECKING:
-    from ..library import Library
+    from ...library import Library
 
 __all__ = ["MERGE_THRESHOLD", "command"]
 
@@ -46,7 +46,7 @@ def command() -> None:
                    "or full-body IK (eq. 6; reproducible on one BLAS kernel only).")
 def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost: str) -> None:
     """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14)."""
-    from ..library import build_library, build_steps, load_sources, save_library
+    from ...library import build_library, build_steps, load_sources, save_library
 
     _check_output(output)
     inputs = load_sources(sources, resolve)
@@ -110,7 +110,7 @@ def show(library: Path) -> None:
 
     Feasibility flags come from the check file beside it (``<LIB>.check.json``) when it
     is a check of this very file."""
-    from ..library.check import apply_sidecar, check_path
+    from ...library.check import apply_sidecar, check_path
 
     lib = load_library(library)
     if apply_sidecar(lib, library) == "stale":
@@ -142,9 +142,9 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
 
     One simulation per edge, on every core (--workers) or a Ray cluster (--cluster);
     the check file is the same whichever runs it."""
-    from ..executor import ExecutorOptions
+    from ...executor import ExecutorOptions
     from ..feasibility import check_edges, default_runner
-    from ..library.check import (
+    from ...library.check import (
         CheckFile,
         check_path,
         edge_cases,
@@ -199,7 +199,7 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
 def retrieve_command(library: Path, system: Path, target: str | None,
                      behavior: str | None) -> None:
     """Retrieve the cheapest sequence from the system to a target (Fig. 15)."""
-    from ..library import RetrievalError, retrieve
+    from ...library import RetrievalError, retrieve
 
     lib = load_library(library)
     config = load_configuration(system)

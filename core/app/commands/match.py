@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..console import COSTS, FiniteFloat, console, plural, table
-from ..errors import MsrrError
-from ..plugins import load_configuration, resolve
+from ...console import COSTS, FiniteFloat, console, plural, table
+from ...errors import MsrrError
+from ...plugins import load_configuration, resolve
 
 if TYPE_CHECKING:
-    from ..matching import MatchResult, RankedMatch
+    from ...matching import MatchResult, RankedMatch
 
 __all__ = ["CONFIDENCE", "command"]
 
@@ -52,7 +52,7 @@ def _summary(result: MatchResult, ranked: RankedMatch, rank: int) -> str:
 def command(system: Path, references: tuple[Path, ...], top: int, confidence: float,
             time_budget: float | None, cost: str | None) -> None:
     """Match SYSTEM.json against REFERENCE.json files: best reference, cost and mapping."""
-    from ..matching import Candidate, MatchingError, match
+    from ...matching import Candidate, MatchingError, match
 
     current = load_configuration(system)
     candidates = [Candidate(load_configuration(path), None, str(path)) for path in references]
