@@ -34,10 +34,10 @@ import click
 import numpy as np
 
 from msrr.core import plugins
+from msrr.core.app.run import RunRequest, execute_run, prepare_run, resolve_scenario
 from msrr.core.console import console, table
 from msrr.core.driver import ModuleCommand
 from msrr.core.link import LinkDriver
-from msrr.core.app.run import RunRequest, execute_run, prepare_run, resolve_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER_BITS = 60_000

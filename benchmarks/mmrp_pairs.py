@@ -20,9 +20,9 @@ from pathlib import Path
 
 import click
 
+from msrr.core.app.run import RunRequest, execute_run, prepare_run
 from msrr.core.console import console, table
 from msrr.core.errors import PlanningError
-from msrr.core.app.run import RunRequest, execute_run, prepare_run
 
 CONFIGS = Path(__file__).resolve().parents[1] / "plugins/mmrp/configs"
 SHIPPED = ("cross", "probe", "series", "t")

@@ -32,9 +32,9 @@ import numpy as np
 
 from msrr.core.app.batch import BatchResult, available_cores, ray_available, run_batch
 from msrr.core.app.commands.sweep import SweepTask, sweep_run
+from msrr.core.app.feasibility import check_edges, default_runner
 from msrr.core.console import console, table
 from msrr.core.executor import ExecutorOptions
-from msrr.core.app.feasibility import check_edges, default_runner
 from msrr.core.library.check import check_path, edge_cases, load_check
 from msrr.core.plugins import load_library
 

@@ -18,9 +18,9 @@ import functools
 
 import click
 
-from . import commands
 from .. import interrupts, plugins
 from ..console import MsrrGroup, err_console, styled
+from . import commands
 
 __all__ = ["TopGroup", "cli", "command_paths", "get_cli", "main"]
 

@@ -29,7 +29,6 @@ import numpy as np
 
 from .. import plugins
 from ..actions import topology_diff
-from .batch import BatchResult, run_batch
 from ..capabilities import Controller, DriverFactory, Recognizer
 from ..configuration import Configuration
 from ..errors import MsrrError
@@ -40,6 +39,7 @@ from ..library.model import Library
 from ..plan import Plan
 from ..robot import Robot
 from ..shape import skeletal_error
+from .batch import BatchResult, run_batch
 
 __all__ = ["FELL_OVER", "SATURATION_TIME", "EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
 

@@ -16,8 +16,8 @@ from click.testing import CliRunner
 
 from msrr.core.app.batch import ray_available
 from msrr.core.app.cli import get_cli
-from msrr.core.executor import ExecutorOptions
 from msrr.core.app.feasibility import check_edges, default_runner
+from msrr.core.executor import ExecutorOptions
 from msrr.core.library.check import edge_cases, load_check
 from msrr.core.plugins import load_library
 

@@ -21,6 +21,7 @@ from tiny_robot import (
     installed,
 )
 
+from msrr.core.app.run import parse_parameters, plan_stages
 from msrr.core.errors import ConfigurationError, UnknownNameError
 from msrr.core.events import Phase, Run
 from msrr.core.executor import Executor, ExecutorOptions, behavior_commands, phases_of
@@ -34,7 +35,6 @@ from msrr.core.plan import (
     load_plan,
     save_plan,
 )
-from msrr.core.app.run import parse_parameters, plan_stages
 from msrr.core.scenario import Scenario, Stage
 
 DRIVE = (CommandGain("a", "v", (("speed", 2.0),)), CommandGain("b", "v", (("speed", 2.0),)),

@@ -8,8 +8,8 @@ import pytest
 from tiny_robot import NAME, LinePlanner, chain, installed
 
 from msrr.core import hookimpl, plugins
-from msrr.core.plan import Plan
 from msrr.core.app.testing import ConformanceError, check_robot, robot_parameters
+from msrr.core.plan import Plan
 
 KNOWN_FAILURES: dict[str, str] = {}
 

@@ -16,11 +16,11 @@ from tiny_robot import PointDriver, chain, installed
 
 from msrr.core import hookimpl, plugins
 from msrr.core.app.cli import get_cli
+from msrr.core.app.run import RunRequest, execute_run, prepare_run
 from msrr.core.driver import ModuleCommand, Observation
 from msrr.core.errors import ConfigurationError, ExecutionError
 from msrr.core.events import FaultEvent, Run
 from msrr.core.faults import FaultyDriver, GuardedDriver, parse_faults
-from msrr.core.app.run import RunRequest, execute_run, prepare_run
 from msrr.core.timeline import read_recording
 
 

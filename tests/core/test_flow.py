@@ -13,6 +13,7 @@ import pytest
 
 from msrr.core import Configuration, ModuleKind, PortSpec, RobotSpec
 from msrr.core.actions import classify, detect_action, flow_move, flow_of, topology_diff
+from msrr.core.app.testing import run_kinematic
 from msrr.core.errors import ExecutionError, PlanningError
 from msrr.core.events import Phase
 from msrr.core.executor import phases_of
@@ -31,7 +32,6 @@ from msrr.core.miso import (
     targets,
 )
 from msrr.core.plan import Action, ActionType, Plan, load_plan, save_plan
-from msrr.core.app.testing import run_kinematic
 
 BALL = ModuleKind(name="ball", symbol="O", role="vertex", ports=(PortSpec("magnet"),),
                   geometry={"radius": 0.05})

@@ -13,11 +13,11 @@ from tiny_robot import CUBE, ROBOT, SPEC, TinyRules, chain
 
 from msrr.core import Configuration, ModuleKind, RobotSpec
 from msrr.core.actions import topology_diff
+from msrr.core.app.testing import replay_problems
 from msrr.core.errors import PlanningError
 from msrr.core.generic import GenericPlanner
 from msrr.core.plan import ActionType, connection_key
 from msrr.core.robot import Robot, tree_violations
-from msrr.core.app.testing import replay_problems
 
 
 class TreeRules(TinyRules):

@@ -12,6 +12,7 @@ from tiny_robot import CUBE, NAME, SPEC, chain, installed
 from msrr.core import Configuration, DockingRules, ModuleKind, PortSpec, RobotSpec
 from msrr.core.actions import detect_action, topology_diff
 from msrr.core.app.cli import get_cli
+from msrr.core.app.testing import FakeDriver, run_kinematic
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.generic import GenericPlanner, KinematicDriver, LatchRecognizer
@@ -19,7 +20,6 @@ from msrr.core.generic.geometry import BodyPose, place_for_ports, port_frame
 from msrr.core.plan import Plan
 from msrr.core.random_configurations import random_configuration
 from msrr.core.robot import Robot, port_reuse_violations, tree_violations
-from msrr.core.app.testing import FakeDriver, run_kinematic
 
 BALL = ModuleKind("ball", "B", "vertex", ports=(PortSpec("magnet"),), geometry={"radius": 0.05})
 BALLS = RobotSpec("balls", "Balls", (BALL,))

@@ -21,9 +21,9 @@ from tiny_robot import LinkRecognizer, PointDriver, chain, installed
 
 from msrr.core import save_configuration
 from msrr.core.app.cli import get_cli
+from msrr.core.app.run import RUN_FILES, RunRequest, execute_run, prepare_run, write_outputs
 from msrr.core.errors import ExecutionError
 from msrr.core.link import Emulator, KeyRef, LinkDriver, parse_link_faults, write_key, write_system
-from msrr.core.app.run import RUN_FILES, RunRequest, execute_run, prepare_run, write_outputs
 
 SPEED = 5.0  # module seconds per wall second
 

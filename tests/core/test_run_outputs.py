@@ -15,8 +15,8 @@ from tiny_robot import installed
 
 from msrr.core.app import run as run_module
 from msrr.core.app.cli import get_cli
-from msrr.core.errors import ConfigurationError
 from msrr.core.app.run import check_out_dir, claim_out_dir
+from msrr.core.errors import ConfigurationError
 
 
 def _run(tmp_path: Path, *args: str) -> tuple[int, list[str]]:

@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING
 import click
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from ..batch import batch_options, exit_on_interrupt
 from ...console import COSTS, SEED, FiniteFloat, MsrrGroup, console, plural, styled, table
 from ...errors import ConfigurationError, MsrrError
 from ...plugins import load_configuration, load_library, resolve
+from ..batch import batch_options, exit_on_interrupt
 
 if TYPE_CHECKING:
     from ...library import Library
@@ -143,7 +143,6 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
     One simulation per edge, on every core (--workers) or a Ray cluster (--cluster);
     the check file is the same whichever runs it."""
     from ...executor import ExecutorOptions
-    from ..feasibility import check_edges, default_runner
     from ...library.check import (
         CheckFile,
         check_path,
@@ -152,6 +151,7 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
         load_check,
         save_check,
     )
+    from ..feasibility import check_edges, default_runner
 
     lib = load_library(library)
     driver_options: tuple[tuple[str, float], ...] = ()

@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..batch import batch_options, exit_on_interrupt, run_batch
 from ...console import (
     SEED,
     FiniteFloat,
@@ -32,6 +31,7 @@ from ...console import (
     table,
 )
 from ...errors import ConfigurationError
+from ..batch import batch_options, exit_on_interrupt, run_batch
 
 if TYPE_CHECKING:
     from ..run import RunRequest

@@ -17,13 +17,13 @@ from kin_helpers import (
 )
 
 from msrr.core import Configuration
+from msrr.core.app.testing import tree_gradient_error
 from msrr.core.kinematics import (
     FixedNode,
     KinematicTree,
     forward,
     rodrigues,
 )
-from msrr.core.app.testing import tree_gradient_error
 
 MODES = [GimbalJoint, TwistJoint]
 SETTINGS = settings(max_examples=25, deadline=None)

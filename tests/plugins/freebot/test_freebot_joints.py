@@ -9,10 +9,10 @@ from scipy.integrate import solve_ivp
 
 from msrr.core import plugins
 from msrr.core.app.cli import get_cli
+from msrr.core.app.testing import node_jacobian_errors
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import KinematicTree, default_tree, forward
 from msrr.core.kinematics.rotations import exp_so3, skew
-from msrr.core.app.testing import node_jacobian_errors
 from msrr.plugins.freebot.joints import RollingContactJoint
 
 from msrr_test_support import ROOT

@@ -13,8 +13,8 @@ from click.testing import CliRunner
 
 from msrr.core import plugins
 from msrr.core.app.cli import get_cli
-from msrr.core.plan import ActionType
 from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
+from msrr.core.plan import ActionType
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 TROT = FREESN / "configs" / "library" / "S12N6-8.1.json"

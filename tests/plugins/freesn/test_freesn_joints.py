@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from msrr.core import Configuration, plugins
+from msrr.core.app.testing import node_jacobian_errors, tree_gradient_error
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import (
     FixedNode,
@@ -21,7 +22,6 @@ from msrr.core.kinematics import (
 )
 from msrr.core.kinematics.rotations import rodrigues, rotation_between
 from msrr.core.random_configurations import random_configuration
-from msrr.core.app.testing import node_jacobian_errors, tree_gradient_error
 from msrr.plugins.freesn.joints import (
     JOINT_MODES,
     DifferentialSphericalJoint,

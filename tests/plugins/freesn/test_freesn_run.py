@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from msrr.core.actions import topology_diff
 from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.app.cli import get_cli
+from msrr.core.app.feasibility import default_runner, run_edge, tilted_error
 from msrr.core.closed_loop import (
     PhaseTracker,
     TrackingOptions,
@@ -24,7 +25,6 @@ from msrr.core.closed_loop import (
 )
 from msrr.core.events import Phase
 from msrr.core.executor import ExecutorOptions, phases_of
-from msrr.core.app.feasibility import default_runner, run_edge, tilted_error
 from msrr.core.kinematics import FixedNode, GroundModel
 from msrr.core.library import load_library
 from msrr.core.library.check import edge_cases, load_check

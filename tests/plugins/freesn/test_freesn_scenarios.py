@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from msrr.core import plugins
+from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.core.io import save_configuration
 from msrr.core.plan import ActionType
 from msrr.core.random_configurations import newly_built
-from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.core.shape import skeletal_error
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"

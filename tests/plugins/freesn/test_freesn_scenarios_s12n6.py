@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from msrr.core import plugins
+from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.core.driver import ModuleCommand
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
 from msrr.core.plan import ActionType
-from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.core.shape import skeletal_error
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from msrr.core import plugins
+from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.core.configuration import Configuration
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
 from msrr.core.plan import ActionType
-from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.plugins.freesn.robot import NODE, STRUT
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim.commands import parse_wheels

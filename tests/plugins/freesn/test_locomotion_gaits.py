@@ -13,11 +13,11 @@ from click.testing import CliRunner
 
 from msrr.core import plugins
 from msrr.core.app.cli import get_cli
+from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
 from msrr.core.plan import ActionType
-from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim.commands import parse_brakes, parse_command
 from msrr.plugins.freesn.sim.controller import connector_commands, feet, plant_feet

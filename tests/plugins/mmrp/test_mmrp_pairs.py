@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 
 from msrr.core import plugins
+from msrr.core.app.run import RunRequest, execute_run, prepare_run, write_outputs
 from msrr.core.driver import Pose
 from msrr.core.errors import PlanningError
 from msrr.core.io import load_configuration
-from msrr.core.app.run import RunRequest, execute_run, prepare_run, write_outputs
 from msrr.core.shape import pose_errors, shape_tolerance
 from msrr.plugins.mmrp.representation import layout
 from msrr.plugins.mmrp.sim import MmrpSimDriver

@@ -8,11 +8,11 @@ from click.testing import CliRunner
 
 from msrr.core import plugins
 from msrr.core.app.cli import get_cli
+from msrr.core.app.testing import node_jacobian_errors
 from msrr.core.configuration import Configuration
 from msrr.core.io import load_configuration
 from msrr.core.kinematics import default_tree, forward
 from msrr.core.kinematics.rotations import rodrigues
-from msrr.core.app.testing import node_jacobian_errors
 from msrr.plugins.snailbot.joints import SphericalJoint, SuckerRevoluteJoint
 
 from msrr_test_support import ROOT
