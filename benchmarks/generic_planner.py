@@ -51,7 +51,7 @@ def _robot(name: str) -> tuple[Robot, Robot]:
     base, _, mode = name.partition("+")
     robot = plugins.resolve(base)
     if mode == "connected":
-        spec = replace(robot.spec, defaults={**robot.spec.defaults, "stay_connected": True})
+        spec = replace(robot.spec, defaults=replace(robot.spec.defaults, stay_connected=True))
         return Robot(spec, LoopsAllowed(robot.rules), robot.joint_modes), robot
     return robot, robot
 

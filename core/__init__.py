@@ -1,9 +1,10 @@
 """msrr.core: the robot-agnostic core of the msrr modular-robot platform.
 
 A plugin writes ``from msrr.core import hookimpl`` and implements the hooks of
-:mod:`msrr.core.hookspecs`. Configurations, robot descriptions and errors are
-importable from here directly. The file functions here are those of
-:mod:`msrr.core.io`, which take the :class:`Robot` to check against as an argument;
+:mod:`msrr.core.hookspecs`. Configurations, robot descriptions (``RobotSpec``, its
+typed ``RobotDefaults`` and ``ShapeTolerance``) and errors are importable from here
+directly. The file functions here are those of :mod:`msrr.core.io`, which take the
+:class:`Robot` to check against as an argument;
 :func:`msrr.core.plugins.load_configuration` reads a file and checks it against the
 installed robot it names. The types a robot's own capabilities build (``Plan``,
 ``Action``, ``Driver``, ``ModuleCommand``, ``Observation``, ``Control``...) and the errors
@@ -42,7 +43,16 @@ if TYPE_CHECKING:
         save_configuration,
     )
     from .plan import Action, ActionType, ConnectionChange, Plan
-    from .robot import DockingRules, ModuleKind, PortSpec, Robot, RobotSpec, Violation
+    from .robot import (
+        DockingRules,
+        ModuleKind,
+        PortSpec,
+        Robot,
+        RobotDefaults,
+        RobotSpec,
+        ShapeTolerance,
+        Violation,
+    )
     from .scenario import Scenario
 
 _EXPORTS: dict[str, str] = {
@@ -74,9 +84,11 @@ _EXPORTS: dict[str, str] = {
     "PortSpec": "robot",
     "Pose": "driver",
     "Robot": "robot",
+    "RobotDefaults": "robot",
     "RobotSpec": "robot",
     "save_configuration": "io",
     "Scenario": "scenario",
+    "ShapeTolerance": "robot",
     "Signature": "configuration",
     "unit": "configuration",
     "UnknownNameError": "errors",
@@ -109,8 +121,10 @@ __all__ = [
     "PortSpec",
     "Pose",
     "Robot",
+    "RobotDefaults",
     "RobotSpec",
     "Scenario",
+    "ShapeTolerance",
     "Signature",
     "UnknownNameError",
     "UnknownRobotError",

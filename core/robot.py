@@ -1,18 +1,20 @@
-"""Robot descriptions: module kinds, their ports and geometry, and docking rules.
+"""Robot descriptions: module kinds, their ports and geometry, robot-wide defaults,
+and docking rules.
 
-A robot plugin answers ``msrr_robot()`` with a :class:`RobotSpec` and
-``msrr_docking_rules(robot)`` with a :class:`DockingRules`. The core reads both
-to validate configurations, name sub-libraries and build simulations, and never
-imports a plugin by name.
+A robot plugin answers ``msrr_robot()`` with a :class:`RobotSpec` (its defaults a
+typed :class:`RobotDefaults`) and ``msrr_docking_rules(robot)`` with a
+:class:`DockingRules`. The core reads both to validate configurations, name
+sub-libraries and build simulations, and never imports a plugin by name.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal
 
-from .errors import UnknownNameError
+from .errors import PluginError, UnknownNameError
 
 if TYPE_CHECKING:  # a plugin builds its RobotSpec when it loads, on every --help: no graphs
     from .configuration import Configuration
@@ -24,7 +26,9 @@ __all__ = [
     "MisoRules",
     "ModuleKind",
     "PortSpec",
+    "RobotDefaults",
     "RobotSpec",
+    "ShapeTolerance",
     "Violation",
     "body_half_size",
     "check_structure",
@@ -104,6 +108,82 @@ def body_half_size(kind: ModuleKind) -> tuple[float, float, float]:
     return r, r, r
 
 
+def _positive(owner: str, name: str, value: object, unit: str) -> float:
+    """``value`` as a float if it is a finite number > 0; else a one-line PluginError."""
+    if (isinstance(value, bool) or not isinstance(value, int | float)
+            or not math.isfinite(value) or value <= 0):
+        raise PluginError(f"{owner}.{name} must be a finite number > 0 [{unit}], got {value!r}")
+    return float(value)
+
+
+def _flag(owner: str, name: str, value: object) -> None:
+    if not isinstance(value, bool):
+        raise PluginError(f"{owner}.{name} must be True or False, got {value!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShapeTolerance:
+    """How close a run's final module poses must come to the goal layout.
+
+    :func:`msrr.core.shape.pose_errors` fits the final positions onto the goal layout
+    (rotation about z and translation) and a run reaches the goal shape when every
+    module is within both bounds.
+
+    Attributes:
+        position: largest position error of a module [m], > 0.
+        heading: largest heading error of a module about z [rad], > 0.
+
+    Raises:
+        PluginError: a bound is not a finite number > 0 (the message names it).
+    """
+
+    position: float
+    heading: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "position",
+                           _positive("ShapeTolerance", "position", self.position, "m"))
+        object.__setattr__(self, "heading",
+                           _positive("ShapeTolerance", "heading", self.heading, "rad"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class RobotDefaults:
+    """Robot-wide defaults, each read by one part of the core.
+
+    Attributes:
+        joint_mode: name of the module joint used where a kinematic tree names none
+            (:meth:`Robot.default_joint_mode`); ``None``: the first registered joint
+            mode of the ``module_joint`` family.
+        shape_tolerance: the final-shape test of a run (:mod:`msrr.core.shape`,
+            ``platform run``); ``None``: a run is judged on its topology alone.
+        planar: the robot moves on the ground plane, so the timeline adds a top-down
+            2-D view (:mod:`msrr.core.timeline.recorder`).
+        stay_connected: every intermediate configuration of a plan must be one
+            connected system (:class:`msrr.core.generic.planner.GenericPlanner`).
+
+    Raises:
+        PluginError: a field has the wrong type (the message names it).
+    """
+
+    joint_mode: str | None = None
+    shape_tolerance: ShapeTolerance | None = None
+    planar: bool = False
+    stay_connected: bool = False
+
+    def __post_init__(self) -> None:
+        if self.joint_mode is not None and (not isinstance(self.joint_mode, str)
+                                            or not self.joint_mode):
+            raise PluginError("RobotDefaults.joint_mode must be a joint mode name or None, "
+                              f"got {self.joint_mode!r}")
+        if self.shape_tolerance is not None and not isinstance(self.shape_tolerance,
+                                                               ShapeTolerance):
+            raise PluginError("RobotDefaults.shape_tolerance must be a ShapeTolerance("
+                              f"position=m, heading=rad) or None, got {self.shape_tolerance!r}")
+        _flag("RobotDefaults", "planar", self.planar)
+        _flag("RobotDefaults", "stay_connected", self.stay_connected)
+
+
 @dataclass(frozen=True)
 class RobotSpec:
     """What a robot is made of: the answer to ``msrr_robot()``.
@@ -114,7 +194,11 @@ class RobotSpec:
         module_kinds: kinds in the order used for sub-library names.
         description: one paragraph.
         reference: the paper or page the description follows.
-        defaults: robot-wide defaults (control rate [Hz], default joint mode, ...).
+        defaults: robot-wide defaults the core reads (default joint mode, shape
+            tolerance, planar, stay connected): a :class:`RobotDefaults`.
+
+    Raises:
+        PluginError: ``defaults`` is not a :class:`RobotDefaults` (naming the robot).
     """
 
     name: str
@@ -122,7 +206,12 @@ class RobotSpec:
     module_kinds: tuple[ModuleKind, ...]
     description: str = ""
     reference: str = ""
-    defaults: Mapping[str, object] = field(default_factory=dict)
+    defaults: RobotDefaults = field(default_factory=RobotDefaults)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.defaults, RobotDefaults):
+            raise PluginError(f"robot {self.name!r}: defaults must be a RobotDefaults "
+                              f"(msrr.core.RobotDefaults), got {type(self.defaults).__name__}")
 
     def kind(self, name: str) -> ModuleKind:
         """The module kind called ``name``; raises listing the known kinds."""
@@ -209,10 +298,10 @@ class Robot:
         return self.spec.name
 
     def default_joint_mode(self) -> type:
-        """The module joint used where a tree names none: ``spec.defaults["joint_mode"]``,
+        """The module joint used where a tree names none: ``spec.defaults.joint_mode``,
         else the first registered node type of the ``module_joint`` family."""
-        name = self.spec.defaults.get("joint_mode")
-        if isinstance(name, str):
+        name = self.spec.defaults.joint_mode
+        if name is not None:
             if name not in self.joint_modes:
                 raise UnknownNameError(f"joint mode for robot {self.name!r}", name,
                                        self.joint_modes)

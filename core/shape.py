@@ -7,10 +7,16 @@ library check and the freeform robots' runs.
 
 A run reaches the goal *shape* when, after the planar rigid motion (rotation about z and
 translation) that best fits the final module positions onto the goal layout, every
-module is within the robot's ``shape_tolerance`` in position and heading. The robot
-declares the tolerance in its spec defaults::
+module is within the robot's shape tolerance in position and heading. The robot
+declares the tolerance in its spec defaults, as a typed
+:class:`~msrr.core.robot.ShapeTolerance` (validated when the plugin loads: each bound a
+finite number > 0)::
 
-    defaults={"shape_tolerance": {"position": 0.03, "heading": 0.1}}   # [m], [rad]
+    defaults=RobotDefaults(shape_tolerance=ShapeTolerance(position=0.03, heading=0.1))
+
+``position`` is the largest position error of a module [m] and ``heading`` its largest
+heading error about z [rad]; a robot without one (``shape_tolerance=None``, the
+default) is judged on its topology alone.
 
 The goal layout is where the robot's own driver places the goal configuration at
 ``reset`` (``platform run`` builds a second driver for it), so the comparison uses the
@@ -29,32 +35,15 @@ from .configuration import Configuration
 from .driver import Pose
 from .errors import ConfigurationError
 from .events import ShapeErrors
-from .robot import RobotSpec
+from .robot import RobotSpec, ShapeTolerance
 
 __all__ = ["fit_planar", "pose_errors", "shape_tolerance", "skeletal_error", "skeletal_errors"]
 
 
-def shape_tolerance(spec: RobotSpec) -> tuple[float, float] | None:
-    """``(position [m], heading [rad])`` from ``spec.defaults["shape_tolerance"]``, or
-    ``None`` when the robot declares none.
-
-    Raises:
-        ConfigurationError: the entry is not a mapping of two finite positive numbers.
-    """
-    entry = spec.defaults.get("shape_tolerance")
-    if entry is None:
-        return None
-    where = f"robot {spec.name!r} defaults.shape_tolerance"
-    if not isinstance(entry, Mapping):
-        raise ConfigurationError(f"{where} must be {{'position': m, 'heading': rad}}")
-    out = []
-    for key in ("position", "heading"):
-        value = entry.get(key)
-        if (isinstance(value, bool) or not isinstance(value, int | float)
-                or not math.isfinite(value) or value <= 0):
-            raise ConfigurationError(f"{where}.{key} must be a finite number > 0, got {value!r}")
-        out.append(float(value))
-    return out[0], out[1]
+def shape_tolerance(spec: RobotSpec) -> ShapeTolerance | None:
+    """The robot's shape tolerance (``spec.defaults.shape_tolerance``), or ``None`` when
+    it declares none. Checked when the :class:`~msrr.core.robot.RobotDefaults` was built."""
+    return spec.defaults.shape_tolerance
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -96,14 +85,14 @@ def fit_planar(points: np.ndarray, goal: np.ndarray, headings: np.ndarray | None
 
 
 def pose_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
-                 tolerance: tuple[float, float]) -> ShapeErrors:
+                 tolerance: ShapeTolerance) -> ShapeErrors:
     """Per-module position and heading errors of ``final`` against ``goal`` after
     :func:`fit_planar` (planar: x, y and heading about z).
 
     Args:
         final: final pose of every module.
         goal: goal layout, same module ids.
-        tolerance: ``(position [m], heading [rad])``.
+        tolerance: the bounds ``within`` compares with (position [m], heading [rad]).
 
     Raises:
         ConfigurationError: the two name different modules.
@@ -124,7 +113,8 @@ def pose_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
     return ShapeErrors(max_position=float(distance.max(initial=0.0)),
                        rms_position=float(np.sqrt(np.mean(distance ** 2))) if ids else 0.0,
                        max_heading=float(heading.max(initial=0.0)),
-                       tolerance_position=tolerance[0], tolerance_heading=tolerance[1])
+                       tolerance_position=tolerance.position,
+                       tolerance_heading=tolerance.heading)
 
 
 def skeletal_errors(current: Configuration, goal: Configuration

@@ -13,8 +13,8 @@ the plan says only which links change.
 **Legality.** A step is legal when every intermediate configuration is: each of its
 connected groups (a physically separate robot after an undock) passes the robot's
 structural check and docking rules (:meth:`msrr.core.robot.Robot.violations`). A robot
-whose rules want one connected system at all times says ``stay_connected: True`` in its
-``RobotSpec.defaults``; then intermediate configurations must also be connected. A
+whose rules want one connected system at all times says so in its defaults
+(``RobotDefaults(stay_connected=True)``); then intermediate configurations must also be connected. A
 port carries one link at a time. Legality is checked lazily, when A* pops a state, so
 only states on the optimal frontier are built.
 
@@ -202,7 +202,7 @@ class GenericPlanner:
 
     def _legal(self, start: Configuration, links: list[Link]) -> bool:
         config = state_configuration(start, links)
-        if self.robot.spec.defaults.get("stay_connected") and not config.is_connected():
+        if self.robot.spec.defaults.stay_connected and not config.is_connected():
             return False
         for group in _groups(config):
             part = state_configuration(_only(start, group),

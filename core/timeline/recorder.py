@@ -11,7 +11,7 @@ Entity paths (stable, documented in ``docs/running.md``):
   ``world/ghost`` -- the running action's target configuration laid out from its
   connection vectors and placed on the robot (translucent), for robots with vectors;
 * ``top/modules``, ``top/connections``, ``top/targets`` -- the top-down 2-D view of a
-  planar robot (``spec.defaults["planar"]``); y is logged negated, as the 2-D view's
+  planar robot (``spec.defaults.planar``); y is logged negated, as the 2-D view's
   y axis points down;
 * ``topology/current``, ``topology/target`` -- graph views: nodes at fixed positions
   (one layout of every configuration of the plan), a label node on each edge (ports,
@@ -115,7 +115,7 @@ class TimelineRecorder:
         self._inset = max(spheres, default=0.0)  # edge modules drawn from sphere surfaces
         self._lengths = {k.name: float(k.geometry["length"]) for k in run.spec.module_kinds
                          if k.role == "edge" and "length" in k.geometry}
-        self._planar = bool(run.spec.defaults.get("planar", False))
+        self._planar = run.spec.defaults.planar
         self._vectors = _has_vectors(start) or _has_vectors(run.plan.goal)
         self._layout = graph_layout([start, run.plan.goal, *(a.target for a in run.plan.actions)])
         self._connectors: dict[str, str] = {}  # last logged states, by edge module

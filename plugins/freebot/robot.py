@@ -8,7 +8,7 @@ Geometry is nominal; set per lab in ``geometry``.
 
 from __future__ import annotations
 
-from msrr.core import ModuleKind, PortSpec, RobotSpec
+from msrr.core import ModuleKind, PortSpec, RobotDefaults, RobotSpec
 
 MODULE = ModuleKind(
     name="freebot",
@@ -30,5 +30,5 @@ SPEC = RobotSpec(
         "module and rolls on it; topologies hold at most one cycle."
     ),
     reference="Liang et al., IROS 2020",
-    defaults={"control_rate": 10.0, "simulator": "mujoco", "joint_mode": "rolling_contact"},
+    defaults=RobotDefaults(joint_mode="rolling_contact"),
 )

@@ -9,7 +9,7 @@ vertex. Geometry is nominal; set per lab in ``geometry``.
 
 from __future__ import annotations
 
-from msrr.core import ModuleKind, PortSpec, RobotSpec
+from msrr.core import ModuleKind, PortSpec, RobotDefaults, RobotSpec
 
 STRUT = ModuleKind(
     name="strut",
@@ -49,5 +49,5 @@ SPEC = RobotSpec(
         "and self-reconfiguration."
     ),
     reference="Tu, Liang, Wu, Li and Lam (2025), freeform autonomy framework",
-    defaults={"control_rate": 10.0, "simulator": "mujoco", "joint_mode": "opposite_steering"},
+    defaults=RobotDefaults(joint_mode="opposite_steering"),
 )

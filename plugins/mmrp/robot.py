@@ -7,7 +7,7 @@ Geometry is nominal (the paper gives none); set per lab in ``geometry``.
 
 from __future__ import annotations
 
-from msrr.core import ModuleKind, PortSpec, RobotSpec
+from msrr.core import ModuleKind, PortSpec, RobotDefaults, RobotSpec, ShapeTolerance
 
 FACES = (
     PortSpec("T", "active", (1.0, 0.0, 0.0)),
@@ -43,9 +43,10 @@ SPEC = RobotSpec(
         "decomposition and potential-field mapping of free modules."
     ),
     reference="Wei et al., Sensors 23 (2023) 7892",
-    defaults={"control_rate": 10.0, "simulator": "pybullet",
-              "planar": True,  # moves on the ground plane: the timeline adds a top view
-              # final module poses against the goal layout [m], [rad]: two lateral
-              # latch windows, one angular latch window (msrr.core.shape)
-              "shape_tolerance": {"position": 0.02, "heading": 0.06}},
+    defaults=RobotDefaults(
+        planar=True,  # moves on the ground plane: the timeline adds a top view
+        # final module poses against the goal layout: two lateral latch windows [m],
+        # one angular latch window [rad] (msrr.core.shape)
+        shape_tolerance=ShapeTolerance(position=0.02, heading=0.06),
+    ),
 )

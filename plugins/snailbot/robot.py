@@ -8,7 +8,7 @@ sucker. One connector, so at most one out-connection. Geometry is nominal.
 
 from __future__ import annotations
 
-from msrr.core import ModuleKind, PortSpec, RobotSpec
+from msrr.core import ModuleKind, PortSpec, RobotDefaults, RobotSpec
 
 MODULE = ModuleKind(
     name="snailbot",
@@ -30,5 +30,5 @@ SPEC = RobotSpec(
         "(spherical joint) and can lock with a sucker (revolute joint)."
     ),
     reference="Zhao and Lam 2022; Zhao et al. 2024",
-    defaults={"control_rate": 10.0, "simulator": "mujoco", "joint_mode": "spherical"},
+    defaults=RobotDefaults(joint_mode="spherical"),
 )

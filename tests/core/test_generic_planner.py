@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from tiny_robot import CUBE, ROBOT, SPEC, TinyRules, chain
 
-from msrr.core import Configuration, ModuleKind, RobotSpec
+from msrr.core import Configuration, ModuleKind, RobotDefaults, RobotSpec
 from msrr.core.actions import topology_diff
 from msrr.core.app.testing import replay_problems
 from msrr.core.errors import PlanningError
@@ -28,7 +28,7 @@ class TreeRules(TinyRules):
 
 
 TREE = Robot(SPEC, TreeRules(), ROBOT.joint_modes)
-CONNECTED = Robot(replace(SPEC, defaults={"stay_connected": True}), TinyRules(),
+CONNECTED = Robot(replace(SPEC, defaults=RobotDefaults(stay_connected=True)), TinyRules(),
                   ROBOT.joint_modes)
 
 
@@ -50,7 +50,7 @@ def _legal(robot: Robot, modules: str, keys: frozenset) -> bool:
     if len(ends) != len(set(ends)):
         return False
     config = _state(modules, keys)
-    if robot.spec.defaults.get("stay_connected") and not config.is_connected():
+    if robot.spec.defaults.stay_connected and not config.is_connected():
         return False
     for group in nx.weakly_connected_components(config.graph):
         part = _state("".join(m for m in modules if m in group),

@@ -1,22 +1,24 @@
 """Success means the goal topology AND the goal shape: the planar fit against brute
 force, the errors against a known displacement, and runs judged by the robot's
-``shape_tolerance``."""
+``shape_tolerance`` (a typed :class:`ShapeTolerance` in its ``RobotDefaults``)."""
 
 from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tiny_robot
 from click.testing import CliRunner
 from tiny_robot import SPEC, installed
 
 from msrr.core.app.cli import get_cli
 from msrr.core.driver import Pose
 from msrr.core.errors import ConfigurationError
-from msrr.core.robot import RobotSpec
+from msrr.core.robot import RobotDefaults, RobotSpec, ShapeTolerance
 from msrr.core.shape import fit_planar, pose_errors, shape_tolerance
 
 
@@ -49,28 +51,25 @@ def test_errors_are_zero_for_a_moved_layout_and_measure_a_displaced_module() -> 
     turn, shift = 0.7, np.array([2.0, -1.0])
     moved = {m: Pose.planar(*(_rot(turn) @ p.position[:2] + shift), p.yaw + turn)
              for m, p in goal.items()}
-    errors = pose_errors(moved, goal, (0.01, 0.01))
+    errors = pose_errors(moved, goal, ShapeTolerance(position=0.01, heading=0.01))
     assert errors.max_position < 1e-12 and errors.max_heading < 1e-12 and errors.within
     moved["c"] = Pose.planar(*moved["c"].position[:2], moved["c"].yaw + 0.2)
-    errors = pose_errors(moved, goal, (0.01, 0.1))
+    errors = pose_errors(moved, goal, ShapeTolerance(position=0.01, heading=0.1))
     assert errors.max_heading == pytest.approx(0.2) and not errors.within
     single = pose_errors({"a": Pose.planar(5, 5, 1.0)}, {"a": Pose.planar(0, 0, 0.2)},
-                          (0.01, 0.01))
+                          ShapeTolerance(position=0.01, heading=0.01))
     assert single.max_position < 1e-12 and single.max_heading < 1e-12
     with pytest.raises(ConfigurationError, match="differ"):
-        pose_errors({"a": goal["a"]}, goal, (0.01, 0.01))
+        pose_errors({"a": goal["a"]}, goal, ShapeTolerance(position=0.01, heading=0.01))
 
 
-def test_the_tolerance_is_read_from_the_spec_and_checked() -> None:
-    def spec(value: object) -> RobotSpec:
-        return RobotSpec("r", "R", SPEC.module_kinds, defaults={"shape_tolerance": value})
-
+def test_the_tolerance_is_read_from_the_spec() -> None:
+    tolerance = ShapeTolerance(position=0.02, heading=0.06)
+    spec = RobotSpec("r", "R", SPEC.module_kinds,
+                     defaults=RobotDefaults(shape_tolerance=tolerance))
     assert shape_tolerance(SPEC) is None
-    assert shape_tolerance(spec({"position": 0.02, "heading": 0.06})) == (0.02, 0.06)
-    for bad in (0.1, {"position": 0.02}, {"position": math.nan, "heading": 1},
-                {"position": True, "heading": 1}, {"position": -1, "heading": 1}):
-        with pytest.raises(ConfigurationError, match="shape_tolerance"):
-            shape_tolerance(spec(bad))
+    assert shape_tolerance(spec) == tolerance
+    assert (tolerance.position, tolerance.heading) == (0.02, 0.06)
 
 
 @pytest.mark.parametrize(("tolerance", "success"), [(0.01, True), (1e-5, False)])
@@ -78,7 +77,8 @@ def test_a_run_is_judged_by_its_final_shape(tmp_path: Path, monkeypatch: pytest.
                                            tolerance: float, success: bool) -> None:
     # position noise of 0.3 mm on every reading: the topology is reached either way,
     # the final shape is within 1 cm but not within 10 um
-    monkeypatch.setitem(SPEC.defaults, "shape_tolerance", {"position": tolerance, "heading": 0.1})
+    defaults = RobotDefaults(shape_tolerance=ShapeTolerance(position=tolerance, heading=0.1))
+    monkeypatch.setattr(tiny_robot, "SPEC", replace(SPEC, defaults=defaults))
     out = tmp_path / "out"
     with installed(tmp_path):
         result = CliRunner().invoke(get_cli(), ["run", "--robot", "tiny", "--out", str(out),

@@ -23,7 +23,16 @@ from tiny_robot import (
     swap_plan,
 )
 
-from msrr.core import Configuration, ModuleKind, MsrrError, PortSpec, RobotSpec, hookimpl, plugins
+from msrr.core import (
+    Configuration,
+    ModuleKind,
+    MsrrError,
+    PortSpec,
+    RobotDefaults,
+    RobotSpec,
+    hookimpl,
+    plugins,
+)
 from msrr.core.app.cli import get_cli
 from msrr.core.driver import ModuleCommand, Observation, Pose
 from msrr.core.events import ActionStatus, Phase, Run, RunResult, Tick
@@ -282,7 +291,7 @@ def _views(blueprint: rrb.Blueprint) -> list[tuple[str, str]]:
 def test_a_planar_robot_records_the_top_view(tmp_path: Path) -> None:
     plan = swap_plan()
     run = replace(make_run(plan, recording=tmp_path / "run.rrd"),
-                  spec=replace(SPEC, defaults={"planar": True}))
+                  spec=replace(SPEC, defaults=RobotDefaults(planar=True)))
     with PointDriver() as driver:
         driver.reset(plan.start)
         plugins.emit.run_start(run)

@@ -33,7 +33,7 @@ from msrr.core.kinematics import (
 )
 from msrr.core.kinematics.rotations import cross, normalize, rodrigues
 from msrr.core.random_configurations import random_configuration
-from msrr.core.robot import DockingRules, ModuleKind, Robot, RobotSpec
+from msrr.core.robot import DockingRules, ModuleKind, Robot, RobotDefaults, RobotSpec
 
 _EYE = np.eye(3)
 
@@ -124,7 +124,7 @@ HUB = ModuleKind("hub", "H", "vertex", geometry={"mass": 1.0},
                  description="a ball the rods attach to")
 ROD = ModuleKind("rod", "R", "edge", geometry={"length": 0.5, "mass": 0.2},
                  description="a rod with a joint at its parent end")
-SPEC = RobotSpec("stick", "Stick", (HUB, ROD), defaults={"joint_mode": "gimbal"},
+SPEC = RobotSpec("stick", "Stick", (HUB, ROD), defaults=RobotDefaults(joint_mode="gimbal"),
                  description="the kinematics tests' robot")
 STICK = Robot(SPEC, DockingRules(), {"fixed": FixedNode, "gimbal": GimbalJoint,
                                      "twist": TwistJoint, "brace": BraceNode})

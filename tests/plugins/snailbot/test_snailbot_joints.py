@@ -39,7 +39,7 @@ def test_snailbot_registers_both_modes_with_spherical_the_default():
     assert robot.joint_modes["spherical"] is SphericalJoint
     assert robot.joint_modes["sucker_revolute"] is SuckerRevoluteJoint
     assert robot.default_joint_mode() is SphericalJoint
-    assert robot.spec.defaults["joint_mode"] == "spherical"
+    assert robot.spec.defaults.joint_mode == "spherical"
 
 
 @pytest.mark.parametrize("key", list(NODES))
