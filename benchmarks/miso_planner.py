@@ -1,6 +1,6 @@
 """MISO connection planning: heuristic optimality against the exact search, and its time.
 
-Instances are pairs of random MISO trees (:func:`msrr.core.miso.random_miso_tree`,
+Instances are pairs of random MISO trees (:func:`msrr.core.freeform.miso.random_miso_tree`,
 generated like Luo and Lam's: modules join a random placed module with in-degree below
 6, at most ``b`` modules branch). Two parts:
 
@@ -37,7 +37,7 @@ from rich.table import Table
 
 from msrr.core.app.batch import exit_on_interrupt, run_batch
 from msrr.core.console import exit_unless_installed
-from msrr.core.miso import (
+from msrr.core.freeform.miso import (
     MisoProblem,
     count_flows,
     random_miso_tree,

@@ -1,33 +1,76 @@
-"""Freeform modules with one connector (FreeBOT, SnailBot) in MuJoCo (FreeSN paper 2.1, 4.1).
+"""The freeform family: modules with one connector that docks anywhere on another module
+(FreeBOT, SnailBot; FreeSN paper, sections 2.1, 4.1), and the MuJoCo world every freeform
+robot's simulation stands on.
 
-* :mod:`.mujoco` -- what every MuJoCo freeform world shares: the ground, switched
-  equality constraints, seeded sensor noise, headings;
-* :mod:`.world` -- the world built with ``MjSpec``: shells, connectors on motor-driven
-  joints about the parent's centre, docks and flows as switched welds, suckers;
+* :mod:`.miso` -- MISO connection planning (the ``miso`` and ``miso-exact`` planners),
+  pure: numpy and scipy, no simulator;
+* :mod:`.plugin` -- :class:`FreeformPlugin`, the hook implementations of a
+  single-connector robot, built from its robot description, joint modes, module design
+  and scenarios; imports nothing heavy, so a robot's plugin module stays cheap to load;
+* :mod:`.mujoco` -- what every MuJoCo freeform world shares (FreeSN's too): the step
+  loop, switched weld equalities for docking, the ground, seeded sensor noise, headings
+  (:class:`MujocoWorld`), and the driver over such a world (:class:`MujocoDriver`);
+* :mod:`.world` -- the world of single-connector modules built with ``MjSpec``: shells,
+  connectors on motor-driven joints about the parent's centre, docks and flows as
+  switched welds, suckers;
 * :mod:`.driver` -- the :class:`~msrr.core.driver.Driver` a robot registers as ``mujoco``;
 * :mod:`.recognition` -- the recognizer (module reports only) and the controllers.
 
-Importing this package imports ``mujoco``: robot plugins import it inside their hooks.
+The names below are imported on first use (PEP 562): ``import msrr.core.freeform`` and
+the planner import no simulator; the world, driver and recognition modules import
+``mujoco``.
 """
 
-from .driver import FreeformDriver
-from .recognition import (
-    ContactController,
-    ContactRecognizer,
-    common_turn,
-    flow_direction,
-    goal_side,
-    links_of,
-    module_headings,
-)
-from .world import (
-    ConstraintEvent,
-    FreeformOptions,
-    FreeformWorld,
-    ModuleDesign,
-    ModuleReport,
-    place,
-)
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .driver import FreeformDriver, MujocoDriver
+    from .miso import MISO_EXACT, MisoPlanner, plan_miso
+    from .mujoco import SensorNoise, Switches
+    from .recognition import (
+        ContactController,
+        ContactRecognizer,
+        common_turn,
+        flow_direction,
+        goal_side,
+        links_of,
+        module_headings,
+    )
+    from .world import (
+        ConstraintEvent,
+        FreeformOptions,
+        FreeformWorld,
+        ModuleDesign,
+        ModuleReport,
+        place,
+    )
+
+_WHERE = {
+    "ConstraintEvent": "world",
+    "ContactController": "recognition",
+    "ContactRecognizer": "recognition",
+    "FreeformDriver": "driver",
+    "FreeformOptions": "world",
+    "FreeformWorld": "world",
+    "MISO_EXACT": "miso",
+    "MisoPlanner": "miso",
+    "ModuleDesign": "world",
+    "ModuleReport": "world",
+    "MujocoDriver": "driver",
+    "SensorNoise": "mujoco",
+    "Switches": "mujoco",
+    "common_turn": "recognition",
+    "flow_direction": "recognition",
+    "goal_side": "recognition",
+    "links_of": "recognition",
+    "module_headings": "recognition",
+    "place": "world",
+    "plan_miso": "miso",
+}
+"""Public name -> the submodule that defines it."""
 
 __all__ = [
     "ConstraintEvent",
@@ -36,12 +79,33 @@ __all__ = [
     "FreeformDriver",
     "FreeformOptions",
     "FreeformWorld",
+    "MISO_EXACT",
+    "MisoPlanner",
     "ModuleDesign",
     "ModuleReport",
+    "MujocoDriver",
+    "SensorNoise",
+    "Switches",
     "common_turn",
     "flow_direction",
     "goal_side",
     "links_of",
     "module_headings",
     "place",
+    "plan_miso",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Import the submodule that defines ``name`` on first use (PEP 562)."""
+    try:
+        module = _WHERE[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_WHERE})

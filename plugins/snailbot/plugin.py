@@ -41,7 +41,7 @@ def msrr_planners(robot: str, register):
     from .robot import SPEC
 
     if robot == SPEC.name:
-        from msrr.core.miso import MISO_EXACT, MisoPlanner
+        from msrr.core.freeform.miso import MISO_EXACT, MisoPlanner
 
         register(MisoPlanner())
         register(MISO_EXACT)

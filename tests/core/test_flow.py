@@ -17,9 +17,7 @@ from msrr.core.app.testing import run_kinematic
 from msrr.core.errors import ExecutionError, PlanningError
 from msrr.core.events import Phase
 from msrr.core.executor import phases_of
-from msrr.core.generic.driver import KinematicDriver
-from msrr.core.generic.geometry import BodyPose, slide_toward, touching_direction
-from msrr.core.miso import (
+from msrr.core.freeform.miso import (
     FREE,
     MisoProblem,
     _greedy_order,
@@ -31,6 +29,8 @@ from msrr.core.miso import (
     random_miso_tree,
     targets,
 )
+from msrr.core.generic.driver import KinematicDriver
+from msrr.core.generic.geometry import BodyPose, slide_toward, touching_direction
 from msrr.core.plan import Action, ActionType, Plan, load_plan, save_plan
 
 BALL = ModuleKind(name="ball", symbol="O", role="vertex", ports=(PortSpec("magnet"),),

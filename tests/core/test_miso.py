@@ -12,8 +12,7 @@ from msrr.core import plugins
 from msrr.core.actions import classify
 from msrr.core.configuration import Configuration
 from msrr.core.errors import PlanningError
-from msrr.core.io import load_configuration
-from msrr.core.miso import (
+from msrr.core.freeform.miso import (
     FREE,
     MisoProblem,
     brute_force_steps,
@@ -26,6 +25,7 @@ from msrr.core.miso import (
     step_is_legal,
     targets,
 )
+from msrr.core.io import load_configuration
 from msrr.core.plan import ActionType
 
 from msrr_test_support import ROOT

@@ -77,10 +77,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .actions import flow_move, topology_diff
-from .configuration import Configuration
-from .errors import PlanningError
-from .plan import Action, ActionType, ConnectionChange, Plan
+from ..actions import flow_move, topology_diff
+from ..configuration import Configuration
+from ..errors import PlanningError
+from ..plan import Action, ActionType, ConnectionChange, Plan
 
 __all__ = [
     "MisoPlanner",
