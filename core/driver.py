@@ -24,7 +24,7 @@ import numpy as np
 from .configuration import Configuration
 from .errors import ExecutionError
 
-__all__ = ["Driver", "DriverFactory", "ModuleCommand", "Observation", "Pose"]
+__all__ = ["Companions", "Driver", "DriverFactory", "ModuleCommand", "Observation", "Pose"]
 
 
 @dataclass(frozen=True)
@@ -90,6 +90,15 @@ class Observation:
     groups: tuple[frozenset[str], ...] = ()
 
 
+@dataclass(frozen=True)
+class Companions:
+    """The recognizer and controller that read and command a driver's modules, by name
+    (``None``: the robot's default one)."""
+
+    recognizer: str | None = None
+    controller: str | None = None
+
+
 class Driver(ABC):
     """A simulated or real set of modules.
 
@@ -99,6 +108,8 @@ class Driver(ABC):
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
+    companions: ClassVar[Companions] = Companions()
+    layout: ClassVar[DriverFactory | None] = None
 
     @property
     @abstractmethod
@@ -172,9 +183,20 @@ class Driver(ABC):
 
 @runtime_checkable
 class DriverFactory(Protocol):
-    """What ``msrr_drivers`` registers: a named callable that builds a :class:`Driver`."""
+    """What ``msrr_drivers`` registers: a named callable that builds a :class:`Driver`.
+
+    Attributes:
+        name: its name on the command line (``--driver NAME``).
+        description: one line for ``platform robots``.
+        companions: the recognizer and controller its modules need (a
+            :class:`Driver` subclass says none: the robot's defaults).
+        layout: a driver that can place modules, to lay out a goal for judging the
+            final shape, where this one cannot (the network link); ``None``: itself.
+    """
 
     name: str
     description: str
+    companions: Companions
+    layout: DriverFactory | None
 
     def __call__(self, **options: Any) -> Driver: ...

@@ -12,14 +12,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
+from typing import Protocol
 
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .plan import Action, ConnectionChange, Plan
 from .robot import RobotSpec
 
-__all__ = ["ActionStatus", "FaultEvent", "LocomotionResult", "Phase", "Run", "RunResult",
-           "ShapeErrors", "TargetResult", "Tick", "TopologyEvent"]
+__all__ = ["ActionStatus", "EventSink", "FaultEvent", "LocomotionResult", "NoEvents", "Phase",
+           "Run", "RunResult", "ShapeErrors", "TargetResult", "Tick", "TopologyEvent"]
 
 
 class ActionStatus(StrEnum):
@@ -339,3 +340,43 @@ class RunResult:
 
 def _degrees(angle: float | None) -> float | None:
     return None if angle is None else round(math.degrees(angle), 3)
+
+
+class EventSink(Protocol):
+    """Where a run's events go: the plugin host's event hooks in a run
+    (:data:`msrr.core.plugins.emit`), a list in a test. The executor and the run's guard
+    send to one; none of them asks the host."""
+
+    def run_start(self, run: Run) -> None: ...
+
+    def tick(self, run: Run, tick: Tick) -> None: ...
+
+    def action(self, run: Run, action: Action, status: ActionStatus) -> None: ...
+
+    def topology_change(self, run: Run, change: TopologyEvent) -> None: ...
+
+    def fault(self, run: Run, fault: FaultEvent) -> None: ...
+
+    def run_end(self, run: Run, result: RunResult) -> None: ...
+
+
+class NoEvents:
+    """An :class:`EventSink` that drops every event."""
+
+    def run_start(self, run: Run) -> None:
+        """Dropped."""
+
+    def tick(self, run: Run, tick: Tick) -> None:
+        """Dropped."""
+
+    def action(self, run: Run, action: Action, status: ActionStatus) -> None:
+        """Dropped."""
+
+    def topology_change(self, run: Run, change: TopologyEvent) -> None:
+        """Dropped."""
+
+    def fault(self, run: Run, fault: FaultEvent) -> None:
+        """Dropped."""
+
+    def run_end(self, run: Run, result: RunResult) -> None:
+        """Dropped."""

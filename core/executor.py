@@ -62,7 +62,7 @@ phases when the controller is a :class:`~msrr.core.closed_loop.JointController` 
 the action carries a kinematic tree or the robot has joint modes: every tick the
 recognized configuration goes through IK tracking toward the phase goal (the target,
 ``S_conn`` or ``S_extr``), the joint vectors go to the controller of each kinematic
-node (``plugins.controllers.get(robot, node.controller)``, the executor's controller
+node (the robot's controller of that name, handed in; the executor's controller
 for fixed nodes), and the phase is reached when the tracked motion cost falls under the
 threshold. During ``release`` only the undock commands are sent (everything else
 holds). Other robots (MMRP) run through :meth:`Controller.control` as before.
@@ -70,18 +70,19 @@ holds). Other robots (MMRP) run through :meth:`Controller.control` as before.
 A phase that does not finish within ``action_timeout`` seconds of driver time is
 retried (the controller is restarted) up to ``retries`` times, then the action and
 the run fail with a one-line reason naming the action. Events go to every plugin
-through :data:`msrr.core.plugins.emit`.
+to the :class:`~msrr.core.events.EventSink` the run hands in (in ``platform run``, every
+plugin's event hooks); the executor never asks the plugin host.
 """
 
 from __future__ import annotations
 
 import math
 import time as wallclock
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import plugins
 from .actions import TopologyDiff, flow_move, topology_diff
 from .alignment import rot_z
 from .capabilities import Recognizer
@@ -99,7 +100,9 @@ from .driver import Driver, ModuleCommand, Observation
 from .errors import ExecutionError, MsrrError
 from .events import (
     ActionStatus,
+    EventSink,
     LocomotionResult,
+    NoEvents,
     Phase,
     Run,
     RunResult,
@@ -109,6 +112,7 @@ from .events import (
 )
 from .kinematics import GroundModel
 from .plan import Action, ActionType, ConnectionChange
+from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
 __all__ = ["Executor", "ExecutorOptions", "behavior_commands", "phases_of"]
@@ -241,10 +245,15 @@ class Executor:
         recognizer: turns ``observation.sensors`` into a configuration.
         controller: turns actions into module commands.
         options: rate, timeout, retries.
+        sink: where events go (none are sent without one).
+        robot: the robot; its default joint mode builds kinematic trees for IK tracking.
+        controllers: the robot's controllers by name: a kinematic node's ``controller``
+            picks its own (else ``controller`` drives it).
     """
 
     def __init__(self, run: Run, driver: Driver, recognizer: Recognizer, controller: Controller,
-                 options: ExecutorOptions | None = None):
+                 options: ExecutorOptions | None = None, *, sink: EventSink | None = None,
+                 robot: Robot | None = None, controllers: Mapping[str, Controller] | None = None):
         self.run = run
         self.driver = driver
         self.recognizer = recognizer
@@ -258,15 +267,17 @@ class Executor:
         self._current: Configuration | None = None
         self._expected: set = set()
         self._tracker: PhaseTracker | None = None
+        self.sink: EventSink = sink or NoEvents()
         self._joint_mode: type | None = None
+        self._registered = dict(controllers or {})
         self._controllers: dict[str, JointController] = {}
         self._ik = self.options.ik and isinstance(controller, JointController)
         self._moving: _Locomotion | None = None
         self._skipping = False
         self._phase_began = 0.0
-        if self._ik:
+        if self._ik and robot is not None:
             try:
-                self._joint_mode = plugins.resolve(run.robot).default_joint_mode()
+                self._joint_mode = robot.default_joint_mode()
             except MsrrError:
                 self._joint_mode = None
 
@@ -337,14 +348,14 @@ class Executor:
         self._check_plan_consistency(index, action, diff)
         if action.type is ActionType.FLOW and not action.changes:
             action = replace(action, changes=diff.changes())  # what flow_of reads
-        plugins.emit.action(self.run, action, ActionStatus.STARTED)
+        self.sink.action(self.run, action, ActionStatus.STARTED)
         self._expected = {c.key for c in diff.changes()}
         tracking = self._tracks(action)
         try:
             for phase in phases_of(action, diff, tracking=tracking):
                 self._run_phase(index, action, phase, diff)
         except _ActionFailed:
-            plugins.emit.action(self.run, action, ActionStatus.FAILED)
+            self.sink.action(self.run, action, ActionStatus.FAILED)
             raise
         finally:
             self._expected = set()
@@ -354,7 +365,7 @@ class Executor:
             wanted = ({("undock", c.key) for c in diff.broken}
                       | {("dock", c.key) for c in diff.made})
             self.flows += bool(wanted) and wanted <= seen
-        plugins.emit.action(self.run, action, ActionStatus.SUCCEEDED)
+        self.sink.action(self.run, action, ActionStatus.SUCCEEDED)
 
     def _check_plan_consistency(self, index: int, action: Action, diff: TopologyDiff) -> None:
         assert self._current is not None
@@ -375,7 +386,7 @@ class Executor:
         for attempt in range(attempts):
             if attempt:
                 self.retries += 1
-                plugins.emit.action(self.run, action, ActionStatus.RETRYING)
+                self.sink.action(self.run, action, ActionStatus.RETRYING)
             observation = self.driver.get_observation()
             if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0) \
                     and phase is not Phase.BEHAVIOR:
@@ -451,12 +462,7 @@ class Executor:
     def _controller_for(self, name: str) -> JointController:
         """The joint controller registered as ``name``, else the executor's own."""
         if name not in self._controllers:
-            found: object = None
-            if name:
-                try:
-                    found = plugins.controllers.get(self.run.robot, name)
-                except MsrrError:
-                    found = None
+            found = self._registered.get(name)
             self._controllers[name] = (found if isinstance(found, JointController)
                                        else self.controller)  # type: ignore[assignment]
         return self._controllers[name]
@@ -506,7 +512,7 @@ class Executor:
             commands = _with_wheels(commands, behavior_commands(action))
         self.driver.send_action(commands)
         self.driver.step(self.dt)
-        plugins.emit.tick(self.run, Tick(self.tick_index, self.driver.time, index, action, phase,
+        self.sink.tick(self.run, Tick(self.tick_index, self.driver.time, index, action, phase,
                                          observation, configuration, commands, control.errors))
         self.tick_index += 1
         if phase in (Phase.APPROACH, Phase.MOVE, Phase.FLOW):
@@ -653,7 +659,7 @@ class Executor:
                 event = TopologyEvent(kind, c, self.tick_index, self.driver.time, index,
                                       key in self._expected)
                 self.events.append(event)
-                plugins.emit.topology_change(self.run, event)
+                self.sink.topology_change(self.run, event)
                 if not event.expected:
                     raise _ActionFailed(f"action {index + 1}: unexpected {event} detected at "
                                         f"t={event.time:.1f} s")

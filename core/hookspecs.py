@@ -18,6 +18,7 @@ shows each signature (a test keeps the two in step).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import pluggy
@@ -49,10 +50,16 @@ class Register(Protocol[T_contra]):
     """The registrar a capability hook receives: ``register(item)``, once per item.
 
     ``Register[Planner]`` accepts planners only; the host checks each item against
-    the capability's protocol and refuses, naming the hook, an item that does not fit.
+    the capability's protocol and refuses, naming the plugin and the hook, an item that
+    does not fit. ``register.registered`` lists the items registered so far in order (the
+    robot's own plugin's first, ``trylast`` fallbacks' last): a hook wrapper reads it
+    after its ``yield`` (the link driver takes the robot's default driver from it).
     """
 
     def __call__(self, item: T_contra, /) -> None: ...
+
+    @property
+    def registered(self) -> Sequence[object]: ...
 
 
 # -------------------------------------------------------------------------------------

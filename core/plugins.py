@@ -1,35 +1,53 @@
-"""The plugin host: one pluggy manager and a typed facade over its hooks.
+"""The plugin host: one pluggy manager, the guard every hook call passes through, and a
+typed, cached facade over the hooks.
 
-Plugins load from the entry-point group ``msrr.plugins`` (the built-in robots
-too). A plugin that fails to import, or implements a hook that does not exist or
-with a wrong signature, is left out and reported with its entry-point name and
-the reason; the others still load.
+Plugins load from the entry-point group ``msrr.plugins``: the robots, and the
+platform's own capabilities, each a ``plugin.py`` of its own with ordinary hook
+implementations (``docs/architecture.md`` lists them). The host holds no robot or
+capability name.
 
 Environment:
     ``MSRR_LOAD_PLUGINS``: comma-separated entry-point names; only these load
         (empty string: none).
     ``MSRR_TRACE_PLUGINS``: when set, every hook call is traced to stderr.
 
-Core code calls the functions of this module (``robots()``, ``planners(robot)``,
-``emit.run_start(run)``...), never ``pm.hook`` directly. This is the top of the
-core's import graph: kinematics, matching, library and file code never import it;
-they receive the :class:`~msrr.core.robot.Robot` that :func:`resolve` builds.
+**Calls.** Every hook is called through pluggy (``pm.hook.<name>``, or a
+``subset_hook_caller`` for a question put to one plugin alone), so tracing and hook
+wrappers see each call. A host wrapper around every non-historic hook, called first
+(:class:`_Guard`), is the one place a failure is caught: an implementation that raises
+becomes a :class:`~msrr.core.errors.PluginError` naming its plugin, its entry point,
+the hook, the robot and the exception.
 
-The capability lookups are typed facades (:class:`Capability`): ``planners`` is a
-``Capability[Planner]``, so ``planners("mmrp")`` is a ``dict[str, Planner]`` and
-``planners.get("mmrp")`` a :class:`~msrr.core.capabilities.Planner`.
+**Failures are loud.** A capability hook that raises, or registers or answers with the
+wrong type, makes every lookup of that robot raise that one-line error (the robot
+refuses; nothing falls back to a weaker default); :func:`problems` lists it and
+``platform plugins`` shows the plugin as failed.
+
+**Resolved once.** Each hook's answer for a robot is cached per ``(hook, robot)``; the
+cache is cleared whenever a plugin is registered or unregistered. A run resolves a
+robot's :class:`~msrr.core.capabilities.Capabilities` once and hands them down: only the
+application wing (:mod:`msrr.core.app`) and the built-in ``plugin.py`` modules import
+this module (``tests/core/test_layers.py``).
+
+**Order.** A capability's items come in pluggy's call order, the robot's own plugin's
+first (another plugin adds, it never takes the default); the first item is the
+default. An item of a ``trylast`` implementation (a fallback, such as the built-in
+runtime's) yields to an item of the same name from anyone else; any other two items of
+one name are an error.
 """
 
 from __future__ import annotations
 
+import inspect
 import os
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib import import_module
 from importlib.metadata import entry_points
 from pathlib import Path
+from types import FrameType
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 import pluggy
@@ -38,18 +56,17 @@ from . import hookspecs
 from .errors import (
     ConfigurationError,
     PluginError,
-    UnknownNameError,
     UnknownRobotError,
     one_line,
 )
 
 # The command line loads the plugins on every --help, which must not pay for numpy,
-# networkx, pydantic or scipy: the modules of robots, plans, files and the generic
-# runtime are imported by the functions that use them (tests/core/test_cli_startup.py).
+# networkx, pydantic or scipy: the modules of robots, plans, files and capabilities
+# are imported by the functions that use them (tests/core/test_cli_startup.py).
 if TYPE_CHECKING:
     import click
 
-    from .capabilities import Controller, DriverFactory, Planner, Recognizer
+    from .capabilities import Capabilities, Controller, DriverFactory, Planner, Recognizer
     from .configuration import Configuration
     from .events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
     from .kinematics.node import KinematicNode
@@ -61,9 +78,13 @@ if TYPE_CHECKING:
 __all__ = [
     "ENTRY_POINT_GROUP",
     "Capability",
+    "Host",
     "LoadError",
+    "PluginFailure",
+    "capabilities",
     "controllers",
     "create_plugin_manager",
+    "describe",
     "docking_rules",
     "drivers",
     "emit",
@@ -74,14 +95,15 @@ __all__ = [
     "load_errors",
     "load_library",
     "load_plan",
-    "problems",
     "planners",
     "plugin_rows",
+    "problems",
     "recognizers",
     "register",
     "register_commands",
     "resolve",
     "robot",
+    "robot_clashes",
     "robots",
     "scenarios",
     "temporary",
@@ -91,11 +113,12 @@ __all__ = [
 ENTRY_POINT_GROUP = "msrr.plugins"
 
 P = TypeVar("P")
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
 class LoadError:
-    """A plugin that was left out, and why."""
+    """A plugin that was left out at load time, and why."""
 
     entry_point: str
     reason: str
@@ -105,52 +128,219 @@ class LoadError:
 
 
 @dataclass(frozen=True)
-class PluginProblem:
-    """A loaded plugin that broke the hook contract at a call and was disabled.
+class PluginFailure:
+    """A loaded plugin whose hook raised, or registered or answered with the wrong type.
 
     Attributes:
         plugin: its registered name.
         entry_point: ``"msrr.plugins: <name> = <module>"``, or where it was registered
             from for plugins registered in code.
         hook: the hook whose call failed.
-        reason: what it did (raised what, returned what).
+        robot: the robot the call was about (``None`` for ``msrr_robot`` and events).
+        reason: what it did (raised what, registered what).
     """
 
     plugin: str
     entry_point: str
     hook: str
+    robot: str | None
     reason: str
 
     def __str__(self) -> str:
-        return f"plugin {self.plugin!r} ({self.entry_point}) disabled: {self.hook} {self.reason}"
+        about = f" for robot {self.robot!r}" if self.robot else ""
+        return (f"plugin {self.plugin!r} ({self.entry_point}) failed in {self.hook}{about}: "
+                f"{self.reason}")
 
 
-_pm: pluggy.PluginManager | None = None
-_load_errors: list[LoadError] = []
-_entry_points: dict[str, str] = {}  # plugin name -> entry point it was loaded from
-_disabled: dict[str, tuple[object, PluginProblem]] = {}  # plugin name -> (plugin, problem)
+class _HookFailed(PluginError):
+    """Raised by the guard: ``impl`` (``None`` if no implementation could be named) failed."""
+
+    def __init__(self, hook: str, impl: pluggy.HookImpl | None, reason: str):
+        self.hook, self.impl, self.reason = hook, impl, reason
+        super().__init__(f"{hook}: {reason}")
 
 
-def create_plugin_manager() -> tuple[pluggy.PluginManager, list[LoadError]]:
+# -- the manager ----------------------------------------------------------------------
+
+
+class Host(pluggy.PluginManager):
+    """The ``msrr`` plugin manager: pluggy's, plus what the host keeps per manager.
+
+    Attributes:
+        load_errors: plugins left out at load time.
+        entry_points: plugin name -> the entry point it was loaded from.
+        answers: ``(hook, robot)`` -> the cached answer or the failure it raised;
+            cleared whenever a plugin is registered or unregistered.
+    """
+
+    def __init__(self) -> None:
+        super().__init__("msrr")
+        self.add_hookspecs(hookspecs)
+        self.load_errors: list[LoadError] = []
+        self.entry_points: dict[str, str] = {}
+        self.answers: dict[tuple[str, str | None], object] = {}
+        self._guard = _Guard(self)
+        super().register(self._guard, name=_Guard.NAME)
+
+    def register(self, plugin: object, name: str | None = None) -> str | None:
+        self.answers.clear()
+        return super().register(plugin, name)
+
+    def unregister(self, plugin: object | None = None, name: str | None = None) -> object:
+        self.answers.clear()
+        return super().unregister(plugin, name)
+
+    def where(self, impl: pluggy.HookImpl) -> str:
+        """Where ``impl``'s plugin came from: its entry point, or its module."""
+        module = getattr(impl.plugin, "__module__", None) or getattr(impl.plugin, "__name__", "?")
+        return self.entry_points.get(impl.plugin_name) or f"registered in code, {module}"
+
+    def failure(self, error: _HookFailed, robot: str | None) -> PluginError:
+        """The one-line error of a guarded failure, recorded for :func:`problems`."""
+        impl = error.impl
+        if impl is None:
+            return PluginError(f"{error.hook}{f' for robot {robot!r}' if robot else ''}: "
+                               f"{error.reason}")
+        found = PluginFailure(impl.plugin_name, self.where(impl), error.hook, robot,
+                              one_line(error.reason, 200))
+        return _Failed(found)
+
+    def call(self, hook: str, robot: str | None = None, *, alone: object = None,
+             **kwargs: object) -> object:
+        """Call ``hook`` through pluggy (only plugin ``alone``'s implementation when given,
+        wrappers kept); a failure raises the recorded one-line :class:`PluginError`."""
+        caller = getattr(self.hook, hook)
+        if alone is not None:
+            others = [i.plugin for i in caller.get_hookimpls()
+                      if i.plugin is not alone and not (i.wrapper or i.hookwrapper)]
+            caller = self.subset_hook_caller(hook, remove_plugins=others)
+        if robot is not None:
+            kwargs["robot"] = robot
+        try:
+            return caller(**kwargs)
+        except _HookFailed as exc:
+            raise self.failure(exc, robot) from None
+
+    def cached(self, hook: str, robot: str | None, answer: Callable[[], T]) -> T:
+        """``answer()`` once per ``(hook, robot)`` until the next (un)registration; a
+        failure is cached too, and raised again on every lookup."""
+        key = (hook, robot)
+        if key in self.answers:
+            found = self.answers[key]
+            if found is _PENDING:
+                raise PluginError(f"{hook} for robot {robot!r} was asked for while it was "
+                                  "being answered (a plugin's hook needs its own answer)")
+            if isinstance(found, PluginError):
+                raise found
+            return found  # type: ignore[return-value]
+        self.answers[key] = _PENDING
+        try:
+            value = answer()
+        except PluginError as exc:
+            self.answers[key] = exc
+            raise
+        except BaseException:
+            del self.answers[key]
+            raise
+        self.answers[key] = value
+        return value
+
+
+class _Failed(PluginError):
+    """The one-line error of a :class:`PluginFailure`."""
+
+    def __init__(self, failure: PluginFailure):
+        self.failure = failure
+        super().__init__(str(failure))
+
+
+_PENDING = object()
+
+
+class _Guard:
+    """A wrapper around every non-historic hook, called before any other implementation:
+    the one place an implementation's exception is caught and attributed (the frames
+    of its traceback name the implementation that raised)."""
+
+    NAME = "msrr.host"
+
+    def __init__(self, pm: pluggy.PluginManager):
+        for spec_name in (n for n in dir(hookspecs) if n.startswith("msrr_")):
+            if not getattr(getattr(hookspecs, spec_name), "msrr_spec", {}).get("historic"):
+                setattr(self, spec_name, self._wrapper(pm, spec_name))
+
+    @staticmethod
+    def _wrapper(pm: pluggy.PluginManager, hook: str) -> Callable[[], object]:
+        @hookspecs.hookimpl(wrapper=True, tryfirst=True, specname=hook)
+        def guard():  # type: ignore[no-untyped-def]
+            try:
+                return (yield)
+            except _HookFailed:
+                raise
+            except Exception as exc:  # noqa: BLE001 - every failure is named, then raised
+                impls = [i for i in getattr(pm.hook, hook).get_hookimpls()
+                         if i.plugin_name != _Guard.NAME]
+                impl = implementation_in(_traceback_frames(exc), impls)
+                raise _HookFailed(hook, impl, f"{type(exc).__name__}: {exc}") from exc
+        return guard
+
+
+def _traceback_frames(exc: BaseException) -> list[FrameType]:
+    frames, tb = [], exc.__traceback__
+    while tb is not None:
+        frames.append(tb.tb_frame)
+        tb = tb.tb_next
+    return frames
+
+
+def _calling_frames() -> list[FrameType]:
+    """The frames of the current stack, outermost first."""
+    frames, frame = [], sys._getframe(1)
+    while frame is not None:
+        frames.append(frame)
+        frame = frame.f_back
+    return frames[::-1]
+
+
+def implementation_in(frames: Iterable[FrameType], impls: Iterable[pluggy.HookImpl]
+                      ) -> pluggy.HookImpl | None:
+    """The innermost of ``frames`` (outermost first) that runs one of ``impls``: its code,
+    and for a method its instance, are the implementation's. Innermost, because pluggy
+    throws an implementation's exception through the hook wrappers around it."""
+    by_code: dict[object, list[pluggy.HookImpl]] = {}
+    for impl in impls:
+        function = inspect.unwrap(getattr(impl.function, "__func__", impl.function))
+        by_code.setdefault(getattr(function, "__code__", None), []).append(impl)
+    for frame in reversed(list(frames)):
+        for impl in by_code.get(frame.f_code, ()):
+            owner = getattr(impl.function, "__self__", None)
+            if owner is None or frame.f_locals.get("self") is owner:
+                return impl
+    return None
+
+
+_pm: Host | None = None
+
+
+def create_plugin_manager() -> tuple[Host, list[LoadError]]:
     """A new manager with every ``msrr.plugins`` entry point loaded, and the load errors."""
-    pm = pluggy.PluginManager("msrr")
-    pm.add_hookspecs(hookspecs)
-    errors = _load_entry_points(pm)
+    pm = Host()
+    pm.load_errors = _load_entry_points(pm)
     if os.environ.get("MSRR_TRACE_PLUGINS"):
         pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
         pm.enable_tracing()
-    return pm, errors
+    return pm, list(pm.load_errors)
 
 
-def get_plugin_manager() -> pluggy.PluginManager:
+def get_plugin_manager() -> Host:
     """The process-wide plugin manager, loading entry points on first use."""
-    global _pm, _load_errors
+    global _pm
     if _pm is None:
-        _pm, _load_errors = create_plugin_manager()
+        _pm, _ = create_plugin_manager()
     return _pm
 
 
-def _load_entry_points(pm: pluggy.PluginManager) -> list[LoadError]:
+def _load_entry_points(pm: Host) -> list[LoadError]:
     errors: list[LoadError] = []
     wanted = os.environ.get("MSRR_LOAD_PLUGINS")
     allowed = None if wanted is None else {n.strip() for n in wanted.split(",") if n.strip()}
@@ -170,12 +360,11 @@ def _load_entry_points(pm: pluggy.PluginManager) -> list[LoadError]:
         except PluginError as exc:
             errors.append(LoadError(ep.name, str(exc)))
         else:
-            _entry_points[ep.name] = f"{ENTRY_POINT_GROUP}: {ep.name} = {ep.value}"
+            pm.entry_points[ep.name] = f"{ENTRY_POINT_GROUP}: {ep.name} = {ep.value}"
     return errors
 
 
-def register(plugin: object, name: str | None = None,
-             pm: pluggy.PluginManager | None = None) -> None:
+def register(plugin: object, name: str | None = None, pm: Host | None = None) -> None:
     """Register ``plugin`` and check it against the hookspecs at once.
 
     Raises:
@@ -195,174 +384,204 @@ def register(plugin: object, name: str | None = None,
 
 
 @contextmanager
-def temporary(plugin: P, name: str | None = None,
-              pm: pluggy.PluginManager | None = None) -> Iterator[P]:
+def temporary(plugin: P, name: str | None = None, pm: Host | None = None) -> Iterator[P]:
     """Register ``plugin`` for the duration of a ``with`` block (tests, notebooks)."""
     pm = pm or get_plugin_manager()
     register(plugin, name, pm)
-    registered = pm.get_name(plugin)
     try:
         yield plugin
     finally:
         pm.unregister(plugin)
-        if registered is not None and _is_disabled(registered, plugin):
-            del _disabled[registered]
 
 
 def load_errors() -> list[LoadError]:
     """Plugins that were left out at load time."""
-    get_plugin_manager()
-    return list(_load_errors)
+    return list(get_plugin_manager().load_errors)
+
+
+def problems() -> list[PluginFailure]:
+    """The failures found so far (hooks that raised or answered with the wrong type), one
+    per plugin and hook; ``platform plugins`` resolves every robot first to find them."""
+    found: dict[tuple[str, str], PluginFailure] = {}
+    for answer in get_plugin_manager().answers.values():
+        failures = answer.failures if isinstance(answer, _Claims) else (
+            [answer.failure] if isinstance(answer, _Failed) else [])
+        for failure in failures:
+            found.setdefault((failure.plugin, failure.hook), failure)
+    return list(found.values())
 
 
 # -- robots ---------------------------------------------------------------------------
 
 
-def problems() -> list[PluginProblem]:
-    """Plugins disabled because a hook call raised or answered with the wrong type."""
-    pm = get_plugin_manager()
-    return [problem for name, (plugin, problem) in _disabled.items()
-            if pm.get_plugin(name) is plugin]
+@dataclass(frozen=True)
+class _Claims:
+    """Every plugin's answer to ``msrr_robot``: robot name -> (plugin, spec) claims, and
+    the plugins whose ``msrr_robot`` failed."""
+
+    claims: dict[str, list[tuple[str, RobotSpec]]]
+    failures: list[PluginFailure]
 
 
-def _is_disabled(name: str, plugin: object) -> bool:
-    entry = _disabled.get(name)
-    return entry is not None and entry[0] is plugin
-
-
-def _disable(impl: pluggy.HookImpl, hook: str, reason: str) -> None:
-    module = getattr(impl.plugin, "__module__", None) or getattr(impl.plugin, "__name__", "?")
-    where = _entry_points.get(impl.plugin_name) or f"registered in code, {module}"
-    problem = PluginProblem(impl.plugin_name, where, hook, one_line(reason, 160))
-    _disabled[impl.plugin_name] = (impl.plugin, problem)
-
-
-def _call_each(hook_name: str, before: Callable[[], object] | None = None, **kwargs: object
-               ) -> Iterator[tuple[pluggy.HookImpl, object]]:
-    """Call every enabled implementation of ``hook_name`` in pluggy's order (the last
-    registered first), yielding ``(impl, answer)``; one that raises is disabled and
-    skipped, so a broken plugin never stops the others. ``before`` runs before each call."""
-    pm = get_plugin_manager()
-    for impl in reversed(getattr(pm.hook, hook_name).get_hookimpls()):
-        if _is_disabled(impl.plugin_name, impl.plugin):
-            continue
-        if before is not None:
-            before()
-        try:
-            answer = impl.function(*(kwargs[name] for name in impl.argnames))
-        except Exception as exc:  # noqa: BLE001 - any failure of a plugin is reported, not raised
-            _disable(impl, hook_name, f"raised {type(exc).__name__}: {exc}")
-            continue
-        yield impl, answer
-
-
-def _registered(hook_name: str, **kwargs: object) -> list[object]:
-    """What every enabled implementation of a ``register``-style hook registers, in
-    pluggy's order; the items of a call that raises are dropped with its plugin."""
-    found: list[object] = []
-    pending: list[object] = []
-    for _impl, _answer in _call_each(hook_name, pending.clear, register=pending.append,
-                                     **kwargs):
-        found.extend(pending)
-    return found
-
-
-def _robot_answers() -> tuple[dict[str, RobotSpec], dict[str, list[str]]]:
-    """Robots described by exactly one plugin, and robot name -> plugins for the others."""
+def _claims() -> _Claims:
+    """A robot belongs to the one plugin that describes it, so ``msrr_robot`` is put to
+    each plugin alone (through pluggy, the guard around it); a plugin that fails is
+    recorded and the others still describe theirs."""
     from .robot import RobotSpec
-    claims: dict[str, list[tuple[str, RobotSpec]]] = {}
-    for impl, spec in _call_each("msrr_robot"):
-        if spec is None:
-            continue
-        if not isinstance(spec, RobotSpec):
-            _disable(impl, "msrr_robot", f"returned {type(spec).__name__}, expected one "
-                     "RobotSpec or None (one entry point per robot)")
-            continue
-        claims.setdefault(spec.name, []).append((impl.plugin_name, spec))
-    unique = {name: found[0][1] for name, found in claims.items() if len(found) == 1}
-    clashes = {name: sorted(plugin for plugin, _ in found)
-               for name, found in claims.items() if len(found) > 1}
-    return dict(sorted(unique.items())), clashes
+
+    pm = get_plugin_manager()
+
+    def ask() -> _Claims:
+        claims: dict[str, list[tuple[str, RobotSpec]]] = {}
+        failures: list[PluginFailure] = []
+        for impl in reversed(pm.hook.msrr_robot.get_hookimpls()):
+            if impl.wrapper or impl.hookwrapper:
+                continue
+            try:
+                answers = pm.call("msrr_robot", alone=impl.plugin)
+            except _Failed as exc:
+                failures.append(exc.failure)
+                continue
+            for spec in answers:  # type: ignore[attr-defined]
+                if not isinstance(spec, RobotSpec):
+                    failures.append(PluginFailure(
+                        impl.plugin_name, pm.where(impl), "msrr_robot", None,
+                        f"returned {type(spec).__name__}, expected one RobotSpec or None "
+                        "(one entry point per robot)"))
+                    continue
+                claims.setdefault(spec.name, []).append((impl.plugin_name, spec))
+        return _Claims(dict(sorted(claims.items())), failures)
+
+    return pm.cached("msrr_robot", None, ask)
 
 
 def robots() -> dict[str, RobotSpec]:
-    """Every robot described by exactly one enabled plugin, by name (sorted).
-
-    A plugin whose ``msrr_robot`` raises or answers with anything but one
-    :class:`RobotSpec` or ``None`` is disabled (see :func:`problems`); a robot two
-    plugins describe is left out (see :func:`robot_clashes`); the others stay usable.
-    """
-    return _robot_answers()[0]
-
-
-def _robot_owner(name: str) -> str | None:
-    """The plugin that describes robot ``name``."""
-    from .robot import RobotSpec
-
-    for impl, spec in _call_each("msrr_robot"):
-        if isinstance(spec, RobotSpec) and spec.name == name:
-            return impl.plugin_name
-    return None
+    """Every robot described by exactly one plugin, by name (sorted); see
+    :func:`robot_clashes` and :func:`problems` for the others."""
+    return {name: found[0][1] for name, found in _claims().claims.items() if len(found) == 1}
 
 
 def robot_clashes() -> dict[str, list[str]]:
     """Robot name -> the plugins that all describe it (such robots are refused)."""
-    return _robot_answers()[1]
+    return {name: sorted(plugin for plugin, _ in found)
+            for name, found in _claims().claims.items() if len(found) > 1}
+
+
+def _owner(name: str) -> str:
+    """The plugin that describes robot ``name``.
+
+    Raises:
+        UnknownRobotError: no plugin describes it (listing the known ones, and naming
+            the plugins whose ``msrr_robot`` failed).
+        PluginError: two plugins describe it (naming both).
+    """
+    found = _claims()
+    claims = found.claims.get(name, [])
+    if len(claims) > 1:
+        owners = ", ".join(repr(plugin) for plugin, _ in sorted(claims))
+        raise PluginError(f"robot {name!r} is described by plugins {owners}; it is refused "
+                          "until one of them is removed")
+    if not claims:
+        error = UnknownRobotError(name, robots())
+        if found.failures:
+            raise PluginError(f"{error}; {'; '.join(map(str, found.failures))}")
+        raise error
+    return claims[0][0]
 
 
 def robot(name: str) -> RobotSpec:
-    """The robot called ``name``.
-
-    Raises:
-        UnknownRobotError: no enabled plugin describes it (listing the known ones).
-        PluginError: two plugins describe it (naming both).
-    """
-    known, clashes = _robot_answers()
-    if name in clashes:
-        raise PluginError(f"robot {name!r} is described by plugins {', '.join(map(repr, clashes[name]))}"
-                          "; it is refused until one of them is removed")
-    try:
-        return known[name]
-    except KeyError:
-        raise UnknownRobotError(name, known) from None
+    """The description of robot ``name`` (raises as :func:`_owner`)."""
+    _owner(name)
+    return _claims().claims[name][0][1]
 
 
 def docking_rules(name: str) -> DockingRules:
-    """Docking rules of robot ``name`` (permissive defaults if no plugin defines them)."""
+    """Docking rules of robot ``name``: the first plugin's answer (``firstresult``), the
+    permissive :class:`DockingRules` when no plugin defines any.
+
+    Raises:
+        PluginError: a plugin's ``msrr_docking_rules`` raised or answered with another
+            type (naming it); never relaxed to the permissive rules.
+    """
     from .robot import DockingRules
 
+    pm = get_plugin_manager()
     robot(name)
-    for impl, rules in _call_each("msrr_docking_rules", robot=name):
+
+    def ask() -> DockingRules:
+        rules = pm.call("msrr_docking_rules", name)
         if rules is None:
-            continue
-        if not isinstance(rules, DockingRules):
-            _disable(impl, "msrr_docking_rules", f"returned {type(rules).__name__}, "
-                     "expected DockingRules or None")
-            continue
-        return rules  # firstresult: the first answer that is not None
-    return DockingRules()
+            return DockingRules()
+        if isinstance(rules, DockingRules):
+            return rules
+        impl = next(i for i in reversed(pm.hook.msrr_docking_rules.get_hookimpls())
+                    if not (i.wrapper or i.hookwrapper)
+                    and pm.call("msrr_docking_rules", name, alone=i.plugin) is not None)
+        raise _Failed(PluginFailure(impl.plugin_name, pm.where(impl), "msrr_docking_rules",
+                                    name, f"returned {type(rules).__name__}, expected "
+                                    "DockingRules or None"))
+
+    return pm.cached("msrr_docking_rules", name, ask)
+
+
+def describe(name: str) -> Robot:
+    """What the pure layers need of robot ``name``: spec, rules and joint modes.
+
+    The built-in runtime's plugins ask this while the robot's other capabilities are
+    being resolved; commands use :func:`resolve`, which refuses a robot any of whose
+    hooks fails.
+    """
+    from .kinematics.node import FixedNode
+    from .robot import Robot
+
+    def ask() -> Robot:
+        modes: dict[str, type] = {"fixed": FixedNode}
+        modes.update(kinematic_nodes.items(name))
+        return Robot(robot(name), docking_rules(name), modes)
+
+    return get_plugin_manager().cached("describe", name, ask)
+
+
+def capabilities(name: str) -> Capabilities:
+    """Everything robot ``name`` has, every hook asked once (then cached).
+
+    Raises:
+        UnknownRobotError: no plugin describes it.
+        PluginError: any hook of any plugin failed for it (naming plugin, entry point,
+            hook and exception): the robot refuses.
+    """
+    from .capabilities import Capabilities
+
+    def ask() -> Capabilities:
+        return Capabilities(
+            robot=describe(name), controllers=controllers.items(name),
+            recognizers=recognizers.items(name), planners=planners.items(name),
+            drivers=drivers.items(name), scenarios=scenarios.items(name),
+            libraries=tuple(libraries(name)))
+
+    return get_plugin_manager().cached("capabilities", name, ask)
 
 
 def resolve(name: str) -> Robot:
-    """Everything the pure layers need of robot ``name``: spec, rules, joint modes."""
-    from .kinematics.node import FixedNode
-    from .robot import Robot
-    modes: dict[str, type] = {"fixed": FixedNode}
-    modes.update(kinematic_nodes(name))
-    return Robot(robot(name), docking_rules(name), modes)
+    """Robot ``name``'s spec, rules and joint modes, once every one of its hooks answered
+    (:func:`capabilities`): a robot with a failing plugin refuses every command."""
+    return capabilities(name).robot
+
+
+# -- files checked against their robot ------------------------------------------------
 
 
 def load_configuration(path: str | os.PathLike[str]) -> Configuration:
     """Read a configuration file and validate it against the installed robot it names.
 
-    The one "load and check" of the top layer (CLI commands, ``platform run``); the
-    pure layers call :func:`msrr.core.io.load_configuration` with a :class:`Robot`.
+    The one "load and check" of the application wing; the pure layers call
+    :func:`msrr.core.io.load_configuration` with a :class:`Robot`.
 
     Raises:
         ConfigurationError: missing file, bad JSON, a wrong field or a broken rule,
             naming the file and the field.
         UnknownRobotError: the file names a robot no installed plugin describes.
-        PluginError: two plugins describe the robot the file names.
+        PluginError: the robot's plugins fail or clash.
     """
     from . import io
 
@@ -385,8 +604,7 @@ def _robot_of(name: str, path: str | os.PathLike[str]) -> Robot:
 
 
 def load_library(path: str | os.PathLike[str]) -> Library:
-    """Read a library file and validate it whole against the installed robot it names
-    (:func:`msrr.core.library.storage.library_from_model`).
+    """Read a library file and validate it whole against the installed robot it names.
 
     Raises:
         LibraryError: naming the file and the field.
@@ -397,8 +615,7 @@ def load_library(path: str | os.PathLike[str]) -> Library:
 
 
 def load_plan(path: str | os.PathLike[str]) -> Plan:
-    """Read a plan file and validate it against the installed robot it names
-    (:func:`msrr.core.plan.check_plan`).
+    """Read a plan file and validate it against the installed robot it names.
 
     Raises:
         ConfigurationError: naming the file and the field.
@@ -410,17 +627,67 @@ def load_plan(path: str | os.PathLike[str]) -> Plan:
 
 # -- capabilities ---------------------------------------------------------------------
 
-T = TypeVar("T")
+
+class _Registrar:
+    """The ``register`` a registrar hook receives: checks each item as it comes, notes the
+    implementation that registered it (the frame on the stack that runs it), and shows
+    what is registered so far in order (:attr:`registered`, for hook wrappers).
+
+    The order: the robot's own plugin's items, then other plugins', then ``trylast``
+    fallbacks', then hook wrappers' (registered after every other), each in pluggy's
+    call order.
+    """
+
+    def __init__(self, hook: str, impls: list[pluggy.HookImpl],
+                 check: Callable[[object], str | None], owner: str | None = None):
+        self.hook = hook
+        self.impls = impls
+        self.check = check
+        self.owner = owner
+        self.entries: list[tuple[pluggy.HookImpl | None, object]] = []
+
+    def __call__(self, item: object, /) -> None:
+        problem = self.check(item)
+        if problem is not None:
+            raise PluginError(problem)
+        self.entries.append((implementation_in(_calling_frames(), self.impls), item))
+
+    def ordered(self) -> list[tuple[pluggy.HookImpl | None, object]]:
+        """The entries in capability order (see the class docstring)."""
+        def rank(entry: tuple[pluggy.HookImpl | None, object]) -> int:
+            impl = entry[0]
+            if impl is not None and impl.plugin_name == self.owner:
+                return 0
+            if impl is not None and (impl.wrapper or impl.hookwrapper):
+                return 3
+            return 2 if impl is None or impl.trylast else 1
+        return sorted(self.entries, key=rank)
+
+    @property
+    def registered(self) -> list[object]:
+        """The items registered so far, in capability order."""
+        return [item for _, item in self.ordered()]
+
+
+def _registered(hook: str, check: Callable[[object], str | None], robot: str | None = None,
+                **kwargs: object) -> _Registrar:
+    """Call registrar hook ``hook`` through pluggy; the registrar holds what it registered."""
+    pm = get_plugin_manager()
+    registrar = _Registrar(hook, getattr(pm.hook, hook).get_hookimpls(), check,
+                           None if robot is None else _owner(robot))
+    pm.call(hook, robot, register=registrar, **kwargs)
+    return registrar
 
 
 class Capability(Generic[T]):
-    """The items of one capability hook for one robot: ``planners("mmrp")`` is a
-    ``dict[str, Planner]`` in registration order, ``planners.get("mmrp")`` the default.
+    """The items of one registrar hook for one robot: ``planners(ROBOT)`` is a
+    ``dict[str, Planner]`` in order (the default first), ``planners.get(ROBOT)`` the
+    default.
 
-    Each registered item is checked against ``accepts`` (a protocol or class; for
-    joint modes a base class the item must subclass) when it is registered. It is named
-    ``"module:Class"`` within ``msrr.core`` and imported at the first check, so loading
-    the plugin host imports no robot code.
+    Each item is checked against ``accepts`` (a protocol or class; for joint modes a base
+    class the item must subclass) as it is registered. It is named ``"module:Class"``
+    within ``msrr.core`` and imported at the first check, so loading the host imports no
+    robot code.
     """
 
     def __init__(self, hook_name: str, what: str, accepts: str, subclass: bool = False):
@@ -435,77 +702,53 @@ class Capability(Generic[T]):
         module, name = self._accepts.split(":")
         return getattr(import_module(f".{module}", __package__), name)
 
-    def _fits(self, item: object) -> bool:
-        if self.subclass:
-            return isinstance(item, type) and issubclass(item, self.accepts)
-        return isinstance(item, self.accepts)
+    def _problem(self, item: object) -> str | None:
+        name = getattr(item, "name", None)
+        if not isinstance(name, str) or not name:
+            return f"registered {self.what} {item!r} has no name"
+        fits = (isinstance(item, type) and issubclass(item, self.accepts) if self.subclass
+                else isinstance(item, self.accepts))
+        if not fits:
+            need = "a subclass of " if self.subclass else ""
+            return f"{self.what} {name!r} is not {need}{self.accepts.__name__}"
+        return None
 
-    def __call__(self, robot_name: str) -> dict[str, T]:
-        """Everything registered for ``robot_name``, by name: the robot's own plugin's items
-        first, in registration order, then other plugins' (they add, they never take the
-        default); for planners, drivers, recognizers and controllers then the generic
-        runtime's items (:mod:`msrr.core.generic`) under names not taken.
-
-        A plugin that registers an item without a name, of the wrong type or under a
-        name already taken, or whose hook raises, is disabled (:func:`problems`) and
-        its items are left out; the other plugins' items are still returned.
+    def items(self, robot_name: str) -> dict[str, T]:
+        """Everything registered for ``robot_name``, by name, the robot's own plugin's
+        items first (see the module docstring for the order and for names taken twice).
 
         Raises:
             UnknownRobotError: no plugin describes ``robot_name``.
+            PluginError: a plugin's hook failed, registered an item that does not fit,
+                or an item under a name another plugin registers too.
         """
-        robot(robot_name)
-        found: dict[str, T] = {}
-        pending: list[T] = []
+        pm = get_plugin_manager()
+        _owner(robot_name)
 
-        def add(item: T, /) -> None:
-            name = getattr(item, "name", None)
-            if not isinstance(name, str) or not name:
-                raise PluginError(f"{self.hook_name}: registered {self.what} {item!r} has no name")
-            if not self._fits(item):
-                need = "a subclass of " if self.subclass else ""
-                raise PluginError(f"{self.hook_name}: {self.what} {name!r} is not "
-                                  f"{need}{self.accepts.__name__}")
-            if any(getattr(p, "name", None) == name for p in pending):
-                raise PluginError(f"{self.hook_name}: two {self.what}s named {name!r} "
-                                  f"for robot {robot_name!r}")
-            pending.append(item)
-
-        # a plugin whose call raises (a bad item included) is disabled, its items dropped;
-        # of two plugins registering one name, the later registered (called first) is
-        owners: dict[str, pluggy.HookImpl] = {}
-        for impl, _answer in _call_each(self.hook_name, pending.clear, robot=robot_name,
-                                        register=add):
-            for item in pending:
+        def ask() -> dict[str, T]:
+            entries = _registered(self.hook_name, self._problem, robot_name).ordered()
+            found: dict[str, T] = {}
+            by: dict[str, pluggy.HookImpl | None] = {}
+            for impl, item in entries:
                 name = item.name  # type: ignore[attr-defined]
-                if name in owners:
-                    intruder = owners[name]
-                    _disable(intruder, self.hook_name, f"registered a {self.what} named "
-                             f"{name!r} that plugin {impl.plugin_name!r} also registers")
-                    for taken in [n for n, o in owners.items() if o is intruder]:
-                        del owners[taken], found[taken]
-                found[name] = item
-                owners[name] = impl
-        # the robot's own plugin's items first: another plugin may add, never take the default
-        own = _robot_owner(robot_name)
-        found = {name: item for name, item in sorted(
-            found.items(), key=lambda entry: owners[entry[0]].plugin_name != own)}
-        from . import generic
-        from .link import link_driver_factory
+                if name not in found:
+                    found[name], by[name] = item, impl  # type: ignore[assignment]
+                elif impl is None or not impl.trylast:
+                    first = by[name]
+                    raise _Failed(PluginFailure(
+                        impl.plugin_name if impl else "?", pm.where(impl) if impl else "?",
+                        self.hook_name, robot_name,
+                        f"registered a {self.what} named {name!r} that plugin "
+                        f"{first.plugin_name if first else '?'!r} registers too"))
+            return found
 
-        if self.hook_name == "msrr_planners" and "library" not in found:
-            paths = libraries(robot_name)   # the core's library planner, before the generic
-            if paths:
-                from .library.planner import LibraryPlanner
+        return pm.cached(self.hook_name, robot_name, ask)
 
-                found["library"] = LibraryPlanner(resolve(robot_name), paths)  # type: ignore[assignment]
-        if self.hook_name in generic.HOOKS:  # the generic runtime, after the robot's own
-            for item in generic.capabilities(self.hook_name, resolve(robot_name)):
-                found.setdefault(item.name, item)  # type: ignore[attr-defined]
-            if self.hook_name == "msrr_drivers":  # the network link to any robot's modules
-                first = next(iter(found.values()))
-                found.setdefault("link", link_driver_factory(  # type: ignore[arg-type]
-                    resolve(robot_name).spec, first))  # type: ignore[arg-type]
-        return found
+    def __call__(self, robot_name: str) -> dict[str, T]:
+        """The items, once every hook of the robot answered (:func:`capabilities`): a
+        robot with a failing plugin refuses."""
+        capabilities(robot_name)
+        return self.items(robot_name)
 
     def get(self, robot_name: str, name: str | None = None) -> T:
         """One item by name, or the first registered (the default) when ``name`` is None.
@@ -513,15 +756,9 @@ class Capability(Generic[T]):
         Raises:
             UnknownNameError: no such item (listing the known ones), or none at all.
         """
-        items = self(robot_name)
-        if name is None:
-            if not items:
-                raise UnknownNameError(f"{self.what} for robot {robot_name!r}", "(default)", ())
-            return next(iter(items.values()))
-        try:
-            return items[name]
-        except KeyError:
-            raise UnknownNameError(f"{self.what} for robot {robot_name!r}", name, items) from None
+        from .capabilities import pick
+
+        return pick(self(robot_name), self.what, robot_name, name)  # type: ignore[no-any-return]
 
 
 kinematic_nodes: Capability[type[KinematicNode]] = Capability(
@@ -536,18 +773,24 @@ drivers: Capability[DriverFactory] = Capability("msrr_drivers", "driver",
 scenarios: Capability[Scenario] = Capability("msrr_scenarios", "scenario", "scenario:Scenario")
 
 
+def _is_path(item: object) -> str | None:
+    return None if isinstance(item, str | os.PathLike) else (
+        f"registered {type(item).__name__} {item!r}, expected a library file path")
+
+
 def libraries(robot_name: str) -> list[Path]:
-    """The behavior library files registered for ``robot_name`` (``msrr_libraries``), in
-    pluggy's call order; a plugin that raises is disabled and reported.
+    """The behavior library files registered for ``robot_name`` (``msrr_libraries``).
 
     Raises:
         UnknownRobotError: no plugin describes ``robot_name``.
+        PluginError: a plugin's hook failed or registered something else than a path.
     """
-    robot(robot_name)
-    return [Path(p) for p in _registered("msrr_libraries", robot=robot_name)]  # type: ignore[arg-type]
+    _owner(robot_name)
+    return get_plugin_manager().cached("msrr_libraries", robot_name, lambda: [
+        Path(item) for item in _registered("msrr_libraries", _is_path, robot_name).registered])  # type: ignore[arg-type]
 
 
-def register_commands(cli: click.Group, pm: pluggy.PluginManager | None = None) -> None:
+def register_commands(cli: click.Group, pm: Host | None = None) -> None:
     """Let plugins add subcommands to ``cli``, now and whenever a plugin registers later
     (``msrr_register_commands`` is historic)."""
     (pm or get_plugin_manager()).hook.msrr_register_commands.call_historic(kwargs={"cli": cli})
@@ -557,25 +800,29 @@ def register_commands(cli: click.Group, pm: pluggy.PluginManager | None = None) 
 
 
 class _Events:
-    """Typed calls of the event hooks; every listener plugin receives each event."""
+    """Typed calls of the event hooks (an :class:`~msrr.core.events.EventSink`): every
+    listener receives each event; one that raises fails the run, named."""
+
+    def _call(self, hook: str, **kwargs: object) -> None:
+        get_plugin_manager().call(hook, **kwargs)
 
     def run_start(self, run: Run) -> None:
-        get_plugin_manager().hook.msrr_on_run_start(run=run)
+        self._call("msrr_on_run_start", run=run)
 
     def tick(self, run: Run, tick: Tick) -> None:
-        get_plugin_manager().hook.msrr_on_tick(run=run, tick=tick)
+        self._call("msrr_on_tick", run=run, tick=tick)
 
     def action(self, run: Run, action: Action, status: ActionStatus) -> None:
-        get_plugin_manager().hook.msrr_on_action(run=run, action=action, status=status)
+        self._call("msrr_on_action", run=run, action=action, status=status)
 
     def topology_change(self, run: Run, change: TopologyEvent) -> None:
-        get_plugin_manager().hook.msrr_on_topology_change(run=run, change=change)
+        self._call("msrr_on_topology_change", run=run, change=change)
 
     def fault(self, run: Run, fault: FaultEvent) -> None:
-        get_plugin_manager().hook.msrr_on_fault(run=run, fault=fault)
+        self._call("msrr_on_fault", run=run, fault=fault)
 
     def run_end(self, run: Run, result: RunResult) -> None:
-        get_plugin_manager().hook.msrr_on_run_end(run=run, result=result)
+        self._call("msrr_on_run_end", run=run, result=result)
 
 
 emit = _Events()
@@ -583,18 +830,26 @@ emit = _Events()
 
 def timeline_views(run: Run) -> list[object]:
     """The viewer views plugins add to ``run``'s recording (``msrr_timeline_views``), in
-    pluggy's call order; a plugin that raises is disabled and reported, never fatal."""
-    return _registered("msrr_timeline_views", run=run)
+    pluggy's call order.
+
+    Raises:
+        PluginError: a plugin's hook failed (naming it).
+    """
+    return _registered("msrr_timeline_views", lambda item: None, run=run).registered
 
 
 # -- introspection --------------------------------------------------------------------
 
 
 def plugin_rows() -> list[tuple[str, str, list[str]]]:
-    """``(plugin name, module, hooks it implements)`` for every loaded plugin."""
+    """``(plugin name, module, hooks it implements)`` for every loaded plugin (the host's
+    own guard left out)."""
     pm = get_plugin_manager()
     rows = []
     for name, plugin in sorted(pm.list_name_plugin(), key=lambda item: str(item[0])):
+        if name == _Guard.NAME:
+            continue
         hooks = sorted(caller.name for caller in pm.get_hookcallers(plugin) or [])
         rows.append((str(name), getattr(plugin, "__name__", type(plugin).__name__), hooks))
     return rows
+

@@ -31,15 +31,14 @@ from datetime import datetime
 from pathlib import Path
 
 from .. import plugins
-from ..capabilities import BehaviorPlanner, Controller, DriverFactory, Planner, Recognizer
+from ..capabilities import Capabilities, Controller, DriverFactory, Planner, Recognizer
 from ..configuration import Configuration
 from ..driver import Driver, Pose
 from ..errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
-from ..events import ActionStatus, FaultEvent, Run, RunResult
+from ..events import ActionStatus, EventSink, FaultEvent, Run, RunResult, Tick, TopologyEvent
 from ..executor import Executor, ExecutorOptions
 from ..faults import Fault, FaultyDriver, GuardedDriver, parse_faults
 from ..files import atomic_write_text, check_output_place
-from ..hookspecs import hookimpl
 from ..interrupts import Interrupted, shielded
 from ..plan import Action, Plan, join_plans, save_plan
 from ..scenario import Scenario, Stage
@@ -171,7 +170,7 @@ def parse_parameters(items: tuple[str, ...] | list[str]) -> tuple[tuple[str, flo
     return tuple(out)
 
 
-def plan_stages(robot: str, planner: Planner, start: Configuration,
+def plan_stages(capabilities: Capabilities, planner: Planner, start: Configuration,
                 stages: Sequence[tuple[Stage, Configuration | None]], *, seed: int = 0
                 ) -> Plan:
     """One plan through every stage (a scenario's goal, its further goals, behaviors):
@@ -183,7 +182,7 @@ def plan_stages(robot: str, planner: Planner, start: Configuration,
     planner that does.
 
     Args:
-        robot: the robot's name.
+        capabilities: the robot's (its planners plan behavior stages).
         planner: the planner of goal stages.
         start: the system's start configuration, in its own ids.
         stages: each stage with its loaded goal configuration (``None`` for behaviors).
@@ -203,7 +202,7 @@ def plan_stages(robot: str, planner: Planner, start: Configuration,
                     (stage.goal.stem if stage.goal else "goal")
         else:
             assert stage.behavior is not None
-            plan = _behavior_planner(robot, planner).plan_behavior(
+            plan = capabilities.behavior_planner(planner).plan_behavior(
                 here, stage.behavior, parameters=dict(stage.parameters),
                 duration=stage.duration, loops=stage.loops, distance=stage.distance, seed=seed)
         plans.append(plan)
@@ -211,20 +210,9 @@ def plan_stages(robot: str, planner: Planner, start: Configuration,
     return join_plans(plans)
 
 
-def _behavior_planner(robot: str, planner: Planner) -> BehaviorPlanner:
-    if isinstance(planner, BehaviorPlanner):
-        return planner
-    found = plugins.planners(robot)
-    for candidate in found.values():
-        if isinstance(candidate, BehaviorPlanner):
-            return candidate
-    raise UnknownNameError(f"planner of behaviors for robot {robot!r} (one that ships a "
-                           "behavior library)", "(default)", found)
-
-
 def resolve_scenario(robot: str, name: str | None) -> Scenario:
     """The scenario ``name`` of ``robot``, or its default one."""
-    found = plugins.scenarios(robot)
+    found = plugins.capabilities(robot).scenarios
     if name is not None:
         if name not in found:
             raise UnknownNameError(f"scenario for robot {robot!r}", name, found)
@@ -357,6 +345,8 @@ class PreparedRun:
 
     Attributes:
         run: the event payload (robot, scenario, plan, output paths).
+        capabilities: the robot's, resolved once (the executor gets its robot and
+            controllers from here).
         driver: factory of the driver, called as ``driver(gui=..., seed=...)``.
         recognizer: the robot's recognizer.
         controller: the robot's controller.
@@ -369,6 +359,7 @@ class PreparedRun:
     """
 
     run: Run
+    capabilities: Capabilities
     driver: DriverFactory
     recognizer: Recognizer
     controller: Controller
@@ -430,7 +421,8 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     request.check()
     faults = parse_faults(request.faults) if request.faults.strip() else ()
     notes = check_out_dir(request.out, force=request.force)
-    spec = plugins.robot(request.robot)
+    capabilities = plugins.capabilities(request.robot)
+    spec = capabilities.robot.spec
     shape_tolerance(spec)  # a malformed tolerance is refused before the run, not after
     if request.plan is not None:
         if request.start is not None or request.goal is not None or request.scenario:
@@ -448,16 +440,14 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     else:
         saved = None
         name, start, stages = _configurations(request)
-    factory = plugins.drivers.get(request.robot, request.driver)
+    factory = capabilities.driver(request.driver)
     # a driver may name the recognizer and controller that read and command it (the
     # generic kinematic driver does); otherwise the robot's first ones
-    companions = getattr(factory, "companions", {})
-    controller = plugins.controllers.get(request.robot, companions.get("controller"))
-    recognizer = plugins.recognizers.get(request.robot, companions.get("recognizer"))
+    controller = capabilities.controller(factory.companions.controller)
+    recognizer = capabilities.recognizer(factory.companions.recognizer)
     options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
     plan: Plan = saved if saved is not None else plan_stages(
-        request.robot, plugins.planners.get(request.robot, request.planner), start, stages,
-        seed=request.seed)
+        capabilities, capabilities.planner(request.planner), start, stages, seed=request.seed)
     deadline = request.deadline or default_deadline(plan, request.action_timeout)
     if request.out is None:
         out = claim_out_dir(default_out_dir(request.robot, name), default=True)
@@ -466,34 +456,50 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     run = Run(robot=request.robot, scenario=name, plan=plan, spec=spec, driver=factory.name,
               rate=request.rate, seed=request.seed, out_dir=out,
               recording=out / "run.rrd" if request.log else None)
-    return PreparedRun(run, factory, recognizer, controller, options, request.gui,
+    return PreparedRun(run, capabilities, factory, recognizer, controller, options, request.gui,
                        request.driver_options, faults, deadline, tuple(notes))
 
 
 class _Progress:
     """Where a run is (for the line that says what an interruption or error stopped) and
-    the faults it met; a listener plugin for the duration of one run."""
+    the faults it met: the run's :class:`~msrr.core.events.EventSink`, passing every
+    event on to ``listeners``."""
 
-    def __init__(self, run: Run):
+    def __init__(self, run: Run, listeners: EventSink):
         self.run = run
+        self.listeners = listeners
         self.current: int | None = None
         self.done = 0
         self.faults: list[FaultEvent] = []
 
-    @hookimpl
-    def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
-        if run is not self.run:
-            return
+    def run_start(self, run: Run) -> None:
+        self.listeners.run_start(run)
+
+    def tick(self, run: Run, tick: Tick) -> None:
+        self.listeners.tick(run, tick)
+
+    def action(self, run: Run, action: Action, status: ActionStatus) -> None:
         index = next((i for i, a in enumerate(run.plan.actions) if a is action), None)
         if status == ActionStatus.STARTED:
             self.current = index
         elif status == ActionStatus.SUCCEEDED:
             self.done += 1
             self.current = None
+        self.listeners.action(run, action, status)
 
-    def fault(self, event: FaultEvent) -> None:
-        self.faults.append(event)
-        plugins.emit.fault(self.run, event)
+    def topology_change(self, run: Run, change: TopologyEvent) -> None:
+        self.listeners.topology_change(run, change)
+
+    def fault(self, run: Run, fault: FaultEvent) -> None:
+        self.faults.append(fault)
+        self.listeners.fault(run, fault)
+
+    def run_end(self, run: Run, result: RunResult) -> None:
+        self.listeners.run_end(run, result)
+
+    def on_fault(self, event: FaultEvent) -> None:
+        """The faults layer's and the guard's callback."""
+        self.fault(self.run, event)
 
     def where(self) -> str:
         """``"action 4/9: moving 4, 8"``, or what runs outside an action."""
@@ -519,8 +525,8 @@ def _driver_for(prepared: PreparedRun, progress: _Progress) -> Iterator[GuardedD
     inner: Driver = prepared.driver(gui=prepared.gui, seed=run.seed,
                                     **dict(prepared.driver_options))
     if prepared.faults:
-        inner = FaultyDriver(inner, prepared.faults, seed=run.seed, on_fault=progress.fault)
-    driver = GuardedDriver(inner, deadline=prepared.deadline, on_fault=progress.fault)
+        inner = FaultyDriver(inner, prepared.faults, seed=run.seed, on_fault=progress.on_fault)
+    driver = GuardedDriver(inner, deadline=prepared.deadline, on_fault=progress.on_fault)
     try:
         driver.connect()
         yield driver
@@ -536,7 +542,7 @@ def _goal_layout(prepared: PreparedRun) -> dict[str, Pose] | None:
     """Where the robot's own driver places the goal (a fresh, fault-free driver)."""
     run = prepared.run
     # a driver that cannot place modules (``link``) names the simulator that lays them out
-    layout = getattr(prepared.driver, "layout", None)
+    layout = prepared.driver.layout
     factory, options = ((layout, {}) if layout is not None
                         else (prepared.driver, dict(prepared.driver_options)))
     with factory(gui=False, seed=run.seed, **options) as driver:
@@ -573,41 +579,42 @@ def execute_run(prepared: PreparedRun) -> RunResult:
     is always fired, so listeners close their files.
     """
     run = prepared.run
-    progress = _Progress(run)
+    progress = _Progress(run, plugins.emit)
     result = RunResult(success=False, reason="did not start", actions_total=len(run.plan.actions))
     started = False
-    with plugins.temporary(progress):
-        try:
-            with _driver_for(prepared, progress) as driver:
-                driver.reset(run.plan.start)
-                executor = Executor(run, driver, prepared.recognizer, prepared.controller,
-                                    prepared.options)
-                plugins.emit.run_start(run)
-                started = True
-                try:
-                    result = executor.execute()
-                finally:
-                    result.sim_time = driver.time
-                    result.simulator = driver.constraint_events()
-                final = dict(driver.get_observation().poses) if result.success else {}
-            _judge_shape(prepared, result, final)
-        except (Interrupted, KeyboardInterrupt) as exc:
-            name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
-            result = _failed(result, progress, f"interrupted during {progress.where()} ({name})")
-            result.interrupted = name
-            exc.result = result  # type: ignore[union-attr]
-            raise
-        except MsrrError as exc:
-            result = _failed(result, progress, f"stopped during {progress.where()}: {exc}")
-        except Exception as exc:  # a driver's or controller's bug must not lose the run
-            result = _failed(result, progress, f"stopped during {progress.where()}: "
-                             f"{type(exc).__name__}: {exc}")
-        finally:
-            result.faults = list(progress.faults)
-            with shielded(raise_deferred=False):
-                if not started:  # stopped before the driver was ready: still a recording
-                    plugins.emit.run_start(run)
-                plugins.emit.run_end(run, result)
+    try:
+        with _driver_for(prepared, progress) as driver:
+            driver.reset(run.plan.start)
+            executor = Executor(run, driver, prepared.recognizer, prepared.controller,
+                                prepared.options, sink=progress,
+                                robot=prepared.capabilities.robot,
+                                controllers=prepared.capabilities.controllers)
+            progress.run_start(run)
+            started = True
+            try:
+                result = executor.execute()
+            finally:
+                result.sim_time = driver.time
+                result.simulator = driver.constraint_events()
+            final = dict(driver.get_observation().poses) if result.success else {}
+        _judge_shape(prepared, result, final)
+    except (Interrupted, KeyboardInterrupt) as exc:
+        name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+        result = _failed(result, progress, f"interrupted during {progress.where()} ({name})")
+        result.interrupted = name
+        exc.result = result  # type: ignore[union-attr]
+        raise
+    except MsrrError as exc:
+        result = _failed(result, progress, f"stopped during {progress.where()}: {exc}")
+    except Exception as exc:  # a driver's or controller's bug must not lose the run
+        result = _failed(result, progress, f"stopped during {progress.where()}: "
+                         f"{type(exc).__name__}: {exc}")
+    finally:
+        result.faults = list(progress.faults)
+        with shielded(raise_deferred=False):
+            if not started:  # stopped before the driver was ready: still a recording
+                progress.run_start(run)
+            progress.run_end(run, result)
     return result
 
 

@@ -44,7 +44,7 @@ import networkx as nx
 import numpy as np
 
 from ..configuration import Configuration
-from ..driver import Driver, ModuleCommand, Observation, Pose
+from ..driver import Companions, Driver, ModuleCommand, Observation, Pose
 from ..errors import ExecutionError
 from ..robot import ModuleKind, RobotSpec, body_half_size
 from .geometry import (
@@ -520,8 +520,9 @@ class KinematicDriverFactory:
     name = KinematicDriver.name
     description = KinematicDriver.description
     generic = True
-    companions = {"recognizer": "latches", "controller": "latches"}
+    companions = Companions(recognizer="latches", controller="latches")
     """The recognizer and controller that read and command this driver."""
+    layout = None
 
     def __init__(self, spec: RobotSpec, **defaults: Any):
         self.spec = spec

@@ -7,23 +7,48 @@
 * :mod:`.retrieve` -- match, shortest action path, remap to system ids (6.3, Fig. 15).
 """
 
-from ..mapping import ModuleMap
-from .build import DEFAULT_MERGE_THRESHOLD, build_library, build_steps
-from .model import (
-    ActionEdge,
-    Behavior,
-    CommandGain,
-    Group,
-    Library,
-    LibraryConfiguration,
-    LibraryError,
-    RetrievalError,
-    SubLibrary,
-    TreeRef,
-)
-from .retrieve import Retrieval, RetrievedStep, retrieve, shortest_path
-from .sources import LibrarySources, load_sources
-from .storage import LIBRARY_SCHEMA_VERSION, LibraryFile, dump_library, load_library, save_library
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from ..mapping import ModuleMap
+    from .build import DEFAULT_MERGE_THRESHOLD, build_library, build_steps
+    from .model import (
+        ActionEdge,
+        Behavior,
+        CommandGain,
+        Group,
+        Library,
+        LibraryConfiguration,
+        LibraryError,
+        RetrievalError,
+        SubLibrary,
+        TreeRef,
+    )
+    from .retrieve import Retrieval, RetrievedStep, retrieve, shortest_path
+    from .sources import LibrarySources, load_sources
+    from .storage import (
+        LIBRARY_SCHEMA_VERSION,
+        LibraryFile,
+        dump_library,
+        load_library,
+        save_library,
+    )
+
+_EXPORTS = {  # name -> submodule that defines it
+    "ModuleMap": "..mapping",
+    **dict.fromkeys(("DEFAULT_MERGE_THRESHOLD", "build_library", "build_steps"), "build"),
+    **dict.fromkeys(("ActionEdge", "Behavior", "CommandGain", "Group", "Library",
+                     "LibraryConfiguration", "LibraryError", "RetrievalError", "SubLibrary",
+                     "TreeRef"), "model"),
+    **dict.fromkeys(("Retrieval", "RetrievedStep", "retrieve", "shortest_path"), "retrieve"),
+    **dict.fromkeys(("LibrarySources", "load_sources"), "sources"),
+    **dict.fromkeys(("LIBRARY_SCHEMA_VERSION", "LibraryFile", "dump_library", "load_library",
+                     "save_library"), "storage"),
+}
 
 __all__ = [
     "DEFAULT_MERGE_THRESHOLD",
@@ -52,3 +77,5 @@ __all__ = [
     "save_library",
     "shortest_path",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

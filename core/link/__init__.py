@@ -13,32 +13,49 @@
 
 from __future__ import annotations
 
-from .driver import LinkDriver, LinkDriverFactory, link_driver_factory
-from .emulator import LINK_FAULT_KINDS, Emulator, parse_link_faults
-from .module import DEFAULT_WATCHDOG_PERIODS, ModuleLink, WatchdogTrip
-from .protocol import (
-           VERSION,
-           Endpoint,
-           Frame,
-           FrameType,
-           LinkStats,
-           Refused,
-           decode_frame,
-           encode_frame,
-)
-from .system import (
-           KeyRef,
-           ModuleEntry,
-           SystemFile,
-           load_key,
-           load_system,
-           new_key,
-           write_key,
-           write_system,
-)
+from typing import TYPE_CHECKING
+
+from ..lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from .driver import LinkDriver, LinkDriverFactory
+    from .emulator import LINK_FAULT_KINDS, Emulator, parse_link_faults
+    from .module import DEFAULT_WATCHDOG_PERIODS, ModuleLink, WatchdogTrip
+    from .protocol import (
+               VERSION,
+               Endpoint,
+               Frame,
+               FrameType,
+               LinkStats,
+               Refused,
+               decode_frame,
+               encode_frame,
+    )
+    from .system import (
+               KeyRef,
+               ModuleEntry,
+               SystemFile,
+               load_key,
+               load_system,
+               new_key,
+               write_key,
+               write_system,
+    )
+
+_EXPORTS = {  # name -> submodule that defines it
+    **dict.fromkeys(("LinkDriver", "LinkDriverFactory"), "driver"),
+    **dict.fromkeys(("LINK_FAULT_KINDS", "Emulator", "parse_link_faults"), "emulator"),
+    **dict.fromkeys(("DEFAULT_WATCHDOG_PERIODS", "ModuleLink", "WatchdogTrip"), "module"),
+    **dict.fromkeys(("VERSION", "Endpoint", "Frame", "FrameType", "LinkStats", "Refused",
+                     "decode_frame", "encode_frame"), "protocol"),
+    **dict.fromkeys(("KeyRef", "ModuleEntry", "SystemFile", "load_key", "load_system",
+                     "new_key", "write_key", "write_system"), "system"),
+}
 
 __all__ = ["DEFAULT_WATCHDOG_PERIODS", "LINK_FAULT_KINDS", "VERSION", "Emulator", "Endpoint", "Frame",
            "FrameType", "KeyRef", "LinkDriver", "LinkDriverFactory", "LinkStats", "ModuleEntry",
            "ModuleLink", "Refused", "SystemFile", "WatchdogTrip", "decode_frame", "encode_frame",
-           "link_driver_factory", "load_key", "load_system", "new_key", "parse_link_faults",
+           "load_key", "load_system", "new_key", "parse_link_faults",
            "write_key", "write_system"]
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -36,7 +36,7 @@ import networkx as nx
 import numpy as np
 
 from ..configuration import Configuration
-from ..driver import Driver, DriverFactory, ModuleCommand, Observation, Pose
+from ..driver import Companions, Driver, DriverFactory, ModuleCommand, Observation, Pose
 from ..errors import ConfigurationError, ExecutionError
 from ..robot import RobotSpec
 from .module import DEFAULT_WATCHDOG_PERIODS
@@ -52,7 +52,7 @@ from .protocol import (
 )
 from .system import ModuleEntry, SystemFile, load_key, load_system
 
-__all__ = ["LinkDriver", "LinkDriverFactory", "link_driver_factory"]
+__all__ = ["LinkDriver", "LinkDriverFactory"]
 
 HANDSHAKE = 2.0
 """Shortest wall time [s] given to every module to answer at connect and reset."""
@@ -431,31 +431,26 @@ def _counts(refused: Mapping[str, int]) -> str:
 class LinkDriverFactory:
     """Builds :class:`LinkDriver` s for one robot: ``factory(system=PATH, gui=..., seed=...)``.
 
-    Attributes:
-        companions: recognizer and controller names of the robot's first driver (the
-            modules report what that driver's sensors report).
-        layout: the robot's first driver, which lays out a goal for judging the shape.
+    The modules behind the link report what the robot's simulator reports, so the link
+    takes its companions (the recognizer and controller) from ``simulator``, the robot's
+    default driver, which also lays out a goal for judging the final shape.
+
+    Args:
+        spec: the robot.
+        simulator: the robot's default driver (``None``: it has none).
     """
 
     name = LinkDriver.name
     description = LinkDriver.description
     generic = True
 
-    def __init__(self, spec: RobotSpec, *, companions: Mapping[str, str] | None = None,
-                 layout: DriverFactory | None = None, packages: tuple[str, ...] = ("msrr",)):
+    def __init__(self, spec: RobotSpec, simulator: DriverFactory | None):
         self.spec = spec
-        self.companions = dict(companions or {})
-        self.layout = layout
-        self.packages = packages
+        self.layout = simulator
+        self.companions = simulator.companions if simulator is not None else Companions()
+        module = "msrr" if simulator is None else (
+            simulator.__module__ if isinstance(simulator, type) else type(simulator).__module__)
+        self.packages = tuple(dict.fromkeys(("msrr", module.split(".")[0])))
 
     def __call__(self, **options: Any) -> LinkDriver:
         return LinkDriver(robot=self.spec.name, packages=self.packages, **options)
-
-
-def link_driver_factory(spec: RobotSpec, first: DriverFactory) -> LinkDriverFactory:
-    """The link factory of a robot whose first driver is ``first``: same companions,
-    reports may carry dataclasses of ``first``'s package (and of ``msrr``)."""
-    module = first.__module__ if isinstance(first, type) else type(first).__module__
-    packages = tuple(dict.fromkeys(("msrr", module.split(".")[0])))
-    return LinkDriverFactory(spec, companions=getattr(first, "companions", {}), layout=first,
-                             packages=packages)

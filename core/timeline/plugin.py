@@ -1,5 +1,9 @@
 """Hook implementations of the timeline plugin: one recorder per run with a recording path.
 
+Registered through the entry-point group like any plugin; the views other plugins add
+(``msrr_timeline_views``) are collected here, when a recorded run starts, and handed to
+the recorder.
+
 The recorder module (and with it the rerun SDK, about 0.3 s to import) is imported
 when a run with a recording starts, not when the plugin loads: every ``platform``
 command loads the plugins, and ``platform --help`` should not pay for rerun.
@@ -29,9 +33,10 @@ def _recorder(run: Run) -> TimelineRecorder | None:
 @hookimpl
 def msrr_on_run_start(run: Run) -> None:
     if run.recording is not None:
+        from .. import plugins
         from .recorder import TimelineRecorder  # rerun: measured start-up cost, see above
 
-        _recorders[id(run)] = TimelineRecorder(run)
+        _recorders[id(run)] = TimelineRecorder(run, views=plugins.timeline_views(run))
 
 
 @hookimpl

@@ -38,14 +38,13 @@ from __future__ import annotations
 import math
 import os
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from .. import plugins
 from ..configuration import Configuration
 from ..driver import Pose
 from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
@@ -88,12 +87,18 @@ def _has_vectors(config: Configuration) -> bool:
 
 
 class TimelineRecorder:
-    """Listens to the events of one run and logs them to ``run.recording``."""
+    """Listens to the events of one run and logs them to ``run.recording``.
 
-    def __init__(self, run: Run):
+    Args:
+        run: the run.
+        views: viewer views other plugins add (``msrr_timeline_views``).
+    """
+
+    def __init__(self, run: Run, views: Sequence[object] = ()):
         if run.recording is None:
             raise ValueError("run has no recording path")
         self.run = run
+        self._views = tuple(views)
         self.path = Path(run.recording)
         self.part = self.path.with_name(self.path.name + ".part")
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -184,7 +189,7 @@ class TimelineRecorder:
         self._blueprint_sent = True
         points = [np.asarray(p.position, dtype=float) for p in poses.values()]
         extra = []
-        for view in plugins.timeline_views(self.run):
+        for view in self._views:
             if isinstance(view, rrb.View | rrb.Container):
                 extra.append(view)
             else:

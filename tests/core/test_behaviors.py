@@ -21,6 +21,7 @@ from tiny_robot import (
     installed,
 )
 
+from msrr.core import plugins
 from msrr.core.app.run import parse_parameters, plan_stages
 from msrr.core.errors import ConfigurationError, UnknownNameError
 from msrr.core.events import Phase, Run
@@ -163,14 +164,16 @@ def test_stages_are_planned_from_the_previous_goal_and_joined():
             plan.goal = goal
             return plan
 
-    plan = plan_stages(NAME, Recording(), ab, [(Stage(goal=Path("bc.json")), bc),
+    with installed():
+        tiny = plugins.capabilities(NAME)
+    plan = plan_stages(tiny, Recording(), ab, [(Stage(goal=Path("bc.json")), bc),
                                                (Stage(goal=Path("ab.json"), name="back"), ab)])
     assert calls == [("ab", "bc"), ("bc", "ab")]                      # stage 2 from stage 1's goal
     first = len(LinePlanner().plan(ab, bc).actions)
     assert [a.reaches for a in plan.actions if a.reaches] == ["bc", "back"]
     assert plan.actions[first - 1].reaches == "bc" and plan.goal is ab
-    with installed(), pytest.raises(UnknownNameError, match="planner of behaviors"):
-        plan_stages(NAME, Recording(), ab, [(Stage(behavior="drive"), None)])
+    with pytest.raises(UnknownNameError, match="planner of behaviors"):
+        plan_stages(tiny, Recording(), ab, [(Stage(behavior="drive"), None)])
 
 
 def test_join_plans_keeps_the_order_and_refuses_a_gap():

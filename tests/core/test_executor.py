@@ -36,7 +36,7 @@ def execute(plan, options=None, reach=1.05):
     with PointDriver(reach) as driver, plugins.temporary(Recorder()) as listener:
         driver.reset(plan.start)
         result = Executor(run, driver, LinkRecognizer(), GoalController(),
-                          options or ExecutorOptions()).execute()
+                          options or ExecutorOptions(), sink=plugins.emit).execute()
     return result, listener.events
 
 
@@ -72,7 +72,7 @@ def test_options_are_checked() -> None:
         ExecutorOptions(rate=0)
     with pytest.raises(ExecutionError, match="not connected"):
         Executor(make_run(swap_plan()), PointDriver(), LinkRecognizer(),
-                 GoalController()).execute()
+                 GoalController(), sink=plugins.emit).execute()
 
 
 def test_a_face_swap_runs_as_one_parallel_connection() -> None:

@@ -8,6 +8,7 @@ function counts the same as one at the top of a module. Imports under
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import networkx as nx
@@ -72,11 +73,41 @@ def test_the_core_imports_no_plugin():
 
 @pytest.mark.parametrize("layer", PURE_LAYERS)
 def test_pure_layers_do_not_import_the_plugin_host(layer):
-    inside = [m for m in GRAPH if m == layer or m.startswith(layer + ".")]
+    inside = [m for m in GRAPH if (m == layer or m.startswith(layer + "."))
+              and not m.endswith(".plugin")]
     assert inside, f"no module {layer}"
     for module in inside:
         assert "msrr.core.plugins" not in GRAPH.successors(module), (
             f"{module} imports msrr.core.plugins; pass the Robot (or its pieces) as an argument")
+
+
+def _asks_the_host(module: str) -> bool:
+    """The application wing and the built-in capabilities' ``plugin.py`` modules."""
+    return module.startswith("msrr.core.app.") or module == "msrr.core.app" or \
+        module.endswith(".plugin")
+
+
+def test_only_the_application_wing_and_built_in_plugins_import_the_host():
+    askers = sorted(m for m in GRAPH.predecessors("msrr.core.plugins") if m != "msrr.core")
+    assert askers, "nothing imports the plugin host"
+    assert [m for m in askers if not _asks_the_host(m)] == []
+    builtin = {m for m in askers if m.endswith(".plugin")}
+    assert builtin == {"msrr.core.generic.plugin", "msrr.core.library.plugin",
+                       "msrr.core.link.plugin", "msrr.core.timeline.plugin"}
+
+
+def test_the_executor_receives_what_it_needs():
+    assert not {"msrr.core.plugins", "msrr.core.app"} & set(nx.descendants(GRAPH,
+                                                                            "msrr.core.executor"))
+
+
+def test_the_host_names_no_robot_and_no_capability():
+    source = (CORE / "plugins.py").read_text()
+    robots = ["freesn", "mmrp", "freebot", "snailbot", "hinge"]
+    capabilities = ["kinematic", "latches", "generic", "link", "timeline", "library"]
+    assert [n for n in robots if re.search(rf"\b{n}\b", source, re.IGNORECASE)] == []
+    assert [n for n in capabilities if re.search(rf"[\"']{n}[\"']", source)] == []
+    assert "hook_name ==" not in source and ".function(" not in source
 
 
 def test_the_core_import_graph_has_no_cycle():

@@ -90,7 +90,7 @@ def run_events() -> tuple[Run, list[tuple]]:
     with PointDriver() as driver, plugins.temporary(Listener()) as listener:
         driver.reset(run.plan.start)
         plugins.emit.run_start(run)
-        result = Executor(run, driver, LinkRecognizer(), GoalController()).execute()
+        result = Executor(run, driver, LinkRecognizer(), GoalController(), sink=plugins.emit).execute()
         plugins.emit.run_end(run, result)
     assert result.success
     return run, listener.events

@@ -28,7 +28,7 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     with PointDriver() as driver:
         driver.reset(plan.start)
         plugins.emit.run_start(run)
-        result = Executor(run, driver, LinkRecognizer(), GoalController()).execute()
+        result = Executor(run, driver, LinkRecognizer(), GoalController(), sink=plugins.emit).execute()
         plugins.emit.run_end(run, result)
     assert result.success
     return path

@@ -53,7 +53,7 @@ def _record(path: Path) -> Path:
         driver.reset(plan.start)
         plugins.emit.run_start(run)
         assert path.with_name(path.name + ".part").exists() and not path.exists()
-        result = Executor(run, driver, LinkRecognizer(), GoalController()).execute()
+        result = Executor(run, driver, LinkRecognizer(), GoalController(), sink=plugins.emit).execute()
         plugins.emit.run_end(run, result)
     assert result.success and result.docks == plan.docks == 1
     return path
@@ -295,7 +295,7 @@ def test_a_planar_robot_records_the_top_view(tmp_path: Path) -> None:
     with PointDriver() as driver:
         driver.reset(plan.start)
         plugins.emit.run_start(run)
-        result = Executor(run, driver, LinkRecognizer(), GoalController()).execute()
+        result = Executor(run, driver, LinkRecognizer(), GoalController(), sink=plugins.emit).execute()
         plugins.emit.run_end(run, result)
     rows = read_recording(tmp_path / "run.rrd", "/top").rows
     static, first = rows["/top/modules"][:2]

@@ -55,9 +55,9 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
                                      source=str(config))
         spec = parse_link_faults(faults)
         check_output_place(system_out, option="--system-out")
-        factory = plugins.drivers.get(robot)
-        companions = getattr(factory, "companions", {})
-        recognizer = plugins.recognizers.get(robot, companions.get("recognizer"))
+        capabilities = plugins.capabilities(robot)
+        factory = capabilities.driver()
+        recognizer = capabilities.recognizer(factory.companions.recognizer)
         if key_env is not None:
             if key_env not in os.environ:
                 raise ConfigurationError(f"environment variable {key_env} is not set",

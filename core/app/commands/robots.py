@@ -66,7 +66,7 @@ def command(markdown: bool) -> None:
         console.print(styled("refused", "red"), f"robot {name!r}: described by plugins "
                       f"{', '.join(map(repr, owners))}")
     for problem in plugins.problems():
-        console.print(styled("disabled", "red"), str(problem))
+        console.print(styled("failed", "red"), str(problem))
     if not specs:
         console.print("No robot plugin is installed.")
     else:
