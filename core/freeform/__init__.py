@@ -27,9 +27,9 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .driver import FreeformDriver, MujocoDriver
+    from .driver import FreeformDriver, FreeformDriverFactory
     from .miso import MISO_EXACT, MisoPlanner, plan_miso
-    from .mujoco import SensorNoise, Switches
+    from .mujoco import MujocoDriver, MujocoOptions, MujocoWorld, SensorNoise, Switches
     from .recognition import (
         ContactController,
         ContactRecognizer,
@@ -53,13 +53,16 @@ _WHERE = {
     "ContactController": "recognition",
     "ContactRecognizer": "recognition",
     "FreeformDriver": "driver",
+    "FreeformDriverFactory": "driver",
     "FreeformOptions": "world",
     "FreeformWorld": "world",
     "MISO_EXACT": "miso",
     "MisoPlanner": "miso",
     "ModuleDesign": "world",
     "ModuleReport": "world",
-    "MujocoDriver": "driver",
+    "MujocoDriver": "mujoco",
+    "MujocoOptions": "mujoco",
+    "MujocoWorld": "mujoco",
     "SensorNoise": "mujoco",
     "Switches": "mujoco",
     "common_turn": "recognition",
@@ -77,6 +80,7 @@ __all__ = [
     "ContactController",
     "ContactRecognizer",
     "FreeformDriver",
+    "FreeformDriverFactory",
     "FreeformOptions",
     "FreeformWorld",
     "MISO_EXACT",
@@ -84,6 +88,8 @@ __all__ = [
     "ModuleDesign",
     "ModuleReport",
     "MujocoDriver",
+    "MujocoOptions",
+    "MujocoWorld",
     "SensorNoise",
     "Switches",
     "common_turn",

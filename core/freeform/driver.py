@@ -19,115 +19,25 @@ A module that drops out of the commands brakes where it is. Sensors: module id -
 
 from __future__ import annotations
 
-from abc import abstractmethod
 from collections.abc import Mapping
-from dataclasses import fields, replace
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
 from ..configuration import Configuration
-from ..driver import Driver, ModuleCommand, Observation, Pose
+from ..driver import ModuleCommand
 from ..errors import ExecutionError
+from .mujoco import MujocoDriver
 from .world import FreeformOptions, FreeformWorld, ModuleDesign
 
-__all__ = ["FreeformDriver", "MujocoDriver"]
+__all__ = ["FreeformDriver", "FreeformDriverFactory"]
 
 _JOINTS = ("dir_x", "dir_y", "dir_z")
 _ROLL = ("roll_x", "roll_y")
 
 
-class MujocoDriver(Driver):
-    """What every MuJoCo driver shares: its options (a dataclass, with keyword overrides
-    of its fields and the seed), a world built by :meth:`build` at each :meth:`reset`,
-    MuJoCo's passive viewer where asked, and the observation, time and ground truth read
-    from the world. A subclass names its options type and builds its world.
-
-    Args:
-        gui: open MuJoCo's passive viewer (needs a display).
-        seed: seed of the world's noise (overrides ``options.seed``).
-        options: an ``options_type`` instance; keyword overrides of its fields
-            (``noise=0.02``) may be given directly.
-    """
-
-    options_type: ClassVar[type]
-    arguments: ClassVar[tuple[str, ...]] = ("gui", "seed", "options")
-    """The constructor's own keywords, named when an unknown option is refused."""
-
-    def __init__(self, *, gui: bool = False, seed: int | None = None,
-                 options: Any = None, **overrides: Any):
-        known = {f.name for f in fields(self.options_type)}
-        unknown = set(overrides) - known
-        if unknown:
-            raise ExecutionError(f"unknown MuJoCo driver option(s) {sorted(unknown)} (known: "
-                                 f"{', '.join([*self.arguments, *sorted(known - set(self.arguments))])})")
-        if seed is not None:
-            overrides["seed"] = seed
-        self.options = replace(options or self.options_type(), **overrides)
-        self.gui = gui
-        self.world: Any = None
-        self._connected = False
-        self._viewer: Any = None
-        self._moving: set[str] = set()
-
-    @abstractmethod
-    def build(self, start: Configuration) -> Any:
-        """The world of ``start`` (its connections docked, time 0)."""
-
-    @property
-    def is_connected(self) -> bool:
-        return self._connected
-
-    def connect(self) -> None:
-        self._connected = True
-
-    def disconnect(self) -> None:
-        if self._viewer is not None:
-            self._viewer.close()
-            self._viewer = None
-        self.world = None
-        self._connected = False
-
-    def _world(self) -> Any:
-        self.require_connected()
-        if self.world is None:
-            raise ExecutionError(f"driver {self.name!r} has no world yet; call reset(start) first")
-        return self.world
-
-    def reset(self, start: Configuration) -> None:
-        """Build the world of ``start``; time becomes 0."""
-        self.require_connected()
-        self.world = self.build(start)
-        self._moving = set()
-        if self.gui:
-            from mujoco import viewer  # the viewer needs a display; imported only then
-
-            if self._viewer is not None:
-                self._viewer.close()
-            self._viewer = viewer.launch_passive(self.world.model, self.world.data)
-
-    def get_observation(self) -> Observation:
-        world = self._world()
-        poses = {m: Pose(p, q) for m, (p, q) in world.poses().items()}
-        groups = world.groups()
-        return Observation(time=world.time, poses=poses, sensors=world.reports(),
-                           groups=tuple(groups) if len(groups) > 1 else ())
-
-    def step(self, dt: float) -> None:
-        self._world().step(dt)
-        if self._viewer is not None:
-            self._viewer.sync()
-
-    @property
-    def time(self) -> float:
-        return self._world().time
-
-    def ground_truth(self) -> Configuration | None:
-        """The world's ground truth, for judging runs (never for recognition)."""
-        return self._world().ground_truth()
-
-
-class FreeformDriver(MujocoDriver):
+class FreeformDriver(MujocoDriver[FreeformWorld]):
     """Single-connector freeform modules simulated in MuJoCo, headless unless ``gui``.
 
     Args:
@@ -139,6 +49,7 @@ class FreeformDriver(MujocoDriver):
     name: ClassVar[str] = "mujoco"
     description: ClassVar[str] = "MuJoCo: spheres with one connector on a motor-driven joint"
     options_type = FreeformOptions
+    options: FreeformOptions
 
     def __init__(self, design: ModuleDesign, *, gui: bool = False, seed: int | None = None,
                  options: FreeformOptions | None = None, **overrides: Any):
@@ -193,3 +104,23 @@ class FreeformDriver(MujocoDriver):
         (a flow is one switch, counted once as a flow and not as a dock or an undock)."""
         events = self._world().events
         return {kind: sum(e.kind == kind for e in events) for kind in ("dock", "undock", "flow")}
+
+
+@dataclass(frozen=True)
+class FreeformDriverFactory:
+    """What a single-connector robot registers as its ``mujoco`` driver: a
+    :class:`FreeformDriver` of its module design.
+
+    Attributes:
+        design: the robot's module.
+        description: the driver's line in ``platform robots``.
+        name: its name.
+    """
+
+    design: ModuleDesign
+    description: str
+    name: str = "mujoco"
+
+    def __call__(self, **options: Any) -> FreeformDriver:
+        """A driver of ``design`` (``options`` as :class:`FreeformDriver`'s keywords)."""
+        return FreeformDriver(self.design, **options)

@@ -1,26 +1,49 @@
-"""MuJoCo pieces every freeform world shares: ground, switched equalities, sensor noise.
+"""What every MuJoCo world of freeform modules shares (FreeBOT, SnailBot and FreeSN).
 
-A freeform robot docks by switching equality constraints on and off at run time
+A freeform robot docks by switching weld equality constraints on and off at run time
 (``data.eq_active``) rather than by rebuilding its model (FreeSN paper, section 6.1:
-"the connection ... is simulated by an equality constraint"). :class:`Switches` keeps
-the bookkeeping of such constraints by a key of the robot's choosing; :class:`SensorNoise`
-is the seeded white noise of every reported angle; :func:`add_ground` the floor.
+"the connection ... is simulated by an equality constraint"):
+
+* :class:`MujocoWorld` -- the base of such a world: its options (:class:`MujocoOptions`),
+  the model built on :meth:`~MujocoWorld.new_spec` (ground, implicit integrator), the step
+  loop with its servo period, docking and undocking by weld (:meth:`~MujocoWorld.weld`,
+  a fresh dock drawn onto the target's centre), the constraint events, time, poses and
+  the residual of the active welds. A robot's world adds its bodies, drives, reports
+  and ground truth;
+* :class:`MujocoDriver` -- the :class:`~msrr.core.driver.Driver` over a
+  :class:`MujocoWorld`: options with keyword overrides, the world built at each reset,
+  the viewer, observation, time and ground truth;
+* :class:`Switches` -- equality constraints switched at run time, found by key;
+  :class:`SensorNoise` -- the seeded white noise of every reported angle;
+  :func:`add_ground`, headings and quaternion helpers.
+
 ``mujoco`` is imported here at the top, so import this module only where a world is built.
 """
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Iterable, Iterator
-from typing import Any
+from abc import ABC, abstractmethod
+from collections.abc import Hashable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, fields, replace
+from typing import Any, ClassVar, Generic, TypeVar
 
 import mujoco
 import networkx as nx
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["GROUND_FRICTION", "SensorNoise", "Switches", "add_ground", "connected_groups",
-           "heading", "quat_conj",
-           "quat_log", "quat_mul", "yaw_of"]
+from ..configuration import Configuration
+from ..driver import Driver, Observation, Pose
+from ..errors import ExecutionError
+
+__all__ = ["GROUND_FRICTION", "MujocoDriver", "MujocoOptions", "MujocoWorld", "SensorNoise",
+           "Switches", "add_ground", "connected_groups", "heading", "quat_conj", "quat_log",
+           "quat_mul", "yaw_of"]
+
+K = TypeVar("K", bound=Hashable)
+"""Key of a switched constraint (a world's connection: ``(module, target)``, ...)."""
+E = TypeVar("E")
+"""A world's constraint event."""
 
 GROUND_FRICTION = (0.8, 0.02, 0.001)
 """Sliding, torsional and rolling friction of the floor and the module shells."""
@@ -35,7 +58,7 @@ def add_ground(spec: mujoco.MjSpec, *, friction: tuple[float, float, float] = GR
     spec.worldbody.add_light(pos=[0, 0, 3], dir=[0, 0, -1])
 
 
-class Switches:
+class Switches(Generic[K]):
     """Equality constraints switched at run time, found by key.
 
     Declare each while building (:meth:`add`, inactive), then :meth:`bind` the compiled
@@ -44,10 +67,11 @@ class Switches:
     """
 
     def __init__(self) -> None:
-        self._names: dict[Hashable, str] = {}
-        self._ids: dict[Hashable, int] = {}
+        self._names: dict[K, str] = {}
+        self._ids: dict[K, int] = {}
+        self._all = np.zeros(0, dtype=int)
 
-    def add(self, spec: mujoco.MjSpec, key: Hashable, name: str, **equality: Any) -> None:
+    def add(self, spec: mujoco.MjSpec, key: K, name: str, **equality: Any) -> None:
         """Declare an inactive equality ``name`` (keyword arguments of ``add_equality``)."""
         spec.add_equality(name=name, active=False, **equality)
         self._names[key] = name
@@ -55,24 +79,29 @@ class Switches:
     def bind(self, model: mujoco.MjModel) -> None:
         """Resolve the declared names to equality ids of ``model``."""
         self._ids = {key: model.equality(name).id for key, name in self._names.items()}
+        self._all = np.array(list(self._ids.values()), dtype=int)
 
-    def id(self, key: Hashable) -> int:
+    def id(self, key: K) -> int:
         """The equality id of ``key``."""
         return self._ids[key]
 
-    def on(self, data: mujoco.MjData, key: Hashable) -> int:
+    def on(self, data: mujoco.MjData, key: K) -> int:
         """Activate ``key``'s equality; its id."""
         eq = self._ids[key]
         data.eq_active[eq] = 1
         return eq
 
-    def off(self, data: mujoco.MjData, key: Hashable) -> None:
+    def off(self, data: mujoco.MjData, key: K) -> None:
         """Deactivate ``key``'s equality."""
         data.eq_active[self._ids[key]] = 0
 
-    def active(self, data: mujoco.MjData) -> Iterator[Hashable]:
+    def active(self, data: mujoco.MjData) -> Iterator[K]:
         """Keys whose equality the simulator holds active now."""
         return (key for key, eq in self._ids.items() if data.eq_active[eq])
+
+    def active_ids(self, data: mujoco.MjData) -> np.ndarray:
+        """Equality ids (n,) of the active ones, in declaration order."""
+        return self._all[data.eq_active[self._all] != 0]
 
 
 class SensorNoise:
@@ -80,10 +109,11 @@ class SensorNoise:
 
     Args:
         std: standard deviation of every reported angle [rad] (0: exact readings).
-        seed: seed of the generator.
+        seed: seed of the generator, or a generator to draw from (shared with other
+            noise of the world, such as odometry slip).
     """
 
-    def __init__(self, std: float, seed: int):
+    def __init__(self, std: float, seed: int | np.random.Generator):
         self.std = float(std)
         self.rng = np.random.default_rng(seed)
 
@@ -142,3 +172,321 @@ def connected_groups(modules: Iterable[str], links: Iterable[tuple[str, str]]
     graph.add_nodes_from(modules)
     graph.add_edges_from(links)
     return [frozenset(c) for c in nx.connected_components(graph)]
+
+
+WELD_SOLREF = (0.004, 1.0)
+"""Time constant [s] and damping ratio of a dock weld (stiff: a magnet holds its module)."""
+WELD_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+"""Impedance of a dock weld (MuJoCo ``solimp``)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class MujocoOptions:
+    """How one MuJoCo world runs: what every robot's options hold (a robot's own options
+    subclass it and add theirs).
+
+    Attributes:
+        timestep: physics step [s].
+        noise: standard deviation of every reported angle [rad].
+        position_gain: drive position loop gain [1/s].
+        servo_rate: rate of the drive loops [Hz].
+        seed: seed of the world's noise.
+
+    Raises:
+        ExecutionError: a value out of range (the message names the option).
+    """
+
+    timestep: float = 0.002
+    noise: float = 0.0
+    position_gain: float = 8.0
+    servo_rate: float = 250.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        self._check(positive=("timestep", "position_gain", "servo_rate"), non_negative=("noise",))
+
+    def _check(self, *, positive: Iterable[str] = (), non_negative: Iterable[str] = ()) -> None:
+        """Refuse options named in ``positive`` that are not > 0, and in ``non_negative``
+        that are < 0."""
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ExecutionError(f"simulation option {name} must be positive, "
+                                     f"got {getattr(self, name)}")
+        for name in non_negative:
+            if getattr(self, name) < 0:
+                raise ExecutionError(f"simulation option {name} must be >= 0, "
+                                     f"got {getattr(self, name)}")
+
+
+class MujocoWorld(ABC, Generic[K, E]):
+    """One configuration of freeform modules in MuJoCo whose connections are welds
+    switched at run time: what every such world shares.
+
+    A subclass builds in its constructor: ``super().__init__(options, seat=...)``; a spec
+    from :meth:`new_spec` with its bodies and one :meth:`add_weld` per connection that
+    may form; :meth:`compile`; ``bodies`` (the body of each module's pose); then it
+    docks its starting connections with :meth:`weld`. It drives its motors in
+    :meth:`_servo` (at the start of each servo period), latches armed connectors in
+    :meth:`_check_docks` (after each physics step while :meth:`_docking`), and reports
+    (:meth:`reports`, :meth:`ground_truth`, :meth:`groups`); :meth:`_before_step`,
+    :meth:`_period_done` and :meth:`_after_step` let it add to the step loop.
+
+    Args:
+        options: the run's options.
+        seat: time constant [s] of a fresh dock drawing its body onto the target's centre.
+
+    Attributes:
+        model, data: the compiled model and its state.
+        welds: the dock constraints by key (a connection of the world).
+        bodies: module id -> the body whose pose is the module's pose.
+        events: constraint events in the order they happened.
+        time: simulated time [s].
+        rng: the world's generator; ``noise`` (sensor noise) draws from it.
+    """
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+
+    def __init__(self, options: MujocoOptions, *, seat: float):
+        self.options = options
+        self.rng = np.random.default_rng(options.seed)
+        self.noise = SensorNoise(options.noise, self.rng)
+        self.welds: Switches[K] = Switches()
+        self.bodies: dict[str, int] = {}
+        self.events: list[E] = []
+        self.time = 0.0
+        self._reported = 0
+        self._seat_time = seat
+        self._every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
+        """Physics steps per servo period."""
+
+    # -- building -----------------------------------------------------------------------
+
+    def new_spec(self, name: str) -> mujoco.MjSpec:
+        """An ``MjSpec`` named ``name`` with the run's timestep, the implicit-fast
+        integrator (the motors' back-EMF damping integrated implicitly) and the ground."""
+        spec = mujoco.MjSpec()
+        spec.modelname = name
+        spec.option.timestep = self.options.timestep
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        add_ground(spec)
+        return spec
+
+    def add_weld(self, spec: mujoco.MjSpec, key: K, name: str, body: str, onto: str) -> None:
+        """Declare the (inactive) dock weld ``key`` of body ``body`` onto body ``onto``."""
+        self.welds.add(spec, key, name, type=mujoco.mjtEq.mjEQ_WELD,
+                       objtype=mujoco.mjtObj.mjOBJ_BODY, name1=body, name2=onto,
+                       solref=list(WELD_SOLREF), solimp=list(WELD_SOLIMP))
+
+    def compile(self, spec: mujoco.MjSpec) -> None:
+        """Compile ``spec`` into ``model`` and ``data``; bind the welds."""
+        self.model = spec.compile()
+        self.welds.bind(self.model)
+        self.data = mujoco.MjData(self.model)
+
+    # -- docking ------------------------------------------------------------------------
+
+    def weld(self, key: K, body: int, onto: int) -> int:
+        """Switch on ``key``'s weld, holding ``body`` to ``onto`` as the two are now; its
+        equality id. The anchor is ``onto``'s centre: the magnet then draws ``body``'s
+        origin onto it (:meth:`_seat`) instead of snapping it there."""
+        d = self.data
+        eq = self.welds.on(d, key)
+        rel, inv = np.empty(4), np.empty(4)
+        mujoco.mju_negQuat(inv, d.xquat[body])
+        mujoco.mju_mulQuat(rel, inv, d.xquat[onto])
+        data = self.model.eq_data[eq]
+        data[:3] = 0.0       # anchor: the centre of ``onto``
+        data[3:6] = d.xmat[body].reshape(3, 3).T @ (d.xpos[onto] - d.xpos[body])
+        data[6:10] = rel     # relpose: the relative orientation now
+        data[10] = 1.0       # torque scale
+        return eq
+
+    def _seat(self, duration: float) -> None:
+        """Draw fresh docks onto their targets' centres (time constant ``seat``)."""
+        active = self.welds.active_ids(self.data)
+        if len(active):
+            offsets = self.model.eq_data[active, 3:6]
+            if np.any(offsets):
+                self.model.eq_data[active, 3:6] = offsets * max(
+                    0.0, 1.0 - duration / self._seat_time)
+
+    # -- stepping -----------------------------------------------------------------------
+
+    def step(self, duration: float) -> None:
+        """Advance by ``duration`` [s] (whole physics steps, at least one): the drives
+        servo at the start of each servo period, fresh docks seat at its end, armed
+        connectors latch after every physics step."""
+        self._before_step()
+        timestep, every = self.options.timestep, self._every
+        n = max(1, round(duration / timestep))
+        for i in range(n):
+            if i % every == 0:
+                self._servo()
+            mujoco.mj_step(self.model, self.data)
+            self.time += timestep
+            if i % every == every - 1 or i == n - 1:
+                self._period_done(min(every, i % every + 1))
+            if self._docking():
+                self._check_docks()
+        self._after_step(n * timestep)
+
+    def _before_step(self) -> None:
+        """Called once before the physics steps of :meth:`step`."""
+
+    @abstractmethod
+    def _servo(self) -> None:
+        """The drives' loops: the torques they apply until the next servo period."""
+
+    def _period_done(self, steps: int) -> None:
+        """Called at the end of each servo period (or of :meth:`step`), ``steps`` physics
+        steps long."""
+        self._seat(steps * self.options.timestep)
+
+    @abstractmethod
+    def _docking(self) -> bool:
+        """Whether a connector is armed to dock (then :meth:`_check_docks` runs)."""
+
+    @abstractmethod
+    def _check_docks(self) -> None:
+        """Latch armed connectors that reach their target."""
+
+    def _after_step(self, duration: float) -> None:
+        """Called once after the physics steps of :meth:`step`, ``duration`` [s] long."""
+
+    # -- reading ------------------------------------------------------------------------
+
+    def new_events(self) -> list[E]:
+        """Constraint events since the previous call (a module reports each once)."""
+        new = self.events[self._reported:]
+        self._reported = len(self.events)
+        return new
+
+    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """World pose of every module's body: ``(position (3,), quaternion (x, y, z, w))``."""
+        d = self.data
+        out = {}
+        for module, body in self.bodies.items():
+            w, x, y, z = d.xquat[body]
+            out[module] = (d.xpos[body].copy(), np.array([x, y, z, w]))
+        return out
+
+    def docked_pairs(self) -> set[K]:
+        """Keys of every active dock weld (simulator state)."""
+        return set(self.welds.active(self.data))
+
+    def constraint_residual(self) -> float:
+        """Largest distance [m] between a welded body and its target's centre."""
+        d, m = self.data, self.model
+        worst = 0.0
+        for eq in self.welds.active_ids(d):
+            gap = d.xpos[m.eq_obj1id[eq]] - d.xpos[m.eq_obj2id[eq]]
+            worst = max(worst, float(np.linalg.norm(gap)))
+        return worst
+
+    @abstractmethod
+    def reports(self) -> Mapping[str, object]:
+        """Every module's report, with the run's noise; events since the previous call."""
+
+    @abstractmethod
+    def ground_truth(self, *, name: str = "") -> Configuration:
+        """The configuration the bodies form (simulator state, never reports)."""
+
+    @abstractmethod
+    def groups(self) -> list[frozenset[str]]:
+        """Modules of each physically separate system (connected through docks)."""
+
+
+W = TypeVar("W", bound="MujocoWorld[Any, Any]")
+"""The world a driver builds."""
+
+
+class MujocoDriver(Driver, Generic[W]):
+    """What every MuJoCo driver shares: its options (an ``options_type``, with keyword
+    overrides of its fields and the seed), a world built by :meth:`build` at each
+    :meth:`reset`, MuJoCo's passive viewer where asked, and the observation, time and
+    ground truth read from the world. A subclass names its options type and builds its
+    world.
+
+    Args:
+        gui: open MuJoCo's passive viewer (needs a display).
+        seed: seed of the world's noise (overrides ``options.seed``).
+        options: an ``options_type`` instance; keyword overrides of its fields
+            (``noise=0.02``) may be given directly.
+    """
+
+    options_type: ClassVar[type[MujocoOptions]]
+    arguments: ClassVar[tuple[str, ...]] = ("gui", "seed", "options")
+    """The constructor's own keywords, named when an unknown option is refused."""
+
+    def __init__(self, *, gui: bool = False, seed: int | None = None,
+                 options: MujocoOptions | None = None, **overrides: Any):
+        known = {f.name for f in fields(self.options_type)}
+        unknown = set(overrides) - known
+        if unknown:
+            raise ExecutionError(f"unknown MuJoCo driver option(s) {sorted(unknown)} (known: "
+                                 f"{', '.join([*self.arguments, *sorted(known - set(self.arguments))])})")
+        if seed is not None:
+            overrides["seed"] = seed
+        self.options = replace(options or self.options_type(), **overrides)
+        self.gui = gui
+        self.world: W | None = None
+        self._connected = False
+        self._viewer: Any = None
+        self._moving: set[str] = set()
+
+    @abstractmethod
+    def build(self, start: Configuration) -> W:
+        """The world of ``start`` (its connections docked, time 0)."""
+
+    @property
+    def is_connected(self) -> bool:
+        return self._connected
+
+    def connect(self) -> None:
+        self._connected = True
+
+    def disconnect(self) -> None:
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        self.world = None
+        self._connected = False
+
+    def _world(self) -> W:
+        self.require_connected()
+        if self.world is None:
+            raise ExecutionError(f"driver {self.name!r} has no world yet; call reset(start) first")
+        return self.world
+
+    def reset(self, start: Configuration) -> None:
+        """Build the world of ``start``; time becomes 0."""
+        self.require_connected()
+        world = self.world = self.build(start)
+        self._moving = set()
+        if self.gui:
+            from mujoco import viewer  # the viewer needs a display; imported only then
+
+            if self._viewer is not None:
+                self._viewer.close()
+            self._viewer = viewer.launch_passive(world.model, world.data)
+
+    def get_observation(self) -> Observation:
+        world = self._world()
+        poses = {m: Pose(p, q) for m, (p, q) in world.poses().items()}
+        groups = world.groups()
+        return Observation(time=world.time, poses=poses, sensors=world.reports(),
+                           groups=tuple(groups) if len(groups) > 1 else ())
+
+    def step(self, dt: float) -> None:
+        self._world().step(dt)
+        if self._viewer is not None:
+            self._viewer.sync()
+
+    @property
+    def time(self) -> float:
+        return self._world().time
+
+    def ground_truth(self) -> Configuration | None:
+        """The world's ground truth, for judging runs (never for recognition)."""
+        return self._world().ground_truth()

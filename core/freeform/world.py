@@ -42,6 +42,9 @@ connector holds, its IMU tilt, the connector's odometry relative to that module,
 sucker state and the constraint events; the recognizer never sees the bodies. The
 IMU's yaw reference is the body axis most upright at the start, so it stays continuous
 (the twist of a frame whose reference axis points straight down is not defined).
+
+The step loop, the dock welds and the event bookkeeping are every freeform world's
+(:class:`~msrr.core.freeform.mujoco.MujocoWorld`).
 """
 
 from __future__ import annotations
@@ -60,9 +63,11 @@ from ..kinematics.rotations import rotation_between
 from ..robot import RobotSpec
 from .mujoco import (
     GROUND_FRICTION,
-    SensorNoise,
+    WELD_SOLIMP,
+    WELD_SOLREF,
+    MujocoOptions,
+    MujocoWorld,
     Switches,
-    add_ground,
     connected_groups,
     heading,
     quat_conj,
@@ -73,8 +78,6 @@ from .mujoco import (
 __all__ = ["ConstraintEvent", "FreeformOptions", "FreeformWorld", "ModuleDesign",
            "ModuleReport", "place"]
 
-_WELD_SOLREF = (0.004, 1.0)
-_WELD_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 _ARMATURE = 1e-3      # drive motor rotors reflected through the gearbox [kg m^2]
 _FOOT_MASS = 0.005    # [kg]
 _TINY = 1e-6          # inertia of small bodies [kg m^2]
@@ -130,38 +133,25 @@ class ModuleDesign:
                    g["max_torque"], bearing, sucker, rgba)
 
 
-@dataclass(frozen=True)
-class FreeformOptions:
-    """How one freeform simulation runs.
+@dataclass(frozen=True, kw_only=True)
+class FreeformOptions(MujocoOptions):
+    """How one freeform simulation runs: :class:`~msrr.core.freeform.mujoco.MujocoOptions`
+    (``timestep``, ``noise``, ``position_gain`` 8/s, ``servo_rate``, ``seed``) and
 
     Attributes:
-        timestep: physics step [s].
-        noise: standard deviation of every reported angle [rad].
-        position_gain: drive position loop gain [1/s].
-        servo_rate: rate of the drive loops [Hz].
         gap: shell-to-shell gap of a docked pair [m].
         dock_tolerance: a connector told to dock latches when the shells are this close
             to touching [m].
         seat: time constant of a fresh dock drawing the foot onto the centre [s].
-        seed: seed of the noise.
     """
 
-    timestep: float = 0.002
-    noise: float = 0.0
-    position_gain: float = 8.0
-    servo_rate: float = 250.0
     gap: float = 0.001
     dock_tolerance: float = 0.006
     seat: float = 0.15
-    seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("timestep", "position_gain", "servo_rate", "gap", "dock_tolerance", "seat"):
-            if not getattr(self, name) > 0:
-                raise ExecutionError(f"simulation option {name} must be positive, "
-                                     f"got {getattr(self, name)}")
-        if self.noise < 0:
-            raise ExecutionError(f"simulation option noise must be >= 0, got {self.noise}")
+        super().__post_init__()
+        self._check(positive=("gap", "dock_tolerance", "seat"))
 
 
 @dataclass(frozen=True)
@@ -257,8 +247,9 @@ def _frame_along(z: np.ndarray) -> np.ndarray:
     return rotation_between(_EZ, z / np.linalg.norm(z))
 
 
-class FreeformWorld:
-    """One configuration of single-connector freeform modules in MuJoCo.
+class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
+    """One configuration of single-connector freeform modules in MuJoCo (its welds keyed
+    ``(module, target)``).
 
     Args:
         config: the starting configuration; its connections start docked.
@@ -266,23 +257,22 @@ class FreeformWorld:
         options: the run's options.
     """
 
+    options: FreeformOptions
+
     def __init__(self, config: Configuration, design: ModuleDesign, options: FreeformOptions):
+        super().__init__(options, seat=options.seat)
         self.design = design
-        self.options = options
-        self.noise = SensorNoise(options.noise, options.seed)
         self.length = 2.0 * design.radius + options.gap
         self.modules = sorted(v for v in config.vertices() if not config.is_virtual(v))
         self._index = {m: i for i, m in enumerate(self.modules)}
         centres, frames = place(config, self.length, design.radius)
         self._conn0 = [frames[m] if design.bearing else np.eye(3) for m in self.modules]
-        self._welds = Switches()
-        self._suckers = Switches()
-        self.model = self._build(centres, frames)
-        self._welds.bind(self.model)
+        self._suckers: Switches[tuple[str, str]] = Switches()
+        self.compile(self._build(centres, frames))
         self._suckers.bind(self.model)
-        self.data = mujoco.MjData(self.model)
         m = self.model
         self._shell = np.array([m.body(f"module/{i}").id for i in self.modules])
+        self.bodies = dict(zip(self.modules, self._shell.tolist(), strict=True))
         self._conn = np.array([m.body(f"connector/{i}").id for i in self.modules])
         self._foot = np.array([m.body(f"foot/{i}").id for i in self.modules])
         drives = [m.joint(f"drive/{i}") for i in self.modules]
@@ -304,10 +294,6 @@ class FreeformWorld:
         self._braked = np.zeros(n, dtype=bool)     # bearing held at ``_brake_at``
         self._brake_at = np.tile(np.array([1.0, 0, 0, 0]), (n, 1))
         self._damping = design.max_torque / design.max_rate
-        self._every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
-        self.events: list[ConstraintEvent] = []
-        self._reported = 0
-        self.time = 0.0
         mujoco.mj_forward(self.model, self.data)
         self._upright = np.array([_upright(r) for r in self.data.xmat[self._conn].reshape(-1, 3, 3)])
         for e in config.edges():
@@ -317,13 +303,9 @@ class FreeformWorld:
     # -- building ---------------------------------------------------------------------
 
     def _build(self, centres: dict[str, np.ndarray], frames: dict[str, np.ndarray]
-               ) -> mujoco.MjModel:
-        d, o = self.design, self.options
-        spec = mujoco.MjSpec()
-        spec.modelname = f"freeform-{d.kind}"
-        spec.option.timestep = o.timestep
-        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-        add_ground(spec)
+               ) -> mujoco.MjSpec:
+        d = self.design
+        spec = self.new_spec(f"freeform-{d.kind}")
         shell_mass = d.mass - d.connector_mass - _FOOT_MASS
         if shell_mass <= 0:
             raise ExecutionError(f"module kind {d.kind!r}: mass must exceed the connector's")
@@ -360,17 +342,14 @@ class FreeformWorld:
             for b in self.modules:
                 if a == b:
                     continue
-                self._welds.add(spec, (a, b), f"dock/{a}/{b}", type=mujoco.mjtEq.mjEQ_WELD,
-                                objtype=mujoco.mjtObj.mjOBJ_BODY, name1=f"foot/{a}",
-                                name2=f"module/{b}", solref=list(_WELD_SOLREF),
-                                solimp=list(_WELD_SOLIMP))
+                self.add_weld(spec, (a, b), f"dock/{a}/{b}", f"foot/{a}", f"module/{b}")
                 if d.sucker:
                     self._suckers.add(spec, (a, b), f"sucker/{a}/{b}",
                                       type=mujoco.mjtEq.mjEQ_CONNECT,
                                       objtype=mujoco.mjtObj.mjOBJ_BODY, name1=f"connector/{a}",
-                                      name2=f"module/{b}", solref=list(_WELD_SOLREF),
-                                      solimp=list(_WELD_SOLIMP))
-        return spec.compile()
+                                      name2=f"module/{b}", solref=list(WELD_SOLREF),
+                                      solimp=list(WELD_SOLIMP))
+        return spec
 
     # -- commands -----------------------------------------------------------------------
 
@@ -481,22 +460,11 @@ class FreeformWorld:
     # -- docking ------------------------------------------------------------------------
 
     def _dock(self, k: int, target: str, *, kind: str = "dock") -> None:
-        d = self.data
         module = self.modules[k]
         previous = self.docked[k]
         if previous is not None:
             self._unlatch(k)
-        eq = self._welds.on(d, (module, target))
-        j = self._index[target]
-        r_foot = d.xmat[self._foot[k]].reshape(3, 3)
-        rel, inv = np.empty(4), np.empty(4)
-        mujoco.mju_negQuat(inv, d.xquat[self._foot[k]])
-        mujoco.mju_mulQuat(rel, inv, d.xquat[self._shell[j]])
-        data = self.model.eq_data[eq]
-        data[:3] = 0.0
-        data[3:6] = r_foot.T @ (d.xpos[self._shell[j]] - d.xpos[self._foot[k]])
-        data[6:10] = rel
-        data[10] = 1.0
+        self.weld((module, target), self._foot[k], self._shell[self._index[target]])
         self.docked[k] = target
         self.armed[k] = None
         self.release[k] = False
@@ -533,7 +501,7 @@ class FreeformWorld:
         module, parent = self.modules[k], self.docked[k]
         if parent is None:
             return
-        self._welds.off(self.data, (module, parent))
+        self.welds.off(self.data, (module, parent))
         if self.sucker[k]:
             self._suckers.off(self.data, (module, parent))
             self.sucker[k] = False
@@ -564,21 +532,10 @@ class FreeformWorld:
                     self._turn_connector(k, centres[j] - centres[k])
                 self._dock(k, self.modules[j], kind="flow" if flow else "dock")
 
-    def _seat(self, duration: float) -> None:
-        """Draw fresh docks' feet onto the centres (time constant ``seat``)."""
-        active = [self._welds.id(key) for key in self._welds.active(self.data)]
-        if active:
-            offsets = self.model.eq_data[active, 3:6]
-            if np.any(offsets):
-                self.model.eq_data[active, 3:6] = offsets * max(
-                    0.0, 1.0 - duration / self.options.seat)
-
     # -- stepping -----------------------------------------------------------------------
 
-    def step(self, duration: float) -> None:
-        """Advance by ``duration`` [s] (whole physics steps, at least one)."""
-        n = max(1, round(duration / self.options.timestep))
-        every = self._every
+    def _before_step(self) -> None:
+        """Brake the bearings of the shells that do not roll, where they are now."""
         if self._bearing is not None:   # the shells of modules at rest are braked
             # so are those others dock on: a shell that turned freely would swing them
             carrying = np.isin(self.modules, [p for p in self.docked if p is not None])
@@ -589,15 +546,10 @@ class FreeformWorld:
             adr = self._bearing_q[newly][:, None] + np.arange(4)
             self._brake_at[newly] = self.data.qpos[adr]
             self._braked = ~free
-        for i in range(n):
-            if i % every == 0:
-                self._servo()
-            mujoco.mj_step(self.model, self.data)
-            self.time += self.options.timestep
-            if i % every == every - 1 or i == n - 1:
-                self._seat(min(every, i % every + 1) * self.options.timestep)
-            if any(a is not None for a in self.armed):
-                self._check_docks()
+
+    def _docking(self) -> bool:
+        """Whether a connector is armed (a dock or a flow waits for the shells to touch)."""
+        return any(a is not None for a in self.armed)
 
     def _servo(self) -> None:
         """Drive motors: position loop on the drive joints of docked modules, bounded
@@ -681,8 +633,7 @@ class FreeformWorld:
         d = self.data
         rot = d.xmat[self._conn].reshape(-1, 3, 3)
         yaw = self._headings()
-        new = self.events[self._reported:]
-        self._reported = len(self.events)
+        new = self.new_events()
         out = {}
         for k, module in enumerate(self.modules):
             parent = self.docked[k]
@@ -692,14 +643,6 @@ class FreeformWorld:
             out[module] = ModuleReport(parent, self.noise.rotation(rot_z(-yaw[k]) @ rot[k]),
                                        relative, self.sucker[k],
                                        tuple(e for e in new if e.module == module))
-        return out
-
-    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """World pose of every shell: ``(position (3,), quaternion (x, y, z, w))``."""
-        out = {}
-        for k, module in enumerate(self.modules):
-            w, x, y, z = self.data.xquat[self._shell[k]]
-            out[module] = (self.data.xpos[self._shell[k]].copy(), np.array([x, y, z, w]))
         return out
 
     def centre(self, module: str) -> np.ndarray:
@@ -716,23 +659,10 @@ class FreeformWorld:
         config = Configuration(self.design.robot, name=name)
         for module in self.modules:
             config.add_module(module, self.design.kind)
-        for a, b in sorted(self._welds.active(d)):
+        for a, b in sorted(self.welds.active(d)):
             z = d.xpos[self._shell[self._index[b]]] - d.xpos[self._shell[self._index[a]]]
             config.connect(a, b, z=frame @ (z / np.linalg.norm(z)))
         return config
-
-    def docked_pairs(self) -> set[tuple[str, str]]:
-        """``(module, target)`` of every active dock constraint (simulator state)."""
-        return set(self._welds.active(self.data))  # type: ignore[arg-type]
-
-    def constraint_residual(self) -> float:
-        """Largest distance [m] between a docked foot and its target's centre."""
-        worst = 0.0
-        for a, b in self._welds.active(self.data):
-            gap = self.data.xpos[self._foot[self._index[a]]] - \
-                self.data.xpos[self._shell[self._index[b]]]
-            worst = max(worst, float(np.linalg.norm(gap)))
-        return worst
 
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""

@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 from msrr.core.configuration import Configuration
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
-from msrr.core.freeform.driver import MujocoDriver
+from msrr.core.freeform.mujoco import MujocoDriver
 from msrr.core.robot import RobotSpec
 
 from ..robot import SPEC
@@ -19,11 +19,11 @@ from .world import FreeSNWorld
 __all__ = ["FreeSNMujocoDriver"]
 
 
-class FreeSNMujocoDriver(MujocoDriver):
+class FreeSNMujocoDriver(MujocoDriver[FreeSNWorld]):
     """FreeSN modules simulated in MuJoCo, headless unless ``gui=True``.
 
     Args:
-        gui, seed, options, overrides: as :class:`~msrr.core.freeform.driver.MujocoDriver`,
+        gui, seed, options, overrides: as :class:`~msrr.core.freeform.mujoco.MujocoDriver`,
             with the run's :class:`~.options.SimOptions` (``noise=np.radians(2)``,
             ``slip=0.05``; the seed drives noise, drift and slip).
         spec: the robot description whose geometry builds the world.
@@ -43,6 +43,7 @@ class FreeSNMujocoDriver(MujocoDriver):
                                   "joints, magnets as weld constraints")
 
     options_type = SimOptions
+    options: SimOptions
     arguments = ("gui", "seed", "options", "spec")
 
     def __init__(self, *, gui: bool = False, seed: int | None = None,
@@ -58,7 +59,7 @@ class FreeSNMujocoDriver(MujocoDriver):
         """Build the world of ``start`` (its docked ends docked); time becomes 0. Bodies
         that overlap at the start are not reported as self-collisions later."""
         super().reset(start)
-        self._overlaps = {p[:2] for p in self.world.penetrations(0.003)}
+        self._overlaps = {p[:2] for p in self._world().penetrations(0.003)}
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         world = self._world()

@@ -6,14 +6,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from msrr.core.errors import ExecutionError
+from msrr.core.freeform.mujoco import MujocoOptions
 from msrr.core.robot import RobotSpec
 
 __all__ = ["Physical", "SimOptions"]
 
 
-@dataclass(frozen=True)
-class SimOptions:
-    """How one simulation runs; hardware figures come from the robot spec.
+@dataclass(frozen=True, kw_only=True)
+class SimOptions(MujocoOptions):
+    """How one simulation runs (a :class:`~msrr.core.freeform.mujoco.MujocoOptions`);
+    hardware figures come from the robot spec.
 
     Attributes:
         timestep: physics step [s].
@@ -37,28 +39,18 @@ class SimOptions:
         seed: seed of the noise, drift and slip generators.
     """
 
-    timestep: float = 0.002
-    noise: float = 0.0
     drift: float = 0.0
     slip: float = 0.0
     strength_factor: float = 0.5
     torque_factor: float = 0.6
     position_gain: float = 40.0
     integral_gain: float = 400.0
-    servo_rate: float = 250.0
     break_filter: float = 0.05
-    seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("timestep", "strength_factor", "torque_factor", "position_gain",
-                     "servo_rate", "break_filter"):
-            if not getattr(self, name) > 0:
-                raise ExecutionError(f"simulation option {name} must be positive, "
-                                     f"got {getattr(self, name)}")
-        for name in ("noise", "drift", "slip", "integral_gain"):
-            if getattr(self, name) < 0:
-                raise ExecutionError(f"simulation option {name} must be >= 0, "
-                                     f"got {getattr(self, name)}")
+        super().__post_init__()
+        self._check(positive=("strength_factor", "torque_factor", "break_filter"),
+                    non_negative=("drift", "slip", "integral_gain"))
 
 
 @dataclass(frozen=True)

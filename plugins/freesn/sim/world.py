@@ -43,6 +43,10 @@ command retracts the array and releases the weld. A connection breaks (weld rele
 ``break`` event) when its low-passed constraint force exceeds the connection strength;
 a compressive force (the connector pressed onto its node) is carried by contact, not by
 the magnet, so only the pull-off and shear parts count.
+
+The step loop, the dock welds and the event bookkeeping are those of every freeform
+world (:class:`~msrr.core.freeform.mujoco.MujocoWorld`); this module adds the bodies,
+the connectors' motors and wheels, loads and breaks, odometry and the module reports.
 """
 
 from __future__ import annotations
@@ -57,6 +61,8 @@ from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.errors import ExecutionError
 from msrr.core.freeform.mujoco import (
+    GROUND_FRICTION,
+    MujocoWorld,
     connected_groups,
     heading,
     quat_conj,
@@ -72,9 +78,6 @@ from .options import Physical, SimOptions
 __all__ = ["DockEvent", "FreeSNWorld", "NodeReport", "StrutReport"]
 
 _GAP = 0.003          # strut capsule tip to node surface when docked [m]
-_FRICTION = (0.8, 0.02, 0.001)
-_WELD_SOLREF = (0.004, 1.0)
-_WELD_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 _ROLLER_MASS = 0.02   # rolling frame of a connector (wheels, magnet carrier) [kg]
 _ARMATURE = 1e-3     # wheel-motor rotors reflected through the gearbox (~1e-7 x 100^2) [kg m^2]
 _EZ = np.array([0.0, 0.0, 1.0])
@@ -146,8 +149,8 @@ def _inertia_rod(mass: float, radius: float, length: float) -> list[float]:
     return [across, across, 0.5 * mass * radius**2]
 
 
-class FreeSNWorld:
-    """One configuration of FreeSN modules in MuJoCo.
+class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
+    """One configuration of FreeSN modules in MuJoCo (its welds keyed ``(strut, end, node)``).
 
     Args:
         config: the starting configuration (nodes, struts with ``z``); its docked
@@ -156,19 +159,25 @@ class FreeSNWorld:
         options: the run's options.
     """
 
+    options: SimOptions
+
     def __init__(self, config: Configuration, spec: RobotSpec, options: SimOptions):
-        self.options = options
+        super().__init__(options, seat=_SEAT)
         self.phys = phys = Physical.from_spec(spec, options)
-        self.rng = np.random.default_rng(options.seed)
         self.placement = place(config, phys.strut_length, phys.node_radius, phys.strut_radius)
         self.nodes = [v for v in config.vertices() if not config.is_virtual(v)]
         self.struts = [e.id for e in config.edges()]
         self.ends = [(s, e) for s in self.struts for e in ENDS]
-        self.model, self._welds = self._build(self.placement)
-        self.data = mujoco.MjData(self.model)
+        if len(self.struts) > 30:
+            raise ExecutionError(f"the MuJoCo world holds at most 30 struts (collision bits), "
+                                 f"got {len(self.struts)}")
+        self.compile(self._build(self.placement))
         m = self.model
         self._node_body = np.array([m.body(f"node/{n}").id for n in self.nodes], dtype=int)
         self._strut_body = np.array([m.body(f"strut/{s}").id for s in self.struts], dtype=int)
+        self.bodies = {name: int(body) for name, body in
+                       [*zip(self.nodes, self._node_body, strict=True),
+                        *zip(self.struts, self._strut_body, strict=True)]}
         self._conn_body = np.array([m.body(f"connector/{s}/{e}").id for s, e in self.ends],
                                    dtype=int)
         joints = [m.joint(f"ball/{s}/{e}") for s, e in self.ends]
@@ -199,14 +208,10 @@ class FreeSNWorld:
         self._axle = np.array([m.joint(f"axle/{s}/{e}").dofadr[0] for s, e in self.ends],
                               dtype=int)
         self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
-        self._servo_every = max(1, round(1.0 / (options.servo_rate * options.timestep)))
         tip = phys.node_radius + _GAP + phys.strut_radius   # capsule cap centre from the node
         self._side_by_side = 2.0 * np.arcsin(min(1.0, phys.strut_radius / tip)) \
             + _SIDE_BY_SIDE_MARGIN
         self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
-        self.events: list[DockEvent] = []
-        self._reported = 0
-        self.time = 0.0
         self._capsule = np.array([m.geom(f"capsule/{s}").id for s in self.struts], dtype=int)
         mujoco.mj_forward(self.model, self.data)
         for s, (a, b) in self.placement.ends.items():
@@ -218,16 +223,9 @@ class FreeSNWorld:
 
     # -- building ---------------------------------------------------------------------
 
-    def _build(self, placement: Placement) -> tuple[mujoco.MjModel, dict]:
+    def _build(self, placement: Placement) -> mujoco.MjSpec:
         p = self.phys
-        spec = mujoco.MjSpec()
-        spec.modelname = "freesn"
-        spec.option.timestep = self.options.timestep
-        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-        spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE,
-                                size=[10.0, 10.0, 0.1], friction=_FRICTION,
-                                conaffinity=_ALL_BITS, rgba=[0.85, 0.85, 0.8, 1.0])
-        spec.worldbody.add_light(pos=[0, 0, 3], dir=[0, 0, -1])
+        spec = self.new_spec("freesn")
         shell = 2.0 / 3.0 * p.node_mass * p.node_radius**2  # thin steel shell
         for node in self.nodes:
             body = spec.worldbody.add_body(name=f"node/{node}", pos=placement.nodes[node],
@@ -236,7 +234,7 @@ class FreeSNWorld:
                                            iquat=[1, 0, 0, 0])
             body.add_freejoint(name=f"free/{node}")
             body.add_geom(name=f"sphere/{node}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
-                          size=[p.node_radius, 0, 0], friction=_FRICTION, mass=0,
+                          size=[p.node_radius, 0, 0], friction=GROUND_FRICTION, mass=0,
                           conaffinity=_ALL_BITS,
                           rgba=[0.6, 0.6, 0.65, 1.0])
         tip = 0.5 * p.strut_length - p.node_radius - _GAP
@@ -258,7 +256,7 @@ class FreeSNWorld:
             body.add_freejoint(name=f"free/{strut}")
             body.add_geom(name=f"capsule/{strut}", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
                           fromto=[0, 0, -segment, 0, 0, segment], size=[p.strut_radius, 0, 0],
-                          friction=_FRICTION, mass=0, rgba=[0.9, 0.55, 0.1, 1.0])
+                          friction=GROUND_FRICTION, mass=0, rgba=[0.9, 0.55, 0.1, 1.0])
             for end in ENDS:
                 roller = body.add_body(name=f"connector/{strut}/{end}",
                                        pos=[0, 0, -END_SIGN[end] * 0.5 * p.strut_length],
@@ -281,48 +279,24 @@ class FreeSNWorld:
                                rgba=[0.15, 0.15, 0.15, 1.0])
                 spec.add_pair(name=f"floor/{strut}/{end}", geomname1=f"wheels/{strut}/{end}",
                               geomname2="ground", condim=3, friction=_WHEEL_FRICTION)
-        welds = {}
         for strut in self.struts:
             for end in ENDS:
                 for node in self.nodes:
-                    name = f"dock/{strut}/{end}/{node}"
-                    spec.add_equality(name=name, type=mujoco.mjtEq.mjEQ_WELD,
-                                      objtype=mujoco.mjtObj.mjOBJ_BODY,
-                                      name1=f"connector/{strut}/{end}", name2=f"node/{node}",
-                                      active=False, solref=list(_WELD_SOLREF),
-                                      solimp=list(_WELD_SOLIMP))
-                    welds[(strut, end, node)] = name
-        model = spec.compile()
-        if len(self.struts) > 30:
-            raise ExecutionError(f"the MuJoCo world holds at most 30 struts (collision bits), "
-                                 f"got {len(self.struts)}")
-        return model, {key: model.equality(name).id for key, name in welds.items()}
+                    self.add_weld(spec, (strut, end, node), f"dock/{strut}/{end}/{node}",
+                                  f"connector/{strut}/{end}", f"node/{node}")
+        return spec
 
     # -- docking ----------------------------------------------------------------------
 
     def _dock(self, k: int, node: str, *, event: bool = True) -> None:
         strut, end = self.ends[k]
-        eq = self._welds[(strut, end, node)]
-        d = self.data
-        q_conn = d.xquat[self._conn_body[k]]
-        q_node = d.xquat[self._node_body[self._node_index[node]]]
-        rel = np.empty(4)
-        inv = np.empty(4)
-        mujoco.mju_negQuat(inv, q_conn)
-        mujoco.mju_mulQuat(rel, inv, q_node)
-        data = self.model.eq_data[eq]
-        data[:3] = 0.0       # anchor: the node centre
-        # relpose position: where the node centre is now, in the connector frame; the
-        # magnet then draws the connector onto the centre (_seat) instead of snapping
-        r_conn = d.xmat[self._conn_body[k]].reshape(3, 3)
-        data[3:6] = r_conn.T @ (d.xpos[self._node_body[self._node_index[node]]]
-                                - d.xpos[self._conn_body[k]])
-        data[6:10] = rel     # relpose: current relative orientation
-        data[10] = 1.0       # torque scale
-        d.eq_active[eq] = 1
+        # the connector where it is now; the magnet then draws it onto the node's centre
+        eq = self.weld((strut, end, node), self._conn_body[k],
+                       self._node_body[self._node_index[node]])
         self._eq[k] = eq
         self.docked[k] = node
-        self._conn_node[k] = Rotation.from_quat(rel, scalar_first=True).as_matrix()
+        self._conn_node[k] = Rotation.from_quat(self.model.eq_data[eq, 6:10],
+                                                scalar_first=True).as_matrix()
         self.magnet[k] = "neutral"   # back to the origin after the dock (section 4.2)
         self._load[k] = 0.0
         self._hold(k)
@@ -334,7 +308,7 @@ class FreeSNWorld:
         if node is None:
             return
         strut, end = self.ends[k]
-        self.data.eq_active[self._welds[(strut, end, node)]] = 0
+        self.welds.off(self.data, (strut, end, node))
         self._eq[k] = -1
         self._set_effort(k, 1.0)
         self.docked[k] = None
@@ -509,25 +483,24 @@ class FreeSNWorld:
 
     # -- stepping ---------------------------------------------------------------------
 
-    def step(self, duration: float) -> None:
-        """Advance by ``duration`` [s] (whole physics steps, at least one)."""
+    def _before_step(self) -> None:
+        """The connectors' joint targets from their commands; the struts' collision groups
+        for the topology now."""
         self._update_ball_targets()
         self._collision_groups()
-        n = max(1, round(duration / self.options.timestep))
-        every = self._servo_every
-        docking = "extended" in self.magnet
-        for i in range(n):
-            if i % every == 0:
-                self._servo()
-            mujoco.mj_step(self.model, self.data)
-            self.time += self.options.timestep
-            if i % every == every - 1 or i == n - 1:
-                self._check_loads(min(every, i % every + 1))
-                self._seat(min(every, i % every + 1) * self.options.timestep)
-            if docking:
-                self._check_docks()
-                docking = "extended" in self.magnet
-        self._odometry(n * self.options.timestep)
+
+    def _period_done(self, steps: int) -> None:
+        """Connections over their strength break, then fresh docks seat."""
+        self._check_loads(steps)
+        super()._period_done(steps)
+
+    def _docking(self) -> bool:
+        """Whether a magnet array is extended."""
+        return "extended" in self.magnet
+
+    def _after_step(self, duration: float) -> None:
+        """The connectors' odometry errors grow by what they rolled."""
+        self._odometry(duration)
 
     def _servo(self) -> None:
         p = self.phys
@@ -546,7 +519,7 @@ class FreeSNWorld:
             error = quat_log(relative)
             omega = self.options.position_gain * error
             if self.options.integral_gain > 0.0:
-                dt = self._servo_every * self.options.timestep
+                dt = self._every * self.options.timestep
                 integral = self._integral[ks] + error * dt
                 size = np.sqrt(np.einsum("ni,ni->n", integral, integral))
                 bound = p.max_roll_rate / self.options.integral_gain   # anti-windup
@@ -584,7 +557,7 @@ class FreeSNWorld:
         if len(ks):
             torque = self._tau[ks] - self.phys.damping * self.data.qvel[self._dofs[ks]]
             net[ks] = np.sqrt(np.einsum("ni,ni->n", torque, torque)) * (self._effort[ks] >= 1.0)
-        alpha = min(1.0, self._servo_every * self.options.timestep / _SATURATION_FILTER)
+        alpha = min(1.0, self._every * self.options.timestep / _SATURATION_FILTER)
         self._net_torque += alpha * (net - self._net_torque)
         saturated = self._net_torque >= _SATURATED * self.phys.max_torque
         self._saturated_since = np.where(saturated, np.fmin(self._saturated_since, self.time),
@@ -611,13 +584,6 @@ class FreeSNWorld:
         self._load[~docked] = 0.0
         for k in np.flatnonzero(self._load > self.phys.strength):
             self._release(int(k), "break")
-
-    def _seat(self, duration: float) -> None:
-        """Draw freshly docked connectors onto their node centres (time constant ``_SEAT``)."""
-        active = self._eq[self._eq >= 0]
-        offsets = self.model.eq_data[active, 3:6]
-        if np.any(offsets):
-            self.model.eq_data[active, 3:6] = offsets * max(0.0, 1.0 - duration / _SEAT)
 
     def _check_docks(self) -> None:
         centres = self.data.xpos[self._node_body]
@@ -651,15 +617,13 @@ class FreeSNWorld:
     def reports(self) -> dict[str, NodeReport | StrutReport]:
         """Every module's report, with the run's noise; events since the previous call."""
         d = self.data
-        noise = self.options.noise
         node_rot = d.xmat[self._node_body].reshape(-1, 3, 3)
         node_yaw = heading(d.xquat[self._node_body])
         strut_rot = d.xmat[self._strut_body].reshape(-1, 3, 3)
         eps_rot = Rotation.from_rotvec(self._eps[:, None] * _EZ).as_matrix()
         located: dict[str, dict[str, np.ndarray]] = {n: {} for n in self.nodes}
         out: dict[str, NodeReport | StrutReport] = {}
-        new = self.events[self._reported:]
-        self._reported = len(self.events)
+        new = self.new_events()
         for j, strut in enumerate(self.struts):
             docked, attitude, magnet = {}, {}, {}
             for end in ENDS:
@@ -670,33 +634,15 @@ class FreeSNWorld:
                     continue
                 i = self._node_index[node]
                 axis = self._sign[k] * strut_rot[j][:, 2]
-                located[node][f"{strut}:{end}"] = self._jitter_vector(node_rot[i].T @ axis, noise)
-                attitude[end] = self._jitter(rot_z(-node_yaw[i]) @ strut_rot[j] @ eps_rot[k],
-                                             noise)
+                located[node][f"{strut}:{end}"] = self.noise.vector(node_rot[i].T @ axis)
+                attitude[end] = self.noise.rotation(
+                    rot_z(-node_yaw[i]) @ strut_rot[j] @ eps_rot[k])
             tilt = rot_z(-float(heading(d.xquat[self._strut_body[j]]))) @ strut_rot[j]
-            out[strut] = StrutReport(docked, attitude, self._jitter(tilt, noise), magnet,
+            out[strut] = StrutReport(docked, attitude, self.noise.rotation(tilt), magnet,
                                      tuple(e for e in new if e.strut == strut))
         for i, node in enumerate(self.nodes):
-            out[node] = NodeReport(self._jitter(rot_z(-node_yaw[i]) @ node_rot[i], noise),
+            out[node] = NodeReport(self.noise.rotation(rot_z(-node_yaw[i]) @ node_rot[i]),
                                    located[node])
-        return out
-
-    def _jitter(self, rotation: np.ndarray, noise: float) -> np.ndarray:
-        if not noise:
-            return rotation
-        return Rotation.from_rotvec(self.rng.normal(0.0, noise, 3)).as_matrix() @ rotation
-
-    def _jitter_vector(self, vector: np.ndarray, noise: float) -> np.ndarray:
-        return self._jitter(np.eye(3), noise) @ vector
-
-    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """World pose of every module body: ``(position (3,), quaternion (x, y, z, w))``."""
-        d = self.data
-        out = {}
-        for name, body in [*zip(self.nodes, self._node_body, strict=True),
-                           *zip(self.struts, self._strut_body, strict=True)]:
-            w, x, y, z = d.xquat[body]
-            out[name] = (d.xpos[body].copy(), np.array([x, y, z, w]))
         return out
 
     def ground_truth(self, root: str | None = None, *, name: str = "") -> Configuration:
@@ -731,11 +677,6 @@ class FreeSNWorld:
                 for (strut, end), t in zip(self.ends, self._saturated_since, strict=True)
                 if not np.isnan(t)}
 
-    def docked_pairs(self) -> set[tuple[str, str, str]]:
-        """``(strut, end, node)`` of every active dock constraint (simulator state)."""
-        active = self.data.eq_active
-        return {key for key, eq in self._welds.items() if active[eq]}
-
     def penetrations(self, depth: float = 0.001) -> list[tuple[str, str, float]]:
         """Module bodies that overlap by more than ``depth`` [m] now: ``(geom, geom, depth)``.
 
@@ -751,17 +692,6 @@ class FreeSNWorld:
                 out.append((m.geom(contact.geom[0]).name, m.geom(contact.geom[1]).name,
                             float(-contact.dist)))
         return out
-
-    def constraint_residual(self) -> float:
-        """Largest position error of an active dock constraint [m]."""
-        d = self.data
-        worst = 0.0
-        for (strut, end, node), eq in self._welds.items():
-            if d.eq_active[eq]:
-                gap = d.xpos[self._conn_body[self._end_index[(strut, end)]]] - \
-                    d.xpos[self._node_body[self._node_index[node]]]
-                worst = max(worst, float(np.linalg.norm(gap)))
-        return worst
 
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""

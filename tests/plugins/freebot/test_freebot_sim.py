@@ -56,7 +56,7 @@ def test_undock_and_dock_through_the_driver_switch_the_simulators_constraint():
 
     driver = _reset("line6")
     world = driver.world
-    eq = world._welds.id(("F1", "F2"))
+    eq = world.welds.id(("F1", "F2"))
     assert world.data.eq_active[eq] == 1
     driver.send_action({"F1": ModuleCommand(undock=("@F2",))})
     driver.step(0.1)
