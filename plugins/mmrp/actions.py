@@ -17,10 +17,10 @@ from collections.abc import Mapping, Sequence
 from msrr.core import Configuration
 from msrr.core.plan import Action, ActionType, ConnectionChange
 
-from .centre import parents
+from .centre import adjacency, parents
 from .mcs import components
 from .representation import FaceLinks, face_links
-from .routing import Cell, route_groups
+from .routing import Cell, Route, route_groups
 from .targets import DerivedConfiguration
 
 __all__ = ["Pose", "generate_actions", "kept_edge_ids", "rigid_groups"]
@@ -90,26 +90,32 @@ def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping
         PlanningError: no collision-free order of the moves exists (see routing).
     """
     links_g = face_links(goal)
-    inverse = {g: c for c, g in mapping.items()}
     kept = kept_edge_ids(start, links_g, mapping)
     keep = set(kept)
-    start_adj: dict[str, list[str]] = {v: [] for v in start.vertices()}
-    for e in start.edges():
-        start_adj[e.source].append(e.target)
-        start_adj[e.target].append(e.source)
-    start_parent = parents(start_adj, start_root)
-    groups = rigid_groups(start, kept)
     links = [frozenset({e.source, e.target}) for e in start.edges() if e.id in keep]
-    routing = route_groups(groups, start_cells, goal_cells, links=links, priority=priority)
+    routing = route_groups(rigid_groups(start, kept), start_cells, goal_cells, links=links,
+                           priority=priority)
     cut = set(routing.cut)
     keep = {e.id for e in start.edges()
             if e.id in keep and frozenset({e.source, e.target}) not in cut}
+    current, actions = _undocks(start, keep, start_root)
+    moved = current if current is not start else DerivedConfiguration(start)
+    actions += _moves(routing.routes, moved, start_cells, unit)
+    kept_pairs = {frozenset({e.source, e.target}) for e in start.edges() if e.id in keep}
+    actions += _docks(goal, links_g, mapping, goal_root, kept_pairs, current,
+                      set(start.edge_ids()))
+    return actions
+
+
+def _undocks(start: Configuration, keep: set[str], start_root: str
+             ) -> tuple[Configuration, list[Action]]:
+    """Section 4.4, first: undock every start connection not in ``keep``, the end farther
+    from ``start_root`` named first; the configuration they leave and the actions."""
+    start_parent = parents(adjacency(start), start_root)
     current: Configuration = start
     actions: list[Action] = []
-    kept_pairs = set()
     for e in start.edges():
         if e.id in keep:
-            kept_pairs.add(frozenset({e.source, e.target}))
             continue
         current = DerivedConfiguration(current, [("disconnect", e.id, "", "", "", "")])
         child_first = start_parent.get(e.source) == e.target
@@ -119,8 +125,15 @@ def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping
         actions.append(Action(ActionType.DISCONNECTION, current,
                               modules=(change.source, change.target), changes=(change,),
                               note=f"undock {change}"))
-    moved = current if current is not start else DerivedConfiguration(start)
-    for route in routing.routes:
+    return current, actions
+
+
+def _moves(routes: Sequence[Route], moved: Configuration, start_cells: Mapping[str, Cell],
+           unit: float) -> list[Action]:
+    """Section 4.4, then: one moving action per straight leg of every route (the routed
+    rigid groups), all sharing the target ``moved``."""
+    actions = []
+    for route in routes:
         first = route.modules[0]
         offsets = {m: (start_cells[m][0] - start_cells[first][0],
                        start_cells[m][1] - start_cells[first][1]) for m in route.modules}
@@ -135,13 +148,17 @@ def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping
                 cost=(abs(b[0] - a[0]) + abs(b[1] - a[1])) * unit,
                 note=f"move {what} {','.join(route.modules)} toward {where} "
                      f"(leg {leg}/{legs}, cell {a} -> {b})"))
-    goal_adj: dict[str, list[str]] = {v: [] for v in goal.vertices()}
-    for e in goal.edges():
-        goal_adj[e.source].append(e.target)
-        goal_adj[e.target].append(e.source)
-    goal_parent = parents(goal_adj, goal_root)
-    taken = set(start.edge_ids())
-    for child, parent in goal_parent.items():
+    return actions
+
+
+def _docks(goal: Configuration, links_g: FaceLinks, mapping: Mapping[str, str], goal_root: str,
+           kept_pairs: set[frozenset[str]], current: Configuration, taken: set[str]
+           ) -> list[Action]:
+    """Section 4.4, last: dock every goal connection without a kept preimage, breadth-first
+    from ``goal_root``, each with a fresh edge id (not in ``taken``)."""
+    inverse = {g: c for c, g in mapping.items()}
+    actions = []
+    for child, parent in parents(adjacency(goal), goal_root).items():
         if parent is None:
             continue
         child_face = next(f for f, (w, _) in links_g[child].items() if w == parent)

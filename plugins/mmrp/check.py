@@ -20,8 +20,10 @@ must equal the plan's goal.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
-from msrr.core.plan import ActionType, Plan
+from msrr.core.plan import Action, ActionType, Plan
 
 from .centre import root_of
 from .representation import GRID_STEP, edge_set, pitch, to_tree
@@ -37,16 +39,40 @@ def _cell(value: float, unit: float, where: str, problems: list[str]) -> int:
     return round(cells)
 
 
-def check_plan(plan: Plan, *, limit: int = 20) -> list[str]:
-    """Replay ``plan`` on the grid; the problems found, at most ``limit`` (empty: valid).
+@dataclass(frozen=True)
+class _Replay:
+    """The plan as replayed so far; each step updates the dicts and adds its problems.
 
-    Args:
-        plan: an MMRP plan whose moving actions carry ``goals`` ``{id: [x, y, yaw]}``
-            [m, m, rad] in the start's root frame (its centre at the origin).
-        limit: stop after this many problems.
+    Attributes:
+        unit: the grid pitch [m].
+        cells: module -> grid cell.
+        holder: grid cell -> the module on it.
+        links: module -> face -> (module, face) across it.
+        edges: connection id -> ``(u, F_u, v, F_v)``.
+        problems: what was found invalid, in order.
     """
+
+    unit: float
+    cells: dict[str, tuple[int, int]]
+    holder: dict[tuple[int, int], str]
+    links: dict[str, dict[str, tuple[str, str]]]
+    edges: dict[str, tuple[str, str, str, str]]
+    problems: list[str]
+
+    def component(self, m: str) -> set[str]:
+        """The modules docked to ``m``, directly or not, ``m`` included."""
+        seen, todo = {m}, [m]
+        while todo:
+            for w, _ in self.links[todo.pop()].values():
+                if w not in seen:
+                    seen.add(w)
+                    todo.append(w)
+        return seen
+
+
+def _start(plan: Plan) -> _Replay:
+    """The start laid out on the grid from its centre (the frame of the goal poses)."""
     problems: list[str] = []
-    unit = pitch()
     tree = to_tree(plan.start).tree
     cells: dict[str, tuple[int, int]] = {}
     root = root_of(tree)
@@ -70,97 +96,134 @@ def check_plan(plan: Plan, *, limit: int = 20) -> list[str]:
         if c in holder:
             problems.append(f"start: modules {holder[c]} and {m} on one cell {c}")
         holder[c] = m
+    return _Replay(pitch(), cells, holder, links, edges, problems)
 
-    def component(m: str) -> set[str]:
-        seen, todo = {m}, [m]
-        while todo:
-            for w, _ in links[todo.pop()].values():
-                if w not in seen:
-                    seen.add(w)
-                    todo.append(w)
-        return seen
 
+def _undock(grid: _Replay, action: Action, where: str) -> None:
+    """An undock: the connection exists, with these faces."""
+    for ch in action.changes:
+        edge = grid.edges.pop(ch.edge_id, None)
+        if edge is None:
+            grid.problems.append(f"{where}: no connection {ch.edge_id} to undock")
+            continue
+        a, fa, b, fb = edge
+        if {(a, fa), (b, fb)} != {(ch.source, ch.source_port), (ch.target, ch.target_port)}:
+            grid.problems.append(f"{where}: connection {ch.edge_id} is {a}{fa}-{b}{fb}, "
+                                 f"not {ch}")
+        grid.links[a].pop(fa, None)
+        grid.links[b].pop(fb, None)
+
+
+def _dock(grid: _Replay, action: Action, where: str) -> None:
+    """A dock: a legal pair of free faces of neighbouring modules in two components."""
+    cells, links = grid.cells, grid.links
+    for ch in action.changes:
+        a, fa, b, fb = ch.source, ch.source_port, ch.target, ch.target_port
+        if frozenset({fa, fb}) not in LEGAL_PAIRS:
+            grid.problems.append(f"{where}: faces {fa}-{fb} cannot dock")
+            continue
+        if fa in links[a] or fb in links[b]:
+            grid.problems.append(f"{where}: a face of {ch} is already connected")
+            continue
+        step = GRID_STEP[fa]
+        if (cells[a][0] + step[0], cells[a][1] + step[1]) != cells[b]:
+            grid.problems.append(f"{where}: {b} is not next to face {fa} of {a} "
+                                 f"({cells[a]} -> {cells[b]})")
+        if b in grid.component(a):
+            grid.problems.append(f"{where}: {ch} closes a loop (not a forest)")
+        if ch.edge_id in grid.edges:
+            grid.problems.append(f"{where}: connection id {ch.edge_id} already used")
+        links[a][fa] = (b, fb)
+        links[b][fb] = (a, fa)
+        grid.edges[ch.edge_id or f"{a}{fa}-{b}{fb}"] = (a, fa, b, fb)
+
+
+def _shift(grid: _Replay, action: Action, group: set[str], where: str
+           ) -> tuple[int, int] | None:
+    """The one translation [cells] of a move of ``group``: whole components, heading 0, on
+    the grid; None (the problem noted) if the goals are no such translation."""
+    problems = grid.problems
+    if set(action.goals) != group:
+        problems.append(f"{where}: goals for {sorted(action.goals)} but modules "
+                        f"{sorted(group)}")
+        return None
+    for m in group:
+        if not grid.component(m) <= group:
+            problems.append(f"{where}: {m} moves without the modules docked to it")
+            break
+    shift = set()
+    for m, (x, y, yaw) in action.goals.items():
+        if abs(math.remainder(yaw, 2 * math.pi)) > 1e-6:
+            problems.append(f"{where}: module {m} heading {yaw} rad, not 0")
+        target = (_cell(x, grid.unit, where, problems), _cell(y, grid.unit, where, problems))
+        shift.add((target[0] - grid.cells[m][0], target[1] - grid.cells[m][1]))
+    if len(shift) != 1:
+        problems.append(f"{where}: the modules do not translate together")
+        return None
+    (dx, dy), = shift
+    if dx and dy:
+        problems.append(f"{where}: move ({dx}, {dy}) is not along one grid axis")
+        return None
+    return dx, dy
+
+
+def _move(grid: _Replay, action: Action, where: str) -> None:
+    """A move: a rigid translation along one grid axis over cells free of other modules."""
+    group = set(action.modules)
+    shift = _shift(grid, action, group, where)
+    if shift is None:
+        return
+    dx, dy = shift
+    cells, holder = grid.cells, grid.holder
+    n = abs(dx) + abs(dy)
+    ux, uy = (dx > 0) - (dx < 0), (dy > 0) - (dy < 0)
+    for m in group:
+        del holder[cells[m]]
+    for t in range(1, n + 1):
+        for m in group:
+            c = (cells[m][0] + t * ux, cells[m][1] + t * uy)
+            if c in holder:
+                grid.problems.append(f"{where}: {m} passes over {holder[c]} at {c}")
+                break
+        else:
+            continue
+        break
+    for m in group:
+        cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
+        if cells[m] in holder:
+            grid.problems.append(f"{where}: {m} and {holder[cells[m]]} on one cell")
+        holder[cells[m]] = m
+
+
+_STEPS: dict[ActionType, Callable[[_Replay, Action, str], None]] = {
+    ActionType.DISCONNECTION: _undock,
+    ActionType.CONNECTION: _dock,
+    ActionType.MOVING: _move,
+}
+"""The replay of each action type MMRP plans have."""
+
+
+def check_plan(plan: Plan, *, limit: int = 20) -> list[str]:
+    """Replay ``plan`` on the grid; the problems found, at most ``limit`` (empty: valid).
+
+    Args:
+        plan: an MMRP plan whose moving actions carry ``goals`` ``{id: [x, y, yaw]}``
+            [m, m, rad] in the start's root frame (its centre at the origin).
+        limit: stop after this many problems.
+    """
+    grid = _start(plan)
+    problems = grid.problems
     for k, action in enumerate(plan.actions):
         if len(problems) >= limit:
             break
         where = f"action {k + 1} ({action.type.value})"
-        if action.type is ActionType.DISCONNECTION:
-            for ch in action.changes:
-                edge = edges.pop(ch.edge_id, None)
-                if edge is None:
-                    problems.append(f"{where}: no connection {ch.edge_id} to undock")
-                    continue
-                a, fa, b, fb = edge
-                if {(a, fa), (b, fb)} != {(ch.source, ch.source_port), (ch.target, ch.target_port)}:
-                    problems.append(f"{where}: connection {ch.edge_id} is {a}{fa}-{b}{fb}, "
-                                    f"not {ch}")
-                links[a].pop(fa, None)
-                links[b].pop(fb, None)
-        elif action.type is ActionType.CONNECTION:
-            for ch in action.changes:
-                a, fa, b, fb = ch.source, ch.source_port, ch.target, ch.target_port
-                if frozenset({fa, fb}) not in LEGAL_PAIRS:
-                    problems.append(f"{where}: faces {fa}-{fb} cannot dock")
-                    continue
-                if fa in links[a] or fb in links[b]:
-                    problems.append(f"{where}: a face of {ch} is already connected")
-                    continue
-                step = GRID_STEP[fa]
-                if (cells[a][0] + step[0], cells[a][1] + step[1]) != cells[b]:
-                    problems.append(f"{where}: {b} is not next to face {fa} of {a} "
-                                    f"({cells[a]} -> {cells[b]})")
-                if b in component(a):
-                    problems.append(f"{where}: {ch} closes a loop (not a forest)")
-                if ch.edge_id in edges:
-                    problems.append(f"{where}: connection id {ch.edge_id} already used")
-                links[a][fa] = (b, fb)
-                links[b][fb] = (a, fa)
-                edges[ch.edge_id or f"{a}{fa}-{b}{fb}"] = (a, fa, b, fb)
-        elif action.type is ActionType.MOVING:
-            group = set(action.modules)
-            if set(action.goals) != group:
-                problems.append(f"{where}: goals for {sorted(action.goals)} but modules "
-                                f"{sorted(group)}")
-                continue
-            for m in group:
-                if not component(m) <= group:
-                    problems.append(f"{where}: {m} moves without the modules docked to it")
-                    break
-            shift = set()
-            for m, (x, y, yaw) in action.goals.items():
-                if abs(math.remainder(yaw, 2 * math.pi)) > 1e-6:
-                    problems.append(f"{where}: module {m} heading {yaw} rad, not 0")
-                target = (_cell(x, unit, where, problems), _cell(y, unit, where, problems))
-                shift.add((target[0] - cells[m][0], target[1] - cells[m][1]))
-            if len(shift) != 1:
-                problems.append(f"{where}: the modules do not translate together")
-                continue
-            (dx, dy), = shift
-            if dx and dy:
-                problems.append(f"{where}: move ({dx}, {dy}) is not along one grid axis")
-                continue
-            n = abs(dx) + abs(dy)
-            ux, uy = (dx > 0) - (dx < 0), (dy > 0) - (dy < 0)
-            for m in group:
-                del holder[cells[m]]
-            for t in range(1, n + 1):
-                for m in group:
-                    c = (cells[m][0] + t * ux, cells[m][1] + t * uy)
-                    if c in holder:
-                        problems.append(f"{where}: {m} passes over {holder[c]} at {c}")
-                        break
-                else:
-                    continue
-                break
-            for m in group:
-                cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
-                if cells[m] in holder:
-                    problems.append(f"{where}: {m} and {holder[cells[m]]} on one cell")
-                holder[cells[m]] = m
-        else:
+        step = _STEPS.get(action.type)
+        if step is None:
             problems.append(f"{where}: MMRP plans have no {action.type.value} actions")
+        else:
+            step(grid, action, where)
     if len(problems) < limit:
-        final = frozenset(frozenset({(a, fa), (b, fb)}) for a, fa, b, fb in edges.values())
+        final = frozenset(frozenset({(a, fa), (b, fb)}) for a, fa, b, fb in grid.edges.values())
         if final != edge_set(plan.goal):
             problems.append("the replayed connections differ from the plan's goal")
     return problems[:limit]

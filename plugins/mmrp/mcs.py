@@ -71,6 +71,81 @@ def mcs(links_c: FaceLinks, links_g: FaceLinks, v_c: str, v_g: str, *,
     return mapping
 
 
+_Typed = dict[tuple[str, str], list[tuple[int, int]]]
+"""Connections by face pair ``(F, F')`` (from the T or L end), as index pairs."""
+
+
+def _typed(links: FaceLinks, order: list[str], index: dict[str, int]) -> _Typed:
+    """The connections among ``order`` by face pair, each once from its T or L end."""
+    out: _Typed = {}
+    for v in order:
+        for face, (w, face2) in links[v].items():
+            if face in ("T", "L") and w in index:
+                out.setdefault((face, face2), []).append((index[v], index[w]))
+    return out
+
+
+def _product_edges(edges_c: _Typed, edges_g: _Typed, size_g: int
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The face-product graph's edges, each end the pair key ``i_c * size_g + i_g``;
+    None when there are none."""
+    sources, targets = [], []
+    for key, pairs_c in edges_c.items():
+        pairs_g = edges_g.get(key)
+        if not pairs_g:
+            continue
+        ec, eg = np.array(pairs_c), np.array(pairs_g)
+        sources.append((ec[:, 0, None] * size_g + eg[None, :, 0]).ravel())
+        targets.append((ec[:, 1, None] * size_g + eg[None, :, 1]).ravel())
+    if not sources:
+        return None
+    return np.concatenate(sources), np.concatenate(targets)
+
+
+def _connected(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The graph's vertices (sorted keys), the component label of each, and the count."""
+    nodes, inverse = np.unique(np.concatenate([src, dst]), return_inverse=True)
+    if len(src) < 4096:  # small: a Python union-find beats building a sparse matrix
+        root = list(range(len(nodes)))
+
+        def find(v: int) -> int:
+            while root[v] != v:
+                root[v] = root[root[v]]
+                v = root[v]
+            return v
+
+        half = len(src)
+        for a, b in zip(inverse[:half].tolist(), inverse[half:].tolist(), strict=True):
+            ra, rb = find(a), find(b)
+            if ra != rb:
+                root[max(ra, rb)] = min(ra, rb)
+        _, labels = np.unique([find(v) for v in range(len(nodes))], return_inverse=True)
+        return nodes, labels, int(labels.max()) + 1
+    graph = coo_matrix((np.ones(len(src)), (inverse[:len(src)], inverse[len(src):])),
+                       shape=(len(nodes), len(nodes)))
+    count, labels = connected_components(graph, directed=False)
+    return nodes, labels, count
+
+
+def _largest(nodes: np.ndarray, labels: np.ndarray, count: int, prefer_key: int | None,
+             limit: int) -> list[tuple[int, np.ndarray]]:
+    """The ``limit`` largest components, ties to the one holding ``prefer_key``, then to the
+    first pair: each as its lead key (``prefer_key`` if held, else its first) and members."""
+    sizes = np.bincount(labels, minlength=count)
+    first = np.full(count, np.iinfo(np.int64).max)
+    np.minimum.at(first, labels, nodes)  # nodes are sorted: the first pair in order
+    holds = np.zeros(count, dtype=bool)
+    if prefer_key is not None:
+        at = np.searchsorted(nodes, prefer_key)
+        if at < len(nodes) and nodes[at] == prefer_key:
+            holds[labels[at]] = True
+    out = []
+    for label in np.lexsort((first, ~holds, -sizes))[:limit]:
+        members = nodes[labels == label]
+        out.append((prefer_key if holds[label] else int(members[0]), members))
+    return out
+
+
 def common_candidates(links_c: FaceLinks, links_g: FaceLinks, within_c: Collection[str],
                       within_g: Collection[str], *, prefer: tuple[str, str] | None = None,
                       limit: int = 1) -> list[dict[str, str]]:
@@ -91,64 +166,14 @@ def common_candidates(links_c: FaceLinks, links_g: FaceLinks, within_c: Collecti
     index_c = {v: i for i, v in enumerate(order_c)}
     index_g = {v: i for i, v in enumerate(order_g)}
     size_g = len(order_g)
-
-    def typed(links: FaceLinks, order: list[str], index: dict[str, int]
-              ) -> dict[tuple[str, str], list[tuple[int, int]]]:
-        out: dict[tuple[str, str], list[tuple[int, int]]] = {}
-        for v in order:
-            for face, (w, face2) in links[v].items():
-                if face in ("T", "L") and w in index:
-                    out.setdefault((face, face2), []).append((index[v], index[w]))
-        return out
-
-    edges_c, edges_g = typed(links_c, order_c, index_c), typed(links_g, order_g, index_g)
-    sources, targets = [], []
-    for key, pairs_c in edges_c.items():
-        pairs_g = edges_g.get(key)
-        if not pairs_g:
-            continue
-        ec, eg = np.array(pairs_c), np.array(pairs_g)
-        sources.append((ec[:, 0, None] * size_g + eg[None, :, 0]).ravel())
-        targets.append((ec[:, 1, None] * size_g + eg[None, :, 1]).ravel())
+    edges = _product_edges(_typed(links_c, order_c, index_c), _typed(links_g, order_g, index_g),
+                           size_g)
     prefer_key = (index_c[prefer[0]] * size_g + index_g[prefer[1]]
                   if prefer is not None and prefer[0] in index_c and prefer[1] in index_g
                   else None)
     found: list[dict[str, str]] = []
-    if sources:
-        src, dst = np.concatenate(sources), np.concatenate(targets)
-        nodes, inverse = np.unique(np.concatenate([src, dst]), return_inverse=True)
-        if len(src) < 4096:  # small: a Python union-find beats building a sparse matrix
-            root = list(range(len(nodes)))
-
-            def find(v: int) -> int:
-                while root[v] != v:
-                    root[v] = root[root[v]]
-                    v = root[v]
-                return v
-
-            half = len(src)
-            for a, b in zip(inverse[:half].tolist(), inverse[half:].tolist(), strict=True):
-                ra, rb = find(a), find(b)
-                if ra != rb:
-                    root[max(ra, rb)] = min(ra, rb)
-            _, labels = np.unique([find(v) for v in range(len(nodes))], return_inverse=True)
-            count = int(labels.max()) + 1
-        else:
-            graph = coo_matrix((np.ones(len(src)), (inverse[:len(src)], inverse[len(src):])),
-                               shape=(len(nodes), len(nodes)))
-            count, labels = connected_components(graph, directed=False)
-        sizes = np.bincount(labels, minlength=count)
-        first = np.full(count, np.iinfo(np.int64).max)
-        np.minimum.at(first, labels, nodes)  # nodes are sorted: the first pair in order
-        holds = np.zeros(count, dtype=bool)
-        if prefer_key is not None:
-            at = np.searchsorted(nodes, prefer_key)
-            if at < len(nodes) and nodes[at] == prefer_key:
-                holds[labels[at]] = True
-        ranked = np.lexsort((first, ~holds, -sizes))[:limit]
-        for label in ranked:
-            members = nodes[labels == label]
-            lead = prefer_key if holds[label] else int(members[0])
+    if edges is not None:
+        for lead, members in _largest(*_connected(*edges), prefer_key, limit):
             mapping = {order_c[lead // size_g]: order_g[lead % size_g]}
             for key in members.tolist():
                 mapping.setdefault(order_c[key // size_g], order_g[key % size_g])

@@ -21,7 +21,7 @@ from msrr.core import Configuration, plugins
 from msrr.core.console import plural
 from msrr.core.errors import ConfigurationError, PlanningError
 from msrr.core.io import check_configuration
-from msrr.core.plan import ActionType, Plan
+from msrr.core.plan import Action, ActionType, Plan
 
 from .actions import Pose, generate_actions, kept_edge_ids
 from .centre import root_of
@@ -33,7 +33,7 @@ from .potential_field import (
     assign_free_vertices,
     map_free_vertices,
 )
-from .recognition import observe, recognize_with_stats
+from .recognition import Recognition, observe, recognize_with_stats
 from .representation import (
     FaceLinks,
     Link,
@@ -128,6 +128,129 @@ def _checked(start: Configuration, goal: Configuration) -> Configuration:
         raise PlanningError(f"start {start.name or '(unnamed)'}: {exc}") from None
 
 
+def _decompose_and_match(links_c: FaceLinks, links_g: FaceLinks, all_c: list[str],
+                         all_g: list[str], prefer: tuple[str, str], *, window: int,
+                         lookahead: int) -> tuple[Decomposition, SubconfigurationMatching]:
+    """Sections 4.1-4.2: decompose by each of the ``lookahead`` largest common
+    subconfigurations and match the rest; the matching that keeps the most connections
+    wins (the first on ties), the search stopping once none could keep more."""
+    ceiling = _kept_ceiling(links_c, links_g)
+    best: tuple[int, Decomposition, SubconfigurationMatching] | None = None
+    for common in common_candidates(links_c, links_g, all_c, all_g, prefer=prefer,
+                                    limit=lookahead):
+        if best is not None and best[0] >= ceiling:
+            break
+        split = decompose(links_c, links_g, all_c, all_g, common)
+        matched_subs = match_subconfigurations(links_c, links_g, split.current, split.goal,
+                                               split.free_current, split.free_goal,
+                                               window=window)
+        kept_here = split.kept + sum(len(p.mapping) - 1 for p in matched_subs.pairs)
+        if best is None or kept_here > best[0]:
+            best = (kept_here, split, matched_subs)
+    _, decomposition, matching = best
+    return decomposition, matching
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Start and goal on one grid, the start's root frame (tau_c at (0, 0)).
+
+    Attributes:
+        unit: the grid pitch [m].
+        start_cells: start id -> cell.
+        placed: goal id -> cell, shifted so the first common pair shares its cell.
+    """
+
+    unit: float
+    start_cells: dict[str, tuple[int, int]]
+    placed: dict[str, tuple[int, int]]
+
+    def point(self, goal_id: str) -> tuple[float, float]:
+        """Where goal module ``goal_id`` sits [m]."""
+        i, j = self.placed[goal_id]
+        return (i * self.unit, j * self.unit)
+
+
+def _layout(tree: Configuration, goal: Configuration, roots: tuple[str, str],
+            common: dict[str, str]) -> _Layout:
+    """Place the goal so that the modules of the first common subconfiguration do not move."""
+    unit = pitch()
+    start_cells = grid_cells(tree, roots[0])
+    goal_grid = grid_cells(goal, roots[1])
+    anchor_c, anchor_g = next(iter(common.items()))
+    di = start_cells[anchor_c][0] - goal_grid[anchor_g][0]
+    dj = start_cells[anchor_c][1] - goal_grid[anchor_g][1]
+    placed = {g: (i + di, j + dj) for g, (i, j) in goal_grid.items()}
+    return _Layout(unit, start_cells, placed)
+
+
+def _map_free(layout: _Layout, matching: SubconfigurationMatching, matched: dict[str, str], *,
+              field: FieldParameters | None, field_limit: int, seed: int) -> FieldResult:
+    """Section 4.3: map the free vertices by the potential field of eqs. 2-5 (up to
+    ``field_limit`` of them, the matched modules as obstacles), else by
+    :func:`assign_free_vertices`."""
+    unit, cells = layout.unit, layout.start_cells
+    free_c = {m: (cells[m][0] * unit, cells[m][1] * unit) for m in matching.free_current}
+    free_g = {g: layout.point(g) for g in matching.free_goal}
+    if len(free_c) <= field_limit:
+        return map_free_vertices(free_c, free_g, [layout.point(g) for g in matched.values()],
+                                 unit=unit, params=field, seed=seed)
+    return assign_free_vertices(free_c, free_g)
+
+
+def _notes(recognition: Recognition, roots: tuple[str, str], decomposition: Decomposition,
+           matching: SubconfigurationMatching, result: FieldResult,
+           virtual: tuple[Link, ...]) -> list[str]:
+    """What each step of section 4 found, one line per step, for the plan's notes."""
+    tau_c, tau_g = roots
+    common = decomposition.common
+    notes = [
+        f"recognition (section 3.2): started at {recognition.starter}, "
+        f"{plural(recognition.rounds, 'message round')}, {plural(recognition.messages, 'message')}",
+        f"roots: tau_c={tau_c}, tau_g={tau_g}",
+        f"MCS({decomposition.roots[0]}, {decomposition.roots[1]}): {_arrows(common)} "
+        f"({plural(decomposition.kept, 'connection')} kept)",
+        "CS subconfigurations: current " + _subs(decomposition.current) + "; goal "
+        + _subs(decomposition.goal) + "; free vertices: current "
+        + (", ".join(decomposition.free_current) or "none") + "; goal "
+        + (", ".join(decomposition.free_goal) or "none"),
+    ]
+    notes += [f"matched MCS({p.current.root}, {p.goal.root}) under the height-adjacent rule: "
+              f"{_arrows(p.mapping)}" for p in matching.pairs]
+    if matching.dissolved_current or matching.dissolved_goal:
+        notes.append("unmatched subconfigurations disconnected into free vertices: current "
+                     + _subs(matching.dissolved_current) + "; goal "
+                     + _subs(matching.dissolved_goal))
+    notes.append("free vertices mapped: " + (_arrows(result.mapping) or "none"))
+    if virtual:
+        notes.append("loop edges made virtual connections: "
+                     + ", ".join(f"connect({u}{fu}, {v}{fv})" for u, fu, v, fv in virtual))
+    if result.stalled:
+        notes.append(f"potential field stalled; modules {', '.join(result.fallback)} assigned "
+                     "by minimum total distance")
+    else:
+        notes.append("potential field mapped every free vertex")
+    return notes
+
+
+def _stats(start: Configuration, actions: list[Action], matching: SubconfigurationMatching,
+           result: FieldResult, recognition: Recognition, *, pairs: int, kept: int,
+           mcs_modules: int, cut: int, elapsed: float) -> dict[str, float]:
+    """The plan's numbers: action counts, sizes of each step's result, time [ms]."""
+    return {"pairs": float(pairs), "kept": float(kept), "docks": float(pairs),
+            "undocks": float(len(start.edges()) - kept),
+            "mcs_modules": float(mcs_modules), "matched_pairs": float(len(matching.pairs)),
+            "free_vertices": float(len(matching.free_current)),
+            "fallback_modules": float(len(result.fallback)),
+            "cut_for_motion": float(cut),
+            "parking_moves": float(sum(a.type is ActionType.MOVING and "parking" in a.note
+                                       for a in actions)),
+            "field_steps": float(result.steps), "matching_attempts": float(matching.attempts),
+            "recognition_rounds": float(recognition.rounds),
+            "recognition_messages": float(recognition.messages),
+            "plan_ms": elapsed}
+
+
 def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
                 window: int = HEIGHT_WINDOW, lookahead: int | None = None,
                 field: FieldParameters | None = None,
@@ -156,105 +279,45 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     tree = _checked(start, goal)
     virtual = to_tree(start).virtual
     links_c, links_g = face_links(tree), face_links(goal)
-    tau_c, tau_g = root_of(tree), root_of(goal)
+    roots = tau_c, tau_g = root_of(tree), root_of(goal)
     all_c, all_g = tree.vertices(), goal.vertices()
     if lookahead is None:
         lookahead = max(LOOKAHEAD, LOOKAHEAD_BUDGET // max(len(all_c), 1))
-    ceiling = _kept_ceiling(links_c, links_g)
-    best: tuple[int, Decomposition, SubconfigurationMatching] | None = None
-    for common in common_candidates(links_c, links_g, all_c, all_g, prefer=(tau_c, tau_g),
-                                    limit=lookahead):
-        if best is not None and best[0] >= ceiling:
-            break
-        split = decompose(links_c, links_g, all_c, all_g, common)
-        matched_subs = match_subconfigurations(links_c, links_g, split.current, split.goal,
-                                               split.free_current, split.free_goal,
-                                               window=window)
-        kept_here = split.kept + sum(len(p.mapping) - 1 for p in matched_subs.pairs)
-        if best is None or kept_here > best[0]:
-            best = (kept_here, split, matched_subs)
-    _, decomposition, matching = best
+    decomposition, matching = _decompose_and_match(links_c, links_g, all_c, all_g, roots,
+                                                   window=window, lookahead=lookahead)
     common = decomposition.common
     matched = dict(common)
     for pair in matching.pairs:
         matched.update(pair.mapping)
-
-    unit = pitch()
-    start_cells = grid_cells(tree, tau_c)
-    goal_grid = grid_cells(goal, tau_g)
-    anchor_c, anchor_g = next(iter(common.items()))
-    di = start_cells[anchor_c][0] - goal_grid[anchor_g][0]
-    dj = start_cells[anchor_c][1] - goal_grid[anchor_g][1]
-    placed = {g: (i + di, j + dj) for g, (i, j) in goal_grid.items()}
-    free_c = {m: (start_cells[m][0] * unit, start_cells[m][1] * unit)
-              for m in matching.free_current}
-    free_g = {g: (placed[g][0] * unit, placed[g][1] * unit) for g in matching.free_goal}
-    if len(free_c) <= field_limit:
-        result = map_free_vertices(
-            free_c, free_g, [(placed[g][0] * unit, placed[g][1] * unit) for g in matched.values()],
-            unit=unit, params=field, seed=seed)
-    else:
-        result = assign_free_vertices(free_c, free_g)
+    layout = _layout(tree, goal, roots, common)
+    result = _map_free(layout, matching, matched, field=field, field_limit=field_limit,
+                       seed=seed)
     mapping = {**matched, **result.mapping}
     if sorted(mapping) != sorted(all_c) or sorted(mapping.values()) != sorted(all_g):
         raise AssertionError("the hybrid mapping is not a bijection")  # an internal bug
-    goal_cells = {m: placed[mapping[m]] for m in all_c}
+    unit = layout.unit
+    goal_cells = {m: layout.placed[mapping[m]] for m in all_c}
     goal_poses = {m: (i * unit, j * unit, 0.0) for m, (i, j) in goal_cells.items()}
     priority = [*common, *(m for p in matching.pairs for m in p.mapping), *result.arrival,
                 *result.fallback]
-    actions = generate_actions(start, goal, mapping, start_cells, goal_cells,
+    actions = generate_actions(start, goal, mapping, layout.start_cells, goal_cells,
                                start_root=tau_c, goal_root=tau_g, unit=unit,
-                               priority=priority)
+                               priority=priority)  # section 4.4
     pairs = sum(a.type is ActionType.CONNECTION for a in actions)
     kept = len(goal.edges()) - pairs
     cut = len(kept_edge_ids(start, links_g, mapping)) - kept
     elapsed = (time.perf_counter() - began) * 1e3
     recognition = recognize_with_stats(observe(start), seed=seed)
-    notes = [
-        f"recognition (section 3.2): started at {recognition.starter}, "
-        f"{plural(recognition.rounds, 'message round')}, {plural(recognition.messages, 'message')}",
-        f"roots: tau_c={tau_c}, tau_g={tau_g}",
-        f"MCS({decomposition.roots[0]}, {decomposition.roots[1]}): {_arrows(common)} "
-        f"({plural(decomposition.kept, 'connection')} kept)",
-        "CS subconfigurations: current " + _subs(decomposition.current) + "; goal "
-        + _subs(decomposition.goal) + "; free vertices: current "
-        + (", ".join(decomposition.free_current) or "none") + "; goal "
-        + (", ".join(decomposition.free_goal) or "none"),
-    ]
-    notes += [f"matched MCS({p.current.root}, {p.goal.root}) under the height-adjacent rule: "
-              f"{_arrows(p.mapping)}" for p in matching.pairs]
-    if matching.dissolved_current or matching.dissolved_goal:
-        notes.append("unmatched subconfigurations disconnected into free vertices: current "
-                     + _subs(matching.dissolved_current) + "; goal "
-                     + _subs(matching.dissolved_goal))
-    notes.append("free vertices mapped: " + (_arrows(result.mapping) or "none"))
-    if virtual:
-        notes.append("loop edges made virtual connections: "
-                     + ", ".join(f"connect({u}{fu}, {v}{fv})" for u, fu, v, fv in virtual))
-    if result.stalled:
-        notes.append(f"potential field stalled; modules {', '.join(result.fallback)} assigned "
-                     "by minimum total distance")
-    else:
-        notes.append("potential field mapped every free vertex")
     final = DerivedConfiguration(actions[-1].target if actions else start)
     final.name, final.description = goal.name, goal.description
     plan = Plan(
         robot=SPEC.name, planner=McsHybridPlanner.name, start=start.copy(), goal=final,
-        actions=actions, mapping=mapping, notes=notes,
-        stats={"pairs": float(pairs), "kept": float(kept), "docks": float(pairs),
-               "undocks": float(len(start.edges()) - kept),
-               "mcs_modules": float(len(common)), "matched_pairs": float(len(matching.pairs)),
-               "free_vertices": float(len(matching.free_current)),
-               "fallback_modules": float(len(result.fallback)),
-               "cut_for_motion": float(cut),
-               "parking_moves": float(sum(a.type is ActionType.MOVING and "parking" in a.note
-                                          for a in actions)),
-               "field_steps": float(result.steps), "matching_attempts": float(matching.attempts),
-               "recognition_rounds": float(recognition.rounds),
-               "recognition_messages": float(recognition.messages),
-               "plan_ms": elapsed},
+        actions=actions, mapping=mapping,
+        notes=_notes(recognition, roots, decomposition, matching, result, virtual),
+        stats=_stats(start, actions, matching, result, recognition, pairs=pairs, kept=kept,
+                     mcs_modules=len(common), cut=cut, elapsed=elapsed),
     )
-    return HybridResult(plan, (tau_c, tau_g), virtual, decomposition, matching, result,
+    return HybridResult(plan, roots, virtual, decomposition, matching, result,
                         mapping, kept, pairs, goal_poses)
 
 

@@ -104,6 +104,106 @@ def _check(observation: Observation) -> None:
                                          f"to {other}{other_face}, which does not link back")
 
 
+class _Exchange:
+    """The message exchange of steps 2-4 over the physical face links: a scheduler that
+    delays every message by 1..``max_delay`` ticks and reorders ties at random.
+
+    Attributes:
+        sent: messages sent so far (also the scheduler's tie-break counter).
+        rounds: longest causal chain of messages so far.
+        finished: the starter has heard from every face.
+    """
+
+    def __init__(self, observation: Observation, agents: dict[str, _Agent],
+                 rng: np.random.Generator, max_delay: int):
+        self.observation = observation
+        self.agents = agents
+        self.rng = rng
+        self.max_delay = max_delay
+        self.queue: list[tuple[int, float, int, str, str, tuple]] = []
+        self.sent = 0
+        self.rounds = 0
+        self.finished = False
+
+    def send(self, sender: str, face: str, payload: tuple, depth: int, now: int) -> None:
+        other, other_face = self.observation[sender][face]  # the physical channel
+        self.sent += 1
+        heapq.heappush(self.queue, (now + int(self.rng.integers(1, self.max_delay + 1)),
+                                    float(self.rng.random()), self.sent, other, other_face,
+                                    (*payload, depth)))
+
+    def maybe_report(self, agent: _Agent, depth: int, now: int) -> None:
+        """Step 4: report up the parent face once every other face has reported."""
+        waiting = [f for f in agent.faces if f != agent.parent_face and f not in agent.done]
+        if waiting:
+            return
+        if agent.parent_face is None:
+            self.finished = True
+            self.rounds = max(self.rounds, depth)
+            return
+        self.send(agent.id, agent.parent_face,
+                  ("report", tuple(agent.collected), tuple(agent.loops)), depth + 1, now)
+
+    def join(self, agent: _Agent, depth: int, now: int) -> None:
+        """Steps 2-3: send this agent's id on every face but its parent's."""
+        agent.joined = True
+        for face in agent.faces:
+            if face != agent.parent_face:
+                self.send(agent.id, face, ("hello", agent.id, face), depth + 1, now)
+        self.maybe_report(agent, depth, now)
+
+    def receive(self, agent: _Agent, face: str, message: tuple, now: int) -> None:
+        """A hello (a parent found, or a closed loop) or a report on ``face``."""
+        kind, depth = message[0], message[-1]
+        self.rounds = max(self.rounds, depth)
+        if kind == "hello":
+            sender, sender_face = message[1], message[2]
+            if not agent.joined:
+                agent.parent_face = face
+                agent.collected.append((sender, sender_face, agent.id, face))
+                self.join(agent, depth, now)
+            else:  # a closed loop: both ends saw each other's hello
+                agent.loops.append((sender, sender_face, agent.id, face))
+                agent.done.add(face)
+                self.maybe_report(agent, depth, now)
+        else:
+            agent.collected.extend(message[1])
+            agent.loops.extend(message[2])
+            agent.done.add(face)
+            self.maybe_report(agent, depth, now)
+
+    def run(self, starter: str) -> None:
+        """From ``starter`` until it has heard from every face or no message is left."""
+        self.join(self.agents[starter], 0, 0)
+        if not self.agents[starter].faces:
+            self.finished = True
+        while self.queue and not self.finished:
+            now, _, _, receiver, face, message = heapq.heappop(self.queue)
+            self.receive(self.agents[receiver], face, message, now)
+
+
+def _uploaded(agents: dict[str, _Agent], starter: str, finished: bool) -> Configuration:
+    """The configuration the starter uploads: its collected links and each loop once.
+
+    Raises:
+        ConfigurationError: the exchange did not reach every module.
+    """
+    upload = agents[starter]
+    reached = {upload.id} | {link[2] for link in upload.collected}
+    if not finished or reached != set(agents):
+        missing = sorted(set(agents) - reached)
+        raise ConfigurationError(f"observation: modules {', '.join(missing)} are not connected "
+                                 f"to {starter}")
+    seen: set[frozenset] = set()
+    loops = []
+    for u, fu, v, fv in upload.loops:
+        key = frozenset({(u, fu), (v, fv)})
+        if key not in seen:
+            seen.add(key)
+            loops.append((u, fu, v, fv))
+    return from_links(sorted(agents, key=_natural), [*upload.collected, *loops])
+
+
 def recognize_with_stats(observation: Observation, *, seed: int = 0,
                          max_delay: int = 3) -> Recognition:
     """Run the distributed recognition over the face links of ``observation``.
@@ -127,78 +227,11 @@ def recognize_with_stats(observation: Observation, *, seed: int = 0,
     leaves = tuple(m for m, a in agents.items() if a.leaf)
     candidates = sorted(m for m, a in agents.items() if len(a.faces) > 1) or sorted(agents)
     starter = candidates[int(rng.integers(len(candidates)))]
-    queue: list[tuple[int, float, int, str, str, tuple]] = []
-    counter = 0
-    sent = 0
-    rounds = 0
-    finished = False
-
-    def send(sender: str, face: str, payload: tuple, depth: int, now: int) -> None:
-        nonlocal counter, sent
-        other, other_face = observation[sender][face]  # the physical channel
-        counter += 1
-        sent += 1
-        heapq.heappush(queue, (now + int(rng.integers(1, max_delay + 1)), float(rng.random()),
-                               counter, other, other_face, (*payload, depth)))
-
-    def maybe_report(agent: _Agent, depth: int, now: int) -> None:
-        nonlocal finished, rounds
-        waiting = [f for f in agent.faces if f != agent.parent_face and f not in agent.done]
-        if waiting:
-            return
-        if agent.parent_face is None:
-            finished = True
-            rounds = max(rounds, depth)
-            return
-        send(agent.id, agent.parent_face,
-             ("report", tuple(agent.collected), tuple(agent.loops)), depth + 1, now)
-
-    def join(agent: _Agent, depth: int, now: int) -> None:
-        agent.joined = True
-        for face in agent.faces:
-            if face != agent.parent_face:
-                send(agent.id, face, ("hello", agent.id, face), depth + 1, now)
-        maybe_report(agent, depth, now)
-
-    join(agents[starter], 0, 0)
-    if not agents[starter].faces:
-        finished = True
-    while queue and not finished:
-        now, _, _, receiver, face, message = heapq.heappop(queue)
-        agent = agents[receiver]
-        kind, depth = message[0], message[-1]
-        rounds = max(rounds, depth)
-        if kind == "hello":
-            sender, sender_face = message[1], message[2]
-            if not agent.joined:
-                agent.parent_face = face
-                agent.collected.append((sender, sender_face, agent.id, face))
-                join(agent, depth, now)
-            else:  # a closed loop: both ends saw each other's hello
-                agent.loops.append((sender, sender_face, agent.id, face))
-                agent.done.add(face)
-                maybe_report(agent, depth, now)
-        else:
-            agent.collected.extend(message[1])
-            agent.loops.extend(message[2])
-            agent.done.add(face)
-            maybe_report(agent, depth, now)
-    upload = agents[starter]
-    reached = {upload.id} | {link[2] for link in upload.collected}
-    if not finished or reached != set(agents):
-        missing = sorted(set(agents) - reached)
-        raise ConfigurationError(f"observation: modules {', '.join(missing)} are not connected "
-                                 f"to {starter}")
-    seen: set[frozenset] = set()
-    loops = []
-    for u, fu, v, fv in upload.loops:
-        key = frozenset({(u, fu), (v, fv)})
-        if key not in seen:
-            seen.add(key)
-            loops.append((u, fu, v, fv))
-    graph = from_links(sorted(agents, key=_natural), [*upload.collected, *loops])
-    tree = to_tree(graph)
-    return Recognition(_oriented(tree.tree), tree.virtual, starter, leaves, rounds, sent)
+    exchange = _Exchange(observation, agents, rng, max_delay)
+    exchange.run(starter)
+    tree = to_tree(_uploaded(agents, starter, exchange.finished))
+    return Recognition(_oriented(tree.tree), tree.virtual, starter, leaves, exchange.rounds,
+                       exchange.sent)
 
 
 def _natural(module: str) -> tuple[int, str]:

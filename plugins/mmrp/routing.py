@@ -179,17 +179,11 @@ def _bounds(cells: Collection[Cell], margin: int) -> tuple[int, int, int, int]:
             max(c[0] for c in cells) + margin, max(c[1] for c in cells) + margin)
 
 
-def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
-            goal: Mapping[str, Cell], priority: Sequence[str], max_parks: int
-            ) -> list[Route] | None:
-    """Greedy order: any group whose goal is free and reachable, parking blockers.
-
-    Returns None when it gets stuck (then :func:`_staged` plans from the start).
-    """
-    where = dict(start)
-    occupied = {where[m]: i for i, group in enumerate(groups) for m in group}
-    goal_cells = {goal[m]: i for i, group in enumerate(groups) for m in group}
-    shapes = _shapes(groups, goal)
+def _pocket_order(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
+                  goal: Mapping[str, Cell], priority: Sequence[str]) -> list[int]:
+    """The groups not at their goal, those whose goal cells sit deepest in a pocket of the
+    goal (most goal neighbours of other groups) first, then by ``priority``."""
+    goal_cells = {goal[m] for group in groups for m in group}
     rank = {m: i for i, m in enumerate(priority)}
     pocket = []
     for group in groups:
@@ -197,123 +191,157 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
         pocket.append(max(sum((goal[m][0] + dx, goal[m][1] + dy) in goal_cells
                               and (goal[m][0] + dx, goal[m][1] + dy) not in own
                               for dx, dy in STEPS) for m in group))
-    pending = sorted((i for i, g in enumerate(groups) if where[g[0]] != goal[g[0]]),
-                     key=lambda i: (-pocket[i], min(rank.get(m, len(rank)) for m in groups[i])))
-    margin = max(len(g) for g in groups) + 3
-    bounds = _bounds([*start.values(), *goal.values()], margin)
-    limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 800)
-    parks = [0] * len(groups)
-    routes: list[Route] = []
+    return sorted((i for i, g in enumerate(groups) if start[g[0]] != goal[g[0]]),
+                  key=lambda i: (-pocket[i], min(rank.get(m, len(rank)) for m in groups[i])))
 
-    def move(index: int, path: list[Cell], parking: bool) -> None:
-        group = groups[index]
-        path = _straighten(path, shapes[index], occupied, index)
+
+class _Greedy:
+    """The greedy order of :func:`_direct`: where every group is, which goal cells are
+    final and which still awaited, and the routes so far."""
+
+    def __init__(self, groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
+                 goal: Mapping[str, Cell], priority: Sequence[str], max_parks: int):
+        self.groups, self.goal, self.max_parks = groups, goal, max_parks
+        self.where = dict(start)
+        self.occupied = {start[m]: i for i, group in enumerate(groups) for m in group}
+        self.goal_cells = {goal[m]: i for i, group in enumerate(groups) for m in group}
+        self.shapes = _shapes(groups, goal)
+        self.pending = _pocket_order(groups, start, goal, priority)
+        margin = max(len(g) for g in groups) + 3
+        bounds = self.bounds = _bounds([*start.values(), *goal.values()], margin)
+        self.limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 800)
+        self.box = (bounds[0] + margin, bounds[1] + margin, bounds[2] - margin,
+                    bounds[3] - margin)
+        self.parks = [0] * len(groups)
+        self.routes: list[Route] = []
+        self.final: set[Cell] = {start[m] for i, g in enumerate(groups)
+                                 if i not in self.pending for m in g}
+        self.awaited_cells = {goal[m]: i for i in self.pending for m in groups[i]}
+
+    def move(self, index: int, path: list[Cell], parking: bool) -> None:
+        group = self.groups[index]
+        path = _straighten(path, self.shapes[index], self.occupied, index)
         end = path[-1]
         for m in group:
-            del occupied[where[m]]
-        for m, s in zip(group, shapes[index], strict=True):
-            where[m] = (end[0] + s[0], end[1] + s[1])
-            occupied[where[m]] = index
-        routes.append(Route(tuple(group), _corners(path), parking))
+            del self.occupied[self.where[m]]
+        for m, s in zip(group, self.shapes[index], strict=True):
+            self.where[m] = (end[0] + s[0], end[1] + s[1])
+            self.occupied[self.where[m]] = index
+        self.routes.append(Route(tuple(group), _corners(path), parking))
 
-    final: set[Cell] = {where[m] for i, g in enumerate(groups) if i not in pending for m in g}
-    awaited_cells = {goal[m]: i for i in pending for m in groups[i]}
-    box = (bounds[0] + margin, bounds[1] + margin, bounds[2] - margin, bounds[3] - margin)
-
-    def encloses(index: int) -> bool:
+    def encloses(self, index: int) -> bool:
         """Whether placing ``index`` at its goal walls in a cell some pending group needs."""
-        own = {goal[m] for m in groups[index]}
-        walls = final | own
+        own = {self.goal[m] for m in self.groups[index]}
+        walls = self.final | own
         seen: set[Cell] = set()
         for c0 in own:
             for dx, dy in STEPS:
                 c = (c0[0] + dx, c0[1] + dy)
                 if c in walls or c in seen:
                     continue
-                region = _region(c, walls, box, seen)
+                region = _region(c, walls, self.box, seen)
                 if region is not None and any(
-                        awaited_cells.get(r, index) != index
-                        or occupied.get(r, index) not in (index, None) for r in region):
+                        self.awaited_cells.get(r, index) != index
+                        or self.occupied.get(r, index) not in (index, None) for r in region):
                     return True
         return False
 
-    def to_goal(index: int, safe: bool = True) -> bool:
-        group = groups[index]
-        if any(occupied.get(goal[m], index) != index for m in group):
+    def search(self, index: int, penalty: int = 0) -> list[Cell] | None:
+        """The route of ``index`` to its goal (``penalty``: see :func:`_search`)."""
+        target = self.goal[self.groups[index][0]]
+        return _search(self.shapes[index], self.where[self.groups[index][0]], self.occupied,
+                       index, lambda t: t == target, target, self.bounds, self.limit,
+                       penalty=penalty)
+
+    def to_goal(self, index: int, safe: bool = True) -> bool:
+        group = self.groups[index]
+        if any(self.occupied.get(self.goal[m], index) != index for m in group):
             return False
-        if safe and encloses(index):
+        if safe and self.encloses(index):
             return False
-        path = _search(shapes[index], where[group[0]], occupied, index,
-                       lambda t, target=goal[group[0]]: t == target, goal[group[0]], bounds, limit)
+        path = self.search(index)
         if path is None:
             return False
-        move(index, path, parking=False)
+        self.move(index, path, parking=False)
         for m in group:
-            final.add(goal[m])
-            del awaited_cells[goal[m]]
+            self.final.add(self.goal[m])
+            del self.awaited_cells[self.goal[m]]
         return True
 
-    def park(index: int, awaited: Collection[int], protect: Collection[Cell] = ()) -> bool:
-        if parks[index] >= max_parks:
+    def park(self, index: int, awaited: Collection[int], protect: Collection[Cell] = ()
+             ) -> bool:
+        """Move ``index`` to the nearest place that touches no goal of ``awaited``."""
+        if self.parks[index] >= self.max_parks:
             return False
         reserved: set[Cell] = set(protect)
         for j in awaited:
             if j != index:
-                for m in groups[j]:
-                    c = goal[m]
+                for m in self.groups[j]:
+                    c = self.goal[m]
                     reserved.add(c)
                     reserved.update((c[0] + dx, c[1] + dy) for dx, dy in STEPS)
-        shape = shapes[index]
-        here = where[groups[index][0]]
+        shape = self.shapes[index]
+        here = self.where[self.groups[index][0]]
 
         def clear(t: Cell) -> bool:
             return t != here and not any((s[0] + t[0], s[1] + t[1]) in reserved for s in shape)
 
-        path = _search(shape, here, occupied, index, clear, None, bounds, limit)
+        path = _search(shape, here, self.occupied, index, clear, None, self.bounds, self.limit)
         if path is None:
             return False
-        parks[index] += 1
-        for m in groups[index]:
-            final.discard(where[m])
-            awaited_cells[goal[m]] = index
-        move(index, path, parking=True)
+        self.parks[index] += 1
+        for m in self.groups[index]:
+            self.final.discard(self.where[m])
+            self.awaited_cells[self.goal[m]] = index
+        self.move(index, path, parking=True)
         return True
 
-    def clear_way(index: int) -> bool:
+    def clear_way(self, index: int) -> bool:
         """Park the groups on the cheapest route of ``index`` to its goal, then move it."""
-        group = groups[index]
-        path = _search(shapes[index], where[group[0]], occupied, index,
-                       lambda t, target=goal[group[0]]: t == target, goal[group[0]], bounds,
-                       limit, penalty=4 * len(groups))
+        path = self.search(index, penalty=4 * len(self.groups))
         if path is None:
             return False
-        protect = {(s[0] + t[0], s[1] + t[1]) for t in path for s in shapes[index]}
-        blockers = list(dict.fromkeys(occupied[c] for c in protect
-                                      if occupied.get(c, index) != index))
-        awaited = {*pending, index}
+        protect = {(s[0] + t[0], s[1] + t[1]) for t in path for s in self.shapes[index]}
+        blockers = list(dict.fromkeys(self.occupied[c] for c in protect
+                                      if self.occupied.get(c, index) != index))
+        awaited = {*self.pending, index}
         for b in blockers:
-            if not park(b, awaited, protect):
+            if not self.park(b, awaited, protect):
                 return False
-            if b not in pending:
-                pending.append(b)
-        return to_goal(index)
+            if b not in self.pending:
+                self.pending.append(b)
+        return self.to_goal(index)
 
-    while pending:
-        moved = next((i for i in pending if to_goal(i)), None)
-        if moved is None:
-            moved = next((i for i in list(pending) if clear_way(i)), None)
-        if moved is not None:
-            pending.remove(moved)
-            continue
-        awaited = set(pending)
-        blockers = [i for i in pending
-                    if any(goal_cells.get(where[m], i) != i for m in groups[i])]
-        for i in [*blockers, *(i for i in pending if i not in blockers)]:
-            if park(i, awaited):
-                break
-        else:
-            return None
-    return routes
+    def run(self) -> list[Route] | None:
+        """Move, clear the way or park until every group is home; None when stuck."""
+        pending = self.pending
+        while pending:
+            moved = next((i for i in pending if self.to_goal(i)), None)
+            if moved is None:
+                moved = next((i for i in list(pending) if self.clear_way(i)), None)
+            if moved is not None:
+                pending.remove(moved)
+                continue
+            awaited = set(pending)
+            blockers = [i for i in pending
+                        if any(self.goal_cells.get(self.where[m], i) != i
+                               for m in self.groups[i])]
+            for i in [*blockers, *(i for i in pending if i not in blockers)]:
+                if self.park(i, awaited):
+                    break
+            else:
+                return None
+        return self.routes
+
+
+def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
+            goal: Mapping[str, Cell], priority: Sequence[str], max_parks: int
+            ) -> list[Route] | None:
+    """Greedy order: any group whose goal is free and reachable, parking blockers.
+
+    Returns None when it gets stuck (then :func:`_staged` plans from the start).
+    """
+    return _Greedy(groups, start, goal, priority, max_parks).run()
 
 
 def _split(group: list[str], links: set[frozenset[str]]) -> tuple[list[str], list[str],
@@ -389,68 +417,45 @@ class _Walled(Exception):
         self.stuck = stuck
 
 
-def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, ...]],
-                 start: Mapping[str, Cell], goal: Mapping[str, Cell], moving: set[int],
-                 box: tuple[int, int, int, int]) -> list[Route]:
-    """One evacuate-and-assemble plan; raises :class:`_Walled` if a peel gets stuck.
+@dataclass(frozen=True)
+class _Frame:
+    """The box of every start and goal cell and the rectangular lane around it.
 
-    Outside the box, routes follow a rectangular lane ``2 * reach`` cells around it
-    (``reach`` exceeds every group's extent, so a group on the lane is clear of the
-    box) to a row of slots below the lane, each slot entered straight from above.
-    Inside the box, a route is the escape path found by the peel, which stays valid:
-    when a group leaves (or, reversed, arrives) exactly the groups that the peel saw
-    are in the box.
+    Attributes:
+        box: ``(lo_x, lo_y, hi_x, hi_y)`` of the start and goal cells.
+        reach: more than every group's extent [cells].
+        lane: the lane's corners, ``2 * reach`` cells outside the box, same layout.
     """
-    lo_x, lo_y, hi_x, hi_y = box
-    reach = max(max(abs(c) for s in sh for c in s) for sh in shapes) + 2
-    lane = (lo_x - 2 * reach, lo_y - 2 * reach, hi_x + 2 * reach, hi_y + 2 * reach)
 
-    def outside(shape: Sequence[Cell]) -> Callable[[Cell], bool]:
+    box: tuple[int, int, int, int]
+    reach: int
+    lane: tuple[int, int, int, int]
+
+    @classmethod
+    def around(cls, box: tuple[int, int, int, int], shapes: Sequence[tuple[Cell, ...]]
+               ) -> _Frame:
+        lo_x, lo_y, hi_x, hi_y = box
+        reach = max(max(abs(c) for s in sh for c in s) for sh in shapes) + 2
+        return cls(box, reach, (lo_x - 2 * reach, lo_y - 2 * reach, hi_x + 2 * reach,
+                                hi_y + 2 * reach))
+
+    def outside(self, shape: Sequence[Cell]) -> Callable[[Cell], bool]:
+        """Whether a placement of ``shape`` has every cell outside the box."""
+        lo_x, lo_y, hi_x, hi_y = self.box
         return lambda t: all(not (lo_x <= s[0] + t[0] <= hi_x and lo_y <= s[1] + t[1] <= hi_y)
                              for s in shape)
 
-    def to_border(t: Cell) -> int:
-        return max(0, min(t[0] - lo_x, hi_x - t[0], t[1] - lo_y, hi_y - t[1]) + 1)
+    def to_border(self) -> Callable[[Cell], int]:
+        """Cells from a placement to just outside the box (the peel's A* heuristic)."""
+        lo_x, lo_y, hi_x, hi_y = self.box
+        return lambda t: max(0, min(t[0] - lo_x, hi_x - t[0], t[1] - lo_y, hi_y - t[1]) + 1)
 
-    def peel(cells_of: Callable[[int], list[Cell]]) -> tuple[list[int], dict[int, list[Cell]]]:
-        """An order in which the moving groups can leave the box one by one, and how."""
-        occupied = {c: i for i in range(len(groups)) for c in cells_of(i)}
-        inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], reach)
-        limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
-        left = deque(sorted(moving, key=lambda i: to_border(cells_of(i)[0])))
-        order: list[int] = []
-        escape: dict[int, list[Cell]] = {}
-        failures = 0
-        while left:
-            i = left[0]
-            path = _search(shapes[i], cells_of(i)[0], occupied, i, outside(shapes[i]), None,
-                           inside, limit, heuristic=to_border)
-            if path is None:
-                left.rotate(-1)
-                failures += 1
-                if failures <= len(left):
-                    continue
-                near: set[int] = set()
-                for j in left:
-                    path = _search(shapes[j], cells_of(j)[0], occupied, j, outside(shapes[j]),
-                                   None, inside, limit, penalty=4 * len(groups),
-                                   heuristic=to_border)
-                    near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
-                             for s in shapes[j]
-                             if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
-                raise _Walled(near, set(left))
-            failures = 0
-            left.popleft()
-            order.append(i)
-            escape[i] = _straighten(path, shapes[i], occupied, i)
-            for c in cells_of(i):
-                del occupied[c]
-        return order, escape
-
-    def to_lane(i: int, t: Cell) -> list[Cell]:
-        """From a placement outside the box, straight out to the lane in a direction in
-        which no cell crosses the box, then along the lane to its bottom side."""
-        cells = [(c[0] + t[0], c[1] + t[1]) for c in shapes[i]]
+    def to_lane(self, i: int, shape: Sequence[Cell], t: Cell) -> list[Cell]:
+        """From a placement of group ``i`` outside the box, straight out to the lane in a
+        direction in which no cell crosses the box, then along the lane to its bottom side."""
+        lo_x, lo_y, hi_x, hi_y = self.box
+        lane = self.lane
+        cells = [(c[0] + t[0], c[1] + t[1]) for c in shape]
         beside_x = [not lo_x <= x <= hi_x for x, _ in cells]
         beside_y = [not lo_y <= y <= hi_y for _, y in cells]
         if all(y < lo_y or b for (_, y), b in zip(cells, beside_x, strict=True)):
@@ -464,10 +469,68 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
             return [(t[0], lane[3]), (corner, lane[3]), (corner, lane[1])]
         raise _Walled(set(), {i})  # wrapped round the box: no straight way out
 
-    out_order, out_paths = peel(lambda i: [start[m] for m in groups[i]])
-    in_peel, in_paths = peel(lambda i: [goal[m] for m in groups[i]])
+
+def _peel(shapes: Sequence[tuple[Cell, ...]], moving: set[int], frame: _Frame,
+          cells_of: Callable[[int], list[Cell]]) -> tuple[list[int], dict[int, list[Cell]]]:
+    """An order in which the moving groups can leave the box one by one, and how.
+
+    Raises:
+        _Walled: no moving group left has a way out; with the groups on their cheapest ways.
+    """
+    lo_x, lo_y, hi_x, hi_y = frame.box
+    to_border = frame.to_border()
+    occupied = {c: i for i in range(len(shapes)) for c in cells_of(i)}
+    inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], frame.reach)
+    limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
+    left = deque(sorted(moving, key=lambda i: to_border(cells_of(i)[0])))
+    order: list[int] = []
+    escape: dict[int, list[Cell]] = {}
+    failures = 0
+    while left:
+        i = left[0]
+        path = _search(shapes[i], cells_of(i)[0], occupied, i, frame.outside(shapes[i]), None,
+                       inside, limit, heuristic=to_border)
+        if path is None:
+            left.rotate(-1)
+            failures += 1
+            if failures <= len(left):
+                continue
+            near: set[int] = set()
+            for j in left:
+                path = _search(shapes[j], cells_of(j)[0], occupied, j, frame.outside(shapes[j]),
+                               None, inside, limit, penalty=4 * len(shapes),
+                               heuristic=to_border)
+                near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
+                         for s in shapes[j]
+                         if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
+            raise _Walled(near, set(left))
+        failures = 0
+        left.popleft()
+        order.append(i)
+        escape[i] = _straighten(path, shapes[i], occupied, i)
+        for c in cells_of(i):
+            del occupied[c]
+    return order, escape
+
+
+def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, ...]],
+                 start: Mapping[str, Cell], goal: Mapping[str, Cell], moving: set[int],
+                 box: tuple[int, int, int, int]) -> list[Route]:
+    """One evacuate-and-assemble plan; raises :class:`_Walled` if a peel gets stuck.
+
+    Outside the box, routes follow a rectangular lane ``2 * reach`` cells around it
+    (``reach`` exceeds every group's extent, so a group on the lane is clear of the
+    box) to a row of slots below the lane, each slot entered straight from above.
+    Inside the box, a route is the escape path found by the peel, which stays valid:
+    when a group leaves (or, reversed, arrives) exactly the groups that the peel saw
+    are in the box.
+    """
+    frame = _Frame.around(box, shapes)
+    lane, reach = frame.lane, frame.reach
+    out_order, out_paths = _peel(shapes, moving, frame, lambda i: [start[m] for m in groups[i]])
+    in_peel, in_paths = _peel(shapes, moving, frame, lambda i: [goal[m] for m in groups[i]])
     slot: dict[int, Cell] = {}
-    x = lo_x
+    x = box[0]
     for i in out_order:
         xs = [c[0] for c in shapes[i]]
         slot[i] = (x - min(xs), lane[1] - 2 * reach)
@@ -475,11 +538,13 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
     routes: list[Route] = []
     for i in out_order:
         escape = out_paths[i]
-        path = [*escape, *to_lane(i, escape[-1]), (slot[i][0], lane[1]), slot[i]]
+        path = [*escape, *frame.to_lane(i, shapes[i], escape[-1]), (slot[i][0], lane[1]),
+                slot[i]]
         routes.append(Route(tuple(groups[i]), _corners(path), parking=True))
     for i in reversed(in_peel):
         escape = in_paths[i]
-        path = [*escape, *to_lane(i, escape[-1]), (slot[i][0], lane[1]), slot[i]][::-1]
+        path = [*escape, *frame.to_lane(i, shapes[i], escape[-1]), (slot[i][0], lane[1]),
+                slot[i]][::-1]
         routes.append(Route(tuple(groups[i]), _corners(path), parking=False))
     return routes
 
