@@ -11,11 +11,12 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Hashable, Mapping
+from dataclasses import dataclass
 from typing import Literal
 
 import networkx as nx
 
-from ..configuration import Configuration
+from ..configuration import Configuration, Edge
 from .cycles import cyclic_groups, find_cycle_through
 from .node import FixedNode, KinematicNode, KinematicTreeError, ModuleJointNode
 from .tree import KinematicTree
@@ -29,6 +30,92 @@ def tree_centre(graph: nx.Graph, rank: Mapping[Hashable, tuple]) -> Hashable:
     if graph.number_of_nodes() == 1:
         return next(iter(graph.nodes))
     return min(nx.center(graph), key=lambda v: rank[v])
+
+
+def _refuse_cycles(config: Configuration, group_of: Mapping[str, int]) -> None:
+    """Raise naming one cycle of ``config`` (every edge inside a group lies on one)."""
+    inside = [e.id for e in config.edges()
+              if e.source in group_of and group_of[e.source] == group_of.get(e.target)]
+    found = find_cycle_through(config, inside)
+    assert found is not None  # every edge inside a group lies on a cycle
+    loop = " - ".join([*found[0], found[0][0]])
+    raise KinematicTreeError(f"cycle {loop} (edges {', '.join(found[1])}): the topology is "
+                             "not a tree; use cycles='fixed' or build the tree with a fixed "
+                             "or parallel node around it")
+
+
+@dataclass(frozen=True)
+class _Contraction:
+    """The topology with every group of cycles contracted to one super vertex.
+
+    Attributes:
+        graph: the contracted topology (a tree).
+        of: module -> its super vertex (``#group<n>``, or the module itself).
+        rank: super vertex -> the best rank of its modules (real before virtual, then
+            larger degree, then first listed).
+        members: super vertex -> its modules, in configuration order.
+        inner: super vertex -> the edges inside it.
+        bridges: the edges between two super vertices.
+    """
+
+    graph: nx.Graph
+    of: dict[str, str]
+    rank: dict[str, tuple]
+    members: dict[str, list[str]]
+    inner: dict[str, list[str]]
+    bridges: list[Edge]
+
+
+def _contract(config: Configuration, group_of: Mapping[str, int]) -> _Contraction:
+    """Contract every group of cycles (``group_of``: module -> its group) to one vertex."""
+    of = {v: f"#group{group_of[v]}" if v in group_of else v for v in config.vertices()}
+    graph = nx.Graph()
+    order = {v: i for i, v in enumerate(config.vertices())}
+    rank: dict[str, tuple] = {}
+    members: dict[str, list[str]] = {}
+    inner: dict[str, list[str]] = {}
+    for v in config.vertices():
+        s = of[v]
+        graph.add_node(s)
+        members.setdefault(s, []).append(v)
+        candidate = (0 if not config.is_virtual(v) else 1, -config.degree(v), order[v])
+        rank[s] = min(rank.get(s, candidate), candidate)
+    bridges = []
+    for e in config.edges():
+        s, t = of[e.source], of[e.target]
+        if s == t:
+            inner.setdefault(s, []).append(e.id)
+        else:
+            bridges.append(e)
+            graph.add_edge(s, t)
+    return _Contraction(graph, of, rank, members, inner, bridges)
+
+
+def _grow(tree: _Contraction, centre: str, joint_mode: type[KinematicNode]
+          ) -> list[KinematicNode]:
+    """The nodes breadth-first from a fixed node at ``centre``: a module joint per bridge,
+    owning its end away from the root, and a fixed node for the rest of a super vertex."""
+    of, inner, members = tree.of, tree.inner, tree.members
+    nodes: list[KinematicNode] = [FixedNode(inner.get(centre, []), members[centre])]
+    by_super: dict[str, list] = {}
+    for e in tree.bridges:
+        by_super.setdefault(of[e.source], []).append(e)
+        by_super.setdefault(of[e.target], []).append(e)
+    queue, seen = deque([centre]), {centre}
+    while queue:
+        s = queue.popleft()
+        for e in by_super.get(s, []):
+            far = e.target if of[e.source] == s else e.source
+            sf = of[far]
+            if sf in seen:
+                continue
+            seen.add(sf)
+            nodes.append(joint_mode.for_edge(e, far))
+            rest = [v for v in members[sf] if v != far]
+            if rest or inner.get(sf):
+                nodes.append(FixedNode(inner.get(sf, []), rest))
+            queue.append(sf)
+    return nodes
 
 
 def default_tree(config: Configuration, joint_mode: type[KinematicNode], *,
@@ -60,57 +147,7 @@ def default_tree(config: Configuration, joint_mode: type[KinematicNode], *,
     groups = cyclic_groups(config)
     group_of = {v: g for g, members in enumerate(groups) for v in members}
     if groups and cycles == "error":
-        inside = [e.id for e in config.edges()
-                  if e.source in group_of and group_of[e.source] == group_of.get(e.target)]
-        found = find_cycle_through(config, inside)
-        assert found is not None  # every edge inside a group lies on a cycle
-        loop = " - ".join([*found[0], found[0][0]])
-        raise KinematicTreeError(f"cycle {loop} (edges {', '.join(found[1])}): the topology is "
-                                 "not a tree; use cycles='fixed' or build the tree with a fixed "
-                                 "or parallel node around it")
-
-    def super_vertex(v: str) -> str:
-        return f"#group{group_of[v]}" if v in group_of else v
-
-    # the topology with every group contracted to one super vertex
-    contracted = nx.Graph()
-    order = {v: i for i, v in enumerate(config.vertices())}
-    rank: dict[str, tuple] = {}
-    members: dict[str, list[str]] = {}
-    inner: dict[str, list[str]] = {}
-    for v in config.vertices():
-        s = super_vertex(v)
-        contracted.add_node(s)
-        members.setdefault(s, []).append(v)
-        candidate = (0 if not config.is_virtual(v) else 1, -config.degree(v), order[v])
-        rank[s] = min(rank.get(s, candidate), candidate)
-    bridges = []
-    for e in config.edges():
-        s, t = super_vertex(e.source), super_vertex(e.target)
-        if s == t:
-            inner.setdefault(s, []).append(e.id)
-        else:
-            bridges.append(e)
-            contracted.add_edge(s, t)
-    centre = tree_centre(contracted, rank)
-
-    nodes: list[KinematicNode] = [FixedNode(inner.get(centre, []), members[centre])]
-    by_super: dict[str, list] = {}
-    for e in bridges:
-        by_super.setdefault(super_vertex(e.source), []).append(e)
-        by_super.setdefault(super_vertex(e.target), []).append(e)
-    queue, seen = deque([centre]), {centre}
-    while queue:
-        s = queue.popleft()
-        for e in by_super.get(s, []):
-            far = e.target if super_vertex(e.source) == s else e.source
-            sf = super_vertex(far)
-            if sf in seen:
-                continue
-            seen.add(sf)
-            nodes.append(joint_mode.for_edge(e, far))
-            rest = [v for v in members[sf] if v != far]
-            if rest or inner.get(sf):
-                nodes.append(FixedNode(inner.get(sf, []), rest))
-            queue.append(sf)
-    return KinematicTree(config, nodes)
+        _refuse_cycles(config, group_of)
+    contracted = _contract(config, group_of)
+    centre = tree_centre(contracted.graph, contracted.rank)
+    return KinematicTree(config, _grow(contracted, centre, joint_mode))

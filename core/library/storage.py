@@ -144,12 +144,26 @@ class LibraryFile(StrictModel):
 # -- model -> library -----------------------------------------------------------------
 
 
+_Fail = Callable[[str, str], LibraryError]
+"""``fail(field, message)``: the error naming the file and ``field`` under the sub-library."""
+
+
 def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | None,
                            library_robot: str, robot: Robot | None) -> SubLibrary:
     def fail(field: str, message: str) -> LibraryError:
         return LibraryError(message, source=source, field=f"{where}.{field}")
 
     sub = SubLibrary(model.name)
+    _add_groups(sub, model, fail, library_robot, robot)
+    _add_configurations(sub, model, fail, robot)
+    _add_edges(sub, model, fail)
+    _add_behaviors(sub, model, fail)
+    return sub
+
+
+def _add_groups(sub: SubLibrary, model: SubLibraryModel, fail: _Fail, library_robot: str,
+                robot: Robot | None) -> None:
+    """The groups: unique ids, references of the library's robot, unique tree names."""
     for i, gm in enumerate(model.groups):
         if gm.id in sub.groups:
             raise fail(f"groups[{i}].id", f"duplicate group id {gm.id!r}")
@@ -169,6 +183,11 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
                 f"groups[{i}].{f}", m))
         sub.groups[gm.id] = Group(gm.id, gm.name, reference, {t.name: t.tree for t in gm.trees},
                                   gm.description)
+
+
+def _add_configurations(sub: SubLibrary, model: SubLibraryModel, fail: _Fail,
+                        robot: Robot | None) -> None:
+    """The configurations: unique ids and names, a known group, a ``z`` per group edge."""
     taken: dict[str, str] = {}  # id or name -> the configuration id that has it
     for i, cm in enumerate(model.configurations):
         if cm.id in sub.configurations:
@@ -194,6 +213,10 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
                 raise fail(f"configurations[{i}]", f"{found[0].where}: {found[0].message}")
         sub.configurations[cm.id] = LibraryConfiguration(cm.id, cm.group, config,
                                                          tuple(cm.names), tuple(cm.origins))
+
+
+def _add_edges(sub: SubLibrary, model: SubLibraryModel, fail: _Fail) -> None:
+    """The action edges: known ends, a tree of one end's group, a mapping across groups."""
     for i, em in enumerate(model.edges):
         for end in ("source", "target"):
             if getattr(em, end) not in sub.configurations:
@@ -208,24 +231,35 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
                        f"joins {' and '.join(sorted(ends))}")
         mapping = None
         if em.mapping is not None:
-            mapping = ModuleMap(dict(em.mapping.nodes), dict(em.mapping.edges))
-            src = sub.configurations[em.source].configuration
-            dst = sub.configurations[em.target].configuration
-            bad = [e for e, (image, _) in mapping.edges.items()
-                   if e not in src.edge_ids() or image not in dst.edge_ids()]
-            bad += [v for v, image in mapping.nodes.items() if v not in src or image not in dst]
-            if bad:
-                raise fail(f"edges[{i}].mapping", f"maps ids that are not in its configurations: "
-                           f"{', '.join(sorted(bad))}")
-            for kind, images in (("edge", [e for e, _ in mapping.edges.values()]),
-                                 ("node", list(mapping.nodes.values()))):
-                if len(set(images)) != len(images):
-                    raise fail(f"edges[{i}].mapping", f"maps two {kind}s to one")
+            mapping = _edge_mapping(em.mapping, sub.configurations[em.source].configuration,
+                                    sub.configurations[em.target].configuration,
+                                    lambda m, i=i: fail(f"edges[{i}].mapping", m))
         elif sub.configurations[em.source].group != sub.configurations[em.target].group:
             raise fail(f"edges[{i}].mapping", "an edge across groups needs a module mapping")
         sub.edges.append(ActionEdge(em.source, em.target, em.action,
                                     TreeRef(em.tree.group, em.tree.name), em.cost, mapping,
                                     em.feasible))
+
+
+def _edge_mapping(model: MappingModel, src: Configuration, dst: Configuration,
+                  fail: Callable[[str], LibraryError]) -> ModuleMap:
+    """An edge's module mapping from ``src`` to ``dst``: their ids, one-to-one."""
+    mapping = ModuleMap(dict(model.nodes), dict(model.edges))
+    bad = [e for e, (image, _) in mapping.edges.items()
+           if e not in src.edge_ids() or image not in dst.edge_ids()]
+    bad += [v for v, image in mapping.nodes.items() if v not in src or image not in dst]
+    if bad:
+        raise fail(f"maps ids that are not in its configurations: {', '.join(sorted(bad))}")
+    for kind, images in (("edge", [e for e, _ in mapping.edges.values()]),
+                         ("node", list(mapping.nodes.values()))):
+        if len(set(images)) != len(images):
+            raise fail(f"maps two {kind}s to one")
+    return mapping
+
+
+def _add_behaviors(sub: SubLibrary, model: SubLibraryModel, fail: _Fail) -> None:
+    """The behaviors: unique names, known configurations, command modules in the start
+    configuration and gains of declared parameters."""
     for i, bm in enumerate(model.behaviors):
         if bm.name in sub.behaviors:
             raise fail(f"behaviors[{i}].name", f"duplicate behavior {bm.name!r}")
@@ -247,11 +281,10 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
                                      c.connector) for c in bm.commands)
         sub.behaviors[bm.name] = Behavior(bm.name, bm.kind, bm.start, tuple(bm.steps), bm.loop,
                                           tuple(bm.parameters), commands, bm.description)
-    return sub
 
 
 def _check_group(reference: Configuration, gm: GroupModel, robot: Robot, sub_name: str,
-                 fail: Callable[[str, str], LibraryError]) -> None:
+                 fail: _Fail) -> None:
     """A group's reference follows the robot's rules, names its sub-library, and every
     tree loads on it with the robot's joint modes."""
     found = robot.violations(reference)

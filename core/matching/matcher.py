@@ -156,6 +156,56 @@ def _cost(cost: str | CostFn | None, pool: list[Candidate], robot: Robot | None
     return COST_FUNCTIONS[kind], kind, note, pool
 
 
+@dataclass(frozen=True)
+class _Search:
+    """What Alg. 4's inner loop needs besides the candidate (see :func:`match`'s arguments)."""
+
+    system: Configuration
+    cost_fn: CostFn
+    confidence: float
+    top: int
+    max_mappings: int | None
+    deadline: float | None
+    clock: Callable[[], float]
+
+    def expired(self) -> bool:
+        return self.deadline is not None and self.clock() > self.deadline
+
+
+def _walk(search: _Search, candidate: Candidate, position: int, ranked: list[RankedMatch],
+          costs: list[float]) -> None:
+    """Alg. 4 lines 4-12 for one candidate: its mappings in ascending distance, each batch
+    of tied distances evaluated unless it is past ``confidence`` times the ``top``-th best
+    cost so far (line 5); adds to ``ranked`` and to the sorted ``costs``."""
+    top = search.top
+    batch: float | None = None
+    for seen, mapping in enumerate(iso_search(search.system, candidate.reference,
+                                              deadline=search.deadline, clock=search.clock)):
+        if batch is None or not tied(mapping.distance, batch):
+            if search.max_mappings is not None and seen >= search.max_mappings:
+                break
+            limit = search.confidence * (costs[top - 1] if len(costs) >= top else math.inf)
+            if mapping.distance > limit and not tied(mapping.distance, limit):
+                break                                   # Alg. 4 line 5
+            batch = mapping.distance
+        value = float(search.cost_fn(candidate.reference, candidate.tree,
+                                     mapping.system_in_reference_ids(search.system)))
+        ranked.append(RankedMatch(candidate, mapping, value, position))
+        bisect.insort(costs, value)
+        if search.expired():
+            break
+
+
+def _best_ones(ranked: Sequence[RankedMatch], top: int) -> list[RankedMatch]:
+    """The ``top`` best of ``ranked``, best first, under the tie rule (module doc)."""
+    best: list[RankedMatch] = []
+    left = list(ranked)
+    while left and len(best) < top:
+        best.append(_best(left))
+        left = [r for r in left if r is not best[-1]]
+    return best
+
+
 def match(system: Configuration, candidates: Iterable[Candidate], *,
           robot: Robot | None = None, cost: str | CostFn | None = None,
           confidence: float = CONFIDENCE, top: int = 1, max_mappings: int | None = None,
@@ -195,46 +245,23 @@ def match(system: Configuration, candidates: Iterable[Candidate], *,
     if top < 1:
         raise MatchingError(f"top must be at least 1, got {top}")
     signature = system.signature()
-    pool = list(candidates)
-    cost_fn, cost_kind, note, pool = _cost(cost, pool, robot)
-    deadline = None if time_budget is None else clock() + time_budget
+    cost_fn, cost_kind, note, pool = _cost(cost, list(candidates), robot)
+    search = _Search(system, cost_fn, confidence, top, max_mappings,
+                     None if time_budget is None else clock() + time_budget, clock)
     ranked: list[RankedMatch] = []
     costs: list[float] = []          # sorted, for the top-th best cost of line 5
     complete = True
-
-    def threshold() -> float:
-        return costs[top - 1] if len(costs) >= top else math.inf
-
-    for position, candidate in enumerate(pool):
+    for position, candidate in enumerate(pool):     # Alg. 4 line 3
         if candidate.reference.robot != system.robot \
                 or candidate.reference.signature() != signature:
             continue
-        batch: float | None = None
-        for seen, mapping in enumerate(iso_search(system, candidate.reference,
-                                                  deadline=deadline, clock=clock)):
-            if batch is None or not tied(mapping.distance, batch):
-                if max_mappings is not None and seen >= max_mappings:
-                    break
-                limit = confidence * threshold()
-                if mapping.distance > limit and not tied(mapping.distance, limit):
-                    break                                   # Alg. 4 line 5
-                batch = mapping.distance
-            value = float(cost_fn(candidate.reference, candidate.tree,
-                                  mapping.system_in_reference_ids(system)))
-            ranked.append(RankedMatch(candidate, mapping, value, position))
-            bisect.insort(costs, value)
-            if deadline is not None and clock() > deadline:
-                break
-        if deadline is not None and clock() > deadline:
+        _walk(search, candidate, position, ranked, costs)
+        if search.expired():
             complete = False
             break
     if not ranked:
         return None
-    best: list[RankedMatch] = []
-    left = list(ranked)
-    while left and len(best) < top:
-        best.append(_best(left))
-        left = [r for r in left if r is not best[-1]]
+    best = _best_ones(ranked, top)
     first = best[0]
     return MatchResult(first.candidate, first.mapping, first.cost, cost_kind, note,
                        tuple(best), len(ranked), complete)
