@@ -181,7 +181,7 @@ def plot(by_size: dict[int, list[Run]], by_distance: dict[float, list[Run]], exp
     print(f"plot written to {path}")
 
 
-def main() -> None:
+def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=int, default=100, help="pairs per size (default 100)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -199,28 +199,19 @@ def main() -> None:
                         help="worker processes (1: here; 0: one per core)")
     parser.add_argument("--cluster", default=None, metavar="ADDRESS",
                         help="run on Ray: auto, ray://HOST:PORT or local")
-    args = parser.parse_args()
-    if args.plot:  # before the work: a missing matplotlib is one line
-        exit_unless_installed("matplotlib", "plot", "--plot")
-    clock = args.clock
-    console = Console(highlight=False)
-    console.print(f"seed={args.seed} pairs={args.pairs} per size, edges "
-                  f"{args.min_edges}..{args.max_edges}, target RMS {NEAR_RMS_DEG:.0f} deg, "
-                  f"solved below {SOLVED_DEG:.0f} deg, {args.clock} clock")
-    rng = np.random.default_rng(args.seed)
-    warm = make_pair(5, np.random.default_rng(args.seed + 1), NEAR_RMS_DEG)
-    solve(warm, 0)  # first-call set-up (thread pools, imports) is not measured
+    return parser.parse_args()
 
-    batch = {"workers": args.workers, "cluster": args.cluster}
-    sizes = list(range(args.min_edges, args.max_edges + 1))
+
+def run_sizes(args: argparse.Namespace, sizes: list[int], batch: dict[str, object],
+              console: Console) -> tuple[dict[int, list[Pair]], dict[int, list[Run]]]:
+    """Fig. 17, left: ``--pairs`` near-random pairs per size, solved; prints the table."""
+    rng = np.random.default_rng(args.seed)
     # pairs drawn here in order from one generator, solved as batch tasks
     pairs_by_size = {n: [make_pair(n, rng, NEAR_RMS_DEG) for _ in range(args.pairs)]
                      for n in sizes}
-    solved = iter(solve_all([(p, args.seed + i, "analytic", clock) for n in sizes
+    solved = iter(solve_all([(p, args.seed + i, "analytic", args.clock) for n in sizes
                              for i, p in enumerate(pairs_by_size[n])], batch, "pairs"))
     by_size = {n: [next(solved) for _ in pairs_by_size[n]] for n in sizes}
-    pairs_30 = pairs_by_size[args.max_edges]
-
     table = Table(title="Full-body IK, near-random pairs (Fig. 17, left)")
     for column in ("edges", "median ms", "p95 ms", "success", "iterations", "restarts"):
         table.add_column(column, justify="right")
@@ -232,9 +223,15 @@ def main() -> None:
                       f"{np.median([r.iterations for r in runs]):.0f}",
                       f"{np.mean([r.restarts for r in runs]):.2f}")
     console.print(table)
+    return pairs_by_size, by_size
 
-    fd_pairs = pairs_30[: args.fd_pairs]
-    both = solve_all([(p, args.seed + i, gradient, clock) for gradient in
+
+def run_gradients(pairs: list[Pair], args: argparse.Namespace, batch: dict[str, object],
+                  console: Console) -> float:
+    """The first ``--fd-pairs`` of ``pairs`` solved with the analytic and the finite-difference
+    gradient; prints both and returns the time ratio (finite differences / analytic)."""
+    fd_pairs = pairs[: args.fd_pairs]
+    both = solve_all([(p, args.seed + i, gradient, args.clock) for gradient in
                       ("analytic", "finite_difference") for i, p in enumerate(fd_pairs)],
                      batch, "gradients")
     analytic, numeric = both[:len(fd_pairs)], both[len(fd_pairs):]
@@ -244,7 +241,13 @@ def main() -> None:
                   f"vs {sum(r.ms for r in analytic) / len(fd_pairs):.2f} ms per solve "
                   f"(solved {np.mean([r.solved for r in numeric]):.2f} vs "
                   f"{np.mean([r.solved for r in analytic]):.2f})")
+    return fd_speedup
 
+
+def run_distances(args: argparse.Namespace, batch: dict[str, object], console: Console
+                  ) -> dict[float, list[Run]]:
+    """Fig. 17, right: ``--distance-pairs`` pairs per angular distance at the largest size,
+    solved; prints the table."""
     by_distance: dict[float, list[Run]] = {}
     distance_rng = np.random.default_rng(args.seed + 2)
     table = Table(title=f"Time against angular distance, {args.max_edges} edges "
@@ -252,7 +255,7 @@ def main() -> None:
     for column in ("RMS deg", "median ms", "p95 ms", "success", "iterations"):
         table.add_column(column, justify="right")
     tasks = [(make_pair(args.max_edges, distance_rng, distance), args.seed + i, "analytic",
-              clock) for distance in DISTANCES_DEG for i in range(args.distance_pairs)]
+              args.clock) for distance in DISTANCES_DEG for i in range(args.distance_pairs)]
     solved = iter(solve_all(tasks, batch, "distances"))
     for distance in DISTANCES_DEG:
         runs = [next(solved) for _ in range(args.distance_pairs)]
@@ -262,6 +265,25 @@ def main() -> None:
                       f"{np.percentile(ms, 95):.2f}", f"{np.mean([r.solved for r in runs]):.3f}",
                       f"{np.median([r.iterations for r in runs]):.0f}")
     console.print(table)
+    return by_distance
+
+
+def main() -> None:
+    args = parse_args()
+    if args.plot:  # before the work: a missing matplotlib is one line
+        exit_unless_installed("matplotlib", "plot", "--plot")
+    console = Console(highlight=False)
+    console.print(f"seed={args.seed} pairs={args.pairs} per size, edges "
+                  f"{args.min_edges}..{args.max_edges}, target RMS {NEAR_RMS_DEG:.0f} deg, "
+                  f"solved below {SOLVED_DEG:.0f} deg, {args.clock} clock")
+    warm = make_pair(5, np.random.default_rng(args.seed + 1), NEAR_RMS_DEG)
+    solve(warm, 0)  # first-call set-up (thread pools, imports) is not measured
+
+    batch = {"workers": args.workers, "cluster": args.cluster}
+    sizes = list(range(args.min_edges, args.max_edges + 1))
+    pairs_by_size, by_size = run_sizes(args, sizes, batch, console)
+    fd_speedup = run_gradients(pairs_by_size[args.max_edges], args, batch, console)
+    by_distance = run_distances(args, batch, console)
 
     medians = [float(np.median([r.ms for r in by_size[n]])) for n in sizes]
     exponent = fit_exponent(sizes, medians)

@@ -757,11 +757,10 @@ RING_IDS = {f"R{i + 1}" for i in range(6)}
 BRANCHED = (RING_IDS - {"R1", "R4"}) | {"C1"}   # the Fig. 21 tree: R2, R3, R5, R6, C1 docked
 
 
-def s12n6() -> None:
-    out = HERE / "S12N6"
-    octa = octa_state("fig22a", set(range(6)), "Fig. 22(a): octahedron")
-    star_ = hex_star("fig21a", "Fig. 21(a): hexagonal star")
-    groups = [
+def s12n6_groups(octa: dict, star_: dict) -> list[dict]:
+    """The S12N6 groups: the octahedron and its opened forms (Fig. 22), the hexagonal
+    star, its opened ring and the folded ear (Fig. 21), and the quadruped (Fig. 19)."""
+    return [
         {"name": "octahedron", "description": "Fig. 22(a): twelve struts, every node degree 4",
          "reference": octa, "trees": [tree("K1")]},
         {"name": "hexagonal-star", "description": "Fig. 21(a): hexagon ring with six legs",
@@ -783,11 +782,14 @@ def s12n6() -> None:
          "reference": ear_state("fig21-tree", BRANCHED), "trees": [tree("K1")]},
         s12n6_crawl_group(),
     ]
+
+
+def s12n6_fig21_sequences(star_: dict) -> list[dict]:
+    """Fig. 21(a)-(i): the hexagonal star opened into a tree and closed again, one
+    connection at a time and with parallel actions (section 6.3)."""
     ear_aim = ear_state("ear-aim", RING_IDS - {"R6"}, "Fig. 21(b): the open ring folded, R6 "
                         "and C1 aimed at T1 and T2")
-    write(out / "designs.json", source("S12N6", "FreeSN sub-library S12N6 (paper Figs. 18, 21, "
-                                       "22): twelve struts, six nodes", groups=groups))
-    sequences = [
+    return [
         {"name": "fig21-star-to-tree", "description": "Fig. 21(a)-(e): open the ring",
          "steps": [step(star_), step(hex_star("ring-open", open_ring=True)),
                    step(tree_state("fig21e"))]},
@@ -815,6 +817,13 @@ def s12n6() -> None:
          "steps": [step(tree_state("fig21e")),
                    step(hex_star("ring-aim", open_ring=True)),
                    step(star_, "K-root-T1")]},
+    ]
+
+
+def s12n6_fig22_sequences(octa: dict, star_: dict) -> list[dict]:
+    """The star folded into the octahedron, and Fig. 22(a)-(p): the octahedron opened
+    to roll on one face's struts, then on its nodes, and closed again."""
+    return [
         {"name": "star-to-octahedron", "description": "fold the ring and dock the legs in "
          "two parallel connections",
          "steps": [step(star_), step(octa_state("folded", set())),
@@ -831,10 +840,13 @@ def s12n6() -> None:
          "steps": [step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5}))),
                    step(octa_state("aim-j", {0, 2, 4}, free_ring=frozenset({5}))),
                    step(octa_state("three-docked-j", {0, 2, 4})), step(octa)]},
-        *s12n6_crawl_sequences(),
     ]
+
+
+def s12n6_behaviors() -> list[dict]:
+    """Fig. 22(e) and (j): the opened octahedron rolling on its struts and on its nodes."""
     nodes = octahedron_nodes()
-    behaviors = [
+    return [
         {"name": "wheeled-move", "start": "fig22e", "parameters": ["speed", "yaw_rate"],
          "description": "Fig. 22(e): the freed bottom chords rolled about their axes on "
          "the floor",
@@ -843,8 +855,19 @@ def s12n6() -> None:
          "description": "Fig. 22(j): nodes driven as wheels by their ring struts",
          "commands": node_wheel_commands(nodes, ("R1", "R3", "R5"))},
     ]
+
+
+def s12n6() -> None:
+    out = HERE / "S12N6"
+    octa = octa_state("fig22a", set(range(6)), "Fig. 22(a): octahedron")
+    star_ = hex_star("fig21a", "Fig. 21(a): hexagonal star")
+    write(out / "designs.json", source("S12N6", "FreeSN sub-library S12N6 (paper Figs. 18, 21, "
+                                       "22): twelve struts, six nodes",
+                                       groups=s12n6_groups(octa, star_)))
+    sequences = [*s12n6_fig21_sequences(star_), *s12n6_fig22_sequences(octa, star_),
+                 *s12n6_crawl_sequences()]
     write(out / "sequences.json", source("S12N6", "recorded sequences of S12N6",
-                                         sequences=sequences, behaviors=behaviors))
+                                         sequences=sequences, behaviors=s12n6_behaviors()))
 
 
 if __name__ == "__main__":

@@ -139,6 +139,94 @@ def place(config: Configuration, length: float, node_radius: float, strut_radius
                      {s: (c + lift, r) for s, (c, r) in struts.items()}, ends, mismatch)
 
 
+@dataclass(frozen=True)
+class _LoopFit:
+    """The least-squares problem of :func:`close_loops` over the centres after the first.
+
+    Attributes:
+        first: the fixed first centre [m], shape (3,).
+        src, dst: node index of each link's ends, shape (links,).
+        zs: each link's ``z``, shape (links, 3).
+        pairs: every node pair ``(i, j)``, ``i < j``, shape (pairs, 2).
+        length: strut length ``L`` [m].
+        gap: least distance of two node centres, ``2 r + spacing`` [m].
+    """
+
+    first: np.ndarray
+    src: np.ndarray
+    dst: np.ndarray
+    zs: np.ndarray
+    pairs: np.ndarray
+    length: float
+    gap: float
+
+    def residual(self, flat: np.ndarray, weight: float) -> np.ndarray:
+        """``|p_t - p_s| - L`` per link, ``w (p_t - p_s - L z)`` per link, then the overlap
+        ``max(0, 2 r + spacing - |p_i - p_j|)`` per node pair."""
+        p = np.vstack([self.first, flat.reshape(-1, 3)])
+        span = p[self.dst] - p[self.src]
+        gaps = np.linalg.norm(p[self.pairs[:, 1]] - p[self.pairs[:, 0]], axis=1)
+        return np.concatenate([
+            np.linalg.norm(span, axis=1) - self.length,
+            (weight * (span - self.length * self.zs)).ravel(),
+            np.maximum(0.0, self.gap - gaps),
+        ])
+
+    def jacobian(self, flat: np.ndarray, weight: float) -> np.ndarray:
+        """The residual's analytic Jacobian with respect to ``flat``."""
+        src, dst, pairs = self.src, self.dst, self.pairs
+        n_links, n_pairs, n_nodes = len(src), len(pairs), len(flat) // 3 + 1
+        p = np.vstack([self.first, flat.reshape(-1, 3)])
+        span = p[dst] - p[src]
+        unit = span / np.maximum(np.linalg.norm(span, axis=1), 1e-12)[:, None]
+        gap = p[pairs[:, 1]] - p[pairs[:, 0]]
+        dist = np.linalg.norm(gap, axis=1)
+        active = (self.gap - dist > 0)[:, None]
+        push = -(active * gap) / np.maximum(dist, 1e-12)[:, None]
+        jac = np.zeros((n_links * 4 + n_pairs, 3 * n_nodes))
+        rows = np.arange(n_links)
+        for node, sign in ((dst, 1.0), (src, -1.0)):
+            for a in range(3):
+                jac[rows, 3 * node + a] += sign * unit[:, a]
+                jac[n_links + 3 * rows + a, 3 * node + a] += sign * weight
+        prow = 4 * n_links + np.arange(n_pairs)
+        for node, sign in ((pairs[:, 1], 1.0), (pairs[:, 0], -1.0)):
+            for a in range(3):
+                jac[prow, 3 * node + a] += sign * push[:, a]
+        return jac[:, 3:]
+
+    def fit(self, x: np.ndarray, weight: float) -> np.ndarray:
+        return least_squares(self.residual, x, jac=self.jacobian, args=(weight,), xtol=1e-12,
+                             ftol=1e-12).x
+
+    def exact(self, x: np.ndarray) -> bool:
+        """Lengths exact and no sphere overlaps."""
+        return bool(np.max(np.abs(self.residual(x, 0.0))) < 1e-6 * self.length)
+
+
+def _exact_fits(problem: _LoopFit, x0: np.ndarray, direction_weight: float, restarts: int
+                ) -> list[tuple[float, np.ndarray]]:
+    """Exact fits and their squared distance to the ``z`` vectors: by continuation from
+    ``x0`` (only that one if it succeeds), else from seeded random shapes, up to three."""
+    rng = np.random.default_rng(0)
+    length = problem.length
+    found: list[tuple[float, np.ndarray]] = []
+    for attempt in range(restarts + 1):
+        if attempt == 0:  # continuation: agree with z, then make the lengths exact
+            x, weights = x0, (1.0, 0.3, 0.1, 0.03, direction_weight, 0.0)
+        else:  # a random exact shape, turned (or mirrored) onto z, then polished
+            x = problem.fit(x0 + rng.normal(0.0, length, x0.shape), 0.0)
+            x = _turn_onto(x, problem.first, problem.src, problem.dst, length * problem.zs)
+            weights = (direction_weight, 0.0)
+        for weight in weights:
+            x = problem.fit(x, weight)
+        if problem.exact(x):
+            found.append((float(np.sum(problem.residual(x, 1.0) ** 2)), x))
+            if attempt == 0 or len(found) == 3:
+                break
+    return found
+
+
 def close_loops(positions: dict[str, np.ndarray], links: list[tuple[str, str, np.ndarray]],
                 length: float, node_radius: float, *, direction_weight: float = 0.01,
                 spacing: float = 0.01, restarts: int = 8) -> dict[str, np.ndarray]:
@@ -165,73 +253,24 @@ def close_loops(positions: dict[str, np.ndarray], links: list[tuple[str, str, np
     """
     names = list(positions)
     index = {n: i for i, n in enumerate(names)}
-    src = np.array([index[s] for s, _, _ in links])
-    dst = np.array([index[t] for _, t, _ in links])
-    zs = np.array([z for _, _, z in links])
-    pairs = np.array([(i, j) for i in range(len(names)) for j in range(i + 1, len(names))],
-                     dtype=int).reshape(-1, 2)
-    first = positions[names[0]]
-
-    def residual(flat: np.ndarray, weight: float) -> np.ndarray:
-        p = np.vstack([first, flat.reshape(-1, 3)])
-        span = p[dst] - p[src]
-        gaps = np.linalg.norm(p[pairs[:, 1]] - p[pairs[:, 0]], axis=1)
-        return np.concatenate([
-            np.linalg.norm(span, axis=1) - length,
-            (weight * (span - length * zs)).ravel(),
-            np.maximum(0.0, 2.0 * node_radius + spacing - gaps),
-        ])
-
-    n_links, n_pairs = len(src), len(pairs)
-
-    def jacobian(flat: np.ndarray, weight: float) -> np.ndarray:
-        p = np.vstack([first, flat.reshape(-1, 3)])
-        span = p[dst] - p[src]
-        unit = span / np.maximum(np.linalg.norm(span, axis=1), 1e-12)[:, None]
-        gap = p[pairs[:, 1]] - p[pairs[:, 0]]
-        dist = np.linalg.norm(gap, axis=1)
-        active = (2.0 * node_radius + spacing - dist > 0)[:, None]
-        push = -(active * gap) / np.maximum(dist, 1e-12)[:, None]
-        jac = np.zeros((n_links * 4 + n_pairs, 3 * len(names)))
-        rows = np.arange(n_links)
-        for node, sign in ((dst, 1.0), (src, -1.0)):
-            for a in range(3):
-                jac[rows, 3 * node + a] += sign * unit[:, a]
-                jac[n_links + 3 * rows + a, 3 * node + a] += sign * weight
-        prow = 4 * n_links + np.arange(n_pairs)
-        for node, sign in ((pairs[:, 1], 1.0), (pairs[:, 0], -1.0)):
-            for a in range(3):
-                jac[prow, 3 * node + a] += sign * push[:, a]
-        return jac[:, 3:]
-
-    def fit(x: np.ndarray, weight: float) -> np.ndarray:
-        return least_squares(residual, x, jac=jacobian, args=(weight,), xtol=1e-12,
-                             ftol=1e-12).x
-
+    problem = _LoopFit(
+        first=positions[names[0]],
+        src=np.array([index[s] for s, _, _ in links]),
+        dst=np.array([index[t] for _, t, _ in links]),
+        zs=np.array([z for _, _, z in links]),
+        pairs=np.array([(i, j) for i in range(len(names)) for j in range(i + 1, len(names))],
+                       dtype=int).reshape(-1, 2),
+        length=length, gap=2.0 * node_radius + spacing)
     x0 = np.array([positions[n] for n in names[1:]]).ravel()
-    if not len(x0) or np.max(np.abs(residual(x0, 0.0))) < 1e-6 * length:
+    if not len(x0) or problem.exact(x0):
         return dict(positions)  # closes already (to the precision of the stored vectors)
-    rng = np.random.default_rng(0)
-    found: list[tuple[float, np.ndarray]] = []
-    for attempt in range(restarts + 1):
-        if attempt == 0:  # continuation: agree with z, then make the lengths exact
-            x, weights = x0, (1.0, 0.3, 0.1, 0.03, direction_weight, 0.0)
-        else:  # a random exact shape, turned (or mirrored) onto z, then polished
-            x = fit(x0 + rng.normal(0.0, length, x0.shape), 0.0)
-            x, weights = _turn_onto(x, first, src, dst, length * zs), (direction_weight, 0.0)
-        for weight in weights:
-            x = fit(x, weight)
-        r = residual(x, 0.0)
-        if np.max(np.abs(r)) < 1e-6 * length:  # lengths exact, no sphere overlaps
-            found.append((float(np.sum(residual(x, 1.0) ** 2)), x))
-            if attempt == 0 or len(found) == 3:
-                break
+    found = _exact_fits(problem, x0, direction_weight, restarts)
     if not found:
         raise ConfigurationError(
             f"the loops of the configuration cannot be closed with struts of length {length} m "
             f"and spheres of radius {node_radius} m that do not overlap")
     x = min(found, key=lambda item: item[0])[1]
-    p = np.vstack([first, x.reshape(-1, 3)])
+    p = np.vstack([problem.first, x.reshape(-1, 3)])
     return {n: p[i] for i, n in enumerate(names)}
 
 
