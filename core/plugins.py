@@ -104,6 +104,7 @@ __all__ = [
     "resolve",
     "robot",
     "robot_clashes",
+    "robot_plugin",
     "robots",
     "scenarios",
     "temporary",
@@ -275,8 +276,8 @@ class _Guard:
         def guard():  # type: ignore[no-untyped-def]
             try:
                 return (yield)
-            except _HookFailed:
-                raise
+            except (_HookFailed, _Failed):
+                raise  # already named (a plugin asking the host about another's failure)
             except Exception as exc:  # noqa: BLE001 - every failure is named, then raised
                 impls = [i for i in getattr(pm.hook, hook).get_hookimpls()
                          if i.plugin_name != _Guard.NAME]
@@ -372,6 +373,12 @@ def register(plugin: object, name: str | None = None, pm: Host | None = None) ->
             not left half-registered.
     """
     pm = pm or get_plugin_manager()
+    try:
+        hash(plugin)
+    except TypeError:
+        raise PluginError(f"a {type(plugin).__name__} cannot be a plugin (the host asks each "
+                          "plugin alone, by identity): register a module or an object of "
+                          "a class") from None
     try:
         pm.register(plugin, name=name)
     except (pluggy.PluginValidationError, ValueError) as exc:
@@ -487,6 +494,12 @@ def _owner(name: str) -> str:
             raise PluginError(f"{error}; {'; '.join(map(str, found.failures))}")
         raise error
     return claims[0][0]
+
+
+def robot_plugin(name: str) -> object:
+    """The plugin (module or object) that describes robot ``name`` (raises as
+    :func:`_owner`)."""
+    return get_plugin_manager().get_plugin(_owner(name))
 
 
 def robot(name: str) -> RobotSpec:

@@ -49,6 +49,7 @@ import numpy as np
 
 from .. import plugins
 from ..actions import topology_diff
+from ..capabilities import Capabilities, Planner
 from ..configuration import Configuration
 from ..driver import ModuleCommand
 from ..errors import MsrrError, PlanningError
@@ -59,7 +60,7 @@ from ..io import check_configuration, dump_configuration, parse_configuration
 from ..kinematics import Evaluator, KinematicNode, KinematicTree, tree_vectors
 from ..matching import Candidate, match
 from ..plan import Plan
-from ..robot import RobotSpec
+from ..robot import Robot, RobotSpec
 
 __all__ = [
     "ConformanceError",
@@ -127,14 +128,15 @@ def run_kinematic(plan: Plan, spec: RobotSpec, *, rate: float = 10.0,
     with driver or KinematicDriver(spec) as world:
         world.reset(plan.start)
         executor = Executor(run, world, LatchRecognizer(spec), LatchController(spec),
-                            ExecutorOptions(rate=rate, action_timeout=action_timeout))
+                            ExecutorOptions(rate=rate, action_timeout=action_timeout),
+                            sink=plugins.emit)
         return executor.execute()
 
 
 def shipped_configurations(name: str) -> list[Path]:
     """The configuration files robot ``name`` ships (see the module docstring), sorted."""
     found = set()
-    for scenario in plugins.scenarios(name).values():
+    for scenario in plugins.capabilities(name).scenarios.values():
         found |= {Path(scenario.start)} | {Path(s.goal) for s in scenario.all_stages()
                                             if s.goal is not None}
     for folder in _config_folders(name):
@@ -149,18 +151,13 @@ def shipped_configurations(name: str) -> list[Path]:
 
 
 def _config_folders(name: str) -> list[Path]:
-    folders = []
-    for impl in plugins.get_plugin_manager().hook.msrr_robot.get_hookimpls():
-        spec = impl.function()
-        if not (isinstance(spec, RobotSpec) and spec.name == name):
-            continue
-        plugin = impl.plugin
-        module = inspect.getmodule(plugin) if inspect.ismodule(plugin) else \
-            inspect.getmodule(type(plugin))
-        source = getattr(module, "__file__", None)
-        if source:
-            folders.append(Path(source).parent / "configs")
-    return [f for f in folders if f.is_dir()]
+    """``configs/`` beside the module of the plugin that describes robot ``name``."""
+    plugin = plugins.robot_plugin(name)
+    module = inspect.getmodule(plugin) if inspect.ismodule(plugin) else \
+        inspect.getmodule(type(plugin))
+    source = getattr(module, "__file__", None)
+    folder = Path(source).parent / "configs" if source else None
+    return [folder] if folder is not None and folder.is_dir() else []
 
 
 def replay_problems(plan: Plan) -> list[str]:
@@ -256,14 +253,33 @@ def check_robot(name: str, *, run: bool = True, all_pairs: bool = False,
         rate: control rate [Hz] of those runs.
 
     Raises:
-        ConformanceError: listing every failed check, with the file and the reason.
+        ConformanceError: the robot cannot be resolved (naming the plugin that fails), or
+            listing every failed check, with the file and the reason.
     """
     report = ConformanceReport(name, fail_fast=fail_fast)
-    robot = plugins.resolve(name)
+    try:
+        capabilities = plugins.capabilities(name)
+    except MsrrError as exc:
+        raise ConformanceError(f"robot {name!r} cannot be resolved: {exc}") from None
     files = shipped_configurations(name)
     if not files:
         raise ConformanceError(f"robot {name!r} ships no configuration: register a scenario or "
                                "put files in a configs/ folder beside its plugin module")
+    configs = _check_files(report, capabilities, files)
+    plans = _check_plans(report, capabilities.planner(), configs, all_pairs)
+    if run:
+        _check_runs(report, capabilities.robot, configs, plans, rate)
+    if report.failures:
+        raise ConformanceError(f"robot {name!r} fails {len(report.failures)} check(s):\n  "
+                               + "\n  ".join(report.failures))
+    return report
+
+
+def _check_files(report: ConformanceReport, capabilities: Capabilities,
+                 files: list[Path]) -> dict[str, Configuration]:
+    """Checks 1-3 on every shipped file: load, validate, round trip, match itself, each
+    planner plans it to itself with no action. Returns the loaded ones by file name."""
+    robot = capabilities.robot
     configs: dict[str, Configuration] = {}
     for path in files:
         config = report.check(f"{path.name}: load", lambda p=path: plugins.load_configuration(p))
@@ -273,10 +289,17 @@ def check_robot(name: str, *, run: bool = True, all_pairs: bool = False,
         report.check(f"{path.name}: validate", lambda c=config: check_configuration(c, robot))
         report.check(f"{path.name}: JSON round trip", lambda c=config: _round_trip(c))
         report.check(f"{path.name}: match itself", lambda c=config: _self_match(c, robot))
-        for planner_name, planner in plugins.planners(name).items():
+        for planner_name, planner in capabilities.planners.items():
             report.check(f"{path.name}: planner {planner_name} to itself",
                          lambda c=config, p=planner: _zero_plan(p.plan(c, c)))
-    planner = plugins.planners.get(name)
+    return configs
+
+
+def _check_plans(report: ConformanceReport, planner: Planner,
+                 configs: dict[str, Configuration], all_pairs: bool
+                 ) -> list[tuple[str, Plan]]:
+    """Check 4: the default planner's plans between files of the same module counts (each
+    to the next of its counts, or every pair) replay. Returns the plans made."""
     plans: list[tuple[str, Plan]] = []
     same: dict[tuple, list[str]] = {}
     for label, config in configs.items():
@@ -295,37 +318,39 @@ def check_robot(name: str, *, run: bool = True, all_pairs: bool = False,
                 report.declined.append(f"plan {a} -> {b} ({planner.name}): {exc}")
                 continue
             except MsrrError as exc:
-                report.fail(f"plan {a} -> {b} ({planner.name}): "
-                                       f"{type(exc).__name__}: {exc}")
+                report.fail(f"plan {a} -> {b} ({planner.name}): {type(exc).__name__}: {exc}")
                 continue
             if isinstance(plan, Plan):
                 plans.append((f"{a} -> {b}", plan))
                 problems = replay_problems(plan)
                 if problems:
                     report.fail(f"plan {a} -> {b} ({planner.name}) does not replay: "
-                                           + "; ".join(problems))
+                                + "; ".join(problems))
                 else:
                     report.passed.append(f"plan {a} -> {b} ({planner.name}) replays")
-    if run:
-        for label, config in configs.items():
-            report.check(f"{label}: run to itself in the kinematic driver",
-                         lambda c=config: _succeeds(run_kinematic(
-                             Plan(name, "conformance", c, c, []), robot.spec, rate=rate)))
-        struts = bool(robot.spec.kinds_with_role("edge"))
-        for label, plan in plans:
-            if struts and any(a.changes for a in plan.actions):
-                report.skipped.append(f"run {label}: the kinematic driver does not dock the ends "
-                                      "of connections that are modules")
-                continue
-            report.check(f"run {label} in the kinematic driver",
-                         lambda p=plan: _succeeds(run_kinematic(
-                             p, robot.spec, rate=rate,
-                             driver=KinematicDriver(robot.spec, speed=CHECK_SPEED,
-                                                    turn_rate=CHECK_TURN_RATE))))
-    if report.failures:
-        raise ConformanceError(f"robot {name!r} fails {len(report.failures)} check(s):\n  "
-                               + "\n  ".join(report.failures))
-    return report
+    return plans
+
+
+def _check_runs(report: ConformanceReport, robot: Robot, configs: dict[str, Configuration],
+                plans: list[tuple[str, Plan]], rate: float) -> None:
+    """Check 5: every file runs to itself, and every plan runs, in the kinematic driver
+    (plans that dock the ends of edge modules are skipped: it does not dock them)."""
+    spec = robot.spec
+    for label, config in configs.items():
+        report.check(f"{label}: run to itself in the kinematic driver",
+                     lambda c=config: _succeeds(run_kinematic(
+                         Plan(spec.name, "conformance", c, c, []), spec, rate=rate)))
+    struts = bool(spec.kinds_with_role("edge"))
+    for label, plan in plans:
+        if struts and any(a.changes for a in plan.actions):
+            report.skipped.append(f"run {label}: the kinematic driver does not dock the ends "
+                                  "of connections that are modules")
+            continue
+        report.check(f"run {label} in the kinematic driver",
+                     lambda p=plan: _succeeds(run_kinematic(
+                         p, spec, rate=rate,
+                         driver=KinematicDriver(spec, speed=CHECK_SPEED,
+                                                turn_rate=CHECK_TURN_RATE))))
 
 
 def _round_trip(config: Configuration) -> None:

@@ -255,21 +255,53 @@ class Claimer:
 
 
 @pytest.mark.parametrize(("plugin", "reason"), [
-    (Raising(), "msrr_robot raised RuntimeError: boom"),
-    (Stringly(), "msrr_robot returned str, expected one RobotSpec or None"),
+    (Raising(), "msrr_robot: RuntimeError: boom"),
+    (Stringly(), "msrr_robot: returned str, expected one RobotSpec or None"),
 ])
-def test_a_plugin_that_breaks_msrr_robot_is_disabled_and_named(tiny, tmp_path: Path, plugin,
-                                                                reason: str) -> None:
+def test_a_plugin_that_breaks_msrr_robot_is_named(tiny, tmp_path: Path, plugin,
+                                                  reason: str) -> None:
     path = _good(tmp_path)
     with plugins.temporary(plugin, "broken"):
-        assert NAME in plugins.robots()  # the others keep working
+        assert NAME in plugins.robots()  # the robots of the others keep working
         assert plugins.load_configuration(path).robot == NAME
         result = run("plugins")
         assert result.exit_code == 0
-        assert f"plugin 'broken' (registered in code, test_bad_input) disabled: {reason}" \
-            in result.output
+        assert f"plugin 'broken' (registered in code, test_bad_input) failed in {reason}" \
+            in " ".join(result.output.split())
         assert run("robots").exit_code == 0 and run("validate", str(path)).exit_code == 0
     assert plugins.problems() == []
+
+
+class BrokenRules:
+    @hookimpl
+    def msrr_docking_rules(self, robot):
+        raise RuntimeError("rules table missing")
+
+
+def test_a_plugin_whose_docking_rules_raise_makes_every_command_on_its_robot_refuse(
+        tiny, tmp_path: Path) -> None:
+    """Never "valid" under permissive rules, never "unknown robot": one line naming the
+    plugin, where it came from, the hook and the exception; ``platform plugins`` says so."""
+    path = _good(tmp_path)
+    line = ("plugin 'rules' (registered in code, test_bad_input) failed in msrr_docking_rules "
+            "for robot 'tiny': RuntimeError: rules table missing")
+    with plugins.temporary(BrokenRules(), "rules"):
+        result = run("validate", str(path))
+        assert result.exit_code != 0 and line in result.output
+        assert "Traceback" not in result.output and "valid" not in result.output.replace(
+            "invalid", "")
+        for args in (("run", "--robot", NAME, "--from", str(path), "--to", str(path),
+                      "--out", str(tmp_path / "run")),
+                     ("plan", "--robot", NAME, str(path), str(path))):
+            refused = run(*args)
+            assert refused.exit_code != 0 and line in " ".join(refused.output.split()), args
+        assert not (tmp_path / "run").exists()
+        listed = run("plugins").output
+        assert "failed: msrr_docking_rules" in listed and f"failed {line}" in listed
+        from msrr.core.app.testing import ConformanceError, check_robot
+        with pytest.raises(ConformanceError, match="cannot be resolved: plugin 'rules'"):
+            check_robot(NAME)
+    assert run("validate", str(path)).exit_code == 0
 
 
 def test_two_plugins_describing_one_robot_refuse_only_that_robot(tiny, tmp_path: Path) -> None:

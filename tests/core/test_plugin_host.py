@@ -41,6 +41,7 @@ from msrr.core import (
     hookspecs,
     plugins,
 )
+from msrr.core.driver import Companions
 from msrr.core.events import ActionStatus, Run, RunResult, Tick, TopologyEvent
 from msrr.core.executor import Executor
 from msrr.core.plan import Action
@@ -126,15 +127,17 @@ def test_hook_msrr_robot(tiny) -> None:
         def msrr_robot(self):
             return [RobotSpec("one", "One", ()), RobotSpec("two", "Two", ())]
 
-    with plugins.temporary(Several(), "several"):  # disabled and named; the others work
+    with plugins.temporary(Several(), "several"):  # named; the robots of others still work
         assert NAME in plugins.robots() and "one" not in plugins.robots()
         assert [str(p) for p in plugins.problems()] == [
-            "plugin 'several' (registered in code, test_plugin_host) disabled: msrr_robot "
+            "plugin 'several' (registered in code, test_plugin_host) failed in msrr_robot: "
             "returned list, expected one RobotSpec or None (one entry point per robot)"]
+        with pytest.raises(PluginError, match=r"unknown robot 'one' .*plugin 'several'"):
+            plugins.robot("one")  # the robot it may have meant: the failure is said
     assert plugins.problems() == []
 
 
-def test_a_register_hook_that_raises_loses_what_it_registered(tiny, tmp_path: Path) -> None:
+def test_a_register_hook_that_raises_makes_its_robot_refuse(tiny, tmp_path: Path) -> None:
     class Good:
         @hookimpl
         def msrr_libraries(self, robot, register):
@@ -146,12 +149,16 @@ def test_a_register_hook_that_raises_loses_what_it_registered(tiny, tmp_path: Pa
             register(tmp_path / "dropped.json")
             raise RuntimeError("library index unreadable")
 
+    line = ("plugin 'broken' (registered in code, test_plugin_host) failed in msrr_libraries "
+            "for robot 'tiny': RuntimeError: library index unreadable")
     with plugins.temporary(Good(), "good"), plugins.temporary(Broken(), "broken"):
-        assert plugins.libraries(NAME) == [tmp_path / "kept.json"]
-        assert [str(p) for p in plugins.problems()] == [
-            "plugin 'broken' (registered in code, test_plugin_host) disabled: msrr_libraries "
-            "raised RuntimeError: library index unreadable"]
+        for lookup in (plugins.libraries, plugins.resolve, plugins.planners, plugins.drivers):
+            with pytest.raises(PluginError) as info:
+                lookup(NAME)
+            assert str(info.value) == line  # never the other plugins' items alone
+        assert [str(p) for p in plugins.problems()] == [line]
     assert plugins.problems() == []
+    assert plugins.libraries(NAME) == []  # the cache was cleared with the plugins
 
 
 def test_hook_msrr_docking_rules(tiny) -> None:
@@ -165,6 +172,25 @@ def test_hook_msrr_docking_rules(tiny) -> None:
     with plugins.temporary(RobotOnly()):
         assert type(plugins.docking_rules("bare")) is DockingRules  # permissive default
 
+    class Raising:
+        @hookimpl
+        def msrr_docking_rules(self, robot):
+            raise RuntimeError("rules table missing")
+
+    class Wrong:
+        @hookimpl
+        def msrr_docking_rules(self, robot):
+            return "strict"
+
+    for plugin, reason in ((Raising(), "RuntimeError: rules table missing"),
+                           (Wrong(), "returned str, expected DockingRules or None")):
+        with plugins.temporary(plugin, "rules"):  # refused, never relaxed to the default
+            with pytest.raises(PluginError, match=f"plugin 'rules' .* failed in "
+                               f"msrr_docking_rules for robot 'tiny': {reason}"):
+                plugins.resolve(NAME)
+            with pytest.raises(PluginError, match="msrr_docking_rules"):
+                plugins.docking_rules(NAME)
+
 
 def test_hook_msrr_kinematic_nodes(tiny) -> None:
     assert plugins.kinematic_nodes(NAME) == {"tiny_hinge": Hinge}
@@ -175,10 +201,11 @@ def test_hook_msrr_kinematic_nodes(tiny) -> None:
         def msrr_kinematic_nodes(self, robot, register):
             register(SimpleNamespace(name="wobble"))
 
-    with plugins.temporary(NotANode()):
-        assert plugins.kinematic_nodes(NAME) == {"tiny_hinge": Hinge}
-        assert "msrr_kinematic_nodes raised PluginError: msrr_kinematic_nodes: joint mode " \
-            "'wobble' is not a subclass of KinematicNode" in str(plugins.problems()[0])
+    with plugins.temporary(NotANode(), "nodes"):
+        with pytest.raises(PluginError, match="plugin 'nodes' .* failed in msrr_kinematic_nodes "
+                           "for robot 'tiny': PluginError: joint mode 'wobble' is not a "
+                           "subclass of KinematicNode"):
+            plugins.kinematic_nodes(NAME)
 
 
 def test_hook_msrr_controllers(tiny) -> None:
@@ -217,9 +244,10 @@ def test_items_that_do_not_fit_the_capability_are_refused(tiny) -> None:
         def msrr_planners(self, robot, register):
             register(SimpleNamespace(name="nap", description="no plan method"))
 
-    with plugins.temporary(Shapeless()):
-        assert "nap" not in plugins.planners(NAME) and "line" in plugins.planners(NAME)
-        assert "msrr_planners: planner 'nap' is not Planner" in str(plugins.problems()[0])
+    with plugins.temporary(Shapeless(), "shapeless"):
+        with pytest.raises(PluginError, match="plugin 'shapeless' .* failed in msrr_planners "
+                           "for robot 'tiny': PluginError: planner 'nap' is not Planner"):
+            plugins.planners(NAME)
 
 
 def test_hook_msrr_drivers(tiny) -> None:
@@ -234,6 +262,8 @@ class _OtherDriver:
 
     name = "other"
     description = "a driver another plugin adds"
+    companions = Companions()
+    layout = None
 
     def __call__(self, **options: object) -> PointDriver:
         return PointDriver(**options)
@@ -328,8 +358,10 @@ def test_duplicate_names_are_refused(tiny) -> None:
             if robot == NAME:
                 register(LinePlanner())
 
-    with plugins.temporary(Twin(), "twin"):  # the later registered one is disabled
-        assert plugins.planners(NAME)["line"] is not None
+    with plugins.temporary(Twin(), "twin"):  # the robot refuses, naming the intruder
+        with pytest.raises(PluginError, match="plugin 'twin' .* registered a planner named "
+                           "'line' that plugin 'tiny-robot' registers too"):
+            plugins.planners(NAME)
         problem = plugins.problems()[0]
         assert problem.plugin == "twin" and "named 'line'" in problem.reason
 
@@ -356,6 +388,18 @@ def test_wrong_signature_is_refused() -> None:
         plugins.register(Wrong(), "wrong")
 
 
+class _Plugin:
+    """A plugin object with the given attributes (hashable, as every plugin must be)."""
+
+    def __init__(self, **hooks: object):
+        vars(self).update(hooks)
+
+
+def test_an_unhashable_plugin_is_refused_in_one_line() -> None:
+    with pytest.raises(PluginError, match="a SimpleNamespace cannot be a plugin"):
+        plugins.register(SimpleNamespace(msrr_robot=hookimpl(lambda: SPEC)), "ns")
+
+
 class _EntryPoint:
     def __init__(self, name: str, target):
         self.name = name
@@ -369,7 +413,7 @@ class _EntryPoint:
 
 
 def test_broken_plugins_are_reported_and_others_still_load(monkeypatch) -> None:
-    good = SimpleNamespace(msrr_robot=hookimpl(lambda: SPEC))
+    good = _Plugin(msrr_robot=hookimpl(lambda: SPEC))
 
     class Misspelled:
         @hookimpl
@@ -389,12 +433,12 @@ def test_broken_plugins_are_reported_and_others_still_load(monkeypatch) -> None:
 
 
 def test_a_plugin_whose_hook_raises_is_named_by_its_entry_point(monkeypatch) -> None:
-    good = SimpleNamespace(msrr_robot=hookimpl(lambda: SPEC))
+    good = _Plugin(msrr_robot=hookimpl(lambda: SPEC))
 
     def explode():
         raise ValueError("no robot today")
 
-    bad = SimpleNamespace(msrr_robot=hookimpl(explode))
+    bad = _Plugin(msrr_robot=hookimpl(explode))
     monkeypatch.setattr(plugins, "entry_points",
                         lambda group: [_EntryPoint("good", good), _EntryPoint("exploding", bad)])
     monkeypatch.delenv("MSRR_LOAD_PLUGINS", raising=False)
@@ -402,16 +446,16 @@ def test_a_plugin_whose_hook_raises_is_named_by_its_entry_point(monkeypatch) -> 
     monkeypatch.setattr(plugins, "_pm", pm)
     assert errors == [] and list(plugins.robots()) == [NAME]  # the good one still works
     assert [str(p) for p in plugins.problems()] == [
-        "plugin 'exploding' (msrr.plugins: exploding = fake:exploding) disabled: msrr_robot "
-        "raised ValueError: no robot today"]
+        "plugin 'exploding' (msrr.plugins: exploding = fake:exploding) failed in msrr_robot: "
+        "ValueError: no robot today"]
 
 
 def test_msrr_load_plugins_restricts_loading(monkeypatch) -> None:
-    points = [_EntryPoint("a", SimpleNamespace()), _EntryPoint("b", SimpleNamespace())]
+    points = [_EntryPoint("a", _Plugin()), _EntryPoint("b", _Plugin())]
     monkeypatch.setattr(plugins, "entry_points", lambda group: points)
     monkeypatch.setenv("MSRR_LOAD_PLUGINS", "b")
     pm, errors = plugins.create_plugin_manager()
-    assert [name for name, _ in pm.list_name_plugin()] == ["b"] and errors == []
+    assert [name for name, _ in pm.list_name_plugin()] == ["msrr.host", "b"] and errors == []
 
 
 def test_installed_plugins_load_without_errors() -> None:
