@@ -201,11 +201,10 @@ def test_hook_msrr_kinematic_nodes(tiny) -> None:
         def msrr_kinematic_nodes(self, robot, register):
             register(SimpleNamespace(name="wobble"))
 
-    with plugins.temporary(NotANode(), "nodes"):
-        with pytest.raises(PluginError, match="plugin 'nodes' .* failed in msrr_kinematic_nodes "
-                           "for robot 'tiny': PluginError: joint mode 'wobble' is not a "
-                           "subclass of KinematicNode"):
-            plugins.kinematic_nodes(NAME)
+    refused = ("plugin 'nodes' .* failed in msrr_kinematic_nodes for robot 'tiny': "
+               "PluginError: joint mode 'wobble' is not a subclass of KinematicNode")
+    with plugins.temporary(NotANode(), "nodes"), pytest.raises(PluginError, match=refused):
+        plugins.kinematic_nodes(NAME)
 
 
 def test_hook_msrr_controllers(tiny) -> None:
@@ -244,10 +243,10 @@ def test_items_that_do_not_fit_the_capability_are_refused(tiny) -> None:
         def msrr_planners(self, robot, register):
             register(SimpleNamespace(name="nap", description="no plan method"))
 
-    with plugins.temporary(Shapeless(), "shapeless"):
-        with pytest.raises(PluginError, match="plugin 'shapeless' .* failed in msrr_planners "
-                           "for robot 'tiny': PluginError: planner 'nap' is not Planner"):
-            plugins.planners(NAME)
+    refused = ("plugin 'shapeless' .* failed in msrr_planners for robot 'tiny': "
+               "PluginError: planner 'nap' is not Planner")
+    with plugins.temporary(Shapeless(), "shapeless"), pytest.raises(PluginError, match=refused):
+        plugins.planners(NAME)
 
 
 def test_hook_msrr_drivers(tiny) -> None:
