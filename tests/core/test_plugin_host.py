@@ -479,3 +479,70 @@ def test_configurations_validate_against_their_robot(robot_name: str) -> None:
         with pytest.raises(DockingRuleError, match="unknown module kind 'alien'") as info:
             check_configuration(alien, robot)
         assert info.value.field == "module x1"
+
+
+# -- resolved once ---------------------------------------------------------------------
+
+
+CAPABILITY_HOOKS = ("msrr_docking_rules", "msrr_kinematic_nodes", "msrr_controllers",
+                    "msrr_recognizers", "msrr_planners", "msrr_drivers", "msrr_scenarios",
+                    "msrr_libraries")
+
+
+def test_a_run_asks_each_capability_hook_once(tiny, tmp_path: Path) -> None:
+    """One ``prepare_run`` and its run, with a recording: every capability hook is called
+    once for the robot, ``msrr_robot`` once per plugin, and all through pluggy (a hook
+    call monitor sees them)."""
+    from collections import Counter
+
+    from msrr.core.app.run import RunRequest, execute_run, prepare_run
+
+    pm = plugins.get_plugin_manager()
+    calls: Counter[tuple[str, object]] = Counter()
+    undo = pm.add_hookcall_monitoring(
+        lambda hook, impls, kwargs: calls.update([(hook, kwargs.get("robot"))]),
+        lambda outcome, hook, impls, kwargs: None)
+    try:
+        prepared = prepare_run(RunRequest(robot=NAME, out=tmp_path / "run"))
+        result = execute_run(prepared)
+    finally:
+        undo()
+    assert result.success, result.reason
+    describers = [i for i in pm.hook.msrr_robot.get_hookimpls() if not i.wrapper]
+    assert calls[("msrr_robot", None)] == len(describers)
+    assert {hook: calls[(hook, NAME)] for hook in CAPABILITY_HOOKS} == dict.fromkeys(
+        CAPABILITY_HOOKS, 1)
+    assert calls[("msrr_timeline_views", None)] == 1 and calls[("msrr_on_run_end", None)] == 1
+
+
+def test_the_cache_is_cleared_when_a_plugin_comes_or_goes(tiny) -> None:
+    first = plugins.capabilities(NAME)
+    assert plugins.capabilities(NAME) is first  # resolved once
+
+    class Adds:
+        @hookimpl
+        def msrr_planners(self, robot, register):
+            planner = LinePlanner()
+            planner.name = "added"
+            register(planner)
+
+    with plugins.temporary(Adds()):
+        assert "added" in plugins.capabilities(NAME).planners
+    assert "added" not in plugins.capabilities(NAME).planners
+
+
+def test_hook_wrappers_see_capability_calls_and_what_was_registered(tiny) -> None:
+    """A third-party hook wrapper wraps the host's calls (they go through pluggy) and
+    reads ``register.registered`` after its ``yield``."""
+    seen: list[list[str]] = []
+
+    class Watcher:
+        @hookimpl(wrapper=True)
+        def msrr_planners(self, robot, register):
+            answers = yield
+            seen.append([p.name for p in register.registered])
+            return answers
+
+    with plugins.temporary(Watcher()):
+        plugins.planners(NAME)
+    assert seen == [["line", "generic"]]
