@@ -35,15 +35,9 @@ from .configuration import Configuration
 from .driver import Pose
 from .errors import ConfigurationError
 from .events import ShapeErrors
-from .robot import RobotSpec, ShapeTolerance
+from .robot import ShapeTolerance
 
-__all__ = ["fit_planar", "pose_errors", "shape_tolerance", "skeletal_error", "skeletal_errors"]
-
-
-def shape_tolerance(spec: RobotSpec) -> ShapeTolerance | None:
-    """The robot's shape tolerance (``spec.defaults.shape_tolerance``), or ``None`` when
-    it declares none. Checked when the :class:`~msrr.core.robot.RobotDefaults` was built."""
-    return spec.defaults.shape_tolerance
+__all__ = ["fit_planar", "pose_errors", "skeletal_error", "skeletal_errors"]
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:

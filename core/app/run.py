@@ -42,7 +42,7 @@ from ..files import atomic_write_text, check_output_place
 from ..interrupts import Interrupted, shielded
 from ..plan import Action, Plan, join_plans, save_plan
 from ..scenario import Scenario, Stage
-from ..shape import pose_errors, shape_tolerance
+from ..shape import pose_errors
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
            "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
@@ -423,7 +423,6 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     notes = check_out_dir(request.out, force=request.force)
     capabilities = plugins.capabilities(request.robot)
     spec = capabilities.robot.spec
-    shape_tolerance(spec)  # a malformed tolerance is refused before the run, not after
     if request.plan is not None:
         if request.start is not None or request.goal is not None or request.scenario:
             raise ConfigurationError("give --plan, --scenario or --from/--to, one of them")
@@ -552,7 +551,7 @@ def _goal_layout(prepared: PreparedRun) -> dict[str, Pose] | None:
 
 def _judge_shape(prepared: PreparedRun, result: RunResult, final: dict[str, Pose]) -> None:
     """Add the final shape errors to ``result``; a run outside the tolerance fails."""
-    tolerance = shape_tolerance(prepared.run.spec)
+    tolerance = prepared.run.spec.defaults.shape_tolerance
     if tolerance is None or not final:
         return
     layout = _goal_layout(prepared)

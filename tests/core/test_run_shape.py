@@ -19,7 +19,7 @@ from msrr.core.app.cli import get_cli
 from msrr.core.driver import Pose
 from msrr.core.errors import ConfigurationError
 from msrr.core.robot import RobotDefaults, RobotSpec, ShapeTolerance
-from msrr.core.shape import fit_planar, pose_errors, shape_tolerance
+from msrr.core.shape import fit_planar, pose_errors
 
 
 def _rot(theta: float) -> np.ndarray:
@@ -67,8 +67,8 @@ def test_the_tolerance_is_read_from_the_spec() -> None:
     tolerance = ShapeTolerance(position=0.02, heading=0.06)
     spec = RobotSpec("r", "R", SPEC.module_kinds,
                      defaults=RobotDefaults(shape_tolerance=tolerance))
-    assert shape_tolerance(SPEC) is None
-    assert shape_tolerance(spec) == tolerance
+    assert SPEC.defaults.shape_tolerance is None
+    assert spec.defaults.shape_tolerance == tolerance
     assert (tolerance.position, tolerance.heading) == (0.02, 0.06)
 
 

@@ -16,7 +16,7 @@ from msrr.core.app.run import RunRequest, execute_run, prepare_run, write_output
 from msrr.core.driver import Pose
 from msrr.core.errors import PlanningError
 from msrr.core.io import load_configuration
-from msrr.core.shape import pose_errors, shape_tolerance
+from msrr.core.shape import pose_errors
 from msrr.plugins.mmrp.representation import layout
 from msrr.plugins.mmrp.sim import MmrpSimDriver
 
@@ -52,7 +52,7 @@ def test_the_simulator_lays_out_a_goal_as_the_grid_representation_does(name: str
         driver.reset(config)
         placed = dict(driver.get_observation().poses)
     grid = {m: Pose.planar(x, y, yaw) for m, (x, y, yaw) in layout(config).items()}
-    errors = pose_errors(placed, grid, shape_tolerance(plugins.robot("mmrp")))
+    errors = pose_errors(placed, grid, plugins.robot("mmrp").defaults.shape_tolerance)
     assert errors.max_position < 1e-6 and errors.max_heading < 1e-6
 
 
