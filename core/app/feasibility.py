@@ -194,6 +194,6 @@ def check_library(library: Library, runner: EdgeRunner, *, digest: str,
 
 def default_runner(robot_name: str, **settings: object) -> EdgeRunner:
     """An :class:`EdgeRunner` with the robot's first driver, recognizer and controller."""
-    robot = plugins.resolve(robot_name)
-    return EdgeRunner(robot, plugins.drivers.get(robot_name), plugins.recognizers.get(robot_name),
-                      plugins.controllers.get(robot_name), **settings)  # type: ignore[arg-type]
+    capabilities = plugins.capabilities(robot_name)
+    return EdgeRunner(capabilities.robot, capabilities.driver(), capabilities.recognizer(),
+                      capabilities.controller(), **settings)  # type: ignore[arg-type]
