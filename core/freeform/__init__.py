@@ -4,9 +4,12 @@ robot's simulation stands on.
 
 * :mod:`.miso` -- MISO connection planning (the ``miso`` and ``miso-exact`` planners),
   pure: numpy and scipy, no simulator;
+* :mod:`.design` -- a single-connector robot's description (:func:`freeform_robot`,
+  read from its ``robot.json``) and its module's design in the simulator
+  (:class:`ModuleDesign`);
 * :mod:`.plugin` -- :class:`FreeformPlugin`, the hook implementations of a
-  single-connector robot, built from its robot description, joint modes, module design
-  and scenarios; imports nothing heavy, so a robot's plugin module stays cheap to load;
+  single-connector robot, built from its description, joint modes, module design and
+  scenarios; imports nothing heavy, so a robot's plugin module stays cheap to load;
 * :mod:`.mujoco` -- what every MuJoCo freeform world shares (FreeSN's too): the step
   loop, switched weld equalities for docking, the ground, seeded sensor noise, headings
   (:class:`MujocoWorld`), and the driver over such a world (:class:`MujocoDriver`);
@@ -27,9 +30,11 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from .design import ModuleDesign, freeform_robot, read_freeform_robot
     from .driver import FreeformDriver, FreeformDriverFactory
     from .miso import MISO_EXACT, MisoPlanner, plan_miso
     from .mujoco import MujocoDriver, MujocoOptions, MujocoWorld, SensorNoise, Switches
+    from .plugin import FreeformPlugin
     from .recognition import (
         ContactController,
         ContactRecognizer,
@@ -39,14 +44,7 @@ if TYPE_CHECKING:
         links_of,
         module_headings,
     )
-    from .world import (
-        ConstraintEvent,
-        FreeformOptions,
-        FreeformWorld,
-        ModuleDesign,
-        ModuleReport,
-        place,
-    )
+    from .world import ConstraintEvent, FreeformOptions, FreeformWorld, ModuleReport, place
 
 _WHERE = {
     "ConstraintEvent": "world",
@@ -55,10 +53,11 @@ _WHERE = {
     "FreeformDriver": "driver",
     "FreeformDriverFactory": "driver",
     "FreeformOptions": "world",
+    "FreeformPlugin": "plugin",
     "FreeformWorld": "world",
     "MISO_EXACT": "miso",
     "MisoPlanner": "miso",
-    "ModuleDesign": "world",
+    "ModuleDesign": "design",
     "ModuleReport": "world",
     "MujocoDriver": "mujoco",
     "MujocoOptions": "mujoco",
@@ -67,11 +66,13 @@ _WHERE = {
     "Switches": "mujoco",
     "common_turn": "recognition",
     "flow_direction": "recognition",
+    "freeform_robot": "design",
     "goal_side": "recognition",
     "links_of": "recognition",
     "module_headings": "recognition",
     "place": "world",
     "plan_miso": "miso",
+    "read_freeform_robot": "design",
 }
 """Public name -> the submodule that defines it."""
 
@@ -82,6 +83,7 @@ __all__ = [
     "FreeformDriver",
     "FreeformDriverFactory",
     "FreeformOptions",
+    "FreeformPlugin",
     "FreeformWorld",
     "MISO_EXACT",
     "MisoPlanner",
@@ -94,11 +96,13 @@ __all__ = [
     "Switches",
     "common_turn",
     "flow_direction",
+    "freeform_robot",
     "goal_side",
     "links_of",
     "module_headings",
     "place",
     "plan_miso",
+    "read_freeform_robot",
 ]
 
 

@@ -26,10 +26,11 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..configuration import Configuration
-from ..driver import ModuleCommand
+from ..driver import Companions, DriverFactory, ModuleCommand
 from ..errors import ExecutionError
+from .design import ModuleDesign
 from .mujoco import MujocoDriver
-from .world import FreeformOptions, FreeformWorld, ModuleDesign
+from .world import FreeformOptions, FreeformWorld
 
 __all__ = ["FreeformDriver", "FreeformDriverFactory"]
 
@@ -115,11 +116,15 @@ class FreeformDriverFactory:
         design: the robot's module.
         description: the driver's line in ``platform robots``.
         name: its name.
+        companions: its recognizer and controller (``None``: the robot's defaults).
+        layout: ``None``: the driver lays out a goal itself.
     """
 
     design: ModuleDesign
     description: str
     name: str = "mujoco"
+    companions: Companions = Companions()
+    layout: DriverFactory | None = None
 
     def __call__(self, **options: Any) -> FreeformDriver:
         """A driver of ``design`` (``options`` as :class:`FreeformDriver`'s keywords)."""

@@ -60,7 +60,7 @@ from ..alignment import rot_z
 from ..configuration import Configuration
 from ..errors import ExecutionError
 from ..kinematics.rotations import rotation_between
-from ..robot import RobotSpec
+from .design import ModuleDesign
 from .mujoco import (
     GROUND_FRICTION,
     WELD_SOLIMP,
@@ -75,8 +75,7 @@ from .mujoco import (
     quat_mul,
 )
 
-__all__ = ["ConstraintEvent", "FreeformOptions", "FreeformWorld", "ModuleDesign",
-           "ModuleReport", "place"]
+__all__ = ["ConstraintEvent", "FreeformOptions", "FreeformWorld", "ModuleReport", "place"]
 
 _ARMATURE = 1e-3      # drive motor rotors reflected through the gearbox [kg m^2]
 _FOOT_MASS = 0.005    # [kg]
@@ -90,47 +89,6 @@ _ROLL_SPEED_GAIN = 5.0  # pendulum drive: lead angle per speed error [rad / (m/s
 _ROLL_TILT = 0.5        # largest lead angle of the hanging magnet unit [rad]
 _ROLL_KP = 0.1          # its angle loop [N m / rad]
 _ROLL_KD = 0.005        # [N m s / rad]
-
-
-@dataclass(frozen=True)
-class ModuleDesign:
-    """The physical module of one robot.
-
-    Attributes:
-        robot: robot name. kind: module kind name. radius: shell radius [m]. mass: whole module [kg].
-        connector_mass: the connector body (magnet and drive, FreeBOT) [kg].
-        max_rate: fastest turn about the parent's centre [rad/s].
-        max_torque: drive torque limit [N m].
-        bearing: the connector turns freely inside the shell (FreeBOT).
-        sucker: the module has a vacuum sucker (SnailBot).
-        rgba: shell colour.
-    """
-
-    robot: str
-    kind: str
-    radius: float
-    mass: float
-    connector_mass: float
-    max_rate: float
-    max_torque: float
-    bearing: bool
-    sucker: bool
-    rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)
-
-    @classmethod
-    def from_spec(cls, spec: RobotSpec, kind: str, *, bearing: bool, sucker: bool,
-                  rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)
-                  ) -> ModuleDesign:
-        """Read ``radius``, ``mass``, ``connector_mass``, ``max_speed`` and ``max_torque``
-        from the kind's geometry; an error names the missing key."""
-        geometry = spec.kind(kind).geometry
-        for key in ("radius", "mass", "connector_mass", "max_speed", "max_torque"):
-            if key not in geometry:
-                raise ExecutionError(f"robot {spec.name!r}: module kind {kind!r} has no "
-                                     f"geometry {key!r}, which the MuJoCo world needs")
-        g = {k: float(v) for k, v in geometry.items()}
-        return cls(spec.name, kind, g["radius"], g["mass"], g["connector_mass"], g["max_speed"],
-                   g["max_torque"], bearing, sucker, rgba)
 
 
 @dataclass(frozen=True, kw_only=True)

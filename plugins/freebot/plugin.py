@@ -1,89 +1,27 @@
-"""Hook implementations of the FreeBOT robot plugin.
+"""Hook implementations of the FreeBOT robot plugin: the single-connector family's
+(:class:`msrr.core.freeform.FreeformPlugin`) with FreeBOT's parts -- ``robot.json``,
+the rolling-contact joint (``joints``) and the row-to-star scenarios (``scenarios``).
 
-Loaded by the command line on every ``--help``: the module imports only the hook
-marker; each hook imports what it answers with (the robot, its rules, joints, planners).
+In the simulator a FreeBOT is a steel shell around a magnet and drive unit that turns
+freely inside it (``bearing``): docked on another module, the drive turns the module
+about that module's centre while the magnet stays pointed at it -- the SRC joint's
+motion (:class:`~msrr.plugins.freebot.joints.RollingContactJoint`); a flow slides the
+magnet over the seam onto a neighbouring sphere, and a free FreeBOT rolls on the ground.
+
+Loaded by the command line on every ``--help``: the module imports only the factory;
+each hook imports what it answers with when it is called.
 """
 
 from __future__ import annotations
 
-from msrr.core import hookimpl
+from msrr.core.freeform.plugin import FreeformPlugin
 
+__all__ = ["plugin"]
 
-@hookimpl
-def msrr_robot():
-    from .robot import SPEC
+plugin = FreeformPlugin(
+    __name__, bearing=True, rgba=(0.62, 0.64, 0.7, 1.0),
+    driver_description="MuJoCo: steel spheres, magnets on a drive about the parent's centre, welds")
+"""The plugin; its hooks are this module's too, so the entry point may name either
+(``msrr.plugins.freebot.plugin`` or ``msrr.plugins.freebot.plugin:plugin``)."""
 
-    return SPEC
-
-
-@hookimpl
-def msrr_docking_rules(robot: str):
-    from msrr.core.robot import MisoRules
-
-    from .robot import SPEC
-
-    return MisoRules(SPEC.name) if robot == SPEC.name else None
-
-
-@hookimpl
-def msrr_kinematic_nodes(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .joints import JOINT_MODES
-
-        for node_type in JOINT_MODES:
-            register(node_type)
-
-
-@hookimpl
-def msrr_planners(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from msrr.core.freeform.miso import MISO_EXACT, MisoPlanner
-
-        register(MisoPlanner())
-        register(MISO_EXACT)
-
-
-@hookimpl
-def msrr_drivers(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .sim import DRIVER
-
-        register(DRIVER)
-
-
-@hookimpl
-def msrr_recognizers(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .sim import recognizer
-
-        register(recognizer())
-
-
-@hookimpl
-def msrr_controllers(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .sim import controllers
-
-        for controller in controllers():  # one per joint mode, named as its ``controller``
-            register(controller)
-
-
-@hookimpl
-def msrr_scenarios(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .scenarios import SCENARIOS
-
-        for scenario in SCENARIOS:
-            register(scenario)
+globals().update(plugin.hooks())

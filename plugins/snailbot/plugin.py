@@ -1,89 +1,28 @@
-"""Hook implementations of the SnailBot robot plugin.
+"""Hook implementations of the SnailBot robot plugin, built by the freeform family's
+factory (:class:`msrr.core.freeform.FreeformPlugin`) from what is SnailBot's own: its
+module (``robot.json``), the crawling and sucker joints (``joints``) and the chain and
+tree scenarios (``scenarios``).
 
-Loaded by the command line on every ``--help``: the module imports only the hook
-marker; each hook imports what it answers with (the robot, its rules, joints, planners).
+Simulated, a SnailBot's body carries its crawling foot rigidly: docked on a substrate
+it turns about the substrate's centre in all three directions (the spherical joint,
+:class:`~msrr.plugins.snailbot.joints.SphericalJoint`); its vacuum sucker pins the
+contact point, leaving only the turn about the sucker axis
+(:class:`~msrr.plugins.snailbot.joints.SuckerRevoluteJoint`), whose controller engages it.
+
+The command line loads this module on every ``--help``, so it imports the factory alone;
+the hooks import the robot's parts and the simulator when called.
 """
 
 from __future__ import annotations
 
-from msrr.core import hookimpl
+from msrr.core.freeform.plugin import FreeformPlugin
 
+__all__ = ["plugin"]
 
-@hookimpl
-def msrr_robot():
-    from .robot import SPEC
+plugin = FreeformPlugin(
+    __name__, sucker="sucker_revolute", rgba=(0.85, 0.6, 0.25, 1.0),
+    driver_description="MuJoCo: shells with a foot on a drive about the substrate's centre, sucker")
+"""The plugin; its hooks are this module's too, so the entry point may name either
+(``msrr.plugins.snailbot.plugin`` or ``msrr.plugins.snailbot.plugin:plugin``)."""
 
-    return SPEC
-
-
-@hookimpl
-def msrr_docking_rules(robot: str):
-    from msrr.core.robot import MisoRules
-
-    from .robot import SPEC
-
-    return MisoRules(SPEC.name) if robot == SPEC.name else None
-
-
-@hookimpl
-def msrr_kinematic_nodes(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .joints import JOINT_MODES
-
-        for node_type in JOINT_MODES:
-            register(node_type)
-
-
-@hookimpl
-def msrr_planners(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from msrr.core.freeform.miso import MISO_EXACT, MisoPlanner
-
-        register(MisoPlanner())
-        register(MISO_EXACT)
-
-
-@hookimpl
-def msrr_drivers(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .sim import DRIVER
-
-        register(DRIVER)
-
-
-@hookimpl
-def msrr_recognizers(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .sim import recognizer
-
-        register(recognizer())
-
-
-@hookimpl
-def msrr_controllers(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .sim import controllers
-
-        for controller in controllers():  # one per joint mode, named as its ``controller``
-            register(controller)
-
-
-@hookimpl
-def msrr_scenarios(robot: str, register):
-    from .robot import SPEC
-
-    if robot == SPEC.name:
-        from .scenarios import SCENARIOS
-
-        for scenario in SCENARIOS:
-            register(scenario)
+globals().update(plugin.hooks())

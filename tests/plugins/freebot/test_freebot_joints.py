@@ -20,15 +20,6 @@ from msrr_test_support import ROOT
 CHAIN3 = ROOT / "plugins" / "freebot" / "configs" / "chain3.json"
 
 
-def contact(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """A random unit ``z`` and a unit forward vector ``x`` perpendicular to it, (3, 1)."""
-    z = rng.normal(size=3)
-    z /= np.linalg.norm(z)
-    x = rng.normal(size=3)
-    x -= x.dot(z) * z
-    return z[:, None], (x / np.linalg.norm(x))[:, None]
-
-
 def test_freebot_registers_rolling_contact_as_its_default_joint_mode():
     robot = plugins.resolve("freebot")
     assert robot.joint_modes["rolling_contact"] is RollingContactJoint
@@ -36,7 +27,7 @@ def test_freebot_registers_rolling_contact_as_its_default_joint_mode():
 
 
 @pytest.mark.parametrize("ratio", [1.0, 0.6])
-def test_jacobian_matches_central_differences(ratio):
+def test_jacobian_matches_central_differences(ratio, contact):
     rng = np.random.default_rng(11)
     node = RollingContactJoint(["e"], ["F2"], radius_ratio=ratio)
     for scale in (1.0, 1e-2):
@@ -94,7 +85,7 @@ def rolled(u0: np.ndarray, path_axis: np.ndarray, r_parent: float, r_child: floa
 
 
 @pytest.mark.parametrize("r_parent, r_child", [(0.05, 0.05), (0.08, 0.05)])
-def test_forward_kinematics_agrees_with_integrated_pure_rolling(r_parent, r_child):
+def test_forward_kinematics_agrees_with_integrated_pure_rolling(r_parent, r_child, contact):
     rng = np.random.default_rng(5)
     node = RollingContactJoint(["e"], ["F2"], radius_ratio=r_parent / r_child)
     for _ in range(5):
@@ -143,7 +134,7 @@ def test_unequal_spheres_roll_path_dependently_and_compose_leg_by_leg():
     assert not np.allclose(direct, integrated, atol=1e-3)  # non-holonomic
 
 
-def test_rolling_is_the_same_from_either_end_of_the_connection():
+def test_rolling_is_the_same_from_either_end_of_the_connection(contact):
     node = RollingContactJoint(["e"], ["F2"])
     rng = np.random.default_rng(2)
     z, x = contact(rng)

@@ -1,4 +1,5 @@
-"""FreeBOT in the MuJoCo freeform world: building, docking, recognition, rolling, flows.
+"""FreeBOT in the MuJoCo freeform world: docking, recognition, rolling, flows (what every
+single-connector robot shares is in ``tests/plugins/test_freeform_family.py``).
 
 The simulator's own state (body positions, ``data.eq_active``) is the judge; the
 recognizer gets only the module reports.
@@ -9,52 +10,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from msrr.core import plugins
 from msrr.core.actions import topology_diff
 from msrr.core.events import Phase
 from msrr.core.freeform import flow_direction, goal_side
 from msrr.core.io import load_configuration
 from msrr.core.plan import Action, ActionType
 from msrr.core.shape import skeletal_error
-from msrr.plugins.freebot.sim import FreeBOTMujocoDriver, controllers, recognizer
+from msrr.plugins.freebot.plugin import plugin
 
 from msrr_test_support import ROOT
 
 CONFIGS = ROOT / "plugins" / "freebot" / "configs"
 
 
-def _reset(name: str, **options) -> FreeBOTMujocoDriver:
-    driver = FreeBOTMujocoDriver(**options)
-    driver.connect()
-    driver.reset(load_configuration(CONFIGS / f"{name}.json"))
-    return driver
-
-
-def test_freebot_registers_its_simulation():
-    assert plugins.drivers.get("freebot", "mujoco") is FreeBOTMujocoDriver
-    assert plugins.recognizers.get("freebot", "freebot").name == "freebot"
-    assert plugins.controllers.get("freebot", "freebot.rolling_contact").name == \
-        "freebot.rolling_contact"
-
-
-@pytest.mark.parametrize("name", sorted(p.stem for p in CONFIGS.glob("*.json")))
-def test_every_shipped_configuration_builds_and_holds_for_a_second(name):
-    driver = _reset(name)
-    world = driver.world
-    config = load_configuration(CONFIGS / f"{name}.json")
-    driver.step(1.0)
-    assert np.isfinite(world.data.qpos).all()
-    assert world.constraint_residual() < 1e-3                          # [m]
-    assert world.docked_pairs() == {(e.source, e.target) for e in config.edges()}
-    truth = world.ground_truth()
-    assert not topology_diff(truth, config)
-    assert skeletal_error(truth, config) < np.radians(2.0)
-
-
-def test_undock_and_dock_through_the_driver_switch_the_simulators_constraint():
+def test_undock_and_dock_through_the_driver_switch_the_simulators_constraint(mujoco_driver):
     from msrr.core.driver import ModuleCommand
 
-    driver = _reset("line6")
+    driver = mujoco_driver("freebot", "line6")
     world = driver.world
     eq = world.welds.id(("F1", "F2"))
     assert world.data.eq_active[eq] == 1
@@ -67,18 +39,18 @@ def test_undock_and_dock_through_the_driver_switch_the_simulators_constraint():
     assert driver.constraint_events() == {"dock": 1, "undock": 1, "flow": 0}
 
 
-def test_recognizer_rebuilds_the_topology_from_noisy_reports():
-    driver = _reset("star6-flat", noise=np.radians(1.0), seed=3)
+def test_recognizer_rebuilds_the_topology_from_noisy_reports(mujoco_driver):
+    driver = mujoco_driver("freebot", "star6-flat", noise=np.radians(1.0), seed=3)
     config = load_configuration(CONFIGS / "star6-flat.json")
     reports = driver.get_observation().sensors
-    recognized = recognizer().recognize(reports)
+    recognized = plugin.recognizer().recognize(reports)
     assert not topology_diff(recognized, config)
     assert skeletal_error(recognized, config) < np.radians(3.0)
     assert recognized.robot == "freebot"
 
 
-def test_one_rolling_step_turns_a_sphere_over_its_parent_by_the_commanded_angle():
-    driver = _reset("line6")
+def test_one_rolling_step_turns_a_sphere_over_its_parent_by_the_commanded_angle(mujoco_driver):
+    driver = mujoco_driver("freebot", "line6")
     world = driver.world
     before = world.centre("F1") - world.centre("F2")
     angle = np.radians(40.0)
@@ -107,13 +79,13 @@ def test_flow_direction_touches_both_parents():
     assert flow_direction(config, "F1", "F2", "F3", -side)[1] < 0    # the goal decides
 
 
-def test_a_flow_rolls_the_leaf_and_switches_its_magnet_in_one_step():
-    driver = _reset("line6")
+def test_a_flow_rolls_the_leaf_and_switches_its_magnet_in_one_step(mujoco_driver):
+    driver = mujoco_driver("freebot", "line6")
     world = driver.world
     goal = load_configuration(CONFIGS / "line6-a.json")
     action = Action(ActionType.FLOW, goal, changes=topology_diff(
         load_configuration(CONFIGS / "line6.json"), goal).changes())
-    controller = controllers()[0]
+    controller = plugin.controllers()[0]
     for _ in range(80):
         control = controller.control(action, Phase.FLOW, driver.get_observation())
         if control.reached:
@@ -135,7 +107,7 @@ def test_a_free_freebot_rolls_on_the_ground_at_the_commanded_speed():
 
     alone = Configuration("freebot")
     alone.add_module("F1", "freebot")
-    driver = FreeBOTMujocoDriver()
+    driver = plugin.driver()
     driver.connect()
     driver.reset(alone)
     world = driver.world

@@ -26,14 +26,6 @@ NODES = {
 }
 
 
-def contact(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    z = rng.normal(size=3)
-    z /= np.linalg.norm(z)
-    x = rng.normal(size=3)
-    x -= x.dot(z) * z
-    return z[:, None], (x / np.linalg.norm(x))[:, None]
-
-
 def test_snailbot_registers_both_modes_with_spherical_the_default():
     robot = plugins.resolve("snailbot")
     assert robot.joint_modes["spherical"] is SphericalJoint
@@ -43,7 +35,7 @@ def test_snailbot_registers_both_modes_with_spherical_the_default():
 
 
 @pytest.mark.parametrize("key", list(NODES))
-def test_jacobian_matches_central_differences(key):
+def test_jacobian_matches_central_differences(key, contact):
     node = NODES[key]
     rng = np.random.default_rng(17)
     for _ in range(20):
@@ -54,7 +46,7 @@ def test_jacobian_matches_central_differences(key):
 
 
 @pytest.mark.parametrize("key", list(NODES))
-def test_zero_joint_values_change_nothing(key):
+def test_zero_joint_values_change_nothing(key, contact):
     node = NODES[key]
     z, x = contact(np.random.default_rng(1))
     out = node.forward(z, x, np.zeros(node.dim))
@@ -72,7 +64,7 @@ def test_crawling_turns_the_body_about_the_substrate_and_keeps_the_foot_flat():
     assert out.cost[0] == pytest.approx(0.5 + 0.5 * 0.3)
 
 
-def test_either_tree_direction_gives_the_same_relative_pose():
+def test_either_tree_direction_gives_the_same_relative_pose(contact):
     """Substrate as parent (crawler turns about the substrate's centre) and crawler as
     parent (substrate turns about its own centre by the inverse) agree on the pose of
     the SnailBot in the substrate's frame."""
@@ -90,7 +82,7 @@ def test_either_tree_direction_gives_the_same_relative_pose():
         assert np.allclose(b.z, z) and np.allclose(b.x, x)
 
 
-def test_sucker_turns_only_about_the_contact_normal():
+def test_sucker_turns_only_about_the_contact_normal(contact):
     z, x = contact(np.random.default_rng(6))
     out = SuckerRevoluteJoint(["e"], ["B1"]).forward(z, x, np.array([0.4]))
     assert np.allclose(out.z, z)
