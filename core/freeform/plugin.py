@@ -63,6 +63,7 @@ class FreeformPlugin:
         self.bearing = bearing
         self.sucker = sucker
         self.rgba = rgba
+        self._driver: FreeformDriverFactory | None = None
 
     def __repr__(self) -> str:
         return f"FreeformPlugin({self.__name__!r})"
@@ -77,7 +78,8 @@ class FreeformPlugin:
     def _part(self, module: str, name: str) -> Any:
         return getattr(import_module(f"{self.package}.{module}"), name)
 
-    # -- the robot's parts, imported on first use ------------------------------------------
+    # -- the robot's parts, imported on first use (the heavy ones by methods: properties
+    # -- may be read when the plugin is registered)
 
     @cached_property
     def spec(self) -> RobotSpec:
@@ -89,7 +91,6 @@ class FreeformPlugin:
         description = files(self.package) / "robot.json"
         return read_freeform_robot(description.read_text(), f"{self.package}/robot.json")
 
-    @cached_property
     def joint_modes(self) -> Sequence[type[KinematicNode]]:
         """The joint modes (``joints.JOINT_MODES``), the default first."""
         modes: Sequence[type[KinematicNode]] = self._part("joints", "JOINT_MODES")
@@ -104,12 +105,13 @@ class FreeformPlugin:
                                       bearing=self.bearing, sucker=self.sucker is not None,
                                       rgba=self.rgba)
 
-    @cached_property
-    def driver(self) -> FreeformDriverFactory:
+    def driver_factory(self) -> FreeformDriverFactory:
         """The ``mujoco`` driver factory (one object, registered on every call)."""
-        from .driver import FreeformDriverFactory
+        if self._driver is None:
+            from .driver import FreeformDriverFactory
 
-        return FreeformDriverFactory(self.design, self.driver_description)
+            self._driver = FreeformDriverFactory(self.design, self.driver_description)
+        return self._driver
 
     def recognizer(self) -> ContactRecognizer:
         """The recognizer, named as the robot (module reports only)."""
@@ -124,7 +126,7 @@ class FreeformPlugin:
 
         shared = self.recognizer()
         return [ContactController(mode.controller, shared, sucker=mode.name == self.sucker)
-                for mode in self.joint_modes]
+                for mode in self.joint_modes()]
 
     # -- hooks --------------------------------------------------------------------------
 
@@ -142,7 +144,7 @@ class FreeformPlugin:
     def msrr_kinematic_nodes(self, robot: str, register: Register[type[KinematicNode]]
                              ) -> None:
         if robot == self.spec.name:
-            for mode in self.joint_modes:
+            for mode in self.joint_modes():
                 register(mode)
 
     @hookimpl
@@ -156,7 +158,7 @@ class FreeformPlugin:
     @hookimpl
     def msrr_drivers(self, robot: str, register: Register[DriverFactory]) -> None:
         if robot == self.spec.name:
-            register(self.driver)
+            register(self.driver_factory())
 
     @hookimpl
     def msrr_recognizers(self, robot: str, register: Register[Recognizer]) -> None:

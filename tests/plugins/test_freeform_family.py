@@ -46,18 +46,32 @@ def test_loading_a_family_plugin_imports_nothing_heavy():
     assert not loaded & set(HEAVY), f"loading the plugins imported {sorted(loaded & set(HEAVY))}"
 
 
+def test_registering_the_plugin_objects_imports_nothing_heavy():
+    code = ("import json, sys, pluggy\n"
+            "from msrr.core import hookspecs\n"
+            "pm = pluggy.PluginManager('msrr')\n"
+            "pm.add_hookspecs(hookspecs)\n"
+            + "".join(f"from msrr.plugins.{robot}.plugin import plugin\npm.register(plugin)\n"
+                      for robot in FAMILY)
+            + "print(json.dumps(sorted(sys.modules)))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    loaded = {name.split(".")[0] for name in json.loads(done.stdout)}
+    assert not loaded & set(HEAVY), f"registering imported {sorted(loaded & set(HEAVY))}"
+
+
 @pytest.mark.parametrize("robot", FAMILY)
 def test_the_factory_registers_the_family_capabilities(robot):
     plugin = _plugin(robot)
-    modes = list(plugin.joint_modes)
+    modes = list(plugin.joint_modes())
     assert plugin.spec.name == robot and plugin.__name__ == f"msrr.plugins.{robot}.plugin"
     resolved = plugins.resolve(robot)
     assert isinstance(resolved.rules, MisoRules)
     assert [resolved.joint_modes[m.name] for m in modes] == modes
     assert resolved.default_joint_mode() is modes[0]
     assert list(plugins.planners.items(robot))[:2] == ["miso", "miso-exact"]
-    assert plugins.drivers.get(robot, "mujoco") is plugin.driver
-    assert plugin.driver.design.robot == robot
+    assert plugins.drivers.get(robot, "mujoco") is plugin.driver_factory()
+    assert plugin.driver_factory().design == plugin.design and plugin.design.robot == robot
     assert plugins.recognizers.get(robot, robot).name == robot
     assert [c.name for c in plugin.controllers()] == [m.controller for m in modes]
     assert list(plugins.scenarios.items(robot)) == [
@@ -71,7 +85,7 @@ def test_the_robot_description_is_read_from_robot_json(robot):
     assert spec == plugins.robot(robot)
     (kind,) = spec.module_kinds
     assert kind.role == "vertex" and [p.role for p in kind.ports] == ["neutral"]
-    assert spec.defaults.joint_mode == _plugin(robot).joint_modes[0].name
+    assert spec.defaults.joint_mode == _plugin(robot).joint_modes()[0].name
 
 
 @pytest.mark.parametrize(("change", "message"), [

@@ -107,7 +107,7 @@ def test_a_free_freebot_rolls_on_the_ground_at_the_commanded_speed():
 
     alone = Configuration("freebot")
     alone.add_module("F1", "freebot")
-    driver = plugin.driver()
+    driver = plugin.driver_factory()()
     driver.connect()
     driver.reset(alone)
     world = driver.world
