@@ -48,13 +48,13 @@ def main(seed: int) -> None:
             result = execute_run(prepared)
             wall = time.perf_counter() - began
             counts["succeeded" if result.success else "failed"] += 1
-            shape = result.shape
+            shape = None if result.goal is None else result.goal.shape
             rows.append([f"{start} -> {goal}", "success" if result.success else "FAILED",
                          f"{result.actions_done}/{result.actions_total}",
                          f"{result.sim_time:.1f}", f"{wall:.1f}",
-                         "" if shape is None else f"{shape.max_position * 1000:.2f}",
-                         "" if shape is None else f"{shape.rms_position * 1000:.2f}",
-                         ("" if shape is None else f"{shape.max_heading:.4f}")
+                         "" if shape is None else f"{shape.error * 1000:.2f}",
+                         "" if shape is None else f"{(shape.rms or 0.0) * 1000:.2f}",
+                         ("" if shape is None else f"{shape.heading or 0.0:.4f}")
                          + ("" if result.success else f"  {result.reason}")])
     console.print(table("MMRP shipped pairs in PyBullet", [
         "pair", "result", "actions", "sim time [s]", "wall [s]", "max pos err [mm]",

@@ -18,9 +18,11 @@ from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .plan import Action, ConnectionChange, Plan
 from .robot import RobotSpec
+from .shape import ShapeVerdict
 
-__all__ = ["ActionStatus", "EventSink", "FaultEvent", "LocomotionResult", "NoEvents", "Phase",
-           "Run", "RunResult", "ShapeErrors", "TargetResult", "Tick", "TopologyEvent"]
+__all__ = ["GROUND_TRUTH", "REPORTED", "ActionStatus", "BehaviorVerdict", "EventSink",
+           "FaultEvent", "GoalVerdict", "NoEvents", "Phase", "Run", "RunResult", "Tick",
+           "TopologyEvent"]
 
 
 class ActionStatus(StrEnum):
@@ -164,82 +166,64 @@ class FaultEvent:
         return f"{self.kind}: {self.text} at t={self.time:.1f} s"
 
 
-@dataclass(frozen=True)
-class ShapeErrors:
-    """How far the final module poses are from the goal layout, after the planar rigid
-    alignment that fits them best (:func:`msrr.core.shape.pose_errors`).
+GROUND_TRUTH = "ground truth"
+"""The basis of a verdict made on the simulator's own state."""
 
-    Attributes:
-        max_position: largest module position error [m].
-        rms_position: RMS of the module position errors [m].
-        max_heading: largest module heading error [rad].
-        tolerance_position: the robot's tolerance [m] (``shape_tolerance``).
-        tolerance_heading: the robot's tolerance [rad].
-    """
-
-    max_position: float
-    rms_position: float
-    max_heading: float
-    tolerance_position: float
-    tolerance_heading: float
-
-    @property
-    def within(self) -> bool:
-        """Every module within both tolerances."""
-        return (self.max_position <= self.tolerance_position
-                and self.max_heading <= self.tolerance_heading)
-
-    def summary(self) -> dict[str, float]:
-        return {"max_position_error_m": round(self.max_position, 4),
-                "rms_position_error_m": round(self.rms_position, 4),
-                "max_heading_error_rad": round(self.max_heading, 4),
-                "position_tolerance_m": self.tolerance_position,
-                "heading_tolerance_rad": self.tolerance_heading}
+REPORTED = "what the modules report (the driver has no ground truth)"
+"""The basis of a verdict made where the driver has no ground truth (hardware)."""
 
 
 @dataclass(frozen=True)
-class TargetResult:
-    """A goal of the run reached (an action with ``reaches``), as judged there.
+class GoalVerdict:
+    """A goal judged where it was reached (or where the run ended).
 
     Attributes:
         name: the goal's name (``"S6N3-4.1"``).
-        action_index: the action that ended at it.
-        time: driver time when it was reached [s].
-        shape_error: RMS angle [rad] between the recognized configuration and the
-            action's target after yaw alignment (eq. 8); ``None`` for a robot without
-            connection vectors.
-        truth_shape_error: the same from the driver's ground truth, or ``None``.
-        truth_topology: whether the ground truth's topology is the target's, or ``None``.
+        action_index: the action that ended at it (``None`` for the run's end).
+        time: driver time of the verdict [s].
+        topology: whether the topology is the goal's.
+        shape: the shape figure, or ``None`` when there is none to measure.
+        basis: what it was judged on (:data:`GROUND_TRUTH` or :data:`REPORTED`).
+        success: reached.
+        reason: one line when not.
     """
 
     name: str
-    action_index: int
+    action_index: int | None
     time: float
-    shape_error: float | None
-    truth_shape_error: float | None = None
-    truth_topology: bool | None = None
+    topology: bool
+    shape: ShapeVerdict | None
+    basis: str
+    success: bool
+    reason: str = ""
 
     def summary(self) -> dict[str, object]:
+        """JSON-ready (``summary.json``)."""
         return {"name": self.name, "action": self.action_index, "time_s": round(self.time, 3),
-                "shape_error_deg": _degrees(self.shape_error),
-                "truth_shape_error_deg": _degrees(self.truth_shape_error),
-                "truth_topology": self.truth_topology}
+                "topology": self.topology,
+                "shape": None if self.shape is None else self.shape.summary(),
+                "basis": self.basis, "success": self.success, "reason": self.reason}
 
 
 @dataclass(frozen=True)
-class LocomotionResult:
-    """What a behavior did to the system's position (FreeSN paper, section 7.3).
+class BehaviorVerdict:
+    """What a behavior did (FreeSN paper, section 7.3), against what it was asked.
 
     Attributes:
         name: the behavior (``"wheeled-move(speed=0.05, yaw_rate=0)"``).
         first_action: index of its first action.
-        actions: actions it ran (loops x steps for a sequence, 1 for a mapping).
+        actions: actions it ran.
         duration: driver time it ran [s].
-        distance: horizontal distance the centre of the modules moved [m] (mean of the
-            driver's module positions).
+        distance: horizontal distance the centre of the modules moved [m].
+        along: that motion along the commanded direction [m], ``None`` when the
+            behavior states no direction.
+        asked: the distance asked [m] (``distance``, or ``speed`` x ``duration``),
+            ``None`` when it asks none.
         heading_error: angle [rad] between the direction travelled and the commanded
-            direction, or ``None`` when the behavior states none, the driver has no
-            ground truth to place it, or the centre moved less than 1 cm.
+            one, ``None`` when either is unknown or it moved under 1 cm.
+        basis: what it was judged on.
+        success: it did what was asked.
+        reason: one line when not.
     """
 
     name: str
@@ -247,13 +231,23 @@ class LocomotionResult:
     actions: int
     duration: float
     distance: float
-    heading_error: float | None = None
+    along: float | None
+    asked: float | None
+    heading_error: float | None
+    basis: str
+    success: bool
+    reason: str = ""
 
     def summary(self) -> dict[str, object]:
+        """JSON-ready (``summary.json``)."""
         return {"behavior": self.name, "first_action": self.first_action,
                 "actions": self.actions, "duration_s": round(self.duration, 3),
                 "distance_m": round(self.distance, 4),
-                "heading_error_deg": _degrees(self.heading_error)}
+                "along_m": None if self.along is None else round(self.along, 4),
+                "asked_m": None if self.asked is None else round(self.asked, 4),
+                "heading_error_deg": None if self.heading_error is None
+                else round(math.degrees(self.heading_error), 2),
+                "basis": self.basis, "success": self.success, "reason": self.reason}
 
 
 @dataclass
@@ -281,16 +275,12 @@ class RunResult:
         sim_time: driver time at the end [s].
         wall_time: wall-clock duration of the execution [s].
         final: the configuration recognized at the end.
-        shape_error: RMS angle [rad] between the recognized final configuration and
-            the goal after yaw alignment (eq. 8).
-        truth_shape_error: the same from the driver's ground truth (simulators), or ``None``.
-        truth_topology: whether the ground truth's topology is the goal's, or ``None``.
-        shape: final pose errors against the goal layout, or ``None`` when the robot
-            declares no ``shape_tolerance`` or the driver cannot lay out the goal.
+        goal: the plan's goal as judged at the end (:mod:`msrr.core.judge`), ``None``
+            when the run did not get there.
         faults: the faults met, in order.
         interrupted: the signal that stopped the run (``"SIGINT"``), or ``""``.
         targets: every goal reached on the way (a scenario's stages), judged there.
-        locomotion: every behavior run, with the distance travelled.
+        locomotion: every behavior run, judged against what it was asked.
     """
 
     success: bool
@@ -308,14 +298,11 @@ class RunResult:
     sim_time: float = 0.0
     wall_time: float = 0.0
     final: Configuration | None = None
-    shape_error: float | None = None
-    truth_shape_error: float | None = None
-    truth_topology: bool | None = None
-    shape: ShapeErrors | None = None
+    goal: GoalVerdict | None = None
     faults: list[FaultEvent] = field(default_factory=list)
     interrupted: str = ""
-    targets: list[TargetResult] = field(default_factory=list)
-    locomotion: list[LocomotionResult] = field(default_factory=list)
+    targets: list[GoalVerdict] = field(default_factory=list)
+    locomotion: list[BehaviorVerdict] = field(default_factory=list)
 
     def summary(self) -> dict[str, object]:
         """JSON-ready numbers (for ``summary.json``)."""
@@ -327,19 +314,12 @@ class RunResult:
                 "simulator_events": dict(self.simulator) or None, "retries": self.retries,
                 "ticks": self.ticks,
                 "sim_time_s": round(self.sim_time, 3), "wall_time_s": round(self.wall_time, 3),
-                "shape_error_deg": _degrees(self.shape_error),
-                "truth_shape_error_deg": _degrees(self.truth_shape_error),
-                "truth_topology": self.truth_topology,
-                "shape": None if self.shape is None else self.shape.summary(),
+                "goal": None if self.goal is None else self.goal.summary(),
                 "faults": [{"kind": f.kind, "text": f.text, "time_s": round(f.time, 3),
                             "recovered": f.recovered} for f in self.faults],
                 "interrupted": self.interrupted or None,
                 "targets": [t.summary() for t in self.targets],
                 "locomotion": [m.summary() for m in self.locomotion]}
-
-
-def _degrees(angle: float | None) -> float | None:
-    return None if angle is None else round(math.degrees(angle), 3)
 
 
 class EventSink(Protocol):

@@ -50,12 +50,9 @@ and the ``broken``/``made`` links with their ports.
   behavior are ordinary actions; with a distance, the loops left once it is covered
   are skipped (``RunResult.actions_skipped``).
 
-Every action with ``reaches`` (a goal of a scenario stage) is judged when it ends: the
-recognized and the ground-truth shape error (eq. 8) and topology go to
-``RunResult.targets``, and a goal off by more than ``target_tolerance`` fails the run.
-Every behavior run adds a :class:`~msrr.core.events.LocomotionResult` (distance the
-centre of the driver's module poses moved, heading error against the commanded
-direction).
+The executor judges nothing: it runs the plan and counts what the driver reported
+(docks, undocks, flows, retries, ticks, times, on every way out: :attr:`Executor.result`),
+and its events let :class:`~msrr.core.judge.Judge` judge each goal and behavior run.
 
 **IK tracking** (section 4.1, Fig. 8; :mod:`msrr.core.closed_loop`) drives the moving
 phases when the controller is a :class:`~msrr.core.closed_loop.JointController` and
@@ -84,7 +81,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .actions import TopologyDiff, flow_move, topology_diff
-from .alignment import rot_z
 from .capabilities import Recognizer
 from .closed_loop import (
     JointController,
@@ -101,19 +97,17 @@ from .errors import ExecutionError, MsrrError
 from .events import (
     ActionStatus,
     EventSink,
-    LocomotionResult,
     NoEvents,
     Phase,
     Run,
     RunResult,
-    TargetResult,
     Tick,
     TopologyEvent,
 )
 from .kinematics import GroundModel
-from .plan import Action, ActionType, ConnectionChange
+from .plan import Action, ActionType, ConnectionChange, behavior_runs
 from .robot import Robot
-from .shape import skeletal_error, skeletal_errors
+from .shape import skeletal_error
 
 __all__ = ["Executor", "ExecutorOptions", "behavior_commands", "phases_of"]
 
@@ -128,9 +122,6 @@ class ExecutorOptions:
         retries: attempts repeated after a timeout before the action fails.
         tracking: IK tracking settings (robots with joint modes).
         ik: use IK tracking where it applies (``False``: the controller's own path).
-        target_tolerance: RMS shape error [rad] (eq. 8, from the driver's ground truth)
-            every goal of the run (an action with ``reaches``) must be within, or the
-            run fails; ``None``: not judged. Drivers without ground truth are not judged.
     """
 
     rate: float = 10.0
@@ -138,7 +129,6 @@ class ExecutorOptions:
     retries: int = 1
     tracking: TrackingOptions = TrackingOptions()
     ik: bool = True
-    target_tolerance: float | None = math.radians(5.0)
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -190,11 +180,6 @@ def _merge(control: Control, extra: dict[str, ModuleCommand]) -> dict[str, Modul
     return merged
 
 
-HEADING_DISTANCE = 0.01
-"""Below this distance travelled [m] a behavior reports no heading error (a direction of
-millimetres of jitter means nothing)."""
-
-
 class _ActionFailed(Exception):
     def __init__(self, reason: str):
         self.reason = reason
@@ -222,18 +207,6 @@ def _with_wheels(commands: dict[str, ModuleCommand], wheels: dict[str, dict[str,
         merged[module] = ModuleCommand(joints=base.joints, wheels={**base.wheels, **values},
                                        dock=base.dock, undock=base.undock)
     return merged
-
-
-@dataclass
-class _Locomotion:
-    """A behavior under way: where and when it began (the driver's module poses)."""
-
-    name: str
-    first_action: int
-    time: float
-    centre: np.ndarray | None
-    direction: np.ndarray | None
-    actions: int = 0
 
 
 class Executor:
@@ -272,7 +245,10 @@ class Executor:
         self._registered = dict(controllers or {})
         self._controllers: dict[str, JointController] = {}
         self._ik = self.options.ik and isinstance(controller, JointController)
-        self._moving: _Locomotion | None = None
+        self.result = RunResult(success=False, actions_total=len(run.plan.actions))
+        self._started = wallclock.perf_counter()
+        self._spans = {span.start: span for span in behavior_runs(run.plan.actions)}
+        self._moving_from: np.ndarray | None = None
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -284,61 +260,52 @@ class Executor:
     # -- public -----------------------------------------------------------------------
 
     def execute(self) -> RunResult:
-        """Execute every action of the plan; never raises for a failed action."""
+        """Execute every action of the plan; never raises for a failed action.
+
+        ``success`` says every action finished and the recognized topology is the goal's;
+        whether the run did what was asked is the judge's verdict. Whatever ends the run
+        (a failed action, a driver error, an interrupt), :attr:`result` holds the counts
+        of what the driver reported up to there.
+        """
         self.driver.require_connected()
         plan = self.run.plan
-        started = wallclock.perf_counter()
-        result = RunResult(success=False, actions_total=len(plan.actions))
+        self._started = wallclock.perf_counter()
+        result = self.result
         self._current = self._recognize(self.driver.get_observation())
-        done = skipped = 0
         index = -1
         try:
             for index, action in enumerate(plan.actions):
                 if self._skips(index, action):
-                    skipped += 1
-                else:
-                    if self._starts_behavior(index):
-                        self._open_behavior(index, action)
-                    self._execute_action(index, action)
-                    done += 1
-                    if self._moving is not None:
-                        self._moving.actions += 1
-                    if action.reaches:
-                        result.targets.append(self._judge_target(index, action))
-                if self._moving is not None and self._ends_behavior(index):
-                    result.locomotion.append(self._close_behavior())
+                    result.actions_skipped += 1
+                    continue
+                if index in self._spans:
+                    self._moving_from = self._centre()
+                self._execute_action(index, action)
+                result.actions_done += 1
             index = len(plan.actions)
-            final = self._current
-            remaining = topology_diff(final, plan.goal)
+            remaining = topology_diff(self._current, plan.goal)
             if remaining:
                 raise _ActionFailed(f"final topology differs from the goal: {remaining}")
-            off = [t for t in result.targets if not self._within(t)]
-            if off:
-                raise _ActionFailed("; ".join(self._miss(t) for t in off))
             result.success = True
         except _ActionFailed as failure:
             result.reason = failure.reason
             result.failed_action = index if 0 <= index < len(plan.actions) else None
-            if self._moving is not None:
-                result.locomotion.append(self._close_behavior())
         finally:
+            self._tally()
             self.driver.send_action({})
-        result.actions_done = done
-        result.actions_skipped = skipped
+        return result
+
+    def _tally(self) -> None:
+        """Fill :attr:`result`'s counts from what the driver reported so far."""
+        result = self.result
         result.docks = sum(1 for e in self.events if e.kind == "dock")
         result.undocks = sum(1 for e in self.events if e.kind == "undock")
         result.flows = self.flows
         result.retries = self.retries
         result.ticks = self.tick_index
         result.sim_time = self.driver.time
-        result.wall_time = wallclock.perf_counter() - started
+        result.wall_time = wallclock.perf_counter() - self._started
         result.final = self._current
-        result.shape_error = skeletal_error(self._current, plan.goal)
-        truth = self.driver.ground_truth()
-        if truth is not None:
-            result.truth_shape_error = skeletal_error(truth, plan.goal)
-            result.truth_topology = not topology_diff(truth, plan.goal)
-        return result
 
     # -- actions ----------------------------------------------------------------------
 
@@ -543,34 +510,16 @@ class Executor:
 
     def _moved(self) -> float:
         """Horizontal distance [m] the centre moved since the running behavior began."""
-        moving = self._moving
         now = self._centre()
-        if moving is None or moving.centre is None or now is None:
+        if self._moving_from is None or now is None:
             return 0.0
-        return float(np.linalg.norm(now - moving.centre))
-
-    def _starts_behavior(self, index: int) -> bool:
-        """Whether action ``index`` begins a behavior run (a mapping behavior, or the
-        first action of a sequence behavior's loops)."""
-        actions = self.run.plan.actions
-        call = actions[index].behavior
-        if call is None:
-            return False
-        before = actions[index - 1].behavior if index else None
-        return (before is None or before.name != call.name or call.kind == "mapping"
-                or before.loop > call.loop)
-
-    def _ends_behavior(self, index: int) -> bool:
-        """Whether the behavior run of action ``index`` ends with it."""
-        actions = self.run.plan.actions
-        return (index + 1 >= len(actions) or actions[index + 1].behavior is None
-                or self._starts_behavior(index + 1))
+        return float(np.linalg.norm(now - self._moving_from))
 
     def _skips(self, index: int, action: Action) -> bool:
         """Whether ``action`` is in a loop of a sequence behavior left out because the
         behavior's distance was covered (checked when each loop begins)."""
         call = action.behavior
-        if call is None or self._starts_behavior(index):
+        if call is None or index in self._spans:
             self._skipping = False
             return False
         if self._skipping:
@@ -580,63 +529,6 @@ class Executor:
                 and before.loop != call.loop and self._moved() >= call.distance:
             self._skipping = True
         return self._skipping
-
-    def _open_behavior(self, index: int, action: Action) -> None:
-        """Note where and when a behavior run begins and its commanded direction in the
-        world (the call's direction in the target's frame, turned by the yaw that aligns
-        the target with the driver's ground truth, eq. 8)."""
-        call = action.behavior
-        assert call is not None
-        direction = None
-        truth = self.driver.ground_truth() if call.direction is not None else None
-        if truth is not None and call.direction is not None:
-            yaw = skeletal_errors(truth, action.target)[2]
-            world = (rot_z(yaw) @ np.asarray(call.direction, dtype=float))[:2]
-            if np.linalg.norm(world) > 1e-9:
-                direction = world / np.linalg.norm(world)
-        self._moving = _Locomotion(str(call), index, self.driver.time, self._centre(),
-                                   direction)
-
-    def _close_behavior(self) -> LocomotionResult:
-        moving = self._moving
-        assert moving is not None
-        self._moving = None
-        now = self._centre()
-        shift = (np.zeros(2) if now is None or moving.centre is None
-                 else now - moving.centre)
-        distance = float(np.linalg.norm(shift))
-        heading = None
-        if moving.direction is not None and distance >= HEADING_DISTANCE:
-            cosine = float(np.clip(shift @ moving.direction / distance, -1.0, 1.0))
-            heading = math.acos(cosine)
-        return LocomotionResult(moving.name, moving.first_action, moving.actions,
-                                self.driver.time - moving.time, distance, heading)
-
-    def _judge_target(self, index: int, action: Action) -> TargetResult:
-        """The shape error at a goal of the run: recognized, and from ground truth."""
-        assert self._current is not None
-        vectors = any(e.z is not None for e in action.target.edges())
-        truth = self.driver.ground_truth()
-        return TargetResult(
-            action.reaches, index, self.driver.time,
-            skeletal_error(self._current, action.target) if vectors else None,
-            None if truth is None or not vectors else skeletal_error(truth, action.target),
-            None if truth is None else not topology_diff(truth, action.target))
-
-    def _within(self, target: TargetResult) -> bool:
-        tolerance = self.options.target_tolerance
-        if target.truth_topology is False:
-            return False
-        return (tolerance is None or target.truth_shape_error is None
-                or target.truth_shape_error <= tolerance)
-
-    def _miss(self, target: TargetResult) -> str:
-        where = f"goal {target.name} (action {target.action_index + 1})"
-        if target.truth_topology is False:
-            return f"{where}: the simulator's topology is not the goal's"
-        assert target.truth_shape_error is not None and self.options.target_tolerance
-        return (f"{where}: {math.degrees(target.truth_shape_error):.1f} deg RMS shape error "
-                f"from ground truth (tolerance {math.degrees(self.options.target_tolerance):g})")
 
     def _recognize(self, observation: Observation) -> Configuration:
         """The recognized configuration; separate groups recognized one by one and joined."""

@@ -32,8 +32,8 @@ from .kinematics import KinematicTree, KinematicTreeFile
 from .robot import Robot, check_structure
 
 __all__ = ["STRUT_ENDS", "Action", "ActionType", "BehaviorCall", "CommandGain",
-           "ConnectionChange", "ConnectionKey", "Plan", "check_plan", "connection_key",
-           "join_plans", "links", "load_plan", "natural_key", "save_plan"]
+           "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_plan",
+           "connection_key", "join_plans", "links", "load_plan", "natural_key", "save_plan"]
 
 
 class ActionType(StrEnum):
@@ -322,6 +322,27 @@ class Plan:
     def flows(self) -> int:
         """Flow actions (each also one dock and one undock)."""
         return sum(1 for a in self.actions if a.type is ActionType.FLOW)
+
+
+def behavior_runs(actions: Sequence[Action]) -> list[range]:
+    """The runs of behaviors in ``actions``, as index ranges: a mapping behavior's one
+    action, or a sequence behavior's loops in a row (a new run begins where the behavior
+    changes, or its loop number goes back)."""
+    runs: list[range] = []
+    first: int | None = None
+    for index, action in enumerate(actions):
+        call = action.behavior
+        before = actions[index - 1].behavior if index else None
+        starts = call is not None and (before is None or before.name != call.name
+                                       or call.kind == "mapping" or before.loop > call.loop)
+        if first is not None and (call is None or starts):
+            runs.append(range(first, index))
+            first = None
+        if starts:
+            first = index
+    if first is not None:
+        runs.append(range(first, len(actions)))
+    return runs
 
 
 def join_plans(plans: Sequence[Plan]) -> Plan:

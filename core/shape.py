@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -34,10 +36,61 @@ from .alignment import align_yaw, angles_between, rot_z
 from .configuration import Configuration
 from .driver import Pose
 from .errors import ConfigurationError
-from .events import ShapeErrors
 from .robot import ShapeTolerance
 
-__all__ = ["fit_planar", "pose_errors", "skeletal_error", "skeletal_errors"]
+__all__ = ["ShapeVerdict", "fit_planar", "pose_errors", "skeletal_error", "skeletal_errors",
+           "skeletal_verdict"]
+
+
+@dataclass(frozen=True)
+class ShapeVerdict:
+    """How far a shape is from its goal: the one shape figure of a judged goal.
+
+    Attributes:
+        metric: ``"poses"`` (module poses against the goal layout, after the planar
+            fit) or ``"skeletal"`` (connection vectors, eq. 8).
+        error: the largest module position error [m] (poses) or the RMS angle [rad]
+            between connection vectors after yaw alignment (skeletal).
+        tolerance: the bound ``error`` must be within, same unit.
+        heading: the largest module heading error [rad] (poses only).
+        heading_tolerance: its bound [rad] (poses only).
+        rms: the RMS of the module position errors [m] (poses only; a detail of the
+            same figure, for sweeps' statistics).
+    """
+
+    metric: Literal["poses", "skeletal"]
+    error: float
+    tolerance: float
+    heading: float | None = None
+    heading_tolerance: float | None = None
+    rms: float | None = None
+
+    @property
+    def within(self) -> bool:
+        """Within every bound."""
+        return self.error <= self.tolerance and (
+            self.heading is None or self.heading_tolerance is None
+            or self.heading <= self.heading_tolerance)
+
+    def __str__(self) -> str:
+        if self.metric == "skeletal":
+            return (f"{math.degrees(self.error):.2f} deg RMS between connection vectors "
+                    f"(tolerance {math.degrees(self.tolerance):g} deg)")
+        return (f"position error up to {self.error:.3g} m (tolerance {self.tolerance:g}), "
+                f"heading error up to {self.heading or 0.0:.3g} rad (tolerance "
+                f"{self.heading_tolerance:g})")
+
+    def summary(self) -> dict[str, object]:
+        """JSON-ready (``summary.json``)."""
+        if self.metric == "skeletal":
+            return {"metric": "skeletal", "error_deg": round(math.degrees(self.error), 3),
+                    "tolerance_deg": round(math.degrees(self.tolerance), 3),
+                    "within": self.within}
+        return {"metric": "poses", "max_position_error_m": round(self.error, 4),
+                "rms_position_error_m": round(self.rms or 0.0, 4),
+                "position_tolerance_m": self.tolerance,
+                "max_heading_error_rad": round(self.heading or 0.0, 4),
+                "heading_tolerance_rad": self.heading_tolerance, "within": self.within}
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -79,7 +132,7 @@ def fit_planar(points: np.ndarray, goal: np.ndarray, headings: np.ndarray | None
 
 
 def pose_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
-                 tolerance: ShapeTolerance) -> ShapeErrors:
+                 tolerance: ShapeTolerance) -> ShapeVerdict:
     """Per-module position and heading errors of ``final`` against ``goal`` after
     :func:`fit_planar` (planar: x, y and heading about z).
 
@@ -104,11 +157,9 @@ def pose_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
     moved = p @ np.array([[c, -s], [s, c]]).T + t
     distance = np.linalg.norm(moved - q, axis=1)
     heading = np.abs(_wrap(yaw + theta - goal_yaw))
-    return ShapeErrors(max_position=float(distance.max(initial=0.0)),
-                       rms_position=float(np.sqrt(np.mean(distance ** 2))) if ids else 0.0,
-                       max_heading=float(heading.max(initial=0.0)),
-                       tolerance_position=tolerance.position,
-                       tolerance_heading=tolerance.heading)
+    return ShapeVerdict("poses", float(distance.max(initial=0.0)), tolerance.position,
+                        float(heading.max(initial=0.0)), tolerance.heading,
+                        float(np.sqrt(np.mean(distance ** 2))) if ids else 0.0)
 
 
 def skeletal_errors(current: Configuration, goal: Configuration
@@ -131,3 +182,12 @@ def skeletal_error(current: Configuration, goal: Configuration) -> float:
     """RMS angle [rad] between the ``z`` of the edges both have, after yaw alignment (eq. 8);
     0 when they share no edge with a vector (see :func:`skeletal_errors`)."""
     return skeletal_errors(current, goal)[0]
+
+
+def skeletal_verdict(current: Configuration, goal: Configuration,
+                     tolerance: float) -> ShapeVerdict | None:
+    """:func:`skeletal_error` against ``tolerance`` [rad], or ``None`` when ``goal`` has no
+    connection vector to compare."""
+    if not any(e.z is not None for e in goal.edges()):
+        return None
+    return ShapeVerdict("skeletal", skeletal_error(current, goal), tolerance)

@@ -40,9 +40,9 @@ from ..executor import Executor, ExecutorOptions
 from ..faults import Fault, FaultyDriver, GuardedDriver, parse_faults
 from ..files import atomic_write_text, check_output_place
 from ..interrupts import Interrupted, shielded
+from ..judge import Judge
 from ..plan import Action, Plan, join_plans, save_plan
 from ..scenario import Scenario, Stage
-from ..shape import pose_errors
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
            "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
@@ -462,9 +462,9 @@ def prepare_run(request: RunRequest) -> PreparedRun:
 class _Progress:
     """Where a run is (for the line that says what an interruption or error stopped) and
     the faults it met: the run's :class:`~msrr.core.events.EventSink`, passing every
-    event on to ``listeners``."""
+    event on to ``listeners`` (the judge, then the plugins' event hooks)."""
 
-    def __init__(self, run: Run, listeners: EventSink):
+    def __init__(self, run: Run, *listeners: EventSink):
         self.run = run
         self.listeners = listeners
         self.current: int | None = None
@@ -472,10 +472,12 @@ class _Progress:
         self.faults: list[FaultEvent] = []
 
     def run_start(self, run: Run) -> None:
-        self.listeners.run_start(run)
+        for listener in self.listeners:
+            listener.run_start(run)
 
     def tick(self, run: Run, tick: Tick) -> None:
-        self.listeners.tick(run, tick)
+        for listener in self.listeners:
+            listener.tick(run, tick)
 
     def action(self, run: Run, action: Action, status: ActionStatus) -> None:
         index = next((i for i, a in enumerate(run.plan.actions) if a is action), None)
@@ -484,17 +486,21 @@ class _Progress:
         elif status == ActionStatus.SUCCEEDED:
             self.done += 1
             self.current = None
-        self.listeners.action(run, action, status)
+        for listener in self.listeners:
+            listener.action(run, action, status)
 
     def topology_change(self, run: Run, change: TopologyEvent) -> None:
-        self.listeners.topology_change(run, change)
+        for listener in self.listeners:
+            listener.topology_change(run, change)
 
     def fault(self, run: Run, fault: FaultEvent) -> None:
         self.faults.append(fault)
-        self.listeners.fault(run, fault)
+        for listener in self.listeners:
+            listener.fault(run, fault)
 
     def run_end(self, run: Run, result: RunResult) -> None:
-        self.listeners.run_end(run, result)
+        for listener in self.listeners:
+            listener.run_end(run, result)
 
     def on_fault(self, event: FaultEvent) -> None:
         """The faults layer's and the guard's callback."""
@@ -507,7 +513,9 @@ class _Progress:
             return f"action {self.current + 1}/{len(actions)}: {actions[self.current]}"
         if self.done == len(actions):
             return "the final check"
-        return "start-up" if self.done == 0 else f"between actions {self.done}/{len(actions)}"
+        if self.done == 0:
+            return "the run's start, after the plan was made, before its first action"
+        return f"between actions {self.done}/{len(actions)}"
 
 
 def _stop(driver: Driver) -> None:
@@ -537,34 +545,16 @@ def _driver_for(prepared: PreparedRun, progress: _Progress) -> Iterator[GuardedD
                 driver.disconnect()
 
 
-def _goal_layout(prepared: PreparedRun) -> dict[str, Pose] | None:
-    """Where the robot's own driver places the goal (a fresh, fault-free driver)."""
+def _goal_layout(prepared: PreparedRun, goal: Configuration) -> dict[str, Pose] | None:
+    """Where the robot's own driver places ``goal`` (a fresh, fault-free driver)."""
     run = prepared.run
     # a driver that cannot place modules (``link``) names the simulator that lays them out
     layout = prepared.driver.layout
     factory, options = ((layout, {}) if layout is not None
                         else (prepared.driver, dict(prepared.driver_options)))
     with factory(gui=False, seed=run.seed, **options) as driver:
-        driver.reset(run.plan.goal)
+        driver.reset(goal)
         return dict(driver.get_observation().poses)
-
-
-def _judge_shape(prepared: PreparedRun, result: RunResult, final: dict[str, Pose]) -> None:
-    """Add the final shape errors to ``result``; a run outside the tolerance fails."""
-    tolerance = prepared.run.spec.defaults.shape_tolerance
-    if tolerance is None or not final:
-        return
-    layout = _goal_layout(prepared)
-    if not layout or set(layout) != set(final):
-        return
-    result.shape = pose_errors(final, layout, tolerance)
-    if result.success and not result.shape.within:
-        result.success = False
-        shape = result.shape
-        result.reason = (f"final shape outside the tolerance: position error up to "
-                         f"{shape.max_position:.3f} m (tolerance {shape.tolerance_position:g}), "
-                         f"heading error up to {shape.max_heading:.3f} rad (tolerance "
-                         f"{shape.tolerance_heading:g})")
 
 
 def execute_run(prepared: PreparedRun) -> RunResult:
@@ -584,19 +574,21 @@ def execute_run(prepared: PreparedRun) -> RunResult:
     try:
         with _driver_for(prepared, progress) as driver:
             driver.reset(run.plan.start)
+            judge = Judge(run, driver, layout=lambda goal: _goal_layout(prepared, goal),
+                          tolerance=run.spec.defaults.shape_tolerance)
+            progress.listeners = (judge, *progress.listeners)
             executor = Executor(run, driver, prepared.recognizer, prepared.controller,
                                 prepared.options, sink=progress,
                                 robot=prepared.capabilities.robot,
                                 controllers=prepared.capabilities.controllers)
+            result = executor.result  # its counts are kept on every way out
             progress.run_start(run)
             started = True
             try:
-                result = executor.execute()
+                executor.execute()
             finally:
-                result.sim_time = driver.time
                 result.simulator = driver.constraint_events()
-            final = dict(driver.get_observation().poses) if result.success else {}
-        _judge_shape(prepared, result, final)
+            judge.conclude(result)
     except (Interrupted, KeyboardInterrupt) as exc:
         name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
         result = _failed(result, progress, f"interrupted during {progress.where()} ({name})")
@@ -622,7 +614,8 @@ def interrupted_result(prepared: PreparedRun, exc: BaseException) -> RunResult:
     ``msrr_on_run_start`` and ``msrr_on_run_end`` so listeners still write their files."""
     name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
     run = prepared.run
-    result = RunResult(success=False, reason=f"interrupted during start-up ({name})",
+    result = RunResult(success=False, reason=f"interrupted after the plan was made, before "
+                       f"the run started ({name})",
                        actions_total=len(run.plan.actions), interrupted=name)
     with shielded(raise_deferred=False):
         plugins.emit.run_start(run)

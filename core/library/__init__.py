@@ -28,7 +28,7 @@ if TYPE_CHECKING:
         SubLibrary,
         TreeRef,
     )
-    from .retrieve import Retrieval, RetrievedStep, retrieve, shortest_path
+    from .retrieve import Retrieval, RetrievedStep, shortest_path
     from .sources import LibrarySources, load_sources
     from .storage import (
         LIBRARY_SCHEMA_VERSION,
@@ -44,7 +44,9 @@ _EXPORTS = {  # name -> submodule that defines it
     **dict.fromkeys(("ActionEdge", "Behavior", "CommandGain", "Group", "Library",
                      "LibraryConfiguration", "LibraryError", "RetrievalError", "SubLibrary",
                      "TreeRef"), "model"),
-    **dict.fromkeys(("Retrieval", "RetrievedStep", "retrieve", "shortest_path"), "retrieve"),
+    # ``retrieve`` (the function) is imported from ``msrr.core.library.retrieve``: the
+    # submodule of that name would shadow it here once imported
+    **dict.fromkeys(("Retrieval", "RetrievedStep", "shortest_path"), "retrieve"),
     **dict.fromkeys(("LibrarySources", "load_sources"), "sources"),
     **dict.fromkeys(("LIBRARY_SCHEMA_VERSION", "LibraryFile", "dump_library", "load_library",
                      "save_library"), "storage"),
@@ -73,7 +75,6 @@ __all__ = [
     "dump_library",
     "load_library",
     "load_sources",
-    "retrieve",
     "save_library",
     "shortest_path",
 ]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from tiny_robot import (
     NAME,
@@ -26,6 +27,7 @@ from msrr.core.app.run import parse_parameters, plan_stages
 from msrr.core.errors import ConfigurationError, UnknownNameError
 from msrr.core.events import Phase, Run
 from msrr.core.executor import Executor, ExecutorOptions, behavior_commands, phases_of
+from msrr.core.judge import Judge, JudgeOptions, asked_distance, judge_behavior
 from msrr.core.plan import (
     Action,
     ActionType,
@@ -51,12 +53,15 @@ class TruthDriver(PointDriver):
 
 
 def execute(plan: Plan, driver: PointDriver | None = None, **options):
+    """Execute ``plan`` and judge it, as ``platform run`` does."""
     run = Run(robot=NAME, scenario="test", plan=plan, spec=SPEC, driver="points")
     with driver or PointDriver() as world:
         world.reset(plan.start)
+        judge = Judge(run, world)
         executor = Executor(run, world, LinkRecognizer(), GoalController(),
-                            ExecutorOptions(rate=10.0, action_timeout=5.0, **options))
-        return executor.execute(), world
+                            ExecutorOptions(rate=10.0, action_timeout=5.0, **options),
+                            sink=judge)
+        return judge.conclude(executor.execute()), world
 
 
 def drive(duration: float | None = 2.0, distance: float | None = None, speed: float = 0.5,
@@ -84,10 +89,45 @@ def test_distance_ends_a_mapping_behavior_and_a_wrong_way_shows_as_heading_error
     start = chain(("a", "b"))
     action = drive(duration=None, distance=0.75, speed=-0.5)
     result, world = execute(Plan(NAME, "test", start, start, [action]), TruthDriver())
-    assert result.success, result.reason
+    assert result.actions_done == 1
     (moved,) = result.locomotion
     assert 0.75 <= moved.distance < 0.75 + 0.1 + 1e-9                 # stops at the first tick past it
     assert moved.heading_error == pytest.approx(math.pi)              # -x, commanded +x
+    assert moved.along == pytest.approx(-moved.distance)
+    assert not result.success and "covered -0.800 m along the commanded direction of the " \
+        "0.750 m asked" in result.reason                              # it went the wrong way
+
+
+def test_a_behavior_that_does_not_move_fails_with_the_distance_it_covered():
+    start = chain(("a", "b"))
+    still = BehaviorCall("drive", "mapping", {"speed": 0.5}, (), duration=2.0,
+                         direction=(1.0, 0.0, 0.0))
+    result, _ = execute(Plan(NAME, "test", start, start,
+                             [Action(ActionType.BEHAVIOR, start, behavior=still)]),
+                        TruthDriver())
+    (moved,) = result.locomotion
+    assert (moved.distance, moved.asked) == (0.0, 1.0) and not moved.success
+    assert not result.success and result.reason == (
+        "drive covered 0.000 m along the commanded direction of the 1.000 m asked (0%; at "
+        "least 20% is needed), judged on ground truth")
+
+
+def test_a_turn_in_place_asks_no_distance_and_a_short_drive_is_judged_on_what_it_asked():
+    assert asked_distance(BehaviorCall("turn", "mapping", {"yaw_rate": 0.3}, (),
+                                       duration=5.0)) is None
+    assert asked_distance(BehaviorCall("go", "mapping", {"speed": -0.1}, (),
+                                       duration=5.0)) == pytest.approx(0.5)
+    assert asked_distance(BehaviorCall("go", "mapping", {"speed": 0.1}, (), duration=5.0,
+                                       distance=0.3)) == 0.3
+    call = BehaviorCall("go", "mapping", {"speed": 0.1}, (), duration=5.0)
+    kept = judge_behavior(call, first_action=0, actions=1, duration=5.0,
+                          shift=np.array([0.1, 0.0]), direction=np.array([1.0, 0.0]),
+                          basis="ground truth", options=JudgeOptions())
+    assert kept.success and kept.along == pytest.approx(0.1)          # 20% of 0.5 m
+    veered = judge_behavior(call, first_action=0, actions=1, duration=5.0,
+                            shift=np.array([0.3, 0.4]), direction=np.array([1.0, 0.0]),
+                            basis="ground truth", options=JudgeOptions())
+    assert not veered.success and "53 deg off the commanded direction" in veered.reason
 
 
 def sequence_plan(loops: int, distance: float | None) -> Plan:
@@ -121,8 +161,9 @@ def test_a_goal_is_judged_on_the_ground_truth_topology():
     still = Action(ActionType.MOVING, start, ("c",), goals={"c": [2.0, 0.0, 0.0]},
                    reaches="ab")
     ok, _ = execute(Plan(NAME, "test", start, start, [still]), TruthDriver())
-    assert ok.success and [t.name for t in ok.targets] == ["ab"] and ok.targets[0].truth_topology
-    assert ok.targets[0].shape_error is None                          # a robot without vectors
+    assert ok.success and [t.name for t in ok.targets] == ["ab"] and ok.targets[0].topology
+    assert ok.targets[0].shape is None                                # a robot without vectors
+    assert ok.targets[0].basis == "ground truth" and ok.goal is not None and ok.goal.success
     bad, _ = execute(Plan(NAME, "test", start, start, [still]), Broken())
     assert not bad.success and "goal ab (action 1)" in bad.reason and "topology" in bad.reason
 

@@ -154,7 +154,8 @@ def own_handlers() -> Iterator[None]:
 
 @pytest.mark.parametrize(("signum", "moment", "where"), [
     (signal.SIGTERM, "action:0", "action 1/3: undock aT-bB"),
-    (signal.SIGINT, "run_start", "start-up"),
+    (signal.SIGINT, "run_start", "the run's start, after the plan was made, before its first "
+                                 "action"),
     (signal.SIGINT, "tick:2", "action 2/3: move c"),
 ])
 def test_in_process_signals_at_more_moments(tmp_path: Path, own_handlers: None, signum: int,

@@ -52,13 +52,13 @@ def test_errors_are_zero_for_a_moved_layout_and_measure_a_displaced_module() -> 
     moved = {m: Pose.planar(*(_rot(turn) @ p.position[:2] + shift), p.yaw + turn)
              for m, p in goal.items()}
     errors = pose_errors(moved, goal, ShapeTolerance(position=0.01, heading=0.01))
-    assert errors.max_position < 1e-12 and errors.max_heading < 1e-12 and errors.within
+    assert errors.error < 1e-12 and errors.heading < 1e-12 and errors.within
     moved["c"] = Pose.planar(*moved["c"].position[:2], moved["c"].yaw + 0.2)
     errors = pose_errors(moved, goal, ShapeTolerance(position=0.01, heading=0.1))
-    assert errors.max_heading == pytest.approx(0.2) and not errors.within
+    assert errors.heading == pytest.approx(0.2) and not errors.within
     single = pose_errors({"a": Pose.planar(5, 5, 1.0)}, {"a": Pose.planar(0, 0, 0.2)},
                           ShapeTolerance(position=0.01, heading=0.01))
-    assert single.max_position < 1e-12 and single.max_heading < 1e-12
+    assert single.error < 1e-12 and single.heading < 1e-12
     with pytest.raises(ConfigurationError, match="differ"):
         pose_errors({"a": goal["a"]}, goal, ShapeTolerance(position=0.01, heading=0.01))
 
@@ -86,8 +86,9 @@ def test_a_run_is_judged_by_its_final_shape(tmp_path: Path, monkeypatch: pytest.
     summary = json.loads((out / "summary.json").read_text())
     assert summary["actions_done"] == summary["actions_total"]
     assert summary["success"] is success and result.exit_code == (0 if success else 1)
-    shape = summary["shape"]
-    assert 1e-5 < shape["max_position_error_m"] < 0.01
-    assert shape["rms_position_error_m"] <= shape["max_position_error_m"]
+    shape = summary["goal"]["shape"]  # one shape figure: the poses against the layout
+    assert shape["metric"] == "poses" and 1e-5 < shape["max_position_error_m"] < 0.01
+    assert summary["goal"]["basis"].startswith("what the modules report")
     if not success:
-        assert summary["reason"].startswith("final shape outside the tolerance")
+        assert summary["reason"].startswith("goal bc (action 3): shape outside the tolerance, "
+                                            "position error up to")

@@ -199,7 +199,8 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
 def retrieve_command(library: Path, system: Path, target: str | None,
                      behavior: str | None) -> None:
     """Retrieve the cheapest sequence from the system to a target (Fig. 15)."""
-    from ...library import RetrievalError, retrieve
+    from ...library import RetrievalError
+    from ...library.retrieve import retrieve
 
     lib = load_library(library)
     config = load_configuration(system)

@@ -7,6 +7,7 @@ the command's body, not at module level, so ``platform run --help`` starts at on
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -28,80 +29,146 @@ from ...hookspecs import hookimpl
 from ...interrupts import Interrupted, handled, shielded
 
 if TYPE_CHECKING:
-    from ...events import ActionStatus, FaultEvent, Run, RunResult, TopologyEvent
-    from ...plan import Action
+    from ...events import (
+        ActionStatus,
+        BehaviorVerdict,
+        FaultEvent,
+        GoalVerdict,
+        Run,
+        RunResult,
+        Tick,
+        TopologyEvent,
+    )
+    from ...plan import Action, Plan
     from ..run import PreparedRun
 
 __all__ = ["command"]
 
 
 class _ProgressListener:
-    """An event listener (a plugin like any other) that drives a rich progress bar."""
+    """An event listener (a plugin like any other) that shows where the run is: a rich
+    progress bar at a terminal; without one (a pipe, a log file), one line per action and
+    one at least every :data:`PROGRESS_EVERY` seconds of wall time."""
 
-    def __init__(self, progress: Progress, total: int):
+    def __init__(self, progress: Progress | None, total: int):
         self.progress = progress
-        self.task = progress.add_task("starting", total=total)
+        self.total = total
+        self.task = None if progress is None else progress.add_task("starting", total=total)
+        self.started = self.said = time.monotonic()
+        self.done = 0
+        self.current = "starting"
+        self.sim_time = 0.0
+
+    def _say(self, text: str) -> None:
+        if self.progress is not None:
+            self.progress.console.print(text, markup=False)
+        else:
+            console.print(text, markup=False, soft_wrap=True)
+
+    def _status(self) -> str:
+        elapsed = time.monotonic() - self.started
+        left = (f", about {elapsed / self.done * (self.total - self.done):.0f} s left"
+                if self.done else "")
+        return (f"action {min(self.done + 1, self.total)}/{self.total}: {self.current} "
+                f"(simulated {self.sim_time:.1f} s, wall {elapsed:.0f} s{left})")
 
     @hookimpl
     def msrr_on_action(self, run: Run, action: Action, status: ActionStatus) -> None:
-        self.progress.update(self.task, description=f"{action} ({status})")
+        self.current = str(action)
         if status == "succeeded":  # ActionStatus.SUCCEEDED, a str enum
-            self.progress.advance(self.task)
+            self.done += 1
+        if self.progress is not None:
+            self.progress.update(self.task, description=f"{action} ({status})")
+            if status == "succeeded":
+                self.progress.advance(self.task)
+        elif status == "started":
+            self._say(self._status())
+            self.said = time.monotonic()
+
+    @hookimpl
+    def msrr_on_tick(self, run: Run, tick: Tick) -> None:
+        self.sim_time = tick.time
+        if self.progress is None and time.monotonic() - self.said >= PROGRESS_EVERY:
+            self._say(self._status())
+            self.said = time.monotonic()
 
     @hookimpl
     def msrr_on_topology_change(self, run: Run, change: TopologyEvent) -> None:
-        self.progress.console.print(f"  {change} at t={change.time:.1f} s", markup=False)
+        self._say(f"  {change} at t={change.time:.1f} s")
 
     @hookimpl
     def msrr_on_fault(self, run: Run, fault: FaultEvent) -> None:
-        self.progress.console.print(f"  fault {fault}", markup=False)
+        self._say(f"  fault {fault}")
+
+
+PROGRESS_EVERY = 10.0
+"""Without a terminal, a progress line at least this often [s of wall time]."""
+
+
+def _verdict(ok: bool) -> str:
+    return "yes" if ok else "NO"
+
+
+def _goal_row(goal: GoalVerdict) -> list[object]:
+    where = "at the end" if goal.action_index is None else f"at t={goal.time:.1f} s"
+    shape = "" if goal.shape is None else f"; shape {goal.shape}"
+    text = (f"reached {where}: topology {_verdict(goal.topology)}{shape}; judged on "
+            f"{goal.basis}" if goal.success else goal.reason)
+    return [f"goal {goal.name}", text]
+
+
+def _behavior_row(moved: BehaviorVerdict) -> list[object]:
+    along = "" if moved.along is None else f", {moved.along:.3f} m along the commanded direction"
+    asked = "" if moved.asked is None else f" of {moved.asked:.3f} m asked"
+    heading = "" if moved.heading_error is None else \
+        f", heading error {math.degrees(moved.heading_error):.1f} deg"
+    text = f"{moved.distance:.3f} m in {moved.duration:.1f} s{along}{asked}{heading}"
+    return [f"behavior {moved.name}", text if moved.success else f"{text}: {moved.reason}"]
 
 
 def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
              planned_flows: int = 0) -> Table:
+    """The run's numbers: counts recognized from the modules' reports, the simulator's
+    own count where it has one, and the judge's verdicts."""
     rows: list[list[object]] = [
         ["actions", f"{result.actions_done}/{result.actions_total}"
          + (f" ({result.actions_skipped} skipped: distance covered)"
             if result.actions_skipped else "")],
-        ["docks", f"{result.docks} (planned {planned_docks})"],
-        ["undocks", f"{result.undocks} (planned {planned_undocks})"],
-        *([["flows", f"{result.flows} (planned {planned_flows})"]]
+        ["docks recognized", f"{result.docks} (planned {planned_docks})"],
+        ["undocks recognized", f"{result.undocks} (planned {planned_undocks})"],
+        *([["flows recognized", f"{result.flows} (planned {planned_flows})"]]
           if planned_flows or result.flows else []),
-        *([["simulator switches", ", ".join(f"{n} {kind}s" for kind, n in
-                                            result.simulator.items())]]
+        *([["simulator's own count", ", ".join(
+            f"{n} {kind}s" for kind, n in result.simulator.items())
+            + " (constraint switches; a docked weld kept across a flow counts once)"]]
           if result.simulator else []),
         ["retries", result.retries],
+        ["ticks", result.ticks],
         ["simulated time", f"{result.sim_time:.1f} s"],
         ["wall time", f"{result.wall_time:.1f} s"],
+        *(_goal_row(goal) for goal in result.targets),
+        *([_goal_row(result.goal)] if result.goal is not None else []),
+        *(_behavior_row(moved) for moved in result.locomotion),
     ]
-    if result.shape is not None:
-        shape = result.shape
-        rows += [["position error max/RMS", f"{shape.max_position:.3f} / {shape.rms_position:.3f}"
-                  f" m (tolerance {shape.tolerance_position:g})"],
-                 ["heading error max", f"{shape.max_heading:.3f} rad (tolerance "
-                  f"{shape.tolerance_heading:g})"]]
-    if result.truth_shape_error is not None:
-        rows.append(["shape error (ground truth)",
-                     f"{math.degrees(result.truth_shape_error):.2f}° RMS after yaw alignment"])
-    for target in result.targets:
-        error = target.truth_shape_error if target.truth_shape_error is not None \
-            else target.shape_error
-        if error is None:
-            continue
-        source = ("ground truth" if target.truth_shape_error is not None
-                  else "recognized; not judged: the driver has no ground truth")
-        topology = "" if target.truth_topology is not False else ", topology differs"
-        rows.append([f"goal {target.name}", f"{math.degrees(error):.2f}° RMS ({source}) at "
-                     f"t={target.time:.1f} s{topology}"])
-    for moved in result.locomotion:
-        heading = "" if moved.heading_error is None else \
-            f", heading error {math.degrees(moved.heading_error):.1f}°"
-        rows.append([f"behavior {moved.name}", f"{moved.distance:.3f} m in "
-                     f"{moved.duration:.1f} s{heading}"])
     if result.faults:
         rows.append(["faults", len(result.faults)])
     rows.append(["success", "yes" if result.success else "no"])
     return table("Run summary", ["", "value"], rows)
+
+
+def _asked(plan: Plan) -> str:
+    """What the user asked for, in order: ``start -> goal -> behavior -> goal``."""
+    steps = [plan.start.name or "start"]
+    for index, action in enumerate(plan.actions):
+        call = action.behavior
+        if call is not None and (index == 0 or plan.actions[index - 1].behavior is None
+                                 or plan.actions[index - 1].behavior.name != call.name):
+            steps.append(str(call))
+        if action.reaches:
+            steps.append(action.reaches)
+    if len(steps) == 1:
+        steps.append(plan.goal.name or "goal")
+    return " -> ".join(steps)
 
 
 @click.command("run")
@@ -221,13 +288,16 @@ def _execute(prepared: PreparedRun) -> RunResult:
     run, plan = prepared.run, prepared.run.plan
     for note in prepared.notes:
         err_console.print(f"note: {note}", markup=False)
-    console.print(f"{run.robot} {run.scenario}: {plan.start.name or 'start'} -> "
-                  f"{plan.goal.name or 'goal'}, {plural(len(plan.actions), 'action')} by {plan.planner} "
+    console.print(f"{run.robot} {run.scenario}: {_asked(plan)}; "
+                  f"{plural(len(plan.actions), 'action')} by {plan.planner} "
                   f"({plural(plan.undocks, 'undock')}, {plural(plan.docks, 'dock')}"
                   + (f"; {plural(plan.flows, 'flow')}" if plan.flows else "")
                   + f"), driver {run.driver}"
                   + (f", faults {'; '.join(map(str, prepared.faults))}" if prepared.faults else ""),
                   markup=False)
+    if not console.is_terminal:  # a pipe or a log: plain lines, never a minute of silence
+        with plugins.temporary(_ProgressListener(None, len(plan.actions))):
+            return execute_run(prepared)
     progress = Progress(TextColumn("{task.description}", markup=False), BarColumn(),
                         TextColumn("{task.completed}/{task.total} actions"),
                         TimeElapsedColumn(), console=console, transient=True)

@@ -123,17 +123,17 @@ def sweep_run(task: SweepTask) -> SweepRow:
 
     with tempfile.TemporaryDirectory(prefix="msrr-sweep-") as folder:
         result = execute_run(prepare_run(_request(task, folder)))
-    shape = result.shape
-    error = result.truth_shape_error if result.truth_shape_error is not None \
-        else result.shape_error
+    shape = None if result.goal is None else result.goal.shape
+    poses = shape if shape is not None and shape.metric == "poses" else None
+    error = shape.error if shape is not None and shape.metric == "skeletal" else None
     return SweepRow(faults=task.faults, seed=task.seed, success=result.success,
                     reason=result.reason, actions_done=result.actions_done,
                     actions_total=result.actions_total, docks=result.docks,
                     undocks=result.undocks, retries=result.retries,
                     sim_time_s=round(result.sim_time, 6),
-                    position_rms_m=_nan(None if shape is None else shape.rms_position),
-                    position_max_m=_nan(None if shape is None else shape.max_position),
-                    heading_max_rad=_nan(None if shape is None else shape.max_heading),
+                    position_rms_m=_nan(None if poses is None else poses.rms),
+                    position_max_m=_nan(None if poses is None else poses.error),
+                    heading_max_rad=_nan(None if poses is None else poses.heading),
                     shape_error_deg=_nan(error, 180.0 / math.pi),
                     faults_met=len(result.faults))
 

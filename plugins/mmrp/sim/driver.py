@@ -101,3 +101,17 @@ class MmrpSimDriver(Driver):
     @property
     def time(self) -> float:
         return self._world().time
+
+    def ground_truth(self) -> Configuration:
+        """The configuration of the simulator's dock constraints: one connection per
+        constraint, from its active face (T, R) to its passive one (for judging only)."""
+        world = self._world()
+        truth = Configuration("mmrp", name="ground truth")
+        for module in sorted(world.bodies):
+            truth.add_module(module, MODULE.name)
+        for key in sorted(sorted(k) for k in world.docks):
+            (a, face_a), (b, face_b) = key
+            if MODULE.port(face_a).role != "active":
+                (a, face_a), (b, face_b) = (b, face_b), (a, face_a)
+            truth.connect(a, b, ports=(face_a, face_b))
+        return truth

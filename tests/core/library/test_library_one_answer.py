@@ -8,7 +8,8 @@ import pytest
 
 from msrr.core import Configuration, plugins
 from msrr.core.actions import classify, detect_action, topology_diff
-from msrr.core.library import load_library, retrieve
+from msrr.core.library import load_library
+from msrr.core.library.retrieve import retrieve
 from msrr.core.mapping import ModuleMap
 from msrr.core.plan import ActionType
 

@@ -21,9 +21,9 @@ from msrr.core.alignment import angles_between, rot_z
 from msrr.core.configuration import Configuration
 from msrr.core.errors import PlanningError
 from msrr.core.kinematics import KinematicTree
-from msrr.core.library import load_library, retrieve
+from msrr.core.library import load_library
 from msrr.core.library.planner import LibraryPlanner
-from msrr.core.library.retrieve import INLIER, frame_turn
+from msrr.core.library.retrieve import INLIER, frame_turn, retrieve
 from msrr.core.plan import ActionType, save_plan
 from msrr.core.random_configurations import newly_built
 from msrr.core.shape import skeletal_error

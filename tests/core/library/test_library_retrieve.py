@@ -7,13 +7,8 @@ import itertools
 import pytest
 from stick_library import STICK, relabelled, stick_sources
 
-from msrr.core.library import (
-    LibraryError,
-    RetrievalError,
-    build_library,
-    retrieve,
-    shortest_path,
-)
+from msrr.core.library import LibraryError, RetrievalError, build_library, shortest_path
+from msrr.core.library.retrieve import retrieve
 from msrr.core.plan import ActionType
 from msrr.core.robot import Robot, RobotSpec
 

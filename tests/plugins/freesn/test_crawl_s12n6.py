@@ -108,4 +108,5 @@ def test_one_s12n6_crawl_loop_moves_the_body_forward(tmp_path):
     moved = summary["locomotion"][0]
     assert 0.03 < moved["distance_m"] < 0.15
     assert moved["heading_error_deg"] < 15.0
-    assert summary["undocks"] == 0 and summary["shape_error_deg"] < math.degrees(0.1)
+    shape = summary["goal"]["shape"]
+    assert summary["undocks"] == 0 and shape["error_deg"] < math.degrees(0.1)

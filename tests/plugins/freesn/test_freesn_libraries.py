@@ -24,9 +24,9 @@ from msrr.core.library import (
     build_steps,
     load_library,
     load_sources,
-    retrieve,
     shortest_path,
 )
+from msrr.core.library.retrieve import retrieve
 from msrr.core.plan import ActionType
 from msrr.core.plugins import resolve
 

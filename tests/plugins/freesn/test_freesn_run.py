@@ -143,8 +143,10 @@ def test_platform_run_from_to_reports_the_ground_truth_shape_error(tmp_path):
         "--no-log", "--driver-option", "noise=0.0349", "--driver-option", "slip=0.05"])
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert summary["success"] and summary["truth_topology"] is True
-    assert summary["truth_shape_error_deg"] < 5.0 and summary["docks"] == 1
+    goal = summary["goal"]
+    assert summary["success"] and goal["topology"] is True and goal["basis"] == "ground truth"
+    assert goal["shape"]["metric"] == "skeletal" and goal["shape"]["error_deg"] < 5.0
+    assert summary["docks"] == 1
 
 
 def test_library_check_writes_the_sidecar_atomically(tmp_path):

@@ -53,7 +53,7 @@ def test_the_simulator_lays_out_a_goal_as_the_grid_representation_does(name: str
         placed = dict(driver.get_observation().poses)
     grid = {m: Pose.planar(x, y, yaw) for m, (x, y, yaw) in layout(config).items()}
     errors = pose_errors(placed, grid, plugins.robot("mmrp").defaults.shape_tolerance)
-    assert errors.max_position < 1e-6 and errors.max_heading < 1e-6
+    assert errors.error < 1e-6 and errors.heading < 1e-6
 
 
 def test_series_to_t_reaches_the_goal_shape(tmp_path: Path) -> None:
@@ -62,7 +62,9 @@ def test_series_to_t_reaches_the_goal_shape(tmp_path: Path) -> None:
     result = execute_run(prepared)
     write_outputs(prepared.run, result)
     assert result.success, result.reason
-    assert result.shape is not None and result.shape.within
-    shape = json.loads((tmp_path / "out" / "summary.json").read_text())["shape"]
+    assert result.goal is not None and result.goal.shape is not None
+    assert result.goal.shape.metric == "poses" and result.goal.shape.within
+    assert result.goal.basis == "ground truth"
+    shape = json.loads((tmp_path / "out" / "summary.json").read_text())["goal"]["shape"]
     assert shape["max_position_error_m"] <= shape["position_tolerance_m"] == 0.02
     assert shape["max_heading_error_rad"] <= shape["heading_tolerance_rad"] == 0.06
