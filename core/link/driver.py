@@ -4,53 +4,80 @@ Registered for every robot (after the robot's own drivers and the generic runtim
 ``platform run --robot ROBOT --driver link --system system.json``. It keeps the
 :class:`~msrr.core.driver.Driver` contract over the protocol of :mod:`.protocol`:
 
-* ``connect`` handshakes with every module (HELLO -> WELCOME, fresh nonces);
+* ``connect`` handshakes with every module (HELLO -> WELCOME -> SETUP, a fresh X25519
+  exchange each, :mod:`.keys`) and waits for each one's first report;
 * ``reset(start)`` expects the modules of ``start`` (it cannot place them) and waits
-  for a report of each;
-* ``send_action`` sends one COMMAND to every module each tick (a module not named gets
-  a stop); an undock is repeated until the module acknowledges it;
+  for a report of each with its latched ports;
+* ``send_action`` sends one COMMAND frame per tick for all modules (a module not named
+  stops); a module's command travels in full until the module acknowledges it, then as
+  its version only; an undock is repeated until acknowledged;
 * ``step(dt)`` waits ``dt`` of system time (wall time / ``time_scale``) while reading
   reports, so the executor's loop runs at the robot's rate; then it stops the run with
-  one line naming the module when a module was silent longer than its timeout, or did
-  not acknowledge a dock or undock within it;
+  one line naming the module when a module was silent longer than its timeout, did not
+  acknowledge a dock or undock within it, received commands for two control periods
+  without applying them, reports its motors failed, or heard no command for its timeout;
 * ``disconnect`` says BYE (modules stop at once); without it, their watchdogs stop
   them within ``watchdog`` (default 3 control periods).
 
-The key is read from where the systems file says and kept only in the endpoint.
+With a budget in the systems file the host spaces the modules' reports (every 1 to 6
+control periods) so that the traffic on its socket, UDP/IP headers included, stays
+within it. The site key is read from where the systems file says and kept only in this
+object (never printed); modules hold keys derived from it.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
-import secrets
 import select
 import socket
 import time as wall
-from collections.abc import Mapping
+from collections import deque
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
 import networkx as nx
-import numpy as np
 
 from ..configuration import Configuration
 from ..driver import Companions, Driver, DriverFactory, ModuleCommand, Observation, Pose
 from ..errors import ConfigurationError, ExecutionError
 from ..robot import RobotSpec
-from .module import DEFAULT_WATCHDOG_PERIODS
+from .codec import INCOMPLETE, Codec, CodecError, RecordSpec, RecordTable
+from .keys import Aead, Ephemeral, SessionKeys, Signer, module_key, random_key, session_keys
+from .module import DEFAULT_WATCHDOG_PERIODS, FAULT, WATCHDOG
 from .protocol import (
     HEADER,
     HOST,
+    MAX_COUNTER,
+    MAX_FRAME,
+    SIGNATURE_SIZE,
+    TAG_SIZE,
+    UDP_IP_BYTES,
     VERSION,
-    Endpoint,
+    VERSION_MARKS,
     FrameType,
+    Freshness,
+    Header,
     LinkStats,
+    NameTable,
     Refused,
-    command_payload,
+    clock_ms,
+    command_entry,
+    decode_map,
+    open_handshake,
+    open_sealed,
+    pose_from_wire,
+    read_header,
+    seal,
+    seal_handshake,
+    seal_signed,
+    unsigned,
+    want,
 )
 from .system import ModuleEntry, SystemFile, load_key, load_system
+from .transport import drain, udp_socket
 
 __all__ = ["LinkDriver", "LinkDriverFactory"]
 
@@ -58,26 +85,62 @@ HANDSHAKE = 2.0
 """Shortest wall time [s] given to every module to answer at connect and reset."""
 DEFAULT_RATE = 10.0
 """Control rate [Hz] assumed for the watchdog until the first ``step``."""
+RESEND = 0.1
+"""HELLO and SETUP are repeated every this many seconds [system time] until answered."""
+MAX_EVERY = 6
+"""Reports are at least every this many control periods under a budget (a module reports
+at once when its status changes or it falls behind, so faults show within 3 periods),
+and never so far apart that three lost reports in a row exceed a module's timeout."""
+DISOBEY_PERIODS = 2.0
+"""A module that received commands this many control periods newer than the one it
+applies stops the run."""
+_PAYLOAD_LIMIT = MAX_FRAME - HEADER.size - TAG_SIZE - SIGNATURE_SIZE
+BUDGET_WINDOW = 2.0
+"""The budget is checked on the traffic of the last this many seconds [wall]."""
 
 
 @dataclass
 class _Module:
     entry: ModuleEntry
     timeout: float
-    link: int = 0
+    aead: Aead
+    key: bytes = field(repr=False)
+    state: str = "none"  # none -> hello -> setup -> live
+    hello: Ephemeral | None = None
+    hello_at: float = -math.inf
+    setup_at: float = -math.inf
+    keys: SessionKeys | None = None
+    module_public: bytes = b""
+    counter: int = 0
+    freshness: Freshness | None = None
+    boot: int | None = None
+    reboots: int = 0
     heard: float = 0.0
-    report: dict[str, Any] | None = None
+    reports: int = 0
+    sensors: Any = None
+    pose: Pose | None = None
+    battery: float | None = None
+    status: int = 0
+    watchdog_since: float | None = None
+    known: int = 0
     links: tuple[Any, ...] = ()
     has_links: bool = False
-    reboots: int = 0
-    undock: dict[str, int] = field(default_factory=dict)  # port -> first sequence carrying it
-    docks: dict[str, tuple[int, float]] = field(default_factory=dict)  # port -> (seq, time)
-    sent: dict[int, float] = field(default_factory=dict)  # seq -> wall time sent
-    hello_at: float = -math.inf
+    command: ModuleCommand | None = None
+    version: int = 0
+    acked_version: int | None = None
+    batches: dict[int, int | None] = field(default_factory=dict)  # counter -> version sent
+    undock: dict[str, int] = field(default_factory=dict)  # port -> first counter carrying it
+    docks: dict[str, tuple[int, float]] = field(default_factory=dict)  # port -> (counter, t)
+    sent: dict[int, float] = field(default_factory=dict)  # counter -> wall time sent
+    problem: str | None = None
 
     @property
     def address(self) -> tuple[str, int]:
         return (self.entry.address, self.entry.port)
+
+    @property
+    def number(self) -> int:
+        return self.entry.number
 
 
 class LinkDriver(Driver):
@@ -110,21 +173,43 @@ class LinkDriver(Driver):
             raise ConfigurationError(f"describes {self.system.robot!r} modules, not {robot!r}",
                                      source=str(self.path), field="robot")
         self.packages = packages
+        try:
+            table = RecordTable([RecordSpec(r.type, tuple(r.rotations), tuple(r.directions))
+                                 for r in self.system.records], packages)
+        except ConfigurationError as exc:
+            raise ConfigurationError(exc.message if hasattr(exc, "message") else str(exc),
+                                     source=str(self.path), field="records") from None
+        self.codec = Codec(table)
         self.handshake = handshake
-        self.modules = {m.id: _Module(m, self.system.timeout(m)) for m in self.system.modules}
-        self._by_number = {m.entry.number: m for m in self.modules.values()}
-        self._endpoint: Endpoint | None = None
+        self.modules: dict[str, _Module] = {}
+        self._by_number: dict[int, _Module] = {}
         self._sock: socket.socket | None = None
-        self.session = 0
+        self._stats = LinkStats()
+        self._counter = 0
+        self._group: Aead | None = None
+        self._group_key = b""
+        self._signer: Signer | None = None
+        self.names = NameTable()
         self._time = 0.0
         self._t0 = 0.0
         self._mark = 0.0
         self._dt = 1.0 / DEFAULT_RATE
+        self.every = 1
+        """Reports come every this many control periods (set by the budget)."""
         self.latencies: list[float] = []
         self.held = 0
         """Observations held because two modules' reports disagreed about a latch."""
         self._agreed: Observation | None = None
-        self.bytes_by_module: dict[str, list[int]] = {m: [0, 0] for m in self.modules}
+        self.bytes_by_module: dict[str, list[int]] = {}
+        """Per module: bytes of the frames sent to it alone (handshake, SETUP, BYE) and
+        of the frames it sent (the COMMAND frames, one for all, are in :attr:`traffic`)."""
+        self.traffic: dict[str, int] = {"sent": 0, "received": 0, "datagrams_sent": 0,
+                                        "datagrams_received": 0}
+        """Everything on the host's socket: payload bytes and datagrams each way."""
+        self._recent: deque[tuple[float, int]] = deque()
+        self._budget_at = 0.0
+        self._sent_at: dict[int, float] = {}
+        """Wall time each COMMAND frame was sent, by counter (the last 256)."""
 
     # -- connection ------------------------------------------------------------------
 
@@ -134,8 +219,8 @@ class LinkDriver(Driver):
 
     @property
     def stats(self) -> LinkStats:
-        """Frames, bytes and refusals of the host's end (an empty count before connect)."""
-        return self._endpoint.stats if self._endpoint is not None else LinkStats()
+        """Frames, bytes and refusals of the host's end."""
+        return self._stats
 
     def _clock(self) -> float:
         """The host's link clock [s of system time]."""
@@ -147,20 +232,31 @@ class LinkDriver(Driver):
     def connect(self) -> None:
         if self._sock is not None:
             return
-        key = load_key(self.system, self.path)
-        window = max(m.timeout for m in self.modules.values())
-        self._endpoint = Endpoint(key, self.system.system, HOST, window=window,
-                                  packages=self.packages)
-        loopback = all(m.entry.address.startswith("127.") for m in self.modules.values())
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        sock.bind(("127.0.0.1" if loopback else "0.0.0.0", 0))
-        sock.setblocking(False)
+        site = load_key(self.system, self.path)
+        self.modules = {}
+        for entry in self.system.modules:
+            key = module_key(site, self.system.system, entry.number)
+            self.modules[entry.id] = _Module(entry, self.system.timeout(entry), Aead(key), key)
+        self._by_number = {m.number: m for m in self.modules.values()}
+        self.bytes_by_module = {m: [0, 0] for m in self.modules}
+        self._group_key = random_key()
+        self._group = Aead(self._group_key)
+        self._signer = Signer()
+        self._counter = 0
+        self.names = NameTable()
+        self.every = self._initial_every()
+        addresses = [m.entry.address for m in self.modules.values()]
+        if self.system.group is not None:
+            addresses.append(self.system.group.address)
+        loopback = all(a.startswith("127.") for a in addresses)
+        sock = udp_socket("127.0.0.1" if loopback else "0.0.0.0")
+        if not loopback:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         self._sock = sock
-        self.session = secrets.randbits(32) | 1
         self._t0 = wall.monotonic()
         self._mark = self._t0
         try:
-            self._wait(lambda m: m.link != 0, "answer the handshake")
+            self._wait(lambda m: m.state == "live", "answer the handshake")
         except BaseException:
             self.disconnect()
             raise
@@ -169,9 +265,9 @@ class LinkDriver(Driver):
         if self._sock is None:
             return
         for module in self.modules.values():
-            if module.link:
-                self._send(module, FrameType.BYE, {})
-                module.link = 0
+            if module.keys is not None:
+                self._unicast(module, FrameType.BYE, {})
+                module.keys, module.state = None, "none"
         self._sock.close()
         self._sock = None
 
@@ -180,8 +276,8 @@ class LinkDriver(Driver):
             return self.handshake
         return max(HANDSHAKE, self._wall(max(m.timeout for m in self.modules.values())))
 
-    def _wait(self, ready: Any, what: str) -> None:
-        """Pump frames (re-sending HELLOs) until ``ready(module)`` for every module."""
+    def _wait(self, ready: Callable[[_Module], bool], what: str) -> None:
+        """Pump frames (repeating HELLO and SETUP) until ``ready(module)`` for every module."""
         end = wall.monotonic() + self._limit()
         while True:
             waiting = [m for m in self.modules.values() if not ready(m)]
@@ -196,15 +292,31 @@ class LinkDriver(Driver):
                     f"module{'s' if len(waiting) > 1 else ''} {names} did not {what} within "
                     f"{self._limit():.1f} s"
                     + (f"; frames refused: {_counts(refused)}" if refused else ""))
-            for module in waiting:
-                if module.link == 0 and now - module.hello_at >= self._wall(0.1):
-                    self._hello(module)
+            self._handshakes()
             self._pump(min(end, now + self._wall(0.05)))
 
+    def _handshakes(self) -> None:
+        now = wall.monotonic()
+        for module in self.modules.values():
+            if module.state in ("none", "hello") and now - module.hello_at >= self._wall(RESEND):
+                self._hello(module)
+            elif module.state == "setup" and now - module.setup_at >= self._wall(RESEND):
+                self._setup(module)
+
     def _hello(self, module: _Module) -> None:
+        if module.state != "hello" or module.hello is None:
+            module.hello, module.state = Ephemeral(), "hello"
         module.hello_at = wall.monotonic()
-        self._send(module, FrameType.HELLO, {"version": VERSION, "watchdog": self._watchdog()},
-                   link=0)
+        data = seal_handshake(module.aead, self._header(FrameType.HELLO),
+                              self.codec.encode({0: VERSION, 1: module.hello.public}))
+        self._send(data, module.address, module)
+
+    def _setup(self, module: _Module) -> None:
+        assert self._signer is not None
+        module.setup_at = wall.monotonic()
+        self._unicast(module, FrameType.SETUP, {
+            0: self._group_key, 1: self._signer.public, 2: round(self._watchdog() * 1000),
+            3: self.every, 4: round(module.timeout * 1000)})
 
     def _watchdog(self) -> float:
         if self.system.watchdog_s is not None:
@@ -213,94 +325,194 @@ class LinkDriver(Driver):
 
     # -- frames ----------------------------------------------------------------------
 
-    def _send(self, module: _Module, frame_type: FrameType, payload: Any,
-              link: int | None = None) -> int:
-        assert self._sock is not None and self._endpoint is not None
-        data = self._endpoint.encode(frame_type, module.entry.number, session=self.session,
-                                     link=module.link if link is None else link,
-                                     clock=self._clock(), payload=payload)
-        self.bytes_by_module[module.entry.id][0] += len(data)
+    def _header(self, frame_type: FrameType) -> Header:
+        self._counter += 1
+        if self._counter > MAX_COUNTER:
+            raise ExecutionError("the host's frame counter is exhausted; connect again")
+        return Header(frame_type, HOST, self._counter, clock_ms(self._clock()))
+
+    def _unicast(self, module: _Module, frame_type: FrameType, payload: Any) -> int:
+        assert module.keys is not None
+        header = self._header(frame_type)
+        self._send(seal(module.keys.to_module, header, self.codec.encode(payload)),
+                   module.address, module)
+        return header.counter
+
+    def _send(self, data: bytes, address: tuple[str, int], module: _Module | None) -> None:
+        assert self._sock is not None
         with contextlib.suppress(OSError):  # a full buffer, a module gone: silence tells
-            self._sock.sendto(data, module.address)
-        return self._endpoint.seq
+            self._sock.sendto(data, address)
+        self._stats.sent += 1
+        self._stats.bytes_sent += len(data)
+        self.traffic["sent"] += len(data)
+        self.traffic["datagrams_sent"] += 1
+        self._recent.append((wall.monotonic(), len(data) + UDP_IP_BYTES))
+        if module is not None:
+            self.bytes_by_module[module.entry.id][0] += len(data)
 
     def _pump(self, until: float) -> None:
-        """Read every datagram until wall time ``until`` (at least the ones waiting)."""
+        """Read every datagram until wall time ``until`` (at least the ones waiting);
+        each is timed by its arrival (:mod:`.transport`)."""
         assert self._sock is not None
         while True:
             timeout = max(0.0, until - wall.monotonic())
             ready, _, _ = select.select([self._sock], [], [], timeout)
             if not ready:
                 return
-            while True:
-                try:
-                    data, _address = self._sock.recvfrom(65536)
-                except (BlockingIOError, InterruptedError):
-                    break
-                except OSError:
-                    break  # ICMP port unreachable of a module that is gone
-                self._receive(data)
+            for data, _address, arrival in drain(self._sock):
+                self._receive(data, (arrival - self._t0) * self.system.time_scale)
             if wall.monotonic() >= until:
                 return
 
-    def _receive(self, data: bytes) -> None:
-        assert self._endpoint is not None
-        stats = self._endpoint.stats
-        if len(data) < HEADER.size:
-            stats.refuse("malformed")
-            return
-        module = self._by_number.get(int.from_bytes(data[8:10], "little"))
-        if module is None:
-            stats.refuse("foreign")
-            return
-        welcome = data[3] == FrameType.WELCOME
+    def _receive(self, data: bytes, arrival: float) -> None:
+        stats = self._stats
+        stats.bytes_received += len(data)
+        self.traffic["received"] += len(data)
+        self.traffic["datagrams_received"] += 1
+        self._recent.append((wall.monotonic(), len(data) + UDP_IP_BYTES))
         try:
-            frame = self._endpoint.accept(data, self._clock(), session=self.session,
-                                          link=None if welcome else module.link or -1)
-        except Refused:
+            header = read_header(data)
+            module = self._by_number.get(header.sender)
+            if module is None or header.sender == HOST:
+                raise Refused("foreign", f"sender {header.sender}")
+            if header.type is FrameType.WELCOME:
+                self._welcome(module, header, data, arrival)
+            elif header.type is FrameType.REPORT:
+                self._report(module, header, data, arrival)
+            else:
+                raise Refused("unexpected", f"a {header.type.name} from a module")
+        except Refused as exc:
+            stats.refuse(exc.reason)
             return
+        stats.received += 1
         self.bytes_by_module[module.entry.id][1] += len(data)
-        payload = frame.payload
-        if frame.type is FrameType.WELCOME:
-            if not isinstance(payload, dict) or payload.get("id") != module.entry.id:
-                stats.refuse("foreign")
-                return
-            if module.link and frame.link != module.link:
-                module.reboots += 1
-            module.link = frame.link
-            module.heard = self._time
-            return
-        if frame.type is not FrameType.REPORT or not isinstance(payload, dict):
-            stats.refuse("malformed")
-            return
-        module.report = payload
-        module.heard = self._time
-        links = payload.get("links")
-        if isinstance(links, tuple):
-            module.links, module.has_links = links, True
-        ack = payload.get("ack", 0)
-        if isinstance(ack, int):
-            self._acknowledged(module, ack)
 
-    def _acknowledged(self, module: _Module, ack: int) -> None:
-        for port in [p for p, seq in module.undock.items() if ack >= seq]:
+    def _welcome(self, module: _Module, header: Header, data: bytes, arrival: float) -> None:
+        plain = open_handshake(module.aead, data)
+        if plain is None:
+            raise Refused("bad_tag")
+        payload = decode_map(plain)
+        if want(payload, 0, str, "module id") != module.entry.id:
+            raise Refused("foreign", f"WELCOME of {payload[0]!r} as {module.entry.id!r}")
+        if unsigned(payload, 1, "version") != VERSION:
+            raise Refused("version", f"WELCOME of version {payload[1]}")
+        boot = unsigned(payload, 2, "boot count")
+        public = want(payload, 3, bytes, "module key", size=32)
+        host_public = want(payload, 4, bytes, "host key", size=32)
+        if module.hello is None or host_public != module.hello.public:
+            raise Refused("stale_session", "a WELCOME to another HELLO")
+        if module.keys is not None and public == module.module_public:
+            raise Refused("replayed", "a WELCOME already answered")
+        shared = module.hello.shared(public)
+        if shared is None:
+            raise Refused("malformed", "module key")
+        module.keys = session_keys(shared, module.key, host_public, public,
+                                   self.system.system, module.number)
+        module.module_public, module.counter = public, header.counter
+        module.freshness = Freshness(DEFAULT_WATCHDOG_PERIODS * self._dt, module.timeout)
+        module.freshness.commit(header.clock, arrival)
+        if module.boot is not None and boot != module.boot:
+            module.reboots += 1
+        module.boot, module.state = boot, "setup"
+        module.command, module.acked_version, module.batches = None, None, {}
+        module.known, module.watchdog_since, module.problem = 0, None, None
+        module.heard = self._time
+        self._setup(module)
+
+    def _report(self, module: _Module, header: Header, data: bytes, arrival: float) -> None:
+        if module.keys is None or module.freshness is None:
+            raise Refused("stale_session", "a REPORT outside a session")
+        plain = open_sealed(module.keys.to_host, data)
+        if plain is None:
+            raise Refused("bad_tag")
+        if header.counter <= module.counter:
+            raise Refused("replayed", f"counter {header.counter} <= {module.counter}")
+        module.freshness.check(header.clock, arrival)
+        payload, sensors = self._report_payload(plain, module)
+        ack = unsigned(payload, 0, "ack")
+        lag = unsigned(payload, 1, "lag", 0)
+        status = unsigned(payload, 2, "status", limit=255)
+        known = unsigned(payload, 8, "names known", 0, limit=len(self.names))
+        links = want(payload, 4, tuple, "links", ())
+        if not all(isinstance(link, tuple) and len(link) == 3
+                   and all(isinstance(x, str) for x in link) for link in links):
+            raise Refused("malformed", "links")
+        want(payload, 5, tuple, "events", ())  # docking shows in ``links``; events are for logs
+        battery = want(payload, 6, (int, float), "battery", -1.0)
+        pose = pose_from_wire(payload[7]) if 7 in payload else None
+        if ack > self._counter or ack + lag > self._counter:
+            raise Refused("malformed", "ack of a frame never sent")
+        # fully accepted
+        module.counter = header.counter
+        module.freshness.commit(header.clock, arrival)
+        module.state = "live"
+        module.heard = self._time
+        module.reports += 1
+        module.status, module.known = status, known
+        if sensors is not INCOMPLETE:
+            module.sensors = sensors
+        if 4 in payload:
+            module.links, module.has_links = links, True
+        if pose is not None:
+            module.pose = pose
+        if battery >= 0:
+            module.battery = float(battery)
+        self._acknowledged(module, ack, lag)
+
+    def _report_payload(self, plain: bytes, module: _Module) -> tuple[dict[int, Any], Any]:
+        """A REPORT's payload map and its sensor data (merged field by field with the
+        module's last; ``INCOMPLETE`` when the report has none or it cannot be completed).
+
+        Raises:
+            Refused: ``malformed``.
+        """
+        try:
+            raw = self.codec.loads(plain)
+            if not isinstance(raw, dict) or not all(
+                    isinstance(k, int) and not isinstance(k, bool) and k >= 0 for k in raw):
+                raise CodecError("a report is a map of unsigned integer keys")
+            payload = {k: self.codec.from_wire(v, 1) for k, v in raw.items() if k != 3}
+            sensors = self.codec.update(raw[3], module.sensors) if 3 in raw else INCOMPLETE
+        except CodecError as exc:
+            raise Refused("malformed", str(exc)) from None
+        return payload, sensors
+
+    def _acknowledged(self, module: _Module, ack: int, lag: int) -> None:
+        for port in [p for p, counter in module.undock.items() if ack >= counter]:
             del module.undock[port]
-        for port in [p for p, (seq, _) in module.docks.items() if ack >= seq]:
+        for port in [p for p, (counter, _) in module.docks.items() if ack >= counter]:
             del module.docks[port]
-        for seq in [s for s in module.sent if s <= ack]:
-            sent = module.sent.pop(seq)
-            if seq == ack:
+        if ack in module.batches:
+            module.acked_version = module.batches[ack]
+        for counter in [c for c in module.sent if c <= ack]:
+            sent = module.sent.pop(counter)
+            if counter == ack:
                 self.latencies.append(wall.monotonic() - sent)
+        name = module.entry.id
+        if module.status & FAULT:
+            module.problem = f"module {name} reports its motors stopped while commanded"
+        if module.status & WATCHDOG:
+            if module.watchdog_since is None:
+                module.watchdog_since = self._time
+        else:
+            module.watchdog_since = None
+        if lag and ack:
+            applied, received = self._sent_at.get(ack), self._sent_at.get(ack + lag)
+            if applied is not None and received is not None and \
+                    received - applied >= self._wall(DISOBEY_PERIODS * self._dt) - 1e-9:
+                module.problem = (f"module {name} received commands "
+                                  f"{(received - applied) * self.system.time_scale:.2f} s newer "
+                                  "than the one it applies (not obeying)")
 
     # -- the Driver contract ---------------------------------------------------------
 
     def reset(self, start: Configuration) -> None:
         """Expect the modules of ``start``: they must be the systems file's, and each
-        must report; time becomes 0. The link cannot place modules."""
+        must report its latched ports; time becomes 0. The link cannot place modules."""
         self.require_connected()
-        want, have = set(start.modules()), set(self.modules)
-        if want != have:
-            missing, extra = sorted(want - have), sorted(have - want)
+        want_ids, have = set(start.modules()), set(self.modules)
+        if want_ids != have:
+            missing, extra = sorted(want_ids - have), sorted(have - want_ids)
             raise ConfigurationError(
                 "the modules differ from the configuration's"
                 + (f"; not in the systems file: {', '.join(missing[:6])}" if missing else "")
@@ -309,11 +521,12 @@ class LinkDriver(Driver):
         self._time = 0.0
         self._agreed = None
         for module in self.modules.values():
-            module.heard, module.report = 0.0, None  # links stay: they change by events
+            module.heard, module.reports = 0.0, 0  # links stay: they change by events
             module.undock.clear()
             module.docks.clear()
+            module.problem, module.watchdog_since = None, None
         self.send_action({})
-        self._wait(lambda m: m.report is not None and m.has_links, "report")
+        self._wait(lambda m: m.state == "live" and m.reports > 0 and m.has_links, "report")
         self._mark = wall.monotonic()
 
     def get_observation(self) -> Observation:
@@ -329,16 +542,13 @@ class LinkDriver(Driver):
         graph.add_nodes_from(self.modules)
         claims: set[tuple[str, str, str, str]] = set()
         for name, module in self.modules.items():
-            report = module.report or {}
-            pose = report.get("pose")
-            if isinstance(pose, np.ndarray) and pose.shape == (7,):
-                poses[name] = Pose(pose[:3].copy(), pose[3:].copy())
-            sensors[name] = report.get("sensors")
-            for link in module.links:
-                if (isinstance(link, tuple) and len(link) == 3 and link[1] in self.modules
-                        and all(isinstance(x, str) for x in link)):
-                    graph.add_edge(name, link[1])
-                    claims.add((name, link[0], link[1], link[2]))
+            if module.pose is not None:
+                poses[name] = module.pose
+            sensors[name] = module.sensors
+            for port, other, other_port in module.links:
+                if other in self.modules:
+                    graph.add_edge(name, other)
+                    claims.add((name, port, other, other_port))
         components = [frozenset(c) for c in nx.connected_components(graph)]
         groups = tuple(sorted(components, key=min)) if len(components) > 1 else ()
         observation = Observation(time=self._time, poses=poses, sensors=sensors, groups=groups)
@@ -352,35 +562,85 @@ class LinkDriver(Driver):
         return replace(self._agreed, time=self._time)
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
+        """One tick's COMMAND frame (several if it would exceed :data:`MAX_FRAME`): every
+        linked module's entry, ``null`` for a module not in ``commands`` (it stops)."""
         self.require_connected()
         unknown = set(commands) - set(self.modules)
         if unknown:
             raise ExecutionError(f"commands for module(s) not in the systems file "
                                  f"{sorted(unknown)}")
-        wd = self._watchdog()
-        for name, module in self.modules.items():
-            if not module.link:
-                continue
-            command = commands.get(name)
-            if command is None:
-                payload: dict[str, Any] = {"s": True, "wd": wd}
-                if module.undock:
-                    payload["u"] = list(module.undock)
+        first = self._counter + 1  # the counter of this tick's first frame
+        entries = {module.number: self._entry(module, commands.get(name), first)
+                   for name, module in self.modules.items() if module.keys is not None}
+        for part in self._parts(entries):
+            self._send_command({number: entries[number] for number in part})
+
+    def _entry(self, module: _Module, command: ModuleCommand | None, first: int) -> Any:
+        """``module``'s entry this tick: ``None`` (stop), its full command, or the
+        command's version once the module acknowledged that version."""
+        if command is not None:
+            for port in command.dock:
+                module.undock.pop(port, None)
+            for port in command.undock:
+                module.undock.setdefault(port, first)
+            for port in command.dock:
+                module.docks.setdefault(port, (first, self._time))
+        for port in list(module.docks):
+            if command is None or port not in command.dock:
+                del module.docks[port]  # no longer armed: nothing to acknowledge
+        if module.undock:  # repeated until acknowledged, even to a module told to stop
+            base = command if command is not None else ModuleCommand()
+            command = replace(base, undock=tuple(dict.fromkeys((*base.undock, *module.undock))))
+        if command is None:
+            module.command = None
+            return None
+        if command != module.command:
+            module.command, module.version = command, module.version + 1
+        if module.acked_version == module.version:
+            return module.version % VERSION_MARKS
+        return command_entry(command, module.version, self.names)
+
+    def _parts(self, entries: Mapping[int, Any]) -> list[list[int]]:
+        """The modules of ``entries`` in parts whose COMMAND frames fit one datagram each."""
+        parts: list[list[int]] = []
+        pending = [list(entries)]
+        while pending:
+            part = pending.pop()
+            if len(part) <= 1 or len(self._command_payload(part, entries)) <= _PAYLOAD_LIMIT:
+                parts.append(part)
             else:
-                for port in command.dock:
-                    module.undock.pop(port, None)
-                payload = {**command_payload(command, tuple(module.undock)), "wd": wd}
-            seq = self._endpoint.seq + 1 if self._endpoint is not None else 1
-            for port in command.undock if command is not None else ():
-                module.undock.setdefault(port, seq)
-            for port in command.dock if command is not None else ():
-                module.docks.setdefault(port, (seq, self._time))
-            for port in list(module.docks):
-                if command is None or port not in command.dock:
-                    del module.docks[port]  # no longer armed: nothing to acknowledge
-            module.sent[self._send(module, FrameType.COMMAND, payload)] = wall.monotonic()
-            while len(module.sent) > 64:
-                del module.sent[next(iter(module.sent))]
+                pending += [part[len(part) // 2:], part[:len(part) // 2]]
+        return parts
+
+    def _command_payload(self, numbers: list[int], entries: Mapping[int, Any]) -> bytes:
+        known = min((self._by_number[n].known for n in numbers), default=len(self.names))
+        payload: dict[int, Any] = {0: round(self._watchdog() * 1000), 1: self.every,
+                                   2: {n: entries.get(n) for n in numbers}}
+        if known < len(self.names):
+            payload[3] = [known, *self.names.names[known:]]
+        return self.codec.encode(payload)
+
+    def _send_command(self, entries: dict[int, Any]) -> None:
+        assert self._group is not None and self._signer is not None
+        header = self._header(FrameType.COMMAND)
+        payload = self._command_payload(list(entries), entries)
+        data = seal_signed(self._group, self._signer, header, payload)
+        now = wall.monotonic()
+        for number, entry in entries.items():
+            module = self._by_number[number]
+            module.batches[header.counter] = None if entry is None else module.version
+            module.sent[header.counter] = now
+            for book in (module.batches, module.sent):
+                while len(book) > 128:
+                    del book[next(iter(book))]
+        if self.system.group is not None:
+            self._send(data, (self.system.group.address, self.system.group.port), None)
+        else:
+            for number in entries:
+                self._send(data, self._by_number[number].address, None)
+        self._sent_at[header.counter] = now
+        while len(self._sent_at) > 256:
+            del self._sent_at[next(iter(self._sent_at))]
 
     def step(self, dt: float) -> None:
         self.require_connected()
@@ -392,19 +652,36 @@ class LinkDriver(Driver):
         now = wall.monotonic()
         self._mark = deadline if now - deadline < self._wall(dt) else now  # resync if late
         self._time += dt
+        self._budget()
         self._check()
 
     def _check(self) -> None:
+        gap = (2 * self.every + 1) * self._dt
         for name, module in self.modules.items():
             silent = self._time - module.heard
-            if silent > 2 * self._dt and wall.monotonic() - module.hello_at > self._wall(self._dt):
+            if silent > gap and wall.monotonic() - module.hello_at > self._wall(2 * self._dt) \
+                    and module.state != "hello":
+                module.hello = None
                 self._hello(module)  # a rebooted module needs a new handshake
+            elif module.state == "hello" and \
+                    wall.monotonic() - module.hello_at >= self._wall(RESEND):
+                self._hello(module)
+            elif module.state == "setup" and \
+                    wall.monotonic() - module.setup_at >= self._wall(RESEND):
+                self._setup(module)
             if silent > module.timeout + 1e-9:
                 refused = self.stats.refused
                 raise ExecutionError(
                     f"module {name} silent for {silent:.2f} s (timeout {module.timeout:g} s)"
                     + (f"; frames refused: {_counts(refused)}" if refused else "")
                     + "; run stopped")
+            if module.problem is not None:
+                raise ExecutionError(f"{module.problem}; run stopped")
+            if module.watchdog_since is not None and \
+                    self._time - module.watchdog_since > module.timeout + 1e-9:
+                raise ExecutionError(f"module {name} heard no valid command for "
+                                     f"{self._time - module.watchdog_since:.2f} s (its watchdog "
+                                     f"stopped it; timeout {module.timeout:g} s); run stopped")
             for kind, pending in (("dock", {p: t for p, (_, t) in module.docks.items()}),
                                   ("undock", dict.fromkeys(module.undock, None))):
                 for port, since in pending.items():
@@ -415,12 +692,54 @@ class LinkDriver(Driver):
                                              f"of port {port} within {module.timeout:g} s; "
                                              "run stopped")
 
+    # -- the budget --------------------------------------------------------------------
+
+    def _estimate(self, every: int) -> float:
+        """Bits per second of the link with reports every ``every`` periods: a model of
+        the frames' sizes (header, tag, signature, small entries; UDP/IP included)."""
+        rate = 1.0 / self._dt
+        n = len(self.modules)
+        command = UDP_IP_BYTES + HEADER.size + TAG_SIZE + SIGNATURE_SIZE + 8 + 2 * n
+        report = UDP_IP_BYTES + HEADER.size + TAG_SIZE + 12
+        return 8 * rate * (command + n * report / every)
+
+    def _initial_every(self) -> int:
+        budget = self.system.budget_kbps
+        if budget is None:
+            return 1
+        for every in range(1, self._max_every() + 1):
+            if self._estimate(every) <= 0.8 * budget * 1000:
+                return every
+        return self._max_every()
+
+    def _max_every(self) -> int:
+        """The widest report spacing [control periods] (:data:`MAX_EVERY`)."""
+        timeout = min(m.timeout for m in self.modules.values())
+        return max(1, min(MAX_EVERY, math.floor(timeout / (4 * self._dt) + 1e-9)))
+
+    def _budget(self) -> None:
+        """Space the reports further (at most :meth:`_max_every` periods) when the
+        traffic of the last seconds exceeds the budget, closer when well below it."""
+        budget = self.system.budget_kbps
+        now = wall.monotonic()
+        while self._recent and self._recent[0][0] < now - BUDGET_WINDOW:
+            self._recent.popleft()
+        if budget is None or now - self._budget_at < BUDGET_WINDOW / 2 or \
+                now - self._t0 < BUDGET_WINDOW:
+            return
+        self._budget_at = now
+        rate = 8 * sum(size for _, size in self._recent) / BUDGET_WINDOW / 1000
+        if rate > 0.95 * budget and self.every < self._max_every():
+            self.every += 1
+        elif self.every > 1 and rate * self.every / (self.every - 1) < 0.8 * budget:
+            self.every -= 1
+
     @property
     def time(self) -> float:
         return self._time
 
     def reboots(self) -> dict[str, int]:
-        """Re-handshakes of each module with a new link nonce since connect (reboots)."""
+        """Re-handshakes of each module after a reboot (a new boot count) since connect."""
         return {name: m.reboots for name, m in self.modules.items() if m.reboots}
 
 

@@ -2,24 +2,30 @@
 
 ``platform emulate --robot ROBOT CONFIG.json`` runs an :class:`Emulator`: the robot's
 own first driver simulates the modules of the configuration; each module gets a UDP
-socket on a loopback address (distinct ports) and a :class:`~.module.ModuleLink`, so
-the ``link`` driver (:mod:`.driver`) talks to it exactly as to real modules. Every
-control period [s of module time] the emulator:
+socket on a loopback address (distinct ports) and a :class:`~.module.ModuleLink` with
+its own module key (derived from the site key), so the ``link`` driver (:mod:`.driver`)
+talks to it exactly as to real modules. One more socket stands for the network's
+broadcast address (the systems file's ``group``): a datagram the host sends there
+reaches every module, each with its own loss and latency, as on a radio. Every control
+period [s of module time] the emulator:
 
-1. reads the datagrams that arrived (HELLO, COMMAND, BYE);
+1. reads the datagrams that arrived (HELLO, SETUP, COMMAND, BYE), each timed when it
+   is read off its socket;
 2. applies each module's current command (none -- motors stopped -- without a
    session, after a stop or BYE, or once its watchdog expired);
 3. steps the simulator by one period;
-4. sends each module's REPORT: the simulator's sensor data of that module, its pose,
-   its latched ports (``links``: in the first 5 reports of a session, in 5 after a
-   change, and in every 10th),
-   docking events, a battery voltage and the command sequence number it applied
-   (``ack``).
+4. lets each module report (:meth:`~.module.ModuleLink.report` decides whether one is
+   due): the simulator's sensor data of that module, its pose, its latched ports,
+   docking events, a battery voltage.
 
 Time: each module's clock is the wall clock since :meth:`Emulator.open` times ``speed``
 (as a module's oscillator, it runs on whether or not the simulator keeps up); frames
-carry it, the watchdog and the faults' ``at`` use it. The loop is paced at one period
-of that clock; the simulator steps one period per tick.
+carry it when they are sealed, the watchdog and the faults' ``at`` use it. The loop is
+paced at one period of that clock; the simulator steps one period per tick.
+
+The record table of the modules' reports (which dataclasses their sensor data holds,
+which fields are rotations or unit vectors) is read off the simulator's first
+observation and written to the systems file.
 
 Faults (``--faults``, the syntax of :func:`msrr.core.faults.parse_faults`):
 
@@ -34,8 +40,13 @@ kind           keys (default)                         effect
                ``for`` (inf)                          from ``at`` for ``for`` s
 ``reboot``     ``module`` (required), ``at`` (0),     the module forgets its session at
                ``for`` (0.5)                          ``at`` and is silent ``for`` s
-``wrong-key``  ``module`` (required)                  the module signs and checks frames
-                                                      with another key
+``wrong-key``  ``module`` (required)                  the module holds a key of another
+                                                      site
+``disobey``    ``module`` (required), ``at`` (0)      from ``at`` the module accepts
+                                                      commands but no longer applies them
+                                                      (it keeps reporting)
+``stall``      ``module`` (required), ``at`` (0)      from ``at`` the module's motors stop
+                                                      turning (it reports a motor fault)
 =============  =====================================  =================================
 """
 
@@ -58,9 +69,12 @@ from ..configuration import Configuration
 from ..driver import Driver, DriverFactory, ModuleCommand, Observation
 from ..errors import ConfigurationError, ExecutionError
 from ..faults import Fault, parse_faults
+from .codec import Codec, CodecError, RecordTable, infer_records
+from .keys import module_key
 from .module import DEFAULT_WATCHDOG_PERIODS, ModuleLink
-from .protocol import Endpoint, LinkStats
-from .system import KeyRef, ModuleEntry, SystemFile, new_key
+from .protocol import LinkStats
+from .system import GroupAddress, KeyRef, ModuleEntry, RecordEntry, SystemFile, new_key
+from .transport import drain, udp_socket
 
 __all__ = ["LINK_FAULT_KINDS", "Emulator", "parse_link_faults"]
 
@@ -70,11 +84,9 @@ LINK_FAULT_KINDS: dict[str, dict[str, float | str | None]] = {
     "dropout": {"module": None, "at": 0.0, "for": math.inf},
     "reboot": {"module": None, "at": 0.0, "for": 0.5},
     "wrong-key": {"module": None},
+    "disobey": {"module": None, "at": 0.0},
+    "stall": {"module": None, "at": 0.0},
 }
-LINKS_EVERY = 10
-"""A report carries ``links`` every this many ticks, ..."""
-LINKS_REPEAT = 5
-"""... and in this many reports after each change (a lost report cannot hide one)."""
 FULL_BATTERY = 8.4
 """Emulated battery voltage when full [V] (2S Li-ion)."""
 DRAIN = 0.002
@@ -93,7 +105,6 @@ class _Emulated:
     links: frozenset[tuple[str, str, str]] = frozenset()
     offline_until: float = -math.inf
     motor_time: float = 0.0
-    changed: int = -LINKS_REPEAT  # tick of the last change of ``links``
 
 
 class Emulator:
@@ -108,15 +119,18 @@ class Emulator:
         speed: module time / wall time (1: real time).
         faults: from :func:`parse_link_faults`.
         seed: seed of the faults and of the driver.
-        key: the system key (a fresh one by default). system: the system id.
+        key: the site key (a fresh one by default); each module gets its own key
+            derived from it. system: the system id.
         timeout: the silence timeout written to the systems file [s].
+        budget: the link budget written to the systems file [kbit/s] (``None``: none).
         address: loopback address the modules listen on (one port each).
     """
 
     def __init__(self, factory: DriverFactory, start: Configuration, *,
                  recognizer: Recognizer | None = None, rate: float = 10.0, speed: float = 1.0,
                  faults: tuple[Fault, ...] = (), seed: int = 0, key: bytes | None = None,
-                 system: int = 1, timeout: float = 1.0, address: str = "127.0.0.1"):
+                 system: int = 1, timeout: float = 1.0, budget: float | None = None,
+                 address: str = "127.0.0.1"):
         if not (math.isfinite(rate) and rate > 0):
             raise ConfigurationError(f"must be a finite number > 0, got {rate!r}", field="--rate")
         if not (math.isfinite(speed) and 0 < speed <= 100):
@@ -135,6 +149,7 @@ class Emulator:
         self.key = key if key is not None else new_key()
         self.system_id = system
         self.timeout = timeout
+        self.budget = budget
         self.address = address
         self.rng = np.random.default_rng(seed)
         self.ids = ids
@@ -142,42 +157,44 @@ class Emulator:
         self._t0 = wall.monotonic()
         self.driver: Driver | None = None
         self.modules: dict[str, _Emulated] = {}
+        self.group: socket.socket | None = None
+        self.records: RecordTable = RecordTable()
         self.errors: list[str] = []
         self.dropped = 0
         """Datagrams the ``loss`` fault dropped."""
         self._queue: list[tuple[float, int, str, bytes, Any]] = []  # delayed datagrams
         self._count = 0
-        self._rebooted: set[int] = set()
-        self._ticks = 0
+        self._fired: set[int] = set()
 
     # -- life cycle ------------------------------------------------------------------
 
     def open(self) -> None:
-        """Bind one socket per module, build the simulator and place ``start``."""
+        """Bind the sockets, build the simulator, place ``start`` and read the record
+        table off its first observation."""
         wrong = {str(f.params["module"]) for f in self.faults if f.kind == "wrong-key"}
         try:
-            for number, module in enumerate(self.ids, start=1):
-                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                self.modules[module] = _Emulated(ModuleLink(
-                    module, number, sock,
-                    Endpoint(new_key() if module in wrong else self.key, self.system_id, number,
-                             window=self.timeout, packages=self._packages()),
-                    watchdog=DEFAULT_WATCHDOG_PERIODS * self.period), sock)
-                sock.bind((self.address, 0))
-                sock.setblocking(False)
             self.driver = self.factory(gui=False, seed=self.seed)
             self.driver.connect()
             self.driver.reset(self.start)
+            first = self.driver.get_observation()
+            sensors = first.sensors.values() if isinstance(first.sensors, Mapping) else ()
+            self.records = RecordTable(infer_records(sensors))
+            codec = Codec(self.records)
+            self.group = self._socket()
+            for number, module in enumerate(self.ids, start=1):
+                site = new_key() if module in wrong else self.key
+                self.modules[module] = _Emulated(ModuleLink(
+                    module, number, module_key(site, self.system_id, number), self.system_id,
+                    watchdog=DEFAULT_WATCHDOG_PERIODS * self.period, codec=codec),
+                    self._socket())
             self._observe()
             self._t0 = wall.monotonic()
         except BaseException:
             self.close()
             raise
 
-    def _packages(self) -> tuple[str, ...]:
-        module = (self.factory.__module__ if isinstance(self.factory, type)
-                  else type(self.factory).__module__)
-        return tuple(dict.fromkeys(("msrr", module.split(".")[0])))
+    def _socket(self) -> socket.socket:
+        return udp_socket(self.address)
 
     def close(self) -> None:
         """Stop every motor and release the sockets; safe to call twice."""
@@ -190,6 +207,8 @@ class Emulator:
                 self.driver = None
         for emulated in self.modules.values():
             emulated.sock.close()
+        if self.group is not None:
+            self.group.close()
 
     def __enter__(self) -> Emulator:
         self.open()
@@ -200,11 +219,16 @@ class Emulator:
 
     def system_file(self, key: KeyRef, robot: str) -> SystemFile:
         """The systems file of these modules (the key by reference only)."""
-        return SystemFile(system=self.system_id, robot=robot, key=key, timeout_s=self.timeout,
-                          time_scale=self.speed, modules=[
-                              ModuleEntry(id=m, number=e.link.number, address=self.address,
-                                          port=e.sock.getsockname()[1])
-                              for m, e in self.modules.items()])
+        assert self.group is not None, "call open() first"
+        return SystemFile(
+            system=self.system_id, robot=robot, key=key, timeout_s=self.timeout,
+            time_scale=self.speed, budget_kbps=self.budget,
+            group=GroupAddress(address=self.address, port=self.group.getsockname()[1]),
+            records=[RecordEntry(type=r.type, rotations=list(r.rotations),
+                                 directions=list(r.directions)) for r in self.records.specs],
+            modules=[ModuleEntry(id=m, number=e.link.number, address=self.address,
+                                 port=e.sock.getsockname()[1])
+                     for m, e in self.modules.items()])
 
     # -- the loop --------------------------------------------------------------------
 
@@ -222,8 +246,11 @@ class Emulator:
         """The modules' clock [s] (module doc)."""
         return (wall.monotonic() - self._t0) * self.speed
 
+    def _sockets(self) -> list[socket.socket]:
+        return [e.sock for e in self.modules.values()] + ([self.group] if self.group else [])
+
     def _wait_until(self, deadline: float) -> None:
-        socks = [e.sock for e in self.modules.values()]
+        socks = self._sockets()
         while True:
             now = wall.monotonic()
             timeout = deadline - now
@@ -241,12 +268,12 @@ class Emulator:
         assert self.driver is not None, "call open() first"
         self.clock = self._now()
         self._release(wall.monotonic())
-        self._read([e.sock for e in self.modules.values()])
+        self._read(self._sockets())
         self._faults()
         commands: dict[str, ModuleCommand] = {}
         for module, emulated in self.modules.items():
             command = emulated.link.current(self.clock)
-            if command is not None and self._online(emulated):
+            if command is not None and self._online(emulated) and not emulated.link.motor_fault:
                 commands[module] = command
                 if command.joints or command.wheels:
                     emulated.motor_time += self.period
@@ -256,25 +283,18 @@ class Emulator:
             self.errors.append(str(exc))
             self.driver.send_action({})
         self.driver.step(self.period)
-        self._ticks += 1
         observation, events = self._observe()
         for module, emulated in self.modules.items():
             if not self._online(emulated):
                 continue
-            pose = observation.poses.get(module)
-            payload: dict[str, Any] = {
-                "sensors": _sensors_of(observation.sensors, module),
-                "battery": round(FULL_BATTERY - DRAIN * emulated.motor_time, 3),
-                "motors": module in commands,
-            }
-            if (self._ticks % LINKS_EVERY == 0 or self._ticks - emulated.changed < LINKS_REPEAT
-                    or emulated.link.reported < LINKS_REPEAT):
-                payload["links"] = sorted(emulated.links)
-            if pose is not None:
-                payload["pose"] = np.concatenate([pose.position, pose.orientation])
-            if events.get(module):
-                payload["events"] = events[module]
-            emulated.link.report(self.clock, payload)
+            try:
+                emulated.link.report(
+                    self._now(), sensors=_sensors_of(observation.sensors, module),
+                    pose=observation.poses.get(module), links=tuple(emulated.links),
+                    events=events.get(module, []),
+                    battery=round(FULL_BATTERY - DRAIN * emulated.motor_time, 2))
+            except CodecError as exc:  # data the record table cannot carry: no report
+                self.errors.append(f"module {module}: {exc}")
         self._flush()
 
     def _online(self, emulated: _Emulated) -> bool:
@@ -282,34 +302,47 @@ class Emulator:
 
     def _faults(self) -> None:
         for index, fault in enumerate(self.faults):
-            if fault.kind not in ("dropout", "reboot"):
+            if fault.kind in ("loss", "latency", "wrong-key"):
                 continue
             emulated = self.modules[str(fault.params["module"])]
-            at, length = float(fault.params["at"]), float(fault.params["for"])
-            if fault.kind == "dropout" and at <= self.clock + 1e-9 < at + length:
-                emulated.offline_until = max(emulated.offline_until, at + length)
-            if fault.kind == "reboot" and index not in self._rebooted and self.clock >= at - 1e-9:
-                self._rebooted.add(index)
+            at = float(fault.params["at"])
+            if fault.kind == "dropout" and at <= self.clock + 1e-9 < at + float(fault.params["for"]):
+                emulated.offline_until = max(emulated.offline_until,
+                                             at + float(fault.params["for"]))
+            if index in self._fired or self.clock < at - 1e-9:
+                continue
+            if fault.kind == "reboot":
+                self._fired.add(index)
                 emulated.link.reboot()
-                emulated.offline_until = max(emulated.offline_until, at + length)
+                emulated.offline_until = max(emulated.offline_until,
+                                             at + float(fault.params["for"]))
+            elif fault.kind == "disobey":
+                self._fired.add(index)
+                emulated.link.obey = False
+            elif fault.kind == "stall":
+                self._fired.add(index)
+                emulated.link.motor_fault = True
 
     # -- datagrams -------------------------------------------------------------------
 
     def _read(self, ready: list[socket.socket]) -> None:
+        """Deliver what arrived on ``ready`` in the order it arrived (kernel time)."""
         by_sock = {e.sock: e for e in self.modules.values()}
-        for sock in ready:
-            emulated = by_sock[sock]
-            while True:
-                try:
-                    data, address = sock.recvfrom(65536)
-                except (BlockingIOError, InterruptedError):
-                    break
-                except OSError:
-                    break
-                self._deliver_later(emulated.link.module, data, address, incoming=True)
+        arrived = [(arrival, n, sock, data, address) for sock in ready
+                   for n, (data, address, arrival) in enumerate(drain(sock))]
+        for arrival, _, sock, data, address in sorted(arrived, key=lambda a: a[:2]):
+            if sock is self.group:  # the broadcast address: every module hears it
+                for emulated in self.modules.values():
+                    self._deliver_later(emulated.link.module, data, address, incoming=True,
+                                        arrival=arrival)
+            else:
+                self._deliver_later(by_sock[sock].link.module, data, address, incoming=True,
+                                    arrival=arrival)
 
-    def _deliver_later(self, module: str, data: bytes, address: Any, *, incoming: bool) -> None:
-        """Apply loss and latency to one datagram, then deliver or send it (now or later)."""
+    def _deliver_later(self, module: str, data: bytes, address: Any, *, incoming: bool,
+                       arrival: float | None = None) -> None:
+        """Apply loss and latency to one datagram, then deliver or send it (now or later);
+        ``arrival``: when it reached the emulator [wall clock]."""
         for fault in self.faults:
             if fault.kind == "loss" and self.rng.random() < float(fault.params["p"]):
                 self.dropped += 1
@@ -320,7 +353,7 @@ class Emulator:
                 jitter = float(fault.params["jitter"])
                 delay += max(0.0, float(fault.params["ms"]) + self.rng.uniform(-jitter, jitter))
         if delay <= 0.0:
-            self._do(module, data, address, incoming)
+            self._do(module, data, address, incoming, arrival)
             return
         self._count += 1
         heapq.heappush(self._queue, (wall.monotonic() + delay / 1000.0 / self.speed, self._count,
@@ -328,15 +361,17 @@ class Emulator:
 
     def _release(self, now: float) -> None:
         while self._queue and self._queue[0][0] <= now:
-            _, _, module, data, (address, incoming) = heapq.heappop(self._queue)
-            self._do(module, data, address, incoming)
+            due, _, module, data, (address, incoming) = heapq.heappop(self._queue)
+            self._do(module, data, address, incoming, due)
 
-    def _do(self, module: str, data: bytes, address: Any, incoming: bool) -> None:
+    def _do(self, module: str, data: bytes, address: Any, incoming: bool,
+            arrival: float | None = None) -> None:
         emulated = self.modules[module]
         if not self._online(emulated):
             return
         if incoming:
-            emulated.link.handle(data, address, self._now())
+            at = self._now() if arrival is None else (arrival - self._t0) * self.speed
+            emulated.link.handle(data, address, at)
             self._flush()
             return
         with contextlib.suppress(OSError):  # the host is gone: the watchdog stops us
@@ -376,8 +411,6 @@ class Emulator:
                 for port, other, other_port in sorted(items):
                     events.setdefault(module, []).append(
                         (kind, port, other, other_port, round(self.clock, 3)))
-            if now != emulated.links:
-                emulated.changed = self._ticks
             emulated.links = now
         return observation, events
 
@@ -385,7 +418,7 @@ class Emulator:
 
     def stats(self) -> dict[str, LinkStats]:
         """Each module's counters (frames, bytes, refusals by reason)."""
-        return {m: e.link.endpoint.stats for m, e in self.modules.items()}
+        return {m: e.link.stats for m, e in self.modules.items()}
 
     def refused(self) -> dict[str, int]:
         """Refusals of all modules, by reason."""

@@ -1,36 +1,31 @@
-"""The module link protocol, version 1 (``docs/protocol.md`` is its specification).
+"""The module link protocol, version 2 (``docs/protocol.md`` is its specification).
 
-A frame is one UDP datagram: a fixed 32-byte little-endian header, a CBOR payload
-(:mod:`.cbor`) and a 16-byte tag, HMAC-SHA256 (RFC 2104) of header and payload under
-the system's key, truncated to 128 bits (RFC 2104 section 5)::
+A frame is one UDP datagram: a 9-byte little-endian header, then the payload sealed by
+ChaCha20-Poly1305 (:mod:`.keys`) with the header as associated data::
 
     offset size  field
-         0    2  magic b"MS"
-         2    1  version (1)
-         3    1  type (HELLO 1, WELCOME 2, COMMAND 3, REPORT 4, BYE 5)
-         4    4  system id (u32)
-         8    2  sender number (u16; 0 is the host)
-        10    2  receiver number (u16)
-        12    4  session: the host's nonce of this connection (u32)
-        16    4  link: the module's nonce of this handshake (u32; 0 in HELLO)
-        20    4  sequence number of the sender in this session (u32, from 1)
-        24    4  sender clock [ms] (u32)
-        28    2  payload length (u16)
-        30    2  flags (0)
-        32    n  payload (CBOR)
-      32+n   16  tag
+         0    1  version (high 4 bits, 2) and type (low 4 bits)
+         1    2  sender number (u16; 0 is the host)
+         3    4  counter (u32): the sender's frame counter of this session
+         7    2  sender clock [ms] mod 65536 (u16)
+         9    .  sealed payload (CBOR, :mod:`.codec`) and its 16-byte tag
 
-:class:`Endpoint` is one side's receive check: the frame's tag under the key (else
-``bad_tag``), its system and receiver (``foreign``), its session and link nonces
-(``stale_session``), a sequence number above the last accepted one of that sender
-(``replayed``) and an age within the window (``stale``); each refusal is counted in
-:class:`LinkStats`, never logged with the key.
+* session frames (SETUP, REPORT, BYE): the nonce is the counter (12 bytes, little
+  endian); the key is the session's key of that direction;
+* handshake frames (HELLO, WELCOME): a random 12-byte nonce follows the header (and is
+  associated data too); the key is the module key;
+* the COMMAND frame of a tick, one for all modules: sealed with the run's group key
+  (nonce: the counter), then a 64-byte Ed25519 signature of everything before it.
+
+:class:`Freshness` is the age check of one sender's frames (the window adapts to the
+delays measured), :class:`LinkStats` the counters of one end. Payload layouts (integer
+map keys) are the ``*_payload`` / ``parse_*`` pairs at the end of this module.
 """
 
 from __future__ import annotations
 
-import hashlib
-import hmac
+import math
+import secrets
 import struct
 from collections import deque
 from collections.abc import Mapping
@@ -38,113 +33,216 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
-from ..driver import ModuleCommand
+import numpy as np
+
+from ..driver import ModuleCommand, Pose
 from ..errors import ExecutionError
-from .cbor import CborError, Decoder, dumps
+from .codec import QUANTUM, Codec, CodecError
+from .keys import Aead, Signer, Verifier
 
-__all__ = ["HEADER", "HOST", "MAGIC", "MAX_FRAME", "TAG_SIZE", "VERSION", "Endpoint", "Frame",
-           "FrameType", "LinkStats", "Refused", "command_from_payload", "command_payload",
-           "decode_frame", "encode_frame", "tag"]
+__all__ = ["HEADER", "HOST", "MAX_FRAME", "NONCE_SIZE", "SIGNATURE_SIZE", "TAG_SIZE",
+           "UDP_IP_BYTES", "VERSION", "VERSION_MARKS", "Freshness", "FrameType", "Header", "LinkStats",
+           "NameTable", "Refused", "command_entry", "open_handshake", "open_sealed",
+           "open_signed", "parse_entry", "read_header", "seal", "seal_handshake",
+           "seal_signed"]
 
-MAGIC = b"MS"
-VERSION = 1
+VERSION = 2
 HOST = 0
 """Sender number of the host."""
-HEADER = struct.Struct("<2sBBIHHIIIIHH")
+HEADER = struct.Struct("<BHIH")
 TAG_SIZE = 16
+NONCE_SIZE = 12
+SIGNATURE_SIZE = 64
 MAX_FRAME = 1400
 """Largest frame [bytes]: stays inside one Ethernet/Wi-Fi MTU, no IP fragmentation."""
+UDP_IP_BYTES = 28
+"""IPv4 (20) and UDP (8) header bytes of every datagram, counted in the link's budget."""
+MAX_COUNTER = 0xFFFFFFFF
+VERSION_MARKS = 24
+"""Command versions travel modulo this (one CBOR byte)."""
 
 
 class FrameType(IntEnum):
-    """What a frame carries (the header's ``type``)."""
+    """What a frame carries (the low 4 bits of the header's first byte)."""
 
     HELLO = 1
     WELCOME = 2
-    COMMAND = 3
-    REPORT = 4
-    BYE = 5
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One decoded, authenticated frame.
-
-    Attributes:
-        type: the frame type. system: system id. sender, receiver: numbers (0: host).
-        session: host nonce. link: module nonce. seq: sender's sequence number.
-        clock: sender clock [ms]. payload: the decoded CBOR payload.
-    """
-
-    type: FrameType
-    system: int
-    sender: int
-    receiver: int
-    session: int
-    link: int
-    seq: int
-    clock: int
-    payload: Any
+    SETUP = 3
+    COMMAND = 4
+    REPORT = 5
+    BYE = 6
 
 
 class Refused(Exception):
-    """A frame dropped by :class:`Endpoint`; ``reason`` is a :class:`LinkStats` counter."""
+    """A frame dropped by a receiver; ``reason`` is a :class:`LinkStats` counter."""
 
     def __init__(self, reason: str, detail: str = ""):
         super().__init__(f"{reason}: {detail}" if detail else reason)
         self.reason = reason
 
 
-def tag(key: bytes, data: bytes) -> bytes:
-    """HMAC-SHA256 of ``data`` under ``key``, first :data:`TAG_SIZE` bytes."""
-    return hmac.new(key, data, hashlib.sha256).digest()[:TAG_SIZE]
+@dataclass(frozen=True)
+class Header:
+    """A frame's header (module doc); ``clock`` is in ms modulo 65536."""
+
+    type: FrameType
+    sender: int
+    counter: int
+    clock: int
+
+    def pack(self) -> bytes:
+        return HEADER.pack(VERSION << 4 | int(self.type), self.sender, self.counter,
+                           self.clock & 0xFFFF)
 
 
-def encode_frame(key: bytes, frame_type: FrameType, *, system: int, sender: int, receiver: int,
-                 session: int, link: int, seq: int, clock_ms: int, payload: Any) -> bytes:
-    """The datagram of one frame (layout: module doc).
-
-    Raises:
-        ExecutionError: the frame would exceed :data:`MAX_FRAME` bytes.
-    """
-    body = dumps(payload)
-    header = HEADER.pack(MAGIC, VERSION, int(frame_type), system, sender, receiver, session,
-                         link, seq & 0xFFFFFFFF, clock_ms & 0xFFFFFFFF, len(body), 0)
-    data = header + body
-    if len(data) + TAG_SIZE > MAX_FRAME:
-        raise ExecutionError(f"link frame of {len(data) + TAG_SIZE} bytes is larger than "
-                             f"{MAX_FRAME}")
-    return data + tag(key, data)
+def clock_ms(seconds: float) -> int:
+    """A clock reading [s] as the header's u16 milliseconds."""
+    return round(seconds * 1000) & 0xFFFF
 
 
-def decode_frame(key: bytes, datagram: bytes, decoder: Decoder) -> Frame:
-    """Check the tag and layout of ``datagram`` and decode it.
+def read_header(datagram: bytes) -> Header:
+    """The header of ``datagram`` (nothing is authenticated yet).
 
     Raises:
-        Refused: ``malformed`` (length, magic, payload), ``version`` or ``bad_tag``.
+        Refused: ``malformed`` (too short, unknown type) or ``version``.
     """
-    if len(datagram) < HEADER.size + TAG_SIZE:
+    if len(datagram) < HEADER.size + TAG_SIZE or len(datagram) > MAX_FRAME:
         raise Refused("malformed", f"{len(datagram)} bytes")
-    data, received = datagram[:-TAG_SIZE], datagram[-TAG_SIZE:]
-    if not hmac.compare_digest(tag(key, data), received):
-        raise Refused("bad_tag")
-    (magic, version, kind, system, sender, receiver, session, link, seq, clock, length,
-     _flags) = HEADER.unpack_from(data)
-    if magic != MAGIC or length != len(data) - HEADER.size:
-        raise Refused("malformed", "magic or length")
-    if version != VERSION:
-        raise Refused("version", f"version {version}, this host speaks {VERSION}")
+    first, sender, counter, clock = HEADER.unpack_from(datagram)
+    if first >> 4 != VERSION:
+        raise Refused("version", f"version {first >> 4}, this end speaks {VERSION}")
     try:
-        frame_type = FrameType(kind)
-        payload = decoder.loads(data[HEADER.size:])
-    except (ValueError, CborError) as exc:
-        raise Refused("malformed", str(exc)) from None
-    return Frame(frame_type, system, sender, receiver, session, link, seq, clock, payload)
+        kind = FrameType(first & 0x0F)
+    except ValueError:
+        raise Refused("malformed", f"frame type {first & 0x0F}") from None
+    return Header(kind, sender, counter, clock)
+
+
+def _nonce(counter: int) -> bytes:
+    return counter.to_bytes(NONCE_SIZE, "little")
+
+
+def _check_size(data: bytes) -> bytes:
+    if len(data) > MAX_FRAME:
+        raise ExecutionError(f"link frame of {len(data)} bytes is larger than {MAX_FRAME}")
+    return data
+
+
+def seal(aead: Aead, header: Header, payload: bytes) -> bytes:
+    """A session frame: header, then ``payload`` sealed under the counter's nonce."""
+    head = header.pack()
+    return _check_size(head + aead.seal(_nonce(header.counter), payload, head))
+
+
+def open_sealed(aead: Aead, datagram: bytes) -> bytes | None:
+    """The payload of a session frame, ``None`` if it was not sealed with ``aead``."""
+    head = datagram[:HEADER.size]
+    return aead.open(_nonce(HEADER.unpack_from(head)[2]), datagram[HEADER.size:], head)
+
+
+def seal_handshake(aead: Aead, header: Header, payload: bytes) -> bytes:
+    """A handshake frame: header, a random nonce, then ``payload`` sealed under it (the
+    module key serves many sessions, so its nonces cannot be counters)."""
+    head = header.pack() + secrets.token_bytes(NONCE_SIZE)
+    return _check_size(head + aead.seal(head[HEADER.size:], payload, head))
+
+
+def open_handshake(aead: Aead, datagram: bytes) -> bytes | None:
+    cut = HEADER.size + NONCE_SIZE
+    if len(datagram) < cut + TAG_SIZE:
+        return None
+    return aead.open(datagram[HEADER.size:cut], datagram[cut:], datagram[:cut])
+
+
+def seal_signed(aead: Aead, signer: Signer, header: Header, payload: bytes) -> bytes:
+    """The COMMAND frame: sealed with the group key, then signed by the host."""
+    body = seal(aead, header, payload)
+    return _check_size(body + signer.sign(body))
+
+
+def open_signed(aead: Aead, verifier: Verifier, datagram: bytes) -> bytes | None:
+    """The payload of a COMMAND frame, ``None`` unless both signature and tag hold."""
+    if len(datagram) < HEADER.size + TAG_SIZE + SIGNATURE_SIZE:
+        return None
+    body, signature = datagram[:-SIGNATURE_SIZE], datagram[-SIGNATURE_SIZE:]
+    if not verifier.verify(signature, body):
+        return None
+    return open_sealed(aead, body)
+
+
+# -- receive state ------------------------------------------------------------------------
+
+
+class Freshness:
+    """How late one sender's frames arrive, and the window of an accepted frame's age.
+
+    Clocks are not synchronised: each frame's delay is the receiver's clock at arrival
+    minus the sender's clock in the header (network delay plus an unknown offset); the
+    smallest delay of the last :attr:`SAMPLES` frames stands for the offset, and a
+    frame's *lateness* is its delay beyond that. The window is ``floor`` plus the
+    smoothed lateness and four times its mean deviation (as TCP's retransmission timer,
+    RFC 6298), at most ``ceiling``: a link that slows down under load widens it, a frame
+    held back well beyond its peers is refused (``stale``). Authentic frames refused as
+    stale still count as measurements (so the window can follow a sudden slow-down);
+    only accepted ones move the offset estimate.
+
+    Args:
+        floor, ceiling: bounds of the window [s of the receiver's clock].
+    """
+
+    SAMPLES = 256
+
+    def __init__(self, floor: float, ceiling: float):
+        self.floor = floor
+        self.ceiling = max(floor, ceiling)
+        self._ref: int | None = None
+        self._delays: deque[float] = deque(maxlen=self.SAMPLES)
+        self._mean = 0.0
+        self._deviation = 0.0
+        self.largest = 0.0
+        """Largest lateness [s] of an accepted frame."""
+
+    @property
+    def window(self) -> float:
+        """The largest lateness [s] accepted now."""
+        return min(self.ceiling, self.floor + self._mean + 4.0 * self._deviation)
+
+    def _delay(self, clock: int, arrival: float) -> float:
+        raw = (round(arrival * 1000) - clock) & 0xFFFF
+        ref = raw if self._ref is None else self._ref
+        return (((raw - ref + 0x8000) & 0xFFFF) - 0x8000) / 1000.0
+
+    def lateness(self, clock: int, arrival: float) -> float:
+        """A frame's delay beyond the smallest recent one [s] (0 for the first)."""
+        if not self._delays:
+            return 0.0
+        return max(0.0, self._delay(clock, arrival) - min(self._delays))
+
+    def check(self, clock: int, arrival: float) -> None:
+        """Raises :class:`Refused` (``stale``) for a frame later than the window."""
+        late = self.lateness(clock, arrival)
+        if late > self.window + 1e-9:
+            self._learn(late)
+            raise Refused("stale", f"{late:.3f} s late, window {self.window:.3f} s")
+
+    def _learn(self, late: float) -> None:
+        error = late - self._mean
+        self._mean += error / 8.0
+        self._deviation += (abs(error) - self._deviation) / 4.0
+
+    def commit(self, clock: int, arrival: float) -> None:
+        """Record an accepted frame."""
+        if self._ref is None:
+            self._ref = (round(arrival * 1000) - clock) & 0xFFFF
+        late = self.lateness(clock, arrival)
+        self._learn(late)
+        self.largest = max(self.largest, late)
+        self._delays.append(self._delay(clock, arrival))
 
 
 @dataclass
 class LinkStats:
-    """Counters of one endpoint: frames and bytes each way, and every refusal by reason."""
+    """Counters of one end: frames and bytes each way, and every refusal by reason."""
 
     sent: int = 0
     received: int = 0
@@ -159,124 +257,167 @@ class LinkStats:
         return sum(self.refused.values())
 
 
-@dataclass
-class _Peer:
-    session: int = 0
-    link: int = 0
-    seq: int = 0
-    delays: deque[float] = field(default_factory=lambda: deque(maxlen=20))
+# -- payloads -------------------------------------------------------------------------------
+
+PLAIN = Codec()
+"""The codec of payloads without records (everything but a report's robot data)."""
 
 
-class Endpoint:
-    """One side of a system's links: authenticates, de-duplicates and ages frames.
+def decode_map(data: bytes, codec: Codec = PLAIN) -> dict[int, Any]:
+    """A payload that must be a map with unsigned integer keys.
 
-    Args:
-        key: the system's shared key (never logged or stored by this object's repr).
-        system: the system id. number: this side's number (0: host).
-        window: largest age [s] of an accepted frame: its delay beyond the smallest
-            delay of the sender's last 20 accepted frames (clock offsets cancel).
-        packages: packages whose dataclasses a payload may carry (:class:`Decoder`).
+    Raises:
+        Refused: ``malformed``.
+    """
+    try:
+        value = codec.decode(data)
+    except CodecError as exc:
+        raise Refused("malformed", str(exc)) from None
+    if not isinstance(value, dict) or not all(isinstance(k, int) and k >= 0 for k in value):
+        raise Refused("malformed", "payload is not a map of unsigned integer keys")
+    return value
+
+
+def want(payload: Mapping[int, Any], key: int, kind: type | tuple[type, ...], what: str,
+         default: Any = None, *, size: int | None = None) -> Any:
+    """``payload[key]`` checked to be of ``kind`` (and ``size`` bytes), or ``default``
+    when absent (``None`` default: required).
+
+    Raises:
+        Refused: ``malformed``, naming ``what``.
+    """
+    if key not in payload:
+        if default is None:
+            raise Refused("malformed", f"no {what}")
+        return default
+    value = payload[key]
+    if isinstance(value, bool) and bool not in (kind if isinstance(kind, tuple) else (kind,)):
+        raise Refused("malformed", what)
+    if not isinstance(value, kind) or (size is not None and len(value) != size):
+        raise Refused("malformed", what)
+    if isinstance(value, float) and not math.isfinite(value):
+        raise Refused("malformed", what)
+    return value
+
+
+def unsigned(payload: Mapping[int, Any], key: int, what: str, default: int | None = None,
+             limit: int = MAX_COUNTER) -> int:
+    value = want(payload, key, int, what, default)
+    if not 0 <= value <= limit:
+        raise Refused("malformed", what)
+    return value
+
+
+class NameTable:
+    """The host's table of names (joint, wheel and port names) sent as small integers.
+
+    A name's id is its place in the table. A COMMAND frame carries the table's entries
+    from the smallest size its modules reported knowing (``[first, names...]``), so a
+    module always learns a name in the frame that first uses its id.
     """
 
-    def __init__(self, key: bytes, system: int, number: int, *, window: float,
-                 packages: tuple[str, ...] = ()):
-        self._key = key
-        self.system = system
-        self.number = number
-        self.window = window
-        self.decoder = Decoder(packages)
-        self.stats = LinkStats()
-        self.peers: dict[int, _Peer] = {}
-        self.seq = 0
+    def __init__(self) -> None:
+        self.names: list[str] = []
+        self._ids: dict[str, int] = {}
 
-    def __repr__(self) -> str:
-        return f"Endpoint(system={self.system}, number={self.number})"
+    def __len__(self) -> int:
+        return len(self.names)
 
-    def encode(self, frame_type: FrameType, receiver: int, *, session: int, link: int,
-               clock: float, payload: Any) -> bytes:
-        """The next frame of this side (sequence number + 1); ``clock`` [s]."""
-        self.seq += 1
-        data = encode_frame(self._key, frame_type, system=self.system, sender=self.number,
-                            receiver=receiver, session=session, link=link, seq=self.seq,
-                            clock_ms=round(clock * 1000), payload=payload)
-        self.stats.sent += 1
-        self.stats.bytes_sent += len(data)
-        return data
-
-    def accept(self, datagram: bytes, now: float, *, session: int | None,
-               link: int | None) -> Frame:
-        """Check ``datagram`` received at this side's clock ``now`` [s].
-
-        Args:
-            session, link: nonces the frame must carry (``None``: any, as in a HELLO
-                or WELCOME, which start a new session; the sequence restarts then).
-
-        Raises:
-            Refused: counted in :attr:`stats` under its reason.
-        """
-        self.stats.bytes_received += len(datagram)
-        try:
-            frame = decode_frame(self._key, datagram, self.decoder)
-            if frame.system != self.system or frame.receiver != self.number:
-                raise Refused("foreign", f"system {frame.system} to {frame.receiver}")
-            if ((session is not None and frame.session != session)
-                    or (link is not None and frame.link != link)):
-                raise Refused("stale_session")
-            peer = self.peers.setdefault(frame.sender, _Peer())
-            fresh = (frame.session, frame.link) != (peer.session, peer.link)
-            if not fresh and frame.seq <= peer.seq:
-                raise Refused("replayed", f"sequence {frame.seq} <= {peer.seq}")
-            delay = now - frame.clock / 1000.0
-            if fresh:
-                peer.delays.clear()
-            if peer.delays and delay - min(peer.delays) > self.window:
-                raise Refused("stale", f"{delay - min(peer.delays):.3f} s late")
-        except Refused as exc:
-            self.stats.refuse(exc.reason)
-            raise
-        peer.session, peer.link, peer.seq = frame.session, frame.link, frame.seq
-        peer.delays.append(delay)
-        self.stats.received += 1
-        return frame
+    def ref(self, name: str) -> int:
+        """``name``'s id (a new name joins the table)."""
+        number = self._ids.get(name)
+        if number is None:
+            number = self._ids[name] = len(self.names)
+            self.names.append(name)
+        return number
 
 
-def command_payload(command: ModuleCommand, undock: tuple[str, ...] = ()) -> dict[str, Any]:
-    """The COMMAND payload of ``command`` (``undock`` adds ports to release)."""
-    out: dict[str, Any] = {}
-    if command.joints:
-        out["j"] = {str(k): float(v) for k, v in command.joints.items()}
-    if command.wheels:
-        out["w"] = {str(k): float(v) for k, v in command.wheels.items()}
-    if command.dock:
-        out["d"] = list(command.dock)
-    ports = tuple(dict.fromkeys((*command.undock, *undock)))
-    if ports:
-        out["u"] = list(ports)
+def _name(value: Any, names: list[str], what: str) -> str:
+    if isinstance(value, str):
+        return value
+    if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(names):
+        return names[value]
+    raise Refused("malformed", f"{what}: name {value!r}")
+
+
+def command_entry(command: ModuleCommand, version: int, names: NameTable) -> list[Any]:
+    """A module's full entry in the COMMAND frame: ``[version, joints, wheels, dock,
+    undock]`` without trailing empties; values float32."""
+    def values(items: Mapping[str, float]) -> dict[Any, float]:
+        return {names.ref(str(k)): float(np.float32(v)) for k, v in items.items()}
+
+    out: list[Any] = [version % VERSION_MARKS, values(command.joints), values(command.wheels),
+                      [names.ref(p) for p in command.dock],
+                      [names.ref(p) for p in command.undock]]
+    while len(out) > 1 and not out[-1]:
+        out.pop()
     return out
 
 
-def command_from_payload(payload: Any) -> ModuleCommand:
-    """The :class:`ModuleCommand` of a COMMAND payload.
+def parse_entry(entry: Any, names: list[str]) -> tuple[int, ModuleCommand | None]:
+    """``(version, command)`` of a module's entry; ``None``: the entry is only the
+    version (the command is unchanged).
 
     Raises:
-        Refused: ``malformed`` when a field has the wrong type.
+        Refused: ``malformed``.
     """
-    if not isinstance(payload, Mapping):
-        raise Refused("malformed", "command payload is not a map")
+    if isinstance(entry, int) and not isinstance(entry, bool):
+        if not 0 <= entry < VERSION_MARKS:
+            raise Refused("malformed", "command version")
+        return entry, None
+    if not (isinstance(entry, tuple) and 1 <= len(entry) <= 5 and isinstance(entry[0], int)
+            and not isinstance(entry[0], bool) and 0 <= entry[0] < VERSION_MARKS):
+        raise Refused("malformed", "command entry")
+    parts = list(entry[1:]) + [None] * (5 - len(entry))
 
-    def numbers(name: str) -> dict[str, float]:
-        value = payload.get(name, {})
-        if not isinstance(value, Mapping) or not all(
-                isinstance(k, str) and isinstance(v, int | float) and not isinstance(v, bool)
-                for k, v in value.items()):
-            raise Refused("malformed", f"command field {name!r}")
-        return {k: float(v) for k, v in value.items()}
+    def numbers(value: Any, what: str) -> dict[str, float]:
+        if value is None:
+            return {}
+        if not isinstance(value, dict):
+            raise Refused("malformed", what)
+        out = {}
+        for key, number in value.items():
+            if (isinstance(number, bool) or not isinstance(number, int | float)
+                    or not math.isfinite(number)):
+                raise Refused("malformed", f"{what} value")
+            out[_name(key, names, what)] = float(number)
+        return out
 
-    def ports(name: str) -> tuple[str, ...]:
-        value = payload.get(name, ())
-        if not isinstance(value, tuple) or not all(isinstance(p, str) for p in value):
-            raise Refused("malformed", f"command field {name!r}")
-        return value
+    def ports(value: Any, what: str) -> tuple[str, ...]:
+        if value is None:
+            return ()
+        if not isinstance(value, tuple):
+            raise Refused("malformed", what)
+        return tuple(_name(p, names, what) for p in value)
 
-    return ModuleCommand(joints=numbers("j"), wheels=numbers("w"), dock=ports("d"),
-                         undock=ports("u"))
+    return entry[0], ModuleCommand(joints=numbers(parts[0], "joints"),
+                                   wheels=numbers(parts[1], "wheels"),
+                                   dock=ports(parts[2], "dock"), undock=ports(parts[3], "undock"))
+
+
+POSITION_QUANTUM = 1e-4
+"""A reported position's resolution [m]."""
+
+
+def pose_wire(pose: Pose) -> list[Any]:
+    """A pose as ``[x, y, z, quaternion]``: position in units of 0.1 mm, orientation as
+    four int16 (value / 32767, w >= 0) in 8 bytes."""
+    q = np.asarray(pose.orientation, dtype=float)
+    norm = float(np.linalg.norm(q))
+    q = q / norm if norm > 0 else np.array([0.0, 0.0, 0.0, 1.0])
+    ints = np.round(q * QUANTUM).astype("<i2")
+    if ints[3] < 0:
+        ints = -ints
+    return [round(float(x) / POSITION_QUANTUM) for x in pose.position] + [ints.tobytes()]
+
+
+def pose_from_wire(value: Any) -> Pose:
+    if not (isinstance(value, tuple) and len(value) == 4
+            and all(isinstance(x, int) and not isinstance(x, bool) for x in value[:3])
+            and isinstance(value[3], bytes) and len(value[3]) == 8):
+        raise Refused("malformed", "pose")
+    q = np.frombuffer(value[3], dtype="<i2").astype(float) / QUANTUM
+    norm = float(np.linalg.norm(q))
+    if norm < 0.5:
+        raise Refused("malformed", "pose orientation")
+    return Pose(np.array(value[:3], dtype=float) * POSITION_QUANTUM, q / norm)

@@ -4,12 +4,16 @@ A small JSON file (``docs/hardware.md``)::
 
     {"schema_version": 1, "system": 4242, "robot": "mmrp",
      "key": {"file": "system.key"},             # or {"env": "MSRR_LINK_KEY"}
-     "timeout_s": 1.0, "time_scale": 1.0,
+     "timeout_s": 1.0, "time_scale": 1.0, "budget_kbps": 60,
+     "group": {"address": "192.168.4.255", "port": 47000},
+     "records": [{"type": "msrr.plugins.freesn.sim.world:NodeReport", "rotations": ["tilt"]}],
      "modules": [{"id": "1", "number": 1, "address": "127.0.0.1", "port": 47001}, ...]}
 
-The key itself is never in the systems file: it is read from a key file (64
-hexadecimal digits, a path relative to the systems file) or an environment variable,
-so the systems file can be copied into run folders, logs and reports.
+The key is the *site key*, held by the host only; each module holds its own module
+key derived from it (:func:`~.keys.module_key`). It is never in the systems file: it is
+read from a key file (64 hexadecimal digits, a path relative to the systems file) or an
+environment variable, so the systems file can be copied into run folders, logs and
+reports.
 """
 
 from __future__ import annotations
@@ -31,8 +35,8 @@ from ..files import (
     read_json,
 )
 
-__all__ = ["KeyRef", "ModuleEntry", "SystemFile", "load_key", "load_system", "new_key",
-           "write_key", "write_system"]
+__all__ = ["GroupAddress", "KeyRef", "ModuleEntry", "RecordEntry", "SystemFile", "load_key",
+           "load_system", "new_key", "write_key", "write_system"]
 
 KEY_BYTES = 32
 MIN_KEY_BYTES = 16
@@ -49,6 +53,42 @@ class KeyRef(StrictModel):
         if (self.file is None) == (self.env is None):
             raise ValueError("give exactly one of 'file' and 'env'")
         return self
+
+
+def _ipv4(address: str) -> str:
+    try:
+        ipaddress.IPv4Address(address)
+    except ValueError:
+        raise ValueError(f"address {address!r} is not an IPv4 address "
+                         "(the link runs over UDP/IPv4)") from None
+    return address
+
+
+class GroupAddress(StrictModel):
+    """Where the host sends the one COMMAND frame of each tick: a broadcast (or
+    multicast) address and port every module listens on as well as its own."""
+
+    address: str
+    port: int = Field(ge=1, le=65535)
+
+    @model_validator(mode="after")
+    def _address(self) -> GroupAddress:
+        _ipv4(self.address)
+        return self
+
+
+class RecordEntry(StrictModel):
+    """A record type reports may carry; its id is its place in the list (from 1).
+
+    Attributes:
+        type: the dataclass, ``"package.module:QualName"`` (of the robot's package).
+        rotations: fields whose 3x3 rotation matrices travel as quaternions.
+        directions: fields whose unit 3-vectors travel as three int16.
+    """
+
+    type: str = Field(min_length=3)
+    rotations: list[str] = Field(default_factory=list)
+    directions: list[str] = Field(default_factory=list)
 
 
 class ModuleEntry(StrictModel):
@@ -69,11 +109,7 @@ class ModuleEntry(StrictModel):
 
     @model_validator(mode="after")
     def _address(self) -> ModuleEntry:
-        try:
-            ipaddress.IPv4Address(self.address)
-        except ValueError:
-            raise ValueError(f"address {self.address!r} is not an IPv4 address "
-                             "(protocol version 1 runs over UDP/IPv4)") from None
+        _ipv4(self.address)
         return self
 
 
@@ -81,12 +117,19 @@ class SystemFile(StrictModel):
     """A systems file (module doc).
 
     Attributes:
-        system: the system id every frame carries (u32).
+        system: the system id (u32; it enters every module key, so two systems on one
+            network never accept each other's frames).
         robot: the robot the modules are.
-        key: where the shared key is.
-        timeout_s: default silence timeout of a module [s].
+        key: where the site key is.
+        timeout_s: default silence timeout of a module [s]; also the largest age of an
+            accepted frame.
         watchdog_s: the modules' command watchdog [s]; ``None``: 3 control periods.
         time_scale: module clock / wall clock (an emulator running faster; 1 on hardware).
+        budget_kbps: the link's budget [kbit/s, UDP/IP headers included]: the host
+            spaces the modules' reports (every 1 to 6 control periods) to stay within
+            it; ``None``: a report every period.
+        group: where COMMAND frames go; ``None``: to each module's own address.
+        records: the record types reports may carry (ids 1, 2, ...).
         modules: the modules, distinct ids, numbers and addresses.
     """
 
@@ -97,6 +140,9 @@ class SystemFile(StrictModel):
     timeout_s: float = Field(default=1.0, gt=0)
     watchdog_s: float | None = Field(default=None, gt=0)
     time_scale: float = Field(default=1.0, gt=0, le=100)
+    budget_kbps: float | None = Field(default=None, gt=0)
+    group: GroupAddress | None = None
+    records: list[RecordEntry] = Field(default_factory=list)
     modules: list[ModuleEntry] = Field(min_length=1)
 
     @model_validator(mode="after")
@@ -128,7 +174,7 @@ def write_system(path: str | os.PathLike[str], system: SystemFile) -> Path:
 
 
 def new_key() -> bytes:
-    """A fresh random key of 32 bytes."""
+    """A fresh random site key of 32 bytes."""
     return secrets.token_bytes(KEY_BYTES)
 
 

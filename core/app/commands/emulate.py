@@ -26,18 +26,24 @@ __all__ = ["command"]
               default=Path("system.json"), show_default=True,
               help="Where to write the systems file (the key goes to FILE's .key sibling).")
 @click.option("--key-env", default=None, metavar="NAME",
-              help="Take the key (hex) from environment variable NAME; no key file is written.")
+              help="Take the site key (hex) from environment variable NAME; no key file is "
+                   "written.")
 @click.option("--rate", type=FiniteFloat(0, 1000, open_low=True), default=10.0, show_default=True,
               help="Control rate of the modules [Hz]; the watchdog is 3 periods.")
 @click.option("--speed", type=FiniteFloat(0, 100, open_low=True), default=1.0, show_default=True,
               help="Module time per wall time (1: real time, at most 100).")
 @click.option("--timeout", type=FiniteFloat(0, open_low=True), default=1.0, show_default=True,
               help="Silence timeout of each module written to the systems file [s].")
+@click.option("--budget", type=FiniteFloat(0, open_low=True), default=None, metavar="KBPS",
+              help="Link budget written to the systems file [kbit/s, UDP/IP included]: the "
+                   "host spaces reports to stay within it (the FreeSN paper: 60); default: "
+                   "none, a report every period.")
 @click.option("--duration", type=FiniteFloat(0, open_low=True), default=None,
               help="Stop after this much module time [s]; default: until Ctrl-C.")
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the faults and simulator.")
 def command(robot: str, config: Path, faults: str, system_out: Path, key_env: str | None,
-            rate: float, speed: float, timeout: float, duration: float | None,
+            rate: float, speed: float, timeout: float, budget: float | None,
+            duration: float | None,
             seed: int) -> None:
     """Emulate the modules of CONFIG: one UDP endpoint per module on 127.0.0.1, each
     speaking the link protocol, backed by the robot's simulator (its first driver).
@@ -68,7 +74,7 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
             key_path = system_out.with_suffix(".key")
             ref = KeyRef(file=key_path.name)
         emulator = Emulator(factory, start, recognizer=recognizer, rate=rate, speed=speed,
-                            faults=spec, seed=seed, key=key, timeout=timeout)
+                            faults=spec, seed=seed, key=key, timeout=timeout, budget=budget)
         with emulator:
             if key_env is None:
                 write_key(key_path, key)
@@ -85,7 +91,7 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
                 stopped = exc
             rows = []
             for module, emulated in emulator.modules.items():
-                stats, link = emulated.link.endpoint.stats, emulated.link
+                stats, link = emulated.link.stats, emulated.link
                 refused = ", ".join(f"{r} {n}" for r, n in sorted(stats.refused.items()))
                 rows.append([module, stats.received, stats.sent, refused or "-",
                              len(link.trips), link.boots - 1])
