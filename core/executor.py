@@ -479,9 +479,10 @@ class Executor:
             commands = _with_wheels(commands, behavior_commands(action))
         self.driver.send_action(commands)
         self.driver.step(self.dt)
-        self.sink.tick(self.run, Tick(self.tick_index, self.driver.time, index, action, phase,
-                                         observation, configuration, commands, control.errors))
-        self.tick_index += 1
+        self.tick_index += 1  # executed: counted even if a listener is interrupted below
+        self.sink.tick(self.run, Tick(self.tick_index - 1, self.driver.time, index, action,
+                                      phase, observation, configuration, commands,
+                                      control.errors))
         if phase in (Phase.APPROACH, Phase.MOVE, Phase.FLOW):
             return control.reached
         if phase is Phase.BEHAVIOR:

@@ -161,7 +161,7 @@ def judge_behavior(call: BehaviorCall, *, first_action: int, actions: int, durat
     heading = None
     if direction is not None and distance >= HEADING_DISTANCE:
         heading = math.acos(float(np.clip(shift @ direction / distance, -1.0, 1.0)))
-    covered = along if along is not None else distance
+    covered = round(along if along is not None else distance, 4) + 0.0  # no "-0.000"
     reason = ""
     if asked is not None and covered < options.min_progress * asked:
         what = "along the commanded direction" if along is not None else "in all"
