@@ -71,12 +71,16 @@ class ConfigurationError(MsrrError):
         message: what is wrong.
         source: where it came from (a file path), if anywhere.
         field: the offending field, as a dotted path such as ``connections[3].z``.
+        problems: every problem found, ``(field, message)`` each, the first being the
+            one the message names (``platform validate --all`` prints them all).
     """
 
-    def __init__(self, message: str, *, source: str | None = None, field: str | None = None):
+    def __init__(self, message: str, *, source: str | None = None, field: str | None = None,
+                 problems: tuple[tuple[str | None, str], ...] = ()):
         self.message = message
         self.source = source
         self.field = field
+        self.problems = problems or ((field, message),)
         super().__init__(str(self))
 
     def __str__(self) -> str:
@@ -89,7 +93,8 @@ class ConfigurationError(MsrrError):
 
     def at(self, source: str) -> ConfigurationError:
         """The same error, attributed to ``source`` (keeps an existing source)."""
-        return type(self)(self.message, source=self.source or source, field=self.field)
+        return type(self)(self.message, source=self.source or source, field=self.field,
+                          problems=self.problems)
 
 
 class DockingRuleError(ConfigurationError):

@@ -329,4 +329,6 @@ def parse_model(model: type[M], data: Any, source: str | None = None) -> M:
         first = errors[0]
         more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
         raise ConfigurationError(f"{first['msg']}{more}", source=source,
-                                 field=validation_field(tuple(first["loc"]))) from None
+                                 field=validation_field(tuple(first["loc"])),
+                                 problems=tuple((validation_field(tuple(e["loc"])), e["msg"])
+                                                for e in errors)) from None

@@ -182,4 +182,5 @@ def check_configuration(config: Configuration, robot: Robot) -> None:
     if violations:
         first = violations[0]
         more = f" (and {len(violations) - 1} more)" if len(violations) > 1 else ""
-        raise DockingRuleError(f"{first.message}{more}", field=first.where)
+        raise DockingRuleError(f"{first.message}{more}", field=first.where,
+                               problems=tuple((v.where, v.message) for v in violations))

@@ -231,7 +231,7 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
     """Read library source files (designs, sequences, behaviors) in the given order.
 
     Args:
-        paths: the source files.
+        paths: the source files; a folder stands for its ``*.json`` files in name order.
         robots: the :class:`~msrr.core.robot.Robot` of a robot name (the sources name
             their robot; ``msrr.core.plugins.resolve`` at the top layer).
 
@@ -239,9 +239,10 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
         LibraryError: no file, a bad file, sources for different robots, or a
             configuration that breaks its robot's docking rules; names file and field.
     """
-    paths = [Path(p) for p in paths]
+    paths = [f for p in map(Path, paths)
+             for f in (sorted(p.glob("*.json")) if p.is_dir() else [p])]
     if not paths:
-        raise LibraryError("no library source files given")
+        raise LibraryError("no library source files given (a folder given holds no *.json)")
     robot: Robot | None = None
     name = description = ""
     groups: list[DesignedGroup] = []

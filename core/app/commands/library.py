@@ -45,7 +45,8 @@ def command() -> None:
               help="Motion cost: aligned distance (eq. 8; identical builds on every machine) "
                    "or full-body IK (eq. 6; reproducible on one BLAS kernel only).")
 def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost: str) -> None:
-    """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14)."""
+    """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14); a
+    folder stands for its JSON files in name order."""
     from ...library import build_library, build_steps, load_sources, save_library
 
     _check_output(output)

@@ -97,7 +97,8 @@ def plan_counts(plan: Plan) -> str:
 
 
 @click.command("plan")
-@click.option("--robot", required=True, help="Robot name (see `platform robots`).")
+@click.option("--robot", default=None,
+              help="Robot name (see `platform robots`); default the robot START names.")
 @click.argument("start", type=click.Path(path_type=Path))
 @click.argument("goal", type=click.Path(path_type=Path))
 @click.option("--planner", "planner_name", default=None, help="Planner name; default the "
@@ -105,21 +106,21 @@ def plan_counts(plan: Plan) -> str:
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the planner.")
 @click.option("--json", "json_out", type=click.Path(path_type=Path), default=None,
               help="Also write the plan to this file (format: `platform schema plan`).")
-def command(robot: str, start: Path, goal: Path, planner_name: str | None, seed: int,
+def command(robot: str | None, start: Path, goal: Path, planner_name: str | None, seed: int,
             json_out: Path | None) -> None:
-    """Plan the reconfiguration from configuration file START to GOAL."""
+    """Plan the reconfiguration from configuration file START to GOAL (both of one robot,
+    the one they name unless --robot says which)."""
     if json_out is not None and json_out.is_dir():
         raise ConfigurationError("is a directory, expected a file to write", source=str(json_out))
     from ...plan import save_plan
 
-    planner = plugins.planners.get(robot, planner_name)
-    configs = []
-    for path in (start, goal):
-        config = plugins.load_configuration(path)
+    configs = [plugins.load_configuration(path) for path in (start, goal)]
+    robot = robot or configs[0].robot
+    for path, config in zip((start, goal), configs, strict=True):
         if config.robot != robot:
             raise PlanningError(f"{path}: a configuration of robot {config.robot!r}, "
                                 f"not {robot!r}")
-        configs.append(config)
+    planner = plugins.planners.get(robot, planner_name)
     try:
         plan = planner.plan(configs[0], configs[1], seed=seed)
     except PlanningError as exc:  # about the pair: name both files
