@@ -13,7 +13,10 @@ and the first registered item is the default. What each capability registers is 
 protocol of :mod:`msrr.core.capabilities`.
 
 Every hook is typed with what it receives and returns; ``docs/writing-a-plugin.md``
-shows each signature (a test keeps the two in step).
+shows each signature (a test keeps the two in step). The host calls every hook through
+pluggy; an implementation that raises, or registers or answers with the wrong type, is
+named in one line (plugin, entry point, hook, exception) and the robot it was asked
+about refuses every command: nothing falls back to a weaker default.
 """
 
 from __future__ import annotations
@@ -87,9 +90,10 @@ def msrr_robot() -> RobotSpec | None:
 def msrr_docking_rules(robot: str) -> DockingRules | None:
     """Return the docking rules of ``robot``: legal port pairs, topologies, actions.
 
-    Called when the host resolves ``robot`` (:func:`msrr.core.plugins.resolve`),
+    Called once when the host resolves ``robot`` (:func:`msrr.core.plugins.capabilities`),
     e.g. before a configuration of it is validated. The first plugin that answers
-    wins; with no answer the permissive :class:`~msrr.core.robot.DockingRules` apply.
+    wins; when no plugin answers, the permissive :class:`~msrr.core.robot.DockingRules`
+    apply (an implementation that raises is an error, never an empty answer).
 
     :param robot: the robot's name.
     :return: a :class:`~msrr.core.robot.DockingRules`, or ``None`` if this plugin
