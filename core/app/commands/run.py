@@ -148,7 +148,8 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
         ["simulated time", f"{result.sim_time:.1f} s"],
         ["wall time", f"{result.wall_time:.1f} s"],
         *(_goal_row(goal) for goal in result.targets),
-        *([_goal_row(result.goal)] if result.goal is not None else []),
+        *([_goal_row(result.goal)]  # the run's goal, unless its last stage's row says it
+          if result.goal is not None and result.goal not in result.targets else []),
         *(_behavior_row(moved) for moved in result.locomotion),
     ]
     if result.faults:
