@@ -120,11 +120,13 @@ def _goal_row(goal: GoalVerdict) -> list[object]:
 def _behavior_row(moved: BehaviorVerdict) -> list[object]:
     along = "" if moved.along is None else \
         f", {round(moved.along, 3) + 0.0:.3f} m along the commanded direction"
-    asked = "" if moved.asked is None else f" of {moved.asked:.3f} m asked"
+    covered = moved.along if moved.along is not None else moved.distance
+    asked = "" if moved.asked is None else \
+        f" ({covered / moved.asked:.0%} of the {moved.asked:.3f} m asked)"
     heading = "" if moved.heading_error is None else \
         f", heading error {math.degrees(moved.heading_error):.1f} deg"
     text = f"{moved.distance:.3f} m in {moved.duration:.1f} s{along}{asked}{heading}"
-    return [f"behavior {moved.name}", f"{text}; {'as asked' if moved.success else 'NOT as asked'}"]
+    return [f"behavior {moved.name}", f"{text}; {'passes' if moved.success else 'FAILS'}"]
 
 
 def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
