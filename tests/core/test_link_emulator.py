@@ -103,6 +103,35 @@ def test_a_module_that_drops_out_stops_the_run_within_its_timeout(tmp_path) -> N
     assert summary["success"] is False and summary["driver"] == "link"
 
 
+@pytest.mark.parametrize(("fault", "words"), [
+    ("disobey:module=a,at=2", "module a received commands"),
+    ("stall:module=a,at=2", "module a reports its motors stopped while commanded")])
+def test_a_module_that_stops_obeying_or_stops_its_motors_stops_the_run_within_three_periods(
+        tmp_path, fault, words) -> None:
+    # a travels 0 -> 3 m at 1 m/s; from 2 s (module time: the run is under way) it stops
+    # applying commands, or its motors stop, while it keeps reporting: the host stops the
+    # run within three control periods
+    with installed(), emulating(tmp_path, fault, speed=2.5, timeout=2.0) as (emulator, system):
+        link = emulator.modules["a"].link
+        ended: list[float] = []
+        handle = link.handle
+
+        def tapped(datagram, address, clock):
+            result = handle(datagram, address, clock)
+            if result is None and datagram[0] & 0x0F == 6 and not ended:  # its BYE
+                ended.append(clock)
+            return result
+
+        link.handle = tapped
+        prepared = prepare_run(_request(tmp_path, system, goal=chain(("c", "a"), name="ca")))
+        result = execute_run(prepared)
+        write_outputs(prepared.run, result)
+    assert not result.success and words in result.reason, result.reason
+    assert "\n" not in result.reason and result.reason.endswith("run stopped")
+    assert ended and 2.0 < ended[0] <= 2.0 + 0.1 + 3 * 0.1 + 0.05  # first tick + 3 periods
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(RUN_FILES)
+
+
 def test_a_wrong_key_is_refused_and_counted_on_both_sides(tmp_path) -> None:
     with installed(), emulating(tmp_path, "wrong-key:module=c") as (emulator, system):
         driver = LinkDriver(system=system, robot="tiny", handshake=0.5)
