@@ -92,3 +92,31 @@ def test_a_run_is_judged_by_its_final_shape(tmp_path: Path, monkeypatch: pytest.
     if not success:
         assert summary["reason"].startswith("goal bc (action 3): shape outside the tolerance, "
                                             "position error up to")
+
+
+def test_a_goal_that_only_bends_a_hinge_is_judged_by_its_shape(tmp_path: Path) -> None:
+    """The generic planner plans no action between two configurations of one topology;
+    the run is not called a success at 26 deg: the judge measures the shape."""
+    import math
+
+    def chain(name: str, bend: float) -> Path:
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps({
+            "schema_version": 1, "robot": "hinge", "name": name,
+            "modules": [{"id": f"h{i}", "kind": "hinge"} for i in (1, 2, 3)],
+            "connections": [
+                {"source": "h1", "target": "h2", "ports": ["head", "tail"], "z": [1, 0, 0]},
+                {"source": "h2", "target": "h3", "ports": ["head", "tail"],
+                 "z": [math.cos(bend), math.sin(bend), 0]}]}))
+        return path
+
+    straight, bent = chain("straight", 0.0), chain("bent", math.radians(26))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(get_cli(), ["run", "--robot", "hinge", "--from", str(straight),
+                                            "--to", str(bent), "--out", str(out), "--no-log"])
+    summary = json.loads((out / "summary.json").read_text())
+    assert result.exit_code == 1 and summary["success"] is False
+    assert summary["actions_total"] == 0 and summary["goal"]["topology"] is True
+    # eq. 8 turns the goal by the yaw that fits best: 13 deg off on each of the two edges
+    assert summary["goal"]["shape"]["error_deg"] == pytest.approx(13.0, abs=0.01)
+    assert "shape outside the tolerance" in summary["reason"]
