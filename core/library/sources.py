@@ -226,6 +226,16 @@ def _read(path: Path, robot: str | None) -> tuple[LibrarySourceFile, str]:
     return model, source
 
 
+def _source_files(path: Path) -> list[Path]:
+    """``path``, or a folder's ``*.json`` files in name order."""
+    if not path.is_dir():
+        return [path]
+    found = sorted(path.glob("*.json"))
+    if not found:
+        raise LibraryError("is a folder without a *.json library source file", source=str(path))
+    return found
+
+
 def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str], Robot]
                  ) -> LibrarySources:
     """Read library source files (designs, sequences, behaviors) in the given order.
@@ -239,10 +249,9 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
         LibraryError: no file, a bad file, sources for different robots, or a
             configuration that breaks its robot's docking rules; names file and field.
     """
-    paths = [f for p in map(Path, paths)
-             for f in (sorted(p.glob("*.json")) if p.is_dir() else [p])]
+    paths = [f for p in map(Path, paths) for f in _source_files(p)]
     if not paths:
-        raise LibraryError("no library source files given (a folder given holds no *.json)")
+        raise LibraryError("no library source files given")
     robot: Robot | None = None
     name = description = ""
     groups: list[DesignedGroup] = []

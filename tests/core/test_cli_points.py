@@ -52,4 +52,4 @@ def test_library_build_takes_its_source_folder(tmp_path: Path) -> None:
     empty = tmp_path / "empty"
     empty.mkdir()
     refused = run("library", "build", str(empty), "-o", str(tmp_path / "x.json"))
-    assert refused.exit_code == 1 and "holds no *.json" in refused.output
+    assert refused.exit_code == 1 and f"{empty}: is a folder without a *.json" in refused.output
