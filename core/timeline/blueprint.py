@@ -60,7 +60,8 @@ def build_blueprint(run: Run | None = None, *,
     plots: list[object] = [
         rrb.TimeSeriesView(name="Commands", origin="commands"),
         rrb.TimeSeriesView(name="Controller errors", origin="errors"),
-        rrb.TimeSeriesView(name="Docked connections", origin="topology/connections"),
+        rrb.TimeSeriesView(name="Docked connections", origin="topology",  # flows: diamonds
+                           contents=["$origin/connections", "$origin/flows"]),
     ]
     if shape:
         plots.insert(0, rrb.TimeSeriesView(name="Angle to target [deg]", origin="shape"))

@@ -28,11 +28,20 @@ _SKIP = {_ROW_ID, "log_time"}  # log_time: wall clock, not needed
 @dataclass(frozen=True)
 class Row:
     """One logged row of an entity: its ``tick`` and ``sim_time`` [s] (``None`` when
-    static) and its non-null components by column name (``"Scalars:scalars"``...)."""
+    static), its non-null components by column name (``"Scalars:scalars"``...) and
+    :attr:`order`, which sorts rows of different entities as they were logged (rerun's
+    time-ordered row id: a ``Clear`` of a parent and a later row of its child at one
+    tick come out in the order the viewer applies them)."""
 
     tick: int | None
     sim_time: float | None
     values: dict[str, Any]
+    row_id: bytes = b""
+
+    @property
+    def order(self) -> tuple[int, bytes]:
+        """``(tick, row id)``, static rows first: the order the viewer applies rows in."""
+        return (-1 if self.tick is None else self.tick, self.row_id)
 
 
 @dataclass(frozen=True)
@@ -75,7 +84,7 @@ def read_recording(path: str | Path, prefix: str = "/") -> Recording:
         chunks = list(RrdReader(path).stream())
     except (RuntimeError, ValueError, OSError) as exc:
         raise MsrrError(f"{path}: rerun cannot read it: {exc}") from None
-    out: dict[str, list[tuple[int, bytes, Row]]] = {}
+    out: dict[str, list[Row]] = {}
     timelines: set[str] = set()
     for chunk in chunks:
         entity = chunk.entity_path
@@ -91,10 +100,10 @@ def read_recording(path: str | Path, prefix: str = "/") -> Recording:
             values = {n: col[i] for n, col in columns.items() if col[i] is not None}
             tick = values.pop("tick", None)
             sim = values.pop("sim_time", None)
-            row = Row(tick, sim.total_seconds() if sim is not None else None, values)
-            out.setdefault(entity, []).append((-1 if tick is None else tick, ids[i], row))
-    rows = {entity: [r for _, _, r in sorted(found, key=lambda t: t[:2])]
-            for entity, found in out.items()}
+            row = Row(tick, sim.total_seconds() if sim is not None else None, values,
+                      ids[i] or b"")
+            out.setdefault(entity, []).append(row)
+    rows = {entity: sorted(found, key=lambda r: r.order) for entity, found in out.items()}
     return Recording(rows, frozenset(timelines))
 
 

@@ -7,23 +7,31 @@ Entity paths (stable, documented in ``docs/running.md``):
   ``world/modules/<id>/faces`` -- its ports, active red, passive blue;
   ``world/modules/<id>/connectors`` -- the two ends of an edge module (a FreeSN strut)
   coloured by state (docked, extending, releasing, free), logged when it changes;
-* ``world/targets`` -- goal poses of the running action (wireframe boxes);
-  ``world/ghost`` -- the running action's target configuration laid out from its
-  connection vectors and placed on the robot (translucent), for robots with vectors;
+* ``world/targets`` -- goal poses of the running action (wireframe boxes), when its
+  planner placed the moving modules;
+  ``world/ghost/nodes``, ``world/ghost/boxes``, ``world/ghost/struts`` -- otherwise the
+  running action's target configuration at the robot's scale (module sizes from their
+  kinds' geometry, :func:`~msrr.core.timeline.geometry.shape_layout`), put where the
+  robot is by the best planar rigid fit (:func:`~msrr.core.timeline.geometry.fit_layout`)
+  when the action starts, and re-fitted every tick during a behavior (it moves with the
+  robot); cleared when the action succeeds; at the end of the run, the run's goal
+  fitted onto the final poses;
 * ``top/modules``, ``top/connections``, ``top/targets`` -- the top-down 2-D view of a
   planar robot (``spec.defaults.planar``); y is logged negated, as the 2-D view's
   y axis points down;
 * ``topology/current``, ``topology/target`` -- graph views: nodes at fixed positions
   (one layout of every configuration of the plan), a label node on each edge (ports,
   or the edge module's id); ``topology/connections`` -- docked connections (scalar);
+  ``topology/flows`` -- a purple diamond on that line at each flow's handover;
 * ``action`` -- the running action as text; ``plan``, ``mapping`` -- static text;
 * ``commands/<id>/<wheel or joint>`` (a ``.`` in a joint name is a ``/``),
   ``errors/<id>`` -- scalars per module, NaN on the first tick a module is idle so the
   plots break there; ``shape/angle`` -- RMS connection angle to the action's target [deg]
   (eq. 8 alignment), for robots with connection vectors;
-* ``events/docks``, ``events/undocks``, ``events/actions``, ``events/faults`` -- text logs
-  (faults: injected by ``--faults`` or caught by the driver guard, WARN when the run
-  carries on, ERROR when it stops).
+* ``events/docks``, ``events/undocks``, ``events/flows``, ``events/actions``,
+  ``events/faults`` -- text logs (a flow: ``flow F1-F2 -> F1-F3`` when its new
+  connection docks; faults: injected by ``--faults`` or caught by the driver guard,
+  WARN when the run carries on, ERROR when it stops).
 
 Timelines: ``tick`` (sequence) and ``sim_time`` (duration of driver time). The file
 is written as ``<name>.part`` and renamed when the run ends, so no half recording
@@ -48,22 +56,23 @@ import rerun.blueprint as rrb
 from ..configuration import Configuration
 from ..driver import Pose
 from ..events import ActionStatus, FaultEvent, Run, RunResult, Tick, TopologyEvent
-from ..plan import Action, links
-from ..robot import DEFAULT_HALF_SIZE
+from ..plan import Action, ActionType, links
+from ..robot import DEFAULT_HALF_SIZE, ModuleKind
 from ..shape import skeletal_errors
 from .blueprint import build_blueprint, camera_eye
 from .geometry import (
     Body,
+    BodyPose,
     body_of,
     capsule_between,
+    fit_layout,
     graph_layout,
     label_node,
     palette,
-    place_on,
-    vector_layout,
+    shape_layout,
 )
 
-__all__ = ["CONNECTOR_COLORS", "TimelineRecorder", "event_name"]
+__all__ = ["CONNECTOR_COLORS", "FLOW_COLOR", "TimelineRecorder", "event_name"]
 
 ACTIVE = (220, 60, 50)
 PASSIVE = (50, 90, 220)
@@ -71,6 +80,10 @@ CONNECTOR_COLORS = {"docked": (40, 170, 60), "extending": (250, 160, 0),
                     "releasing": (200, 40, 200), "free": (150, 150, 150)}
 """Colour of an edge module's connector in each state."""
 GHOST_ALPHA = 70
+FLOW_COLOR = (150, 60, 200)
+"""Colour of a flow's mark on the docked-connections plot (viewer and snapshot)."""
+_GHOST_PATHS = ("world/ghost/nodes", "world/ghost/boxes", "world/ghost/struts")
+_REFIT = 1e-3  # [m, rad]: a behavior's target is logged again once it moved this much
 _LABEL_COLOR = (120, 120, 120)
 _RECTANGLE = np.array([(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (1.0, 1.0)])
 """Corners of a closed rectangle in units of its half extents; 3 -> 4 is the front."""
@@ -80,6 +93,13 @@ def event_name(event: TopologyEvent) -> str:
     """A dock or undock in the event log: its kind and the connection's one name
     (:attr:`msrr.core.plan.ConnectionChange.label`), ``"dock N2-S4b"``."""
     return f"{event.kind} {event.change.label}"
+
+
+_DEFAULT_KIND = ModuleKind("", "", "vertex")  # a kind the spec does not know: a cube
+
+
+def _yaw_quaternion(yaw: float) -> rr.Quaternion:
+    return rr.Quaternion(xyzw=[0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
 
 
 def _has_vectors(config: Configuration) -> bool:
@@ -113,20 +133,26 @@ class TimelineRecorder:
         modules = start.modules()
         self._colors = dict(zip(modules, palette(len(modules)), strict=True))
         kinds = {k.name: k for k in run.spec.module_kinds}
+        self._kind_names = kinds
         self._kinds = {m: kinds[k] for m, k in modules.items() if k in kinds}
         self._bodies = {m: body_of(k) for m, k in self._kinds.items()}
         spheres = [body_of(k).radius for k in run.spec.module_kinds
                    if k.role == "vertex" and body_of(k).shape == "sphere"]
         self._inset = max(spheres, default=0.0)  # edge modules drawn from sphere surfaces
-        self._lengths = {k.name: float(k.geometry["length"]) for k in run.spec.module_kinds
-                         if k.role == "edge" and "length" in k.geometry}
+        self._fit_tolerance = min((min(b.half_size) for b in self._bodies.values()
+                                   if b.shape != "capsule"), default=0.0)  # [m]
+        self._oriented = [m for m, b in self._bodies.items() if b.shape == "box"]  # headings
         self._planar = run.spec.defaults.planar
         self._vectors = _has_vectors(start) or _has_vectors(run.plan.goal)
         self._layout = graph_layout([start, run.plan.goal, *(a.target for a in run.plan.actions)])
         self._connectors: dict[str, str] = {}  # last logged states, by edge module
         self._commanded: dict[str, set[str]] = {}
         self._erroring: set[str] = set()
-        self._ghost_action: int | None = None
+        self._ghost_action: int | None = None  # whose target the ghost shows
+        self._ghost_layout: dict[str, BodyPose] = {}
+        self._ghost_placed: dict[str, BodyPose] = {}
+        self._ghost_logged: set[str] = set()
+        self._last: tuple[int, float, Mapping[str, Pose]] | None = None  # last tick
         self._blueprint_sent = False
         self._top_ids: list[str] | None = None
         self._pose_rows: dict[str, list[tuple[int, float, np.ndarray]]] = {}
@@ -140,8 +166,9 @@ class TimelineRecorder:
         rec, run = self.rec, self.run
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         for module, body in self._bodies.items():
-            self._log_body(f"world/modules/{module}", body, self._colors[module], module)
             kind = self._kinds[module]
+            self._log_body(f"world/modules/{module}", body, self._colors[module], module,
+                           kind.name)
             ports = [p for p in kind.ports if p.normal is not None]
             if ports and body.shape != "capsule":
                 positions = [np.multiply(p.normal, body.half_size) * 1.05 for p in ports]
@@ -155,7 +182,7 @@ class TimelineRecorder:
                  f"{plan.docks} docks, {plan.undocks} undocks", ""]
         lines += [f"{i}. {a}" + (f" -- {a.note}" if a.note else "")
                   + (f" -- retrieved: {a.retrieved}" if a.retrieved else "")
-                  for i, a in enumerate(plan.actions)]
+                  for i, a in enumerate(plan.actions, start=1)]  # numbered as printed
         lines += ["", *plan.notes] if plan.notes else []
         rec.log("plan", rr.TextDocument("\n".join(lines), media_type="text/markdown"),
                 static=True)
@@ -167,9 +194,15 @@ class TimelineRecorder:
         self._time(0, 0.0)
         self._log_topology(plan.start)
         self._log_graph("topology/target", plan.goal)
+        rec.log("topology/connections", rr.SeriesLines(colors=[(0, 0, 0)], names=["docked"]),
+                static=True)
+        rec.log("topology/flows", rr.SeriesPoints(colors=[FLOW_COLOR], markers=["diamond"],
+                                                  names=["flow"], marker_sizes=[6.0]),
+                static=True)
 
     def _log_body(self, path: str, body: Body, color: tuple[int, ...], label: str,
-                  static: bool = True) -> None:
+                  kind: str, static: bool = True) -> None:
+        """The body of a module, with its kind's name (``kind``: hover, snapshot legend)."""
         if body.shape == "capsule":
             a, b = body.ends(self._inset)
             archetype = rr.Capsules3D(lengths=[float(b[2] - a[2])], radii=[body.radius],
@@ -181,7 +214,7 @@ class TimelineRecorder:
         else:
             archetype = rr.Boxes3D(half_sizes=[body.half_size], colors=[color],
                                    fill_mode="solid", labels=[label])
-        self.rec.log(path, archetype, static=static)
+        self.rec.log(path, archetype, rr.AnyValues(kind=kind), static=static)
 
     def _send_blueprint(self, poses: Mapping[str, Pose]) -> None:
         """The layout, with the views plugins add; an item that is not a rerun view or
@@ -271,10 +304,12 @@ class TimelineRecorder:
         if self._planar and (moved or self._topology is not topology_before):
             self._top_rows.append((tick.index, tick.time, *self._top(poses, tick.configuration)))
         self._log_scalars(tick)
+        self._last = (tick.index, tick.time, poses)
+        if not tick.action.goals:  # with goals, the planner's poses are the target
+            fresh = self._ghost_action != tick.action_index
+            if fresh or tick.action.behavior is not None:
+                self._show_target(tick.action_index, tick.action.target, poses, fresh)
         if self._vectors:
-            if self._ghost_action != tick.action_index:
-                self._ghost_action = tick.action_index
-                self._log_ghost(tick.action.target, poses)
             rms, angles, _ = skeletal_errors(tick.configuration, tick.action.target)
             if len(angles):
                 self._scalar("shape/angle", (tick.index, tick.time), math.degrees(rms))
@@ -391,38 +426,80 @@ class TimelineRecorder:
         return [rr.TimeColumn("tick", sequence=[r[0] for r in rows]),
                 rr.TimeColumn("sim_time", duration=[r[1] for r in rows])]
 
-    def _log_ghost(self, target: Configuration, poses: Mapping[str, Pose]) -> None:
-        """``target`` laid out from its vectors, placed on the robot, drawn translucent."""
-        world = {m: np.asarray(p.position, dtype=float) for m, p in poses.items()}
-        layout = place_on(vector_layout(target, self._lengths), world)
-        nodes = [v for v in target.vertices(virtual=False) if v in layout]
-        if nodes:
-            self.rec.log("world/ghost/nodes", rr.Ellipsoids3D(
-                centers=[layout[v] for v in nodes],
-                half_sizes=[self._bodies[v].half_size if v in self._bodies
-                            else (DEFAULT_HALF_SIZE,) * 3 for v in nodes],
-                colors=[(*self._colors.get(v, _LABEL_COLOR), GHOST_ALPHA) for v in nodes],
-                fill_mode="solid"))
-        translations, quaternions, lengths, radii, colors = [], [], [], [], []
+    def _show_target(self, index: int, target: Configuration, poses: Mapping[str, Pose],
+                     fresh: bool) -> None:
+        """``target`` at the robot's scale, fitted onto ``poses``; laid out again when
+        ``fresh`` (a new action), else re-fitted and logged only if it moved."""
+        if fresh:
+            self._ghost_action = index
+            self._ghost_layout = shape_layout(target, self._kind_names)
+        placed = fit_layout(target, self._ghost_layout,
+                            {m: BodyPose(np.asarray(p.position, dtype=float), p.yaw)
+                             for m, p in poses.items()}, tolerance=self._fit_tolerance,
+                            oriented=self._oriented)
+        if not fresh and placed.keys() == self._ghost_placed.keys() and all(
+                float(np.max(np.abs(placed[v].position - was.position))) < _REFIT
+                and abs(math.remainder(placed[v].yaw - was.yaw, 2 * math.pi)) < _REFIT
+                for v, was in self._ghost_placed.items()):
+            return
+        self._ghost_placed = placed
+        self._log_ghost(target, placed)
+
+    def _log_ghost(self, target: Configuration, placed: Mapping[str, BodyPose]) -> None:
+        """``target``'s modules at ``placed``: spheres translucent, boxes as wireframes,
+        edge modules as translucent capsules between their ends (hover: the module id)."""
+        logged: dict[str, object] = {}
+        real = [v for v in target.vertices(virtual=False) if v in placed]
+        bodies = {v: self._bodies.get(v) or body_of(self._kind_names.get(
+            target.kind_of(v), _DEFAULT_KIND)) for v in real}
+        spheres = [v for v in real if bodies[v].shape == "sphere"]
+        boxes = [v for v in real if bodies[v].shape != "sphere"]
+        if spheres:
+            logged["world/ghost/nodes"] = rr.Ellipsoids3D(
+                centers=[placed[v].position for v in spheres],
+                half_sizes=[bodies[v].half_size for v in spheres],
+                colors=[(*self._colors.get(v, _LABEL_COLOR), GHOST_ALPHA) for v in spheres],
+                labels=spheres, show_labels=False, fill_mode="solid")
+        if boxes:
+            logged["world/ghost/boxes"] = rr.Boxes3D(
+                centers=[placed[v].position for v in boxes],
+                half_sizes=[bodies[v].half_size for v in boxes],
+                quaternions=[_yaw_quaternion(placed[v].yaw) for v in boxes],
+                colors=[self._colors.get(v, _LABEL_COLOR) for v in boxes],
+                labels=boxes, show_labels=False, fill_mode="majorwireframe")
+        struts = self._ghost_struts(target, placed)
+        if struts is not None:
+            logged["world/ghost/struts"] = struts
+        for path in _GHOST_PATHS:
+            if path in logged:
+                self.rec.log(path, logged[path])
+            elif path in self._ghost_logged:
+                self.rec.log(path, rr.Clear(recursive=False))
+        self._ghost_logged = set(logged)
+
+    def _ghost_struts(self, target: Configuration, placed: Mapping[str, BodyPose]
+                      ) -> rr.Capsules3D | None:
+        translations, quaternions, lengths, radii, colors, labels = [], [], [], [], [], []
         for e in target.edges():
-            if e.kind is None or e.source not in layout or e.target not in layout:
+            if e.kind is None or e.source not in placed or e.target not in placed:
                 continue
-            a, b = layout[e.source], layout[e.target]
+            a, b = placed[e.source].position, placed[e.target].position
             axis = (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
             body = self._bodies.get(e.id)
-            radius = body.radius if body else 0.01
             inset_a = 0.0 if target.is_virtual(e.source) else self._inset
             inset_b = 0.0 if target.is_virtual(e.target) else self._inset
             t, q, length = capsule_between(a + inset_a * axis, b - inset_b * axis)
             translations.append(t)
             quaternions.append(rr.Quaternion(xyzw=q))
             lengths.append(length)
-            radii.append(radius)
+            radii.append(body.radius if body else 0.01)
             colors.append((*self._colors.get(e.id, _LABEL_COLOR), GHOST_ALPHA))
-        if lengths:
-            self.rec.log("world/ghost/struts", rr.Capsules3D(
-                lengths=lengths, radii=radii, translations=translations,
-                quaternions=quaternions, colors=colors, fill_mode="solid"))
+            labels.append(e.id)
+        if not lengths:
+            return None
+        return rr.Capsules3D(lengths=lengths, radii=radii, translations=translations,
+                             quaternions=quaternions, colors=colors, labels=labels,
+                             show_labels=False, fill_mode="solid")
 
     def action(self, action: Action, status: ActionStatus) -> None:
         rec = self.rec
@@ -442,11 +519,14 @@ class TimelineRecorder:
             self._log_goals(action)
         elif status == ActionStatus.SUCCEEDED:
             rec.log("world/targets", rr.Clear(recursive=True))
-            if self._vectors:
-                rec.log("world/ghost", rr.Clear(recursive=True))
-                self._ghost_action = None
+            self._clear_ghost()
             if self._planar:
                 rec.log("top/targets", rr.Clear(recursive=True))
+
+    def _clear_ghost(self) -> None:
+        if self._ghost_logged:
+            self.rec.log("world/ghost", rr.Clear(recursive=True))
+        self._ghost_action, self._ghost_placed, self._ghost_logged = None, {}, set()
 
     def _log_goals(self, action: Action) -> None:
         if not action.goals:
@@ -479,6 +559,20 @@ class TimelineRecorder:
         level = "INFO" if event.expected else "WARN"
         self.rec.log(path, rr.TextLog(f"{event_name(event)} at t={event.time:.1f} s",
                                       level=level))
+        actions = self.run.plan.actions
+        action = actions[event.action_index] if 0 <= event.action_index < len(actions) else None
+        if (event.kind == "dock" and event.expected and action is not None
+                and action.type is ActionType.FLOW):
+            self._log_flow(action, event)
+
+    def _log_flow(self, action: Action, event: TopologyEvent) -> None:
+        """A flow's handover: its new connection docked (the old one let go in the same
+        action). A text line and a mark on the docked-connections plot."""
+        broken = ", ".join(c.label for c in action.broken()) or "?"
+        self.rec.log("events/flows", rr.TextLog(
+            f"flow {broken} -> {event.change.label} at t={event.time:.1f} s"))
+        docked = float(self._links.total()) if self._links is not None else math.nan
+        self.rec.log("topology/flows", rr.Scalars(docked))
 
     def fault(self, event: FaultEvent) -> None:
         self.rec.set_time("sim_time", duration=event.time)
@@ -490,6 +584,11 @@ class TimelineRecorder:
         if not self._blueprint_sent:
             self._send_blueprint({})
         self._send_buffered()
+        if self._last is not None:  # the run's goal, fitted onto the final poses
+            index, time, poses = self._last
+            self._time(index, time)
+            self._clear_ghost()
+            self._show_target(-1, self.run.plan.goal, poses, fresh=True)
         status = "succeeded" if result.success else f"FAILED: {result.reason}"
         self.rec.log("action", rr.TextDocument(
             f"**run {status}**\n\n{result.actions_done}/{result.actions_total} actions, "
