@@ -16,6 +16,7 @@ __all__ = [
     "DockingRuleError",
     "ExecutionError",
     "MsrrError",
+    "OutputError",
     "PlanningError",
     "PluginError",
     "UnknownNameError",
@@ -95,6 +96,11 @@ class ConfigurationError(MsrrError):
         """The same error, attributed to ``source`` (keeps an existing source)."""
         return type(self)(self.message, source=self.source or source, field=self.field,
                           problems=self.problems)
+
+
+class OutputError(ConfigurationError):
+    """A file or folder could not be written (a full disk, no permission, a place that
+    is not a folder); ``source`` names it. Nothing is left under its final name."""
 
 
 class DockingRuleError(ConfigurationError):

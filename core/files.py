@@ -2,7 +2,8 @@
 strict number types and readable validation errors.
 
 Every msrr file is read by :func:`read_json`, which refuses what :mod:`json` lets
-through silently: ``NaN``/``Infinity`` and numbers that overflow to them, repeated
+through silently: a document that is not an object (``null``, ``1``, ``"text"``, a
+list: every msrr file is an object), ``NaN``/``Infinity`` and numbers that overflow to them, repeated
 keys (JSON would keep the last), lone surrogate escapes (``"\\ud800"``: not text),
 nesting deeper than :data:`MAX_DEPTH` and integers too large to be a float. File
 models number fields as :data:`Number` (finite, never a boolean) and flags as
@@ -30,7 +31,7 @@ from pydantic import (
     ValidationError,
 )
 
-from .errors import ConfigurationError
+from .errors import ConfigurationError, OutputError
 
 __all__ = [
     "MAX_DEPTH",
@@ -42,6 +43,7 @@ __all__ = [
     "StrictModel",
     "atomic_write_bytes",
     "atomic_write_text",
+    "check_output_place",
     "not_boolean",
     "parse_model",
     "read_json",
@@ -92,17 +94,24 @@ class StrictModel(BaseModel):
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename.
 
-    The rename is atomic on POSIX, so an interrupted write leaves either the old file
-    or the new one, never half of either, and no temporary file. The file gets the
-    permissions of an ordinary new file (``0o666`` minus the umask), not the
-    temporary file's ``0o600``. Missing parent folders are created.
+    The rename is atomic on POSIX, so an interrupted or failed write (a full disk)
+    leaves either the old file or the new one, never half of either, and no temporary
+    file. The file gets the permissions of an ordinary new file (``0o666`` minus the
+    umask), not the temporary file's ``0o600``. Missing parent folders are created.
 
     Returns:
         the path written.
+
+    Raises:
+        OutputError: the file could not be written (``No space left on device``, no
+            permission, a parent that is a file); one line naming it.
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise _not_written(target, exc) from None
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
@@ -110,10 +119,19 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
             os.fsync(handle.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, target)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise _not_written(target, exc) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return target
+
+
+def _not_written(target: Path, exc: OSError) -> OutputError:
+    """The one-line error of a write that failed with ``exc``."""
+    return OutputError(f"cannot be written: {exc.strerror or exc}; nothing was written "
+                       "under this name", source=str(target))
 
 
 def check_output_place(path: str | os.PathLike[str], *, option: str, folder: bool = False) -> Path:
@@ -230,8 +248,9 @@ def _too_deep(data: Any) -> bool:
             return True
         deeper: list[Any] = []
         for value in level:
-            items = value.values() if isinstance(value, dict) else value
-            deeper.extend(v for v in items if isinstance(v, dict | list))
+            if isinstance(value, dict | list):
+                items = value.values() if isinstance(value, dict) else value
+                deeper.extend(v for v in items if isinstance(v, dict | list))
         level = deeper
     return False
 
@@ -276,7 +295,7 @@ def read_json(path: str | os.PathLike[str]) -> Any:
 
     Raises:
         ConfigurationError: a missing file, a folder, text that is not UTF-8, bad JSON,
-            or one of the refusals of the module doc; one line naming the file and, when
+            a document that is not an object, or one of the refusals of the module doc; one line naming the file and, when
             there is one, the field.
     """
     source = str(path)
@@ -300,10 +319,26 @@ def read_json(path: str | os.PathLike[str]) -> Any:
     except RecursionError:
         raise ConfigurationError(f"nested deeper than {MAX_DEPTH} levels",
                                  source=source) from None
+    if not isinstance(data, dict):
+        raise ConfigurationError(f"holds {_what(data)}, not a JSON object ({{...}})",
+                                 source=source)
     # a lone surrogate can only come from a \\u escape: the text itself was valid UTF-8
     if decoder.flagged or _SURROGATE_ESCAPE.search(text) or _too_deep(data):
         _check_document(data, source)
     return data
+
+
+def _what(data: Any) -> str:
+    """What a JSON document that is not an object holds, in words."""
+    if data is None:
+        return "null"
+    if isinstance(data, bool):
+        return "a boolean"
+    if isinstance(data, str):
+        return "a string"
+    if isinstance(data, list):
+        return "a list"
+    return "a number"
 
 
 def validation_field(loc: tuple[Any, ...]) -> str:

@@ -8,6 +8,7 @@ either. ``msrr.core`` loads its exports lazily, which keeps this import cheap.
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable
 
@@ -25,6 +26,9 @@ def _load_cli() -> Callable[[], None]:
 def main() -> None:
     """Install the signal handlers, then import and run the command line."""
     interrupts.install()
+    # rerun's own log lines (a failed flush on a full disk) would be a second line after
+    # the one error the command prints; its failures reach the recorder as exceptions
+    os.environ.setdefault("RUST_LOG", "off")
     try:
         cli_main = _load_cli()
     except interrupts.Interrupted as exc:

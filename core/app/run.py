@@ -24,9 +24,10 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
@@ -34,7 +35,13 @@ from .. import plugins
 from ..capabilities import Capabilities, Controller, DriverFactory, Planner, Recognizer
 from ..configuration import Configuration
 from ..driver import Driver, Pose
-from ..errors import ConfigurationError, ExecutionError, MsrrError, UnknownNameError
+from ..errors import (
+    ConfigurationError,
+    ExecutionError,
+    MsrrError,
+    OutputError,
+    UnknownNameError,
+)
 from ..events import ActionStatus, EventSink, FaultEvent, Run, RunResult, Tick, TopologyEvent
 from ..executor import Executor, ExecutorOptions
 from ..faults import Fault, FaultyDriver, GuardedDriver, parse_faults
@@ -356,6 +363,8 @@ class PreparedRun:
         faults: the faults to inject (empty: none).
         deadline: overall driver time the run may take [s].
         notes: what was found in the output folder and replaced (one line each).
+        problems: what could not be written at the run's end (the recording on a full
+            disk: one line each, filled by :func:`execute_run`; the command exits 1).
     """
 
     run: Run
@@ -369,6 +378,7 @@ class PreparedRun:
     faults: tuple[Fault, ...] = ()
     deadline: float = math.inf
     notes: tuple[str, ...] = ()
+    problems: list[str] = field(default_factory=list)
 
 
 def _configurations(request: RunRequest
@@ -602,11 +612,41 @@ def execute_run(prepared: PreparedRun) -> RunResult:
                          f"{type(exc).__name__}: {exc}")
     finally:
         result.faults = list(progress.faults)
-        with shielded(raise_deferred=False):
-            if not started:  # stopped before the driver was ready: still a recording
-                progress.run_start(run)
-            progress.run_end(run, result)
+        _end_listeners(prepared, progress, result, start=not started)
     return result
+
+
+def _end_listeners(prepared: PreparedRun, listeners: EventSink, result: RunResult, *,
+                   start: bool) -> None:
+    """Fire ``msrr_on_run_end`` (and ``msrr_on_run_start`` first, when ``start``: the run
+    stopped before it started), so listeners close their files. A listener that fails
+    there (the recording on a full disk) is noted in ``prepared.problems`` and its
+    partial recording removed; the run's result stands."""
+    run = prepared.run
+    with shielded(raise_deferred=False):
+        try:
+            if start:
+                listeners.run_start(run)
+            listeners.run_end(run, result)
+        except MsrrError as exc:
+            prepared.problems.append(_recording_lost(run, exc))
+
+
+def _recording_lost(run: Run, exc: MsrrError) -> str:
+    """The line saying the recording could not be finished; its ``.part`` file removed."""
+    if run.recording is None:
+        return f"the run's end failed: {exc}"
+    part = run.recording.with_name(run.recording.name + ".part")
+    removed = part.exists()
+    part.unlink(missing_ok=True)
+    cause = str(exc)
+    try:
+        if shutil.disk_usage(run.recording.parent).free < 1 << 20:
+            cause = "its disk is full"
+    except OSError:
+        pass
+    return (f"the recording {run.recording} could not be written ({cause})"
+            + (f"; removed {part.name}" if removed else ""))
 
 
 def interrupted_result(prepared: PreparedRun, exc: BaseException) -> RunResult:
@@ -617,9 +657,7 @@ def interrupted_result(prepared: PreparedRun, exc: BaseException) -> RunResult:
     result = RunResult(success=False, reason=f"interrupted after the plan was made, before "
                        f"the run started ({name})",
                        actions_total=len(run.plan.actions), interrupted=name)
-    with shielded(raise_deferred=False):
-        plugins.emit.run_start(run)
-        plugins.emit.run_end(run, result)
+    _end_listeners(prepared, plugins.emit, result, start=True)
     return result
 
 
@@ -646,16 +684,27 @@ def _finite(value: object) -> object:
 
 def write_outputs(run: Run, result: RunResult) -> None:
     """Write ``plan.json`` and ``summary.json`` into ``run.out_dir`` (signals deferred,
-    so an interruption cannot leave one without the other)."""
+    so an interruption cannot leave one without the other; a failed write leaves
+    neither).
+
+    Raises:
+        OutputError: a file could not be written (a full disk); one line naming it.
+    """
     if run.out_dir is None:
         raise ExecutionError("run has no output folder")
+    recorded = run.recording is not None and run.recording.is_file()
     summary = {"robot": run.robot, "scenario": run.scenario, "planner": run.plan.planner,
                "driver": run.driver, "seed": run.seed, "rate_hz": run.rate,
                "planned_docks": run.plan.docks, "planned_undocks": run.plan.undocks,
                "planned_flows": run.plan.flows,
-               "recording": None if run.recording is None else run.recording.name,
+               "recording": run.recording.name if recorded and run.recording else None,
                **result.summary()}
     text = json.dumps(_finite(summary), indent=2, allow_nan=False) + "\n"
     with shielded():
-        save_plan(run.plan, run.out_dir / "plan.json")
-        atomic_write_text(run.out_dir / "summary.json", text)
+        plan_path = run.out_dir / "plan.json"
+        try:
+            save_plan(run.plan, plan_path)
+            atomic_write_text(run.out_dir / "summary.json", text)
+        except OutputError:
+            plan_path.unlink(missing_ok=True)  # both files or neither
+            raise

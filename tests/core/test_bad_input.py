@@ -65,8 +65,11 @@ def _error(call) -> str:
     ('{"p": 1e400}', "p: number 1e400 is too large"),
     ('{"n": 1' + "0" * 30 + "}", "n: integer of 31 digits is too large"),
     ('{"name": "a\\ud800"}', "name: a lone surrogate escape is not text"),
-    ("[" * (MAX_DEPTH + 5) + "]" * (MAX_DEPTH + 5), f"nested deeper than {MAX_DEPTH} levels"),
+    ('{"a": ' + "[" * (MAX_DEPTH + 5) + "]" * (MAX_DEPTH + 5) + "}",
+     f"nested deeper than {MAX_DEPTH} levels"),
+    ('{"a": ' + "[" * 5000 + "]" * 5000 + "}", f"nested deeper than {MAX_DEPTH} levels"),
     ("[" * 5000 + "]" * 5000, f"nested deeper than {MAX_DEPTH} levels"),
+    ("[" * (MAX_DEPTH + 5) + "]" * (MAX_DEPTH + 5), "holds a list, not a JSON object"),
     ('{"a": [1, 2', "invalid JSON at line 1 column 12"),
     ("", "invalid JSON at line 1 column 1"),
 ])
@@ -193,7 +196,7 @@ def test_outputs_that_are_folders_are_refused_before_any_work(tiny, tmp_path: Pa
     path = _good(tmp_path)
     result = run("plan", "--robot", NAME, str(path), str(path), "--json", str(tmp_path))
     assert result.exit_code == 1
-    assert result.stderr == f"Error: {tmp_path}: is a directory, expected a file to write\n"
+    assert result.stderr == f"Error: {tmp_path}: --json: is a folder, expected a file\n"
 
 
 # -- plans ----------------------------------------------------------------------------------

@@ -24,6 +24,7 @@ from msrr.core import (
     plugins,
     save_configuration,
 )
+from msrr.core.errors import OutputError
 from msrr.core.files import atomic_write_bytes, atomic_write_text
 from msrr.core.io import ConfigurationFile
 from msrr.core.random_configurations import random_configuration
@@ -143,7 +144,7 @@ def test_atomic_write_leaves_the_old_file_or_the_new_one(tmp_path: Path, monkeyp
         raise OSError("disk gone")
 
     monkeypatch.setattr(os, "replace", fail)
-    with pytest.raises(OSError, match="disk gone"):
+    with pytest.raises(OutputError, match="disk gone"):
         atomic_write_bytes(target, b"new\n")
     assert target.read_text() == "old\n"
     assert [p.name for p in target.parent.iterdir()] == ["c.json"]  # no temporary file left

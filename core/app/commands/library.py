@@ -15,7 +15,7 @@ import click
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from ...console import COSTS, SEED, FiniteFloat, MsrrGroup, console, plural, styled, table
-from ...errors import ConfigurationError, MsrrError
+from ...errors import MsrrError
 from ...plugins import load_configuration, load_library, resolve
 from ..batch import batch_options, exit_on_interrupt
 
@@ -47,9 +47,10 @@ def command() -> None:
 def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost: str) -> None:
     """Build a library from SOURCES: designed groups and recorded sequences (Fig. 14); a
     folder stands for its JSON files in name order."""
+    from ...files import check_output_place
     from ...library import build_library, build_steps, load_sources, save_library
 
-    _check_output(output)
+    check_output_place(output, option="--output")
     inputs = load_sources(sources, resolve)
     columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
@@ -64,16 +65,6 @@ def build(sources: tuple[Path, ...], output: Path, merge_threshold: float, cost:
                       f"{plural(len(sub.configurations), 'configuration')}, "
                       f"{plural(len(sub.behaviors), 'behavior')}, {plural(len(sub.edges), 'edge')}")
     console.print(f"wrote {output}")
-
-
-def _check_output(path: Path) -> None:
-    """Refuse an output place that cannot take a file, before any work starts."""
-    if path.is_dir():
-        raise ConfigurationError("is a directory, expected a file to write", source=str(path))
-    parent = next((p for p in path.parents if p.exists()), Path("."))
-    if not parent.is_dir():
-        raise ConfigurationError(f"cannot write under {parent}: not a directory",
-                                 source=str(path))
 
 
 def _show(library: Library) -> None:

@@ -17,7 +17,7 @@ import click
 
 from ... import plugins
 from ...console import SEED, console, drop_empty_columns, plural, table
-from ...errors import ConfigurationError, PlanningError
+from ...errors import PlanningError
 
 if TYPE_CHECKING:
     from ...plan import Action, Plan
@@ -110,9 +110,11 @@ def command(robot: str | None, start: Path, goal: Path, planner_name: str | None
             json_out: Path | None) -> None:
     """Plan the reconfiguration from configuration file START to GOAL (both of one robot,
     the one they name unless --robot says which)."""
-    if json_out is not None and json_out.is_dir():
-        raise ConfigurationError("is a directory, expected a file to write", source=str(json_out))
+    from ...files import check_output_place
     from ...plan import save_plan
+
+    if json_out is not None:  # before any work: one line, not a traceback after planning
+        check_output_place(json_out, option="--json")
 
     configs = [plugins.load_configuration(path) for path in (start, goal)]
     robot = robot or configs[0].robot

@@ -24,7 +24,7 @@ from ...console import (
     run_selection_options,
     table,
 )
-from ...errors import ConfigurationError
+from ...errors import ConfigurationError, MsrrError, one_line
 from ...hookspecs import hookimpl
 from ...interrupts import Interrupted, handled, shielded
 
@@ -239,7 +239,6 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
         parse_driver_options,
         parse_parameters,
         prepare_run,
-        write_outputs,
     )
 
     with handled():
@@ -269,21 +268,38 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
         except (Interrupted, KeyboardInterrupt) as exc:
             result = getattr(exc, "result", None) or interrupted_result(prepared, exc)
             with shielded(raise_deferred=False):
-                write_outputs(prepared.run, result)
-                err_console.print(f"Error: {result.reason}; wrote {prepared.run.out_dir}",
-                                  markup=False)
+                problems = _write(prepared, result)
+                wrote = "; ".join(problems) if problems else f"wrote {prepared.run.out_dir}"
+                err_console.print(f"Error: {one_line(f'{result.reason}; {wrote}')}",
+                                  markup=False, soft_wrap=True)
             raise SystemExit(exc.exit_code if isinstance(exc, Interrupted) else 130) from None
         run = prepared.run
-        write_outputs(run, result)
+        problems = _write(prepared, result)
         console.print(_summary(result, run.plan.docks, run.plan.undocks, run.plan.flows))
         assert run.out_dir is not None
-        console.print(f"wrote {run.out_dir / 'plan.json'}, {run.out_dir / 'summary.json'}",
-                      markup=False)
-        if run.recording is not None:
+        if (run.out_dir / "summary.json").is_file():
+            console.print(f"wrote {run.out_dir / 'plan.json'}, {run.out_dir / 'summary.json'}",
+                          markup=False)
+        if run.recording is not None and run.recording.is_file():
             console.print(f"open the recording with: rerun {run.recording}", markup=False)
-        if not result.success:
-            err_console.print(f"Error: {result.reason}", soft_wrap=True, markup=False)
+        if problems or not result.success:
+            reason = [] if result.success else [result.reason]
+            err_console.print(f"Error: {one_line('; '.join(reason + problems))}",
+                              soft_wrap=True, markup=False)
             raise SystemExit(1)
+
+
+def _write(prepared: PreparedRun, result: RunResult) -> list[str]:
+    """Write ``plan.json`` and ``summary.json``; every file that could not be written
+    (the recording's failure included), one line each."""
+    from ..run import write_outputs
+
+    problems = list(prepared.problems)
+    try:
+        write_outputs(prepared.run, result)
+    except MsrrError as exc:  # a full disk: neither file is left
+        problems.append(str(exc))
+    return problems
 
 
 def _execute(prepared: PreparedRun) -> RunResult:
