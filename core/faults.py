@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
@@ -58,7 +58,8 @@ from .driver import Driver, ModuleCommand, Observation, Pose
 from .errors import ConfigurationError, ExecutionError
 from .events import FaultEvent
 
-__all__ = ["FAULT_KINDS", "Fault", "FaultyDriver", "GuardedDriver", "parse_faults"]
+__all__ = ["FAULT_KINDS", "Fault", "FaultyDriver", "GuardedDriver", "check_fault_modules",
+           "parse_faults"]
 
 # kind -> {key: default}; ``None``: required
 FAULT_KINDS: dict[str, dict[str, float | str | None]] = {
@@ -164,6 +165,26 @@ def parse_faults(spec: str, kinds: Mapping[str, Mapping[str, float | str | None]
     if not faults:
         raise ConfigurationError("no fault given (e.g. 'loss:p=0.05')", field="--faults")
     return tuple(faults)
+
+
+def check_fault_modules(faults: Sequence[Fault], modules: Collection[str]) -> None:
+    """Refuse a fault that names a module the run does not have (``dropout:module=99``).
+
+    Args:
+        faults: from :func:`parse_faults`.
+        modules: the module ids of the run's start configuration.
+
+    Raises:
+        ConfigurationError: naming ``--faults``, the item and the modules there are.
+    """
+    for number, fault in enumerate(faults):
+        module = fault.params.get("module")
+        if isinstance(module, str) and module and module not in modules:
+            known = sorted(modules, key=lambda m: (len(m), m))
+            shown = ", ".join(known[:24]) + (", ..." if len(known) > 24 else "")
+            raise ConfigurationError(f"fault {number + 1} ({fault}): no module {module!r} in "
+                                     f"the run's start configuration (modules: {shown})",
+                                     field="--faults")
 
 
 class _Wrapper(Driver):

@@ -34,7 +34,7 @@ from pathlib import Path
 from .. import plugins
 from ..capabilities import Capabilities, Controller, DriverFactory, Planner, Recognizer
 from ..configuration import Configuration
-from ..driver import Driver, Pose
+from ..driver import Driver, OptionValue, Pose, check_driver_options
 from ..errors import (
     ConfigurationError,
     ExecutionError,
@@ -44,7 +44,7 @@ from ..errors import (
 )
 from ..events import ActionStatus, EventSink, FaultEvent, Run, RunResult, Tick, TopologyEvent
 from ..executor import Executor, ExecutorOptions
-from ..faults import Fault, FaultyDriver, GuardedDriver, parse_faults
+from ..faults import Fault, FaultyDriver, GuardedDriver, check_fault_modules, parse_faults
 from ..files import atomic_write_text, check_output_place
 from ..interrupts import Interrupted, shielded
 from ..judge import Judge
@@ -232,30 +232,20 @@ def resolve_scenario(robot: str, name: str | None) -> Scenario:
     raise UnknownNameError(f"scenario for robot {robot!r}", "(default)", ())
 
 
-def parse_driver_options(items: tuple[str, ...] | list[str]
-                         ) -> tuple[tuple[str, float | int | bool | str], ...]:
-    """``("noise=0.035", "slip=0.05")`` -> ``(("noise", 0.035), ("slip", 0.05))``: numbers
-    and ``true``/``false`` are converted, anything else stays a string.
+def parse_driver_options(items: tuple[str, ...] | list[str]) -> tuple[tuple[str, str], ...]:
+    """``("noise=0.035", "slip=0.05")`` -> ``(("noise", "0.035"), ("slip", "0.05"))``; the
+    values are typed and checked against the driver's declaration when the run is
+    prepared (:func:`msrr.core.driver.check_driver_options`).
 
     Raises:
-        ConfigurationError: an item without ``=``.
+        ConfigurationError: an item without ``=`` or without a name.
     """
-    out: list[tuple[str, float | int | bool | str]] = []
+    out: list[tuple[str, str]] = []
     for item in items:
         key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise ConfigurationError(f"driver option {item!r} is not KEY=VALUE")
-        value: float | int | bool | str = text
-        if text.lower() in ("true", "false"):
-            value = text.lower() == "true"
-        else:
-            for kind in (int, float):
-                try:
-                    value = kind(text)
-                    break
-                except ValueError:
-                    continue
-        out.append((key.strip(), value))
+        if not sep or not key.strip():
+            raise ConfigurationError(f"{item!r} is not KEY=VALUE", field="--driver-option")
+        out.append((key.strip(), text.strip()))
     return tuple(out)
 
 
@@ -450,6 +440,8 @@ def prepare_run(request: RunRequest) -> PreparedRun:
         saved = None
         name, start, stages = _configurations(request)
     factory = capabilities.driver(request.driver)
+    driver_options = check_driver_options(factory, request.driver_options)
+    _try_driver(factory, request, driver_options)
     # a driver may name the recognizer and controller that read and command it (the
     # generic kinematic driver does); otherwise the robot's first ones
     controller = capabilities.controller(factory.companions.controller)
@@ -457,6 +449,7 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
     plan: Plan = saved if saved is not None else plan_stages(
         capabilities, capabilities.planner(request.planner), start, stages, seed=request.seed)
+    check_fault_modules(faults, plan.start.modules())
     deadline = request.deadline or default_deadline(plan, request.action_timeout)
     if request.out is None:
         out = claim_out_dir(default_out_dir(request.robot, name), default=True)
@@ -466,7 +459,21 @@ def prepare_run(request: RunRequest) -> PreparedRun:
               rate=request.rate, seed=request.seed, out_dir=out,
               recording=out / "run.rrd" if request.log else None)
     return PreparedRun(run, capabilities, factory, recognizer, controller, options, request.gui,
-                       request.driver_options, faults, deadline, tuple(notes))
+                       driver_options, faults, deadline, tuple(notes))
+
+
+def _try_driver(factory: DriverFactory, request: RunRequest,
+                options: tuple[tuple[str, OptionValue], ...]) -> None:
+    """Build the run's driver once, without connecting it, so options only the driver
+    can judge (the link driver's systems file) are refused before anything is written."""
+    try:
+        factory(gui=request.gui, seed=request.seed, **dict(options))
+    except MsrrError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise ConfigurationError(f"driver {factory.name!r} refused its options: "
+                                 f"{type(exc).__name__}: {exc}",
+                                 field="--driver-option") from None
 
 
 class _Progress:

@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..configuration import Configuration
-from ..driver import Companions, DriverFactory, ModuleCommand
+from ..driver import Companions, DriverFactory, DriverOption, ModuleCommand
 from ..errors import ExecutionError
 from .design import ModuleDesign
 from .mujoco import MujocoDriver
@@ -50,7 +50,7 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
     name: ClassVar[str] = "mujoco"
     description: ClassVar[str] = "MuJoCo: spheres with one connector on a motor-driven joint"
     options_type = FreeformOptions
-    options: FreeformOptions
+    sim_options: FreeformOptions
 
     def __init__(self, design: ModuleDesign, *, gui: bool = False, seed: int | None = None,
                  options: FreeformOptions | None = None, **overrides: Any):
@@ -58,7 +58,7 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
         self.design = design
 
     def build(self, start: Configuration) -> FreeformWorld:
-        return FreeformWorld(start, self.design, self.options)
+        return FreeformWorld(start, self.design, self.sim_options)
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         world = self._world()
@@ -125,6 +125,11 @@ class FreeformDriverFactory:
     name: str = "mujoco"
     companions: Companions = Companions()
     layout: DriverFactory | None = None
+
+    @property
+    def options(self) -> tuple[DriverOption, ...]:
+        """The keyword options its drivers take (:attr:`FreeformDriver.options`)."""
+        return FreeformDriver.options
 
     def __call__(self, **options: Any) -> FreeformDriver:
         """A driver of ``design`` (``options`` as :class:`FreeformDriver`'s keywords)."""

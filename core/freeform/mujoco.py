@@ -22,9 +22,10 @@ A freeform robot docks by switching weld equality constraints on and off at run 
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Hashable, Iterable, Iterator, Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import MISSING, dataclass, fields, replace
 from typing import Any, ClassVar, Generic, TypeVar
 
 import mujoco
@@ -33,7 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..configuration import Configuration
-from ..driver import Driver, Observation, Pose
+from ..driver import Driver, DriverOption, Observation, Pose
 from ..errors import ExecutionError
 
 __all__ = ["GROUND_FRICTION", "MujocoDriver", "MujocoOptions", "MujocoWorld", "SensorNoise",
@@ -196,11 +197,28 @@ class MujocoOptions:
         ExecutionError: a value out of range (the message names the option).
     """
 
+    OPTIONS: ClassVar[tuple[DriverOption, ...]] = (
+        DriverOption("timestep", float, "physics step", "s", 1e-4, 0.05),
+        DriverOption("noise", float, "standard deviation of every reported angle", "rad",
+                     0.0, math.pi / 2),
+        DriverOption("position_gain", float, "drive position loop gain", "1/s", 0.0, 1000.0,
+                     low_open=True),
+        DriverOption("servo_rate", float, "rate of the drive loops", "Hz", 1.0, 10_000.0),
+    )
+    """The fields a run may set with ``--driver-option`` (every field but ``seed``, set by
+    ``--seed``), with their bounds; a subclass adds its own."""
+
     timestep: float = 0.002
     noise: float = 0.0
     position_gain: float = 8.0
     servo_rate: float = 250.0
     seed: int = 0
+
+    @classmethod
+    def driver_options(cls) -> tuple[DriverOption, ...]:
+        """:attr:`OPTIONS` with each field's default filled in (a driver's ``options``)."""
+        defaults = {f.name: f.default for f in fields(cls) if f.default is not MISSING}
+        return tuple(replace(o, default=defaults.get(o.name)) for o in cls.OPTIONS)
 
     def __post_init__(self) -> None:
         self._check(positive=("timestep", "position_gain", "servo_rate"), non_negative=("noise",))
@@ -413,11 +431,20 @@ class MujocoDriver(Driver, Generic[W]):
         seed: seed of the world's noise (overrides ``options.seed``).
         options: an ``options_type`` instance; keyword overrides of its fields
             (``noise=0.02``) may be given directly.
+
+    Attributes:
+        sim_options: the run's options (``options`` with the overrides); the class's
+            ``options`` declares the overrides a run may give (``options_type.OPTIONS``).
     """
 
     options_type: ClassVar[type[MujocoOptions]]
     arguments: ClassVar[tuple[str, ...]] = ("gui", "seed", "options")
     """The constructor's own keywords, named when an unknown option is refused."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "options_type" in cls.__dict__:  # the declared options follow the options type
+            cls.options = cls.options_type.driver_options()
 
     def __init__(self, *, gui: bool = False, seed: int | None = None,
                  options: MujocoOptions | None = None, **overrides: Any):
@@ -428,7 +455,7 @@ class MujocoDriver(Driver, Generic[W]):
                                  f"{', '.join([*self.arguments, *sorted(known - set(self.arguments))])})")
         if seed is not None:
             overrides["seed"] = seed
-        self.options = replace(options or self.options_type(), **overrides)
+        self.sim_options = replace(options or self.options_type(), **overrides)
         self.gui = gui
         self.world: W | None = None
         self._connected = False

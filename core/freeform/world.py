@@ -51,6 +51,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import mujoco
 import numpy as np
@@ -58,6 +59,7 @@ from scipy.spatial.transform import Rotation
 
 from ..alignment import rot_z
 from ..configuration import Configuration
+from ..driver import DriverOption
 from ..errors import ExecutionError
 from ..kinematics.rotations import rotation_between
 from .design import ModuleDesign
@@ -102,6 +104,15 @@ class FreeformOptions(MujocoOptions):
             to touching [m].
         seat: time constant of a fresh dock drawing the foot onto the centre [s].
     """
+
+    OPTIONS: ClassVar[tuple[DriverOption, ...]] = MujocoOptions.OPTIONS + (
+        DriverOption("gap", float, "shell-to-shell gap of a docked pair", "m", 0.0, 0.05,
+                     low_open=True),
+        DriverOption("dock_tolerance", float, "how close the shells latch", "m", 0.0, 0.1,
+                     low_open=True),
+        DriverOption("seat", float, "time constant of a fresh dock's seating", "s", 0.0, 10.0,
+                     low_open=True),
+    )
 
     gap: float = 0.001
     dock_tolerance: float = 0.006

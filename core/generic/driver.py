@@ -38,13 +38,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import networkx as nx
 import numpy as np
 
 from ..configuration import Configuration
-from ..driver import Companions, Driver, ModuleCommand, Observation, Pose
+from ..driver import Companions, Driver, DriverOption, ModuleCommand, Observation, Pose
 from ..errors import ExecutionError
 from ..robot import ModuleKind, RobotSpec, body_half_size
 from .geometry import (
@@ -145,6 +145,14 @@ class KinematicDriver(Driver):
 
     name = "kinematic"
     description = "ideal kinematic world: bounded-speed rigid moves, latching within tolerance"
+    options: ClassVar[tuple[DriverOption, ...]] = (
+        DriverOption("speed", float, "largest module speed", "m/s", 0.0, 100.0, low_open=True,
+                     default=DEFAULT_SPEED),
+        DriverOption("turn_rate", float, "largest turn rate", "rad/s", 0.0, 100.0,
+                     low_open=True, default=DEFAULT_TURN_RATE),
+        DriverOption("tolerance", float, "latch distance", "m", 0.0, 1.0, low_open=True,
+                     default=DEFAULT_TOLERANCE),
+    )
 
     def __init__(self, spec: RobotSpec, *, speed: float = DEFAULT_SPEED,
                  turn_rate: float = DEFAULT_TURN_RATE, tolerance: float = DEFAULT_TOLERANCE,
@@ -523,6 +531,7 @@ class KinematicDriverFactory:
     companions = Companions(recognizer="latches", controller="latches")
     """The recognizer and controller that read and command this driver."""
     layout = None
+    options = KinematicDriver.options
 
     def __init__(self, spec: RobotSpec, **defaults: Any):
         self.spec = spec

@@ -41,14 +41,44 @@ def _markdown(rows: list[list[object]], header: list[str]) -> str:
     return "\n".join(lines)
 
 
+def _driver_options(names: list[str]) -> None:
+    """One table per robot and driver: the options ``--driver-option`` takes."""
+    from ...driver import declared_options
+
+    for robot in names:
+        try:
+            drivers = plugins.drivers.items(robot)
+        except MsrrError as exc:
+            console.print(styled(f"{robot}: error: {exc}", "red"))
+            continue
+        for name, factory in drivers.items():
+            declared = declared_options(factory)
+            if declared is None:
+                console.print(f"{robot} {name}: options not declared (passed on unchecked)",
+                              markup=False)
+                continue
+            rows = [[o.name, o.takes, "" if o.default is None else f"{o.default:g}"
+                     if isinstance(o.default, float) else str(o.default), o.description]
+                    for o in declared]
+            console.print(table(f"{robot} {name}: --driver-option", ["option", "takes",
+                                                                     "default", "what"],
+                                rows) if rows else f"{robot} {name}: no options")
+
+
 @click.command("robots")
 @click.option("--markdown", is_flag=True,
               help="Print the capability table as Markdown (docs/architecture.md holds it).")
-def command(markdown: bool) -> None:
+@click.option("--options", "show_options", is_flag=True,
+              help="Print the options each driver takes (--driver-option NAME=VALUE of "
+                   "platform run), with their types, units and bounds.")
+def command(markdown: bool, show_options: bool) -> None:
     """List installed robots with their module kinds and every capability: joint modes,
     controllers, recognizers, planners, drivers and scenarios (* marks the generic
     runtime's)."""
     specs = plugins.robots()
+    if show_options:
+        _driver_options(list(specs))
+        return
     rows = []
     for name, spec in specs.items():
         kinds = ", ".join(f"{k.name} ({k.symbol})" for k in spec.module_kinds)

@@ -198,8 +198,9 @@ def _asked(plan: Plan) -> str:
                    "dock-fail:count=1;noise:sigma=0.01;nan:at=3' (see docs/running.md).")
 @click.option("--driver-option", "driver_options", multiple=True, metavar="KEY=VALUE",
               help="Keyword option of the driver, repeatable (FreeSN mujoco: noise=0.035 "
-                   "[rad], slip=0.05, drift=..., see docs/freesn.md).")
-@click.option("--system", "system_file", type=click.Path(path_type=Path), default=None,
+                   "[rad], slip=0.05); each driver's options, types and bounds: `platform "
+                   "robots --options`.")
+@click.option("--system", "system_file", default=None,
               metavar="FILE", help="Systems file of the modules for --driver link (implies it; "
                                    "see docs/hardware.md).")
 @click.option("--behavior", default=None, metavar="NAME",
@@ -222,7 +223,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
             planner_name: str | None, driver_name: str | None, seed: int, out: str | None,
             force: bool, no_log: bool, gui: bool, rate: float, action_timeout: float,
             deadline: float | None, faults: str, driver_options: tuple[str, ...],
-            system_file: Path | None, behavior: str | None, parameters: tuple[str, ...],
+            system_file: str | None, behavior: str | None, parameters: tuple[str, ...],
             duration: float | None, loops: int | None, distance: float | None,
             plan_file: Path | None) -> None:
     """Plan and execute a reconfiguration in simulation and record it.
@@ -246,13 +247,20 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
             if out is not None and not out.strip():
                 raise ConfigurationError("is empty; give a folder", field="--out")
             if system_file is not None:
-                driver_name = driver_name or "link"
+                if not system_file.strip():
+                    raise ConfigurationError("is empty; give the systems file of the modules",
+                                             field="--system")
+                if driver_name not in (None, "link"):
+                    raise ConfigurationError(f"is the link driver's systems file; --driver "
+                                             f"{driver_name} takes none (leave --driver out, "
+                                             "or give --driver link)", field="--system")
+                driver_name = "link"
             request = RunRequest(robot=robot, scenario=scenario, start=start, goal=goal, seed=seed,
                                  out=None if out is None else Path(out), log=not no_log, gui=gui,
                                  rate=rate, action_timeout=action_timeout, driver=driver_name,
                                  planner=planner_name,
                                  driver_options=parse_driver_options(driver_options)
-                                 + ((("system", str(system_file)),) if system_file else ()),
+                                 + ((("system", system_file),) if system_file else ()),
                                  force=force, faults=faults, deadline=deadline, plan=plan_file,
                                  behavior=behavior, parameters=parse_parameters(parameters),
                                  duration=duration, loops=loops, distance=distance)

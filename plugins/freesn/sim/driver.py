@@ -43,7 +43,7 @@ class FreeSNMujocoDriver(MujocoDriver[FreeSNWorld]):
                                   "joints, magnets as weld constraints")
 
     options_type = SimOptions
-    options: SimOptions
+    sim_options: SimOptions
     arguments = ("gui", "seed", "options", "spec")
 
     def __init__(self, *, gui: bool = False, seed: int | None = None,
@@ -53,7 +53,7 @@ class FreeSNMujocoDriver(MujocoDriver[FreeSNWorld]):
         self._overlaps: set[tuple[str, str]] = set()
 
     def build(self, start: Configuration) -> FreeSNWorld:
-        return FreeSNWorld(start, self.spec, self.options)
+        return FreeSNWorld(start, self.spec, self.sim_options)
 
     def reset(self, start: Configuration) -> None:
         """Build the world of ``start`` (its docked ends docked); time becomes 0. Bodies

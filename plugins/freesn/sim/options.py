@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
+from msrr.core.driver import DriverOption
 from msrr.core.errors import ExecutionError
 from msrr.core.freeform.mujoco import MujocoOptions
 from msrr.core.robot import RobotSpec
@@ -38,6 +40,20 @@ class SimOptions(MujocoOptions):
             check [s] (a magnet does not let go on a one-step impulse).
         seed: seed of the noise, drift and slip generators.
     """
+
+    OPTIONS: ClassVar[tuple[DriverOption, ...]] = MujocoOptions.OPTIONS + (
+        DriverOption("drift", float, "random walk of each connector's odometry heading",
+                     "rad/sqrt(s)", 0.0, 1.0),
+        DriverOption("slip", float, "heading error of a connector per radian it rolls (std)",
+                     "rad/rad", 0.0, 1.0),
+        DriverOption("strength_factor", float, "connection strength / the hardware's", "",
+                     0.0, 10.0, low_open=True),
+        DriverOption("torque_factor", float, "connector torque limit / the hardware's", "",
+                     0.0, 10.0, low_open=True),
+        DriverOption("integral_gain", float, "connector integral gain", "1/s^2", 0.0, 1e5),
+        DriverOption("break_filter", float, "time constant of the connection-load filter", "s",
+                     0.0, 10.0, low_open=True),
+    )
 
     drift: float = 0.0
     slip: float = 0.0

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from msrr.core.configuration import Configuration
-from msrr.core.driver import Driver, ModuleCommand, Observation, Pose
+from msrr.core.driver import Driver, DriverOption, ModuleCommand, Observation, Pose
 from msrr.core.errors import ExecutionError
 
 from ..representation import layout
@@ -32,6 +32,10 @@ class MmrpSimDriver(Driver):
 
     name: ClassVar[str] = "pybullet"
     description: ClassVar[str] = "PyBullet: tracked modules on a plane, faces latch as constraints"
+    options: ClassVar[tuple[DriverOption, ...]] = (
+        DriverOption("physics_rate", float, "physics steps per second", "Hz", 30.0, 2000.0,
+                     default=240.0),
+    )
 
     def __init__(self, *, gui: bool = False, physics_rate: float = 240.0, seed: int = 0,
                  **_: Any):
