@@ -199,14 +199,15 @@ def shape_layout(config: Configuration, kinds: Mapping[str, ModuleKind]
                  ) -> dict[str, BodyPose]:
     """Every vertex of ``config`` at the robot's scale, in the configuration's own frame.
 
-    A configuration whose vertices all carry a position (a goal a planner or driver
-    placed) keeps it. Otherwise each connected part is grown breadth-first from its first
-    vertex at the origin, each connection placed as the generic runtime places it
+    Each connected part is grown breadth-first from its first vertex at the origin, each
+    connection placed as the generic runtime places it
     (:mod:`msrr.core.generic.geometry`): two ports with normals face to face
     (:func:`~msrr.core.generic.geometry.place_for_ports`, ``geometry["pitch"]`` included);
     else the two bodies touch along the connection vector ``z`` (sphere: its radius,
     box: where the ray leaves it); an edge module (a FreeSN strut) puts its ends its
     kind's ``length`` apart along ``z``. Body sizes come from each kind's ``geometry``.
+    Positions the configuration's vertices carry are not used: a plan's targets keep
+    their start's (FreeSN's scenarios), which are not the target's shape.
 
     Args:
         config: the configuration (a plan's target).
@@ -216,8 +217,6 @@ def shape_layout(config: Configuration, kinds: Mapping[str, ModuleKind]
         per vertex (virtual ones included: a free end of an edge module) its pose [m, rad].
     """
     vertices = config.vertices()
-    if vertices and all(config.position(v) is not None for v in vertices):
-        return {v: BodyPose(np.asarray(config.position(v), dtype=float)) for v in vertices}
     graph = nx.MultiGraph()
     graph.add_nodes_from(vertices)
     graph.add_edges_from((e.source, e.target, e.id) for e in config.edges())

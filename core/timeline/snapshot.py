@@ -645,7 +645,9 @@ def _connections(ax: Any, track: Track, marks: list[int]) -> None:
     for tick in marks:
         ax.axvline(track.sim_time(tick), color="0.6", lw=0.6)
     ax.set_title("connections (green: dock, red: undock, "
-                 + ("purple: flow, " if track.flows else "") + "grey: panels above)", fontsize=8)
+                 + ("purple: flow, " if track.flows else "")
+                 + ("grey: panels above)" if len(marks) > 1 else "grey: the moment above)"),
+                 fontsize=8)
     ax.set_xlabel("sim time [s]", fontsize=8)
     ax.set_ylabel("docked connections", fontsize=8)
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
@@ -672,19 +674,34 @@ def _errors(ax: Any, track: Track, marks: list[int]) -> None:
     ax.set_xlabel("sim time [s]", fontsize=8)
 
 
-def _extent(track: Track) -> tuple[float, float, float, float]:
-    """``(x0, x1, y0, y1)`` [m] of every module position of the run, padded."""
-    xs, ys = [], []
-    for m in track.modules:
-        for r in track.poses[m]:
-            x, y, _ = r.values["Transform3D:translation"][0]
-            xs.append(x)
-            ys.append(y)
-    pad = 0.25
-    return min(xs) - pad, max(xs) + pad, min(ys) - pad, max(ys) + pad
+Extent = tuple[float, float, float, float]
+"""``(x0, x1, y0, y1)`` [m] a panel shows."""
+_PAD = 0.25  # [m] around the modules
 
 
-def _panel_width(track: Track, extent: tuple[float, float, float, float]) -> float:
+def _bounds(points: list[tuple[float, float]]) -> Extent:
+    xs, ys = [p[0] for p in points], [p[1] for p in points]
+    return min(xs) - _PAD, max(xs) + _PAD, min(ys) - _PAD, max(ys) + _PAD
+
+
+def _extents(track: Track, ticks: list[int]) -> list[Extent]:
+    """What each panel shows: every module position of the run, padded, the same in
+    every panel so they compare; or, for a robot that travels (the run's extent over
+    1.5 times the largest of the moments'), a window of one size centred on the robot at
+    each moment (same scale, its own place: the axes say where)."""
+    run = _bounds([tuple(r.values["Transform3D:translation"][0][:2])
+                   for m in track.modules for r in track.poses[m]])
+    here = [_bounds([p[:2] for m in track.modules if (p := track.pose(m, t)) is not None])
+            for t in ticks]
+    wide = max(e[1] - e[0] for e in here)
+    tall = max(e[3] - e[2] for e in here)
+    if max(run[1] - run[0], run[3] - run[2]) <= 1.5 * max(wide, tall):
+        return [run] * len(ticks)
+    return [((e[0] + e[1] - wide) / 2, (e[0] + e[1] + wide) / 2,
+             (e[2] + e[3] - tall) / 2, (e[2] + e[3] + tall) / 2) for e in here]
+
+
+def _panel_width(track: Track, extent: Extent) -> float:
     """Width [in] of a footprint panel: 3.2, wider (up to 6) when the smallest body would
     be drawn under 0.32 in across (many small modules: their ids need room)."""
     smallest = min((min(h) * 2 for m, h in track.half.items()
@@ -693,7 +710,7 @@ def _panel_width(track: Track, extent: tuple[float, float, float, float]) -> flo
     return min(6.0, max(3.2, 0.32 * span / max(smallest, 1e-3)))
 
 
-def _panels(track: Track, extent: tuple[float, float, float, float], top: float, count: int
+def _panels(track: Track, extent: Extent, top: float, count: int
             ) -> tuple[Any, list[Any], Any, Any]:
     """The figure of ``count`` moments (up to four): one row of panels (3.2 to 3.6 in
     wide), or, when the robot has more than 12 modules, rows of two panels at least 4.8
@@ -719,24 +736,24 @@ def render_snapshot(track: Track, title: str = "", moment: Moment | None = None)
     moments of the run, or the one ``moment`` drawn large, over the two time plots."""
     from matplotlib.figure import Figure
 
-    extent = _extent(track)
+    moments = [moment] if moment else [Moment.of_tick(t) for t in _pick_ticks(track)]
+    extents = _extents(track, [m.tick for m in moments])
+    extent = extents[0]
     legend = _legend(track, title or track.title)
     aspect = (extent[3] - extent[2]) / max(extent[1] - extent[0], 1e-3)
     top = 1.1 + 0.16 * legend.count("\n")  # [in]: the title and legend lines
     if moment is None:
-        moments = [Moment.of_tick(t) for t in _pick_ticks(track)]
         fig, axes, conn, err = _panels(track, extent, top, len(moments))
     else:
-        moments = [moment]
         panel = min(8.3 * aspect, 8.0) + 1.0
         fig = Figure(figsize=(9.0, top + panel + 2.6), dpi=110, layout="constrained")
         grid = fig.add_gridspec(2, 2, height_ratios=[panel, 2.6])
         axes = [fig.add_subplot(grid[0, :])]
         conn, err = fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])
     panels = [(ax, _footprint(ax, track, m)) for ax, m in zip(axes, moments, strict=True)]
-    for ax in axes:
-        ax.set_xlim(extent[0], extent[1])
-        ax.set_ylim(extent[2], extent[3])
+    for ax, (x0, x1, y0, y1) in zip(axes, extents, strict=True):
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
         ax.set_xlabel("x [m]", fontsize=8)
     axes[0].set_ylabel("y [m]", fontsize=8)
     marks = [m.tick for m in moments]

@@ -120,6 +120,18 @@ def test_layout_takes_module_sizes_from_the_geometry() -> None:
     assert truss["s:b"].position - truss["n1"].position == pytest.approx([0.2, 0.0, 0.0])
 
 
+def test_layout_follows_the_vectors_not_the_positions_a_target_carries() -> None:
+    """FreeSN's plan targets keep their start's positions (a flat star); the target's
+    shape is in its vectors (struts tilted 40 deg down to the ground)."""
+    config = Configuration("truss")
+    config.add_module("n1", "node", position=(0.0, 0.0, 0.0))
+    config.add_module("n2", "node", position=(0.2, 0.0, 0.0))
+    down = (math.cos(math.radians(40)), 0.0, -math.sin(math.radians(40)))
+    config.connect("n1", "n2", id="s", kind="strut", z=down)
+    layout = shape_layout(config, {k.name: k for k in TRUSS.module_kinds})
+    assert layout["n2"].position - layout["n1"].position == pytest.approx(0.2 * np.array(down))
+
+
 def test_fit_puts_the_outline_on_the_part_already_in_place() -> None:
     """A flow's target (b4 beside b3) fitted onto the line: b1..b3 exactly where they
     are, b4 where it is going (touching b2 and b3), not a compromise between."""
@@ -223,6 +235,21 @@ def test_a_behaviors_target_follows_the_robot(tmp_path: Path) -> None:
             assert np.linalg.norm(centre - _module_at(rows, module, tick)) < 1e-3
     logged = {r.tick for r in rows["/world/ghost/nodes"] if "Ellipsoids3D:centers" in r.values}
     assert logged == {0, 1, 2, 3, 4, 5, 9}  # the moving action: once at its start; the end
+
+
+def test_a_travelling_robot_is_drawn_in_windows_that_follow_it(tmp_path: Path) -> None:
+    """A robot that drives 2 m: each panel is a window of one size centred on it."""
+    roll = BehaviorCall("roll", "mapping", parameters={"speed": 0.2}, duration=1.0)
+    moving = Action(ActionType.BEHAVIOR, LINE, modules=("b1", "b2", "b3", "b4"), behavior=roll)
+    path = _record_balls(tmp_path / "run.rrd", [moving, moving, moving],
+                         lambda tick: _ball_poses(shift=0.15 * tick))
+    track = load_track(path)
+    panels = [ax for ax in render_snapshot(track).axes if ax.get_aspect() == 1.0]
+    widths = {round(ax.get_xlim()[1] - ax.get_xlim()[0], 9) for ax in panels}
+    assert len(panels) == 4 and len(widths) == 1 and widths.pop() < 1.0  # not the 2.6 m run
+    for ax, tick in zip(panels, sorted({0, 4, 9, 14}), strict=True):
+        x, _, _ = track.pose("b1", tick)
+        assert sum(ax.get_xlim()) / 2 == pytest.approx(x, abs=1e-6)  # the balls' middle
 
 
 # -- legends ---------------------------------------------------------------------------
