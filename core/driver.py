@@ -33,7 +33,7 @@ from .errors import ConfigurationError, ExecutionError, PluginError
 
 __all__ = ["RESERVED_OPTIONS", "Companions", "Driver", "DriverFactory", "DriverOption",
            "ModuleCommand", "Observation", "OptionValue", "Pose", "check_driver_options",
-           "declared_options"]
+           "declared_options", "horizontal_centre"]
 
 OptionValue = float | int | bool | str
 """The value of one driver option."""
@@ -258,6 +258,13 @@ class Pose:
         """Heading about the world z axis [rad], in (-pi, pi]."""
         x, y, z, w = self.orientation
         return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def horizontal_centre(poses: Mapping[str, Pose]) -> np.ndarray | None:
+    """Mean horizontal position of ``poses`` [m], shape (2,); ``None`` without poses."""
+    if not poses:
+        return None
+    return np.mean([np.asarray(p.position, dtype=float)[:2] for p in poses.values()], axis=0)
 
 
 @dataclass(frozen=True)

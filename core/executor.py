@@ -92,7 +92,7 @@ from .closed_loop import (
 )
 from .configuration import Configuration
 from .control import Control, Controller
-from .driver import Driver, ModuleCommand, Observation
+from .driver import Driver, ModuleCommand, Observation, horizontal_centre
 from .errors import ExecutionError, MsrrError
 from .events import (
     ActionStatus,
@@ -503,11 +503,7 @@ class Executor:
 
     def _centre(self) -> np.ndarray | None:
         """Mean horizontal position of the driver's module poses [m], shape (2,)."""
-        poses = self.driver.get_observation().poses
-        if not poses:
-            return None
-        return np.mean([np.asarray(p.position, dtype=float)[:2] for p in poses.values()],
-                       axis=0)
+        return horizontal_centre(self.driver.get_observation().poses)
 
     def _moved(self) -> float:
         """Horizontal distance [m] the centre moved since the running behavior began."""

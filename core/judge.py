@@ -33,7 +33,7 @@ import numpy as np
 from .actions import topology_diff
 from .alignment import rot_z
 from .configuration import Configuration
-from .driver import Observation, Pose
+from .driver import Observation, Pose, horizontal_centre
 from .events import (
     GROUND_TRUTH,
     REPORTED,
@@ -331,8 +331,4 @@ class Judge:
 
     def _centre(self) -> np.ndarray | None:
         """Mean horizontal position of the modules [m], shape (2,), from the driver."""
-        poses = self.witness.get_observation().poses
-        if not poses:
-            return None
-        return np.mean([np.asarray(p.position, dtype=float)[:2] for p in poses.values()],
-                       axis=0)
+        return horizontal_centre(self.witness.get_observation().poses)
