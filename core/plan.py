@@ -16,6 +16,7 @@ import json
 import math
 import os
 import re
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -29,10 +30,10 @@ from .errors import ConfigurationError
 from .files import Coordinate, Cost, Number, StrictModel, atomic_write_text, parse_model, read_json
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
 from .kinematics import KinematicTree, KinematicTreeFile
-from .robot import Robot, check_structure
+from .robot import Robot, Violation, check_structure
 
 __all__ = ["STRUT_ENDS", "Action", "ActionType", "BehaviorCall", "CommandGain",
-           "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_plan",
+           "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_chain", "check_plan",
            "connection_key", "join_plans", "links", "load_plan", "natural_key", "save_plan"]
 
 
@@ -575,9 +576,11 @@ def plan_from_model(model: PlanFile, source: str | None = None,
 
 
 def check_plan(plan: Plan, robot: Robot) -> None:
-    """Validate ``plan`` against ``robot``: its start and goal follow every rule of the
-    robot; every action target has only the robot's module kinds and ports (an
-    intermediate configuration may break a topology rule on purpose, e.g. while split).
+    """Validate ``plan`` whole against ``robot``: its start and goal follow every rule of
+    the robot; every action target has only the robot's module kinds, ports and legal
+    port pairs (an intermediate configuration may break a topology rule on purpose,
+    e.g. while split); and the actions follow one another from the start to the goal
+    (:func:`check_chain`).
 
     Raises:
         ConfigurationError: naming the field (``start``, ``actions[3].target``...).
@@ -590,10 +593,113 @@ def check_plan(plan: Plan, robot: Robot) -> None:
         if found:
             raise ConfigurationError(f"{found[0].where}: {found[0].message}", field=where)
     for i, action in enumerate(plan.actions):
-        found = check_structure(action.target, robot.spec)
+        found = check_structure(action.target, robot.spec) + _port_pairs(action.target, robot)
         if found:
             raise ConfigurationError(f"{found[0].where}: {found[0].message}",
                                      field=f"actions[{i}].target")
+    check_chain(plan)
+
+
+def _port_pairs(config: Configuration, robot: Robot) -> list[Violation]:
+    """The connections of ``config`` whose port pair the robot's rules refuse (a step
+    may break a topology rule on purpose, never a port pair)."""
+    found = []
+    for edge in config.edges():
+        ports = edge.ports or (None, None)
+        if not robot.rules.ports_compatible(config.kind_of(edge.source), ports[0],
+                                            config.kind_of(edge.target), ports[1]):
+            found.append(Violation(f"connection {edge.id}", f"illegal port pair "
+                                   f"{edge.source}{ports[0] or ''}-{edge.target}{ports[1] or ''}"))
+    return found
+
+
+def _link_changes(before: Configuration, after: Configuration
+                  ) -> tuple[set[ConnectionKey], set[ConnectionKey]]:
+    """The links (:func:`links`) ``after`` has that ``before`` lacks, and those it lost."""
+    have = Counter(key for key, _ in links(before))
+    want = Counter(key for key, _ in links(after))
+    return set(want - have), set(have - want)
+
+
+def _names(keys: set[ConnectionKey]) -> str:
+    labels = sorted("-".join(f"{m}{p or ''}" for m, p in sorted(key, key=lambda e: (
+        natural_key(e[0]), e[1] or ""))) for key in keys)
+    return ", ".join(labels) or "none"
+
+
+_KINDS: dict[ActionType, Callable[[int, int], bool]] = {
+    ActionType.MOVING: lambda made, broken: not made and not broken,
+    ActionType.BEHAVIOR: lambda made, broken: not made and not broken,
+    ActionType.CONNECTION: lambda made, broken: made == 1 and not broken,
+    ActionType.DISCONNECTION: lambda made, broken: broken == 1 and not made,
+    ActionType.PARALLEL_DISCONNECTION: lambda made, broken: broken > 1 and not made,
+    ActionType.FLOW: lambda made, broken: made == 1 and broken == 1,
+    ActionType.PARALLEL_CONNECTION: lambda made, broken: made >= 1 and made + broken > 1,
+}
+"""Which counts of links made and broken each action type may have (section 4.1; a flow
+is one of each, of one module: :func:`msrr.core.actions.flow_move` has the exact rule,
+which the executor applies)."""
+
+
+def check_chain(plan: Plan) -> None:
+    """Validate that ``plan``'s actions follow one another: each action's target has the
+    modules of the step before (the start for the first), its type and ``changes`` are
+    the links that step makes and breaks, its ``modules`` name every module its changes
+    and goals name, no action repeats the one before it, and the last target is the
+    plan's goal (its modules and links).
+
+    Raises:
+        ConfigurationError: naming the field (``actions[3].changes``, ``goal``...).
+    """
+    before, said = plan.start, "the start"
+    for i, action in enumerate(plan.actions):
+        where = f"actions[{i}]"
+        _same_modules(before, action.target, said, f"{where}.target")
+        made, broken = _link_changes(before, action.target)
+        if not _KINDS[action.type](len(made), len(broken)):
+            raise ConfigurationError(
+                f"a {action.type.value} action, but from {said} its target makes "
+                f"{_names(made)} and breaks {_names(broken)}", field=f"{where}.type")
+        planned = {c.key for c in action.changes}
+        if planned != made | broken and (planned or action.type is not ActionType.FLOW):
+            raise ConfigurationError(
+                f"are {_names(planned)}, but from {said} its target makes {_names(made)} "
+                f"and breaks {_names(broken)}", field=f"{where}.changes")
+        acting = {m for c in action.changes for m in (c.source, c.target)} | set(action.goals)
+        missing = sorted(acting - set(action.modules), key=natural_key)
+        if missing:
+            raise ConfigurationError(f"leaves out {', '.join(missing)}, which the action's "
+                                     "changes or goals name", field=f"{where}.modules")
+        if i and _repeats(action, plan.actions[i - 1]):
+            raise ConfigurationError("repeats the action before it", field=where)
+        before, said = action.target, f"{where}.target"
+    _same_modules(before, plan.goal, said, "goal")
+    made, broken = _link_changes(before, plan.goal)
+    if made or broken:
+        raise ConfigurationError(f"is not where the actions end: {said} lacks {_names(made)} "
+                                 f"and has {_names(broken)} besides", field="goal")
+
+
+def _same_modules(before: Configuration, after: Configuration, said: str, field: str) -> None:
+    have, want = before.modules(), after.modules()
+    if have != want:
+        extra = sorted(set(want) - set(have), key=natural_key)
+        gone = sorted(set(have) - set(want), key=natural_key)
+        kinds = sorted((m for m in set(have) & set(want) if have[m] != want[m]), key=natural_key)
+        parts = [f"{what} {', '.join(ids)}" for what, ids in (
+            ("modules not in " + said + ":", extra), ("lacks", gone),
+            ("other module kinds of", kinds)) if ids]
+        raise ConfigurationError(f"has other modules than {said} ({'; '.join(parts)})",
+                                 field=field)
+
+
+def _repeats(action: Action, before: Action) -> bool:
+    """Whether ``action`` is ``before`` again (a copied step: nothing left to do)."""
+    if (action.type, action.modules, action.changes, action.goals, action.behavior,
+            action.reaches) != (before.type, before.modules, before.changes, before.goals,
+                                before.behavior, before.reaches):
+        return False
+    return configuration_to_model(action.target) == configuration_to_model(before.target)
 
 
 def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:

@@ -69,6 +69,9 @@ class ModuleKind:
         ports: the discrete docking ports, empty for freeform surfaces.
         geometry: nominal dimensions in SI units (``radius`` [m], ``mass`` [kg], ...).
         description: one sentence for tables.
+        commands: the commands a behavior may give a module of this kind (a library's
+            ``commands[].command``, ``"wheel_speed"``); ``None``: not declared, any is
+            accepted; ``()``: it takes none.
     """
 
     name: str
@@ -77,6 +80,7 @@ class ModuleKind:
     ports: tuple[PortSpec, ...] = ()
     geometry: Mapping[str, float] = field(default_factory=dict)
     description: str = ""
+    commands: tuple[str, ...] | None = None
 
     def port(self, name: str) -> PortSpec:
         """The port called ``name``; raises listing the known ports."""

@@ -63,7 +63,8 @@ class KinematicTreeFile(StrictModel):
 
     schema_version: SchemaVersion = Field(description="File format version.")
     robot: str = Field(min_length=1)
-    configuration: str = Field("", description="Name of the configuration.")
+    configuration: str = Field(description="Name of the configuration it was made for "
+                               "(may be empty; the key is required).")
     modules: list[ModuleModel]
     connections: list[ConnectionModel] = []
     nodes: list[NodeModel] = Field(min_length=1)

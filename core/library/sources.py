@@ -236,6 +236,12 @@ def _source_files(path: Path) -> list[Path]:
     return found
 
 
+def _commands(robot: Robot) -> set[str] | None:
+    """Every behavior command the robot's module kinds declare; ``None``: none declares."""
+    declared = [k.commands for k in robot.spec.module_kinds if k.commands is not None]
+    return None if not declared else {c for kind in declared for c in kind}
+
+
 def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str], Robot]
                  ) -> LibrarySources:
     """Read library source files (designs, sequences, behaviors) in the given order.
@@ -293,8 +299,14 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
                                        field=f"sequences[{i}].steps[{j}]")
             sequences.append(RecordedSequence(s.name, steps, s.loop, s.behavior, s.description,
                                               path.name))
+        taken = _commands(robot)
         for i, b in enumerate(model.behaviors):
             for j, c in enumerate(b.commands):
+                if taken is not None and c.command not in taken:
+                    raise LibraryError(f"unknown command {c.command!r} (robot {robot.name!r} "
+                                       f"takes: {', '.join(sorted(taken)) or 'none'})",
+                                       source=source, field=f"behaviors[{i}].commands[{j}]"
+                                       ".command")
                 unknown = sorted(set(c.gains) - set(b.parameters))
                 if unknown:
                     raise LibraryError(f"unknown parameter {unknown[0]!r} (parameters: "

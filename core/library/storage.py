@@ -16,7 +16,7 @@ import os
 from collections.abc import Callable
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator
+from pydantic import AllowInfNan, Field, Strict, field_validator
 
 from ..configuration import Configuration
 from ..errors import ConfigurationError
@@ -32,7 +32,7 @@ from ..io import ConfigurationFile, configuration_from_model, configuration_to_m
 from ..kinematics.tree import KinematicTree
 from ..mapping import ModuleMap
 from ..plan import ActionType
-from ..robot import Robot
+from ..robot import Robot, RobotSpec
 from .model import (
     ActionEdge,
     Behavior,
@@ -130,6 +130,20 @@ class SubLibraryModel(StrictModel):
     edges: list[EdgeModel] = []
 
 
+class SourceRefModel(StrictModel):
+    file: str = Field(min_length=1, description="A source file the library was built from.")
+    sha256: str = Field(pattern=r"^[0-9a-f]{64}$", description="Its SHA-256 digest (hex).")
+
+
+class BuildModel(StrictModel):
+    """How the library was built (``platform library build``)."""
+
+    merge_threshold: Annotated[float, Strict(), AllowInfNan(False), Field(ge=0.0, le=100.0)] \
+        | None = Field(None, description="Largest motion cost at which configurations merged.")
+    cost: Literal["distance", "ik"] | None = Field(None, description="The motion cost used.")
+    sources: list[SourceRefModel] = []
+
+
 class LibraryFile(StrictModel):
     """A behavior library file (FreeSN paper, section 6.1)."""
 
@@ -137,7 +151,7 @@ class LibraryFile(StrictModel):
     robot: str = Field(min_length=1)
     name: str = Field(min_length=1)
     description: str = ""
-    build: dict = {}
+    build: BuildModel = BuildModel()
     sublibraries: list[SubLibraryModel]
 
 
@@ -157,7 +171,7 @@ def _sublibrary_from_model(model: SubLibraryModel, where: str, source: str | Non
     _add_groups(sub, model, fail, library_robot, robot)
     _add_configurations(sub, model, fail, robot)
     _add_edges(sub, model, fail)
-    _add_behaviors(sub, model, fail)
+    _add_behaviors(sub, model, fail, robot)
     return sub
 
 
@@ -250,6 +264,11 @@ def _edge_mapping(model: MappingModel, src: Configuration, dst: Configuration,
     bad += [v for v, image in mapping.nodes.items() if v not in src or image not in dst]
     if bad:
         raise fail(f"maps ids that are not in its configurations: {', '.join(sorted(bad))}")
+    modules = {v for v in src.vertices() if not src.is_virtual(v)} | set(src.edge_ids())
+    missing = sorted(modules - {*mapping.nodes, *mapping.edges})
+    if missing:
+        raise fail(f"leaves out {', '.join(missing)} of the source configuration (a mapping "
+                   "names every module and connection)")
     for kind, images in (("edge", [e for e, _ in mapping.edges.values()]),
                          ("node", list(mapping.nodes.values()))):
         if len(set(images)) != len(images):
@@ -257,9 +276,11 @@ def _edge_mapping(model: MappingModel, src: Configuration, dst: Configuration,
     return mapping
 
 
-def _add_behaviors(sub: SubLibrary, model: SubLibraryModel, fail: _Fail) -> None:
+def _add_behaviors(sub: SubLibrary, model: SubLibraryModel, fail: _Fail,
+                   robot: Robot | None = None) -> None:
     """The behaviors: unique names, known configurations, command modules in the start
-    configuration and gains of declared parameters."""
+    configuration, gains of declared parameters and, with ``robot``, commands its module
+    kinds take (:func:`command_problem`)."""
     for i, bm in enumerate(model.behaviors):
         if bm.name in sub.behaviors:
             raise fail(f"behaviors[{i}].name", f"duplicate behavior {bm.name!r}")
@@ -273,6 +294,9 @@ def _add_behaviors(sub: SubLibrary, model: SubLibraryModel, fail: _Fail) -> None
             if c.module not in start and c.module not in start.edge_ids():
                 raise fail(f"{where_c}.module", f"no module {c.module!r} in the start "
                            f"configuration {bm.start!r}")
+            problem = None if robot is None else command_problem(c, start, robot.spec)
+            if problem is not None:
+                raise fail(f"{where_c}.{problem[0]}", problem[1])
             unknown = sorted(set(c.gains) - set(bm.parameters))
             if unknown:
                 raise fail(f"{where_c}.gains", f"unknown parameter {unknown[0]!r} (parameters: "
@@ -281,6 +305,24 @@ def _add_behaviors(sub: SubLibrary, model: SubLibraryModel, fail: _Fail) -> None
                                      c.connector) for c in bm.commands)
         sub.behaviors[bm.name] = Behavior(bm.name, bm.kind, bm.start, tuple(bm.steps), bm.loop,
                                           tuple(bm.parameters), commands, bm.description)
+
+
+def command_problem(command: CommandSourceModel, start: Configuration, spec: RobotSpec
+                    ) -> tuple[str, str] | None:
+    """What is wrong with a behavior's command of a module of ``start``, as ``(field,
+    message)``: a command its module kind does not declare
+    (:attr:`~msrr.core.robot.ModuleKind.commands`), or a connector (an end of a
+    connection) on a module that is not a connection; ``None``: nothing."""
+    is_edge = command.module not in start
+    kind_name = start.edge(command.module).kind if is_edge else start.kind_of(command.module)
+    kind = next((k for k in spec.module_kinds if k.name == kind_name), None)
+    if kind is not None and kind.commands is not None and command.command not in kind.commands:
+        return "command", (f"unknown command {command.command!r} of a {kind.name} module "
+                           f"(known: {', '.join(kind.commands) or 'none: it takes none'})")
+    if command.connector is not None and not is_edge:
+        return "connector", (f"{command.connector!r} names an end of a connection; "
+                             f"{command.module} is a {kind_name} module")
+    return None
 
 
 def _check_group(reference: Configuration, gm: GroupModel, robot: Robot, sub_name: str,
@@ -294,6 +336,10 @@ def _check_group(reference: Configuration, gm: GroupModel, robot: Robot, sub_nam
     if label != sub_name:
         raise fail("reference", f"has modules {label}, not those of sub-library {sub_name}")
     for k, tm in enumerate(gm.trees):
+        named = tm.tree.get("configuration", gm.reference.name)
+        if named != gm.reference.name:
+            raise fail(f"trees[{k}].tree.configuration", f"is {named!r}, the group's "
+                       f"reference is {gm.reference.name!r}")
         try:
             KinematicTree.from_dict(tm.tree, reference, modes=robot.joint_modes)
         except ConfigurationError as exc:
@@ -315,7 +361,7 @@ def library_from_model(model: LibraryFile, source: str | None = None,
     if robot is not None and robot.name != model.robot:
         raise LibraryError(f"is a library for robot {model.robot!r}, not {robot.name!r}",
                            source=source, field="robot")
-    library = Library(model.robot, model.name, build=dict(model.build),
+    library = Library(model.robot, model.name, build=model.build.model_dump(exclude_none=True),
                       description=model.description)
     for i, sm in enumerate(model.sublibraries):
         if sm.name in library.sublibraries:

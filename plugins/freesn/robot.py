@@ -29,6 +29,7 @@ STRUT = ModuleKind(
         "connector_mass": 0.03,  # magnet array, wheels and motors of one connector [kg]
     },
     description="two magnetic differential-drive connectors, one at each end",
+    commands=("wheel_speed",),  # [rad/s] of one connector's wheel pair (sim/commands.py)
 )
 
 NODE = ModuleKind(
@@ -37,6 +38,7 @@ NODE = ModuleKind(
     role="vertex",
     geometry={"radius": 0.05, "mass": 0.20},
     description="steel sphere that struts connect to anywhere on its surface",
+    commands=(),
 )
 
 SPEC = RobotSpec(
