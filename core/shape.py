@@ -186,8 +186,10 @@ def skeletal_error(current: Configuration, goal: Configuration) -> float:
 
 def skeletal_verdict(current: Configuration, goal: Configuration,
                      tolerance: float) -> ShapeVerdict | None:
-    """:func:`skeletal_error` against ``tolerance`` [rad], or ``None`` when ``goal`` has no
-    connection vector to compare."""
-    if not any(e.z is not None for e in goal.edges()):
+    """:func:`skeletal_error` against ``tolerance`` [rad], or ``None`` when there is nothing
+    to compare: ``goal`` has no connection vector, or ``current`` none on an edge both have
+    (a driver that reports no vectors measures no shape; it is never called 0)."""
+    have = {e.id for e in current.edges() if e.z is not None}
+    if not any(e.z is not None and e.id in have for e in goal.edges()):
         return None
     return ShapeVerdict("skeletal", skeletal_error(current, goal), tolerance)

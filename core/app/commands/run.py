@@ -111,7 +111,8 @@ def _verdict(ok: bool) -> str:
 
 def _goal_row(goal: GoalVerdict) -> list[object]:
     where = "at the end" if goal.action_index is None else f"at t={goal.time:.1f} s"
-    shape = "" if goal.shape is None else f"; shape {goal.shape}"
+    shape = ("; shape not measured (the driver reports no connection vectors and the robot "
+             "declares no shape_tolerance)" if goal.shape is None else f"; shape {goal.shape}")
     text = (f"reached {where}: topology {_verdict(goal.topology)}{shape}; judged on "
             f"{goal.basis}" if goal.success else goal.reason)
     return [f"goal {goal.name}", text]
