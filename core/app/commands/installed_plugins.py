@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import click
 
 from ... import plugins
@@ -18,10 +20,8 @@ def command() -> None:
     refused), or describing a robot another plugin describes too (that robot is refused);
     then plugins that failed to load."""
     for name in plugins.robots():  # every hook of every robot asked, so failures are found
-        try:
+        with contextlib.suppress(MsrrError):  # each failure is listed below, by plugin
             plugins.capabilities(name)
-        except MsrrError:
-            pass  # the failure is listed below, by plugin
     failed: dict[str, list[plugins.PluginFailure]] = {}
     for failure in plugins.problems():
         failed.setdefault(failure.plugin, []).append(failure)
