@@ -5,21 +5,25 @@
 :class:`KeyboardInterrupt`, so click does not turn it into a bare ``Aborted!``; the
 code that catches it says what was interrupted and exits with :attr:`exit_code`
 (130 for SIGINT, 143 for SIGTERM, the shell's ``128 + signal``). Only the first
-signal raises; later ones (a second Ctrl-C during the clean-up) are ignored.
+signal raises; a second one (Ctrl-C again during the clean-up, or SIGTERM after it)
+ends the process at once (:func:`stop_now`) with one line and ``128 + signal``: what
+was written stays, a file half-written is still named ``*.part`` or ``.*.tmp``.
 
-``with shielded():`` defers both signals while a block runs (stopping the modules,
-writing the run's files), then raises the first one that arrived.
+``with shielded():`` defers the first signal while a block runs (stopping the modules,
+writing the run's files), then raises it.
 """
 
 from __future__ import annotations
 
+import os
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
 
-__all__ = ["SIGNALS", "Interrupted", "handled", "install", "shielded"]
+__all__ = ["SIGNALS", "Interrupted", "handled", "install", "shielded", "stop_now"]
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -51,9 +55,25 @@ _depth = 0
 _fired = False  # one Interrupted per installation: the process is stopping after it
 
 
+def stop_now(signum: int) -> None:
+    """End the process at once on a second signal: one line, exit ``128 + signum``; no
+    clean-up runs (the first signal's is what was too slow)."""
+    name = signal.Signals(signum).name
+    try:
+        sys.stdout.flush()
+        sys.stderr.write(f"Error: a second signal ({name}): stopped at once; what was "
+                         "written is kept (a half-written file is named *.part or .*.tmp)\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(128 + signum)
+
+
 def _handler(signum: int, frame: FrameType | None) -> None:
     global _fired
-    if _depth or _fired:
+    if _fired or _pending:  # the process is already stopping: now, not later
+        stop_now(signum)
+        return
+    if _depth:
         _pending.append(signum)
         return
     _fired = True
@@ -93,7 +113,7 @@ def handled() -> Iterator[None]:
 def shielded(*, raise_deferred: bool = True) -> Iterator[None]:
     """Defer SIGINT and SIGTERM during the block; after it raise the first deferred one
     (or, with ``raise_deferred=False``, drop them: the run is already stopping)."""
-    global _depth
+    global _depth, _fired
     _depth += 1
     try:
         yield
@@ -102,5 +122,6 @@ def shielded(*, raise_deferred: bool = True) -> Iterator[None]:
     if not _depth and _pending:
         signum = _pending[0]
         _pending.clear()
+        _fired = True  # a later signal is a second one, raised or not
         if raise_deferred:
             raise Interrupted(signum)

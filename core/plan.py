@@ -31,6 +31,7 @@ from .files import Coordinate, Cost, Number, StrictModel, atomic_write_text, par
 from .io import ConfigurationFile, configuration_from_model, configuration_to_model
 from .kinematics import KinematicTree, KinematicTreeFile
 from .robot import Robot, Violation, check_structure
+from .scenario import MAX_DISTANCE, MAX_LOOPS, MAX_TIME
 
 __all__ = ["STRUT_ENDS", "Action", "ActionType", "BehaviorCall", "CommandGain",
            "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_chain", "check_plan",
@@ -378,6 +379,10 @@ def join_plans(plans: Sequence[Plan]) -> Plan:
 # -- file format ------------------------------------------------------------------------
 
 
+MAX_ACTIONS = 100_000
+"""Most actions a plan file may hold (a thousand loops of a long sequence behavior fit)."""
+
+
 class ChangeModel(StrictModel):
     source: str
     target: str
@@ -400,10 +405,12 @@ class BehaviorModel(StrictModel):
     kind: Literal["sequence", "mapping"]
     parameters: dict[str, Number] = {}
     commands: list[CommandGainModel] = []
-    duration: Annotated[float, Strict(), AllowInfNan(False), Field(gt=0)] | None = None
-    loops: Annotated[int, Strict(), Field(ge=1)] = 1
-    loop: Annotated[int, Strict(), Field(ge=0)] = 0
-    distance: Annotated[float, Strict(), AllowInfNan(False), Field(gt=0)] | None = None
+    duration: Annotated[float, Strict(), AllowInfNan(False), Field(gt=0, le=MAX_TIME)] \
+        | None = None
+    loops: Annotated[int, Strict(), Field(ge=1, le=MAX_LOOPS)] = 1
+    loop: Annotated[int, Strict(), Field(ge=0, lt=MAX_LOOPS)] = 0
+    distance: Annotated[float, Strict(), AllowInfNan(False), Field(gt=0, le=MAX_DISTANCE)] \
+        | None = None
     direction: Annotated[list[Number], Field(min_length=3, max_length=3)] | None = None
 
 
@@ -429,7 +436,7 @@ class PlanFile(StrictModel):
     planner: str
     start: ConfigurationFile
     goal: ConfigurationFile
-    actions: list[ActionModel]
+    actions: list[ActionModel] = Field(max_length=MAX_ACTIONS)
     mapping: dict[str, str] = {}
     notes: list[str] = []
     stats: dict[str, Number] = {}

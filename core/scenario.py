@@ -17,7 +17,17 @@ from pathlib import Path
 
 from .errors import ConfigurationError
 
-__all__ = ["Scenario", "Stage"]
+__all__ = ["MAX_DISTANCE", "MAX_LOOPS", "MAX_TIME", "Scenario", "Stage"]
+
+MAX_LOOPS = 1000
+"""Most loops of a sequence behavior a stage may ask for (each loop is planned as its
+actions, so the plan, its file and the run grow with it)."""
+
+MAX_TIME = 7 * 24 * 3600.0
+"""Longest duration a stage may ask for [s of driver time]: a week."""
+
+MAX_DISTANCE = 10_000.0
+"""Longest distance a behavior may be asked to cover [m]."""
 
 
 @dataclass(frozen=True)
@@ -30,9 +40,12 @@ class Stage:
         behavior: name of a behavior of the robot's library (``"wheeled-move"``); the
             planner retrieves the path to its start configuration, then runs it.
         parameters: a mapping behavior's parameter values (``(("speed", 0.05),)`` [m/s]).
-        duration: how long a mapping behavior runs [s of driver time].
-        loops: how many times a sequence behavior runs (at most, with ``distance``).
-        distance: the behavior stops once the system's centre moved this far [m].
+        duration: how long a mapping behavior runs [s of driver time], at most
+            :data:`MAX_TIME`.
+        loops: how many times a sequence behavior runs (at most, with ``distance``), at
+            most :data:`MAX_LOOPS`.
+        distance: the behavior stops once the system's centre moved this far [m], at
+            most :data:`MAX_DISTANCE`.
         name: how the stage's goal is called in the summary; default the goal file's
             configuration name or the behavior's.
     """
@@ -48,12 +61,15 @@ class Stage:
     def __post_init__(self) -> None:
         if (self.goal is None) == (self.behavior is None):
             raise ConfigurationError("a stage has either a goal or a behavior")
-        for what, value in (("duration", self.duration), ("distance", self.distance)):
-            if value is not None and not (math.isfinite(value) and value > 0):
-                raise ConfigurationError(f"must be a finite number > 0, got {value!r}",
+        for what, value, high in (("duration", self.duration, MAX_TIME),
+                                  ("distance", self.distance, MAX_DISTANCE)):
+            if value is not None and not (math.isfinite(value) and 0 < value <= high):
+                raise ConfigurationError(f"must be a number in (0, {high:g}], got {value!r}",
                                          field=what)
-        if self.loops is not None and self.loops < 1:
-            raise ConfigurationError(f"must be >= 1, got {self.loops}", field="loops")
+        if self.loops is not None and (isinstance(self.loops, bool) or not isinstance(
+                self.loops, int) or not 1 <= self.loops <= MAX_LOOPS):
+            raise ConfigurationError(f"must be a whole number in [1, {MAX_LOOPS}], got "
+                                     f"{self.loops!r}", field="loops")
         for key, value in self.parameters:
             if not math.isfinite(value):
                 raise ConfigurationError(f"must be finite, got {value!r}", field=key)

@@ -49,7 +49,7 @@ from ..files import atomic_write_text, check_output_place
 from ..interrupts import Interrupted, shielded
 from ..judge import Judge
 from ..plan import Action, Plan, join_plans, save_plan
-from ..scenario import Scenario, Stage
+from ..scenario import MAX_TIME, Scenario, Stage
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
            "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
@@ -123,8 +123,8 @@ class RunRequest:
             raise ConfigurationError(f"must be a whole number >= 0, got {self.seed!r}",
                                      field="--seed")
         for name, value, high in (("--rate", self.rate, MAX_RATE),
-                                  ("--timeout", self.action_timeout, None),
-                                  ("--deadline", self.deadline, None)):
+                                  ("--timeout", self.action_timeout, MAX_TIME),
+                                  ("--deadline", self.deadline, MAX_TIME)):
             if value is None:
                 continue
             if isinstance(value, bool) or not math.isfinite(value) or value <= 0:

@@ -8,6 +8,7 @@ import signal
 
 import pytest
 
+from msrr.core import interrupts
 from msrr.core.interrupts import SIGNALS, Interrupted, handled, shielded
 
 
@@ -16,14 +17,34 @@ def _send(signum: int) -> None:
     os.kill(os.getpid(), signum)
 
 
-def test_first_signal_raises_later_ones_are_ignored_and_handlers_come_back() -> None:
+def test_first_signal_raises_a_second_stops_at_once_and_handlers_come_back(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    stopped: list[int] = []
+    monkeypatch.setattr(interrupts, "stop_now", stopped.append)  # not this test process
     before = {s: signal.getsignal(s) for s in SIGNALS}
     with handled():
         with pytest.raises(Interrupted) as caught:
             _send(signal.SIGTERM)
         assert (caught.value.name, caught.value.exit_code) == ("SIGTERM", 143)
-        _send(signal.SIGINT)  # the run is already stopping: ignored
+        _send(signal.SIGINT)  # the run is already stopping: now
+    assert stopped == [signal.SIGINT]
     assert {s: signal.getsignal(s) for s in SIGNALS} == before
+
+
+def test_a_second_signal_inside_a_shield_stops_at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    stopped: list[int] = []
+    monkeypatch.setattr(interrupts, "stop_now", stopped.append)
+    with handled():
+        with pytest.raises(Interrupted), shielded():
+            _send(signal.SIGINT)
+            assert stopped == []
+            _send(signal.SIGTERM)
+        assert stopped == [signal.SIGTERM]
+    with handled():
+        with shielded(raise_deferred=False):  # dropped: the run is already stopping
+            _send(signal.SIGINT)
+        _send(signal.SIGINT)  # still the second one
+    assert stopped == [signal.SIGTERM, signal.SIGINT]
 
 
 def test_a_shield_defers_the_signal_to_its_end() -> None:

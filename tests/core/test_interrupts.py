@@ -124,9 +124,11 @@ class _SignalAt:
 
     def __init__(self, signum: int, moment: str):
         self.signum, self.moment = signum, moment
+        self.sent = False
 
     def _maybe(self, moment: str) -> None:
-        if moment == self.moment:
+        if moment == self.moment and not self.sent:  # once: a second signal stops at once
+            self.sent = True
             os.kill(os.getpid(), self.signum)
 
     @hookimpl

@@ -4,7 +4,7 @@ installed, for tests that signal a subprocess. Not a test module.
 ``MSRR_TEST_PAUSE`` names a moment at which the process writes ``MSRR_TEST_MARKER``
 (a file path) and then waits (at most 30 s) so the test can signal it there:
 ``plan`` (while planning), ``action:<index>`` (an action has started), ``tick:<n>``
-(after control tick ``n``). Every call of the driver's ``send_action`` with no command
+(after control tick ``n``), ``disconnect`` (the clean-up: the driver is disconnecting). Every call of the driver's ``send_action`` with no command
 (``stop``) and of ``disconnect`` is appended to ``MSRR_TEST_CALLS`` (a file path).
 """
 
@@ -63,6 +63,7 @@ class _RecordingDriver(PointDriver):
 
     def disconnect(self) -> None:
         _call("disconnect")
+        _pause("disconnect")
         super().disconnect()
 
 
