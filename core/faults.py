@@ -46,6 +46,7 @@ Example: ``dropout:module=3,at=5;loss:p=0.05;latency:ticks=2;dock-fail:count=1;`
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field, fields, is_dataclass, replace
@@ -57,6 +58,7 @@ from .configuration import Configuration
 from .driver import Driver, ModuleCommand, Observation, Pose
 from .errors import ConfigurationError, ExecutionError
 from .events import FaultEvent
+from .watchdog import DriverStalled
 
 __all__ = ["FAULT_KINDS", "Fault", "FaultyDriver", "GuardedDriver", "check_fault_modules",
            "parse_faults"]
@@ -428,31 +430,67 @@ def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class GuardedDriver(_Wrapper):
-    """``inner`` with sanitized readings and an overall deadline of driver time.
+    """``inner`` with sanitized readings, an overall deadline of driver time and of wall
+    time, and its calls watched.
 
     A pose, or a module's sensor data (``sensors[module]``: every float in its arrays,
     mappings, sequences and dataclasses), with a non-finite number is replaced by the
     module's last finite one (a ``"nan"`` :class:`FaultEvent` reports it, once per run of
     bad readings); a module that has never had a finite reading stops the run
     (:class:`ExecutionError`). A :meth:`step` past ``deadline`` seconds of driver time
-    (or of steps asked for, should the driver's clock stop) stops the run likewise.
+    (or of steps asked for, should the driver's clock stop), or past ``wall_deadline``
+    seconds of wall time since the guard was made, stops the run likewise. :attr:`busy`
+    names the call in progress, for the :class:`~msrr.core.watchdog.Watchdog` that ends
+    one that does not return; once it has set :attr:`stopped`, every further call but
+    the clean-up's (``send_action``, ``disconnect``) raises.
 
     Args:
         inner: the driver to wrap.
         deadline: driver time [s] after which :meth:`step` raises; ``inf`` for none.
+        wall_deadline: wall time [s] after which :meth:`step` raises; ``inf`` for none.
         on_fault: called with each :class:`FaultEvent`.
+
+    Attributes:
+        busy: ``(call, since)`` while a call of ``inner`` runs (``since`` on
+            :func:`time.monotonic`), else ``None``.
+        stopped: why the watchdog stopped the driver (``""``: it did not).
     """
 
     def __init__(self, inner: Driver, *, deadline: float = math.inf,
-                 on_fault: OnFault | None = None):
+                 wall_deadline: float = math.inf, on_fault: OnFault | None = None):
         super().__init__(inner, on_fault)
         self.deadline = deadline
+        self.wall_deadline = wall_deadline
+        self.wall_end = time.monotonic() + wall_deadline
+        self.busy: tuple[str, float] | None = None
+        self.stopped = ""
         self._stepped = 0.0
         self._last: dict[tuple[str, str], Any] = {}
         self._bad: set[tuple[str, str]] = set()
 
+    def _call(self, name: str, call: Callable[..., Any], *args: Any, clean_up: bool = False
+              ) -> Any:
+        """``call(*args)`` with :attr:`busy` set; refused once the watchdog stopped the
+        driver, unless ``clean_up``."""
+        if self.stopped and not clean_up:
+            raise DriverStalled(self.stopped)
+        self.busy = (name, time.monotonic())
+        try:
+            return call(*args)
+        finally:
+            self.busy = None
+
+    def connect(self) -> None:
+        self._call("connect", self.inner.connect)
+
+    def disconnect(self) -> None:
+        self._call("disconnect", self.inner.disconnect, clean_up=True)
+
+    def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
+        self._call("send_action", self.inner.send_action, commands, clean_up=not commands)
+
     def reset(self, start: Configuration) -> None:
-        super().reset(start)
+        self._call("reset", self.inner.reset, start)
         self._stepped = 0.0
         self._last.clear()
         self._bad.clear()
@@ -483,7 +521,7 @@ class GuardedDriver(_Wrapper):
         return out
 
     def get_observation(self) -> Observation:
-        observation = self.inner.get_observation()
+        observation = self._call("get_observation", self.inner.get_observation)
         poses = self._hold("pose", observation.poses, observation.time,
                            lambda p: _finite(p.position) and _finite(p.orientation))
         sensors = observation.sensors
@@ -503,7 +541,12 @@ class GuardedDriver(_Wrapper):
                          "reached", recovered=False)
             raise ExecutionError(f"run deadline of {self.deadline:g} s of driver time reached "
                                  "(--deadline)")
-        self.inner.step(dt)
+        if time.monotonic() > self.wall_end:
+            self._report("deadline", f"run deadline of {self.wall_deadline:g} s of wall time "
+                         "reached", recovered=False)
+            raise ExecutionError(f"run deadline of {self.wall_deadline:g} s of wall time "
+                                 "reached (--wall-deadline)")
+        self._call("step", self.inner.step, dt)
 
 
 def unwrap(driver: Any) -> Any:

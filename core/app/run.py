@@ -16,7 +16,9 @@ All three are written also when the run fails, meets a fault or is interrupted
 (:class:`~msrr.core.interrupts.Interrupted`): the driver is told to stop every module,
 then disconnected, and ``summary.json`` says ``success: false`` with the reason.
 Every driver goes through :class:`~msrr.core.faults.GuardedDriver` (NaN readings held,
-the overall deadline of driver time) and, with ``faults``, a
+the overall deadlines of driver time and of wall time) watched by a
+:class:`~msrr.core.watchdog.Watchdog` (a driver call that does not return within
+``stall`` seconds ends the run) and, with ``faults``, a
 :class:`~msrr.core.faults.FaultyDriver`.
 """
 
@@ -25,7 +27,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -50,9 +52,10 @@ from ..interrupts import Interrupted, shielded
 from ..judge import Judge
 from ..plan import Action, Plan, join_plans, save_plan
 from ..scenario import MAX_TIME, Scenario, Stage
+from ..watchdog import DRIVER_STALL, Watchdog
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
-           "default_deadline", "default_out_dir", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
+           "default_deadline", "default_out_dir", "default_wall_deadline", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
            "parse_parameters", "plan_stages", "prepare_run", "resolve_scenario", "write_outputs"]
 
 RUN_FILES = ("run.rrd", "plan.json", "summary.json")
@@ -60,6 +63,15 @@ RUN_FILES = ("run.rrd", "plan.json", "summary.json")
 
 MAX_RATE = 1000.0
 """Highest control rate ``platform run`` accepts [Hz]."""
+
+MAX_STALL = 3600.0
+"""Longest ``--stall`` [s]."""
+
+WALL_FLOOR = 600.0
+"""Wall time every run may take besides :data:`WALL_FACTOR` times its deadline [s]."""
+
+WALL_FACTOR = 20.0
+"""Wall seconds a run may take per second of its driver-time deadline by default."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +96,10 @@ class RunRequest:
         faults: fault SPEC (:func:`msrr.core.faults.parse_faults`), or ``""``.
         deadline: overall driver time the run may take [s]; ``None``:
             :func:`default_deadline`.
+        wall_deadline: overall wall time the run's execution may take [s]; ``None``:
+            :func:`default_wall_deadline`.
+        stall: wall time one call of the driver may take [s] before the watchdog ends
+            the run (:mod:`msrr.core.watchdog`).
         plan: a saved plan file (``platform plan --json``) to execute instead of
             planning; validated against the robot on load.
         behavior: a behavior of the robot's library to run after the goal (or from the
@@ -110,6 +126,8 @@ class RunRequest:
     force: bool = False
     faults: str = ""
     deadline: float | None = None
+    wall_deadline: float | None = None
+    stall: float = DRIVER_STALL
     plan: Path | None = None
     behavior: str | None = None
     parameters: tuple[tuple[str, float], ...] = ()
@@ -124,7 +142,9 @@ class RunRequest:
                                      field="--seed")
         for name, value, high in (("--rate", self.rate, MAX_RATE),
                                   ("--timeout", self.action_timeout, MAX_TIME),
-                                  ("--deadline", self.deadline, MAX_TIME)):
+                                  ("--deadline", self.deadline, MAX_TIME),
+                                  ("--wall-deadline", self.wall_deadline, MAX_TIME),
+                                  ("--stall", self.stall, MAX_STALL)):
             if value is None:
                 continue
             if isinstance(value, bool) or not math.isfinite(value) or value <= 0:
@@ -156,6 +176,14 @@ def default_deadline(plan: Plan, action_timeout: float) -> float:
     whose every action runs to its timeout still ends, and no run can go on forever."""
     behaviors = sum(a.behavior.duration or 0.0 for a in plan.actions if a.behavior is not None)
     return (len(plan.actions) + 1) * action_timeout + behaviors
+
+
+def default_wall_deadline(deadline: float) -> float:
+    """The overall wall time [s] a run with ``deadline`` seconds of driver time may take
+    by default: :data:`WALL_FLOOR` plus :data:`WALL_FACTOR` times the deadline (a
+    simulation may run slower than real time; a driver that stops answering is ended
+    by the stall watchdog long before), at most :data:`~msrr.core.scenario.MAX_TIME`."""
+    return min(WALL_FLOOR + WALL_FACTOR * deadline, MAX_TIME)
 
 
 def parse_parameters(items: tuple[str, ...] | list[str]) -> tuple[tuple[str, float], ...]:
@@ -352,6 +380,8 @@ class PreparedRun:
         driver_options: extra keyword options of the driver factory.
         faults: the faults to inject (empty: none).
         deadline: overall driver time the run may take [s].
+        wall_deadline: overall wall time the run's execution may take [s].
+        stall: wall time one driver call may take [s].
         notes: what was found in the output folder and replaced (one line each).
         problems: what could not be written at the run's end (the recording on a full
             disk: one line each, filled by :func:`execute_run`; the command exits 1).
@@ -367,6 +397,8 @@ class PreparedRun:
     driver_options: tuple[tuple[str, float | int | bool | str], ...] = ()
     faults: tuple[Fault, ...] = ()
     deadline: float = math.inf
+    wall_deadline: float = math.inf
+    stall: float = DRIVER_STALL
     notes: tuple[str, ...] = ()
     problems: list[str] = field(default_factory=list)
 
@@ -451,6 +483,7 @@ def prepare_run(request: RunRequest) -> PreparedRun:
         capabilities, capabilities.planner(request.planner), start, stages, seed=request.seed)
     check_fault_modules(faults, plan.start.modules())
     deadline = request.deadline or default_deadline(plan, request.action_timeout)
+    wall_deadline = request.wall_deadline or default_wall_deadline(deadline)
     if request.out is None:
         out = claim_out_dir(default_out_dir(request.robot, name), default=True)
     else:
@@ -459,7 +492,8 @@ def prepare_run(request: RunRequest) -> PreparedRun:
               rate=request.rate, seed=request.seed, out_dir=out,
               recording=out / "run.rrd" if request.log else None)
     return PreparedRun(run, capabilities, factory, recognizer, controller, options, request.gui,
-                       driver_options, faults, deadline, tuple(notes))
+                       driver_options, faults, deadline, wall_deadline, request.stall,
+                       tuple(notes))
 
 
 def _try_driver(factory: DriverFactory, request: RunRequest,
@@ -542,24 +576,28 @@ def _stop(driver: Driver) -> None:
 
 
 @contextmanager
-def _driver_for(prepared: PreparedRun, progress: _Progress) -> Iterator[GuardedDriver]:
-    """The run's driver, wrapped: faults (if any) inside, the guard outside; stopped and
-    disconnected on the way out whatever happens."""
+def _driver_for(prepared: PreparedRun, progress: _Progress,
+                stuck: Callable[[str], None] | None = None) -> Iterator[GuardedDriver]:
+    """The run's driver, wrapped: faults (if any) inside, the guard outside, its calls
+    watched (:class:`~msrr.core.watchdog.Watchdog`; ``stuck`` is its last resort);
+    stopped and disconnected on the way out whatever happens."""
     run = prepared.run
     inner: Driver = prepared.driver(gui=prepared.gui, seed=run.seed,
                                     **dict(prepared.driver_options))
     if prepared.faults:
         inner = FaultyDriver(inner, prepared.faults, seed=run.seed, on_fault=progress.on_fault)
-    driver = GuardedDriver(inner, deadline=prepared.deadline, on_fault=progress.on_fault)
-    try:
-        driver.connect()
-        yield driver
-    finally:
-        with shielded(raise_deferred=False):
-            try:
-                _stop(driver)
-            finally:
-                driver.disconnect()
+    driver = GuardedDriver(inner, deadline=prepared.deadline,
+                           wall_deadline=prepared.wall_deadline, on_fault=progress.on_fault)
+    with Watchdog(driver, stall=prepared.stall, last_resort=stuck):
+        try:
+            driver.connect()
+            yield driver
+        finally:
+            with shielded(raise_deferred=False):
+                try:
+                    _stop(driver)
+                finally:
+                    driver.disconnect()
 
 
 def _goal_layout(prepared: PreparedRun, goal: Configuration) -> dict[str, Pose] | None:
@@ -574,22 +612,40 @@ def _goal_layout(prepared: PreparedRun, goal: Configuration) -> dict[str, Pose] 
         return dict(driver.get_observation().poses)
 
 
-def execute_run(prepared: PreparedRun) -> RunResult:
+def execute_run(prepared: PreparedRun, *,
+                last_resort: Callable[[RunResult], None] | None = None) -> RunResult:
     """Execute ``prepared.run.plan`` on a fresh driver; fires every run event.
 
     Never raises for what happens during the run: a failed action, an error of the
-    driver or controller, a fault or the deadline all end in a :class:`RunResult` with
+    driver or controller, a fault, a deadline or a driver call that does not return
+    (the watchdog, :mod:`msrr.core.watchdog`) all end in a :class:`RunResult` with
     ``success=False`` and a one-line reason, after the modules were told to stop. An
     :class:`~msrr.core.interrupts.Interrupted` (or ``KeyboardInterrupt``) is re-raised
     after that clean-up, carrying the result as ``exc.result``. ``msrr_on_run_end``
     is always fired, so listeners close their files.
+
+    Args:
+        prepared: from :func:`prepare_run`.
+        last_resort: called, from the watchdog's thread, with the failed result (its
+            listeners already told the run ended) when the driver did not let go of the
+            main thread even after the watchdog interrupted it; it should write the
+            files and end the process (``platform run`` does). ``None``: keep waiting.
     """
     run = prepared.run
     progress = _Progress(run, plugins.emit)
     result = RunResult(success=False, reason="did not start", actions_total=len(run.plan.actions))
     started = False
+
+    def stuck(reason: str) -> None:  # the watchdog's thread; the main thread is lost
+        assert last_resort is not None
+        ended = _failed(result, progress, f"stopped during {progress.where()}: {reason}; "
+                        "the driver did not let go")
+        ended.faults = list(progress.faults)
+        _end_listeners(prepared, progress, ended, start=not started)
+        last_resort(ended)
+
     try:
-        with _driver_for(prepared, progress) as driver:
+        with _driver_for(prepared, progress, stuck if last_resort else None) as driver:
             driver.reset(run.plan.start)
             judge = Judge(run, driver, layout=lambda goal: _goal_layout(prepared, goal),
                           tolerance=run.spec.defaults.shape_tolerance)

@@ -4,7 +4,9 @@ installed, for tests that signal a subprocess. Not a test module.
 ``MSRR_TEST_PAUSE`` names a moment at which the process writes ``MSRR_TEST_MARKER``
 (a file path) and then waits (at most 30 s) so the test can signal it there:
 ``plan`` (while planning), ``action:<index>`` (an action has started), ``tick:<n>``
-(after control tick ``n``), ``disconnect`` (the clean-up: the driver is disconnecting). Every call of the driver's ``send_action`` with no command
+(after control tick ``n``), ``disconnect`` (the clean-up: the driver is disconnecting).
+``MSRR_TEST_STUCK=swallow`` makes the driver's ``step`` block from 0.5 s of driver time
+on, swallowing every exception (a driver that never lets go). Every call of the driver's ``send_action`` with no command
 (``stop``) and of ``disconnect`` is appended to ``MSRR_TEST_CALLS`` (a file path).
 """
 
@@ -13,6 +15,7 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -28,6 +31,7 @@ from msrr.core.plan import Action
 PAUSE = os.environ.get("MSRR_TEST_PAUSE", "")
 MARKER = os.environ.get("MSRR_TEST_MARKER", "")
 CALLS = os.environ.get("MSRR_TEST_CALLS", "")
+STUCK = os.environ.get("MSRR_TEST_STUCK", "")
 
 
 def _pause(moment: str) -> None:
@@ -60,6 +64,14 @@ class _RecordingDriver(PointDriver):
         if not commands:
             _call("stop")
         super().send_action(commands)
+
+    def step(self, dt: float) -> None:
+        while STUCK == "swallow" and self.t >= 0.5:
+            try:
+                threading.Event().wait()
+            except Exception:  # noqa: BLE001, S112 - the driver under test swallows
+                continue
+        super().step(dt)
 
     def disconnect(self) -> None:
         _call("disconnect")

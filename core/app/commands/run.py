@@ -7,7 +7,10 @@ the command's body, not at module level, so ``platform run --help`` starts at on
 from __future__ import annotations
 
 import math
+import os
+import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -194,6 +197,11 @@ def _asked(plan: Plan) -> str:
               help="Driver time one action phase may take before a retry [s], finite.")
 @click.option("--deadline", default=None, type=float,
               help="Driver time the whole run may take [s]; default (actions + 1) x --timeout.")
+@click.option("--wall-deadline", default=None, type=float,
+              help="Wall time the run's execution may take [s]; default 600 + 20 x --deadline.")
+@click.option("--stall", default=30.0, type=float, show_default=True,
+              help="Wall time one call of the driver may take before the run stops [s] (a "
+                   "driver that stops answering).")
 @click.option("--faults", default="", metavar="SPEC",
               help="Inject faults, e.g. 'dropout:module=3,at=5;loss:p=0.05;latency:ticks=2;"
                    "dock-fail:count=1;noise:sigma=0.01;nan:at=3' (see docs/running.md).")
@@ -223,7 +231,7 @@ def _asked(plan: Plan) -> str:
 def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None,
             planner_name: str | None, driver_name: str | None, seed: int, out: str | None,
             force: bool, no_log: bool, gui: bool, rate: float, action_timeout: float,
-            deadline: float | None, faults: str, driver_options: tuple[str, ...],
+            deadline: float | None, wall_deadline: float | None, stall: float, faults: str, driver_options: tuple[str, ...],
             system_file: str | None, behavior: str | None, parameters: tuple[str, ...],
             duration: float | None, loops: int | None, distance: float | None,
             plan_file: Path | None) -> None:
@@ -262,7 +270,8 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
                                  planner=planner_name,
                                  driver_options=parse_driver_options(driver_options)
                                  + ((("system", system_file),) if system_file else ()),
-                                 force=force, faults=faults, deadline=deadline, plan=plan_file,
+                                 force=force, faults=faults, deadline=deadline,
+                                 wall_deadline=wall_deadline, stall=stall, plan=plan_file,
                                  behavior=behavior, parameters=parse_parameters(parameters),
                                  duration=duration, loops=loops, distance=distance)
             prepared = prepare_run(request)
@@ -324,11 +333,27 @@ def _execute(prepared: PreparedRun) -> RunResult:
                   + f"), driver {run.driver}"
                   + (f", faults {'; '.join(map(str, prepared.faults))}" if prepared.faults else ""),
                   markup=False)
+    last_resort = _stuck(prepared)
     if not console.is_terminal:  # a pipe or a log: plain lines, never a minute of silence
         with plugins.temporary(_ProgressListener(None, len(plan.actions))):
-            return execute_run(prepared)
+            return execute_run(prepared, last_resort=last_resort)
     progress = Progress(TextColumn("{task.description}", markup=False), BarColumn(),
                         TextColumn("{task.completed}/{task.total} actions"),
                         TimeElapsedColumn(), console=console, transient=True)
     with progress, plugins.temporary(_ProgressListener(progress, len(plan.actions))):
-        return execute_run(prepared)
+        return execute_run(prepared, last_resort=last_resort)
+
+
+def _stuck(prepared: PreparedRun) -> Callable[[RunResult], None]:
+    """The last resort of a run whose driver never lets go of the main thread (called
+    from the watchdog's thread): write the files, say so in one line, end the process."""
+    def end(result: RunResult) -> None:
+        try:
+            problems = _write(prepared, result)
+            wrote = "; ".join(problems) if problems else f"wrote {prepared.run.out_dir}"
+            sys.stdout.flush()
+            sys.stderr.write(f"Error: {one_line(f'{result.reason}; {wrote}')}\n")
+            sys.stderr.flush()
+        finally:
+            os._exit(1)
+    return end
