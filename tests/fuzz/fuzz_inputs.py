@@ -1,4 +1,4 @@
-"""A seeded fuzzer of every file reader and file-reading command (issue 11).
+"""A seeded fuzzer of every file reader and file-reading command (issues 11 and 30).
 
 Valid files of every kind (configurations of every installed robot, the shipped
 libraries, library sources, plans made by the MMRP planner, kinematic tree files) are
@@ -14,7 +14,15 @@ mutated in the ways of issue 11 and fed in-process to the readers and, through c
   (``"[/red]"``), which must print literally.
 
 Tree files are read as they are used: loaded onto the configuration they were made
-for, with the robot's joint modes.
+for, with the robot's joint modes. Plans are also fed to ``platform run --plan`` when
+their mutation must be refused: one line, exit 1 and no run folder.
+
+Issue 30 added mutations of whole documents (``null``, a number, a list...), of plans
+(an action copied, dropped or moved, the start swapped for the goal, an action's
+``modules`` emptied) and of libraries (a mapping entry dropped, a tree's configuration
+key removed, a behavior command its module does not take); the build record of a
+library is no longer free-form. Driver options and fault specs have their own
+generator (:mod:`fuzz_options`), the link decoder its own (:mod:`fuzz_link`).
 
 A mutation not in :data:`MAY_PASS` that is accepted is a *bad file accepted*.
 
@@ -51,7 +59,7 @@ from msrr.core.library import load_sources
 from msrr.core.plan import save_plan
 
 ROOT = Path(__file__).resolve().parents[2]
-FREE = {"build", "stats", "kinematic_tree", "notes", "note", "description", "origins"}
+FREE = {"stats", "kinematic_tree", "notes", "note", "description", "origins"}
 """Keys whose content is free-form: any JSON value (but NaN, repeated keys...) is fine."""
 
 MAY_PASS = {"delete_key", "wrong_type", "huge_float", "drop_connection", "add_connection",
@@ -389,11 +397,81 @@ def m_markup_name(rng, seed):
     return "markup_name", _dump(doc)
 
 
+def m_not_object(rng, seed):
+    raw = rng.choice(["null", "1", "true", '"text"', "[]", "-0.5", json.dumps([seed.doc])])
+    return "not_object", raw.encode()
+
+
+def _changing(doc: Any) -> list[int]:
+    """Indices of a plan's actions that make or break connections."""
+    return [i for i, a in enumerate(doc.get("actions", [])) if a.get("changes")]
+
+
+def m_plan_steps(rng, seed):
+    """An action copied next to itself, one that changes connections dropped, two next to
+    each other (one changing connections) swapped, or the start swapped for the goal:
+    each breaks the chain from the start to the goal."""
+    if seed.kind != "plan" or not _changing(seed.doc):
+        return None
+    doc = _copy(seed.doc)
+    actions = doc["actions"]
+    how = rng.choice(["copy", "drop", "swap", "start"])
+    if how == "copy":
+        i = rng.randrange(len(actions))
+        actions.insert(i, json.loads(json.dumps(actions[i])))
+    elif how == "drop":
+        del actions[rng.choice(_changing(doc))]
+    elif how == "swap":
+        i = rng.choice([i for i in _changing(doc) if i + 1 < len(actions)] or [0])
+        if i + 1 >= len(actions):
+            return None
+        actions[i], actions[i + 1] = actions[i + 1], actions[i]
+    else:
+        doc["start"] = doc["goal"]
+    return f"plan_{how}", _dump(doc)
+
+
+def m_plan_modules(rng, seed):
+    """An action that changes connections or has goals names none of its modules."""
+    if seed.kind != "plan":
+        return None
+    doc = _copy(seed.doc)
+    acting = [a for a in doc["actions"] if a.get("changes") or a.get("goals")]
+    if not acting:
+        return None
+    rng.choice(acting)["modules"] = []
+    return "plan_modules", _dump(doc)
+
+
+def m_library_parts(rng, seed):
+    """A module dropped from an edge's mapping, a tree's configuration key removed, or a
+    behavior command its module kind does not take."""
+    if seed.kind != "library":
+        return None
+    doc = _copy(seed.doc)
+    subs = doc["sublibraries"]
+    mappings = [e["mapping"] for s in subs for e in s["edges"] if e.get("mapping")]
+    trees = [t["tree"] for s in subs for g in s["groups"] for t in g["trees"]]
+    commands = [c for s in subs for b in s["behaviors"] for c in b.get("commands", [])]
+    how = rng.choice([h for h, there in (("mapping", mappings), ("tree", trees),
+                                         ("command", commands)) if there])
+    if how == "mapping":
+        mapping = rng.choice(mappings)
+        modules = [k for k in mapping["nodes"] if ":" not in k] + list(mapping["edges"])
+        key = rng.choice(modules)
+        mapping["nodes" if key in mapping["nodes"] else "edges"].pop(key)
+    elif how == "tree":
+        rng.choice(trees).pop("configuration")
+    else:
+        rng.choice(commands)["command"] = rng.choice(["warp", "wheel-speed", ""])
+    return f"library_{how}", _dump(doc)
+
+
 MUTATORS: tuple[Mutator, ...] = (
     m_truncate, m_empty, m_directory, m_non_utf8, m_delete_key, m_rename_key, m_duplicate_key,
     m_wrong_type, m_non_finite, m_huge, m_bool_number, m_deep, m_surrogate, m_unknown_kind,
     m_unknown_port, m_self_loop, m_duplicate_id, m_drop_connection, m_add_connection,
-    m_markup_name)
+    m_markup_name, m_not_object, m_plan_steps, m_plan_modules, m_library_parts)
 
 
 KIND_WEIGHTS = {"configuration": 4, "library": 2, "sources": 1.5, "plan": 1.5, "tree": 1}
@@ -504,6 +582,9 @@ def _commands(case: Case, path: Path) -> list[list[str]]:
             out.append(["plan", "--robot", "mmrp", str(path),
                         str(ROOT / "plugins/mmrp/configs/series.json")])
         return out
+    if kind == "plan" and case.mutation not in MAY_PASS:
+        return [["run", "--robot", "mmrp", "--plan", str(path), "--no-log", "--out",
+                 str(path.with_name(path.name + ".run"))]]
     if kind == "library":
         out = [["library", "show", str(path)]]
         if case.seed.name == "S4N5.json" and hash(case.mutation) % 3 == 0:
@@ -519,6 +600,9 @@ def run_command(case: Case, path: Path, args: list[str], runner: CliRunner) -> O
     if result.exception is not None and not isinstance(result.exception, SystemExit):
         text = "".join(traceback.format_exception(result.exception, limit=-3))
         return Outcome(case, target, False, "traceback: " + text)
+    if args[0] == "run" and Path(args[-1]).exists():
+        return Outcome(case, target, result.exit_code == 0, "a run folder for refused input"
+                       if result.exit_code else "bad file accepted")
     if result.exit_code == 0:
         if args[0] in ("show", "validate") and path.name not in result.output:
             return Outcome(case, target, True, "the file name was not printed literally")
