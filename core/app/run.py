@@ -64,6 +64,9 @@ RUN_FILES = ("run.rrd", "plan.json", "summary.json")
 MAX_RATE = 1000.0
 """Highest control rate ``platform run`` accepts [Hz]."""
 
+MAX_SEED = 2**32 - 1
+"""Largest ``--seed`` (numpy's seed range, as every command's ``--seed``)."""
+
 MAX_STALL = 3600.0
 """Longest ``--stall`` [s]."""
 
@@ -137,9 +140,10 @@ class RunRequest:
 
     def check(self) -> None:
         """Refuse non-finite or out-of-range numbers (one line naming the option)."""
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ConfigurationError(f"must be a whole number >= 0, got {self.seed!r}",
-                                     field="--seed")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
+                or not 0 <= self.seed <= MAX_SEED:
+            raise ConfigurationError(f"must be a whole number in [0, {MAX_SEED}], got "
+                                     f"{self.seed!r}", field="--seed")
         for name, value, high in (("--rate", self.rate, MAX_RATE),
                                   ("--timeout", self.action_timeout, MAX_TIME),
                                   ("--deadline", self.deadline, MAX_TIME),

@@ -48,6 +48,14 @@ def test_times_of_a_run_are_bounded(field: str, value: float) -> None:
         RunRequest(robot="tiny", **{field: value}).check()
 
 
+@pytest.mark.parametrize("seed", [-1, 2**32, 18446744073709551616, True])
+def test_the_seed_of_a_run_is_in_numpys_range(seed: int) -> None:
+    with pytest.raises(ConfigurationError, match=r"--seed: must be a whole number in \[0, "
+                                                 r"4294967295\]"):
+        RunRequest(robot="tiny", seed=seed).check()
+    RunRequest(robot="tiny", seed=2**32 - 1).check()
+
+
 def test_a_stage_takes_at_most_max_loops() -> None:
     assert Stage(behavior="crawl", loops=MAX_LOOPS).loops == MAX_LOOPS
     for loops in (MAX_LOOPS + 1, 2**64, True, 1.5):
