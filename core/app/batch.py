@@ -6,10 +6,12 @@ picks the backend from two options every batch command takes:
 
 ==================  =====================================================================
 ``--workers N``     ``1``: in this process (``serial``); ``N > 1``: a local process pool
-                    of ``N`` workers (``pool``); ``0`` (default): one worker per core
+                    of ``N`` workers (``pool``, :mod:`msrr.core.app.pool`); ``0``
+                    (default): one worker per core
 ``--cluster ADDR``  Ray (``pip install "msrr-platform[cluster]"``): ``auto`` (the cluster
-                    this machine belongs to), ``ray://host:10001`` (a remote cluster's
-                    client port), or ``local`` (start a cluster of ``N`` CPUs here)
+                    this machine belongs to), ``HOST:PORT`` (a head started with ``ray
+                    start --head``), ``ray://host:10001`` (a remote cluster's client
+                    port), or ``local`` (start a cluster of ``N`` CPUs here)
 ==================  =====================================================================
 
 Guarantees, whichever backend runs the batch:
@@ -19,27 +21,31 @@ Guarantees, whichever backend runs the batch:
   (:func:`task_seed` derives one from a base seed and the task's key), never from the
   worker, so serial, pool and Ray give the same results;
 * a task that raises is reported as a :class:`TaskFailure` with its key, its input and
-  the traceback, and the other tasks' results are kept;
+  the traceback, and the other tasks' results are kept; a task whose worker was lost
+  (killed, crashed) runs again on another worker, at most ``retries`` times, then is a
+  :class:`TaskFailure` (``WorkerLost: ...``); the caller sees each result or failure as it
+  arrives (``record``), to journal it (:mod:`msrr.core.app.journal`);
+* the longest tasks (by the caller's ``cost``) start first; the pool's start-up is spent
+  running the shortest tasks in this process, so a batch too small to pay for a pool
+  runs here;
 * progress is shown on the console (rich), one bar per batch;
-* Ctrl-C (or SIGTERM) cancels the tasks not yet started, stops the workers, prints one
-  line and re-raises the interruption (``platform`` exits 130).
-
-The pool starts its workers with the ``forkserver`` method (``spawn`` where there is
-none): MuJoCo and PyBullet must not be forked after they were initialised. Workers
-ignore SIGINT (the terminal sends it to the whole process group); the parent decides.
+* Ctrl-C, SIGTERM or SIGHUP cancels the tasks not yet started, stops the workers, prints
+  one line and re-raises the interruption (``platform`` exits 130, 143 or 129); a pool's
+  workers end with this process whatever kills it (SIGKILL included).
 """
 
 from __future__ import annotations
 
 import contextlib
 import hashlib
-import multiprocessing
+import logging
 import os
 import signal
+import subprocess
+import sys
+import threading
 import time
-import traceback
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
@@ -51,15 +57,16 @@ from rich.progress import (
     TextColumn,
     TimeElapsedColumn,
 )
-from threadpoolctl import threadpool_limits
 
+from .. import interrupts
 from ..console import console, err_console
 from ..errors import ConfigurationError, MsrrError
-from ..interrupts import Interrupted
+from ..interrupts import Interrupted, shielded
+from .pool import RETRIES, Outcome, Pool, PoolError, call_task, run_here
 
-__all__ = ["BACKENDS", "BatchError", "BatchResult", "TaskFailure", "available_cores",
-           "backend_for", "batch_options", "exit_on_interrupt", "ray_available", "run_batch",
-           "task_seed"]
+__all__ = ["BACKENDS", "RETRIES", "BatchError", "BatchResult", "TaskFailure", "available_cores",
+           "backend_for", "batch_options", "exit_on_interrupt", "finishing", "ray_available",
+           "retries_option", "run_batch", "task_seed"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -117,14 +124,15 @@ def backend_for(workers: int = 0, cluster: str | None = None) -> str:
 
 @dataclass(frozen=True)
 class TaskFailure:
-    """A task that raised.
+    """A task that raised, or whose worker was lost on every attempt.
 
     Attributes:
         index: the task's position in the batch.
         key: the task's key.
         input: ``repr`` of its input (cut to 300 characters).
-        error: ``"<ExceptionType>: <message>"``.
-        traceback: the worker's formatted traceback.
+        error: ``"<ExceptionType>: <message>"`` (``"WorkerLost: the worker was killed by
+            SIGKILL (3 attempts)"`` for a lost worker).
+        traceback: the worker's formatted traceback (empty for a lost worker).
     """
 
     index: int
@@ -144,11 +152,12 @@ class BatchResult(Generic[R]):
     Attributes:
         keys: every task's key.
         results: ``fn(items[i])`` at index ``i``; ``None`` where the task failed.
-        failures: the tasks that raised, by index.
+        failures: the tasks that failed, by index.
         backend: ``serial``, ``pool`` or ``ray``.
         workers: worker processes (Ray: the cluster's CPUs).
         wall_time: wall-clock time of the whole batch [s], start-up included.
-        task_times: wall-clock time of each task in its worker [s] (``nan`` if failed).
+        task_times: wall-clock time of each task where it ran [s] (``nan`` if failed).
+        retried: ``(key, reason)`` of every task run again because its worker was lost.
     """
 
     keys: list[str]
@@ -158,6 +167,7 @@ class BatchResult(Generic[R]):
     workers: int = 1
     wall_time: float = 0.0
     task_times: list[float] = field(default_factory=list)
+    retried: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -183,17 +193,26 @@ def batch_options(command: Callable[..., Any]) -> Callable[..., Any]:
     ``workers`` and ``cluster``)."""
     command = click.option(
         "--cluster", default=None, metavar="ADDRESS",
-        help="Run on Ray (pip install \"msrr-platform[cluster]\"): auto, ray://HOST:PORT, "
-             "or local (a cluster of --workers CPUs here).")(command)
+        help="Run on Ray (pip install \"msrr-platform[cluster]\"): auto, HOST:PORT of a "
+             "head started with `ray start --head`, ray://HOST:PORT, or local (a cluster "
+             "of --workers CPUs here).")(command)
     return click.option(
         "--workers", type=click.IntRange(min=0), default=0, show_default=True,
         help="Worker processes: 1 runs in this process, 0 one per core.")(command)
 
 
+def retries_option(command: Callable[..., Any]) -> Callable[..., Any]:
+    """``--retries N`` of a batch command (keyword argument ``retries``)."""
+    return click.option(
+        "--retries", type=click.IntRange(0, 10), default=RETRIES, show_default=True,
+        help="Times a task whose worker was lost (killed, crashed) runs again on another "
+             "worker before it counts as failed.")(command)
+
+
 @contextlib.contextmanager
 def exit_on_interrupt() -> Iterator[None]:
     """A command's batch: an interruption (already reported by :func:`run_batch` in one
-    line) exits 130 (SIGINT) or 143 (SIGTERM) without a second line."""
+    line) exits 130 (SIGINT), 143 (SIGTERM) or 129 (SIGHUP) without a second line."""
     try:
         yield
     except Interrupted as exc:
@@ -202,135 +221,161 @@ def exit_on_interrupt() -> Iterator[None]:
         raise SystemExit(130) from None
 
 
-# --- the worker side -------------------------------------------------------------------
+@contextlib.contextmanager
+def finishing(what: str) -> Iterator[None]:
+    """A command writes its outputs and last lines in the block.
 
-_one_thread = False
+    SIGINT and SIGTERM wait for the end of the block (no output is left half-written),
+    then end the command with one line, ``Error: interrupted (SIGINT) after <what>``, and
+    130 (143). After the block the command is done: when the platform's handlers are
+    installed (``platform``, not a test's in-process call) both signals are ignored from
+    then on, so one that lands while the interpreter exits does not kill it without a
+    word (status -2): the command exits 0, its outputs complete.
 
-
-def _call(fn: Callable[[Any], Any], item: Any) -> tuple[bool, Any, float]:
-    """Run one task; ``(True, result, seconds)`` or ``(False, (error, traceback), seconds)``.
-    Exceptions are caught here so a failure carries the worker's traceback.
-
-    Every worker runs BLAS and OpenMP on one thread (set on its first task): the workers
-    are the parallelism, and a task's arithmetic is then the same as in the serial
-    backend (which runs its tasks under the same limit)."""
-    global _one_thread
-    if not _one_thread:
-        threadpool_limits(limits=1)
-        _one_thread = True
-    start = time.perf_counter()
+    Args:
+        what: what is done if a signal ends the block (``"sweep.csv was written"``).
+    """
     try:
-        value = fn(item)
-    except Exception as exc:  # any task's bug is reported, never lost
-        return False, (f"{type(exc).__name__}: {exc}", traceback.format_exc()), \
-            time.perf_counter() - start
-    return True, value, time.perf_counter() - start
-
-
-def _pool_worker_init() -> None:
-    """Pool workers ignore SIGINT: Ctrl-C reaches the whole process group, and the parent
-    cancels the batch and stops the workers itself."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+        with shielded():
+            yield
+    except Interrupted as exc:
+        err_console.print(f"Error: interrupted ({exc.name}) after {what}", markup=False)
+        raise SystemExit(exc.exit_code) from None
+    if threading.current_thread() is threading.main_thread():
+        for signum in interrupts.SIGNALS:
+            if signal.getsignal(signum) is getattr(interrupts, "_handler", None):
+                signal.signal(signum, signal.SIG_IGN)
 
 
 # --- backends: each yields (index, outcome) as tasks finish -------------------------------
 
-_Outcome = tuple[bool, Any, float]
+def _serial(fn: Callable[[Any], Any], items: Sequence[Any], order: Sequence[int]
+            ) -> Iterator[tuple[int, Outcome]]:
+    """The tasks in this process, in ``order``."""
+    for index in order:
+        yield index, run_here(fn, items[index])
 
 
-def _serial(fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[int, _Outcome]]:
-    """The tasks in this process, BLAS on one thread as in a worker (restored after)."""
-    global _one_thread
-    for index, item in enumerate(items):
-        with threadpool_limits(limits=1):
-            was, _one_thread = _one_thread, True
+_RAY_AUTH_LOGGER = "ray._private.authentication.authentication_token_setup"
+
+
+def _ray_token_auth() -> None:
+    """Connecting to a running cluster: use the token this machine has (``RAY_AUTH_TOKEN``,
+    ``RAY_AUTH_TOKEN_PATH`` or ``~/.ray/auth_token``) unless ``RAY_AUTH_MODE`` says
+    otherwise -- what the installed Ray does itself for ``auto`` but not for an explicit
+    address, where a head started with ``ray start --head`` (token auth on once a token
+    exists) would refuse this process with ``InvalidAuthToken``."""
+    if os.environ.get("RAY_AUTH_MODE") is not None:
+        return
+    try:
+        from ray._private.authentication.authentication_token_setup import (
+            maybe_enable_token_auth_if_token_available,
+        )
+    except ImportError:  # a Ray without token authentication
+        return
+    log = logging.getLogger(_RAY_AUTH_LOGGER)
+    level = log.level
+    log.setLevel(logging.ERROR)  # not Ray's "enabled for this cluster": this is a client
+    try:
+        maybe_enable_token_auth_if_token_available(warn_if_disabled=False)
+    finally:
+        log.setLevel(level)
+
+
+_REAPER = r"""
+import os, select, signal, sys
+parent = int(sys.argv[1])
+def stat(pid):
+    return open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+def descendants():
+    children = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
             try:
-                outcome = _call(fn, item)
-            finally:
-                _one_thread = was
-        yield index, outcome
+                fields = stat(entry)
+            except OSError:
+                continue
+            children.setdefault(int(fields[1]), []).append((int(entry), fields[19]))
+    found, todo = {}, [parent]
+    while todo:
+        for pid, started in children.get(todo.pop(), []):
+            if pid != os.getpid():
+                found[pid] = started
+                todo.append(pid)
+    return found
+seen = {}
+while True:
+    seen.update(descendants())
+    if select.select([sys.stdin], [], [], 0.5)[0]:
+        if sys.stdin.readline():
+            sys.exit(0)
+        break
+for pid, started in seen.items():
+    try:
+        if stat(pid)[19] == started:
+            os.kill(pid, signal.SIGKILL)
+    except OSError:
+        pass
+"""
+"""The reaper of a ``local`` Ray cluster (Linux): it notes every descendant of the process
+that started it, twice a second, and SIGKILLs those still alive when that process ends
+without saying ``done`` (a SIGKILL): Ray's own fate-sharing stops its GCS, raylet and
+workers, but leaves its dashboard and runtime-env agents running for a minute or more."""
 
 
-def _pool_context() -> multiprocessing.context.BaseContext:
-    methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+def _start_reaper() -> subprocess.Popen[bytes] | None:
+    if not os.path.isdir("/proc"):
+        return None
+    return subprocess.Popen([sys.executable, "-c", _REAPER, str(os.getpid())],
+                            stdin=subprocess.PIPE, start_new_session=True)
 
 
-class _Pool:
-    """A process pool whose workers are stopped (not awaited) when the batch is cancelled."""
-
-    def __init__(self, workers: int):
-        self.workers = workers
-        self.executor = ProcessPoolExecutor(max_workers=workers, mp_context=_pool_context(),
-                                            initializer=_pool_worker_init)
-
-    def run(self, fn: Callable[[Any], Any], items: Sequence[Any], order: Sequence[int]
-            ) -> Iterator[tuple[int, _Outcome]]:
-        futures: dict[Future[_Outcome], int] = {
-            self.executor.submit(_call, fn, items[i]): i for i in order}
-        pending = set(futures)
-        finished = False
-        try:
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in sorted(done, key=futures.__getitem__):
-                    try:
-                        outcome = future.result()
-                    except Exception as exc:  # the worker died or the item did not pickle
-                        outcome = (False, (f"{type(exc).__name__}: {exc}",
-                                           traceback.format_exc()), float("nan"))
-                    yield futures[future], outcome
-            finished = True
-        finally:
-            if not finished:
-                self.cancel(pending)
-
-    def cancel(self, pending: set[Future[_Outcome]]) -> None:
-        """Cancel the tasks not started and stop the workers running the others."""
-        for future in pending:
-            future.cancel()
-        # the running tasks would go on to their end; their workers are stopped instead
-        processes = list(getattr(self.executor, "_processes", {}).values())
-        self.executor.shutdown(wait=False, cancel_futures=True)
-        for process in processes:
-            with contextlib.suppress(Exception):
-                process.terminate()
-        for process in processes:
-            with contextlib.suppress(Exception):
-                process.join(timeout=5.0)
-
-    def close(self) -> None:
-        self.executor.shutdown(wait=True, cancel_futures=True)
+def _stop_reaper(reaper: subprocess.Popen[bytes] | None) -> None:
+    if reaper is None or reaper.stdin is None:
+        return
+    with contextlib.suppress(OSError):
+        reaper.stdin.write(b"done\n")
+        reaper.stdin.close()
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        reaper.wait(timeout=5.0)
 
 
 class _Ray:
-    """Tasks as Ray remote calls of one CPU each; a cluster started here is shut down."""
+    """Tasks as Ray remote calls of one CPU each; a cluster started here is shut down.
 
-    def __init__(self, cluster: str, workers: int):
+    A task's function and input travel by value with it (nothing is read from this
+    machine's disk on the workers); a task whose worker dies is retried by Ray up to
+    ``retries`` times. Ray's services listen on every interface of the machines they run
+    on (Ray has no setting to keep them on loopback); token authentication, on by
+    default for a ``local`` cluster, is what keeps others out."""
+
+    def __init__(self, cluster: str, workers: int, retries: int):
         try:
             import ray
         except ImportError:
             raise BatchError(f"--cluster {cluster} needs Ray: {RAY_HINT}") from None
         self.ray = ray
         self.owned = not ray.is_initialized()
+        self.reaper: subprocess.Popen[bytes] | None = None
         if self.owned:
             settings: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False,
                                         "logging_level": "WARNING", "configure_logging": True}
             try:
                 if cluster == "local":
-                    # a cluster of this machine alone: loopback only
-                    ray.init(address="local", num_cpus=workers or available_cores(),
-                             _node_ip_address="127.0.0.1", **settings)
+                    ray.init(address="local", num_cpus=workers or available_cores(), **settings)
+                    self.reaper = _start_reaper()
                 else:
+                    _ray_token_auth()
                     ray.init(address=cluster, **settings)
             except Exception as exc:  # Ray's own errors: no cluster there, bad address
                 raise BatchError(f"--cluster {cluster}: cannot connect to Ray: "
                                  f"{type(exc).__name__}: {exc}") from None
         self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        self.remote = ray.remote(num_cpus=1, max_retries=0)(_call)
+        self.remote = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(
+            call_task)
 
     def run(self, fn: Callable[[Any], Any], items: Sequence[Any], order: Sequence[int]
-            ) -> Iterator[tuple[int, _Outcome]]:
+            ) -> Iterator[tuple[int, Outcome]]:
         ray = self.ray
         fn_ref = ray.put(fn)
         refs = {self.remote.remote(fn_ref, items[i]): i for i in order}
@@ -342,8 +387,10 @@ class _Ray:
                 for ref in done:
                     try:
                         outcome = ray.get(ref)
-                    except Exception as exc:  # the worker died
-                        outcome = (False, (f"{type(exc).__name__}: {exc}", ""), float("nan"))
+                    except Exception as exc:  # the worker died on every attempt
+                        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+                        outcome = (False, (f"WorkerLost: {type(exc).__name__}: {first}", ""),
+                                   float("nan"))
                     yield refs[ref], outcome
             finished = True
         finally:
@@ -355,15 +402,122 @@ class _Ray:
     def close(self) -> None:
         if self.owned:
             self.ray.shutdown()
+            _stop_reaper(self.reaper)
 
 
 # --- the one entry point ---------------------------------------------------------------
+
+@dataclass
+class _Plan:
+    """What :func:`run_batch` runs: the keys, the order, the backend and its size."""
+
+    keys: list[str]
+    order: list[int]
+    backend: str
+    workers: int
+
+
+def _plan(count: int, keys: Sequence[str] | None, cost: Sequence[float] | None,
+          workers: int, cluster: str | None, backend: str | None) -> _Plan:
+    """Check the options; the tasks' order (longest first by ``cost``) and the backend."""
+    names = [str(i) for i in range(count)] if keys is None else [str(k) for k in keys]
+    if len(names) != count:
+        raise BatchError(f"{len(names)} keys for {count} tasks")
+    if cost is not None and len(cost) != count:
+        raise BatchError(f"{len(cost)} costs for {count} tasks")
+    order = list(range(count)) if cost is None else \
+        sorted(range(count), key=lambda i: (-cost[i], i))
+    name = backend or backend_for(workers, cluster)
+    if name not in BACKENDS:
+        raise BatchError(f"unknown backend {name!r}; expected one of {', '.join(BACKENDS)}")
+    if name != "ray" and isinstance(workers, int) and workers < 0:
+        backend_for(workers)  # raises
+    size = workers or available_cores()
+    if name == "pool" and min(size, count) <= 1:
+        name, size = "serial", 1  # a pool of one worker: this process does the work
+    elif name == "serial":
+        size = 1
+    return _Plan(names, order, name, min(size, count) if name == "pool" else size)
+
+
+@contextlib.contextmanager
+def _hangup_interrupts() -> Iterator[None]:
+    """During a batch, SIGHUP (the terminal closed) ends it like SIGTERM when the
+    platform's handlers are installed: the workers stop, the journal is kept."""
+    handler = getattr(interrupts, "_handler", None)
+    hup = getattr(signal, "SIGHUP", None)
+    if (hup is None or threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not handler
+            or signal.getsignal(hup) is not signal.SIG_DFL):
+        yield
+        return
+    signal.signal(hup, handler)
+    try:
+        yield
+    finally:
+        signal.signal(hup, signal.SIG_DFL)
+
+
+@dataclass
+class _Tally:
+    """Results and failures as they arrive."""
+
+    results: list[Any]
+    times: list[float]
+    failures: list[TaskFailure] = field(default_factory=list)
+    done: int = 0
+
+
+def _collect(tally: _Tally, stream: Iterator[tuple[int, Outcome]], items: Sequence[Any],
+             plan: _Plan, label: str, progress: bool, describe: Callable[[Any], str] | None,
+             record: Callable[[int, Any], None] | None) -> None:
+    """Take the outcomes into ``tally`` as they finish, with the progress bar and
+    ``record``."""
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(),
+               MofNCompleteColumn(), TextColumn("{task.fields[failed]}"), TimeElapsedColumn())
+    count = plan.workers
+    with Progress(*columns, console=console, transient=True,
+                  disable=not progress or not console.is_terminal) as bar:
+        task = bar.add_task(f"{label} ({plan.backend}, {count} worker{'s' * (count > 1)})",
+                            total=len(items), failed="")
+        for index, (ok, value, seconds) in stream:
+            tally.done += 1
+            tally.times[index] = seconds
+            if ok:
+                tally.results[index] = value
+                outcome: Any = value
+            else:
+                error, trace = value
+                text = (describe or repr)(items[index])
+                outcome = TaskFailure(index, plan.keys[index], text[:_INPUT_CHARS], error, trace)
+                tally.failures.append(outcome)
+            if record is not None:
+                record(index, outcome)
+            bar.update(task, advance=1,
+                       failed=f"{len(tally.failures)} failed" if tally.failures else "")
+
+
+def _open(plan: _Plan, fn: Callable[[Any], Any], items: Sequence[Any], cluster: str | None,
+          workers: int, retries: int) -> tuple[Iterator[tuple[int, Outcome]],
+                                                 Pool | _Ray | None]:
+    """The stream of outcomes of the plan's backend, and what runs it (to close)."""
+    if plan.backend == "pool":
+        pool = Pool(plan.workers, retries=retries)
+        return pool.run(fn, items, plan.order), pool
+    if plan.backend == "ray":
+        ray = _Ray(cluster or "local", workers, retries)
+        plan.workers = ray.workers
+        return ray.run(fn, items, plan.order), ray
+    return _serial(fn, items, plan.order), None
+
 
 def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] | None = None,
               workers: int = 0, cluster: str | None = None, backend: str | None = None,
               label: str = "tasks", progress: bool = True,
               describe: Callable[[T], str] | None = None,
-              cost: Sequence[float] | None = None) -> BatchResult[R]:
+              cost: Sequence[float] | None = None, retries: int = RETRIES,
+              record: Callable[[int, R | TaskFailure], None] | None = None,
+              interrupt_note: Callable[[], str] | None = None) -> BatchResult[R]:
     """Apply ``fn`` to every item, on the backend ``workers``/``cluster`` select.
 
     Args:
@@ -373,85 +527,52 @@ def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] |
         keys: one name per task (for progress, failures and seeds); default ``"0"``, ``"1"``, ...
         workers: ``1`` serial, ``N > 1`` a pool of ``N``, ``0`` one per core; with
             ``cluster``: the CPUs of a ``local`` Ray cluster.
-        cluster: Ray address (``auto``, ``ray://host:port``, ``local``), or ``None``.
+        cluster: Ray address (``auto``, ``HOST:PORT``, ``ray://host:port``, ``local``), or ``None``.
         backend: force ``serial``, ``pool`` or ``ray`` (tests, benchmarks); default
             :func:`backend_for`.
         label: what the tasks are, for the progress bar (``"edges"``, ``"runs"``).
         progress: show a progress bar.
         describe: text of a task for its failure report (default ``repr``).
         cost: an estimate of each task's duration (any unit, e.g. an earlier run's time);
-            the pool and Ray start the longest first, so a long task does not start last
-            and leave the other workers idle. It changes when tasks run, never what they
-            return nor the order of the results.
+            the longest start first, so a long task does not start last and leave the
+            other workers idle. It changes when tasks run, never what they return nor the
+            order of the results.
+        retries: how many times a task whose worker was lost runs again (pool and Ray).
+        record: called in this process with ``(index, result or TaskFailure)`` as each
+            task finishes (to journal it).
+        interrupt_note: text added to the interruption's line (where the finished
+            results are kept).
 
     Returns:
         the results in item order, and the failures.
 
     Raises:
-        BatchError: bad options, or Ray asked for and not installed or not reachable.
+        BatchError: bad options, Ray asked for and not installed or not reachable, or the
+            pool failed (workers that die before they start).
         Interrupted, KeyboardInterrupt: after cancelling the rest and one line.
     """
-    keys = [str(i) for i in range(len(items))] if keys is None else [str(k) for k in keys]
-    if len(keys) != len(items):
-        raise BatchError(f"{len(keys)} keys for {len(items)} tasks")
-    if cost is not None and len(cost) != len(items):
-        raise BatchError(f"{len(cost)} costs for {len(items)} tasks")
-    order = list(range(len(items))) if cost is None else \
-        sorted(range(len(items)), key=lambda i: (-cost[i], i))
-    name = backend or backend_for(workers, cluster)
-    if name not in BACKENDS:
-        raise BatchError(f"unknown backend {name!r}; expected one of {', '.join(BACKENDS)}")
-    if name != "ray" and isinstance(workers, int) and workers < 0:
-        backend_for(workers)  # raises
-    count = workers or available_cores()
+    plan = _plan(len(items), keys, cost, workers, cluster, backend)
     start = time.perf_counter()
-    results: list[Any] = [None] * len(items)
-    times = [float("nan")] * len(items)
-    failures: list[TaskFailure] = []
-    runner: _Pool | _Ray | None = None
-    if name == "pool" and min(count, len(items)) > 1:
-        runner = _Pool(min(count, len(items)))
-        stream = runner.run(fn, items, order)
-    elif name == "ray":
-        runner = _Ray(cluster or "local", workers)
-        count = runner.workers
-        stream = runner.run(fn, items, order)
-    else:  # serial, or a pool that would have one worker: this process does the work
-        name, count = "serial", 1
-        stream = _serial(fn, items)
-    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
-               TextColumn("{task.fields[failed]}"), TimeElapsedColumn())
-    done = 0
+    stream, runner = _open(plan, fn, items, cluster, workers, retries)
+    tally = _Tally([None] * len(items), [float("nan")] * len(items))
     try:
-        with Progress(*columns, console=console, transient=True,
-                      disable=not progress or not console.is_terminal) as bar:
-            task = bar.add_task(f"{label} ({name}, {count} worker{'s' * (count > 1)})",
-                                total=len(items), failed="")
-            for index, (ok, value, seconds) in stream:
-                done += 1
-                times[index] = seconds
-                if ok:
-                    results[index] = value
-                else:
-                    error, trace = value
-                    text = (describe or repr)(items[index])
-                    failures.append(TaskFailure(index, keys[index], text[:_INPUT_CHARS], error,
-                                                trace))
-                bar.update(task, advance=1,
-                           failed=f"{len(failures)} failed" if failures else "")
+        with _hangup_interrupts():
+            _collect(tally, stream, items, plan, label, progress, describe, record)
     except (Interrupted, KeyboardInterrupt) as exc:
-        signame = exc.name if isinstance(exc, Interrupted) else "SIGINT"
         with contextlib.suppress(Exception):
-            stream.close()  # cancels what is pending and stops the workers
+            stream.close()  # type: ignore[attr-defined]  # cancels the rest, stops the workers
+        signame = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+        note = interrupt_note() if interrupt_note is not None else ""
+        err_console.print(f"Error: interrupted ({signame}): {tally.done}/{len(items)} {label} done, "
+                          f"the rest cancelled{note}", markup=False)
+        raise
+    except PoolError as exc:
+        raise BatchError(str(exc)) from None
+    finally:
         if runner is not None:
             with contextlib.suppress(Exception):
                 runner.close()
-            runner = None
-        err_console.print(f"Error: interrupted ({signame}): {done}/{len(items)} {label} done, "
-                          "the rest cancelled", markup=False)
-        raise
-    finally:
-        if runner is not None:
-            runner.close()
-    failures.sort(key=lambda f: f.index)
-    return BatchResult(keys, results, failures, name, count, time.perf_counter() - start, times)
+    tally.failures.sort(key=lambda f: f.index)
+    retried = [(plan.keys[i], why) for i, why in getattr(runner, "retried", [])]
+    return BatchResult(plan.keys, tally.results, tally.failures, plan.backend, plan.workers,
+                       time.perf_counter() - start, tally.times, retried)

@@ -2,8 +2,12 @@
 
 :func:`run_edge` executes one :class:`~msrr.core.library.check.EdgeCase` with the
 executor's closed loop on a fresh driver and answers an
-:class:`~msrr.core.library.check.EdgeCheck`; :func:`check_library` does every edge of a
-library. The verdict never trusts the recognizer: the final shape and topology come from
+:class:`~msrr.core.library.check.EdgeCheck`; :func:`check_edges` and :func:`check_library`
+do every edge of a library as one batch (:mod:`msrr.core.app.batch`). A run that *fails*
+(the simulator raised, the worker was lost) is a failure of the batch, never a verdict:
+it is not written as an infeasible edge.
+
+The verdict never trusts the recognizer: the final shape and topology come from
 :meth:`Driver.ground_truth`, the docks and undocks and any fault from
 :meth:`Driver.faults` (the simulator's constraint state). Reasons, first found wins:
 
@@ -24,6 +28,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
+from typing import Any
 
 import numpy as np
 
@@ -39,9 +44,10 @@ from ..library.model import Library
 from ..plan import Plan
 from ..robot import Robot
 from ..shape import skeletal_error
-from .batch import BatchResult, run_batch
+from .batch import RETRIES, BatchResult, TaskFailure, run_batch
 
-__all__ = ["FELL_OVER", "SATURATION_TIME", "EdgeRunner", "check_edges", "check_library", "run_edge", "tilted_error"]
+__all__ = ["FELL_OVER", "SATURATION_TIME", "EdgeRunner", "check_edges", "check_header",
+           "check_library", "default_runner", "run_edge", "tilted_error"]
 
 
 FELL_OVER = math.radians(20.0)
@@ -146,30 +152,32 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
 def check_edges(cases: Sequence[EdgeCase], runner: EdgeRunner, *, workers: int = 1,
                 cluster: str | None = None, backend: str | None = None,
                 progress: bool = True, previous: CheckFile | None = None,
+                retries: int = RETRIES,
+                record: Callable[[int, EdgeCheck | TaskFailure], None] | None = None,
+                interrupt_note: Callable[[], str] | None = None,
                 ) -> tuple[list[EdgeCheck], BatchResult[EdgeCheck]]:
     """Run every case (:func:`run_edge`) as one batch (:func:`msrr.core.app.batch.run_batch`).
 
     Every edge runs with ``runner.seed`` on a fresh driver, so the checks are the same
-    serially, on a process pool and on Ray. An edge whose run raised (a simulator's bug,
-    not an infeasible edge) is recorded infeasible with reason ``error: ...`` and the
-    other edges are kept. ``previous`` (an earlier check of the library) only orders the
-    work: the edges that took the longest simulated time before start first.
+    serially, on a process pool and on Ray. An edge whose run raised (a simulator's bug)
+    or whose worker was lost on every attempt is a *failure*, never an infeasible edge:
+    it is in ``batch.failures`` and not among the checks. ``previous`` (an earlier check
+    of the library) only orders the work: the edges that took the longest simulated
+    time before start first. ``retries``, ``record`` and ``interrupt_note`` are
+    :func:`~msrr.core.app.batch.run_batch`'s.
 
     Returns:
-        one :class:`EdgeCheck` per case, in case order, and the batch (timings, failures).
+        the :class:`EdgeCheck` of every edge that ran to a verdict, in case order, and
+        the batch (results by case index, timings, failures, retries).
     """
     before = {} if previous is None else {e.edge: e.sim_time for e in previous.edges}
     batch = run_batch(partial(run_edge, runner=runner), list(cases),
                       keys=[c.key for c in cases], workers=workers, cluster=cluster,
                       backend=backend, label="edges", progress=progress,
                       describe=lambda case: case.key,
-                      cost=[before.get(c.key, math.inf) for c in cases] if before else None)
-    checks = list(batch.results)
-    for failure in batch.failures:
-        case = cases[failure.index]
-        checks[failure.index] = EdgeCheck(edge=case.key, action=case.edge.action.value,
-                                          feasible=False, reason=f"error: {failure.error}")
-    return [c for c in checks if c is not None], batch
+                      cost=[before.get(c.key, math.inf) for c in cases] if before else None,
+                      retries=retries, record=record, interrupt_note=interrupt_note)
+    return [c for c in batch.results if c is not None], batch
 
 
 def check_library(library: Library, runner: EdgeRunner, *, digest: str,
@@ -177,19 +185,29 @@ def check_library(library: Library, runner: EdgeRunner, *, digest: str,
                   cluster: str | None = None) -> CheckFile:
     """Run every edge of ``library`` (see :func:`check_edges`); the check file's content.
 
-    ``progress`` is called with each check, in edge order, once all have run."""
-    checks, _ = check_edges(edge_cases(library, runner.robot), runner, workers=workers,
-                            cluster=cluster, progress=False)
+    ``progress`` is called with each check, in edge order, once all have run.
+
+    Raises:
+        BatchError: an edge's run failed (its simulator raised, its worker was lost).
+    """
+    checks, batch = check_edges(edge_cases(library, runner.robot), runner, workers=workers,
+                                cluster=cluster, progress=False)
+    batch.values()  # raises, naming the failed edges
     if progress is not None:
         for check in checks:
             progress(check)
+    return CheckFile(**check_header(library, runner, digest), edges=checks)
+
+
+def check_header(library: Library, runner: EdgeRunner, digest: str) -> dict[str, Any]:
+    """The fields of a :class:`CheckFile` but its edges: what was checked and how."""
     options: dict[str, float | int | str | bool] = {
         "rate_hz": runner.options.rate, "action_timeout_s": runner.options.action_timeout,
         "retries": runner.options.retries, "tolerance_deg": round(math.degrees(runner.tolerance), 6),
         "timeout_per_rad_s": runner.timeout_per_rad,
         **dict(runner.driver_options)}
-    return CheckFile(library=library.name, library_sha256=digest, robot=library.robot,
-                     driver=runner.driver.name, seed=runner.seed, options=options, edges=checks)
+    return {"library": library.name, "library_sha256": digest, "robot": library.robot,
+            "driver": runner.driver.name, "seed": runner.seed, "options": options}
 
 
 def default_runner(robot_name: str, **settings: object) -> EdgeRunner:

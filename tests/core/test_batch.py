@@ -10,9 +10,18 @@ from functools import partial
 from pathlib import Path
 
 import pytest
+from batch_tasks import (
+    alive,
+    command_line,
+    descendants,
+    lose_worker_always,
+    lose_worker_once,
+    pid_of,
+)
 
 from msrr.core.app import batch
 from msrr.core.app.batch import BatchError, backend_for, run_batch, task_seed
+from msrr.core.app.pool import Pool
 from msrr.core.errors import ConfigurationError
 from msrr.core.faults import parse_faults
 
@@ -106,9 +115,11 @@ def test_ctrl_c_cancels_the_pool_in_one_line(tmp_path):
     process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     try:
-        for _ in range(600):  # both workers have started a task (at most a minute)
+        # this process started the shortest task while its workers started, then both
+        # workers took one (at most a minute)
+        for _ in range(600):
             markers = sorted(tmp_path.glob("task*"))
-            if len(markers) == 2 and all(m.read_text() for m in markers):
+            if len(markers) == 3 and all(m.read_text() for m in markers):
                 break
             assert process.poll() is None, process.communicate()
             time.sleep(0.1)
@@ -120,7 +131,114 @@ def test_ctrl_c_cancels_the_pool_in_one_line(tmp_path):
     assert process.returncode == 130
     assert err.strip().splitlines() == ["Error: interrupted (SIGINT): 0/6 sleeps done, the rest "
                                         "cancelled"]
-    assert len(pids) == 2 and len(list(tmp_path.glob("task*"))) == 2  # the rest never ran
+    assert len(pids) == 3 and len(list(tmp_path.glob("task*"))) == 3  # the rest never ran
+    assert (tmp_path / "task5").read_text() == str(process.pid)  # the shortest: here
     for pid in pids:  # the workers were stopped, not left sleeping
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)
+
+
+# --- lost workers, small batches, parent death, late signals -----------------------------
+
+def test_a_lost_worker_costs_only_its_task_and_the_task_runs_again(tmp_path):
+    parent = os.getpid()
+    items = [(str(tmp_path / "lost"), 10, parent)] + [(str(tmp_path / f"m{i}"), i, -1)
+                                                     for i in range(1, 4)]
+    for item in items[1:]:
+        Path(item[0]).write_text("not this one")
+    pool = Pool(2, retries=1, warm_up=False)
+    outcomes = dict(pool.run(lose_worker_once, items, range(4)))
+    assert {i: (ok, value) for i, (ok, value, _) in outcomes.items()} == \
+        {0: (True, 10), 1: (True, 1), 2: (True, 2), 3: (True, 3)}
+    assert pool.retried == [(0, "the worker was killed by SIGKILL")]
+    killed = int((tmp_path / "lost").read_text())
+    assert not alive(killed) and killed != parent
+
+
+def test_a_task_whose_worker_is_always_lost_fails_with_the_reason():
+    parent = os.getpid()
+    pool = Pool(2, retries=1, warm_up=False)
+    outcomes = dict(pool.run(lose_worker_always, [(7, parent), (8, None)], [0, 1]))
+    ok, (error, trace), _ = outcomes[0]
+    assert not ok and error == "WorkerLost: the worker was killed by SIGKILL (2 attempts)"
+    assert outcomes[1][:2] == (True, 8)
+    # through run_batch: a TaskFailure like any other, never a result (the tasks this
+    # process ran while the workers started are results: it is their parent)
+    result = run_batch(lose_worker_always, [(i, parent) for i in range(6)], workers=2,
+                       backend="pool", progress=False, retries=0)
+    failed = {f.index: f.error for f in result.failures}
+    for index, value in enumerate(result.results):
+        assert (value, failed.get(index)) in ((index, None), (None, "WorkerLost: the worker "
+                                                              "was killed by SIGKILL (1 attempt)"))
+
+
+def test_a_batch_too_small_for_a_pool_runs_here():
+    result = run_batch(pid_of, ["a", "b", "c"], workers=2, backend="pool", progress=False)
+    assert result.backend == "pool" and result.values() == [os.getpid()] * 3
+
+
+KILL_SCRIPT = """
+import sys
+sys.path.insert(0, {here!r})
+from batch_tasks import mark_and_sleep
+from msrr.core.app.batch import run_batch
+if __name__ == "__main__":
+    run_batch(mark_and_sleep, [{folder!r} + f"/task{{i}}" for i in range(6)], workers=2,
+              backend="pool", label="sleeps")
+"""
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+def test_sigkill_of_the_parent_leaves_no_process_of_it(tmp_path):
+    script = tmp_path / "kill_script.py"
+    script.write_text(KILL_SCRIPT.format(here=str(HERE), folder=str(tmp_path)))
+    process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    try:
+        for _ in range(600):  # this process and both workers sleep in a task
+            markers = sorted(tmp_path.glob("task*"))
+            if len(markers) == 3 and all(m.read_text() for m in markers):
+                break
+            assert process.poll() is None
+            time.sleep(0.1)
+        started = descendants(process.pid)
+        assert len(started) >= 4  # the forkserver, two workers, the resource tracker
+        process.kill()
+        process.wait(timeout=10)
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline and any(alive(p) for p in started):
+            time.sleep(0.1)
+        assert [command_line(p) for p in started if alive(p)] == []
+    finally:
+        process.kill()
+
+
+FINISH_SCRIPT = """
+import os, signal, sys, time
+from msrr.core.app.batch import finishing
+from msrr.core.interrupts import install
+if __name__ == "__main__":
+    install()
+    with finishing("out.txt was written"):
+        if sys.argv[1] == "inside":
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.2)
+        print("written", flush=True)
+    os.kill(os.getpid(), signal.SIGINT)  # the command is done: this changes nothing
+    time.sleep(0.2)
+    print("done", flush=True)
+"""
+
+
+@pytest.mark.parametrize(("where", "code", "out", "err"), [
+    ("inside", 130, ["written"], ["Error: interrupted (SIGINT) after out.txt was written"]),
+    ("after", 0, ["written", "done"], []),
+])
+def test_a_signal_while_finishing_waits_and_one_after_changes_nothing(tmp_path, where, code,
+                                                                       out, err):
+    script = tmp_path / "finish_script.py"
+    script.write_text(FINISH_SCRIPT)
+    done = subprocess.run([sys.executable, str(script), where], capture_output=True, text=True,
+                          timeout=60)
+    assert (done.returncode, done.stdout.split(), done.stderr.strip().splitlines()) == \
+        (code, out, err)

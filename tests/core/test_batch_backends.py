@@ -104,11 +104,11 @@ class _BrokenDriver:
         raise RuntimeError("no simulator")
 
 
-def test_an_edge_that_raises_is_recorded_and_the_others_kept():
+def test_an_edge_that_raises_is_a_failure_never_an_infeasible_edge():
     runner = default_runner("freesn", options=ExecutorOptions(action_timeout=10.0, retries=0))
     cases = [c for c in edge_cases(load_library(LIBRARY), runner.robot) if EDGES[0] in c.key]
     broken = replace(runner, driver=_BrokenDriver())
     checks, batch = check_edges(cases, broken, workers=1, progress=False)
-    assert [c.reason for c in checks] == ["error: RuntimeError: no simulator"] * len(cases)
-    assert not any(c.feasible for c in checks) and len(batch.failures) == len(cases)
+    assert checks == [] and batch.results == [None] * len(cases)  # no verdict at all
+    assert [f.error for f in batch.failures] == ["RuntimeError: no simulator"] * len(cases)
     assert batch.failures[0].input == cases[0].key and "no simulator" in batch.failures[0].traceback

@@ -7,9 +7,10 @@ against those modules' constants by ``tests/core/test_cli_startup.py``.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -17,7 +18,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from ...console import COSTS, SEED, FiniteFloat, MsrrGroup, console, plural, styled, table
 from ...errors import MsrrError
 from ...plugins import load_configuration, load_library, resolve
-from ..batch import batch_options, exit_on_interrupt
+from ..batch import BatchError, batch_options, exit_on_interrupt, finishing, retries_option
+from ..journal import journal_path
 
 if TYPE_CHECKING:
     from ...library import Library
@@ -125,60 +127,144 @@ def show(library: Path) -> None:
 @click.option("--slip", type=FiniteFloat(0.0, 1.0), default=0.0, show_default=True,
               help="Odometry heading error per radian rolled [rad/rad], in [0, 1].")
 @click.option("--edge", "only", multiple=True, help="Check only edges whose key contains this.")
+@click.option("--resume", is_flag=True,
+              help="Continue an interrupted or failed check from its journal "
+                   "(<OUTPUT>.journal): only the edges without a result run.")
+@retries_option
 @batch_options
 def check_command(library: Path, output: Path | None, seed: int, action_timeout: float,
-                  noise: float, slip: float, only: tuple[str, ...], workers: int,
-                  cluster: str | None) -> None:
+                  noise: float, slip: float, only: tuple[str, ...], resume: bool, retries: int,
+                  workers: int, cluster: str | None) -> None:
     """Run every action edge of LIBRARY in simulation from its source configuration and
     record per edge: feasible, the reason when not, the simulated time (paper 6.2).
 
     One simulation per edge, on every core (--workers) or a Ray cluster (--cluster);
-    the check file is the same whichever runs it."""
-    from ...executor import ExecutorOptions
-    from ...library.check import (
-        CheckFile,
-        check_path,
-        edge_cases,
-        library_digest,
-        load_check,
-        save_check,
-    )
-    from ..feasibility import check_edges, default_runner
+    the check file is the same whichever runs it. Each finished edge goes to a journal
+    beside the check file at once; the check file is written, atomically, only when
+    every edge has a verdict. An edge whose run failed (a crash, a lost worker) is never
+    recorded as infeasible: the command names it, exits 1 and leaves the check file as it
+    was; --resume runs what is missing."""
+    from ...library.check import check_path
 
-    lib = load_library(library)
-    driver_options: tuple[tuple[str, float], ...] = ()
-    if noise:
-        driver_options += (("noise", math.radians(noise)),)
-    if slip:
-        driver_options += (("slip", slip),)
-    runner = default_runner(lib.robot, options=ExecutorOptions(action_timeout=action_timeout,
-                                                               retries=0),
-                            driver_options=driver_options, seed=seed)
-    cases = [c for c in edge_cases(lib, runner.robot) if not only or any(o in c.key for o in only)]
-    target = output or check_path(library)
-    previous = None  # an earlier check only orders the work: its longest edges first
-    if target.is_file():
+    check = _CheckRun.prepare(library, output or check_path(library), seed=seed,
+                              action_timeout=action_timeout, noise=noise, slip=slip, only=only)
+    check.run(resume=resume, retries=retries, workers=workers, cluster=cluster)
+    check.write()
+
+
+class _CheckRun:
+    """One ``platform library check``: what is checked, its journal, the verdicts."""
+
+    def __init__(self, library: Library, target: Path, header: dict[str, Any],
+                 cases: list[Any], runner: Any):
+        self.library, self.target, self.header = library, target, header
+        self.cases, self.runner = cases, runner
+        self.results: dict[str, Any] = {}
+        self.journal: Any = None
+        self.journal_path = journal_path(target)
+
+    @classmethod
+    def prepare(cls, library: Path, target: Path, *, seed: int, action_timeout: float,
+                noise: float, slip: float, only: tuple[str, ...]) -> _CheckRun:
+        """Load the library and resolve the robot; refuse a bad output place."""
+        from ...executor import ExecutorOptions
+        from ...files import check_output_place
+        from ...library.check import edge_cases, library_digest
+        from ..feasibility import default_runner
+
+        lib = load_library(library)
+        check_output_place(target, option="--output")
+        driver_options: tuple[tuple[str, float], ...] = ()
+        if noise:
+            driver_options += (("noise", math.radians(noise)),)
+        if slip:
+            driver_options += (("slip", slip),)
+        runner = default_runner(lib.robot, options=ExecutorOptions(
+            action_timeout=action_timeout, retries=0), driver_options=driver_options, seed=seed)
+        cases = [c for c in edge_cases(lib, runner.robot)
+                 if not only or any(o in c.key for o in only)]
+        options = {"rate_hz": runner.options.rate, "action_timeout_s": action_timeout,
+                   "timeout_per_rad_s": runner.timeout_per_rad, "noise_deg": noise, "slip": slip}
+        header = {"library": lib.name, "library_sha256": library_digest(library),
+                  "robot": lib.robot, "driver": runner.driver.name, "seed": seed,
+                  "options": options}
+        return cls(lib, target, header, cases, runner)
+
+    def run(self, *, resume: bool, retries: int, workers: int, cluster: str | None) -> None:
+        """Run the edges the journal has no verdict for, journaling each as it arrives.
+
+        Raises:
+            BatchError: an edge's run failed (the check file is left as it was).
+        """
+        from ...library.check import EdgeCheck, load_check
+        from ..feasibility import check_edges
+        from ..journal import Journal
+
+        identity = {**self.header, "edges": [c.key for c in self.cases]}
+        had_journal = self.journal_path.exists()
+        journal = Journal.open(self.journal_path, identity, kind="library check", resume=resume)
+        if resume:
+            console.print(f"resuming: {journal.resumed} of {plural(len(self.cases), 'edge')} "
+                          f"from {journal.path}" if had_journal else
+                          f"no journal at {journal.path}: checking every edge", markup=False)
+        todo = [c for c in self.cases if c.key not in journal.results]
+        previous = None  # an earlier check only orders the work: its longest edges first
+        with contextlib.suppress(MsrrError, OSError):
+            previous = load_check(self.target) if self.target.is_file() else None
+
+        def record(index: int, outcome: Any) -> None:
+            if isinstance(outcome, EdgeCheck):
+                journal.add(todo[index].key, outcome.model_dump(mode="json"))
+            else:
+                journal.error(todo[index].key, outcome.error)
+
+        def note() -> str:
+            return (f"; {len(journal.results)} of {len(self.cases)} edges kept in "
+                    f"{journal.path}: continue with --resume")
+
         try:
-            previous = load_check(target)
-        except MsrrError:
-            previous = None
-    with exit_on_interrupt():
-        checks, batch = check_edges(cases, runner, workers=workers, cluster=cluster,
-                                    previous=previous)
-    for failure in batch.failures:
-        console.print(styled(f"edge {failure.key} raised {failure.error}", "red"))
-    options = {"rate_hz": runner.options.rate, "action_timeout_s": action_timeout,
-               "timeout_per_rad_s": runner.timeout_per_rad, "noise_deg": noise, "slip": slip}
-    check = CheckFile(library=lib.name, library_sha256=library_digest(library), robot=lib.robot,
-                      driver=runner.driver.name, seed=seed, options=options, edges=checks)
-    save_check(check, target)
-    console.print(table(f"{lib.name}: feasibility", ["edge", "action", "feasible", "sim time [s]",
-                                                      "shape error [deg]", "reason"],
-                        [[c.edge, c.action, "yes" if c.feasible else "no", f"{c.sim_time:.1f}",
-                          "" if c.shape_error_deg is None else f"{c.shape_error_deg:.2f}",
-                          c.reason] for c in checks]))
-    done = sum(c.feasible for c in checks)
-    console.print(f"{done}/{plural(len(checks), 'edge')} feasible; wrote {target}")
+            with exit_on_interrupt():
+                _, batch = check_edges(todo, self.runner, workers=workers, cluster=cluster,
+                                       previous=previous, retries=retries, record=record,
+                                       interrupt_note=note)
+        finally:
+            journal.close()
+        for key, why in batch.retried:
+            console.print(styled(f"edge {key}: {why}; ran it again", "yellow"), markup=False)
+        if batch.failures:
+            self._refuse(batch.failures, journal)
+        self.results = dict(journal.results)
+        self.journal = journal
+
+    def _refuse(self, failures: list[Any], journal: Any) -> None:
+        for failure in failures:
+            console.print(styled(f"edge {failure.key} failed: {failure.error}", "red"),
+                          markup=False)
+        names = ", ".join(f.key for f in failures[:3]) + (" ..." if len(failures) > 3 else "")
+        raise BatchError(f"{len(failures)} of {plural(len(self.cases), 'edge')} failed to run "
+                         f"({names}), not recorded as infeasible; {self.target} is unchanged; "
+                         f"the {len(journal.results)} finished are in {journal.path}: run again "
+                         "with --resume")
+
+    def write(self) -> None:
+        """Write the check file from the journal (atomically), then remove the journal."""
+        from ...library.check import CheckFile, EdgeCheck, save_check
+
+        checks = [EdgeCheck.model_validate(self.results[c.key]) for c in self.cases]
+        check = CheckFile(**self.header, edges=checks)
+        with finishing(f"{self.target} was written"):
+            save_check(check, self.target)
+            self.journal.finish()
+            console.print(table(f"{self.library.name}: feasibility",
+                                ["edge", "action", "feasible", "sim time [s]",
+                                 "shape error [deg]", "reason"],
+                                [[c.edge, c.action, "yes" if c.feasible else "no",
+                                  f"{c.sim_time:.1f}",
+                                  "" if c.shape_error_deg is None else f"{c.shape_error_deg:.2f}",
+                                  c.reason] for c in checks]))
+            done = sum(c.feasible for c in checks)
+            console.print(f"{done}/{plural(len(checks), 'edge')} feasible; wrote {self.target}",
+                          markup=False)
 
 
 @command.command("retrieve",

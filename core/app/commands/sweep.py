@@ -6,11 +6,17 @@ Each run is ``platform run`` without the recording (:func:`msrr.core.app.run.pre
 ``--seed + k``, so any row can be replayed with ``platform run --seed S --faults F``,
 and the table is the same serially, on the pool and on Ray. Writes ``sweep.csv``
 (one row per run) and ``sweep.png`` (distributions; needs matplotlib).
+
+Each row is appended to ``sweep.csv.journal`` as its run finishes
+(:mod:`msrr.core.app.journal`); ``--resume`` continues an interrupted or failed sweep
+from it, and ``sweep.csv`` is written from it, atomically, once every run has a row.
+``--from``/``--to`` files travel by value with each task (:class:`InputFile`).
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import math
 import tempfile
@@ -31,24 +37,69 @@ from ...console import (
     table,
 )
 from ...errors import ConfigurationError
-from ..batch import batch_options, exit_on_interrupt, run_batch
+from ..batch import (
+    BatchError,
+    TaskFailure,
+    batch_options,
+    exit_on_interrupt,
+    finishing,
+    retries_option,
+    run_batch,
+)
 
 if TYPE_CHECKING:
+    from ..journal import Journal
     from ..run import RunRequest
 
-__all__ = ["SweepRow", "SweepTask", "command", "summarize", "sweep_csv", "sweep_run"]
+__all__ = ["InputFile", "SweepRow", "SweepTask", "command", "summarize", "sweep_csv",
+           "sweep_run"]
 
 MATPLOTLIB_HINT = "pip install 'msrr-platform[plot]'"
 
 
 @dataclass(frozen=True)
+class InputFile:
+    """A configuration file travelling by value with a task (``--from``/``--to``): its
+    name and text, written into the run's folder where the task runs, so a worker on
+    another machine needs nothing from this one's disk."""
+
+    name: str
+    text: str
+
+    @classmethod
+    def read(cls, path: Path) -> InputFile:
+        """The file at ``path`` (read here, once).
+
+        Raises:
+            ConfigurationError: it cannot be read.
+        """
+        try:
+            return cls(path.name, path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigurationError(f"cannot read: {exc}", source=str(path)) from None
+
+    def write(self, folder: Path) -> Path:
+        """Write the file into ``folder``; its path."""
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / self.name
+        path.write_text(self.text, encoding="utf-8")
+        return path
+
+    @property
+    def digest(self) -> str:
+        """SHA-256 of the text (a journal names the file by it)."""
+        return hashlib.sha256(self.text.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
 class SweepTask:
-    """One run of a sweep (the fields of :class:`~msrr.core.app.run.RunRequest` it sets)."""
+    """One run of a sweep (the fields of :class:`~msrr.core.app.run.RunRequest` it sets);
+    ``--from``/``--to`` travel by value (:class:`InputFile`)."""
 
     robot: str
     scenario: str | None
-    start: str | None
-    goal: str | None
+    start: InputFile | None
+    goal: InputFile | None
     seed: int
     faults: str = ""
     driver: str | None = None
@@ -61,6 +112,13 @@ class SweepTask:
     @property
     def key(self) -> str:
         return f"{self.faults or 'none'}#seed{self.seed}"
+
+    def identity(self) -> dict[str, object]:
+        """What makes two runs the same (for a journal): the fields, files by digest."""
+        fields_ = {f.name: getattr(self, f.name) for f in fields(self)}
+        fields_["start"] = None if self.start is None else self.start.digest
+        fields_["goal"] = None if self.goal is None else self.goal.digest
+        return fields_
 
 
 @dataclass(frozen=True)
@@ -108,9 +166,10 @@ def _request(task: SweepTask, folder: str) -> RunRequest:
     """The ``platform run`` request of ``task``: no recording, into ``folder``."""
     from ..run import RunRequest  # the run machinery loads when a run starts, not at --help
 
+    here = Path(folder)
     return RunRequest(robot=task.robot, scenario=task.scenario,
-                      start=None if task.start is None else Path(task.start),
-                      goal=None if task.goal is None else Path(task.goal),
+                      start=None if task.start is None else task.start.write(here / "from"),
+                      goal=None if task.goal is None else task.goal.write(here / "to"),
                       seed=task.seed, out=Path(folder) / "run", log=False, rate=task.rate,
                       action_timeout=task.action_timeout, driver=task.driver,
                       planner=task.planner, driver_options=task.driver_options,
@@ -231,63 +290,150 @@ def _plot(rows: list[SweepRow], path: Path, title: str) -> str:
               help="Keyword option of the driver, repeatable (as `platform run`).")
 @click.option("--out", type=click.Path(path_type=Path), default=None, metavar="DIR",
               help="Folder for sweep.csv and sweep.png [default: runs/<timestamp>-sweep-...].")
-@click.option("--force", is_flag=True, help="Replace a sweep already in --out.")
+@click.option("--force", is_flag=True,
+              help="Replace a sweep already in --out (and drop an unfinished one's journal).")
+@click.option("--resume", is_flag=True,
+              help="Continue the interrupted or failed sweep in --out from its journal "
+                   "(sweep.csv.journal): only the runs without a result run.")
+@retries_option
 @batch_options
 def command(robot: str, scenario: str | None, start: Path | None, goal: Path | None, runs: int,
             seed: int, fault_settings: tuple[str, ...], planner_name: str | None,
             driver_name: str | None, rate: float, action_timeout: float,
-            driver_options: tuple[str, ...], out: Path | None, force: bool, workers: int,
-            cluster: str | None) -> None:
+            driver_options: tuple[str, ...], out: Path | None, force: bool, resume: bool,
+            retries: int, workers: int, cluster: str | None) -> None:
     """Run a scenario (or --from/--to) over many seeds and fault settings; print the
     success rate and the distributions of final shape errors and simulated times, write
-    DIR/sweep.csv (one row per run) and DIR/sweep.png."""
+    DIR/sweep.csv (one row per run) and DIR/sweep.png.
+
+    Each finished run goes to DIR/sweep.csv.journal at once; sweep.csv is written,
+    atomically, only when every run has a row. A run that failed (it raised, its worker
+    was lost) is named, the command exits 1 without a table, and --resume runs what is
+    missing."""
+    from ..run import parse_driver_options
+
+    settings = _settings(fault_settings)
     if (start is None) != (goal is None):
         raise ConfigurationError("give both --from and --to, or neither")
     if start is not None and scenario is not None:
         raise ConfigurationError("give --scenario or --from/--to, not both")
-    from ...faults import parse_faults
-    from ...files import atomic_write_text, check_output_place
-    from ..run import parse_driver_options
-
-    settings = [("" if s.strip().lower() in ("", "none") else s.strip())
-                for s in (fault_settings or ("",))]
-    for setting in settings:
-        if setting:
-            parse_faults(setting)  # a bad SPEC fails here, in one line, before any run
+    if resume and out is None:
+        raise ConfigurationError("give --out DIR, the folder of the sweep to continue",
+                                 field="--resume")
     name = scenario or ("custom" if start is not None else "default")
     folder = out or Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-sweep-{robot}-{name}"
-    check_output_place(folder, option="--out", folder=True)
-    table_path, plot_path = folder / "sweep.csv", folder / "sweep.png"
-    if table_path.exists() and not force:
-        raise ConfigurationError("holds a sweep (sweep.csv); use --force to replace it",
-                                 field="--out", source=str(folder))
+    _check_folder(folder, force=force)
     options = parse_driver_options(driver_options)
-    tasks = [SweepTask(robot=robot, scenario=scenario,
-                       start=None if start is None else str(start.resolve()),
-                       goal=None if goal is None else str(goal.resolve()), seed=seed + k,
-                       faults=setting, driver=driver_name, planner=planner_name, rate=rate,
-                       action_timeout=action_timeout, driver_options=options)
+    files = (None if start is None else InputFile.read(start),
+             None if goal is None else InputFile.read(goal))
+    tasks = [SweepTask(robot=robot, scenario=scenario, start=files[0], goal=files[1],
+                       seed=seed + k, faults=setting, driver=driver_name,
+                       planner=planner_name, rate=rate, action_timeout=action_timeout,
+                       driver_options=options)
              for setting in settings for k in range(runs)]
     # the first run in this process: a bad robot, scenario, planner or file fails in one
     # line before the batch starts its workers
     prepare_check(tasks[0])
-    with exit_on_interrupt():
-        batch = run_batch(sweep_run, tasks, keys=[t.key for t in tasks], workers=workers,
-                          cluster=cluster, label="runs", describe=lambda t: t.key)
-    for failure in batch.failures:
-        err_console.print(f"run {failure.key} raised {failure.error}", markup=False)
-    rows = [r for r in batch.results if r is not None]
-    folder.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(table_path, sweep_csv(rows))
-    console.print(table(f"{robot} {name}: {plural(runs, 'seed')} from {seed} per fault setting "
-                        f"({batch.backend}, {plural(batch.workers, 'worker')}, {batch.wall_time:.1f} s)",
-                        ["faults", "runs", "success", "position RMS [mm] med/p90/max",
-                         "shape error [deg] med/p90/max", "sim time [s] med/p90/max",
-                         "most common failure"], summarize(rows)))
-    console.print(f"wrote {table_path}", markup=False)
-    console.print(_plot(rows, plot_path, f"{robot} {name}: {plural(runs, 'seed')}"), markup=False)
+    rows, journal, how = _run_sweep(tasks, folder, resume=resume, retries=retries,
+                                    workers=workers, cluster=cluster)
+    title = f"{robot} {name}: {plural(runs, 'seed')}"
+    with finishing(f"the sweep was written to {folder}"):
+        _write(rows, folder, journal, f"{title} from {seed} per fault setting ({how})", title)
+
+
+def _settings(fault_settings: tuple[str, ...]) -> list[str]:
+    """The fault settings, each once (``"none"`` is ``""``); a bad SPEC fails here."""
+    from ...faults import parse_faults
+
+    settings = list(dict.fromkeys("" if s.strip().lower() in ("", "none") else s.strip()
+                                  for s in (fault_settings or ("",))))
+    for setting in settings:
+        if setting:
+            parse_faults(setting)  # a bad SPEC fails here, in one line, before any run
+    return settings
+
+
+def _check_folder(folder: Path, *, force: bool) -> None:
+    """Refuse a folder that cannot take the sweep, or holds a finished one (without
+    ``force``); with ``force``, drop an unfinished one's journal."""
+    from ...files import check_output_place
+    from ..journal import journal_path
+
+    check_output_place(folder, option="--out", folder=True)
+    table_path = folder / "sweep.csv"
+    if force:
+        journal_path(table_path).unlink(missing_ok=True)
+    elif table_path.exists() and not journal_path(table_path).exists():
+        raise ConfigurationError("holds a sweep (sweep.csv); use --force to replace it",
+                                 field="--out", source=str(folder))
+
+
+def _run_sweep(tasks: list[SweepTask], folder: Path, *, resume: bool, retries: int,
+               workers: int, cluster: str | None) -> tuple[list[SweepRow], Journal, str]:
+    """Run the tasks the journal has no row for, journaling each row as it arrives; every
+    row in task order, and how the batch ran.
+
+    Raises:
+        BatchError: a run failed (no table is written; the journal keeps the others).
+    """
+    from ..journal import Journal, journal_path
+
+    path = journal_path(folder / "sweep.csv")
+    had_journal = path.exists()
+    journal = Journal.open(path, {"runs": [t.identity() for t in tasks]}, kind="sweep",
+                           resume=resume)
+    if resume:
+        console.print(f"resuming: {journal.resumed} of {plural(len(tasks), 'run')} from "
+                      f"{path}" if had_journal else f"no journal at {path}: running every run",
+                      markup=False)
+    todo = [t for t in tasks if t.key not in journal.results]
+
+    def record(index: int, outcome: SweepRow | TaskFailure) -> None:
+        if isinstance(outcome, SweepRow):
+            journal.add(todo[index].key, asdict(outcome))
+        else:
+            journal.error(todo[index].key, outcome.error)
+
+    def note() -> str:
+        return (f"; {len(journal.results)} of {len(tasks)} runs kept in {path}: continue "
+                f"with --resume --out {folder}")
+
+    try:
+        with exit_on_interrupt():
+            batch = run_batch(sweep_run, todo, keys=[t.key for t in todo], workers=workers,
+                              cluster=cluster, label="runs", describe=lambda t: t.key,
+                              retries=retries, record=record, interrupt_note=note)
+    finally:
+        journal.close()
+    for key, why in batch.retried:
+        err_console.print(f"run {key}: {why}; ran it again", markup=False)
     if batch.failures:
-        raise SystemExit(1)
+        for failure in batch.failures:
+            err_console.print(f"run {failure.key} failed: {failure.error}", markup=False)
+        names = ", ".join(f.key for f in batch.failures[:3])
+        raise BatchError(f"{len(batch.failures)} of {plural(len(tasks), 'run')} failed "
+                         f"({names}{' ...' if len(batch.failures) > 3 else ''}); no table "
+                         f"written; the {len(journal.results)} finished are in {path}: run "
+                         f"again with --resume --out {folder}")
+    rows = [SweepRow(**journal.results[t.key]) for t in tasks]
+    how = f"{batch.backend}, {plural(batch.workers, 'worker')}, {batch.wall_time:.1f} s"
+    return rows, journal, how
+
+
+def _write(rows: list[SweepRow], folder: Path, journal: Journal, header: str,
+           title: str) -> None:
+    """Write ``sweep.csv`` (atomically) and drop the journal, print the summary, draw
+    ``sweep.png``."""
+    from ...files import atomic_write_text
+
+    table_path = folder / "sweep.csv"
+    atomic_write_text(table_path, sweep_csv(rows))
+    journal.finish()
+    console.print(table(header, ["faults", "runs", "success", "position RMS [mm] med/p90/max",
+                                 "shape error [deg] med/p90/max", "sim time [s] med/p90/max",
+                                 "most common failure"], summarize(rows)))
+    console.print(f"wrote {table_path}", markup=False)
+    console.print(_plot(rows, folder / "sweep.png", title), markup=False)
 
 
 def prepare_check(task: SweepTask) -> None:
