@@ -94,7 +94,9 @@ class RunRequest:
         action_timeout: driver time one action phase may take [s].
         driver: driver name (default: the robot's first).
         planner: planner name (default: the robot's first).
-        driver_options: extra keyword options of the driver factory (``noise``, ``slip``).
+        driver_options: extra keyword options of the driver factory (``noise``, ``slip``):
+            text as given (``parse_driver_options``), or values already typed; typed and
+            checked against the driver's declaration by :func:`prepare_run`.
         force: replace a run already in ``out``.
         faults: fault SPEC (:func:`msrr.core.faults.parse_faults`), or ``""``.
         deadline: overall driver time the run may take [s]; ``None``:
@@ -125,7 +127,7 @@ class RunRequest:
     action_timeout: float = 90.0
     driver: str | None = None
     planner: str | None = None
-    driver_options: tuple[tuple[str, float | int | bool | str], ...] = ()
+    driver_options: tuple[tuple[str, object], ...] = ()
     force: bool = False
     faults: str = ""
     deadline: float | None = None

@@ -269,7 +269,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
                                  rate=rate, action_timeout=action_timeout, driver=driver_name,
                                  planner=planner_name,
                                  driver_options=parse_driver_options(driver_options)
-                                 + ((("system", system_file),) if system_file else ()),
+                                 + ((("system", Path(system_file)),) if system_file else ()),
                                  force=force, faults=faults, deadline=deadline,
                                  wall_deadline=wall_deadline, stall=stall, plan=plan_file,
                                  behavior=behavior, parameters=parse_parameters(parameters),
