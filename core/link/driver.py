@@ -110,6 +110,7 @@ class _Module:
     hello_at: float = -math.inf
     setup_at: float = -math.inf
     keys: SessionKeys | None = None
+    session_public: bytes = b""  # the host key of the handshake that made ``keys``
     module_public: bytes = b""
     counter: int = 0
     freshness: Freshness | None = None
@@ -403,12 +404,17 @@ class LinkDriver(Driver):
             raise Refused("stale_session", "a WELCOME to another HELLO")
         if module.keys is not None and public == module.module_public:
             raise Refused("replayed", "a WELCOME already answered")
+        if module.keys is not None and want(payload, 5, bytes, "live session", b"") == \
+                module.session_public:
+            module.state, module.heard = "live", self._time  # alive in our session: keep it
+            return
         shared = module.hello.shared(public)
         if shared is None:
             raise Refused("malformed", "module key")
         module.keys = session_keys(shared, module.key, host_public, public,
                                    self.system.system, module.number)
         module.module_public, module.counter = public, header.counter
+        module.session_public = host_public
         module.freshness = Freshness(DEFAULT_WATCHDOG_PERIODS * self._dt, module.timeout)
         module.freshness.commit(header.clock, arrival)
         if module.boot is not None and boot != module.boot:

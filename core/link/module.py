@@ -13,14 +13,16 @@
   accepted one, and records anything about a frame only once it is fully accepted
   (authentic, counter, age, payload).
 * **Commands.** The COMMAND frame of each tick (sealed with the run's group key, signed
-  by the host) holds every module's entry; a module not named there stops. The newest
-  accepted command is applied at the module's next control tick; no valid command for
-  ``watchdog`` seconds stops the motors and disarms the connectors.
+  by the host) holds one entry per module: ``null`` (stop), a full command, or only its
+  version (unchanged). The newest accepted command is applied at the module's next
+  control tick; no valid command for ``watchdog`` seconds stops the motors and disarms
+  the connectors.
 * **Reports** are sent every ``every``-th control tick (the host sets it to keep the
   link within its budget; phases spread by module number), and at once on a docking
-  event, a change of the latched ports or of the status. Unchanged sensor data, pose
-  and links are left out except for a refresh every :data:`REFRESH` reports and the
-  :data:`REPEAT` reports after each change.
+  event, a change of the latched ports or of the status, or a command accepted but not
+  applied. Unchanged sensor fields (field by field for a record), pose and links are
+  left out except for a refresh every :data:`REFRESH` reports and the :data:`REPEAT`
+  reports after each change.
 
 The emulator (:mod:`.emulator`) runs one per emulated module.
 """
@@ -254,10 +256,11 @@ class ModuleLink:
             raise Refused("malformed", "host key")
         keys = session_keys(shared, self._key, host_public, mine.public, self.system,
                             self.number)
+        answer = {0: self.module, 1: VERSION, 2: self.boots, 3: mine.public, 4: host_public}
+        if self.live is not None:
+            answer[5] = self.live.host_public  # the host whose session is live here
         welcome = seal_handshake(self._aead, Header(FrameType.WELCOME, self.number, 1,
-                                                    clock_ms(clock)),
-                                 self.codec.encode({0: self.module, 1: VERSION, 2: self.boots,
-                                                    3: mine.public, 4: host_public}))
+                                                    clock_ms(clock)), self.codec.encode(answer))
         self.seen[host_public] = None
         while len(self.seen) > SEEN:
             self.seen.popitem(last=False)
