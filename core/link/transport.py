@@ -10,6 +10,7 @@ clock. Where the kernel cannot stamp, the time of reading stands in.
 from __future__ import annotations
 
 import contextlib
+import platform
 import socket
 import struct
 import sys
@@ -18,8 +19,11 @@ from typing import Any
 
 __all__ = ["drain", "udp_socket"]
 
-_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform == "linux" else None)
-"""``SO_TIMESTAMPNS`` (35 on Linux's common architectures; Python does not name it)."""
+_GENERIC = {"x86_64", "aarch64", "arm64", "armv7l", "armv6l", "i686", "riscv64", "ppc64le"}
+_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS",
+                       35 if sys.platform == "linux" and platform.machine() in _GENERIC else None)
+"""``SO_TIMESTAMPNS``: Python does not name it; 35 on the Linux architectures whose socket
+options are the generic ones (elsewhere the time of reading stands in)."""
 _SCM_TIMESTAMPNS = getattr(socket, "SCM_TIMESTAMPNS", _TIMESTAMPNS)
 _TIMESPEC = struct.Struct("@qq")
 _ANCILLARY = socket.CMSG_SPACE(_TIMESPEC.size)

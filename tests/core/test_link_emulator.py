@@ -6,6 +6,7 @@ a module that drops out, a wrong key, and a host killed mid-run. Every wait is b
 from __future__ import annotations
 
 import json
+import socket
 import subprocess
 import sys
 import textwrap
@@ -130,6 +131,22 @@ def test_a_module_that_stops_obeying_or_stops_its_motors_stops_the_run_within_th
     assert "\n" not in result.reason and result.reason.endswith("run stopped")
     assert ended and 2.0 < ended[0] <= 2.0 + 0.1 + 3 * 0.1 + 0.05  # first tick + 3 periods
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == sorted(RUN_FILES)
+
+
+def test_datagrams_are_timed_when_they_arrived_not_when_they_are_read() -> None:
+    from msrr.core.link.transport import drain, udp_socket
+
+    first, second = udp_socket("127.0.0.1"), udp_socket("127.0.0.1")
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    with first, second, sender:
+        sender.sendto(b"1", first.getsockname())
+        time.sleep(0.05)
+        sender.sendto(b"2", second.getsockname())
+        time.sleep(0.1)
+        read = time.monotonic()
+        (_, _, later), = drain(second)  # read first, arrived second
+        (_, _, earlier), = drain(first)
+    assert earlier < later - 0.03 and later < read - 0.05
 
 
 def test_a_wrong_key_is_refused_and_counted_on_both_sides(tmp_path) -> None:
