@@ -569,6 +569,8 @@ def run_batch(fn: Callable[[T], R], items: Sequence[T], *, keys: Sequence[str] |
     except PoolError as exc:
         raise BatchError(str(exc)) from None
     finally:
+        with contextlib.suppress(Exception):
+            stream.close()  # type: ignore[attr-defined]  # ended early (record raised): stop it
         if runner is not None:
             with contextlib.suppress(Exception):
                 runner.close()

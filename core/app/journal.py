@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import IO, Any
 
-from ..errors import ConfigurationError
+from ..errors import ConfigurationError, OutputError
 
 try:
     import fcntl
@@ -116,9 +116,10 @@ class Journal:
     def close(self) -> None:
         """Sync and close; the journal stays for ``--resume``."""
         if self._file is not None:
-            with contextlib.suppress(OSError):
+            with contextlib.suppress(OSError):  # a full disk: what is there stays
                 self._sync(force=True)
-            self._file.close()
+            with contextlib.suppress(OSError):
+                self._file.close()
             self._file = None
 
     def finish(self) -> None:
@@ -129,8 +130,12 @@ class Journal:
     def _write(self, record: dict[str, Any]) -> None:
         if self._file is None:
             raise ValueError(f"journal {self.path} is closed")
-        self._file.write(_line(record))
-        self._sync()
+        try:
+            self._file.write(_line(record))
+            self._sync()
+        except OSError as exc:  # a full disk: the batch stops, the journal so far is kept
+            raise OutputError(f"cannot write the journal: {exc.strerror or exc}",
+                              source=str(self.path)) from None
 
     def _sync(self, *, force: bool = False) -> None:
         assert self._file is not None

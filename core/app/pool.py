@@ -328,6 +328,8 @@ class _Run:
                 handles += [w.process.sentinel for w in self.workers]
                 for handle in wait(handles, timeout=0.2):
                     self._handle(handle)
+                for worker in [w for w in self.workers if w.ready and w.task is None]:
+                    self._assign(worker)  # a task queued again while this one was idle
         except BaseException as exc:  # the pool itself failed: the batch stops, loudly
             self.out.put(PoolError(f"the process pool failed: {type(exc).__name__}: {exc}"))
 

@@ -25,10 +25,11 @@ def lose_worker_once(item: tuple[str, int, int]) -> int:
     return value
 
 
-def lose_worker_always(item: tuple[int, int | None]) -> int:
-    """``(value, parent)``: in a worker (not ``parent``), SIGKILL this worker every time;
-    never with ``parent`` ``None``."""
-    value, parent = item
+def lose_worker_always(item: tuple[int, int | None, float]) -> int:
+    """``(value, parent, delay)``: in a worker (not ``parent``), SIGKILL this worker every
+    time, ``delay`` seconds in; never with ``parent`` ``None``."""
+    value, parent, delay = item
+    time.sleep(delay)
     if parent is not None and os.getpid() != parent:
         os.kill(os.getpid(), signal.SIGKILL)
     return value

@@ -158,13 +158,14 @@ def test_a_lost_worker_costs_only_its_task_and_the_task_runs_again(tmp_path):
 def test_a_task_whose_worker_is_always_lost_fails_with_the_reason():
     parent = os.getpid()
     pool = Pool(2, retries=1, warm_up=False)
-    outcomes = dict(pool.run(lose_worker_always, [(7, parent), (8, None)], [0, 1]))
+    # the other worker is idle long before the task is queued again: it takes it
+    outcomes = dict(pool.run(lose_worker_always, [(7, parent, 0.3), (8, None, 0.0)], [0, 1]))
     ok, (error, trace), _ = outcomes[0]
     assert not ok and error == "WorkerLost: the worker was killed by SIGKILL (2 attempts)"
     assert outcomes[1][:2] == (True, 8)
     # through run_batch: a TaskFailure like any other, never a result (the tasks this
     # process ran while the workers started are results: it is their parent)
-    result = run_batch(lose_worker_always, [(i, parent) for i in range(6)], workers=2,
+    result = run_batch(lose_worker_always, [(i, parent, 0.0) for i in range(6)], workers=2,
                        backend="pool", progress=False, retries=0)
     failed = {f.index: f.error for f in result.failures}
     for index, value in enumerate(result.results):
