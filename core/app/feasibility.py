@@ -18,6 +18,8 @@ The verdict never trusts the recognizer: the final shape and topology come from
 * ``fell over`` -- the final shape is over 20 deg off after a turn about the vertical
   but matches the target once tilted (the robot lies on its side);
 * ``timeout`` -- a phase did not finish (the executor's reason follows);
+* ``error`` -- the executor ended the run unsuccessfully for another reason (its reason
+  follows);
 * ``wrong topology`` / ``wrong shape`` -- the ground truth ends elsewhere (over
   ``tolerance``).
 """
@@ -36,7 +38,6 @@ from .. import plugins
 from ..actions import topology_diff
 from ..capabilities import Controller, DriverFactory, Recognizer
 from ..configuration import Configuration
-from ..errors import MsrrError
 from ..events import Run
 from ..executor import Executor, ExecutorOptions
 from ..library.check import CheckFile, EdgeCase, EdgeCheck, edge_cases
@@ -114,12 +115,10 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
               driver=runner.driver.name, rate=runner.options.rate, seed=runner.seed)
     with runner.driver(gui=False, seed=runner.seed, **dict(runner.driver_options)) as driver:
         driver.reset(case.start)
-        try:
-            result = Executor(run, driver, runner.recognizer, runner.controller,
-                              options).execute()
-        except MsrrError as exc:
-            return EdgeCheck(edge=case.key, action=case.edge.action.value, feasible=False,
-                             reason=f"error: {exc}", sim_time=round(driver.time, 3))
+        # an error the platform raises here (a command the driver refuses, a tree without
+        # the data it needs) is a bug to fix, not a property of the edge: it fails the
+        # task, and the check names it instead of recording the edge as infeasible
+        result = Executor(run, driver, runner.recognizer, runner.controller, options).execute()
         truth = driver.ground_truth()
         faults = driver.faults()
         counts = driver.constraint_events()

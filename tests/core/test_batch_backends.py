@@ -31,6 +31,7 @@ from msrr.core.app.batch import ray_available
 from msrr.core.app.cli import get_cli
 from msrr.core.app.commands.sweep import InputFile, SweepTask
 from msrr.core.app.feasibility import check_edges, default_runner
+from msrr.core.errors import ExecutionError
 from msrr.core.executor import ExecutorOptions
 from msrr.core.library.check import edge_cases, load_check
 from msrr.core.plugins import load_library
@@ -120,6 +121,31 @@ class _BrokenDriver:
 
     def __call__(self, **options: object) -> None:
         raise RuntimeError("no simulator")
+
+
+class _RefusingDriver:
+    """The real driver, refusing every command mid-run as a driver refuses a bad one."""
+
+    def __init__(self, factory: object):
+        self.factory, self.name = factory, "refusing"
+
+    def __call__(self, **options: object) -> object:
+        driver = self.factory(**options)  # type: ignore[operator]
+
+        def refuse(*args: object, **kwargs: object) -> None:
+            raise ExecutionError("commands for unknown module(s) ['X']")
+
+        driver.send_action = refuse
+        return driver
+
+
+def test_an_error_the_platform_raises_in_a_run_is_a_failure_too():
+    runner = default_runner("freesn", options=ExecutorOptions(action_timeout=10.0, retries=0))
+    cases = [c for c in edge_cases(load_library(LIBRARY), runner.robot) if EDGES[0] in c.key]
+    checks, batch = check_edges(cases, replace(runner, driver=_RefusingDriver(runner.driver)),
+                                workers=1, progress=False)
+    assert checks == [] and [f.error for f in batch.failures] == \
+        ["ExecutionError: commands for unknown module(s) ['X']"]
 
 
 def test_an_edge_that_raises_is_a_failure_never_an_infeasible_edge():
