@@ -38,7 +38,8 @@ from .. import plugins
 from ..actions import topology_diff
 from ..capabilities import Controller, DriverFactory, Recognizer
 from ..configuration import Configuration
-from ..events import Run
+from ..driver import Driver
+from ..events import NoEvents, Run, Tick
 from ..executor import Executor, ExecutorOptions
 from ..library.check import CheckFile, EdgeCase, EdgeCheck, edge_cases
 from ..library.model import Library
@@ -102,6 +103,29 @@ class EdgeRunner:
     timeout_per_rad: float = 30.0
 
 
+class _Faulted(Exception):
+    """The driver saw a fault (a connector broke, bodies overlap): the edge's verdict."""
+
+
+class _FirstFault(NoEvents):
+    """Ends an edge's run at the first fault the driver saw (checked once per second of
+    driver time, as the overlap scan is not free): the first fault is the verdict."""
+
+    def __init__(self, driver: Driver):
+        self.driver = driver
+        self.checked = 0.0
+
+    def tick(self, run: Run, tick: Tick) -> None:
+        if tick.time - self.checked >= FAULT_CHECK_PERIOD:
+            self.checked = tick.time
+            if self.driver.faults():
+                raise _Faulted
+
+
+FAULT_CHECK_PERIOD = 1.0
+"""How often [s of driver time] an edge's run asks the driver for faults."""
+
+
 def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
     """Execute one edge from its source configuration; the verdict from ground truth.
 
@@ -118,7 +142,12 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
         # an error the platform raises here (a command the driver refuses, a tree without
         # the data it needs) is a bug to fix, not a property of the edge: it fails the
         # task, and the check names it instead of recording the edge as infeasible
-        result = Executor(run, driver, runner.recognizer, runner.controller, options).execute()
+        executor = Executor(run, driver, runner.recognizer, runner.controller, options,
+                            sink=_FirstFault(driver))
+        try:
+            result = executor.execute()
+        except _Faulted:  # the verdict is that fault: simulating on would change nothing
+            result = executor.result
         truth = driver.ground_truth()
         faults = driver.faults()
         counts = driver.constraint_events()

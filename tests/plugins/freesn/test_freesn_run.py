@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 from msrr.core.actions import topology_diff
 from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.app.cli import get_cli
-from msrr.core.app.feasibility import default_runner, run_edge, tilted_error
+from msrr.core.app.feasibility import FAULT_CHECK_PERIOD, default_runner, run_edge, tilted_error
 from msrr.core.closed_loop import (
     PhaseTracker,
     TrackingOptions,
@@ -159,3 +159,14 @@ def test_library_check_writes_the_sidecar_atomically(tmp_path):
     assert [e.edge for e in check.edges] == ["S6N3:S6N3-3.2->S6N3-4.1"]
     assert check.edges[0].feasible and check.edges[0].docks == 1
     assert "1/1 edge" in result.output and "feasible" in result.output
+
+
+def test_an_edge_run_ends_at_its_first_fault():
+    """A connector that breaks is the edge's verdict: the run stops within the fault check
+    period after it, instead of simulating to the phase timeout."""
+    runner = default_runner("freesn", options=ExecutorOptions(action_timeout=20.0, retries=0),
+                            driver_options=(("strength_factor", 0.01),), seed=3)
+    check = run_edge(_case("S6N3:S6N3-1.1->S6N3-1.2"), runner)
+    assert not check.feasible and check.reason.startswith("connector broke")
+    broke = float(check.reason.rsplit("t=", 1)[1].split()[0])
+    assert check.sim_time <= broke + FAULT_CHECK_PERIOD + 0.2 < 20.0
