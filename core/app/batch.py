@@ -56,6 +56,7 @@ from rich.progress import (
     Progress,
     TextColumn,
     TimeElapsedColumn,
+    TimeRemainingColumn,
 )
 
 from .. import interrupts
@@ -474,12 +475,14 @@ def _collect(tally: _Tally, stream: Iterator[tuple[int, Outcome]], items: Sequen
     """Take the outcomes into ``tally`` as they finish, with the progress bar and
     ``record``."""
     columns = (TextColumn("{task.description}", markup=False), BarColumn(),
-               MofNCompleteColumn(), TextColumn("{task.fields[failed]}"), TimeElapsedColumn())
+               MofNCompleteColumn(), TextColumn("{task.fields[failed]}"), TimeElapsedColumn(),
+               TextColumn("left"), TimeRemainingColumn())
     count = plan.workers
+    description = f"{label} ({plan.backend}, {count} worker{'s' * (count > 1)})"
+    lines = _Lines(description, len(items)) if progress and not console.is_terminal else None
     with Progress(*columns, console=console, transient=True,
                   disable=not progress or not console.is_terminal) as bar:
-        task = bar.add_task(f"{label} ({plan.backend}, {count} worker{'s' * (count > 1)})",
-                            total=len(items), failed="")
+        task = bar.add_task(description, total=len(items), failed="")
         for index, (ok, value, seconds) in stream:
             tally.done += 1
             tally.times[index] = seconds
@@ -495,6 +498,34 @@ def _collect(tally: _Tally, stream: Iterator[tuple[int, Outcome]], items: Sequen
                 record(index, outcome)
             bar.update(task, advance=1,
                        failed=f"{len(tally.failures)} failed" if tally.failures else "")
+            if lines is not None:
+                lines.update(tally.done, len(tally.failures))
+
+
+class _Lines:
+    """Progress without a terminal (a pipe, a log): a line at least every
+    :data:`PROGRESS_EVERY` seconds and at the end, with the count and an estimate."""
+
+    def __init__(self, description: str, total: int):
+        self.description, self.total = description, total
+        self.started = self.said = time.monotonic()
+        console.print(f"{description}: {total} to do", markup=False, soft_wrap=True)
+
+    def update(self, done: int, failed: int) -> None:
+        now = time.monotonic()
+        if now - self.said < PROGRESS_EVERY and done < self.total:
+            return
+        self.said = now
+        elapsed = now - self.started
+        left = f", about {elapsed / done * (self.total - done):.0f} s left" \
+            if done < self.total else ""
+        console.print(f"{self.description}: {done}/{self.total} done"
+                      + (f", {failed} failed" if failed else "")
+                      + f", {elapsed:.0f} s{left}", markup=False, soft_wrap=True)
+
+
+PROGRESS_EVERY = 10.0
+"""Without a terminal, a progress line at least this often [s of wall time]."""
 
 
 def _open(plan: _Plan, fn: Callable[[Any], Any], items: Sequence[Any], cluster: str | None,

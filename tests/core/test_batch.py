@@ -243,3 +243,14 @@ def test_a_signal_while_finishing_waits_and_one_after_changes_nothing(tmp_path, 
                           timeout=60)
     assert (done.returncode, done.stdout.split(), done.stderr.strip().splitlines()) == \
         (code, out, err)
+
+
+def test_progress_without_a_terminal_is_lines_with_counts_and_an_estimate(
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    clock = iter(range(0, 1000, 6))  # six seconds of wall time pass between looks
+    monkeypatch.setattr(batch.time, "monotonic", lambda: float(next(clock)))
+    run_batch(partial(task_seed, 3), [str(i) for i in range(5)], workers=1, label="runs")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "runs (serial, 1 worker): 5 to do"
+    assert any(" done" in line and "s left" in line for line in lines[1:-1])
+    assert lines[-1].startswith("runs (serial, 1 worker): 5/5 done, ") and "left" not in lines[-1]

@@ -267,8 +267,12 @@ def _plot(rows: list[SweepRow], path: Path, title: str) -> str:
         axis.tick_params(axis="x", labelrotation=20)
     figure.suptitle(title)
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
+    from ...files import atomic_write_bytes
+
+    image = io.BytesIO()
+    figure.savefig(image, format="png", dpi=100)
     plt.close(figure)
+    atomic_write_bytes(path, image.getvalue())  # a full disk: one line, no half image
     return f"wrote {path}"
 
 
@@ -333,7 +337,8 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
              for setting in settings for k in range(runs)]
     # the first run in this process: a bad robot, scenario, planner or file fails in one
     # line before the batch starts its workers
-    prepare_check(tasks[0])
+    for setting in dict.fromkeys(task.faults for task in tasks):  # each setting's modules
+        prepare_check(next(task for task in tasks if task.faults == setting))
     rows, journal, how = _run_sweep(tasks, folder, resume=resume, retries=retries,
                                     workers=workers, cluster=cluster)
     title = f"{robot} {name}: {plural(runs, 'seed')}"
