@@ -27,8 +27,8 @@ The verdict never trusts the recognizer: the final shape and topology come from
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import Any
 
@@ -83,6 +83,8 @@ class EdgeRunner:
             **driver_options)``).
         recognizer: the robot's recognizer.
         controller: the robot's controller.
+        controllers: every controller of the robot, by name (a kinematic node's own
+            drives it, as in ``platform run``).
         options: executor options (rate, timeout per phase, retries).
         driver_options: keyword options of the driver (noise, slip, ...).
         seed: the run's seed.
@@ -96,6 +98,7 @@ class EdgeRunner:
     driver: DriverFactory
     recognizer: Recognizer
     controller: Controller
+    controllers: Mapping[str, Controller] = field(default_factory=dict)
     options: ExecutorOptions = ExecutorOptions(action_timeout=30.0, retries=0)
     driver_options: tuple[tuple[str, float | int | bool], ...] = ()
     seed: int = 0
@@ -143,7 +146,8 @@ def run_edge(case: EdgeCase, runner: EdgeRunner) -> EdgeCheck:
         # the data it needs) is a bug to fix, not a property of the edge: it fails the
         # task, and the check names it instead of recording the edge as infeasible
         executor = Executor(run, driver, runner.recognizer, runner.controller, options,
-                            sink=_FirstFault(driver))
+                            sink=_FirstFault(driver), robot=runner.robot,
+                            controllers=runner.controllers)
         try:
             result = executor.execute()
         except _Faulted:  # the verdict is that fault: simulating on would change nothing
@@ -242,4 +246,5 @@ def default_runner(robot_name: str, **settings: object) -> EdgeRunner:
     """An :class:`EdgeRunner` with the robot's first driver, recognizer and controller."""
     capabilities = plugins.capabilities(robot_name)
     return EdgeRunner(capabilities.robot, capabilities.driver(), capabilities.recognizer(),
-                      capabilities.controller(), **settings)  # type: ignore[arg-type]
+                      capabilities.controller(), dict(capabilities.controllers),
+                      **settings)  # type: ignore[arg-type]
