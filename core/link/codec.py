@@ -16,15 +16,17 @@ What robot data becomes on the wire (:meth:`Codec.to_wire`):
 * records (dataclass instances): tag 27 ``[id, field values...]``, the id being the
   type's place in the system's record table (1, 2, ... in the systems file), not a
   Python path;
-* fields the record table marks as **rotations** carry each 3x3 rotation matrix as a
-  unit quaternion (x, y, z, w; w >= 0) of four little-endian int16 (value / 32767) in
-  an 8-byte string; fields marked **directions** carry each unit 3-vector as three
-  int16 in a 6-byte string. Resolution 3e-5 (0.002 degrees), far finer than any
-  module's orientation filter; a value that is not a rotation (or unit vector) after
-  all travels as a typed array instead.
+* fields the record table marks as **rotations** carry each 3x3 rotation matrix as its
+  rotation vector in three little-endian int16 (a 6-byte string, 4 bytes for a rotation
+  about a horizontal axis, :func:`rotation_bytes`); fields marked **directions** carry each unit 3-vector in its
+  octahedral encoding, two int16 (a 4-byte string, :func:`direction_bytes`). Both
+  within 1e-4 rad (0.006 degrees) of the value, far finer than any module's
+  orientation filter; a value that is not a rotation (or unit vector) after all
+  travels as a typed array instead.
 
 Decoding (:meth:`Codec.from_wire`) turns arrays into tuples, typed arrays into float64
-numpy arrays, quaternions back into matrices, and builds records only of the types in
+numpy arrays, rotation and direction strings back into matrices and unit vectors (every
+string of their sizes is one), and builds records only of the types in
 the table (an allow-list: a frame never makes the host import or construct anything
 else). Anything else -- another tag, a simple value, a record of an unknown id or with
 the wrong fields, a map key that is not an integer or text -- is a :class:`CodecError`,
@@ -47,14 +49,20 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigurationError, MsrrError
 
-__all__ = ["INCOMPLETE", "TAG_F32LE", "TAG_NDARRAY", "TAG_RECORD", "Codec", "CodecError", "RecordSpec",
-           "RecordTable", "infer_records", "record_name"]
+__all__ = ["DIRECTION_BYTES", "INCOMPLETE", "ROTATION_BYTES", "ROTATION_SIZES", "TAG_F32LE", "TAG_NDARRAY",
+           "TAG_RECORD", "Codec", "CodecError", "RecordSpec", "RecordTable", "direction_bytes",
+           "direction_from_bytes", "infer_records", "record_name", "rotation_bytes",
+           "rotation_from_bytes"]
 
 TAG_RECORD = 27
 TAG_NDARRAY = 40
 TAG_F32LE = 85
 MAX_DEPTH = 16
 QUANTUM = 32767
+ROTATION_BYTES = 6
+ROTATION_SIZES = (4, ROTATION_BYTES)
+"""A rotation's sizes: 4 bytes about a horizontal axis, else 6."""
+DIRECTION_BYTES = 4
 _ROTATION_TOLERANCE = 1e-5
 INCOMPLETE = object()
 """What :meth:`Codec.update` returns for a partial record it cannot complete."""
@@ -168,36 +176,66 @@ def _is_direction(value: Any) -> bool:
                 and abs(float(np.linalg.norm(value)) - 1.0) < _ROTATION_TOLERANCE)
 
 
-def _quaternion_bytes(matrix: np.ndarray) -> bytes:
-    q = np.round(Rotation.from_matrix(matrix).as_quat() * QUANTUM).astype("<i2")
-    if q[3] < 0 or (q[3] == 0 and next((c for c in q if c), 0) < 0):
-        q = -q  # one encoding per rotation
-    return q.tobytes()
+def rotation_bytes(matrix: np.ndarray) -> bytes:
+    """A rotation (3x3 matrix) in 6 bytes: its rotation vector (axis times angle, the
+    angle in [0, pi]) as three little-endian int16 of ``component / pi * 32767``; a
+    rotation about a horizontal axis (the third int16 0: a tilt, a yaw-free attitude) in
+    4 bytes, the first two. Resolution pi / 32767 = 9.6e-5 rad per component: at most
+    8e-5 rad (0.005 degrees) between a rotation and its decoding, uniformly (no axis or
+    angle is worse)."""
+    vector = Rotation.from_matrix(matrix).as_rotvec()
+    ints = np.round(vector / math.pi * QUANTUM).astype("<i2")
+    return (ints[:2] if ints[2] == 0 else ints).tobytes()
 
 
-def _matrix(data: bytes) -> np.ndarray:
-    q = np.frombuffer(data, dtype="<i2").astype(float) / QUANTUM
-    norm = float(np.linalg.norm(q))
-    if norm < 0.5:
-        raise CodecError("a quaternion far from unit length")
-    return Rotation.from_quat(q / norm).as_matrix()
+def rotation_from_bytes(data: bytes) -> np.ndarray:
+    """The rotation matrix of :func:`rotation_bytes`' 6 (or 4) bytes (every 6 or 4 bytes
+    are one)."""
+    if len(data) not in ROTATION_SIZES:
+        raise CodecError(f"a rotation of {len(data)} bytes, not {ROTATION_BYTES} (or "
+                         f"{ROTATION_SIZES[0]})")
+    vector = np.zeros(3)
+    vector[:len(data) // 2] = np.frombuffer(data, dtype="<i2").astype(float) * (math.pi / QUANTUM)
+    return Rotation.from_rotvec(vector).as_matrix()
 
 
-def _direction(data: bytes) -> np.ndarray:
-    v = np.frombuffer(data, dtype="<i2").astype(float) / QUANTUM
-    norm = float(np.linalg.norm(v))
-    if norm < 0.5:
-        raise CodecError("a direction far from unit length")
-    return v / norm
+def _sign(x: float) -> float:
+    return -1.0 if x < 0 else 1.0
+
+
+def direction_bytes(vector: np.ndarray) -> bytes:
+    """A unit 3-vector in 4 bytes: its octahedral encoding (the vector divided by its
+    1-norm; the lower half, z < 0, folded over the diagonals: ``x' = (1 - |y|) sign(x)``,
+    ``y' = (1 - |x|) sign(y)``, sign(0) = +1), x and y as two little-endian int16 of
+    ``value * 32767``. At most 6.3e-5 rad (0.004 degrees) between a direction and its
+    decoding."""
+    v = np.asarray(vector, dtype=float)
+    p = v / float(np.abs(v).sum())
+    x, y = float(p[0]), float(p[1])
+    if p[2] < 0:
+        x, y = (1.0 - abs(float(p[1]))) * _sign(x), (1.0 - abs(float(p[0]))) * _sign(y)
+    return np.round(np.array([x, y]) * QUANTUM).astype("<i2").tobytes()
+
+
+def direction_from_bytes(data: bytes) -> np.ndarray:
+    """The unit vector of :func:`direction_bytes`' 4 bytes (every 4 bytes are one)."""
+    if len(data) != DIRECTION_BYTES:
+        raise CodecError(f"a direction of {len(data)} bytes, not {DIRECTION_BYTES}")
+    x, y = (float(c) / QUANTUM for c in np.frombuffer(data, dtype="<i2"))
+    z = 1.0 - abs(x) - abs(y)
+    if z < 0:
+        x, y = (1.0 - abs(y)) * _sign(x), (1.0 - abs(x)) * _sign(y)
+    v = np.array([x, y, z])
+    return v / float(np.linalg.norm(v))
 
 
 def _quantised(value: Any, kind: str) -> Any:
     """``value`` (a leaf, or a map or sequence of leaves) with rotations / directions
     quantised; anything else unchanged (it travels in its generic form)."""
     if kind == "rotation" and _is_rotation(value):
-        return _quaternion_bytes(value)
+        return rotation_bytes(value)
     if kind == "direction" and _is_direction(value):
-        return np.round(value * QUANTUM).astype("<i2").tobytes()
+        return direction_bytes(value)
     if isinstance(value, Mapping):
         return {k: _quantised(v, kind) for k, v in value.items()}
     if isinstance(value, list | tuple):
@@ -206,12 +244,8 @@ def _quantised(value: Any, kind: str) -> Any:
 
 
 def _dequantised(value: Any, kind: str) -> Any:
-    if isinstance(value, bytes):
-        if kind == "rotation" and len(value) == 8:
-            return _matrix(value)
-        if kind == "direction" and len(value) == 6:
-            return _direction(value)
-        return value
+    if isinstance(value, bytes):  # of another size: refused
+        return rotation_from_bytes(value) if kind == "rotation" else direction_from_bytes(value)
     if isinstance(value, dict):
         return {k: _dequantised(v, kind) for k, v in value.items()}
     if isinstance(value, tuple):

@@ -7,10 +7,13 @@ Registered for every robot (after the robot's own drivers and the generic runtim
 * ``connect`` handshakes with every module (HELLO -> WELCOME -> SETUP, a fresh X25519
   exchange each, :mod:`.keys`) and waits for each one's first report;
 * ``reset(start)`` expects the modules of ``start`` (it cannot place them) and waits
-  for a report of each with its latched ports;
+  for a full report of each with its latched ports (asking for it, key 4);
 * ``send_action`` sends one COMMAND frame per tick for all modules (a module not named
   stops); a module's command travels in full until the module acknowledges it, then as
-  its version only; an undock is repeated until acknowledged;
+  its version only (a change finer than the wire's quantum is none); an undock is
+  repeated until acknowledged; every ``every``-th frame polls all modules (key 5), so
+  their reports show one instant, and a module whose answer is two periods late is
+  polled again at once;
 * ``step(dt)`` waits ``dt`` of system time (wall time / ``time_scale``) while reading
   reports, so the executor's loop runs at the robot's rate; then it stops the run with
   one line naming the module when a module was silent longer than its timeout, did not
@@ -19,9 +22,9 @@ Registered for every robot (after the robot's own drivers and the generic runtim
 * ``disconnect`` says BYE (modules stop at once); without it, their watchdogs stop
   them within ``watchdog`` (default 3 control periods).
 
-With a budget in the systems file the host spaces the modules' reports (every 1 to 6
-control periods) so that the traffic on its socket, UDP/IP headers included, stays
-within it. The site key is read from where the systems file says and kept only in this
+With a budget in the systems file the host polls the modules every 1 to 6 control
+periods (:meth:`LinkDriver._budget`) so that the traffic on its socket, UDP/IP headers
+included, stays within it. The site key is read from where the systems file says and kept only in this
 object (never printed); modules hold keys derived from it.
 """
 
@@ -96,7 +99,13 @@ DISOBEY_PERIODS = 2.0
 applies stops the run."""
 _PAYLOAD_LIMIT = MAX_FRAME - HEADER.size - TAG_SIZE - SIGNATURE_SIZE
 BUDGET_WINDOW = 2.0
-"""The budget is checked on the traffic of the last this many seconds [wall]."""
+"""The budget is checked on the traffic of the last this many seconds [wall]..."""
+BUDGET_STEP = 0.5
+"""... every this many seconds [wall]."""
+BUDGET_HIGH = 0.9
+BUDGET_LOW = 0.8
+"""Reports are spaced further when the estimate exceeds this share of the budget, and
+come closer when the closer spacing stays within the lower share."""
 
 
 @dataclass
@@ -126,7 +135,10 @@ class _Module:
     known: int = 0
     links: tuple[Any, ...] = ()
     has_links: bool = False
+    complete: bool = False  # the host holds the session's full sensor data
+    awaiting: float | None = None  # host time of the oldest poll it has not answered
     command: ModuleCommand | None = None
+    wire: list[Any] | None = None  # the command's entry as sent, without its version
     version: int = 0
     acked_version: int | None = None
     batches: dict[int, int | None] = field(default_factory=dict)  # counter -> version sent
@@ -181,6 +193,8 @@ class LinkDriver(Driver):
             raise ConfigurationError(exc.message if hasattr(exc, "message") else str(exc),
                                      source=str(self.path), field="records") from None
         self.codec = Codec(table)
+        self.vectors = tuple(self.system.vectors)
+        """Joint names whose ``_x/_y/_z`` joints travel as one packed unit vector."""
         self.handshake = handshake
         self.modules: dict[str, _Module] = {}
         self._by_number: dict[int, _Module] = {}
@@ -196,7 +210,11 @@ class LinkDriver(Driver):
         self._mark = 0.0
         self._dt = 1.0 / DEFAULT_RATE
         self.every = 1
-        """Reports come every this many control periods (set by the budget)."""
+        """Reports come every this many control periods (set by the budget): the host
+        polls every module in every ``every``-th COMMAND frame."""
+        self._ticks = 0
+        self._polled: set[int] = set()
+        """The modules polled this tick."""
         self.latencies: list[float] = []
         self.held = 0
         """Observations held because two modules' reports disagreed about a latch."""
@@ -207,8 +225,11 @@ class LinkDriver(Driver):
         self.traffic: dict[str, int] = {"sent": 0, "received": 0, "datagrams_sent": 0,
                                         "datagrams_received": 0}
         """Everything on the host's socket: payload bytes and datagrams each way."""
-        self._recent: deque[tuple[float, int]] = deque()
+        self._recent: deque[tuple[float, int, str]] = deque()
+        """Datagrams of the last :data:`BUDGET_WINDOW` s: wall time, bytes with UDP/IP,
+        ``command``, ``report`` or ``other``."""
         self._budget_at = 0.0
+        self._window_start = 0.0
         self._sent_at: dict[int, float] = {}
         """Wall time each COMMAND frame was sent, by counter (the last 256)."""
 
@@ -255,6 +276,7 @@ class LinkDriver(Driver):
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         self._sock = sock
         self._t0 = wall.monotonic()
+        self._window_start = self._t0
         self._mark = self._t0
         try:
             self._wait(lambda m: m.state == "live", "answer the handshake")
@@ -277,9 +299,12 @@ class LinkDriver(Driver):
             return self.handshake
         return max(HANDSHAKE, self._wall(max(m.timeout for m in self.modules.values())))
 
-    def _wait(self, ready: Callable[[_Module], bool], what: str) -> None:
-        """Pump frames (repeating HELLO and SETUP) until ``ready(module)`` for every module."""
+    def _wait(self, ready: Callable[[_Module], bool], what: str,
+              repeat: Callable[[], None] | None = None) -> None:
+        """Pump frames (repeating HELLO and SETUP, and calling ``repeat`` every
+        :data:`RESEND`) until ``ready(module)`` for every module."""
         end = wall.monotonic() + self._limit()
+        repeated = wall.monotonic()
         while True:
             waiting = [m for m in self.modules.values() if not ready(m)]
             if not waiting:
@@ -294,6 +319,9 @@ class LinkDriver(Driver):
                     f"{self._limit():.1f} s"
                     + (f"; frames refused: {_counts(refused)}" if refused else ""))
             self._handshakes()
+            if repeat is not None and now - repeated >= self._wall(RESEND):
+                repeat()
+                repeated = now
             self._pump(min(end, now + self._wall(0.05)))
 
     def _handshakes(self) -> None:
@@ -317,7 +345,8 @@ class LinkDriver(Driver):
         module.setup_at = wall.monotonic()
         self._unicast(module, FrameType.SETUP, {
             0: self._group_key, 1: self._signer.public, 2: round(self._watchdog() * 1000),
-            3: self.every, 4: round(module.timeout * 1000)})
+            3: self.every, 4: round(module.timeout * 1000)}
+            | ({5: self.system.pose_every} if self.system.pose_every != 1 else {}))
 
     def _watchdog(self) -> float:
         if self.system.watchdog_s is not None:
@@ -347,7 +376,8 @@ class LinkDriver(Driver):
         self._stats.bytes_sent += len(data)
         self.traffic["sent"] += len(data)
         self.traffic["datagrams_sent"] += 1
-        self._recent.append((wall.monotonic(), len(data) + UDP_IP_BYTES))
+        kind = "command" if data[0] & 0x0F == FrameType.COMMAND else "other"
+        self._recent.append((wall.monotonic(), len(data) + UDP_IP_BYTES, kind))
         if module is not None:
             self.bytes_by_module[module.entry.id][0] += len(data)
 
@@ -370,7 +400,8 @@ class LinkDriver(Driver):
         stats.bytes_received += len(data)
         self.traffic["received"] += len(data)
         self.traffic["datagrams_received"] += 1
-        self._recent.append((wall.monotonic(), len(data) + UDP_IP_BYTES))
+        kind = "report" if data and data[0] & 0x0F == FrameType.REPORT else "other"
+        self._recent.append((wall.monotonic(), len(data) + UDP_IP_BYTES, kind))
         try:
             header = read_header(data)
             module = self._by_number.get(header.sender)
@@ -420,9 +451,10 @@ class LinkDriver(Driver):
         if module.boot is not None and boot != module.boot:
             module.reboots += 1
         module.boot, module.state = boot, "setup"
-        module.command, module.acked_version, module.batches = None, None, {}
+        module.command, module.wire, module.acked_version = None, None, None
+        module.batches = {}
         module.known, module.watchdog_since, module.problem = 0, None, None
-        module.heard = self._time
+        module.heard, module.complete, module.awaiting = self._time, False, None
         self._setup(module)
 
     def _report(self, module: _Module, header: Header, data: bytes, arrival: float) -> None:
@@ -434,11 +466,11 @@ class LinkDriver(Driver):
         if header.counter <= module.counter:
             raise Refused("replayed", f"counter {header.counter} <= {module.counter}")
         module.freshness.check(header.clock, arrival)
-        payload, sensors = self._report_payload(plain, module)
+        payload, sensors, carried = self._report_payload(plain, module)
         ack = unsigned(payload, 0, "ack")
         lag = unsigned(payload, 1, "lag", 0)
         status = unsigned(payload, 2, "status", limit=255)
-        known = unsigned(payload, 8, "names known", 0, limit=len(self.names))
+        known = unsigned(payload, 8, "names known", module.known, limit=len(self.names))
         links = want(payload, 4, tuple, "links", ())
         if not all(isinstance(link, tuple) and len(link) == 3
                    and all(isinstance(x, str) for x in link) for link in links):
@@ -452,11 +484,13 @@ class LinkDriver(Driver):
         module.counter = header.counter
         module.freshness.commit(header.clock, arrival)
         module.state = "live"
-        module.heard = self._time
+        module.heard, module.awaiting = self._time, None
         module.reports += 1
         module.status, module.known = status, known
         if sensors is not INCOMPLETE:
-            module.sensors = sensors
+            module.sensors, module.complete = sensors, True
+        elif carried:  # a partial record whose full value was lost: ask for it
+            module.complete = False
         if 4 in payload:
             module.links, module.has_links = links, True
         if pose is not None:
@@ -465,9 +499,11 @@ class LinkDriver(Driver):
             module.battery = float(battery)
         self._acknowledged(module, ack, lag)
 
-    def _report_payload(self, plain: bytes, module: _Module) -> tuple[dict[int, Any], Any]:
-        """A REPORT's payload map and its sensor data (merged field by field with the
-        module's last; ``INCOMPLETE`` when the report has none or it cannot be completed).
+    def _report_payload(self, plain: bytes, module: _Module
+                        ) -> tuple[dict[int, Any], Any, bool]:
+        """A REPORT's payload map, its sensor data (merged field by field with the
+        module's last; ``INCOMPLETE`` when the report has none or it cannot be completed)
+        and whether it carried sensor data.
 
         Raises:
             Refused: ``malformed``.
@@ -481,7 +517,7 @@ class LinkDriver(Driver):
             sensors = self.codec.update(raw[3], module.sensors) if 3 in raw else INCOMPLETE
         except CodecError as exc:
             raise Refused("malformed", str(exc)) from None
-        return payload, sensors
+        return payload, sensors, 3 in raw
 
     def _acknowledged(self, module: _Module, ack: int, lag: int) -> None:
         for port in [p for p, counter in module.undock.items() if ack >= counter]:
@@ -530,10 +566,13 @@ class LinkDriver(Driver):
             module.heard, module.reports = 0.0, 0  # links stay: they change by events
             module.undock.clear()
             module.docks.clear()
-            module.problem, module.watchdog_since = None, None
+            module.problem, module.watchdog_since, module.awaiting = None, None, None
         self.send_action({})
-        self._wait(lambda m: m.state == "live" and m.reports > 0 and m.has_links, "report")
+        self._wait(lambda m: m.state == "live" and m.reports > 0 and m.has_links, "report",
+                   repeat=lambda: self.send_action({}))
         self._mark = wall.monotonic()
+        self._recent.clear()  # the handshakes' full reports say nothing of the run's
+        self._window_start = self._mark
 
     def get_observation(self) -> Observation:
         """The newest report of every module. While two modules' reports disagree about a
@@ -569,7 +608,8 @@ class LinkDriver(Driver):
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         """One tick's COMMAND frame (several if it would exceed :data:`MAX_FRAME`): every
-        linked module's entry, ``null`` for a module not in ``commands`` (it stops)."""
+        linked module's entry, ``null`` for a module not in ``commands`` (it stops); every
+        :attr:`every`-th tick it polls them all."""
         self.require_connected()
         unknown = set(commands) - set(self.modules)
         if unknown:
@@ -578,6 +618,8 @@ class LinkDriver(Driver):
         first = self._counter + 1  # the counter of this tick's first frame
         entries = {module.number: self._entry(module, commands.get(name), first)
                    for name, module in self.modules.items() if module.keys is not None}
+        self._polled = set(entries) if self._ticks % self.every == 0 else set()
+        self._ticks += 1
         for part in self._parts(entries):
             self._send_command({number: entries[number] for number in part})
 
@@ -598,13 +640,16 @@ class LinkDriver(Driver):
             base = command if command is not None else ModuleCommand()
             command = replace(base, undock=tuple(dict.fromkeys((*base.undock, *module.undock))))
         if command is None:
-            module.command = None
+            module.command = module.wire = None
             return None
-        if command != module.command:
-            module.command, module.version = command, module.version + 1
+        entry = command_entry(command, 0, self.names, self.vectors)
+        if entry[1:] != module.wire:  # a change finer than the quantum is no change
+            module.command, module.wire = command, entry[1:]
+            module.version += 1
         if module.acked_version == module.version:
             return module.version % VERSION_MARKS
-        return command_entry(command, module.version, self.names)
+        entry[0] = module.version % VERSION_MARKS
+        return entry
 
     def _parts(self, entries: Mapping[int, Any]) -> list[list[int]]:
         """The modules of ``entries`` in parts whose COMMAND frames fit one datagram each."""
@@ -624,7 +669,27 @@ class LinkDriver(Driver):
                                    2: {n: entries.get(n) for n in numbers}}
         if known < len(self.names):
             payload[3] = [known, *self.names.names[known:]]
+        asked = sorted(n for n in numbers if self._asks(self._by_number[n]))
+        if asked:
+            payload[4] = asked
+        polled = [n for n in numbers if n in self._polled or self._late(self._by_number[n])]
+        if polled:  # all of them in one tick: one instant of the robot
+            payload[5] = True if len(polled) == len(numbers) else sorted(polled)
         return self.codec.encode(payload)
+
+    def _late(self, module: _Module) -> bool:
+        """Whether ``module`` has not answered a poll two control periods old (its report,
+        or the poll, was lost): it is polled again at once."""
+        return module.awaiting is not None and \
+            self._time - module.awaiting >= 2 * self._dt - 1e-9
+
+    @staticmethod
+    def _asks(module: _Module) -> bool:
+        """Whether the host asks ``module`` for a full report at once: it has not reported
+        since the run's reset, or the host lacks its links or its full sensor data (the
+        reports that carried them were lost)."""
+        return module.state == "live" and (
+            module.reports == 0 or not module.has_links or not module.complete)
 
     def _send_command(self, entries: dict[int, Any]) -> None:
         assert self._group is not None and self._signer is not None
@@ -634,6 +699,8 @@ class LinkDriver(Driver):
         now = wall.monotonic()
         for number, entry in entries.items():
             module = self._by_number[number]
+            if number in self._polled and module.awaiting is None:
+                module.awaiting = self._time
             module.batches[header.counter] = None if entry is None else module.version
             module.sent[header.counter] = now
             for book in (module.batches, module.sent):
@@ -700,21 +767,23 @@ class LinkDriver(Driver):
 
     # -- the budget --------------------------------------------------------------------
 
-    def _estimate(self, every: int) -> float:
-        """Bits per second of the link with reports every ``every`` periods: a model of
-        the frames' sizes (header, tag, signature, small entries; UDP/IP included)."""
-        rate = 1.0 / self._dt
-        n = len(self.modules)
-        command = UDP_IP_BYTES + HEADER.size + TAG_SIZE + SIGNATURE_SIZE + 8 + 2 * n
-        report = UDP_IP_BYTES + HEADER.size + TAG_SIZE + 12
-        return 8 * rate * (command + n * report / every)
+    def _estimate(self, every: int, commands: float, other: float, report: float) -> float:
+        """Bytes per second [system time] with reports every ``every`` control periods:
+        COMMAND frames ``commands`` and other frames ``other`` [B/s], and one report of
+        ``report`` bytes per module per ``every`` periods (UDP/IP included throughout)."""
+        return commands + other + len(self.modules) * report / (every * self._dt)
 
     def _initial_every(self) -> int:
-        budget = self.system.budget_kbps
-        if budget is None:
-            return 1
-        for every in range(1, self._max_every() + 1):
-            if self._estimate(every) <= 0.8 * budget * 1000:
+        """The report spacing to start with: under a budget the widest (reports come
+        closer once the traffic measured leaves room, :meth:`_budget`)."""
+        return 1 if self.system.budget_kbps is None else self._max_every()
+
+    def _spacing(self, budget: float, share: float, commands: float, other: float,
+                 report: float) -> int:
+        """The smallest report spacing whose estimate is within ``share`` of ``budget``
+        (at most :meth:`_max_every`)."""
+        for every in range(1, self._max_every()):
+            if self._estimate(every, commands, other, report) <= share * budget * 125:
                 return every
         return self._max_every()
 
@@ -724,20 +793,36 @@ class LinkDriver(Driver):
         return max(1, min(MAX_EVERY, math.floor(timeout / (4 * self._dt) + 1e-9)))
 
     def _budget(self) -> None:
-        """Space the reports further (at most :meth:`_max_every` periods) when the
-        traffic of the last seconds exceeds the budget, closer when well below it."""
+        """Set the report spacing from the traffic of the last :data:`BUDGET_WINDOW`
+        seconds [wall], checked every :data:`BUDGET_STEP`: the COMMAND frames' and other
+        frames' bytes per second as measured, the reports' as their mean size times one
+        per module per ``every`` periods (per second of system time, as the budget: an
+        emulator faster than real time stands for a network at real time). Spaced
+        further at once when the estimate exceeds :data:`BUDGET_HIGH` of the budget;
+        one period closer when the closer spacing stays within :data:`BUDGET_LOW`."""
         budget = self.system.budget_kbps
         now = wall.monotonic()
         while self._recent and self._recent[0][0] < now - BUDGET_WINDOW:
             self._recent.popleft()
-        if budget is None or now - self._budget_at < BUDGET_WINDOW / 2 or \
-                now - self._t0 < BUDGET_WINDOW:
+        if budget is None or now - self._budget_at < BUDGET_STEP or \
+                now - self._window_start < BUDGET_STEP:
             return
         self._budget_at = now
-        rate = 8 * sum(size for _, size in self._recent) / BUDGET_WINDOW / 1000
-        if rate > 0.95 * budget and self.every < self._max_every():
-            self.every += 1
-        elif self.every > 1 and rate * self.every / (self.every - 1) < 0.8 * budget:
+        span = min(BUDGET_WINDOW, now - self._window_start) * self.system.time_scale
+        sums = {"command": 0, "report": 0, "other": 0}
+        reports = 0
+        for _, size, kind in self._recent:
+            sums[kind] += size
+            reports += kind == "report"
+        if not reports:
+            return
+        commands, other = sums["command"] / span, sums["other"] / span
+        report = sums["report"] / reports
+        wanted = self._spacing(budget, BUDGET_HIGH, commands, other, report)
+        if wanted > self.every:
+            self.every = wanted
+        elif self.every > 1 and self._estimate(self.every - 1, commands, other, report) \
+                <= BUDGET_LOW * budget * 125:
             self.every -= 1
 
     @property

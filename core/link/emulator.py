@@ -70,6 +70,7 @@ from ..driver import Driver, DriverFactory, ModuleCommand, Observation
 from ..errors import ConfigurationError, ExecutionError
 from ..faults import Fault, parse_faults
 from .codec import Codec, CodecError, RecordTable, infer_records
+from .declarations import declared
 from .keys import module_key
 from .module import DEFAULT_WATCHDOG_PERIODS, ModuleLink
 from .protocol import LinkStats
@@ -218,7 +219,8 @@ class Emulator:
         self.close()
 
     def system_file(self, key: KeyRef, robot: str) -> SystemFile:
-        """The systems file of these modules (the key by reference only)."""
+        """The systems file of these modules (the key by reference only), with what
+        ``robot`` declared of its link data (:mod:`.declarations`)."""
         assert self.group is not None, "call open() first"
         return SystemFile(
             system=self.system_id, robot=robot, key=key, timeout_s=self.timeout,
@@ -226,6 +228,7 @@ class Emulator:
             group=GroupAddress(address=self.address, port=self.group.getsockname()[1]),
             records=[RecordEntry(type=r.type, rotations=list(r.rotations),
                                  directions=list(r.directions)) for r in self.records.specs],
+            vectors=list(declared(robot).vectors), pose_every=declared(robot).pose_every,
             modules=[ModuleEntry(id=m, number=e.link.number, address=self.address,
                                  port=e.sock.getsockname()[1])
                      for m, e in self.modules.items()])

@@ -17,12 +17,15 @@
   version (unchanged). The newest accepted command is applied at the module's next
   control tick; no valid command for ``watchdog`` seconds stops the motors and disarms
   the connectors.
-* **Reports** are sent every ``every``-th control tick (the host sets it to keep the
-  link within its budget; phases spread by module number), and at once on a docking
-  event, a change of the latched ports or of the status, or a command accepted but not
-  applied. Unchanged sensor fields (field by field for a record), pose and links are
-  left out except for a refresh every :data:`REFRESH` reports and the :data:`REPEAT`
-  reports after each change.
+* **Reports** are sent at the control tick after a COMMAND frame that polls the module
+  (the host polls every ``every`` periods, all modules at once, to keep the link within
+  its budget), on the module's own once ``every + 1`` periods passed without one (the
+  polls were lost), and at once on a docking event, a change of the latched ports or of
+  the status, a command accepted but not applied, or the host's asking for a full
+  report. Unchanged sensor fields (field by field for a record), pose, links and the
+  names known are left out except for a refresh every :data:`REFRESH` reports (or when
+  asked) and the :data:`REPEAT` reports after each change; the pose goes at most every
+  ``pose_every``-th report (SETUP).
 
 The emulator (:mod:`.emulator`) runs one per emulated module.
 """
@@ -138,9 +141,15 @@ class _Session:
     fields: list[_Slot] = field(default_factory=list)
     sensors: _Slot = field(default_factory=_Slot)
     pose: _Slot = field(default_factory=_Slot)
+    pose_every: int = 1
+    pose_age: int = 0  # reports since the pose was last sent
     links: _Slot = field(default_factory=_Slot)
+    known: _Slot = field(default_factory=_Slot)
     status: int = -1
     events: list[Any] = field(default_factory=list)
+    asked: bool = False  # the host asked for a full report at once
+    polled: bool = False  # the host polled since the last report
+    since: int = 0  # control ticks since the last report
 
 
 class ModuleLink:
@@ -299,16 +308,18 @@ class ModuleLink:
         self._apply_settings(session, settings)
 
     @staticmethod
-    def _settings(payload: dict[int, Any]) -> tuple[float, int, float]:
+    def _settings(payload: dict[int, Any]) -> tuple[float, int, float, int]:
         watchdog = unsigned(payload, 2, "watchdog", limit=600_000) / 1000.0
         every = unsigned(payload, 3, "report period", limit=100)
         window = unsigned(payload, 4, "age window", limit=600_000) / 1000.0
-        if watchdog <= 0 or every < 1:
-            raise Refused("malformed", "watchdog or report period")
-        return watchdog, every, window
+        pose_every = unsigned(payload, 5, "pose spacing", 1, limit=10)
+        if watchdog <= 0 or every < 1 or pose_every < 1:
+            raise Refused("malformed", "watchdog, report period or pose spacing")
+        return watchdog, every, window, pose_every
 
-    def _apply_settings(self, session: _Session, settings: tuple[float, int, float]) -> None:
-        self.watchdog, session.every, session.freshness.ceiling = settings
+    def _apply_settings(self, session: _Session, settings: tuple[float, int, float, int]
+                        ) -> None:
+        self.watchdog, session.every, session.freshness.ceiling, session.pose_every = settings
         session.freshness.ceiling = max(session.freshness.ceiling, session.freshness.floor)
 
     def _command(self, header: Header, datagram: bytes, address: tuple[str, int],
@@ -326,6 +337,11 @@ class ModuleLink:
         watchdog = unsigned(payload, 0, "watchdog", limit=600_000) / 1000.0
         every = unsigned(payload, 1, "report period", live.every, limit=100)
         entries = want(payload, 2, dict, "entries", {})
+        asked = want(payload, 4, tuple, "asked", ())
+        poll = want(payload, 5, (bool, tuple), "poll", False)
+        if not all(isinstance(n, int) and not isinstance(n, bool)
+                   for n in (*asked, *(poll if isinstance(poll, tuple) else ()))):
+            raise Refused("malformed", "asked or poll")
         names = live.names
         if 3 in payload:
             defs = want(payload, 3, tuple, "names")
@@ -343,9 +359,12 @@ class ModuleLink:
         live.host_counter = header.counter
         live.freshness.commit(header.clock, clock)
         live.names, live.every, live.address = names, every, address
+        live.asked = live.asked or self.number in asked
         self.watchdog = watchdog
         if not named:  # another part of this tick's command, for other modules
             return
+        live.polled = live.polled or poll is True or (
+            isinstance(poll, tuple) and self.number in poll)
         self.received = header.counter
         if not self.obey:
             return
@@ -403,6 +422,7 @@ class ModuleLink:
         if live is None:
             return False
         live.ticks += 1
+        live.since += 1
         live.events.extend(events or ())
         tree = self.codec.to_wire(sensors)
         fields = _fields(tree)
@@ -418,8 +438,8 @@ class ModuleLink:
         links = tuple(sorted(links))
         changed = live.links.update(self.codec.dumps([list(link) for link in links]))
         status = self.status()
-        due = (live.ticks + self.number) % live.every == 0
-        urgent = (live.reported < REPEAT or changed or bool(live.events)
+        due = live.polled or live.since > live.every  # polled; or the polls were lost
+        urgent = (live.reported < REPEAT or changed or bool(live.events) or live.asked
                   or status != live.status or self.received > self.applied)
         if not (due or urgent):
             return False
@@ -429,8 +449,11 @@ class ModuleLink:
     def _payload(self, live: _Session, tree: Any, fields: list[Any], links: tuple[Any, ...],
                  wire_pose: Any, status: int, battery: float | None) -> dict[int, Any]:
         """A REPORT's payload: what changed lately, everything on a refresh."""
-        refresh = live.reported % REFRESH == 0
-        payload: dict[int, Any] = {0: self.applied, 2: status, 8: len(live.names)}
+        refresh = live.reported % REFRESH == 0 or live.asked
+        payload: dict[int, Any] = {0: self.applied, 2: status}
+        live.known.update(len(live.names).to_bytes(4, "little"))
+        if live.known.take(refresh):
+            payload[8] = len(live.names)
         if self.received > self.applied:
             payload[1] = self.received - self.applied
         if fields:
@@ -446,8 +469,11 @@ class ModuleLink:
             payload[5] = self.codec.to_wire(live.events)
         if battery is not None and refresh:
             payload[6] = self.codec.to_wire(battery)
-        if live.pose.take(refresh) and wire_pose is not None:
-            payload[7] = wire_pose
+        live.pose_age += 1
+        if wire_pose is not None and (refresh or live.reported < REPEAT or (
+                live.pose.repeat > 0 and live.pose_age >= live.pose_every)):
+            live.pose.take(refresh)
+            payload[7], live.pose_age = wire_pose, 0
         return payload
 
     def _send_report(self, live: _Session, clock: float, payload: dict[int, Any],
@@ -464,7 +490,7 @@ class ModuleLink:
         self.stats.bytes_sent += len(data)
         live.reported += 1
         live.status = status
-        live.events = []
+        live.events, live.asked, live.polled, live.since = [], False, False, 0
         return True
 
 

@@ -34,10 +34,20 @@ from enum import IntEnum
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..driver import ModuleCommand, Pose
 from ..errors import ExecutionError
-from .codec import QUANTUM, Codec, CodecError
+from .codec import (
+    DIRECTION_BYTES,
+    ROTATION_SIZES,
+    Codec,
+    CodecError,
+    direction_bytes,
+    direction_from_bytes,
+    rotation_bytes,
+    rotation_from_bytes,
+)
 from .keys import Aead, Signer, Verifier
 
 __all__ = ["HEADER", "HOST", "MAX_FRAME", "NONCE_SIZE", "SIGNATURE_SIZE", "TAG_SIZE",
@@ -340,13 +350,49 @@ def _name(value: Any, names: list[str], what: str) -> str:
     raise Refused("malformed", f"{what}: name {value!r}")
 
 
-def command_entry(command: ModuleCommand, version: int, names: NameTable) -> list[Any]:
-    """A module's full entry in the COMMAND frame: ``[version, joints, wheels, dock,
-    undock]`` without trailing empties; values float32."""
-    def values(items: Mapping[str, float]) -> dict[Any, float]:
-        return {names.ref(str(k)): float(np.float32(v)) for k, v in items.items()}
+AXES = ("_x", "_y", "_z")
+"""The joints ``N_x``, ``N_y``, ``N_z`` of a vector ``N`` (a systems file's ``vectors``)."""
+UNIT_TOLERANCE = 1e-6
+"""How far from 1 the norm of a declared vector may be for it to travel packed."""
 
-    out: list[Any] = [version % VERSION_MARKS, values(command.joints), values(command.wheels),
+
+def _unit(joints: Mapping[str, float], stem: str) -> np.ndarray | None:
+    """The unit vector of joints ``stem_x/_y/_z``, or ``None`` (absent, or not unit)."""
+    names = [stem + axis for axis in AXES]
+    if not all(n in joints for n in names):
+        return None
+    v = np.array([joints[n] for n in names], dtype=float)
+    norm = float(np.linalg.norm(v))
+    return v if math.isfinite(norm) and abs(norm - 1.0) < UNIT_TOLERANCE else None
+
+
+def _number(value: float) -> float | int:
+    """A joint value on the wire: float32, an integer when integral (1 byte for 0 or 1,
+    not 3)."""
+    x = float(np.float32(value))
+    return int(x) if x.is_integer() and abs(x) < 2**31 else x
+
+
+def command_entry(command: ModuleCommand, version: int, names: NameTable,
+                  vectors: tuple[str, ...] = ()) -> list[Any]:
+    """A module's full entry in the COMMAND frame: ``[version, joints, wheels, dock,
+    undock]`` without trailing empties; values float32 (integers when integral), except
+    that each declared vector
+    ``N`` in ``vectors`` whose joints ``N_x``, ``N_y``, ``N_z`` form a unit vector
+    travels as one joint ``N`` whose value is its 4-byte direction
+    (:func:`~.codec.direction_bytes`: within 6.3e-5 rad)."""
+    joints: dict[Any, Any] = {}
+    rest = dict(command.joints)
+    for stem in vectors:
+        unit = _unit(rest, stem)
+        if unit is not None:
+            for axis in AXES:
+                del rest[stem + axis]
+            joints[names.ref(stem)] = direction_bytes(unit)
+    for key, value in rest.items():
+        joints[names.ref(str(key))] = _number(value)
+    out: list[Any] = [version % VERSION_MARKS, joints,
+                      {names.ref(str(k)): _number(v) for k, v in command.wheels.items()},
                       [names.ref(p) for p in command.dock],
                       [names.ref(p) for p in command.undock]]
     while len(out) > 1 and not out[-1]:
@@ -356,7 +402,8 @@ def command_entry(command: ModuleCommand, version: int, names: NameTable) -> lis
 
 def parse_entry(entry: Any, names: list[str]) -> tuple[int, ModuleCommand | None]:
     """``(version, command)`` of a module's entry; ``None``: the entry is only the
-    version (the command is unchanged).
+    version (the command is unchanged). A joint whose value is a 4-byte string is a
+    unit vector: the joints ``N_x``, ``N_y``, ``N_z`` of its name ``N``.
 
     Raises:
         Refused: ``malformed``.
@@ -370,17 +417,27 @@ def parse_entry(entry: Any, names: list[str]) -> tuple[int, ModuleCommand | None
         raise Refused("malformed", "command entry")
     parts = list(entry[1:]) + [None] * (5 - len(entry))
 
-    def numbers(value: Any, what: str) -> dict[str, float]:
+    def numbers(value: Any, what: str, vectors: bool = False) -> dict[str, float]:
         if value is None:
             return {}
         if not isinstance(value, dict):
             raise Refused("malformed", what)
-        out = {}
+        out: dict[str, float] = {}
         for key, number in value.items():
+            name = _name(key, names, what)
+            if vectors and isinstance(number, bytes) and len(number) == DIRECTION_BYTES:
+                unit = direction_from_bytes(number)
+                for axis, component in zip(AXES, unit, strict=True):
+                    if name + axis in out:
+                        raise Refused("malformed", f"{what}: {name + axis} given twice")
+                    out[name + axis] = float(component)
+                continue
             if (isinstance(number, bool) or not isinstance(number, int | float)
                     or not math.isfinite(number)):
                 raise Refused("malformed", f"{what} value")
-            out[_name(key, names, what)] = float(number)
+            if name in out:
+                raise Refused("malformed", f"{what}: {name} given twice")
+            out[name] = float(number)
         return out
 
     def ports(value: Any, what: str) -> tuple[str, ...]:
@@ -390,7 +447,7 @@ def parse_entry(entry: Any, names: list[str]) -> tuple[int, ModuleCommand | None
             raise Refused("malformed", what)
         return tuple(_name(p, names, what) for p in value)
 
-    return entry[0], ModuleCommand(joints=numbers(parts[0], "joints"),
+    return entry[0], ModuleCommand(joints=numbers(parts[0], "joints", vectors=True),
                                    wheels=numbers(parts[1], "wheels"),
                                    dock=ports(parts[2], "dock"), undock=ports(parts[3], "undock"))
 
@@ -400,24 +457,19 @@ POSITION_QUANTUM = 1e-4
 
 
 def pose_wire(pose: Pose) -> list[Any]:
-    """A pose as ``[x, y, z, quaternion]``: position in units of 0.1 mm, orientation as
-    four int16 (value / 32767, w >= 0) in 8 bytes."""
+    """A pose as ``[x, y, z, rotation]``: position in units of 0.1 mm, orientation as a
+    rotation field's 6 bytes (:func:`~.codec.rotation_bytes`)."""
     q = np.asarray(pose.orientation, dtype=float)
     norm = float(np.linalg.norm(q))
-    q = q / norm if norm > 0 else np.array([0.0, 0.0, 0.0, 1.0])
-    ints = np.round(q * QUANTUM).astype("<i2")
-    if ints[3] < 0:
-        ints = -ints
-    return [round(float(x) / POSITION_QUANTUM) for x in pose.position] + [ints.tobytes()]
+    q = q / norm if math.isfinite(norm) and norm > 0 else np.array([0.0, 0.0, 0.0, 1.0])
+    return [round(float(x) / POSITION_QUANTUM) for x in pose.position] + [
+        rotation_bytes(Rotation.from_quat(q).as_matrix())]
 
 
 def pose_from_wire(value: Any) -> Pose:
     if not (isinstance(value, tuple) and len(value) == 4
             and all(isinstance(x, int) and not isinstance(x, bool) for x in value[:3])
-            and isinstance(value[3], bytes) and len(value[3]) == 8):
+            and isinstance(value[3], bytes) and len(value[3]) in ROTATION_SIZES):
         raise Refused("malformed", "pose")
-    q = np.frombuffer(value[3], dtype="<i2").astype(float) / QUANTUM
-    norm = float(np.linalg.norm(q))
-    if norm < 0.5:
-        raise Refused("malformed", "pose orientation")
-    return Pose(np.array(value[:3], dtype=float) * POSITION_QUANTUM, q / norm)
+    q = Rotation.from_matrix(rotation_from_bytes(value[3])).as_quat()
+    return Pose(np.array(value[:3], dtype=float) * POSITION_QUANTUM, q)

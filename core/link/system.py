@@ -7,6 +7,7 @@ A small JSON file (``docs/hardware.md``)::
      "timeout_s": 1.0, "time_scale": 1.0, "budget_kbps": 60,
      "group": {"address": "192.168.4.255", "port": 47000},
      "records": [{"type": "msrr.plugins.freesn.sim.world:NodeReport", "rotations": ["tilt"]}],
+     "vectors": ["a.dir", "a.fwd", "b.dir", "b.fwd"], "pose_every": 2,
      "modules": [{"id": "1", "number": 1, "address": "127.0.0.1", "port": 47001}, ...]}
 
 The key is the *site key*, held by the host only; each module holds its own module
@@ -130,6 +131,12 @@ class SystemFile(StrictModel):
             it; ``None``: a report every period.
         group: where COMMAND frames go; ``None``: to each module's own address.
         records: the record types reports may carry (ids 1, 2, ...).
+        vectors: joint names ``N`` of the robot's commands whose joints ``N_x``, ``N_y``,
+            ``N_z`` carry a unit vector (FreeSN: ``a.dir``, ...): each travels as one
+            4-byte direction instead of three floats.
+        pose_every: a report carries the module's pose at most every this many reports
+            (1: every report that changed it). Both as the robot declares them
+            (:mod:`.declarations`).
         modules: the modules, distinct ids, numbers and addresses.
     """
 
@@ -143,6 +150,8 @@ class SystemFile(StrictModel):
     budget_kbps: float | None = Field(default=None, gt=0)
     group: GroupAddress | None = None
     records: list[RecordEntry] = Field(default_factory=list)
+    vectors: list[str] = Field(default_factory=list)
+    pose_every: int = Field(default=1, ge=1, le=10)
     modules: list[ModuleEntry] = Field(min_length=1)
 
     @model_validator(mode="after")
@@ -152,6 +161,9 @@ class SystemFile(StrictModel):
                              ("address", [(m.address, m.port) for m in self.modules])):
             if len(set(values)) != len(values):
                 raise ValueError(f"two modules with one {what}")
+        if len(set(self.vectors)) != len(self.vectors) or not all(
+                v.strip() and v == v.strip() for v in self.vectors):
+            raise ValueError("vectors must be distinct joint names without blanks")
         return self
 
     def timeout(self, module: ModuleEntry) -> float:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from msrr.core.driver import ModuleCommand, Pose
 from msrr.core.errors import ConfigurationError
@@ -32,7 +33,17 @@ from msrr.core.link import (
     write_key,
     write_system,
 )
-from msrr.core.link.codec import Codec, CodecError, RecordSpec, RecordTable, infer_records
+from msrr.core.link.codec import (
+    Codec,
+    CodecError,
+    RecordSpec,
+    RecordTable,
+    direction_bytes,
+    direction_from_bytes,
+    infer_records,
+    rotation_bytes,
+    rotation_from_bytes,
+)
 from msrr.core.link.keys import Aead, Ephemeral, Signer, random_key, session_keys
 from msrr.core.link.protocol import (
     HEADER,
@@ -99,22 +110,29 @@ class Host:
                                  self.number)
 
     def setup(self, clock: float, *, watchdog: float = 0.3, every: int = 1,
-              window: float = 1.0) -> bytes:
+              window: float = 1.0, pose_every: int = 1) -> bytes:
         self.every = every
         return seal(self.keys.to_module, self.header(FrameType.SETUP, clock), PLAIN.encode({
             0: self.group_key, 1: self.signer.public, 2: round(watchdog * 1000), 3: every,
-            4: round(window * 1000)}))
+            4: round(window * 1000), 5: pose_every}))
 
     def command(self, clock: float, entries: dict[int, object], *, watchdog: float = 0.3,
-                names: bool = True) -> bytes:
+                names: bool = True, poll: bool | list[int] = False,
+                asked: list[int] | None = None) -> bytes:
         payload: dict[int, object] = {0: round(watchdog * 1000), 1: self.every, 2: entries}
         if names and len(self.names):
             payload[3] = [0, *self.names.names]
+        if asked:
+            payload[4] = asked
+        if poll:
+            payload[5] = poll
         return seal_signed(self.group, self.signer, self.header(FrameType.COMMAND, clock),
                            PLAIN.encode(payload))
 
-    def go(self, clock: float, command: ModuleCommand, version: int = 1) -> bytes:
-        return self.command(clock, {self.number: command_entry(command, version, self.names)})
+    def go(self, clock: float, command: ModuleCommand, version: int = 1, *,
+           poll: bool | list[int] = False) -> bytes:
+        return self.command(clock, {self.number: command_entry(command, version, self.names)},
+                            poll=poll)
 
     def bye(self, clock: float) -> bytes:
         return seal(self.keys.to_module, self.header(FrameType.BYE, clock), PLAIN.encode({}))
@@ -179,7 +197,8 @@ def test_ill_formed_or_non_deterministic_payloads_are_refused_as_codec_errors(he
         Codec().decode(bytes.fromhex(hex_))
 
 
-def test_records_travel_by_id_with_rotations_as_quaternions_and_only_from_the_table() -> None:
+def test_records_travel_by_id_with_rotations_and_directions_packed_and_only_from_the_table(
+        ) -> None:
     turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     value = Reading("strut", turn, {"a": np.array([0.6, 0.0, 0.8])}, ("dock",))
     specs = infer_records([value])
@@ -193,8 +212,15 @@ def test_records_travel_by_id_with_rotations_as_quaternions_and_only_from_the_ta
     np.testing.assert_allclose(back["1"].arms["a"], [0.6, 0.0, 0.8], atol=1e-4)
     np.testing.assert_array_equal(back["v"], [1.0, 2.5])
     np.testing.assert_array_equal(back["m"], np.eye(2))
-    for tilt, arm in ((b"\x00" * 8, b"\x01" * 6), (b"\x01" * 8, b"\x00" * 6)):
-        with pytest.raises(CodecError, match="far from unit"):  # never a division by zero
+    tilted = Rotation.from_rotvec([0.3, -0.2, 0.0]).as_matrix()  # about a horizontal axis
+    assert len(rotation_bytes(turn)) == 6 and len(rotation_bytes(tilted)) == 4
+    for tilt, arm in ((b"\x00" * 6, b"\x00" * 4), (b"\xff" * 4, b"\x80" * 4)):
+        back_zero = codec.decode(cbor2.dumps(cbor2.CBORTag(27, [1, "s", tilt, {"a": arm}]),
+                                             canonical=True))  # every 6 or 4 bytes are one
+        assert np.allclose(back_zero.tilt @ back_zero.tilt.T, np.eye(3))
+        assert np.linalg.norm(back_zero.arms["a"]) == pytest.approx(1.0)
+    for tilt, arm in ((b"\x00" * 8, b"\x01" * 4), (b"\x01" * 6, b"\x00" * 6)):
+        with pytest.raises(CodecError, match="of (8|6) bytes"):  # another size: refused
             codec.decode(cbor2.dumps(cbor2.CBORTag(27, [1, "s", tilt, {"a": arm}]),
                                      canonical=True))
     with pytest.raises(CodecError, match="not in the systems file"):
@@ -204,8 +230,8 @@ def test_records_travel_by_id_with_rotations_as_quaternions_and_only_from_the_ta
     with pytest.raises(ConfigurationError, match="not allowed"):
         RecordTable([RecordSpec("os.path:join")], packages=("msrr",))
     partial = cbor2.CBORTag(27, [1, cbor2.undefined, cbor2.undefined,
-                                 {"a": np.round(np.array([0.0, 0.6, 0.8]) * 32767)
-                                  .astype("<i2").tobytes()}, cbor2.undefined])
+                                 {"a": direction_bytes(np.array([0.0, 0.6, 0.8]))},
+                                 cbor2.undefined])
     merged = codec.update(partial, back["1"])
     assert merged.kind == "strut" and merged.events == ("dock",)
     np.testing.assert_allclose(merged.arms["a"], [0.0, 0.6, 0.8], atol=1e-4)
@@ -213,7 +239,31 @@ def test_records_travel_by_id_with_rotations_as_quaternions_and_only_from_the_ta
     assert codec.update(partial, None) is INCOMPLETE
 
 
-def test_command_entries_use_names_by_id_and_float32_values() -> None:
+def test_rotations_and_directions_are_packed_within_1e_4_rad() -> None:
+    rng = np.random.default_rng(5)
+    turns = Rotation.random(3000, random_state=5)
+    axes = rng.normal(size=(500, 3))
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    near_half = Rotation.from_rotvec(axes * (np.pi - rng.uniform(0, 1e-3, (500, 1))))
+    worst = 0.0
+    for turn in [*turns, *near_half, Rotation.identity()]:
+        data = rotation_bytes(turn.as_matrix())
+        back = Rotation.from_matrix(rotation_from_bytes(data))
+        worst = max(worst, (back * turn.inv()).magnitude())
+    assert worst < 1e-4
+    vectors = rng.normal(size=(3000, 3))
+    vectors = np.vstack([vectors, np.eye(3), -np.eye(3), [[1, 1, 0], [0, -1, -1e-9]]])
+    vectors /= np.linalg.norm(vectors, axis=1)[:, None]
+    errors = [math.acos(min(1.0, float(direction_from_bytes(direction_bytes(v)) @ v)))
+              for v in vectors]
+    assert max(errors) < 1e-4 and len(direction_bytes(vectors[0])) == 4
+    with pytest.raises(CodecError):
+        rotation_from_bytes(b"\x00" * 5)
+    with pytest.raises(CodecError):
+        direction_from_bytes(b"\x00" * 6)
+
+
+def test_command_entries_use_names_by_id_float32_values_and_packed_unit_vectors() -> None:
     names = NameTable()
     command = ModuleCommand(joints={"a.dir_x": 0.1, "a.dir_y": -1.0}, wheels={"left": 0.25},
                             dock=("T",), undock=("B",))
@@ -224,6 +274,27 @@ def test_command_entries_use_names_by_id_and_float32_values() -> None:
     assert version == 5 and back.dock == ("T",) and back.undock == ("B",)
     assert back.joints == pytest.approx(command.joints) and back.wheels == {"left": 0.25}
     assert parse_entry(7, []) == (7, None)  # the version alone: unchanged
+    unit = np.array([0.28687695338046915, 0.03177718552424041, -0.9574402457069049])
+    unit /= np.linalg.norm(unit)
+    strut = ModuleCommand(joints={"a.dir_x": unit[0], "a.dir_y": unit[1], "a.dir_z": unit[2],
+                                  "b.dir_x": 0.5, "b.dir_y": 0.0, "b.dir_z": 0.5,  # not unit
+                                  "b.effort": 1.0, "a.effort": 0.25})
+    names = NameTable()
+    packed = command_entry(strut, 2, names, ("a.dir", "b.dir", "a.fwd"))
+    assert packed[1][names.ref("a.dir")] == direction_bytes(unit)  # one 4-byte direction
+    assert "a.dir_x" not in names.names and "b.dir_x" in names.names  # b's is not unit
+    effort = packed[1][names.ref("b.effort")]
+    assert effort == 1 and isinstance(effort, int)  # integral: 1 byte, not 3
+    plain = command_entry(strut, 2, NameTable())
+    assert len(PLAIN.encode(packed)) == len(PLAIN.encode(plain)) - 12  # 6 bytes, not 18
+    _, back = parse_entry(tuple(PLAIN.decode(PLAIN.encode(packed))), names.names)
+    assert set(back.joints) == set(strut.joints) and back.joints["b.effort"] == 1.0
+    got = np.array([back.joints[f"a.dir_{a}"] for a in "xyz"])
+    assert math.acos(min(1.0, float(got @ unit))) < 1e-4
+    for bad in ((1, {names.ref("a.dir"): b"\x00" * 5}),  # not a direction's size
+                (1, {names.ref("a.dir"): b"\x00" * 4, names.ref("a.dir_x"): 0.5})):  # twice
+        with pytest.raises(Exception, match="malformed"):
+            parse_entry(bad, names.names)
     for bad in ((1, {9: 1.0}), (1, {0: "x"}), (1, {0: math.nan}), (30,), 24, (1, [], [True])):
         with pytest.raises(Exception, match="malformed"):
             parse_entry(bad, ["a"])
@@ -327,24 +398,63 @@ def test_only_a_setup_with_the_new_session_key_replaces_the_session() -> None:
     assert link.handle(old, HOST_ADDRESS, 0.3) == "bad_tag"  # the old run's group key
 
 
-def test_a_module_reports_at_once_when_it_stops_obeying_or_its_motors_fail() -> None:
+def test_a_module_reports_when_polled_and_at_once_when_it_stops_obeying_or_its_motors_fail(
+        ) -> None:
     host, link = linked(every=3)
     sent = []
     for tick in range(1, 10):
+        poll = [9, 3] if tick % 3 == 0 else False  # every third frame polls it
+        link.handle(host.go(tick / 10, ModuleCommand(wheels={"v": 0.5}), poll=poll),
+                    HOST_ADDRESS, tick / 10)
+        link.current(tick / 10)
+        sent.append(link.report(tick / 10 + 0.01, sensors={"x": 1}))
+    assert sent[3:] == [False, False, True, False, False, True]  # when polled
+    sent = []
+    for tick in range(10, 18):  # the polls are lost: every 4th period on its own
         link.handle(host.go(tick / 10, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS,
                     tick / 10)
         link.current(tick / 10)
         sent.append(link.report(tick / 10 + 0.01, sensors={"x": 1}))
-    assert sent[3:] == [False, False, True, False, False, True]  # every third (phase 3)
+    assert sent == [False, False, False, True, False, False, False, True]
+    link.handle(host.go(1.8, ModuleCommand(wheels={"v": 0.5}), poll=[4]), HOST_ADDRESS, 1.8)
+    link.current(1.8)
+    assert not link.report(1.81, sensors={"x": 1})  # another module polled
     link.obey = False  # a firmware fault: commands accepted, not applied
-    link.handle(host.go(1.0, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS, 1.0)
-    assert link.report(1.01, sensors={"x": 1})  # not due, but the module falls behind
+    link.handle(host.go(1.9, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS, 1.9)
+    assert link.report(1.91, sensors={"x": 1})  # not due, but the module falls behind
     payload = host.report(link.outbox[-1][0])
     assert payload[1] == 1 and payload[0] == host.counter - 1  # received - applied
     link.obey, link.motor_fault = True, True
-    link.handle(host.go(1.1, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS, 1.1)
-    assert link.report(1.11, sensors={"x": 1})
+    link.handle(host.go(2.0, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS, 2.0)
+    assert link.report(2.01, sensors={"x": 1})
     assert host.report(link.outbox[-1][0])[2] == 4  # FAULT
+
+
+def test_a_module_reports_what_changed_and_everything_when_asked_with_its_pose_spaced(
+        ) -> None:
+    host, link = linked(every=5)
+    pose = Pose(np.array([0.1, 0.0, 0.05]), np.array([0.0, 0.0, 0.0, 1.0]))
+
+    def tick(clock: float, x: float, **frame: object) -> dict[int, object] | None:
+        link.handle(host.command(clock, {3: None}, **frame), HOST_ADDRESS, clock)
+        link.current(clock)
+        moved = Pose(np.array([x, 0.0, 0.05]), pose.orientation)
+        if not link.report(clock + 0.01, sensors={"x": 1}, pose=moved, links=(("T", "7", "B"),),
+                           battery=8.1):
+            return None
+        return host.report(link.outbox.pop()[0])
+
+    first = [tick(0.1 * k, 0.1, poll=True) for k in range(1, 4)]  # the session's first three
+    assert all({3, 4, 7, 8} <= set(r) for r in first)
+    quiet = tick(0.4, 0.1, poll=True)
+    assert set(quiet) == {0, 2}  # nothing changed: ack and status only (no names known)
+    assert tick(0.5, 0.1) is None  # not polled
+    full = tick(0.6, 0.1, poll=[3], asked=[3])  # asked for everything
+    assert {3, 4, 6, 7, 8} <= set(full)
+    assert link.handle(host.setup(0.7, every=5, pose_every=2), HOST_ADDRESS, 0.7) is None
+    moving = [tick(0.7 + 0.1 * k, 0.2 + 0.01 * k, poll=True) for k in range(1, 7)]
+    assert [7 in r for r in moving] == [False, True, False, True, False, True]  # every 2nd
+    assert moving[-1][7][0] == round(0.26 / 1e-4)  # the newest pose
 
 
 def test_the_age_window_adapts_to_measured_delay_and_refuses_a_held_back_frame() -> None:
@@ -470,11 +580,75 @@ def test_systems_file_refers_to_the_key_and_never_holds_it(tmp_path, monkeypatch
     for text, words in [(data.replace('"port": 47001', '"port": 47000'), "two modules"),
                         (data.replace('"number": 2', '"number": 1'), "two modules"),
                         (data.replace('"127.0.0.1"', '"::1"', 1), r"modules\[0\].*IPv4"),
-                        (data.replace('"file": "lab.key"', '"file": "k", "env": "E"'), "key")]:
+                        (data.replace('"file": "lab.key"', '"file": "k", "env": "E"'), "key"),
+                        (data.replace('"vectors": []', '"vectors": ["a.dir", "a.dir"]'),
+                         "distinct"),
+                        (data.replace('"pose_every": 1', '"pose_every": 0'), "pose_every")]:
         bad = tmp_path / "bad.json"
         bad.write_text(text)
         with pytest.raises(ConfigurationError, match=words):
             load_system(bad)
+
+
+def test_freesn_declares_its_unit_vectors_and_pose_spacing_for_the_systems_file() -> None:
+    from msrr.core.link.declarations import declare_link, declared
+    from msrr.plugins.freesn.sim.commands import LINK_VECTORS, connector_joints
+
+    assert declared("freesn").vectors == LINK_VECTORS == ("a.dir", "a.fwd", "b.dir", "b.fwd")
+    assert declared("freesn").pose_every == 2 and declared("no-such-robot").pose_every == 1
+    joints = connector_joints("a", np.array([0.6, 0.0, -0.8]), np.array([0.0, 1.0, 0.0]))
+    entry = command_entry(ModuleCommand(joints=joints), 1, NameTable(), LINK_VECTORS)
+    assert sorted(len(v) for v in entry[1].values()) == [4, 4]  # both vectors packed
+    with pytest.raises(ValueError, match="pose_every"):
+        declare_link("x", pose_every=0)
+
+
+def _driver_of(tmp_path, count: int, budget: float | None = 60.0) -> tuple[LinkDriver, list]:
+    """A link driver over ``count`` modules that never connects, its modules built as
+    :meth:`LinkDriver.connect` builds them."""
+    from msrr.core.link.driver import _Module
+
+    entries = [ModuleEntry(id=f"m{i}", number=i + 1, address="127.0.0.1", port=47000 + i)
+               for i in range(count)]
+    write_key(tmp_path / "lab.key", SITE)
+    path = write_system(tmp_path / "system.json", SystemFile(
+        system=9, robot="tiny", key=KeyRef(file="lab.key"), modules=entries, timeout_s=2.0,
+        budget_kbps=budget, vectors=["a.dir"]))
+    driver = LinkDriver(system=path)
+    modules = [_Module(e, 2.0, Aead(module_key(SITE, 9, e.number)), b"") for e in entries]
+    driver.modules = {m.entry.id: m for m in modules}
+    driver._by_number = {m.number: m for m in modules}
+    return driver, modules
+
+
+def test_the_budget_spaces_polls_by_the_traffic_measured(tmp_path) -> None:
+    driver, _ = _driver_of(tmp_path, 18)
+    assert driver._initial_every() == 5  # the widest a 2 s timeout allows, closer later
+    # bytes per second with UDP/IP: COMMAND frames, and the mean REPORT (section 7: 60)
+    assert driver._spacing(60, 0.9, commands=1620, other=0, report=70) == 3  # at rest
+    assert driver._spacing(60, 0.9, commands=3000, other=0, report=106) == 5  # walking
+    assert driver._estimate(5, 3000, 0, 106) * 8 / 1000 == pytest.approx(54.5, abs=0.1)
+    assert driver._spacing(600, 0.9, commands=3000, other=0, report=106) == 1
+    unbudgeted, _ = _driver_of(tmp_path, 3, budget=None)
+    assert unbudgeted._initial_every() == 1
+
+
+def test_a_command_change_finer_than_the_quantum_is_no_new_version(tmp_path) -> None:
+    driver, (module, *_) = _driver_of(tmp_path, 2)
+    unit = np.array([0.28, 0.03, -0.96])
+    unit /= np.linalg.norm(unit)
+
+    def command(v: np.ndarray) -> ModuleCommand:
+        return ModuleCommand(joints={"a.dir_x": v[0], "a.dir_y": v[1], "a.dir_z": v[2]})
+
+    first = driver._entry(module, command(unit), 1)
+    assert first[0] == 1 and len(first[1][driver.names.ref("a.dir")]) == 4
+    turned = Rotation.from_rotvec([0.0, 0.0, 2e-6]).apply(unit)  # 2 microradians
+    assert driver._entry(module, command(turned), 2) == first  # the same: no new version
+    module.acked_version = 1
+    assert driver._entry(module, command(turned), 3) == 1  # acknowledged: its version only
+    moved = Rotation.from_rotvec([0.0, 0.0, 1e-3]).apply(unit)
+    assert driver._entry(module, command(moved), 4)[0] == 2  # a real change: version 2
 
 
 def test_link_faults_parse_in_the_fault_syntax() -> None:

@@ -23,6 +23,7 @@ from tiny_robot import LinkRecognizer, PointDriver, chain, installed
 from msrr.core import save_configuration
 from msrr.core.app.cli import get_cli
 from msrr.core.app.run import RUN_FILES, RunRequest, execute_run, prepare_run, write_outputs
+from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.link import Emulator, KeyRef, LinkDriver, parse_link_faults, write_key, write_system
 
@@ -31,11 +32,11 @@ SPEED = 5.0  # module seconds per wall second
 
 @contextmanager
 def emulating(folder: Path, faults: str = "", *, speed: float = SPEED, timeout: float = 1.0,
-              start=None) -> Iterator[tuple[Emulator, Path]]:
+              start=None, budget: float | None = None) -> Iterator[tuple[Emulator, Path]]:
     """Emulated modules of ``start`` (a-b docked, c apart) serving in a thread."""
     emulator = Emulator(PointDriver, start or chain(("a", "b"), name="ab"),
                         recognizer=LinkRecognizer(), rate=10.0, speed=speed,
-                        faults=parse_link_faults(faults), timeout=timeout)
+                        faults=parse_link_faults(faults), timeout=timeout, budget=budget)
     stop = threading.Event()
     with emulator:
         write_key(folder / "system.key", emulator.key)
@@ -238,3 +239,35 @@ def test_platform_emulate_writes_the_systems_file_and_platform_run_drives_it(tmp
                 str(tmp_path / "run")], terminal_width=200)
         assert run.exit_code == 0, run.output
         assert "driver link" in run.output
+
+
+def test_under_a_budget_the_host_polls_all_modules_at_once_and_keeps_within_it(tmp_path) -> None:
+    # 3 modules at 10 Hz carry about 30 kbit/s with a report every period; 18 kbit/s makes
+    # the host poll every few periods (at most 5 with a 2 s timeout), all three at once
+    with installed(), emulating(tmp_path, timeout=2.0, budget=18.0) as (emulator, system):
+        reports: list[tuple[float, str]] = []
+        with LinkDriver(system=system, robot="tiny") as driver:
+            handle = driver._report
+
+            def tapped(module, header, data, arrival):
+                handle(module, header, data, arrival)
+                reports.append((round(driver.time, 1), module.entry.id))
+
+            driver._report = tapped
+            driver.reset(chain(("a", "b"), name="ab"))
+            before, start = dict(driver.traffic), driver.time
+            reports.clear()
+            for _ in range(60):  # 6 s of module time
+                driver.send_action({"a": ModuleCommand(wheels={"v": 0.1})})
+                driver.step(0.1)
+            seconds = driver.time - start
+            sent = {k: driver.traffic[k] - before[k] for k in before}
+            every = driver.every
+    kbits = 8 * (sent["sent"] + sent["received"] + 28 * (sent["datagrams_sent"]
+                                                        + sent["datagrams_received"]))
+    assert 2 <= every <= 5 and kbits / seconds / 1000 <= 18.0
+    ticks = {}
+    for at, module in reports[len(reports) // 2:]:  # once the spacing settled
+        ticks.setdefault(at, set()).add(module)
+    together = sum(len(m) == 3 for m in ticks.values())
+    assert together >= 0.8 * len(ticks), ticks  # one instant of the robot

@@ -67,6 +67,9 @@ def decode_command(plain: bytes, names: list[str], number: int) -> Any:
     watchdog = unsigned(payload, 0, "watchdog", limit=600_000) / 1000.0
     every = unsigned(payload, 1, "report period", 1, limit=100)
     entries = want(payload, 2, dict, "entries", {})
+    asked = want(payload, 4, tuple, "asked", ())
+    if not all(isinstance(n, int) and not isinstance(n, bool) for n in asked):
+        raise Refused("malformed", "asked")
     if 3 in payload:
         defs = want(payload, 3, tuple, "names")
         if not (defs and isinstance(defs[0], int) and not isinstance(defs[0], bool)
@@ -80,9 +83,11 @@ def decode_command(plain: bytes, names: list[str], number: int) -> Any:
     return parse_entry(entry, names) if entry is not None else None
 
 
-def decode_report(codec: Codec, plain: bytes, previous: Any, names: int) -> Any:
+def decode_report(codec: Codec, plain: bytes, previous: Any, names: int, known: int = 0
+                  ) -> Any:
     """A REPORT payload as the host reads it (the module's last sensor data
-    ``previous``; ``names`` entries in the host's name table)."""
+    ``previous``; ``names`` entries in the host's name table, ``known`` of them known to
+    the module as of its last report)."""
     try:
         raw = codec.loads(plain)
         if not isinstance(raw, dict) or not all(
@@ -95,7 +100,7 @@ def decode_report(codec: Codec, plain: bytes, previous: Any, names: int) -> Any:
     unsigned(payload, 0, "ack")
     unsigned(payload, 1, "lag", 0)
     unsigned(payload, 2, "status", limit=255)
-    unsigned(payload, 8, "names known", 0, limit=names)
+    unsigned(payload, 8, "names known", known, limit=names)
     links = want(payload, 4, tuple, "links", ())
     if not all(isinstance(link, tuple) and len(link) == 3
                and all(isinstance(x, str) for x in link) for link in links):
@@ -139,6 +144,8 @@ def _root():  # type: ignore[no-untyped-def]
 
 
 NAMES = ["a.dir_x", "a.dir_y", "a.dir_z", "left", "right", "T", "B"]
+VECTORS = ("a.dir", "b.dir")
+"""FreeSN's unit-vector joints: entry 4 of the command seed carries one packed."""
 
 
 @cache
@@ -150,12 +157,14 @@ def seeds() -> tuple[Seed, ...]:
     names = NameTable()
     commands = [ModuleCommand(joints={"a.dir_x": 0.1, "a.dir_y": 0.0, "a.dir_z": 1.0}),
                 ModuleCommand(wheels={"left": 0.2, "right": -0.2}, dock=("T",)),
-                ModuleCommand(undock=("B",))]
-    entries = {n + 1: command_entry(c, n + 3, names) for n, c in enumerate(commands)}
-    entries[4] = 7  # a version only
-    entries[5] = None  # stop
+                ModuleCommand(undock=("B",)),
+                ModuleCommand(joints={"a.dir_x": 0.6, "a.dir_y": 0.0, "a.dir_z": -0.8,
+                                      "b.effort": 1.0, "a.effort": 0.25})]
+    entries = {n + 1: command_entry(c, n + 3, names, VECTORS) for n, c in enumerate(commands)}
+    entries[5] = 7  # a version only
+    entries[6] = None  # stop
     out.append(Seed("command", "full", plain.encode(
-        {0: 250, 1: 3, 2: entries, 3: [0, *names.names]})))
+        {0: 250, 1: 3, 2: entries, 3: [0, *names.names], 4: [1, 4]})))
     out.append(Seed("command", "no-names", plain.encode({0: 250, 2: {1: entries[1]}})))
     pose = pose_wire(Pose(np.array([0.31, -0.2, 0.05]), np.array([0.0, 0.0, 0.38, 0.92])))
     mmrp = {"T": ("2", "B"), "B": None, "L": None, "R": ("3", "L")}
@@ -212,7 +221,8 @@ def _deep(levels: int) -> Any:
 ODD: tuple[Callable[[random.Random], Any], ...] = (
     lambda r: math.nan, lambda r: math.inf, lambda r: -math.inf, lambda r: 2**64 - 1,
     lambda r: -(2**63), lambda r: -1, lambda r: 1e308, lambda r: True, lambda r: None,
-    lambda r: b"\x00" * r.choice([0, 5, 7, 9, 1000]), lambda r: "\u2603" * r.randint(0, 3),
+    lambda r: bytes(r.randrange(256) for _ in range(r.choice([0, 3, 4, 5, 6, 7, 8, 9, 1000]))),
+    lambda r: "\u2603" * r.randint(0, 3),
     lambda r: cbor2.undefined, lambda r: cbor2.CBORTag(r.choice([1, 2, 25, 27, 40, 85, 999]),
                                                         r.choice([0, b"\x01\x02", [99, 1], []])),
     lambda r: cbor2.CBORTag(27, [r.choice([0, 2, 99, -1]), "x"]),
@@ -301,7 +311,8 @@ def decode(case: Case) -> Outcome:
         if case.seed.kind == "header":
             read_header(case.data)
         elif case.seed.kind == "command":
-            decode_command(case.data, list(NAMES[:2]), 1)
+            for number in (1, 4):  # a plain entry, and one with a packed vector
+                decode_command(case.data, list(NAMES[:2]), number)
         else:
             table, sensors = _freesn_reports() if case.seed.records else (RecordTable(), {})
             previous = next(iter(sensors.values()), None)

@@ -29,6 +29,11 @@ Fig. 18(a)-(c); a strut turns about its axis, Fig. 18(g)-(i)). On a free connect
 two wheels run together about the strut's ``y`` axis (their axle) at ``w``: on the
 ground they drive the strut end (Fig. 18(d)-(f)). A wheel speed stays until changed;
 ``0`` brakes the strut's twist where it is.
+
+On the module link (``docs/protocol.md``) the connection and forward vectors are unit
+vectors: :data:`LINK_VECTORS` declares them, so each travels as one 4-byte direction
+(within 6.3e-5 rad) instead of three floats; and a module's pose, which no FreeSN
+controller reads, travels in every second report at most (:data:`LINK_POSE_EVERY`).
 """
 
 from __future__ import annotations
@@ -39,11 +44,19 @@ import numpy as np
 
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
+from msrr.core.link.declarations import declare_link
 
-__all__ = ["ENDS", "ConnectorTarget", "connector_joints", "parse_brakes", "parse_command",
-           "parse_wheels"]
+__all__ = ["ENDS", "LINK_POSE_EVERY", "LINK_VECTORS", "ConnectorTarget", "connector_joints",
+           "parse_brakes", "parse_command", "parse_wheels"]
 
 ENDS = ("a", "b")
+LINK_VECTORS = tuple(f"{end}.{what}" for end in ENDS for what in ("dir", "fwd"))
+"""The joints ``<end>.dir_x/y/z`` and ``<end>.fwd_x/y/z`` are unit vectors (the link packs them)."""
+LINK_POSE_EVERY = 2
+"""A module's pose on the link at most in every second report: no FreeSN controller reads
+poses (real modules measure none; the emulator's are for the timeline, the distance a
+gait covered and the judge)."""
+declare_link("freesn", vectors=LINK_VECTORS, pose_every=LINK_POSE_EVERY)
 WHEEL_PORTS = {"a": "a", "b": "b", "source": "a", "target": "b"}
 """Names of a connector in ``ModuleCommand.wheels``: its end, or its end of the connection."""
 _AXES = ("x", "y", "z")
