@@ -17,10 +17,11 @@
   version (unchanged). The newest accepted command is applied at the module's next
   control tick; no valid command for ``watchdog`` seconds stops the motors and disarms
   the connectors.
-* **Reports** are sent at the control tick after a COMMAND frame that polls the module
-  (the host polls every ``every`` periods, all modules at once, to keep the link within
-  its budget), on the module's own once ``every + 1`` periods passed without one (the
-  polls were lost), and at once on a docking event, a change of the latched ports or of
+* **Reports** are sent every ``every``-th control tick (the host sets it to keep the
+  link within its budget) and at the control tick after a COMMAND frame that polls the
+  module (the host polls all modules at once every ``every`` periods: the polls align
+  the modules' phases, so their reports show one instant, and ask again for a lost
+  one), and at once on a docking event, a change of the latched ports or of
   the status, a command accepted but not applied, or the host's asking for a full
   report. Unchanged sensor fields (field by field for a record), pose, links and the
   names known are left out except for a refresh every :data:`REFRESH` reports (or when
@@ -438,7 +439,7 @@ class ModuleLink:
         links = tuple(sorted(links))
         changed = live.links.update(self.codec.dumps([list(link) for link in links]))
         status = self.status()
-        due = live.polled or live.since > live.every  # polled; or the polls were lost
+        due = live.polled or live.since >= live.every  # a poll aligns the period's phase
         urgent = (live.reported < REPEAT or changed or bool(live.events) or live.asked
                   or status != live.status or self.received > self.applied)
         if not (due or urgent):

@@ -410,18 +410,23 @@ def test_a_module_reports_when_polled_and_at_once_when_it_stops_obeying_or_its_m
         sent.append(link.report(tick / 10 + 0.01, sensors={"x": 1}))
     assert sent[3:] == [False, False, True, False, False, True]  # when polled
     sent = []
-    for tick in range(10, 18):  # the polls are lost: every 4th period on its own
+    for tick in range(10, 17):  # the polls are lost: every third period, in phase
         link.handle(host.go(tick / 10, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS,
                     tick / 10)
         link.current(tick / 10)
         sent.append(link.report(tick / 10 + 0.01, sensors={"x": 1}))
-    assert sent == [False, False, False, True, False, False, False, True]
-    link.handle(host.go(1.8, ModuleCommand(wheels={"v": 0.5}), poll=[4]), HOST_ADDRESS, 1.8)
-    link.current(1.8)
-    assert not link.report(1.81, sensors={"x": 1})  # another module polled
+    assert sent == [False, False, True, False, False, True, False]
+    link.handle(host.go(1.7, ModuleCommand(wheels={"v": 0.5}), poll=[4]), HOST_ADDRESS, 1.7)
+    link.current(1.7)
+    assert not link.report(1.71, sensors={"x": 1})  # another module polled
+    for clock, poll in ((1.8, False), (1.9, [3])):
+        link.handle(host.go(clock, ModuleCommand(wheels={"v": 0.5}), poll=poll), HOST_ADDRESS,
+                    clock)
+        link.current(clock)
+        assert link.report(clock + 0.01, sensors={"x": 1})  # in phase; polled (one was lost)
     link.obey = False  # a firmware fault: commands accepted, not applied
-    link.handle(host.go(1.9, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS, 1.9)
-    assert link.report(1.91, sensors={"x": 1})  # not due, but the module falls behind
+    link.handle(host.go(1.95, ModuleCommand(wheels={"v": 0.5})), HOST_ADDRESS, 1.95)
+    assert link.report(1.96, sensors={"x": 1})  # not due, but the module falls behind
     payload = host.report(link.outbox[-1][0])
     assert payload[1] == 1 and payload[0] == host.counter - 1  # received - applied
     link.obey, link.motor_fault = True, True
