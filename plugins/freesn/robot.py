@@ -26,11 +26,11 @@ STRUT = ModuleKind(
         "length": 0.20,          # node centre to node centre when both ends dock [m]; assumed
         "radius": 0.02,          # body radius [m]; assumed
         "mass": 0.30,            # [kg]; assumed
-        # [F]: 0.1715 rad of rolling about the node centre and 0.3673 rad of turning about
-        # the strut axis per wheel radian; these give 0.24 and 0.80 (assumed, kept: the doc)
+        # assumed; per wheel radian [F] rolls 0.1715 rad about the node centre and turns
+        # 0.3673 rad about the strut axis, these 0.24 and 0.80 (kept, see the doc)
         "wheel_radius": 0.012,   # connector wheel radius [m]
         "wheel_base": 0.03,      # distance between a connector's two wheels [m]
-        "max_wheel_speed": 6.0,  # [rad/s]; [F] bounds its wheels at 2.25 (kept: the doc)
+        "max_wheel_speed": 6.0,  # [rad/s]; [F] bounds its wheels at 2.25 (kept, see the doc)
         # assumed: the hardware's (the simulation takes less: torque_factor, strength_factor)
         "max_torque": 2.0,       # connector drive torque about the node centre, hardware [N m]
         "connection_strength": 40.0,  # magnetic pull-off force of a connector, hardware [N]
