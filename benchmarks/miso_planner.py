@@ -1,198 +1,235 @@
-"""MISO connection planning: heuristic optimality against the exact search, and its time.
+"""MISO connection planning against the exact solver and against Luo and Lam's IM.
 
-Instances are pairs of random MISO trees (:func:`msrr.core.freeform.miso.random_miso_tree`,
-generated like Luo and Lam's: modules join a random placed module with in-degree below
-6, at most ``b`` modules branch). Two parts:
+Instances of the three kinds Luo and Lam draw (generators written from their
+description, :mod:`msrr.core.freeform.miso.model`), six connections at most on a module:
 
-1. **Optimality**, ``n = 5..10``: ``--instances`` pairs per size with ``b = 3``; the
-   heuristic's step count against the exact branch and bound (every exact run proves
-   its optimum), and the flows each plan holds (steps that move a leaf to a
-   neighbour of its parent, FreeSN section 4.1: a flow is one step like any other;
-   both planners prefer flows among orders of equal length). Also the exact search's
-   time.
-2. **Time**, ``n`` from 5 to 1000 with ``b`` in ``--branching`` (default 3, 10, 50):
-   the heuristic's wall time, steps and flows, and ``d``-lower-bound gap (the steps
-   beyond one per mismatched module of its own pairing).
+* ``tree`` -- one tree (modules join random placed modules);
+* ``forest`` -- 2 to 6 separate trees;
+* ``cyclic`` -- every module picks a random module to sit on (not itself, not one on
+  it) or stays free while fewer than six are: pieces and cycles as they fall.
+
+Start and goal of an instance are two draws of the same kind and size. Four tables:
+
+1. **Optimality**, ``n = 5..10``: the heuristic ``miso`` against ``miso-exact`` (an
+   integer program that proves the fewest connection changes) and against IM
+   (:func:`msrr.core.freeform.miso.im_pairing`, our reimplementation of Luo and Lam's IM
+   from their description, not their code), on connection changes (broken + made, their
+   metric); steps for both planners.
+2. **The exact solver's reach**, ``n = 15, 20, 25``: proved, time, heuristic optimal.
+3. **Scale**, ``n`` up to 1,000: changes of the heuristic and IM, steps, and the time
+   of each in the same process, alternating (median of the repeats): the pairing alone
+   against IM's pairing, and the whole plan (pairing and step order).
+4. **The human example** (Luo and Lam 2023, section VI.B: six chains -> a human figure,
+   568 modules; ``plugins/freebot/configs/human/``): changes beside the published IM
+   result, 91.
 
 The last line is machine-readable::
 
-    optimal_rate=... max_ms_1000=... median_ms_1000=...
+    optimal_rate=... worse_than_im=... time_ratio_1000=... human_changes=...
 
-Instances are drawn in order from one generator, then solved as batch tasks
-(:mod:`msrr.core.app.batch`, ``--workers N`` / ``--cluster ADDRESS``; default one worker so
-times compare with earlier runs): the step counts are the same for the same seed.
-
-Usage: ``python benchmarks/miso_planner.py --seed 0 --plot docs/images/miso-planner.png``
+Usage: ``python benchmarks/miso_planner.py --seed 0``
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 
 from msrr.core.app.batch import exit_on_interrupt, run_batch
-from msrr.core.console import exit_unless_installed
 from msrr.core.freeform.miso import (
+    MisoLimits,
     MisoProblem,
-    count_flows,
+    changes,
+    heuristic_pairing,
+    im_pairing,
+    random_cyclic,
+    random_forest,
     random_miso_tree,
     solve_exact,
     solve_heuristic,
+    targets,
 )
+from msrr.core.io import load_configuration
 
+KINDS = ("tree", "forest", "cyclic")
 SMALL = tuple(range(5, 11))
-LARGE = (5, 10, 20, 50, 100, 200, 500, 1000)
+REACH = (15, 20, 25)
+LARGE = (50, 100, 200, 500, 1000)
+RULES = MisoLimits(max_in=6, no_docking_onto="child")   # FreeBOT's, Luo and Lam's model
+HUMAN = Path(__file__).resolve().parent.parent / "plugins" / "freebot" / "configs" / "human"
+PUBLISHED_IM_HUMAN = 91
+
+
+def draw(kind: str, n: int, rng: np.random.Generator) -> tuple[int, ...]:
+    if kind == "tree":
+        return random_miso_tree(n, rng)
+    if kind == "forest":
+        return random_forest(n, int(rng.integers(2, min(6, n) + 1)), rng)
+    return random_cyclic(n, rng)
+
+
+def instance(kind: str, n: int, rng: np.random.Generator) -> MisoProblem:
+    return MisoProblem.from_parents(draw(kind, n, rng), draw(kind, n, rng), RULES)
+
+
+def im_changes(problem: MisoProblem) -> int:
+    return changes(problem.start, targets(problem, im_pairing(problem)))
 
 
 @dataclass
 class Compared:
+    kind: str
     n: int
     heuristic: int
     exact: int
+    im: int
+    heuristic_steps: int
+    exact_steps: int
     proved: bool
     exact_ms: float
-    heuristic_flows: int
-    exact_flows: int
 
 
-@dataclass
-class Timed:
-    n: int
-    branching: int
-    ms: float
-    steps: int
-    lower_bound: int
-    flows: int
-
-
-def instance(n: int, b: int, rng: np.random.Generator) -> MisoProblem:
-    return MisoProblem.from_parents(random_miso_tree(n, rng, max_branching=b),
-                                    random_miso_tree(n, rng, max_branching=b))
-
-
-def compare(task: tuple[int, MisoProblem]) -> Compared:
-    """Heuristic against exact on one instance (a batch task)."""
-    n, problem = task
+def compare(task: tuple[str, int, MisoProblem]) -> Compared:
+    """Heuristic, exact and IM on one instance (a batch task)."""
+    kind, n, problem = task
     heuristic = solve_heuristic(problem)
     t0 = time.perf_counter()
     exact = solve_exact(problem)
     ms = 1e3 * (time.perf_counter() - t0)
-    return Compared(n, heuristic.cost, exact.cost, exact.optimal, ms,
-                    count_flows(problem.start, heuristic.steps),
-                    count_flows(problem.start, exact.steps))
+    return Compared(kind, n, heuristic.changes, exact.changes, im_changes(problem),
+                    heuristic.cost, exact.cost, bool(exact.stats["changes_proved"]), ms)
 
 
-def timed(task: tuple[int, int, MisoProblem]) -> Timed:
-    """The heuristic's time on one instance (a batch task)."""
-    n, b, problem = task
+@dataclass
+class Timed:
+    kind: str
+    n: int
+    heuristic: int
+    im: int
+    steps: int
+    pairing_ms: float
+    im_ms: float
+    plan_ms: float
+
+
+def timed(kind: str, n: int, problem: MisoProblem) -> Timed:
+    """IM's pairing, the heuristic's pairing and its whole plan, one after the other."""
     t0 = time.perf_counter()
-    solution = solve_heuristic(problem)
+    im = im_changes(problem)
+    t1 = time.perf_counter()
+    pair = heuristic_pairing(problem)
+    t2 = time.perf_counter()
+    plan = solve_heuristic(problem)
+    t3 = time.perf_counter()
+    assert plan.changes == changes(problem.start, targets(problem, pair))
+    return Timed(kind, n, plan.changes, im, plan.cost, 1e3 * (t2 - t1), 1e3 * (t1 - t0),
+                 1e3 * (t3 - t2))
+
+
+def optimality_table(rows: list[Compared], sizes: tuple[int, ...], title: str) -> Table:
+    table = Table(title=title)
+    for column in ("kind", "n", "inst.", "optimal", "changes heur. / exact / IM",
+                   "steps heur. / exact", "worse than IM", "proved", "exact median ms",
+                   "exact max ms"):
+        table.add_column(column, justify="right")
+    for kind in KINDS:
+        for n in sizes:
+            r = [c for c in rows if c.kind == kind and c.n == n]
+            if not r:
+                continue
+            table.add_row(kind, str(n), str(len(r)),
+                          f"{np.mean([c.heuristic == c.exact for c in r]):.2f}",
+                          f"{np.mean([c.heuristic for c in r]):.2f} / "
+                          f"{np.mean([c.exact for c in r]):.2f} / {np.mean([c.im for c in r]):.2f}",
+                          f"{np.mean([c.heuristic_steps for c in r]):.2f} / "
+                          f"{np.mean([c.exact_steps for c in r]):.2f}",
+                          str(sum(c.heuristic > c.im for c in r)),
+                          f"{np.mean([c.proved for c in r]):.2f}",
+                          f"{np.median([c.exact_ms for c in r]):.0f}",
+                          f"{max(c.exact_ms for c in r):.0f}")
+    return table
+
+
+def scale_table(runs: list[Timed]) -> Table:
+    table = Table(title="Scale: heuristic and IM in the same process (median ms)")
+    for column in ("kind", "n", "changes heur.", "changes IM", "steps heur.", "worse than IM",
+                   "pairing ms", "IM ms", "pairing / IM", "whole plan ms"):
+        table.add_column(column, justify="right")
+    for kind in KINDS:
+        for n in LARGE:
+            r = [t for t in runs if t.kind == kind and t.n == n]
+            pairing, im = statistics.median(t.pairing_ms for t in r), statistics.median(
+                t.im_ms for t in r)
+            table.add_row(kind, str(n), f"{np.mean([t.heuristic for t in r]):.1f}",
+                          f"{np.mean([t.im for t in r]):.1f}",
+                          f"{np.mean([t.steps for t in r]):.1f}",
+                          str(sum(t.heuristic > t.im for t in r)), f"{pairing:.0f}",
+                          f"{im:.0f}", f"{pairing / im:.2f}",
+                          f"{statistics.median(t.plan_ms for t in r):.0f}")
+    return table
+
+
+def human(console: Console) -> int:
+    start = load_configuration(HUMAN / "human-chains.json")
+    goal = load_configuration(HUMAN / "human.json")
+    problem = MisoProblem.from_configurations(start, goal, RULES)
+    t0 = time.perf_counter()
+    plan = solve_heuristic(problem)
     ms = 1e3 * (time.perf_counter() - t0)
-    return Timed(n, b, ms, solution.cost, solution.lower_bound,
-                 count_flows(problem.start, solution.steps))
-
-
-def plot(compared: list[Compared], runs: list[Timed], path: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
-    rates = [np.mean([c.heuristic == c.exact for c in compared if c.n == n]) for n in SMALL]
-    left.bar([str(n) for n in SMALL], rates, color="tab:blue")
-    left.axhline(0.95, color="tab:red", linestyle="--", label="target 95 %")
-    left.set_ylim(0.0, 1.05)
-    left.set_xlabel("modules")
-    left.set_ylabel("heuristic optimal (fraction)")
-    left.set_title("Heuristic vs exact branch and bound")
-    left.legend(loc="lower left")
-    for b in sorted({r.branching for r in runs}):
-        ms = [float(np.median([r.ms for r in runs if r.n == n and r.branching == b]))
-              for n in LARGE]
-        right.loglog(LARGE, ms, "o-", label=f"b <= {b}")
-    right.axhline(10_000, color="tab:red", linestyle="--", label="10 s")
-    right.set_xlabel("modules")
-    right.set_ylabel("heuristic time [ms] (median)")
-    right.set_title("Heuristic planning time")
-    right.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    print(f"plot written to {path}")
+    table = Table(title="Human example (Luo and Lam 2023, VI.B): six chains -> human, 568 modules")
+    for column in ("planner", "connection changes", "steps", "ms"):
+        table.add_column(column, justify="right")
+    table.add_row("miso (heuristic)", str(plan.changes), str(plan.cost), f"{ms:.0f}")
+    table.add_row("IM, published", str(PUBLISHED_IM_HUMAN), "", "")
+    table.add_row("IM, our reimplementation", str(im_changes(problem)), "", "")
+    console.print(table)
+    return plan.changes
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--instances", type=int, default=100,
-                        help="instances per size for the optimality part (default 100)")
+    parser.add_argument("--instances", type=int, default=50,
+                        help="instances per size and kind, n = 5..10 (default 50)")
+    parser.add_argument("--reach", type=int, default=5,
+                        help="instances per size and kind, n = 15, 20, 25 (default 5)")
     parser.add_argument("--repeats", type=int, default=3,
-                        help="instances per size and bound for the time part (default 3)")
-    parser.add_argument("--branching", type=int, nargs="+", default=[3, 10, 50],
-                        help="bounds on branching modules for the time part")
-    parser.add_argument("--plot", default=None, help="save a plot to FILE")
+                        help="instances per size and kind for the scale table (default 3)")
     parser.add_argument("--workers", type=int, default=1,
-                        help="worker processes (1: here; 0: one per core)")
-    parser.add_argument("--cluster", default=None, metavar="ADDRESS",
-                        help="run on Ray: auto, ray://HOST:PORT or local")
+                        help="worker processes for the exact comparisons (1: here; 0: per core)")
     args = parser.parse_args()
-    if args.plot:  # before the work: a missing matplotlib is one line
-        exit_unless_installed("matplotlib", "plot", "--plot")
     console = Console(highlight=False)
-    console.print(f"seed={args.seed} instances={args.instances} per size (n=5..10, b<=3), "
-                  f"repeats={args.repeats} per size and bound {args.branching}")
+    console.print(f"seed={args.seed} instances={args.instances} reach={args.reach} "
+                  f"repeats={args.repeats} rules: at most 6 on a module, no docking onto "
+                  "one's child")
     rng = np.random.default_rng(args.seed)
-
-    # instances drawn here in order from one generator; solved as batch tasks
-    small = [(n, instance(n, 3, rng)) for n in SMALL for _ in range(args.instances)]
-    large = [(n, b, instance(n, b, rng)) for b in args.branching for n in LARGE
+    small = [(k, n, instance(k, n, rng)) for n in SMALL for k in KINDS
+             for _ in range(args.instances)]
+    reach = [(k, n, instance(k, n, rng)) for n in REACH for k in KINDS for _ in range(args.reach)]
+    large = [(k, n, instance(k, n, rng)) for n in LARGE for k in KINDS
              for _ in range(args.repeats)]
-    batch = {"workers": args.workers, "cluster": args.cluster}
     with exit_on_interrupt():
-        compared = run_batch(compare, small, label="exact comparisons", **batch).values()
-    table = Table(title="Heuristic vs exact (fewest steps), random MISO trees, b <= 3")
-    for column in ("n", "instances", "optimal", "mean extra steps", "mean exact steps",
-                   "flows heur.", "flows exact", "proved", "exact median ms", "exact max ms"):
-        table.add_column(column, justify="right")
-    for n in SMALL:
-        rows = [c for c in compared if c.n == n]
-        table.add_row(str(n), str(len(rows)),
-                      f"{np.mean([c.heuristic == c.exact for c in rows]):.3f}",
-                      f"{np.mean([c.heuristic - c.exact for c in rows]):.3f}",
-                      f"{np.mean([c.exact for c in rows]):.2f}",
-                      f"{np.mean([c.heuristic_flows for c in rows]):.2f}",
-                      f"{np.mean([c.exact_flows for c in rows]):.2f}",
-                      f"{np.mean([c.proved for c in rows]):.2f}",
-                      f"{np.median([c.exact_ms for c in rows]):.1f}",
-                      f"{max(c.exact_ms for c in rows):.1f}")
-    console.print(table)
-
-    with exit_on_interrupt():
-        runs = run_batch(timed, large, label="timed instances", **batch).values()
-    table = Table(title="Heuristic time, random MISO trees")
-    for column in ("n", "b <=", "median ms", "max ms", "mean steps", "mean flows",
-                   "steps above d"):
-        table.add_column(column, justify="right")
-    for b in args.branching:
-        for n in LARGE:
-            rows = [r for r in runs if r.n == n and r.branching == b]
-            table.add_row(str(n), str(b), f"{np.median([r.ms for r in rows]):.1f}",
-                          f"{max(r.ms for r in rows):.1f}",
-                          f"{np.mean([r.steps for r in rows]):.1f}",
-                          f"{np.mean([r.flows for r in rows]):.1f}",
-                          f"{np.mean([r.steps - r.lower_bound for r in rows]):.2f}")
-    console.print(table)
-    if args.plot:
-        plot(compared, runs, args.plot)
-    big = [r.ms for r in runs if r.n == LARGE[-1]]
-    rate = float(np.mean([c.heuristic == c.exact for c in compared]))
-    print(f"optimal_rate={rate:.3f} max_ms_1000={max(big):.1f} "
-          f"median_ms_1000={float(np.median(big)):.1f}")
+        compared = run_batch(compare, small + reach, label="exact comparisons",
+                             workers=args.workers).values()
+    console.print(optimality_table(compared, SMALL, "Heuristic vs exact and IM, n = 5..10"))
+    console.print(optimality_table(compared, REACH, "The exact solver's reach"))
+    runs = [timed(*task) for task in large]   # here, in order: the times compare
+    console.print(scale_table(runs))
+    human_changes = human(console)
+    rate = float(np.mean([c.heuristic == c.exact for c in compared if c.n in SMALL]))
+    worse = sum(c.heuristic > c.im for c in compared) + sum(t.heuristic > t.im for t in runs)
+    big = [t for t in runs if t.n == LARGE[-1]]
+    ratio = statistics.median(t.pairing_ms for t in big) / statistics.median(
+        t.im_ms for t in big)
+    print(f"optimal_rate={rate:.3f} worse_than_im={worse} time_ratio_1000={ratio:.2f} "
+          f"human_changes={human_changes}")
 
 
 if __name__ == "__main__":

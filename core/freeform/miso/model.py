@@ -267,12 +267,12 @@ def pieces(parent: Sequence[int]) -> int:
     return sum(1 for p in parent if p == FREE) + len(cycles(parent))
 
 
-def rooted(parent: Sequence[int]) -> list[int]:
-    """The pointer array with each cycle cut before its smallest module (which becomes
-    a root): a forest of rooted trees, deterministic."""
+def rooted(parent: Sequence[int], shift: int = 0) -> list[int]:
+    """The pointer array with each cycle cut (its ``shift``-th module from the smallest,
+    along the connectors, becomes a root): a forest of rooted trees, deterministic."""
     cut = list(parent)
     for cyc in cycles(parent):
-        cut[cyc[0]] = FREE
+        cut[cyc[shift % len(cyc)]] = FREE
     return cut
 
 

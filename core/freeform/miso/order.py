@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from ...errors import PlanningError
 from .model import FREE, UNLIMITED, MisoLimits, Step, count_flows, depths
 
@@ -97,21 +99,33 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
     steps: list[Step] = []
     pending = sorted((i for i in range(n) if start[i] != goal[i]),
                      key=lambda i: (goal_depth[i], i))
+    # the flow test of every pending module at once (index n stands for free)
+    par = np.array([n if p == FREE else p for p in start] + [n], dtype=np.int64)
+    deg = np.array(state.indeg + [0], dtype=np.int64)
+    aim = np.array([n if g == FREE else g for g in goal] + [n], dtype=np.int64)
     while pending:
         if len(steps) > 2 * n:
             raise PlanningError("MISO step ordering made no progress")
         chosen = None
         if flows_first:
-            chosen = next((k for k, i in enumerate(pending) if state.flows(i, goal[i])
-                           and state.blocker(i, goal[i]) is None), None)
+            at = np.asarray(pending, dtype=np.int64)
+            old, new = par[at], aim[at]
+            flows = (deg[at] == 0) & (old != n) & (new != n) & ((par[new] == old)
+                                                                 | (par[old] == new))
+            chosen = next((int(k) for k in np.flatnonzero(flows)
+                           if state.blocker(pending[k], goal[pending[k]]) is None), None)
         if chosen is None:
             chosen = next((k for k, i in enumerate(pending)
                            if state.blocker(i, goal[i]) is None), None)
         if chosen is not None:
             i = pending.pop(chosen)
-            steps.append(state.apply(i, goal[i]))
-            continue
-        steps.append(_release(state, pending, goal))
+            step = state.apply(i, goal[i])
+        else:
+            step = _release(state, pending, goal)
+        steps.append(step)
+        par[step.module] = n if step.new == FREE else step.new
+        deg[step.old] -= step.old != FREE
+        deg[step.new] += step.new != FREE
     return steps
 
 

@@ -4,26 +4,34 @@ Modules are identical, so a plan is a pairing ``pi`` (start module -> goal modul
 steps. A connection ``i -> p`` of the start is *kept* when the goal relabelled by
 ``pi^-1`` holds it too; Luo and Lam's metric, connections broken plus made, is
 ``|E_start| + |E_goal| - 2 kept``, so the pairing maximises ``kept`` (and, second,
-pairs free modules with free ones: each such pair saves a step).
+pairs free modules with free ones: each such pair saves a step). Cycles are cut
+(:func:`~.model.rooted`), so both configurations are rooted forests.
 
-:func:`heuristic_pairing` (polynomial, module docstring of :mod:`msrr.core.freeform.miso`):
+:func:`heuristic_pairing` (polynomial):
 
-1. *Rounds of top-down alignment.* Cycles are cut before their smallest module, so
-   both configurations are rooted forests. Each round takes the *fragments* -- the
-   maximal groups of still unpaired modules, rooted where the parent is paired or
-   free -- and pairs fragment roots: first, for every paired ``(p, q)``, the unpaired
-   children of ``p`` with those of ``q`` (a kept connection each), then the remaining
-   roots largest first. Each paired couple is aligned top-down: the children of both
-   matched by a maximum-weight assignment (``scipy.optimize.linear_sum_assignment``)
-   of ``1 + s(a, b)``, where ``s`` estimates the connections an alignment of the two
-   subtrees keeps from their level profiles (``sum_k min(L_a(k), L_b(k))`` over the
-   first ``PROFILE_DEPTH`` levels, then the smaller remainder: an upper bound that is
-   exact for chains), and down the matched pairs; chains are walked without
-   assignments.
-2. *Swaps.* Local search on the pairing: a start module whose connection is not kept
-   trades partners with the module paired to a goal child of its parent's partner when
-   that keeps more connections (counted on both modules' connections in and out), until
-   no swap gains.
+1. *Up to* ``EXHAUSTIVE_LIMIT`` *modules: exhaustive greedy.* Rounds pair the fragment
+   root and unpaired module (either side) whose top-down alignment scores best --
+   ``sim(u, v)``, the most connections kept below ``u`` and ``v`` with their children
+   matched by a maximum-weight assignment (``scipy.optimize.linear_sum_assignment``),
+   +1 when the pair keeps the connection to already paired parents -- and align them.
+   Restarts from other forced first pairs (``RESTART_BUDGET // n``) and from other cuts
+   of the cycles (``CUT_TRIES`` per side); the pairing keeping the most wins.
+2. *Larger: alignment rounds.* Each round pairs the roots of the still unpaired
+   fragments -- first, for every paired ``(p, q)``, unpaired children of ``p`` with those
+   of ``q`` (a kept connection each), then free roots with free roots, then the rest --
+   by one assignment, and aligns every couple top down. The weight of a couple is an
+   estimate of the connections its alignment keeps, from level profiles
+   (``sum_k min(L_u(k), L_v(k))`` over the first ``PROFILE_DEPTH`` levels, then the
+   smaller remainder: an upper bound, exact for chains), with equal heights preferred
+   (``EXACT_FIT``: a chain that ends where the other ends leaves no cut). Alignment
+   goes top down, so an unpaired module's subtree stays unpaired and the profiles of
+   the whole forests, computed once, stay exact.
+3. *Swaps.* Local search on the pairing: a start module whose connection is not kept
+   trades partners with the module paired to a goal child of its parent's partner (or
+   its parent with the module paired to its target's goal parent) when that keeps more
+   connections (counted on every connection either swap can change); up to
+   ``ALL_SWAPS_LIMIT`` modules every pair is tried too, up to ``ROTATIONS_LIMIT`` every
+   rotation of three.
 """
 
 from __future__ import annotations
@@ -34,43 +42,58 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .model import FREE, MisoProblem, children_of, rooted, targets
+from .model import FREE, MisoProblem, children_of, cycles, rooted, targets
 
 __all__ = ["PROFILE_DEPTH", "heuristic_pairing", "improve_by_swaps"]
+
+SMALL_MATCH = 9
+"""Largest assignment (rows x columns) solved by trying every assignment in Python."""
+
+EXACT_FIT = 4
+"""Weight of a couple of equal heights, in kept connections."""
 
 PROFILE_DEPTH = 8
 """Levels of a subtree's profile the alignment estimate compares one by one."""
 
 
 class _Fragments:
-    """The still unpaired part of one rooted forest, with level profiles (one row per
-    module: how many unpaired modules lie 1, 2, ... ``PROFILE_DEPTH`` levels below it,
-    then deeper) for the alignment estimate."""
+    """One rooted forest with level profiles (one row per module: how many modules lie
+    1, 2, ... ``PROFILE_DEPTH`` levels below it, then deeper) and heights, for the
+    alignment estimate."""
 
-    def __init__(self, forest: Sequence[int], kids: list[list[int]], unpaired: list[bool]):
-        self.kids = [[c for c in ks if unpaired[c]] if unpaired[u] else []
-                     for u, ks in enumerate(kids)]
-        self.roots = [u for u in range(len(forest))
-                      if unpaired[u] and (forest[u] == FREE or not unpaired[forest[u]])]
-        levels: list[list[int]] = [list(self.roots)]   # breadth-first, level by level
-        while levels[-1]:
-            levels.append([c for u in levels[-1] for c in self.kids[u]])
-        up = np.asarray(forest, dtype=np.int64)
-        profile = np.zeros((len(forest), PROFILE_DEPTH + 1), dtype=np.int64)
-        for level in reversed(levels[1:-1]):   # deepest first: each level into its parents
-            nodes = np.asarray(level, dtype=np.int64)
-            rows = profile[nodes]
-            shifted = np.zeros_like(rows)
-            shifted[:, 0] = 1
-            shifted[:, 1:PROFILE_DEPTH] = rows[:, :PROFILE_DEPTH - 1]
-            shifted[:, PROFILE_DEPTH] = rows[:, PROFILE_DEPTH - 1] + rows[:, PROFILE_DEPTH]
-            np.add.at(profile, up[nodes], shifted)
-        self.profile = profile
-        self.size = profile.sum(axis=1) + 1
+    def __init__(self, forest: Sequence[int], kids: list[list[int]]):
+        self.kids = kids
+        self.roots = [u for u in range(len(forest)) if forest[u] == FREE]
+        order = list(self.roots)   # breadth-first: children after their parent
+        for u in order:
+            order.extend(self.kids[u])
+        depth = PROFILE_DEPTH
+        zero = [0] * (depth + 1)
+        self.row: dict[int, list[int]] = {}
+        self.height: dict[int, int] = {}
+        for u in reversed(order):
+            ks = self.kids[u]
+            if not ks:
+                self.row[u], self.height[u] = zero, 0
+                continue
+            row = [len(ks)] + [0] * depth
+            tall = 0
+            for c in ks:
+                below = self.row[c]
+                row[1:depth] = map(int.__add__, row[1:depth], below[:depth - 1])
+                row[depth] += below[depth - 1] + below[depth]
+                tall = max(tall, self.height[c])
+            self.row[u], self.height[u] = row, tall + 1
+        self.size = {u: 1 + sum(r) for u, r in self.row.items()}
+
+    def arrays(self, modules: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Profile rows (len, PROFILE_DEPTH + 1) and heights (len,) of ``modules``."""
+        return (np.array([self.row[m] for m in modules], dtype=np.int64),
+                np.array([self.height[m] for m in modules], dtype=np.int64))
 
 
 class _Rounds:
-    """Pairing by rounds of top-down alignment (module docstring, part 1)."""
+    """Pairing by rounds of top-down alignment (module docstring, part 2)."""
 
     def __init__(self, problem: MisoProblem):
         self.n = problem.n
@@ -82,27 +105,32 @@ class _Rounds:
         self.inv = [FREE] * self.n
 
     def run(self) -> list[int]:
-        while True:
-            ua = [p == FREE for p in self.pair]
-            ub = [p == FREE for p in self.inv]
-            if not any(ua):
-                return self.pair
-            A = _Fragments(self.fa, self.ka, ua)
-            B = _Fragments(self.fb, self.kb, ub)
-            couples = self._kept_couples(A, B) + self._root_couples(A, B)
+        # Alignment pairs top down, so an unpaired module's whole subtree stays unpaired:
+        # the profiles of the whole forests stay exact for every fragment.
+        A = _Fragments(self.fa, self.ka)
+        B = _Fragments(self.fb, self.kb)
+        ra, rb = list(A.roots), list(B.roots)
+        while ra:
+            couples = self._kept_couples(ra, rb, A, B) + self._root_couples(ra, rb, A, B)
+            left_a: list[int] = []
+            left_b: list[int] = []
             for a, b in couples:
                 if self.pair[a] == FREE and self.inv[b] == FREE:
-                    self._align(a, b, A, B)
+                    self._align(a, b, A, B, left_a, left_b)
+            ra = sorted([u for u in ra if self.pair[u] == FREE] + left_a)
+            rb = sorted([v for v in rb if self.inv[v] == FREE] + left_b)
+        return self.pair
 
-    def _kept_couples(self, A: _Fragments, B: _Fragments) -> list[tuple[int, int]]:
+    def _kept_couples(self, ra: list[int], rb: list[int], A: _Fragments, B: _Fragments
+                      ) -> list[tuple[int, int]]:
         """Unpaired children of paired ``p``, ``q``, matched: each a kept connection."""
         groups: dict[int, list[int]] = {}
-        for a in A.roots:
+        for a in ra:
             p = self.fa[a]
             if p != FREE:
                 groups.setdefault(p, []).append(a)
         by_q: dict[int, list[int]] = {}
-        for b in B.roots:
+        for b in rb:
             q = self.fb[b]
             if q != FREE:
                 by_q.setdefault(q, []).append(b)
@@ -113,14 +141,16 @@ class _Rounds:
                 couples += self._match(groups[p], bs, A, B)
         return couples
 
-    def _root_couples(self, A: _Fragments, B: _Fragments) -> list[tuple[int, int]]:
+    def _root_couples(self, ra: list[int], rb: list[int], A: _Fragments, B: _Fragments
+                      ) -> list[tuple[int, int]]:
         """The other roots, matched by the alignment estimate (free with free first)."""
-        fa = [u for u in A.roots if self.free_a[u]]
-        fb = [v for v in B.roots if self.free_b[v]]
+        fa = [u for u in ra if self.free_a[u] and self.pair[u] == FREE]
+        fb = [v for v in rb if self.free_b[v] and self.inv[v] == FREE]
         couples = self._match(fa, fb, A, B) if fa and fb else []
-        paired = {u for u, _ in couples} | {v + self.n for _, v in couples}
-        return couples + self._match([u for u in A.roots if u not in paired],
-                                     [v for v in B.roots if v + self.n not in paired], A, B)
+        taken_a, taken_b = {u for u, _ in couples}, {v for _, v in couples}
+        return couples + self._match(
+            [u for u in ra if u not in taken_a and self.pair[u] == FREE],
+            [v for v in rb if v not in taken_b and self.inv[v] == FREE], A, B)
 
     @staticmethod
     def _match(us: list[int], vs: list[int], A: _Fragments, B: _Fragments
@@ -130,25 +160,48 @@ class _Rounds:
             return []
         if len(us) == 1 and len(vs) == 1:
             return [(us[0], vs[0])]
-        weight = 1 + np.minimum(A.profile[us][:, None, :], B.profile[vs][None, :, :]).sum(axis=2)
+        big = 2 * len(A.kids) + 1
+        if len(us) * len(vs) <= SMALL_MATCH:   # tiny: every assignment, in Python
+            ra_, rb_, ha_, hb_ = A.row, B.row, A.height, B.height
+            w = [[(1 + sum(map(min, ra_[u], rb_[v]))) * big - abs(ha_[u] - hb_[v])
+                  + (ha_[u] == hb_[v]) * big * EXACT_FIT for v in vs] for u in us]
+            if len(us) <= len(vs):
+                best = max(itertools.permutations(range(len(vs)), len(us)),
+                           key=lambda cols: sum(w[r][c] for r, c in enumerate(cols)))
+                return [(us[r], vs[c]) for r, c in enumerate(best)]
+            best = max(itertools.permutations(range(len(us)), len(vs)),
+                       key=lambda rows: sum(w[r][c] for c, r in enumerate(rows)))
+            return [(us[r], vs[c]) for c, r in enumerate(best)]
+        (pa, ha), (pb, hb) = A.arrays(us), B.arrays(vs)
+        kept = np.minimum(pa[:, None, :], pb[None, :, :]).sum(axis=2)
+        # ties go to equal heights: a chain that ends where the other ends leaves no cut
+        gap = np.abs(ha[:, None] - hb[None, :])
+        weight = (1 + kept) * big - gap + (gap == 0) * big * EXACT_FIT
         if len(us) == 1 or len(vs) == 1:   # one side single: its best partner
             k = int(np.argmax(weight))
             return [(us[k // len(vs)], vs[k % len(vs)])]
         rows, cols = linear_sum_assignment(weight, maximize=True)
         return [(us[r], vs[c]) for r, c in zip(rows, cols, strict=True)]
 
-    def _align(self, u: int, v: int, A: _Fragments, B: _Fragments) -> None:
+    def _align(self, u: int, v: int, A: _Fragments, B: _Fragments, left_a: list[int],
+               left_b: list[int]) -> None:
+        """Pair ``u`` with ``v`` and their subtrees top down; children left unmatched go
+        to ``left_a`` and ``left_b`` (roots of the next round)."""
         stack = [(u, v)]
         while stack:
             a, b = stack.pop()
             self.pair[a], self.inv[b] = b, a
             ca, cb = A.kids[a], B.kids[b]
-            if not ca or not cb:
-                continue
             if len(ca) == 1 and len(cb) == 1:
                 stack.append((ca[0], cb[0]))
-            else:
-                stack.extend(self._match(ca, cb, A, B))
+                continue
+            matched = self._match(ca, cb, A, B)
+            stack.extend(matched)
+            if len(ca) != len(cb):
+                used_a, used_b = {x for x, _ in matched}, {y for _, y in matched}
+                left_a.extend(c for c in ca if c not in used_a)
+                left_b.extend(c for c in cb if c not in used_b)
+
 
 class _Aligner:
     """Top-down alignment scores ``sim(u, v)`` on the still unpaired parts of two trees."""
@@ -232,13 +285,14 @@ ROUND_WIDTH = 64
 """Largest fragment roots scored per side in each round of the exhaustive greedy."""
 
 
-def _greedy_pairing(problem: MisoProblem, first: tuple[int, int] | None) -> list[int]:
+def _greedy_pairing(problem: MisoProblem, first: tuple[int, int] | None,
+                    cuts: tuple[int, int] = (0, 0)) -> list[int]:
     """Rounds that pair the fragment root and unpaired module (either side) whose
     top-down alignment scores best (exact ``sim``, every candidate): twice the kept
     connections, +2 when the pair keeps the connection to already paired parents, +1
     for two free modules."""
     n = problem.n
-    pa, pb = rooted(problem.start), rooted(problem.goal)
+    pa, pb = rooted(problem.start, cuts[0]), rooted(problem.goal, cuts[1])
     free_a = [p == FREE for p in problem.start]
     free_b = [p == FREE for p in problem.goal]
     kids_a, kids_b = children_of(pa), children_of(pb)
@@ -284,15 +338,18 @@ def _greedy_pairing(problem: MisoProblem, first: tuple[int, int] | None) -> list
     return pair
 
 
+CUT_TRIES = 8
+"""Cuts of the cycles tried per side by the exhaustive greedy (the first included)."""
+
 RESTART_BUDGET = 400
 """Greedy pairings tried on small instances: ``RESTART_BUDGET // n`` forced first pairs."""
 
-EXHAUSTIVE_LIMIT = 150
+EXHAUSTIVE_LIMIT = 40
 """Largest module count paired by the exhaustive greedy (larger: the rounds)."""
 
 
 def improve_by_swaps(problem: MisoProblem, pair: list[int], *, passes: int = 20) -> list[int]:
-    """Swap partners while a swap keeps more connections (module docstring, part 2).
+    """Swap partners while a swap keeps more connections (module docstring, part 3).
 
     The gain of swapping ``i`` and ``j`` counts the kept connections out of and into
     both modules before and after, and free-with-free pairs as a tie-break.
@@ -347,10 +404,44 @@ def improve_by_swaps(problem: MisoProblem, pair: list[int], *, passes: int = 20)
                     gained = True
                 else:
                     pair[u], pair[w] = pair[w], pair[u]
+        if not gained and n <= ROTATIONS_LIMIT:   # tiny: every rotation of three
+            gained = _rotate_threes(pa, pb, pair, inv, ka)
         if not gained:
             break
     return pair
 
+
+def _rotate_threes(pa: Sequence[int], pb: Sequence[int], pair: list[int], inv: list[int],
+                   ka: list[list[int]]) -> bool:
+    """Rotate the partners of three modules wherever that keeps more connections."""
+    def around(mods: tuple[int, ...]) -> int:
+        sources = set(mods).union(*(ka[m] for m in mods))
+        total = 0
+        for s in sorted(sources):
+            p = pa[s]
+            if p == FREE:
+                total += s in mods and pb[pair[s]] == FREE
+            else:
+                total += 2 * (pb[pair[s]] == pair[p])
+        return total
+
+    gained = False
+    for u, w, x in itertools.combinations(range(len(pa)), 3):
+        for order in ((u, w, x), (u, x, w)):
+            before = around(order)
+            a, b, c = order
+            pair[a], pair[b], pair[c] = pair[b], pair[c], pair[a]
+            if around(order) > before:
+                for m in order:
+                    inv[pair[m]] = m
+                gained = True
+                break
+            pair[a], pair[b], pair[c] = pair[c], pair[a], pair[b]
+    return gained
+
+
+ROTATIONS_LIMIT = 12
+"""Largest module count for which :func:`improve_by_swaps` also rotates every three."""
 
 ALL_SWAPS_LIMIT = 40
 """Largest module count for which :func:`improve_by_swaps` also tries every pair."""
@@ -369,8 +460,12 @@ def heuristic_pairing(problem: MisoProblem) -> list[int]:
     aligner = _Aligner(children_of(rooted(problem.start)), children_of(rooted(problem.goal)))
     firsts = sorted(((aligner.sim(u, v), u, v) for u in range(n) for v in range(n)),
                     key=lambda t: (-t[0], t[1], t[2]))
-    for _, u, v in firsts[:restarts]:
-        pair = improve_by_swaps(problem, _greedy_pairing(problem, (u, v)))
+    longest = [max(map(len, cycles(p)), default=1) for p in (problem.start, problem.goal)]
+    cuts = [(0, k) for k in range(1, min(longest[1], CUT_TRIES))] + [
+        (k, 0) for k in range(1, min(longest[0], CUT_TRIES))]
+    tries = [((u, v), (0, 0)) for _, u, v in firsts[:restarts]] + [(None, c) for c in cuts]
+    for first, cut in tries:   # other first pairs; cycles cut elsewhere
+        pair = improve_by_swaps(problem, _greedy_pairing(problem, first, cut))
         value = _value(problem, pair)
         if value > best_v:
             best, best_v = pair, value
