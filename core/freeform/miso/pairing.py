@@ -348,7 +348,8 @@ EXHAUSTIVE_LIMIT = 40
 """Largest module count paired by the exhaustive greedy (larger: the rounds)."""
 
 
-def improve_by_swaps(problem: MisoProblem, pair: list[int], *, passes: int = 20) -> list[int]:
+def improve_by_swaps(problem: MisoProblem, pair: list[int], *, passes: int = 20,
+                     thorough: bool = True) -> list[int]:
     """Swap partners while a swap keeps more connections (module docstring, part 3).
 
     The gain of swapping ``i`` and ``j`` counts the kept connections out of and into
@@ -395,7 +396,7 @@ def improve_by_swaps(problem: MisoProblem, pair: list[int], *, passes: int = 20)
                     gained = True
                     break
                 pair[u], pair[w] = pair[w], pair[u]
-        if not gained and n <= ALL_SWAPS_LIMIT:   # small: every pair of modules
+        if not gained and thorough and n <= ALL_SWAPS_LIMIT:   # small: every pair
             for u, w in itertools.combinations(range(n), 2):
                 before = local(u, w)
                 pair[u], pair[w] = pair[w], pair[u]
@@ -404,7 +405,7 @@ def improve_by_swaps(problem: MisoProblem, pair: list[int], *, passes: int = 20)
                     gained = True
                 else:
                     pair[u], pair[w] = pair[w], pair[u]
-        if not gained and n <= ROTATIONS_LIMIT:   # tiny: every rotation of three
+        if not gained and thorough and n <= ROTATIONS_LIMIT:   # tiny: rotations of three
             gained = _rotate_threes(pa, pb, pair, inv, ka)
         if not gained:
             break
@@ -452,24 +453,23 @@ def heuristic_pairing(problem: MisoProblem) -> list[int]:
     n = problem.n
     if n > EXHAUSTIVE_LIMIT:
         return improve_by_swaps(problem, _Rounds(problem).run())
-    best = improve_by_swaps(problem, _greedy_pairing(problem, None))
+    best = improve_by_swaps(problem, _greedy_pairing(problem, None), thorough=False)
     best_v = _value(problem, best)
     restarts = RESTART_BUDGET // n - 1
-    if restarts <= 0:
-        return best
     aligner = _Aligner(children_of(rooted(problem.start)), children_of(rooted(problem.goal)))
     firsts = sorted(((aligner.sim(u, v), u, v) for u in range(n) for v in range(n)),
                     key=lambda t: (-t[0], t[1], t[2]))
     longest = [max(map(len, cycles(p)), default=1) for p in (problem.start, problem.goal)]
     cuts = [(0, k) for k in range(1, min(longest[1], CUT_TRIES))] + [
         (k, 0) for k in range(1, min(longest[0], CUT_TRIES))]
-    tries = [((u, v), (0, 0)) for _, u, v in firsts[:restarts]] + [(None, c) for c in cuts]
+    tries = [((u, v), (0, 0)) for _, u, v in firsts[:max(restarts, 0)]] + [
+        (None, c) for c in cuts]
     for first, cut in tries:   # other first pairs; cycles cut elsewhere
-        pair = improve_by_swaps(problem, _greedy_pairing(problem, first, cut))
+        pair = improve_by_swaps(problem, _greedy_pairing(problem, first, cut), thorough=False)
         value = _value(problem, pair)
         if value > best_v:
             best, best_v = pair, value
-    return best
+    return improve_by_swaps(problem, best)
 
 
 def _value(problem: MisoProblem, pair: list[int]) -> int:

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...actions import flow_move, topology_diff
 from ...configuration import Configuration
 from ...plan import Action, ActionType, ConnectionChange, Plan
 from .exact import exact_pairing
@@ -20,6 +19,7 @@ from .model import (
     changes,
     count_flows,
     depths,
+    is_flow,
     kept,
     mismatches,
     pieces,
@@ -157,7 +157,9 @@ def _same_shape(a: Configuration, b: Configuration) -> bool:
 def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
              vectors: dict[tuple[int, int], np.ndarray], edge_ids: dict[tuple[int, int], str]
              ) -> tuple[list[Action], Configuration, dict[str, int]]:
-    """One action per step, typed by the core's one rule; the last configuration; counts."""
+    """One action per step, typed by the core's one rule (:func:`~.model.is_flow`, its
+    pointer form, tested against :func:`msrr.core.actions.classify`); the last
+    configuration; counts."""
     ids = problem.start_ids
     parent = list(problem.start)
     current = start.copy()
@@ -167,9 +169,10 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
         i = step.module
         broken = (ConnectionChange(ids[i], ids[step.old]),) if step.old != FREE else ()
         made = (ConnectionChange(ids[i], ids[step.new]),) if step.new != FREE else ()
+        flow = is_flow(parent, i, step.new)   # the pointer form of actions.flow_move
         parent[i] = step.new
         after = _configuration(start, ids, parent, vectors, edge_ids, f"step {t}")
-        if broken and made and flow_move(current, topology_diff(current, after)) is not None:
+        if flow:
             kind, verb, count = ActionType.FLOW, "flow", "flows"
         elif not made:
             kind, verb, count = ActionType.DISCONNECTION, "free", "disconnections"
