@@ -205,7 +205,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1,
                         help="worker processes for the exact comparisons (1: here; 0: per core)")
     args = parser.parse_args()
-    console = Console(highlight=False)
+    console = Console(highlight=False, width=160)
     console.print(f"seed={args.seed} instances={args.instances} reach={args.reach} "
                   f"repeats={args.repeats} rules: at most 6 on a module, no docking onto "
                   "one's child")
