@@ -26,7 +26,15 @@ from scipy.optimize import Bounds, LinearConstraint, milp
 from scipy.sparse import coo_matrix
 
 from ...errors import PlanningError
-from .model import FREE, MisoProblem, canonical_form, changes, children_of, step_is_legal
+from .model import (
+    FREE,
+    MisoProblem,
+    canonical_form,
+    changes,
+    children_of,
+    step_is_legal,
+    targets,
+)
 
 __all__ = ["ExactPairing", "brute_force_changes", "brute_force_steps", "exact_pairing"]
 
@@ -114,8 +122,7 @@ def exact_pairing(problem: MisoProblem, *, time_limit: float = 60.0,
 
 
 def _value(problem: MisoProblem, pair: list[int]) -> int:
-    from .model import targets
-
+    """Higher is better: fewest changes first, then most free-free pairs."""
     goal = targets(problem, pair)
     ff = sum(1 for p, g in zip(problem.start, goal, strict=True) if p == g == FREE)
     return -(problem.n + 1) * changes(problem.start, goal) + 2 * ff
@@ -124,8 +131,6 @@ def _value(problem: MisoProblem, pair: list[int]) -> int:
 def brute_force_changes(problem: MisoProblem) -> int:
     """The fewest connection changes over every pairing (small ``n``): the reference for
     :func:`exact_pairing`."""
-    from .model import targets
-
     if problem.n > 8:
         raise PlanningError("brute force over pairings is for at most 8 modules")
     return min(changes(problem.start, targets(problem, list(perm)))

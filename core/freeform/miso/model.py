@@ -308,16 +308,15 @@ def canonical_form(parent: Sequence[int]) -> tuple:
         if p == FREE:
             parts.append(("tree", form[i]))
     for cyc in cycles(parent):
-        # a cycle module's own form without its cycle predecessor (the cut put it as a
-        # child of nothing: recompute from the original children minus the cycle one)
+        # each cycle module's own form: its children off the cycle
         on = set(cyc)
-        own = [tuple(sorted(form[c] for c in children_of_in(parent, m) if c not in on))
+        own = [tuple(sorted(form[c] for c in _children_in(parent, m) if c not in on))
                for m in cyc]
         parts.append(("cycle", min(tuple(own[k:] + own[:k]) for k in range(len(own)))))
     return tuple(sorted(parts))
 
 
-def children_of_in(parent: Sequence[int], module: int) -> list[int]:
+def _children_in(parent: Sequence[int], module: int) -> list[int]:
     """The modules whose connector sits on ``module``."""
     return [i for i, p in enumerate(parent) if p == module]
 

@@ -31,8 +31,10 @@ class _State:
                 and (self.parent[new] == old or self.parent[old] == new))
 
     def blocker(self, module: int, new: int) -> int | None:
-        """``None`` when the step is legal (:func:`~.model.step_is_legal`), else a
-        module whose temporary release would unblock it (``FREE`` when none would)."""
+        """``None`` when the step is legal (:func:`~.model.step_is_legal`); ``FREE`` when
+        ``new`` carries ``max_in`` already (one of its modules must leave); else the
+        module next below ``module`` on the way from ``new`` (``new`` itself for the
+        child rule): releasing a pending module on that way unblocks the step."""
         parent, limits = self.parent, self.limits
         if new == FREE:
             return None
