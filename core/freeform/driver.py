@@ -101,10 +101,18 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
         return port[1:] if port.startswith("@") else ""
 
     def constraint_events(self) -> dict[str, int]:
-        """Docks, undocks and flows since :meth:`reset`, from the world's constraint switches
-        (a flow is one switch, counted once as a flow and not as a dock or an undock)."""
+        """Docks, undocks (commanded or broken) and flows since :meth:`reset`, from the
+        world's constraint switches (a flow is one switch, counted once as a flow and not
+        as a dock or an undock)."""
         events = self._world().events
-        return {kind: sum(e.kind == kind for e in events) for kind in ("dock", "undock", "flow")}
+        return {"dock": sum(e.kind == "dock" for e in events),
+                "undock": sum(e.kind in ("undock", "break") for e in events),
+                "flow": sum(e.kind == "flow" for e in events)}
+
+    def faults(self) -> list[str]:
+        """Connections that broke under their load (``"connector broke: ..."``)."""
+        return [f"connector broke: {e.module} at {e.target}, {e.load:.1f} N at t={e.time:.2f} s"
+                for e in self._world().events if e.kind == "break"]
 
 
 @dataclass(frozen=True)
