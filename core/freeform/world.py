@@ -91,11 +91,12 @@ _ROLL_SPEED_GAIN = 5.0  # pendulum drive: lead angle per speed error [rad / (m/s
 _ROLL_TILT = 0.5        # largest lead angle of the hanging magnet unit [rad]
 _ROLL_KP = 0.1          # its angle loop [N m / rad]
 _ROLL_KD = 0.005        # [N m s / rad]
-_CRAWL_GAIN = 10.0      # SnailBot tracks: acceleration per speed error [1/s]
+_CRAWL_GAIN = 60.0      # SnailBot tracks: acceleration per speed error [1/s]
 _TRACTION = 0.3         # their largest force, in units of the module's weight
 _FOOT_KP = 2.0          # the footprint holding the foot down [N m / rad]
 _FOOT_KD = 0.1          # [N m s / rad]
 _GRAVITY = 9.81         # [m/s^2]
+_TRACK_SLIDE = 0.01     # floor friction of a crawling SnailBot's shell (its tracks carry it)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -172,8 +173,8 @@ class ModuleReport:
         sucker: whether the sucker holds.
         events: its connector's constraint events since the previous report.
         odometry: ``(x, y, yaw)`` (3,): its dead-reckoned pose on the floor in its own
-            odometry frame (its horizontal frame at reset) [m, m, rad]: the yaw its gyro
-            integrates, and the centre's travel its drive senses while its connector is
+            odometry frame (its horizontal frame at reset) [m, m, rad]: the turn about the
+            vertical its gyro integrates (its frame of travel commands), and the centre's travel its drive senses while its connector is
             free (FreeBOT: the shell's rotation, rolling without slip; SnailBot: the
             tracks); docked, the position stays where it was.
     """
@@ -289,8 +290,10 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         self._brake_at = np.tile(np.array([1.0, 0, 0, 0]), (n, 1))
         self._damping = design.max_torque / design.max_rate
         self._wrench = np.zeros((n, 6))            # tracks of crawling SnailBots
+        self._shell_geom = np.array([m.geom(f"shell/{i}").id for i in self.modules])
         self._load = np.zeros(n)                   # filtered connection loads [N]
         self._odometry = np.zeros((n, 2))          # travel sensed while free, world [m]
+        self._turned = np.zeros(n)                 # yaw the gyros integrated [rad]
         self._gyro = np.random.default_rng([options.seed, 1])  # the yaw's own noise
         mujoco.mj_forward(self.model, self.data)
         self._upright = np.array([_upright(r) for r in self.data.xmat[self._conn].reshape(-1, 3, 3)])
@@ -320,7 +323,7 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             body.add_freejoint(name=f"free/{name}")
             body.add_geom(name=f"shell/{name}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
                           size=[d.radius, 0, 0], friction=list(GROUND_FRICTION), mass=0,
-                          rgba=list(d.rgba))
+                          rgba=list(d.rgba), priority=1)   # its friction rules its contacts
             inner = quat if d.bearing else [1, 0, 0, 0]
             conn = body.add_body(name=f"connector/{name}", quat=inner, mass=d.connector_mass,
                                  inertia=[core] * 3, explicitinertial=True, ipos=[0, 0, 0],
@@ -380,19 +383,29 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
 
     def command_roll(self, module: str, velocity: np.ndarray) -> None:
         """Move a free module on the ground at ``velocity`` (3,) [m/s], given in its own
-        horizontal frame (its vertical part is ignored). A FreeBOT rolls: the magnet unit,
+        horizontal frame as its gyro keeps it (its odometry frame turned by the reported
+        yaw; the vertical part is ignored). A FreeBOT rolls: the magnet unit,
         heavier at its magnet's end, hangs as a pendulum, and the drive turns the shell
         against it (:meth:`_roll_torques`). A SnailBot crawls on its tracks, foot down
         (:meth:`_crawl`). Ignored once the module is docked."""
         k = self._k(module)
         if self.docked[k] is not None:   # it latched: the drive now turns it on its parent
             return
-        v = rot_z(float(self._headings()[k])) @ np.asarray(velocity, dtype=np.float64)
+        frame = rot_z(float(self._heading0[k] + self._turned[k]))   # as its gyro keeps it
+        v = frame @ np.asarray(velocity, dtype=np.float64)
         v[2] = 0.0
         self._roll[k] = v
         if self.design.bearing:
             self._rolling[k] = bool(np.any(v))
             self._pendulum(k, self._rolling[k])
+        else:
+            self._tracks(k, bool(np.any(v)))
+
+    def _tracks(self, k: int, on: bool) -> None:
+        """A crawling SnailBot stands on its tracks, not on its shell: the shell's floor
+        friction gives way to the tracks' bounded traction (:meth:`_crawl`)."""
+        self.model.geom_friction[self._shell_geom[k], 0] = (_TRACK_SLIDE if on
+                                                            else GROUND_FRICTION[0])
 
     def _pendulum(self, k: int, on: bool) -> None:
         """Put the magnet unit's weight on its magnet's end (the drive climbs the inside
@@ -412,6 +425,8 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             self._roll[k] = 0.0
             if self.design.bearing:
                 self._pendulum(k, False)
+            else:
+                self._tracks(k, False)
 
     def command_dock(self, module: str, target: str = "") -> None:
         """Arm ``module``'s connector to latch on ``target`` (``""``: any module it touches)."""
@@ -559,13 +574,15 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         super()._period_done(steps)
 
     def _integrate_odometry(self, duration: float) -> None:
-        """Add the travel a free module senses over ``duration`` [s]: a FreeBOT's shell
-        rolling without slip, ``v = r omega x e_z`` (``omega`` from its gyro and bearing
-        encoders), a SnailBot's tracks (the body's speed over the floor)."""
+        """Add what the modules sense over ``duration`` [s]: every gyro's turn about the
+        vertical, and the travel of a free module: a FreeBOT's shell rolling without
+        slip, ``v = r omega x e_z`` (``omega`` from its gyro and bearing encoders), a
+        SnailBot's tracks (the body's speed over the floor)."""
+        d = self.data
+        self._turned += duration * d.cvel[self._conn, 2]
         ks = np.array([k for k, p in enumerate(self.docked) if p is None], dtype=int)
         if not len(ks):
             return
-        d = self.data
         if self.design.bearing:
             v = self.design.radius * np.cross(d.cvel[self._shell[ks], :3], _EZ)
         else:
@@ -636,8 +653,9 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             self._crawl()
 
     def _crawl(self) -> None:
-        """Tracks of free SnailBots on the ground (a wrench on the shell): a traction
-        force ``m K (v - v_now)``, horizontal and bounded by ``_TRACTION m g``, and the
+        """Tracks of free SnailBots on the ground (a wrench on the shell, whose own floor
+        friction gives way while it crawls, :meth:`_tracks`): a traction force
+        ``m K (v - v_now)``, horizontal and bounded by ``_TRACTION m g``, and the
         footprint's torque holding the foot down (a PD loop on the foot's axis)."""
         d = self.data
         for k in np.flatnonzero(np.any(self._roll, axis=1) | np.any(self._wrench, axis=1)):
@@ -727,8 +745,8 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             relative = None
             if parent is not None:
                 relative = self.noise.rotation(rot[self._index[parent]].T @ rot[k])
-            turned = yaw[k] - self._heading0[k] + (self._gyro.normal(0.0, self.noise.std)
-                                                   if self.noise.std else 0.0)
+            turned = self._turned[k] + (self._gyro.normal(0.0, self.noise.std)
+                                        if self.noise.std else 0.0)
             odometry = np.append(rot_z(-self._heading0[k])[:2, :2] @ self._odometry[k],
                                  _wrap(turned))
             out[module] = ModuleReport(parent, self.noise.rotation(rot_z(-yaw[k]) @ rot[k]),

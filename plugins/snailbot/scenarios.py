@@ -33,5 +33,8 @@ SCENARIOS = (
     Scenario(name="tree-to-chain", start=CONFIGS / "tree5-flat.json",
              goal=CONFIGS / "chain5-a.json", stages=_stages("chain5"),
              description="five SnailBots: a tree becomes a row by two flows"),
+    Scenario(name="crawl-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
+             description="four SnailBots: B1 lets go of the row, crawls round it over the floor "
+                         "and docks on B4 at the other end"),
 )
 """The default first."""
