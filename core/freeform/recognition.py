@@ -217,6 +217,40 @@ def common_turn(current: Configuration, target: Configuration) -> float:
     return float(np.median(wrapped))
 
 
+def sucker_twist(current: Configuration, target: Configuration, module: str) -> float:
+    """The turn [rad] of ``module`` about its connection vector (its sucker's axis,
+    right-handed about the vector) that brings the connections of the modules on it
+    from ``current``'s vectors to ``target``'s (both in one frame): the angle of the
+    sum of their rotations, each seen in the plane across the axis. 0 when none is on
+    it or ``module`` is free in ``current``."""
+    own = _outgoing(current, module)
+    if own is None:
+        return 0.0
+    axis = own / np.linalg.norm(own)
+    across = np.eye(3) - np.outer(axis, axis)
+    num = den = 0.0
+    for e in target.edges():
+        have = _vector(current, e.source, module)
+        if e.target != module or e.z is None or have is None:
+            continue
+        a, b = across @ have, across @ np.asarray(e.z)
+        num += float(np.cross(a, b) @ axis)
+        den += float(a @ b)
+    return float(np.arctan2(num, den)) if num or den else 0.0
+
+
+def _vector(config: Configuration, source: str, target: str) -> np.ndarray | None:
+    """The vector ``z`` (3,) of ``config``'s connection ``source -> target``, or ``None``."""
+    e = next((e for e in config.edges() if e.source == source and e.target == target), None)
+    return None if e is None or e.z is None else np.asarray(e.z, dtype=float)
+
+
+def _outgoing(config: Configuration, module: str) -> np.ndarray | None:
+    """The vector of ``module``'s own connection (its connector's), or ``None``."""
+    e = next((e for e in config.edges() if e.source == module and e.z is not None), None)
+    return None if e is None else np.asarray(e.z, dtype=float)
+
+
 def _direction(vector: np.ndarray) -> dict[str, float]:
     return {f"dir_{a}": float(c) for a, c in zip("xyz", vector, strict=True)}
 
@@ -275,13 +309,15 @@ class ContactController:
         links = links_of(reports)
         heading = module_headings(reports, links)
         turn = rot_z(yaw)
+        turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
         for e in target.edges():
             if e.z is None or links.get(e.source) != e.target:
                 continue
-            joints = _direction(rot_z(-heading[e.target]) @ turn @ np.asarray(e.z))
-            if self.sucker:
-                joints["sucker"] = 1.0
+            if self.sucker:   # anchored: only a turn about the sucker's axis
+                joints = {"sucker": 1.0, "twist": sucker_twist(current, turned, e.source)}
+            else:
+                joints = _direction(rot_z(-heading[e.target]) @ turn @ np.asarray(e.z))
             out[e.source] = ModuleCommand(joints=joints)
         return out
 

@@ -381,6 +381,19 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         self._target[k] = Rotation.from_matrix(joint).as_quat(scalar_first=True)
         self._rolling[k] = float(np.arccos(np.clip(want @ r_conn[:, 2], -1, 1))) > _ROLLING
 
+    def command_twist(self, module: str, angle: float) -> None:
+        """Turn ``module`` about its sucker's axis (the line through its centre and its
+        parent's) by ``angle`` [rad] from where it is now, right-handed about the
+        connection vector; only while the sucker holds (the sucker-revolute joint)."""
+        k = self._k(module)
+        if self.docked[k] is None or not self.sucker[k]:
+            return
+        q = self.data.qpos[self._qadr[k]:self._qadr[k] + 4]
+        joint = Rotation.from_quat(q, scalar_first=True).as_matrix()   # foot in connector
+        # the connector turns by ``angle`` about its own z (towards the parent): the foot,
+        # seen from it, turns back
+        self._target[k] = Rotation.from_matrix(rot_z(-angle) @ joint).as_quat(scalar_first=True)
+
     def command_roll(self, module: str, velocity: np.ndarray) -> None:
         """Move a free module on the ground at ``velocity`` (3,) [m/s], given in its own
         horizontal frame as its gyro keeps it (its odometry frame turned by the reported

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from msrr.core import hookimpl, plugins
 from msrr.core.alignment import rot_z
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
@@ -118,3 +119,37 @@ def test_roll_to_dock_breaks_rolls_round_the_row_and_docks(tmp_path):
     assert result.simulator == {"dock": 1, "undock": 1, "flow": 0}
     assert result.goal is not None and result.goal.success and result.goal.topology
     assert result.goal.basis == GROUND_TRUTH
+
+
+class _Ticks:
+    """Records each tick's commands and the sucker each module reports."""
+
+    def __init__(self) -> None:
+        self.commands: list[dict[str, ModuleCommand]] = []
+        self.suckers: list[dict[str, bool]] = []
+
+    @hookimpl
+    def msrr_on_tick(self, run, tick) -> None:
+        self.commands.append(dict(tick.commands))
+        self.suckers.append({m: r.sucker for m, r in tick.observation.sensors.items()})
+
+
+def test_sucker_turn_anchors_every_module_and_turns_b2_about_its_sucker(tmp_path):
+    from msrr.core.app.run import RunRequest, execute_run, prepare_run
+
+    with plugins.temporary(_Ticks()) as ticks:
+        prepared = prepare_run(RunRequest("snailbot", scenario="sucker-turn",
+                                          out=tmp_path / "out", log=False, action_timeout=20.0))
+        result = execute_run(prepared)
+    assert result.success, result.reason
+    assert result.goal is not None and result.goal.basis == GROUND_TRUTH
+    assert result.simulator == {"dock": 0, "undock": 0, "flow": 0}
+    # from the second tick on, every docked module holds with its sucker and is told only
+    # to turn about it; B2 turns (a quarter turn in all), the others hold
+    assert all(s == {"B1": True, "B2": True, "B3": False, "B4": True, "B5": True}
+               for s in ticks.suckers[1:])
+    sent = [c for c in ticks.commands if c]
+    assert all(set(c[m].joints) == {"sucker", "twist"} for c in sent for m in c)
+    turned = sum(c["B2"].joints["twist"] for c in sent[:1])
+    assert abs(abs(turned) - np.pi / 2) < np.radians(5.0), "the first command asks a quarter turn"
+    assert all(abs(c[m].joints["twist"]) < np.radians(1.0) for c in sent for m in ("B4", "B5"))
