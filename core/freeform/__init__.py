@@ -2,8 +2,9 @@
 (FreeBOT, SnailBot; FreeSN paper, sections 2.1, 4.1), and the MuJoCo world every freeform
 robot's simulation stands on.
 
-* :mod:`.miso` -- MISO connection planning (the ``miso`` and ``miso-exact`` planners),
-  pure: numpy and scipy, no simulator;
+* :mod:`.miso` -- MISO connection planning (the ``miso`` and ``miso-exact`` planners)
+  between configurations of any pieces, under the robot's rules; pure: numpy and scipy,
+  no simulator;
 * :mod:`.design` -- a single-connector robot's description (:func:`freeform_robot`,
   read from its ``robot.json``) and its module's design in the simulator
   (:class:`ModuleDesign`);
@@ -32,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from .design import ModuleDesign, freeform_robot, read_freeform_robot
     from .driver import FreeformDriver, FreeformDriverFactory
-    from .miso import MISO_EXACT, MisoPlanner, plan_miso
+    from .miso import MisoLimits, MisoPlanner, plan_miso
     from .mujoco import MujocoDriver, MujocoOptions, MujocoWorld, SensorNoise, Switches
     from .plugin import FreeformPlugin
     from .recognition import (
@@ -55,7 +56,7 @@ _WHERE = {
     "FreeformOptions": "world",
     "FreeformPlugin": "plugin",
     "FreeformWorld": "world",
-    "MISO_EXACT": "miso",
+    "MisoLimits": "miso",
     "MisoPlanner": "miso",
     "ModuleDesign": "design",
     "ModuleReport": "world",
@@ -85,7 +86,7 @@ __all__ = [
     "FreeformOptions",
     "FreeformPlugin",
     "FreeformWorld",
-    "MISO_EXACT",
+    "MisoLimits",
     "MisoPlanner",
     "ModuleDesign",
     "ModuleReport",

@@ -3,6 +3,8 @@
 * :func:`freeform_robot` -- the :class:`~msrr.core.robot.RobotSpec` of such a robot: one
   module kind, a vertex with one neutral connector, the geometry the MuJoCo world needs;
   :func:`read_freeform_robot` reads its arguments from a robot's ``robot.json``;
+* :func:`read_miso_rules` -- the robot's MISO connection rules from the same file
+  (``miso``: ``max_in``, ``no_docking_onto``), which its planners obey;
 * :class:`ModuleDesign` -- the simulated module: that geometry, and whether the connector
   turns in a bearing inside the shell (FreeBOT) and whether there is a sucker (SnailBot).
 
@@ -17,7 +19,8 @@ from dataclasses import dataclass
 from ..errors import ExecutionError, PluginError
 from ..robot import ModuleKind, PortSpec, RobotDefaults, RobotSpec
 
-__all__ = ["DESIGN_GEOMETRY", "ModuleDesign", "freeform_robot", "read_freeform_robot"]
+__all__ = ["DESIGN_GEOMETRY", "MISO_RULES", "ModuleDesign", "freeform_robot", "read_freeform_robot",
+           "read_miso_rules"]
 
 DESIGN_GEOMETRY = ("radius", "mass", "connector_mass", "max_speed", "max_torque",
                    "connection_strength")
@@ -79,20 +82,60 @@ def read_freeform_robot(text: str, where: str) -> RobotSpec:
         raise PluginError(f"{where}: expected a JSON object with {', '.join(_FIELDS)}")
     problems = [f"missing {key}" for key in _FIELDS if key not in data]
     problems += [f"unknown {key}" for key in sorted(set(data) - set(_FIELDS))]
-    problems += [f"{key} must be a {'JSON object' if key == 'geometry' else 'string'}, got "
+    problems += [f"{key} must be a {'JSON object' if key in _OBJECTS else 'string'}, got "
                  f"{data[key]!r}" for key in _FIELDS
-                 if key in data and not isinstance(data[key], dict if key == "geometry" else str)]
+                 if key in data and not isinstance(data[key], dict if key in _OBJECTS else str)]
     if problems:
         raise PluginError(f"{where}: {'; '.join(problems)} (fields: {', '.join(_FIELDS)})")
     try:
-        return freeform_robot(**data)
+        return freeform_robot(**{k: v for k, v in data.items() if k != "miso"})
     except PluginError as exc:
         raise PluginError(f"{where}: {exc}") from None
 
 
+MISO_RULES = {"max_in": "the most connections one module carries (an integer >= 1, or null: "
+                        "no limit)",
+              "no_docking_onto": "'child' (never onto a module sitting on it) or "
+                                 "'descendant' (never onto its own in-tree: no cycle)"}
+"""The fields of ``robot.json``'s ``miso`` object and what each holds."""
+
+
+def read_miso_rules(text: str, where: str) -> dict[str, int | str | None]:
+    """The MISO connection rules of the robot described by ``text`` (its ``miso``
+    object: :data:`MISO_RULES`), the arguments of
+    :class:`msrr.core.freeform.miso.MisoLimits`.
+
+    Raises:
+        PluginError: ``miso`` missing or not an object, a field missing, unknown or of
+            the wrong value (the message names ``where`` and the field).
+    """
+    import json
+
+    rules = json.loads(text).get("miso")
+    if not isinstance(rules, dict):
+        raise PluginError(f"{where}: miso must be a JSON object with "
+                          f"{', '.join(MISO_RULES)}, got {rules!r}")
+    problems = [f"missing miso.{key}" for key in MISO_RULES if key not in rules]
+    problems += [f"unknown miso.{key}" for key in sorted(set(rules) - set(MISO_RULES))]
+    cap = rules.get("max_in")
+    if "max_in" in rules and cap is not None and (isinstance(cap, bool)
+                                                  or not isinstance(cap, int) or cap < 1):
+        problems.append(f"miso.max_in must be {MISO_RULES['max_in']}, got {cap!r}")
+    rule = rules.get("no_docking_onto")
+    if "no_docking_onto" in rules and rule not in ("child", "descendant"):
+        problems.append(f"miso.no_docking_onto must be {MISO_RULES['no_docking_onto']}, "
+                        f"got {rule!r}")
+    if problems:
+        raise PluginError(f"{where}: {'; '.join(problems)}")
+    return {"max_in": cap, "no_docking_onto": rule}
+
+
 _FIELDS = ("name", "title", "symbol", "port", "joint_mode", "geometry", "module",
-           "description", "reference")
+           "description", "reference", "miso")
 """The fields of a freeform robot's ``robot.json``, in their order."""
+
+_OBJECTS = ("geometry", "miso")
+"""The fields that hold JSON objects."""
 
 
 @dataclass(frozen=True)

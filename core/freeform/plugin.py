@@ -91,6 +91,17 @@ class FreeformPlugin:
         description = files(self.package) / "robot.json"
         return read_freeform_robot(description.read_text(), f"{self.package}/robot.json")
 
+    @cached_property
+    def miso_rules(self) -> dict[str, int | str | None]:
+        """The robot's MISO connection rules (``robot.json``'s ``miso``), which its
+        planners obey."""
+        from importlib.resources import files
+
+        from .design import read_miso_rules
+
+        description = files(self.package) / "robot.json"
+        return read_miso_rules(description.read_text(), f"{self.package}/robot.json")
+
     def joint_modes(self) -> Sequence[type[KinematicNode]]:
         """The joint modes (``joints.JOINT_MODES``), the default first."""
         modes: Sequence[type[KinematicNode]] = self._part("joints", "JOINT_MODES")
@@ -151,10 +162,10 @@ class FreeformPlugin:
     @hookimpl
     def msrr_planners(self, robot: str, register: Register[Planner]) -> None:
         if robot == self.spec.name:
-            from .miso import MISO_EXACT, MisoPlanner
+            from .miso import MisoLimits, miso_planners
 
-            register(MisoPlanner())
-            register(MISO_EXACT)
+            for planner in miso_planners(MisoLimits(**self.miso_rules)):
+                register(planner)
 
     @hookimpl
     def msrr_drivers(self, robot: str, register: Register[DriverFactory]) -> None:

@@ -19,8 +19,8 @@ from msrr.core.events import Phase
 from msrr.core.executor import phases_of
 from msrr.core.freeform.miso import (
     FREE,
+    MisoLimits,
     MisoProblem,
-    _greedy_order,
     count_flows,
     heuristic_pairing,
     is_flow,
@@ -29,6 +29,7 @@ from msrr.core.freeform.miso import (
     random_miso_tree,
     targets,
 )
+from msrr.core.freeform.miso.order import greedy_order
 from msrr.core.generic.driver import KinematicDriver
 from msrr.core.generic.geometry import BodyPose, slide_toward, touching_direction
 from msrr.core.plan import Action, ActionType, Plan, load_plan, save_plan
@@ -334,13 +335,13 @@ def miso_configuration(parent: tuple[int, ...]) -> Configuration:
 def test_flows_first_costs_no_step_and_finds_flows_the_plain_order_misses():
     rng = np.random.default_rng(3)
     more = 0
-    for _ in range(30):
+    for _ in range(120):
         n = int(rng.integers(5, 13))
         problem = MisoProblem.from_parents(random_miso_tree(n, rng, max_branching=3),
                                            random_miso_tree(n, rng, max_branching=3))
         goal = targets(problem, heuristic_pairing(problem))
         depth = [0] * n  # every order equal: the preference alone decides
-        plain = _greedy_order(problem.start, goal, depth, flows_first=False)
+        plain = greedy_order(problem.start, goal, depth, MisoLimits(), flows_first=False)
         chosen = order_steps(problem.start, goal, depth)
         assert len(chosen) <= len(plain)
         assert count_flows(problem.start, chosen) >= count_flows(problem.start, plain)

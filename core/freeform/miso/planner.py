@@ -1,0 +1,275 @@
+"""Solutions (pairing and steps, both metrics) and plans of the MISO problem."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...actions import flow_move, topology_diff
+from ...configuration import Configuration
+from ...plan import Action, ActionType, ConnectionChange, Plan
+from .exact import exact_pairing
+from .model import (
+    FREE,
+    UNLIMITED,
+    MisoLimits,
+    MisoProblem,
+    Step,
+    changes,
+    count_flows,
+    depths,
+    kept,
+    mismatches,
+    pieces,
+    step_changes,
+    targets,
+)
+from .order import order_steps
+from .pairing import heuristic_pairing
+
+__all__ = ["MisoPlanner", "MisoSolution", "miso_planners", "plan_miso", "solve_exact",
+           "solve_heuristic"]
+
+
+@dataclass
+class MisoSolution:
+    """A pairing and the steps that realise it.
+
+    Attributes:
+        pairing: goal index of every start module.
+        steps: legal steps from the start to the relabelled goal.
+        lower_bound: ``d`` of the pairing, the fewest steps it allows.
+        optimal: the exact search proved the connection changes fewest and the steps
+            fewest among plans with that many changes.
+        stats: counters (``time_ms``; the exact search's ``changes_proved``, ...).
+    """
+
+    pairing: list[int]
+    steps: list[Step]
+    lower_bound: int
+    optimal: bool = False
+    stats: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def cost(self) -> int:
+        """Steps: connector re-targetings."""
+        return len(self.steps)
+
+    @property
+    def changes(self) -> int:
+        """Connections broken plus made (Luo and Lam's metric)."""
+        return step_changes(self.steps)
+
+
+def _solution(problem: MisoProblem, pair: list[int], t0: float, **stats: float
+              ) -> MisoSolution:
+    goal = targets(problem, pair)
+    goal_depth = depths(problem.goal)
+    steps = order_steps(problem.start, goal, [goal_depth[b] for b in pair],
+                        limits=problem.limits)
+    d = mismatches(problem.start, goal)
+    return MisoSolution(pair, steps, d, stats={
+        "time_ms": 1e3 * (time.perf_counter() - t0), **stats})
+
+
+def solve_heuristic(problem: MisoProblem) -> MisoSolution:
+    """Polynomial: :func:`~.pairing.heuristic_pairing`, then :func:`~.order.order_steps`."""
+    t0 = time.perf_counter()
+    return _solution(problem, heuristic_pairing(problem), t0)
+
+
+def solve_exact(problem: MisoProblem, *, time_limit: float = 60.0) -> MisoSolution:
+    """The fewest connection changes, proved (:func:`~.exact.exact_pairing`, starting
+    from the heuristic's pairing), then the step order.
+
+    ``optimal`` when HiGHS proved the pairing within ``time_limit`` [s] and the order
+    needs no release: then no plan has fewer changes, and none with as few changes has
+    fewer steps (the pairing has the fewest mismatches among the fewest-change ones).
+    """
+    t0 = time.perf_counter()
+    heuristic = heuristic_pairing(problem)
+    found = exact_pairing(problem, time_limit=time_limit, start=heuristic)
+    solution = _solution(problem, found.pair, t0, changes_proved=float(found.proved),
+                         milp_ms=found.ms,
+                         heuristic_changes=float(changes(problem.start,
+                                                         targets(problem, heuristic))))
+    solution.optimal = found.proved and solution.cost == solution.lower_bound
+    return solution
+
+
+# -- plans ---------------------------------------------------------------------------------
+
+
+def _configuration(template: Configuration, ids: tuple[str, ...], parent: list[int],
+                   vectors: dict[tuple[int, int], np.ndarray], edge_ids: dict[tuple[int, int], str],
+                   name: str) -> Configuration:
+    config = Configuration(template.robot, name=name)
+    for v in ids:
+        config.add_module(v, template.kind_of(v))
+    for i, p in enumerate(parent):
+        if p != FREE:
+            key = (i, p)
+            config.connect(ids[i], ids[p], id=edge_ids.get(key),
+                           z=vectors.get(key, np.array([0.0, 0.0, 1.0])))
+    return config
+
+
+KEEP_LABELS_LIMIT = 64
+"""Largest module count for which :func:`_keep_labels` tries the identity pairing."""
+
+
+def _rank(problem: MisoProblem, s: MisoSolution) -> tuple[int, int, int]:
+    return (s.changes, s.cost, -count_flows(problem.start, s.steps))
+
+
+def _keep_labels(solution: MisoSolution, problem: MisoProblem) -> MisoSolution:
+    """``solution``, or the plan in which every module keeps its own id when the goal
+    uses the start's ids and that plan has no more changes, steps, or fewer flows.
+
+    Modules are identical, so the pairing is the planner's choice; but a goal written in
+    the system's ids says where each module should end, and an equally short plan that
+    relabels two arms of a star would make them swap places physically.
+    """
+    n = problem.n
+    if sorted(problem.start_ids) != sorted(problem.goal_ids) or n > KEEP_LABELS_LIMIT:
+        return solution
+    index = {m: b for b, m in enumerate(problem.goal_ids)}
+    identity = [index[m] for m in problem.start_ids]
+    if identity == list(solution.pairing):
+        return solution
+    other = _solution(problem, identity, time.perf_counter())
+    if _rank(problem, other) > _rank(problem, solution):
+        return solution
+    return MisoSolution(identity, other.steps, other.lower_bound,
+                        optimal=solution.optimal and _rank(problem, other)[:2] == _rank(
+                            problem, solution)[:2], stats=solution.stats)
+
+
+def _same_shape(a: Configuration, b: Configuration) -> bool:
+    """Same connections (by ends) with the same vectors."""
+    def links(c: Configuration) -> dict[tuple[str, str], tuple]:
+        return {(e.source, e.target): tuple(e.z) for e in c.edges()}
+    return links(a) == links(b)
+
+
+def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
+             vectors: dict[tuple[int, int], np.ndarray], edge_ids: dict[tuple[int, int], str]
+             ) -> tuple[list[Action], Configuration, dict[str, int]]:
+    """One action per step, typed by the core's one rule; the last configuration; counts."""
+    ids = problem.start_ids
+    parent = list(problem.start)
+    current = start.copy()
+    actions: list[Action] = []
+    counts = {"flows": 0, "reconnections": 0, "connections": 0, "disconnections": 0}
+    for t, step in enumerate(solution.steps, 1):
+        i = step.module
+        broken = (ConnectionChange(ids[i], ids[step.old]),) if step.old != FREE else ()
+        made = (ConnectionChange(ids[i], ids[step.new]),) if step.new != FREE else ()
+        parent[i] = step.new
+        after = _configuration(start, ids, parent, vectors, edge_ids, f"step {t}")
+        if broken and made and flow_move(current, topology_diff(current, after)) is not None:
+            kind, verb, count = ActionType.FLOW, "flow", "flows"
+        elif not made:
+            kind, verb, count = ActionType.DISCONNECTION, "free", "disconnections"
+        elif not broken:
+            kind, verb, count = ActionType.CONNECTION, "connect", "connections"
+        else:
+            kind, verb, count = ActionType.PARALLEL_CONNECTION, "reconnect", "reconnections"
+        counts[count] += 1
+        old = ids[step.old] if step.old != FREE else "(free)"
+        new = ids[step.new] if step.new != FREE else "(free)"
+        actions.append(Action(kind, after, tuple(dict.fromkeys(
+            m for c in broken + made for m in (c.source, c.target))), broken + made,
+            note=f"{verb} {ids[i]}: {old} -> {new} (step {t})"))
+        current = after
+    return actions, current, counts
+
+
+def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
+              planner: str = "miso", limits: MisoLimits = UNLIMITED,
+              time_limit: float = 60.0) -> Plan:
+    """A :class:`~msrr.core.plan.Plan` of MISO connection changes from ``start`` to ``goal``
+    (any pieces, cycles allowed), under the robot's ``limits``.
+
+    Each step becomes one action, typed by the one rule of :mod:`msrr.core.actions`: a
+    *connection* (a free module connects), a *disconnection* (a module frees itself), a
+    *flow* (:func:`~msrr.core.actions.flow_move`: a leaf moves to a neighbour of its
+    parent) or, for any other re-targeting, a break-and-make *parallel connection*
+    (disconnection first, then connection; the module carries its in-tree). A last
+    *moving* action sets the goal's vectors. Kept connections keep their ids and
+    vectors; new ones take the goal's vectors. ``plan.stats`` holds both metrics,
+    ``steps`` and ``changes`` (``broken`` + ``made``).
+
+    Raises:
+        PlanningError: module counts or kinds differ, or a configuration breaks the
+            robot's rules.
+    """
+    problem = MisoProblem.from_configurations(start, goal, limits)
+    solution = _keep_labels((solve_exact(problem, time_limit=time_limit) if exact
+                             else solve_heuristic(problem)), problem)
+    ids = problem.start_ids
+    final = targets(problem, solution.pairing)
+    goal_index = {v: b for b, v in enumerate(goal.vertices())}
+    goal_z = {(goal_index[e.source], goal_index[e.target]): e.z for e in goal.edges()}
+    goal_vectors = {(i, final[i]): goal_z[(b, problem.goal[b])]
+                    for i, b in enumerate(solution.pairing) if problem.goal[b] != FREE}
+    index = {v: i for i, v in enumerate(ids)}
+    vectors: dict[tuple[int, int], np.ndarray] = dict(goal_vectors)
+    edge_ids: dict[tuple[int, int], str] = {}
+    for e in start.edges():
+        key = (index[e.source], index[e.target])
+        vectors[key], edge_ids[key] = e.z, e.id   # kept connections keep their vectors
+    actions, current, counts = _actions(problem, start, solution, vectors, edge_ids)
+    reached = _configuration(start, ids, final, goal_vectors, edge_ids, goal.name or "goal")
+    if actions or not _same_shape(current, reached):   # a step's own motion (a flow
+        # ends where the leaf touches its new parent) does not set the goal's vectors
+        actions.append(Action(ActionType.MOVING, reached, ids, note="take the goal's shape"))
+    mapping = {ids[a]: problem.goal_ids[b] for a, b in enumerate(solution.pairing)}
+    notes = []
+    if exact and not solution.stats.get("changes_proved", 0.0):
+        notes.append(f"exact search stopped after {time_limit:g} s: best plan found, "
+                     "optimality not proved")
+    broken = sum(s.old != FREE for s in solution.steps)
+    made = sum(s.new != FREE for s in solution.steps)
+    releases = solution.cost - solution.lower_bound
+    return Plan(robot=start.robot, planner=planner, start=start.copy(), goal=reached,
+                actions=actions, mapping=mapping, notes=notes,
+                stats={"steps": float(solution.cost), "changes": float(broken + made),
+                       "broken": float(broken), "made": float(made),
+                       "lower_bound": float(solution.lower_bound),
+                       "kept": float(kept(problem.start, final)),
+                       "releases": float(releases),
+                       "pieces_start": float(pieces(problem.start)),
+                       "pieces_goal": float(pieces(problem.goal)),
+                       **{k: float(v) for k, v in counts.items()},
+                       "optimal": float(solution.optimal), **solution.stats})
+
+
+@dataclass(frozen=True)
+class MisoPlanner:
+    """The MISO connection planner as a registered ``Planner`` (heuristic or exact),
+    under one robot's rules."""
+
+    name: str = "miso"
+    description: str = ("MISO connection planning: alignment pairing with swaps, step "
+                        "order under the robot's rules (fewest connection changes; Luo and "
+                        "Lam 2023's problem)")
+    exact: bool = False
+    limits: MisoLimits = UNLIMITED
+    time_limit: float = 60.0
+
+    def plan(self, start: Configuration, goal: Configuration, *, seed: int = 0) -> Plan:
+        """Plan ``start`` -> ``goal``; deterministic (``seed`` unused)."""
+        return plan_miso(start, goal, exact=self.exact, planner=self.name, limits=self.limits,
+                         time_limit=self.time_limit)
+
+
+def miso_planners(limits: MisoLimits) -> tuple[MisoPlanner, MisoPlanner]:
+    """``miso`` and ``miso-exact`` under a robot's rules."""
+    return (MisoPlanner(limits=limits),
+            MisoPlanner(name="miso-exact", exact=True, limits=limits,
+                        description="MISO connection planning, exact: integer program "
+                                    "(scipy milp) for the fewest connection changes, "
+                                    "proved"))
