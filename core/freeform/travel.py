@@ -37,6 +37,8 @@ __all__ = ["Fix", "Locator", "floor_path", "pursue"]
 
 _CELL = 0.01          # grid of the floor path [m]
 _CLEARANCE = 0.008    # kept between shells on the way [m]
+_BACK_OFF = 0.015     # a module touching others first moves this far away from them [m]
+_GRAZE = 0.003        # kept from a module the start touches, beyond where the start is [m]
 _SPOTS = 72           # directions tried for the docking spot
 _LEVEL = 0.5          # a module is on the floor level within this many spacings in z
 
@@ -164,11 +166,17 @@ def floor_path(others: Mapping[str, np.ndarray], target: str, spacing: float
     spots = goal[:2] + spacing * np.column_stack([np.cos(angles), np.sin(angles)])
     free = [s for s in spots if all(np.linalg.norm(s - c) >= spacing + _CLEARANCE
                                     for c in level)]
+    # first straight away from the modules it touches: a shell grazing a row while it
+    # starts to roll pushes the row, which rolls away sideways like a rolling pin
+    touching = [c for c in [*level, goal[:2]] if np.linalg.norm(c) < spacing + _CLEARANCE]
+    away = -sum((c / np.linalg.norm(c) for c in touching), np.zeros(2))
+    start = _BACK_OFF * away / np.linalg.norm(away) if np.linalg.norm(away) > 1e-9 \
+        else np.zeros(2)
     for spot in sorted(free, key=lambda s: float(np.linalg.norm(s))):
-        path = _astar(np.zeros(2), spot, [*level, goal[:2]],
+        path = _astar(start, spot, [*level, goal[:2]],
                       [spacing + _CLEARANCE] * len(level) + [spacing - 0.5 * _CLEARANCE])
         if path is not None:
-            return path
+            return [start, *path] if np.any(start) else path
     raise ExecutionError(f"no free way over the floor to module {target}")
 
 
@@ -185,6 +193,9 @@ def _astar(start: np.ndarray, end: np.ndarray, centres: Sequence[np.ndarray],
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     blocked = np.zeros(shape, dtype=bool)
     for c, r in zip(centres, radii, strict=True):
+        # a module the start already touches: the way never comes closer to it than the
+        # start is (grazing a shell while rolling pushes its group away)
+        r = min(r, float(np.linalg.norm(start - c)) + _GRAZE)
         blocked |= np.hypot(gx - c[0], gy - c[1]) < r
 
     def cell(p: np.ndarray) -> tuple[int, int]:
