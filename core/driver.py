@@ -24,12 +24,15 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Protocol, Self, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, runtime_checkable
 
 import numpy as np
 
 from .configuration import Configuration
 from .errors import ConfigurationError, ExecutionError, PluginError
+
+if TYPE_CHECKING:  # the control path imports this module, never the witness channel
+    from .witness import Witness
 
 __all__ = ["RESERVED_OPTIONS", "Companions", "Driver", "DriverFactory", "DriverOption",
            "ModuleCommand", "Observation", "OptionValue", "Pose", "check_driver_options",
@@ -286,23 +289,28 @@ class ModuleCommand:
 
 @dataclass(frozen=True)
 class Observation:
-    """What a driver reports at one instant.
+    """What the robot senses at one instant: all the control path ever reads.
+
+    Never a simulator's state: a body's true pose or which modules its constraints
+    hold together is the witness channel's (:meth:`Driver.witness`,
+    :meth:`Driver.ground_truth`; :mod:`msrr.core.witness`), read by the judge and the
+    recording only.
 
     Attributes:
         time: driver time since :meth:`Driver.reset` [s].
-        poses: world pose of every module body.
-        sensors: raw data for the robot's recognizer (MMRP: per module, per face,
-            the ``(other module, other face)`` it is latched to, or ``None``);
-            a mapping keyed by module id when ``groups`` is given.
-        groups: module sets that are physically separate systems (connected
-            components after undocking); each is recognized on its own, with the
-            ``sensors`` entries of its modules. Empty: one system.
+        sensors: the modules' reports, for the robot's recognizer, keyed by module id
+            (MMRP: per face, the ``(other module, other face)`` it is latched to, or
+            ``None``; FreeSN: :class:`~msrr.plugins.freesn.sim.world.NodeReport` and
+            ``StrutReport``). Physically separate groups are the recognizer's to find
+            from what the reports say is latched.
+        tracked: world poses from an external pose sensor the robot really has (MMRP's
+            overhead tracking, the link protocol's ``pose`` field), with that sensor's
+            noise; empty for a robot without one (FreeSN, FreeBOT, SnailBot).
     """
 
     time: float
-    poses: Mapping[str, Pose]
     sensors: Any
-    groups: tuple[frozenset[str], ...] = ()
+    tracked: Mapping[str, Pose] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -347,7 +355,7 @@ class Driver(ABC):
 
     @abstractmethod
     def get_observation(self) -> Observation:
-        """The current poses and raw sensor data."""
+        """What the modules report now (and a pose sensor the robot has)."""
 
     @abstractmethod
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
@@ -362,9 +370,16 @@ class Driver(ABC):
     def time(self) -> float:
         """Driver time since :meth:`reset` [s]."""
 
+    def witness(self) -> Witness | None:
+        """The simulator's own state now (every body's exact world pose), for the judge
+        and the recording only, never for control (:mod:`msrr.core.witness`); ``None``
+        where there is none (hardware: the judge then reads what the robot reports)."""
+        return None
+
     def ground_truth(self) -> Configuration | None:
         """The configuration as the simulator knows it, for judging a run (never for
-        control); ``None`` where there is none (hardware, or a driver without one)."""
+        control; :mod:`msrr.core.witness`); ``None`` where there is none (hardware, or a
+        driver without one)."""
         return None
 
     def faults(self) -> list[str]:

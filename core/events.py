@@ -12,13 +12,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .plan import Action, ConnectionChange, Plan
 from .robot import RobotSpec
 from .shape import ShapeVerdict
+
+if TYPE_CHECKING:  # the executor imports this module, never the witness channel
+    from .witness import Witness
 
 __all__ = ["GROUND_TRUTH", "REPORTED", "ActionStatus", "BehaviorVerdict", "EventSink",
            "FaultEvent", "GoalVerdict", "NoEvents", "Phase", "Run", "RunResult", "Tick",
@@ -108,6 +111,9 @@ class Tick:
         configuration: the recognized configuration.
         commands: the module commands sent.
         errors: per-module distance to its goal [m] as the controller measures it.
+        witness: the simulator's own state after the tick, for the recording (``None``
+            as the executor sends it: ``platform run`` adds it for its listeners; see
+            :mod:`msrr.core.witness`).
     """
 
     index: int
@@ -119,6 +125,7 @@ class Tick:
     configuration: Configuration
     commands: Mapping[str, ModuleCommand]
     errors: Mapping[str, float]
+    witness: Witness | None = None
 
 
 @dataclass(frozen=True)

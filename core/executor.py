@@ -46,13 +46,18 @@ and the ``broken``/``made`` links with their ports.
   shape is held (IK tracking toward the target where it applies) and each
   :class:`~msrr.core.plan.CommandGain`'s value ``sum(gain * parameter)`` goes into
   ``ModuleCommand.wheels[key]`` (:func:`behavior_commands`), for the call's duration
-  or until the centre of the modules moved its distance. The steps of a *sequence*
-  behavior are ordinary actions; with a distance, the loops left once it is covered
-  are skipped (``RunResult.actions_skipped``).
+  or until the system moved its distance *as its own sensors estimate it*
+  (:mod:`msrr.core.estimation`: odometry and IMU with their drift, or a pose sensor the
+  robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
+  the loops left once it is covered (by the same estimate) are skipped
+  (``RunResult.actions_skipped``).
 
-The executor judges nothing: it runs the plan and counts what the driver reported
-(docks, undocks, flows, retries, ticks, times, on every way out: :attr:`Executor.result`),
-and its events let :class:`~msrr.core.judge.Judge` judge each goal and behavior run.
+The executor judges nothing and reads only :class:`~msrr.core.driver.Observation`:
+module reports, never a simulator's poses or dock state (:mod:`msrr.core.witness`). It
+runs the plan and counts what the driver reported (docks, undocks, flows, retries,
+ticks, times, on every way out: :attr:`Executor.result`), and its events let
+:class:`~msrr.core.judge.Judge` judge each goal and behavior run on what the driver
+witnessed.
 
 **IK tracking** (section 4.1, Fig. 8; :mod:`msrr.core.closed_loop`) drives the moving
 phases when the controller is a :class:`~msrr.core.closed_loop.JointController` and
@@ -93,8 +98,9 @@ from .closed_loop import (
 )
 from .configuration import Configuration
 from .control import Control, Controller
-from .driver import Driver, ModuleCommand, Observation, horizontal_centre
+from .driver import Driver, ModuleCommand, Observation
 from .errors import ExecutionError, MsrrError
+from .estimation import Estimate, estimator_for
 from .events import (
     ActionStatus,
     EventSink,
@@ -224,7 +230,8 @@ class Executor:
     Args:
         run: the run (its ``plan`` is executed); passed to every event.
         driver: a connected driver, already reset to the plan's start.
-        recognizer: turns ``observation.sensors`` into a configuration.
+        recognizer: turns ``observation.sensors`` into a configuration (and, where it
+            can, estimates where the system is: :mod:`msrr.core.estimation`).
         controller: turns actions into module commands.
         options: rate, timeout, retries.
         sink: where events go (none are sent without one).
@@ -258,6 +265,8 @@ class Executor:
         self._started = wallclock.perf_counter()
         self._spans = {span.start: span for span in behavior_runs(run.plan.actions)}
         self._moving_from: np.ndarray | None = None
+        self._estimator = estimator_for(recognizer)
+        self.estimate = Estimate()
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -280,7 +289,7 @@ class Executor:
         plan = self.run.plan
         self._started = wallclock.perf_counter()
         result = self.result
-        self._current = self._recognize(self.driver.get_observation())
+        self._current = self._recognize(self._observe())
         index = -1
         try:
             for index, action in enumerate(plan.actions):
@@ -363,7 +372,7 @@ class Executor:
             if attempt:
                 self.retries += 1
                 self.sink.action(self.run, action, ActionStatus.RETRYING)
-            observation = self.driver.get_observation()
+            observation = self._observe()
             if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0) \
                     and phase is not Phase.BEHAVIOR:
                 self.controller.begin(action, phase, observation)
@@ -467,7 +476,7 @@ class Executor:
 
     def _tick(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> bool:
         """Run one control tick; whether the phase is finished."""
-        observation = self.driver.get_observation()
+        observation = self._observe()
         configuration = self._recognize(observation)
         self._detect_changes(index, configuration)
         if self._tracks(action) and phase is Phase.RELEASE:  # the controller's undocks only
@@ -510,9 +519,15 @@ class Executor:
             return True
         return call.distance is not None and self._moved() >= call.distance
 
+    def _observe(self) -> Observation:
+        """The driver's observation, fed to the estimator."""
+        observation = self.driver.get_observation()
+        self.estimate = self._estimator.update(observation)
+        return observation
+
     def _centre(self) -> np.ndarray | None:
-        """Mean horizontal position of the driver's module poses [m], shape (2,)."""
-        return horizontal_centre(self.driver.get_observation().poses)
+        """Where the system is [m], shape (2,), as its sensors estimate it now."""
+        return self.estimate.position
 
     def _moved(self) -> float:
         """Horizontal distance [m] the centre moved since the running behavior began."""
@@ -537,15 +552,8 @@ class Executor:
         return self._skipping
 
     def _recognize(self, observation: Observation) -> Configuration:
-        """The recognized configuration; separate groups recognized one by one and joined."""
-        if len(observation.groups) <= 1:
-            return self.recognizer.recognize(observation.sensors, seed=self.run.seed)
-        parts = [self.recognizer.recognize({m: observation.sensors[m] for m in sorted(group)},
-                                           seed=self.run.seed)
-                 for group in observation.groups]
-        like = self.run.plan.start
-        return Configuration.union(parts, robot=like.robot, name=like.name)
-
+        """The configuration the reports show (separate groups are the recognizer's)."""
+        return self.recognizer.recognize(observation.sensors, seed=self.run.seed)
 
     def _detect_changes(self, index: int, configuration: Configuration) -> None:
         assert self._current is not None

@@ -5,9 +5,10 @@ Two :class:`~msrr.core.driver.Driver` wrappers, both transparent when nothing ha
 * :class:`FaultyDriver` injects the faults of a ``--faults`` SPEC (:func:`parse_faults`),
   seeded, so a faulty run is repeatable;
 * :class:`GuardedDriver` sits outside it (and around every driver of ``platform run``):
-  it replaces non-finite pose readings with the module's last finite pose (the
-  controller never sees a NaN), stops the run when the overall deadline of driver
-  time has passed, and reports each connection the simulator broke under its load.
+  it replaces non-finite readings (tracked poses, sensors) with the module's last
+  finite one (the controller never sees a NaN), stops the run when the overall
+  deadline of driver time has passed, and reports each connection the simulator broke
+  under its load.
 
 Both report what happened as :class:`~msrr.core.events.FaultEvent` s through a callback
 (``platform run`` fires ``msrr_on_fault`` with each, so the timeline logs them under
@@ -31,10 +32,11 @@ kind           keys (default)                                  effect
                                                                attempts do not latch for
                                                                ``ticks`` ticks
 ``noise``      ``sigma`` (required, [m]), ``yaw`` (0, [rad])   Gaussian noise on every
-                                                               reported position (heading)
+                                                               tracked position (heading):
+                                                               a pose sensor's (MMRP)
 ``nan``        ``at`` (0), ``module`` (all), ``ticks`` (1),    the readings are NaN from
                ``reading`` (``pose`` or ``sensors``)           ``at`` for ``ticks``
-                                                               observations: poses, or
+                                                               observations: tracked poses, or
                                                                every number in the modules'
                                                                sensor data
 =============  ==============================================  ==========================
@@ -59,6 +61,7 @@ from .driver import Driver, ModuleCommand, Observation, Pose
 from .errors import ConfigurationError, ExecutionError
 from .events import FaultEvent
 from .watchdog import DriverStalled
+from .witness import Witness
 
 __all__ = ["BREAK", "FAULT_KINDS", "Fault", "FaultyDriver", "GuardedDriver", "check_fault_modules",
            "parse_faults"]
@@ -234,6 +237,9 @@ class _Wrapper(Driver):
     def time(self) -> float:
         return self.inner.time
 
+    def witness(self) -> Witness | None:
+        return self.inner.witness()
+
     def ground_truth(self) -> Configuration | None:
         return self.inner.ground_truth()
 
@@ -346,7 +352,7 @@ class FaultyDriver(_Wrapper):
 
     def get_observation(self) -> Observation:
         observation = self.inner.get_observation()
-        poses = dict(observation.poses)
+        poses = dict(observation.tracked)
         for index, fault in self._of("noise"):
             sigma, yaw_sigma = float(fault.params["sigma"]), float(fault.params["yaw"])
             if self._state.get(index) != "active":
@@ -384,8 +390,8 @@ class FaultyDriver(_Wrapper):
                 self._report("nan", f"NaN {fault.params['reading']} reading of "
                              f"{', '.join(hit) or 'no module'}")
         if sensors is not observation.sensors:
-            return replace(observation, poses=poses, sensors=sensors)
-        return replace(observation, poses=poses)
+            return replace(observation, tracked=poses, sensors=sensors)
+        return replace(observation, tracked=poses)
 
 
 def _poisoned(value: Any) -> Any:
@@ -530,7 +536,7 @@ class GuardedDriver(_Wrapper):
 
     def get_observation(self) -> Observation:
         observation = self._call("get_observation", self.inner.get_observation)
-        poses = self._hold("pose", observation.poses, observation.time,
+        poses = self._hold("pose", observation.tracked, observation.time,
                            lambda p: _finite(p.position) and _finite(p.orientation))
         sensors = observation.sensors
         if isinstance(sensors, Mapping):
@@ -538,7 +544,7 @@ class GuardedDriver(_Wrapper):
         elif not _finite(sensors):
             sensors = self._hold("sensors", {"(all)": sensors}, observation.time,
                                  _finite)["(all)"]
-        return replace(observation, poses=poses, sensors=sensors)
+        return replace(observation, tracked=poses, sensors=sensors)
 
     def step(self, dt: float) -> None:
         # the sum of the steps asked for also counts: a driver whose clock stopped

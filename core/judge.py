@@ -1,8 +1,9 @@
 """The one judge of a run: what the user asked for, judged on what happened.
 
 Every verdict of a run is made here, from what the driver's *witness* shows (the
-simulator's ground truth where it has one; what the modules report otherwise, and the
-verdict says which), never from what the plan says:
+simulator's ground truth, :mod:`msrr.core.witness`, where it has one; what the modules
+report otherwise -- the poses of a pose sensor the robot has -- and the verdict says
+which), never from what the plan says:
 
 * a **goal** (a scenario stage's goal, and the plan's goal at the end) by its topology
   and its shape: module poses against where the robot's driver lays the goal out,
@@ -48,21 +49,24 @@ from .events import (
 )
 from .plan import Action, BehaviorCall, behavior_runs
 from .shape import ShapeVerdict, pose_errors, skeletal_errors, skeletal_verdict
+from .witness import Witness
 
-__all__ = ["BehaviorVerdict", "GoalVerdict", "Judge", "JudgeOptions", "Witness",
+__all__ = ["BehaviorVerdict", "GoalVerdict", "Judge", "JudgeOptions", "Witnessed",
            "asked_distance", "judge_behavior", "judge_goal"]
 
 HEADING_DISTANCE = 0.01
 """Below this distance [m] a heading is not measured (it would be noise)."""
 
 
-class Witness(Protocol):
+class Witnessed(Protocol):
     """What the judge sees of the world: a driver (the judge reads, never commands)."""
 
     @property
     def time(self) -> float: ...
 
     def ground_truth(self) -> Configuration | None: ...
+
+    def witness(self) -> Witness | None: ...
 
     def get_observation(self) -> Observation: ...
 
@@ -217,7 +221,7 @@ class Judge:
     """
 
     run: Run
-    witness: Witness
+    witness: Witnessed
     layout: Layout = lambda goal: None
     tolerance: object = None
     options: JudgeOptions = field(default_factory=JudgeOptions)
@@ -306,7 +310,7 @@ class Judge:
             direction=opened.direction, basis=opened.basis, options=self.options))
 
     def _goal(self, name: str, goal: Configuration, index: int | None) -> GoalVerdict:
-        poses = self.witness.get_observation().poses
+        poses = self._poses()
         shape_only = not topology_diff(self._stage_start, goal) and \
             _vectors_differ(self._stage_start, goal)
         layout = self.layout(goal) if self.tolerance is not None else None
@@ -329,6 +333,12 @@ class Judge:
         self._open = _Open(call, span, self.witness.time, self._centre(), direction,
                            GROUND_TRUTH if truth is not None else REPORTED)
 
+    def _poses(self) -> Mapping[str, Pose]:
+        """Every module's world pose: the simulator's own where it has them, else what a
+        pose sensor of the robot reports (hardware)."""
+        seen = self.witness.witness()
+        return seen.poses if seen is not None else self.witness.get_observation().tracked
+
     def _centre(self) -> np.ndarray | None:
         """Mean horizontal position of the modules [m], shape (2,), from the driver."""
-        return horizontal_centre(self.witness.get_observation().poses)
+        return horizontal_centre(self._poses())

@@ -29,7 +29,7 @@ import math
 import shutil
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
 
@@ -542,6 +542,7 @@ class _Progress:
     def __init__(self, run: Run, *listeners: EventSink):
         self.run = run
         self.listeners = listeners
+        self.driver: Driver | None = None  # its witness goes with every tick
         self.current: int | None = None
         self.done = 0
         self.faults: list[FaultEvent] = []
@@ -551,6 +552,8 @@ class _Progress:
             listener.run_start(run)
 
     def tick(self, run: Run, tick: Tick) -> None:
+        if self.driver is not None:
+            tick = replace(tick, witness=self.driver.witness())
         for listener in self.listeners:
             listener.tick(run, tick)
 
@@ -633,7 +636,8 @@ def _goal_layout(prepared: PreparedRun, goal: Configuration) -> dict[str, Pose] 
                         else (prepared.driver, dict(prepared.driver_options)))
     with factory(gui=False, seed=run.seed, **options) as driver:
         driver.reset(goal)
-        return dict(driver.get_observation().poses)
+        seen = driver.witness()
+        return dict(seen.poses) if seen is not None else None
 
 
 def execute_run(prepared: PreparedRun, *,
@@ -674,6 +678,7 @@ def execute_run(prepared: PreparedRun, *,
             judge = Judge(run, driver, layout=lambda goal: _goal_layout(prepared, goal),
                           tolerance=run.spec.defaults.shape_tolerance)
             progress.listeners = (judge, *progress.listeners)
+            progress.driver = driver
             executor = Executor(run, driver, prepared.recognizer, prepared.controller,
                                 prepared.options, sink=progress,
                                 robot=prepared.capabilities.robot,

@@ -34,7 +34,8 @@ if TYPE_CHECKING:
     from .design import ModuleDesign, freeform_robot, read_freeform_robot
     from .driver import FreeformDriver, FreeformDriverFactory
     from .miso import MisoLimits, MisoPlanner, plan_miso
-    from .mujoco import MujocoDriver, MujocoOptions, MujocoWorld, SensorNoise, Switches
+    from .mujoco import MujocoOptions, MujocoWorld, SensorNoise, Switches
+    from .mujoco_driver import MujocoDriver
     from .plugin import FreeformPlugin
     from .recognition import (
         ContactController,
@@ -60,7 +61,7 @@ _WHERE = {
     "MisoPlanner": "miso",
     "ModuleDesign": "design",
     "ModuleReport": "world",
-    "MujocoDriver": "mujoco",
+    "MujocoDriver": "mujoco_driver",
     "MujocoOptions": "mujoco",
     "MujocoWorld": "mujoco",
     "SensorNoise": "mujoco",

@@ -30,7 +30,7 @@ from ..configuration import Configuration
 from ..driver import Companions, DriverFactory, DriverOption, ModuleCommand
 from ..errors import ExecutionError
 from .design import ModuleDesign
-from .mujoco import MujocoDriver
+from .mujoco_driver import MujocoDriver
 from .world import FreeformOptions, FreeformWorld
 
 __all__ = ["FreeformDriver", "FreeformDriverFactory"]

@@ -34,10 +34,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..configuration import Configuration
-from ..driver import Driver, DriverOption, Observation, Pose
+from ..driver import DriverOption
 from ..errors import ExecutionError
 
-__all__ = ["GROUND_FRICTION", "MujocoDriver", "MujocoOptions", "MujocoWorld", "SensorNoise",
+__all__ = ["GROUND_FRICTION", "MujocoOptions", "MujocoWorld", "SensorNoise",
            "Switches", "add_ground", "connected_groups", "heading", "quat_conj", "quat_log",
            "quat_mul", "yaw_of"]
 
@@ -413,107 +413,3 @@ class MujocoWorld(ABC, Generic[K, E]):
     @abstractmethod
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""
-
-
-W = TypeVar("W", bound="MujocoWorld[Any, Any]")
-"""The world a driver builds."""
-
-
-class MujocoDriver(Driver, Generic[W]):
-    """What every MuJoCo driver shares: its options (an ``options_type``, with keyword
-    overrides of its fields and the seed), a world built by :meth:`build` at each
-    :meth:`reset`, MuJoCo's passive viewer where asked, and the observation, time and
-    ground truth read from the world. A subclass names its options type and builds its
-    world.
-
-    Args:
-        gui: open MuJoCo's passive viewer (needs a display).
-        seed: seed of the world's noise (overrides ``options.seed``).
-        options: an ``options_type`` instance; keyword overrides of its fields
-            (``noise=0.02``) may be given directly.
-
-    Attributes:
-        sim_options: the run's options (``options`` with the overrides); the class's
-            ``options`` declares the overrides a run may give (``options_type.OPTIONS``).
-    """
-
-    options_type: ClassVar[type[MujocoOptions]]
-    arguments: ClassVar[tuple[str, ...]] = ("gui", "seed", "options")
-    """The constructor's own keywords, named when an unknown option is refused."""
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        if "options_type" in cls.__dict__:  # the declared options follow the options type
-            cls.options = cls.options_type.driver_options()
-
-    def __init__(self, *, gui: bool = False, seed: int | None = None,
-                 options: MujocoOptions | None = None, **overrides: Any):
-        known = {f.name for f in fields(self.options_type)}
-        unknown = set(overrides) - known
-        if unknown:
-            raise ExecutionError(f"unknown MuJoCo driver option(s) {sorted(unknown)} (known: "
-                                 f"{', '.join([*self.arguments, *sorted(known - set(self.arguments))])})")
-        if seed is not None:
-            overrides["seed"] = seed
-        self.sim_options = replace(options or self.options_type(), **overrides)
-        self.gui = gui
-        self.world: W | None = None
-        self._connected = False
-        self._viewer: Any = None
-        self._moving: set[str] = set()
-
-    @abstractmethod
-    def build(self, start: Configuration) -> W:
-        """The world of ``start`` (its connections docked, time 0)."""
-
-    @property
-    def is_connected(self) -> bool:
-        return self._connected
-
-    def connect(self) -> None:
-        self._connected = True
-
-    def disconnect(self) -> None:
-        if self._viewer is not None:
-            self._viewer.close()
-            self._viewer = None
-        self.world = None
-        self._connected = False
-
-    def _world(self) -> W:
-        self.require_connected()
-        if self.world is None:
-            raise ExecutionError(f"driver {self.name!r} has no world yet; call reset(start) first")
-        return self.world
-
-    def reset(self, start: Configuration) -> None:
-        """Build the world of ``start``; time becomes 0."""
-        self.require_connected()
-        world = self.world = self.build(start)
-        self._moving = set()
-        if self.gui:
-            from mujoco import viewer  # the viewer needs a display; imported only then
-
-            if self._viewer is not None:
-                self._viewer.close()
-            self._viewer = viewer.launch_passive(world.model, world.data)
-
-    def get_observation(self) -> Observation:
-        world = self._world()
-        poses = {m: Pose(p, q) for m, (p, q) in world.poses().items()}
-        groups = world.groups()
-        return Observation(time=world.time, poses=poses, sensors=world.reports(),
-                           groups=tuple(groups) if len(groups) > 1 else ())
-
-    def step(self, dt: float) -> None:
-        self._world().step(dt)
-        if self._viewer is not None:
-            self._viewer.sync()
-
-    @property
-    def time(self) -> float:
-        return self._world().time
-
-    def ground_truth(self) -> Configuration | None:
-        """The world's ground truth, for judging runs (never for recognition)."""
-        return self._world().ground_truth()

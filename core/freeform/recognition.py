@@ -43,6 +43,7 @@ from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
+from .travel import Locator, floor_path, pursue
 from .world import ModuleReport
 
 __all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
@@ -277,8 +278,6 @@ class ContactController:
     def __init__(self, name: str, recognizer: ContactRecognizer, *, sucker: bool = False,
                  tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0),
                  spacing: float = 0.1, ground_speed: float = 0.04, arrive: float = 0.005):
-        from .travel import Locator  # travel reads this module's helpers
-
         self.name = name
         self.description = (f"{recognizer.robot} connection vectors -> drive commands"
                              + (" (sucker engaged)" if sucker else ""))
@@ -325,7 +324,7 @@ class ContactController:
         """Fix the yaw of the action's target for this phase (eq. 8 alignment); for an
         approach, find the way of each free module to the module it docks on."""
         reports = observation.sensors
-        self.locator.update(reports)
+        self._locate(reports)
         current = self.recognizer.recognize(reports)
         if phase is Phase.APPROACH:
             self._ways = self._plan_ways(current, action, reports)
@@ -334,6 +333,11 @@ class ContactController:
             return
         self._ways = {}
         self._yaw = skeletal_errors(current, action.target)[2]
+
+    def _locate(self, reports: Reports) -> None:
+        """Give the locator this tick's reports."""
+        links = links_of(reports)
+        self.locator.update(reports, links, module_headings(reports, links))
 
     def _plan_ways(self, current: Configuration, action: Action, reports: Reports
                    ) -> dict[str, tuple[str, np.ndarray]]:
@@ -344,8 +348,6 @@ class ContactController:
             ExecutionError: such a module carries others (a group does not travel), or no
                 way is free (:func:`~msrr.core.freeform.travel.floor_path`).
         """
-        from .travel import floor_path
-
         ways = {}
         for change in topology_diff(current, action.target).made:
             module, target = change.source, change.target
@@ -363,8 +365,6 @@ class ContactController:
     def _travel(self, phase: Phase, reports: Reports) -> Control:
         """One tick of the free modules' travel (approach), or of their last push onto
         the target with the connector armed (connect)."""
-        from .travel import pursue
-
         commands, errors = {}, {}
         for module, (target, way) in self._ways.items():
             odometry = reports[module].odometry
@@ -395,7 +395,7 @@ class ContactController:
             ExecutionError: a flow whose leaf is not the owner of both links' connector.
         """
         reports = observation.sensors
-        self.locator.update(reports)
+        self._locate(reports)
         if self._ways and phase in (Phase.APPROACH, Phase.CONNECT):
             return self._travel(phase, reports)
         if action.type is ActionType.FLOW and phase in (Phase.FLOW, Phase.HANDOVER):

@@ -31,7 +31,6 @@ import numpy as np
 
 from ..alignment import rot_z
 from ..errors import ExecutionError
-from .recognition import links_of, module_headings
 
 __all__ = ["Fix", "Locator", "floor_path", "pursue"]
 
@@ -58,12 +57,15 @@ class Fix:
     odometry: np.ndarray
 
 
-def centres_of(reports: Mapping[str, object], spacing: float
+def centres_of(reports: Mapping[str, object], links: Mapping[str, str],
+               heading: Mapping[str, float], spacing: float
                ) -> tuple[dict[str, np.ndarray], dict[str, float], list[set[str]]]:
     """Centres (3,) [m] and headings [rad] of every reporting module in its group's root
-    frame, and the groups (sets of modules joined by docks)."""
-    links = links_of(reports)  # type: ignore[arg-type]
-    heading = module_headings(reports, links)  # type: ignore[arg-type]
+    frame, and the groups (sets of modules joined by docks), from the reports, their
+    links (``module -> the module its connector holds``) and the modules' headings in
+    their groups' root frames (:func:`~msrr.core.freeform.recognition.links_of`,
+    :func:`~msrr.core.freeform.recognition.module_headings`)."""
+    heading = dict(heading)
     neighbours: dict[str, list[tuple[str, np.ndarray]]] = {m: [] for m in reports}
     for i, j in links.items():
         tilt = reports[i].tilt  # type: ignore[attr-defined]
@@ -103,9 +105,12 @@ class Locator:
         self._now: tuple[dict[str, np.ndarray], dict[str, float], list[set[str]]] | None = None
         self._odometry: dict[str, np.ndarray] = {}
 
-    def update(self, reports: Mapping[str, object]) -> None:
-        """Read one tick's reports: fixes of every module in a group of two or more."""
-        centres, heading, groups = self._now = centres_of(reports, self.spacing)
+    def update(self, reports: Mapping[str, object], links: Mapping[str, str],
+               heading: Mapping[str, float]) -> None:
+        """Read one tick's reports (with their links and headings, see
+        :func:`centres_of`): fixes of every module in a group of two or more."""
+        centres, heading, groups = self._now = centres_of(reports, links, heading,
+                                                          self.spacing)
         self._odometry = {m: np.asarray(r.odometry, dtype=float)  # type: ignore[attr-defined]
                           for m, r in reports.items()}
         for group in groups:

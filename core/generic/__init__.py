@@ -23,16 +23,17 @@ from ..lazy import lazy_exports
 
 if TYPE_CHECKING:
     from .controller import LatchController
-    from .driver import KinematicDriver, KinematicDriverFactory, Latch, ModuleReading
+    from .driver import KinematicDriver, KinematicDriverFactory
     from .planner import MAX_EXPANSIONS, MAX_MODULES, MAX_PORTS, GenericPlanner
+    from .readings import Latch, ModuleReading
     from .recognizer import LatchRecognizer
 
 _EXPORTS = {  # name -> submodule that defines it
     "LatchController": "controller",
     "KinematicDriver": "driver",
     "KinematicDriverFactory": "driver",
-    "Latch": "driver",
-    "ModuleReading": "driver",
+    "Latch": "readings",
+    "ModuleReading": "readings",
     "MAX_EXPANSIONS": "planner",
     "MAX_MODULES": "planner",
     "MAX_PORTS": "planner",

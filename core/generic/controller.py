@@ -50,7 +50,6 @@ from ..driver import ModuleCommand, Observation
 from ..events import Phase
 from ..plan import Action, ConnectionChange, ConnectionKey, connection_key
 from ..robot import ModuleKind, RobotSpec, body_half_size
-from .driver import FREEFORM_PREFIX, SLIDE_KEYS, ModuleReading
 from .geometry import (
     BodyPose,
     contact_distance,
@@ -61,6 +60,7 @@ from .geometry import (
     touching_direction,
     wrap_angle,
 )
+from .readings import FREEFORM_PREFIX, SLIDE_KEYS, ModuleReading
 
 __all__ = ["LatchController"]
 
@@ -96,7 +96,7 @@ class _Job:
 
 
 def _body(observation: Observation, module: str) -> BodyPose:
-    pose = observation.poses[module]
+    pose = observation.tracked[module]
     return BodyPose(np.asarray(pose.position, dtype=float), pose.yaw)
 
 
@@ -217,11 +217,11 @@ class LatchController:
         parent (sampled finer than the smallest body)."""
         parent = _body(observation, slide.parent)
         leaf = _body(observation, slide.leaf)
-        kinds = {m: self._kind(observation, m) for m in observation.poses}
-        others = [m for m in observation.poses if m not in (slide.leaf, slide.parent)]
+        kinds = {m: self._kind(observation, m) for m in observation.tracked}
+        others = [m for m in observation.tracked if m not in (slide.leaf, slide.parent)]
         if not others:
             return True
-        fixed = np.array([observation.poses[m].position for m in others])
+        fixed = np.array([observation.tracked[m].position for m in others])
         limit = np.array([inscribed_radius(kinds[m]) for m in others]) \
             + inscribed_radius(kinds[slide.leaf]) - 1e-9
         offset = leaf.position - parent.position
@@ -337,7 +337,7 @@ class LatchController:
         """When every place of a dock is taken by modules of other groups (modules left
         where an undock put them), a job that parks one such group clear of everything
         (beside the others, along +y); the dock is queued again after it."""
-        if self.parked >= 2 * len(observation.poses):
+        if self.parked >= 2 * len(observation.tracked):
             return None
         involved = groups[change.source] | groups[change.target]
         for moving, final in places:
@@ -348,8 +348,8 @@ class LatchController:
             leader = min(group)
             here = _body(observation, leader)
             extent = 2 * max(max(body_half_size(k)) for k in self.spec.module_kinds)
-            top = max(float(p.position[1]) for m, p in observation.poses.items())
-            bottom = min(float(observation.poses[m].position[1]) for m in group)
+            top = max(float(p.position[1]) for m, p in observation.tracked.items())
+            bottom = min(float(observation.tracked[m].position[1]) for m in group)
             spot = BodyPose(here.position + np.array([0.0, top - bottom + 2 * extent, 0.0]),
                             here.yaw)
             self.parked += 1
@@ -361,17 +361,17 @@ class LatchController:
                   final: BodyPose) -> set[str]:
         """Modules outside ``group`` that overlap it when ``leader`` is at ``final``."""
         members = sorted(group)
-        others = [m for m in observation.poses if m not in group]
+        others = [m for m in observation.tracked if m not in group]
         if not others:
             return set()
         start = _body(observation, leader)
         turn = wrap_angle(final.yaw - start.yaw)
         c, s_ = math.cos(turn), math.sin(turn)
-        offsets = np.array([observation.poses[m].position for m in members]) - start.position
+        offsets = np.array([observation.tracked[m].position for m in members]) - start.position
         moved = final.position + offsets @ np.array([[c, s_, 0.0], [-s_, c, 0.0],
                                                      [0.0, 0.0, 1.0]])
-        fixed = np.array([observation.poses[m].position for m in others])
-        radius = {m: inscribed_radius(self._kind(observation, m)) for m in observation.poses}
+        fixed = np.array([observation.tracked[m].position for m in others])
+        radius = {m: inscribed_radius(self._kind(observation, m)) for m in observation.tracked}
         limit = (np.array([radius[m] for m in members])[:, None]
                  + np.array([radius[m] for m in others])[None, :] - 1e-9)
         hits = np.linalg.norm(moved[:, None, :] - fixed[None, :, :], axis=2) < limit
@@ -414,13 +414,13 @@ class LatchController:
         segments between them, heading turned evenly; a single pose is checked alone),
         stays clear of every other body, sampled finer than the smallest body."""
         members = sorted(group)
-        others = [m for m in observation.poses if m not in group]
+        others = [m for m in observation.tracked if m not in group]
         if not others:
             return True
-        radius = {m: inscribed_radius(self._kind(observation, m)) for m in observation.poses}
+        radius = {m: inscribed_radius(self._kind(observation, m)) for m in observation.tracked}
         start = _body(observation, leader)
-        offsets = np.array([observation.poses[m].position for m in members]) - start.position
-        fixed = np.array([observation.poses[m].position for m in others])
+        offsets = np.array([observation.tracked[m].position for m in members]) - start.position
+        fixed = np.array([observation.tracked[m].position for m in others])
         limit = (np.array([radius[m] for m in members])[:, None]
                  + np.array([radius[m] for m in others])[None, :] - 1e-9)
         step = min(radius.values()) / 2
@@ -462,7 +462,7 @@ class LatchController:
     def _side_steps(self, observation: Observation, group: set[str], here: BodyPose
                     ) -> list[np.ndarray]:
         extent = 2 * max(max(body_half_size(k)) for k in self.spec.module_kinds)
-        near = [observation.poses[m].position - here.position for m in observation.poses
+        near = [observation.tracked[m].position - here.position for m in observation.tracked
                 if m not in group]
         steps = [np.zeros(3)]
         if near:
@@ -477,11 +477,11 @@ class LatchController:
     def _lift(self, observation: Observation, group: set[str], here: BodyPose, final: BodyPose
               ) -> list[BodyPose]:
         """Lift clear of every other body, travel and turn at that height, lower."""
-        others = [m for m in observation.poses if m not in group]
-        tallest = max((float(observation.poses[m].position[2])
+        others = [m for m in observation.tracked if m not in group]
+        tallest = max((float(observation.tracked[m].position[2])
                        + max(body_half_size(self._kind(observation, m))) for m in others),
                       default=float(here.position[2]))
-        lowest = min(float(observation.poses[m].position[2])
+        lowest = min(float(observation.tracked[m].position[2])
                      - max(body_half_size(self._kind(observation, m))) for m in group)
         height = max(float(here.position[2]), float(final.position[2]),
                      tallest + (float(here.position[2]) - lowest)) + 2 * max(
@@ -496,10 +496,10 @@ class LatchController:
     def _groups(observation: Observation, latched: set[ConnectionKey],
                 ignore: set[ConnectionKey]) -> dict[str, set[str]]:
         graph = nx.Graph()
-        graph.add_nodes_from(observation.poses)
+        graph.add_nodes_from(observation.tracked)
         for key in latched - ignore:
             ends = [m for m, _ in key]
-            if len(ends) == 2 and all(m in observation.poses for m in ends):
+            if len(ends) == 2 and all(m in observation.tracked for m in ends):
                 graph.add_edge(*ends)
         return {m: group for group in nx.connected_components(graph) for m in group}
 

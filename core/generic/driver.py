@@ -24,10 +24,11 @@ modules, and so is a start whose bodies overlap.
 * ``undock=(port, ...)`` (or ``"@<other module>"``; ``"a"``/``"b"`` for the ends of a
   connection that is a module) releases.
 
-**Observation.** ``poses`` of every vertex module; ``sensors`` maps every module id
-(edge modules too) to a :class:`ModuleReading`: its kind and the :class:`Latch` es it
-is the source of, each with the sensed direction ``z`` (unit, world frame, from this
-module to the other). ``groups`` is empty (one recognition of the whole system).
+**Observation.** ``tracked``: the pose of every vertex module (the generic runtime's
+modules are tracked by an external pose sensor, exact here; :meth:`KinematicDriver.witness`
+gives the judge the same poses); ``sensors`` maps every module id (edge modules too) to a
+:class:`ModuleReading`: its kind and the :class:`Latch` es it is the source of, each with
+the sensed direction ``z`` (unit, world frame, from this module to the other).
 
 Edge modules (FreeSN struts) have no body here: their ends stay where the start puts
 them and can be released, but not docked (the generic planner does not plan them).
@@ -47,6 +48,7 @@ from ..configuration import Configuration
 from ..driver import Companions, Driver, DriverOption, ModuleCommand, Observation, Pose
 from ..errors import ExecutionError
 from ..robot import ModuleKind, RobotSpec, body_half_size
+from ..witness import Witness
 from .geometry import (
     BodyPose,
     contact_distance,
@@ -59,6 +61,7 @@ from .geometry import (
     slide_toward,
     wrap_angle,
 )
+from .readings import FREEFORM_PREFIX, SLIDE_KEYS, Latch, ModuleReading
 
 __all__ = ["DEFAULT_SPEED", "DEFAULT_TOLERANCE", "DEFAULT_TURN_RATE", "FREEFORM_PREFIX",
            "SLIDE_KEYS", "KinematicDriver", "KinematicDriverFactory", "Latch", "ModuleReading"]
@@ -75,37 +78,7 @@ DEFAULT_TOLERANCE = 0.005
 ANGLE_TOLERANCE = 0.05
 """Largest angle [rad] between one port's normal and the other's reversed that latch."""
 
-FREEFORM_PREFIX = "@"
-"""Dock/undock commands for connections without ports name the other module: ``"@b"``."""
-
 POSE_KEYS = ("x", "y", "z", "yaw")
-SLIDE_KEYS = ("slide_x", "slide_y", "slide_z")
-
-
-@dataclass(frozen=True)
-class Latch:
-    """One connection as the module at its source end senses it.
-
-    Attributes:
-        port: this module's port (``"a"``/``"b"`` for the ends of an edge module), or
-            ``None`` for a freeform connector.
-        other: the module it is latched to.
-        other_port: that module's port, or ``None``.
-        z: unit direction from this module to the other, world frame, or ``None``.
-    """
-
-    port: str | None
-    other: str
-    other_port: str | None
-    z: tuple[float, float, float] | None = None
-
-
-@dataclass(frozen=True)
-class ModuleReading:
-    """What one module reports: its kind and the latches it is the source of."""
-
-    kind: str
-    latches: tuple[Latch, ...] = ()
 
 
 @dataclass
@@ -291,10 +264,19 @@ class KinematicDriver(Driver):
             sensors[strut_id] = ModuleReading(strut.kind, tuple(
                 Latch(end, vertex, None, z) for end, vertex in sorted(strut.ends.items())
                 if vertex is not None))
-        poses = {m: Pose(p.position.copy(), np.array([0.0, 0.0, math.sin(p.yaw / 2),
-                                                      math.cos(p.yaw / 2)]))
-                 for m, p in self.poses.items()}
-        return Observation(self._time, poses, sensors)
+        # the generic runtime's modules are tracked by an external pose sensor (its
+        # controller steers each module to planar goals), exact as everything here
+        return Observation(self._time, sensors, tracked=self._poses())
+
+    def _poses(self) -> dict[str, Pose]:
+        return {m: Pose(p.position.copy(), np.array([0.0, 0.0, math.sin(p.yaw / 2),
+                                                     math.cos(p.yaw / 2)]))
+                for m, p in self.poses.items()}
+
+    def witness(self) -> Witness:
+        """Every module's pose, for the judge and the recording."""
+        self.require_connected()
+        return Witness(self._time, self._poses())
 
     @property
     def time(self) -> float:

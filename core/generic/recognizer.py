@@ -18,7 +18,7 @@ from ..configuration import Configuration
 from ..errors import ConfigurationError
 from ..mapping import free_vertex_name
 from ..robot import RobotSpec
-from .driver import ModuleReading
+from .readings import ModuleReading
 
 __all__ = ["LatchRecognizer"]
 

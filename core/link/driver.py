@@ -41,8 +41,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
-import networkx as nx
-
 from ..configuration import Configuration
 from ..driver import Companions, Driver, DriverFactory, ModuleCommand, Observation, Pose
 from ..errors import ConfigurationError, ExecutionError
@@ -583,8 +581,6 @@ class LinkDriver(Driver):
         self.require_connected()
         poses: dict[str, Pose] = {}
         sensors: dict[str, Any] = {}
-        graph = nx.Graph()
-        graph.add_nodes_from(self.modules)
         claims: set[tuple[str, str, str, str]] = set()
         for name, module in self.modules.items():
             if module.pose is not None:
@@ -592,11 +588,9 @@ class LinkDriver(Driver):
             sensors[name] = module.sensors
             for port, other, other_port in module.links:
                 if other in self.modules:
-                    graph.add_edge(name, other)
                     claims.add((name, port, other, other_port))
-        components = [frozenset(c) for c in nx.connected_components(graph)]
-        groups = tuple(sorted(components, key=min)) if len(components) > 1 else ()
-        observation = Observation(time=self._time, poses=poses, sensors=sensors, groups=groups)
+        # a module's reported pose is a pose sensor it has (MMRP's tracking), not truth
+        observation = Observation(time=self._time, sensors=sensors, tracked=poses)
         agree = all((b, pb, a, pa) in claims for a, pa, b, pb in claims)
         limit = min(m.timeout for m in self.modules.values())
         if agree or self._agreed is None or self._time - self._agreed.time > limit + 1e-9:

@@ -286,7 +286,8 @@ class TimelineRecorder:
 
     def tick(self, tick: Tick) -> None:
         self._time(tick.index, tick.time)
-        poses = tick.observation.poses
+        # the simulator's own poses (the witness) where it has them, else a pose sensor's
+        poses = tick.witness.poses if tick.witness is not None else tick.observation.tracked
         if not self._blueprint_sent:
             self._send_blueprint(poses)
         moved = False

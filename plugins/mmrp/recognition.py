@@ -27,6 +27,7 @@ import heapq
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+import networkx as nx
 import numpy as np
 
 from msrr.core import Configuration
@@ -262,5 +263,22 @@ class DistributedRecognizer:
                    "starter until every leaf is reached (Wei et al. 2023, Fig. 4)")
 
     def recognize(self, observation: Observation, *, seed: int = 0) -> Configuration:
-        """The configuration that ``observation`` shows; see :func:`recognize_with_stats`."""
-        return recognize_with_stats(observation, seed=seed).configuration
+        """The configuration that ``observation`` shows; see :func:`recognize_with_stats`.
+        Groups the reported links leave apart (after an undocking) recognize themselves
+        each on its own, as separate systems do, and are joined."""
+        groups = _groups(observation)
+        if len(groups) == 1:
+            return recognize_with_stats(observation, seed=seed).configuration
+        parts = [recognize_with_stats({m: observation[m] for m in sorted(g, key=_natural)},
+                                      seed=seed).configuration for g in groups]
+        return Configuration.union(parts, robot=parts[0].robot)
+
+
+def _groups(observation: Observation) -> list[set[str]]:
+    """The modules the reported face links connect, group by group (smallest id first)."""
+    graph = nx.Graph()
+    graph.add_nodes_from(observation)
+    graph.add_edges_from((m, link[0]) for m, faces in observation.items()
+                         for link in faces.values() if link is not None and link[0] in observation)
+    return sorted((set(c) for c in nx.connected_components(graph)),
+                  key=lambda g: min(g, key=_natural))

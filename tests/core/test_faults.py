@@ -81,19 +81,19 @@ def test_dropout_loss_and_latency_change_what_reaches_the_modules() -> None:
 def test_noise_is_seeded_and_nan_readings_are_held_by_the_guard() -> None:
     driver, _ = _driver("noise:sigma=0.01")
     again, _ = _driver("noise:sigma=0.01")
-    positions = [driver.get_observation().poses["a"].position for _ in range(400)]
+    positions = [driver.get_observation().tracked["a"].position for _ in range(400)]
     assert np.std([p[0] for p in positions]) == pytest.approx(0.01, rel=0.15)
-    assert np.allclose(again.get_observation().poses["a"].position, positions[0])
+    assert np.allclose(again.get_observation().tracked["a"].position, positions[0])
 
     events: list = []
     faulty, _ = _driver("nan:at=0.1,module=b,ticks=2")
     guard = GuardedDriver(faulty, on_fault=events.append)
-    good = guard.get_observation().poses["b"].position.copy()
+    good = guard.get_observation().tracked["b"].position.copy()
     guard.step(0.1)
     for _ in range(2):
         held = guard.get_observation()
-        assert np.array_equal(held.poses["b"].position, good)
-        assert all(np.isfinite(p.position).all() for p in held.poses.values())
+        assert np.array_equal(held.tracked["b"].position, good)
+        assert all(np.isfinite(p.position).all() for p in held.tracked.values())
     assert [e.kind for e in events] == ["nan"]
 
     fresh, _ = _driver("nan:at=0")

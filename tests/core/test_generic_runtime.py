@@ -95,10 +95,10 @@ def test_ports_latch_within_the_tolerance_only() -> None:
 def test_a_group_moves_rigidly_at_bounded_speed_and_releases_on_command() -> None:
     with KinematicDriver(SPEC, speed=0.5, turn_rate=2.0) as driver:
         driver.reset(chain(("a", "b"), modules="ab"))
-        start = driver.get_observation().poses
+        start = driver.witness().poses
         driver.send_action({"a": ModuleCommand(joints={"x": 10.0, "yaw": np.pi / 2})})
         driver.step(0.1)
-        moved = driver.get_observation().poses
+        moved = driver.witness().poses
         shift = moved["a"].position - start["a"].position
         assert shift.tolist() == pytest.approx([0.05, 0.0, 0.0])
         assert moved["a"].yaw == pytest.approx(0.2)
@@ -119,7 +119,7 @@ def test_overlaps_are_refused_and_named() -> None:
         driver.send_action({"a": ModuleCommand(joints={"x": 0.45})})
         with pytest.raises(ExecutionError, match="moving a toward .* would overlap b"):
             driver.step(1.0)
-        assert driver.get_observation().poses["a"].position.tolist() == [0.0, 0.0, 0.0]
+        assert driver.witness().poses["a"].position.tolist() == [0.0, 0.0, 0.0]
 
 
 def test_port_placement_faces_the_ports() -> None:

@@ -130,3 +130,29 @@ def test_no_plugin_imports_another():
                 parts = name.split(".")
                 if parts[:2] == ["msrr", "plugins"] and len(parts) > 2:
                     assert parts[2] == own, f"{path} imports {name}"
+
+
+WITNESS = "msrr.core.witness"
+CONTROL_PATH = ("msrr.core.executor", "msrr.core.closed_loop", "msrr.core.control",
+                "msrr.core.capabilities", "msrr.core.estimation", "msrr.core.events",
+                "msrr.core.driver", "msrr.core.generic.controller",
+                "msrr.core.generic.recognizer", "msrr.core.generic.planner",
+                "msrr.core.freeform.recognition", "msrr.core.freeform.miso",
+                "msrr.core.matching", "msrr.core.kinematics", "msrr.core.plan")
+"""What decides a run's commands: none of it may reach the witness channel."""
+
+
+@pytest.mark.parametrize("module", CONTROL_PATH)
+def test_the_control_path_cannot_import_the_witness_channel(module):
+    assert module in GRAPH, f"no module {module}"
+    assert WITNESS not in nx.descendants(GRAPH, module) | {module}, (
+        f"{module} reaches {WITNESS}: decisions read what the robot senses "
+        "(Observation, msrr.core.estimation), never the simulator's state")
+
+
+def test_only_the_judge_the_recording_and_the_drivers_import_the_witness_channel():
+    allowed = ("msrr.core.judge", "msrr.core.faults", "msrr.core.app.", "msrr.core.timeline.",
+               "msrr.core.link.emulator", "msrr.core.freeform.mujoco", "msrr.core.generic.driver")
+    importers = sorted(GRAPH.predecessors(WITNESS))
+    assert "msrr.core.judge" in importers
+    assert [m for m in importers if not m.startswith(allowed)] == []

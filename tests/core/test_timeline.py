@@ -196,7 +196,7 @@ def _truss_ticks(path: Path) -> Path:
             (docked, {"s": ModuleCommand(joints={"b.dir_x": 1.0})}),
             (docked, {})]):
         recorder.tick(Tick(index, 0.1 * (index + 1), 0, action, Phase.CONNECT,
-                           Observation(0.1 * index, poses, None), config, command,
+                           Observation(0.1 * index, None, tracked=poses), config, command,
                            {"s": 0.01} if command else {}))
     recorder.action(action, ActionStatus.SUCCEEDED)
     recorder.finish(RunResult(True, actions_done=1, actions_total=1, docks=1))

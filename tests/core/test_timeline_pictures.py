@@ -78,7 +78,7 @@ def _record_balls(path: Path, actions: list[Action], poses_of_tick) -> Path:
         recorder.action(action, ActionStatus.STARTED)
         for _ in range(5):
             recorder.tick(Tick(tick, 0.1 * (tick + 1), index, action, Phase.MOVE,
-                               Observation(0.1 * tick, poses_of_tick(tick), None),
+                               Observation(0.1 * tick, None, tracked=poses_of_tick(tick)),
                                action.target, {}, {}))
             tick += 1
         recorder.action(action, ActionStatus.SUCCEEDED)
@@ -289,7 +289,7 @@ def test_a_flow_is_marked_on_the_connections_plot(tmp_path: Path) -> None:
     recorder.action(flow, ActionStatus.STARTED)
     for tick, config in enumerate([LINE, LINE, target]):
         recorder.tick(Tick(tick, 0.1 * (tick + 1), 0, flow, Phase.HANDOVER,
-                           Observation(0.1 * tick, _ball_poses(), None), config, {}, {}))
+                           Observation(0.1 * tick, None, tracked=_ball_poses()), config, {}, {}))
     for kind, change in (("undock", old), ("dock", new)):
         recorder.topology_change(TopologyEvent(kind, change, 2, 0.3, 0, True))
     recorder.action(flow, ActionStatus.SUCCEEDED)
@@ -342,7 +342,7 @@ def _crowded(path: Path) -> Path:
     recorder.action(action, ActionStatus.STARTED)
     for tick in range(3):
         recorder.tick(Tick(tick, 0.1 * (tick + 1), 0, action, Phase.MOVE,
-                           Observation(0.1 * tick, poses, None), config, {}, {}))
+                           Observation(0.1 * tick, None, tracked=poses), config, {}, {}))
     recorder.action(action, ActionStatus.SUCCEEDED)
     recorder.finish(RunResult(True, actions_done=1, actions_total=1))
     return path
@@ -443,8 +443,8 @@ def test_an_action_that_did_not_end_is_refused(tmp_path: Path) -> None:
     action = plan.actions[0]
     recorder.action(action, ActionStatus.STARTED)
     recorder.tick(Tick(0, 0.1, 0, action, Phase.RELEASE,
-                       Observation(0.0, {m: Pose.planar(float(i), 0.0, 0.0)
-                                         for i, m in enumerate("abc")}, None),
+                       Observation(0.0, None, tracked={m: Pose.planar(float(i), 0.0, 0.0)
+                                                       for i, m in enumerate("abc")}),
                        plan.start, {"a": ModuleCommand(undock=("T",))}, {}))
     recorder.finish(RunResult(False, reason="stopped", actions_total=3))
     with pytest.raises(Exception, match=r"^--action 1: action 1 did not end in this "):

@@ -38,6 +38,7 @@ from msrr.core.hookspecs import Register
 from msrr.core.kinematics.node import FixedNode, KinematicNode
 from msrr.core.plan import Action, ActionType, ConnectionChange, Plan
 from msrr.core.robot import Robot, port_reuse_violations
+from msrr.core.witness import Witness
 
 NAME = "tiny"
 CUBE = ModuleKind(
@@ -102,8 +103,13 @@ class PointDriver(Driver):
             (a, fa), (b, fb) = sorted(link)
             sensors[a][fa] = (b, fb)
             sensors[b][fb] = (a, fa)
-        return Observation(self.t, {m: Pose.planar(x, 0.0, 0.0) for m, x in self.x.items()},
-                           sensors)
+        return Observation(self.t, sensors, tracked=self._poses())
+
+    def _poses(self) -> dict[str, Pose]:
+        return {m: Pose.planar(x, 0.0, 0.0) for m, x in self.x.items()}
+
+    def witness(self) -> Witness:
+        return Witness(self.t, self._poses())
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         self.speed = {m: c.wheels.get("v", 0.0) for m, c in commands.items()}
@@ -158,7 +164,7 @@ class GoalController:
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         commands, errors = {}, {}
         for m, goal in action.goals.items():
-            error = goal[0] - float(observation.poses[m].position[0])
+            error = goal[0] - float(observation.tracked[m].position[0])
             errors[m] = abs(error)
             step = max(-1.0, min(1.0, error * 10))
             commands[m] = ModuleCommand(wheels={"v": step if abs(error) > 1e-3 else 0.0})

@@ -130,7 +130,7 @@ class Straight:
         commands, errors = {}, {}
         if phase is Phase.MOVE:
             for module, (x, y, yaw) in action.goals.items():
-                here = observation.poses[module].position
+                here = observation.tracked[module].position
                 errors[module] = float(((here[0] - x) ** 2 + (here[1] - y) ** 2) ** 0.5)
                 commands[module] = ModuleCommand(joints={"x": x, "y": y, "yaw": yaw})
         return Control(commands, errors, reached=all(e < 1e-9 for e in errors.values()))

@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 from msrr.core.configuration import Configuration
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
-from msrr.core.freeform.mujoco import MujocoDriver
+from msrr.core.freeform.mujoco_driver import MujocoDriver
 from msrr.core.robot import RobotSpec
 
 from ..robot import SPEC
@@ -23,7 +23,7 @@ class FreeSNMujocoDriver(MujocoDriver[FreeSNWorld]):
     """FreeSN modules simulated in MuJoCo, headless unless ``gui=True``.
 
     Args:
-        gui, seed, options, overrides: as :class:`~msrr.core.freeform.mujoco.MujocoDriver`,
+        gui, seed, options, overrides: as :class:`~msrr.core.freeform.mujoco_driver.MujocoDriver`,
             with the run's :class:`~.options.SimOptions` (``noise=np.radians(2)``,
             ``slip=0.05``; the seed drives noise, drift and slip).
         spec: the robot description whose geometry builds the world.

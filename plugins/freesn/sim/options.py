@@ -29,13 +29,19 @@ class SimOptions(MujocoOptions):
             estimate (and the physical pose it servos to) drifts from the truth.
         strength_factor: connection strength as a fraction of the hardware's; below 1
             as the FreeSN paper's section 6.2 asks, so what passes in simulation holds
-            on the robot.
-        torque_factor: connector torque limit as a fraction of the hardware's (6.2).
+            on the robot (the paper gives no factor: 0.5 is assumed).
+        torque_factor: connector torque limit as a fraction of the hardware's (6.2;
+            0.6 assumed likewise).
         position_gain: connector position loop gain [1/s] (speed command per rad of error).
+            The strut firmware's is 25 wheel rad/s per rad, 4.3 1/s of rolling
+            (docs/freesn.md, "Hardware parameters and their sources"); 40 is this
+            simulation's tuning.
         integral_gain: its integral gain [1/s^2] (speed command per rad s of error;
             bounded by the roll rate), which removes the static error a friction load
-            leaves; 0 is a pure position loop.
-        servo_rate: rate of the connectors' motor loops and of the load check [Hz].
+            leaves; 0 is a pure position loop. The firmware's is 0.2 wheel rad/s per
+            rad s; 400 is this simulation's tuning.
+        servo_rate: rate of the connectors' motor loops and of the load check [Hz]; the
+            default 250 is the strut firmware's base control period, 4 ms.
         break_filter: time constant of the connection-load low-pass before the strength
             check [s] (a magnet does not let go on a one-step impulse).
         seed: seed of the noise, drift and slip generators.

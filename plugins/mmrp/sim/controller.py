@@ -61,12 +61,12 @@ class _GroupPlan:
 
 def _planar(observation: Observation) -> dict[str, Pose2]:
     return {m: (float(p.position[0]), float(p.position[1]), p.yaw)
-            for m, p in observation.poses.items()}
+            for m, p in observation.tracked.items()}
 
 
 def _components(observation: Observation) -> list[set[str]]:
     graph = nx.Graph()
-    graph.add_nodes_from(observation.poses)
+    graph.add_nodes_from(observation.tracked)
     for module, faces in observation.sensors.items():
         for link in faces.values():
             if link is not None:

@@ -50,7 +50,7 @@ def test_the_simulator_lays_out_a_goal_as_the_grid_representation_does(name: str
     config = load_configuration(CONFIGS / f"{name}.json", plugins.resolve("mmrp"))
     with MmrpSimDriver(gui=False) as driver:
         driver.reset(config)
-        placed = dict(driver.get_observation().poses)
+        placed = dict(driver.witness().poses)
     grid = {m: Pose.planar(x, y, yaw) for m, (x, y, yaw) in layout(config).items()}
     errors = pose_errors(placed, grid, plugins.robot("mmrp").defaults.shape_tolerance)
     assert errors.error < 1e-6 and errors.heading < 1e-6

@@ -61,13 +61,13 @@ def test_faces_latch_only_within_tolerance_and_groups_move_together() -> None:
         driver.step(0.1)
         assert driver.get_observation().sensors["3"]["T"] is None
         # 4 (with nobody) drives forward 5 cm: out of the 1 cm latch window, no dock
-        x0 = driver.get_observation().poses["4"].position[0]
+        x0 = driver.witness().poses["4"].position[0]
         driver.send_action({"4": ModuleCommand(wheels={"left": 0.1, "right": 0.1})})
         driver.step(0.5)
         driver.send_action({"4": ModuleCommand(dock=("B",)), "3": ModuleCommand(dock=("T",))})
         driver.step(0.5)
         assert driver.get_observation().sensors["4"]["B"] is None
-        x4 = driver.get_observation().poses["4"].position[0]
+        x4 = driver.witness().poses["4"].position[0]
         assert x4 - x0 == pytest.approx(0.05, abs=0.005)
         # back into the window: it latches
         driver.send_action({"4": ModuleCommand(wheels={"left": -0.1, "right": -0.1},
@@ -79,10 +79,10 @@ def test_faces_latch_only_within_tolerance_and_groups_move_together() -> None:
         assert driver.get_observation().sensors["4"]["B"] == ("3", "T")
         # the docked chain drives as one body, straight ahead, no sideways slip
         driver.reset(load_configuration(CONFIGS / "series.json"))
-        before = {m: p.position.copy() for m, p in driver.get_observation().poses.items()}
+        before = {m: p.position.copy() for m, p in driver.witness().poses.items()}
         driver.send_action({m: ModuleCommand(wheels={"left": 0.1, "right": 0.1}) for m in "1234"})
         driver.step(1.0)
-        after = driver.get_observation().poses
+        after = driver.witness().poses
         moved = {m: after[m].position - before[m] for m in before}
         assert all(d[0] == pytest.approx(0.1, abs=0.005) and abs(d[1]) < 1e-3
                    for d in moved.values())

@@ -1,0 +1,72 @@
+"""A FreeSN run with the witness channel removed sends the same commands (issue 32,
+item 1): the executor, IK tracking, controllers and recognizer decide on module reports
+alone, so the simulator's poses and constraint state cannot change an action."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from msrr.core import plugins
+from msrr.core.actions import detect_actions
+from msrr.core.events import NoEvents, Run, Tick
+from msrr.core.executor import Executor, ExecutorOptions
+from msrr.core.library import load_library
+from msrr.core.plan import Plan
+from msrr.plugins.freesn.robot import SPEC
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver
+
+FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
+
+
+class Blind:
+    """A driver with its witness channel removed: every read of it fails the test."""
+
+    def __init__(self, inner: FreeSNMujocoDriver):
+        self.inner = inner
+
+    def __getattr__(self, name: str) -> Any:
+        if name in ("witness", "ground_truth", "faults", "saturation", "constraint_events",
+                    "world"):
+            raise AssertionError(f"the control path read the witness channel: {name}")
+        return getattr(self.inner, name)
+
+
+class Commands(NoEvents):
+    """Every tick's commands; with ``driver``, its witness read each tick as
+    ``platform run`` reads it for the recording."""
+
+    def __init__(self, driver: FreeSNMujocoDriver | None = None):
+        self.driver, self.ticks = driver, []
+
+    def tick(self, run: Run, tick: Tick) -> None:
+        if self.driver is not None:
+            assert self.driver.witness() is not None
+        self.ticks.append({m: (sorted(c.joints.items()), sorted(c.wheels.items()), c.dock,
+                               c.undock) for m, c in tick.commands.items()})
+
+
+def _run(blind: bool) -> tuple[list[dict], object]:
+    sub = next(iter(load_library(FREESN / "libraries" / "S6N3.json").sublibraries.values()))
+    sequence = [sub.configurations[k].configuration for k in ("S6N3-1.3", "S6N3-2.1",
+                                                               "S6N3-1.3")]
+    plan = Plan(robot="freesn", planner="manual", start=sequence[0], goal=sequence[-1],
+                actions=detect_actions(sequence))
+    run = Run(robot="freesn", scenario="custom", plan=plan, spec=SPEC, driver="mujoco")
+    with FreeSNMujocoDriver(noise=np.radians(2.0), slip=0.05, seed=3) as driver:
+        driver.reset(sequence[0])
+        sink = Commands(None if blind else driver)
+        result = Executor(run, Blind(driver) if blind else driver,
+                          plugins.recognizers.get("freesn"), plugins.controllers.get("freesn"),
+                          ExecutorOptions(action_timeout=10.0, retries=0), sink=sink).execute()
+    return sink.ticks, result
+
+
+def test_a_run_without_the_witness_channel_sends_the_same_commands():
+    seen, with_truth = _run(blind=False)
+    blind, without = _run(blind=True)
+    assert with_truth.success and without.success, (with_truth.reason, without.reason)
+    assert len(seen) == len(blind) >= 5
+    assert seen == blind
