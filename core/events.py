@@ -157,8 +157,8 @@ class FaultEvent:
     """A fault that happened during a run: injected (``--faults``) or caught by the guard.
 
     Attributes:
-        kind: ``dropout``, ``loss``, ``latency``, ``dock-fail``, ``noise``, ``nan`` or
-            ``deadline`` (see :mod:`msrr.core.faults`).
+        kind: ``dropout``, ``loss``, ``latency``, ``dock-fail``, ``noise``, ``nan``,
+            ``deadline`` or ``connector broke`` (see :mod:`msrr.core.faults`).
         text: one line on what happened ("module 3 stopped responding").
         time: driver time [s].
         recovered: whether the run carries on normally (``False``: it may stop).

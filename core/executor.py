@@ -67,7 +67,8 @@ recognized configuration goes through IK tracking toward the phase goal (the tar
 node (the robot's controller of that name, handed in; the executor's controller
 for fixed nodes), and the phase is reached when the tracked motion cost falls under the
 threshold. During ``release`` only the undock commands are sent (everything else
-holds). Other robots (MMRP) run through :meth:`Controller.control` as before.
+holds: the controller's undock commands, for links without ports). Other robots (MMRP)
+run through :meth:`Controller.control` as before.
 
 A phase that does not finish within ``action_timeout`` seconds of driver time is
 retried (the controller is restarted) up to ``retries`` times, then the action and
@@ -184,6 +185,14 @@ def _merge(control: Control, extra: dict[str, ModuleCommand]) -> dict[str, Modul
         merged[module] = ModuleCommand(joints=base.joints, wheels=base.wheels,
                                        dock=base.dock + cmd.dock, undock=base.undock + cmd.undock)
     return merged
+
+
+def _undocks(control: Control) -> Control:
+    """``control`` with only its undock commands: a contact without ports (a freeform
+    connector) is released by the controller (the flow contract), while IK tracking
+    holds everything else during a release."""
+    return Control(commands={m: ModuleCommand(undock=c.undock)
+                             for m, c in control.commands.items() if c.undock})
 
 
 class _ActionFailed(Exception):
@@ -470,8 +479,8 @@ class Executor:
         observation = self._observe()
         configuration = self._recognize(observation)
         self._detect_changes(index, configuration)
-        if self._tracks(action) and phase is Phase.RELEASE:
-            control = Control()
+        if self._tracks(action) and phase is Phase.RELEASE:  # the controller's undocks only
+            control = _undocks(self.controller.control(action, phase, observation))
         elif self._tracker is not None:
             control = self._track(configuration, observation)
         elif phase is Phase.BEHAVIOR:  # nothing holds the shape: the behavior's commands only

@@ -6,8 +6,9 @@ Two :class:`~msrr.core.driver.Driver` wrappers, both transparent when nothing ha
   seeded, so a faulty run is repeatable;
 * :class:`GuardedDriver` sits outside it (and around every driver of ``platform run``):
   it replaces non-finite readings (tracked poses, sensors) with the module's last
-  finite one (the controller never sees a NaN), and stops the run when the overall
-  deadline of driver time has passed.
+  finite one (the controller never sees a NaN), stops the run when the overall
+  deadline of driver time has passed, and reports each connection the simulator broke
+  under its load.
 
 Both report what happened as :class:`~msrr.core.events.FaultEvent` s through a callback
 (``platform run`` fires ``msrr_on_fault`` with each, so the timeline logs them under
@@ -62,7 +63,7 @@ from .events import FaultEvent
 from .watchdog import DriverStalled
 from .witness import Witness
 
-__all__ = ["FAULT_KINDS", "Fault", "FaultyDriver", "GuardedDriver", "check_fault_modules",
+__all__ = ["BREAK", "FAULT_KINDS", "Fault", "FaultyDriver", "GuardedDriver", "check_fault_modules",
            "parse_faults"]
 
 # kind -> {key: default}; ``None``: required
@@ -79,6 +80,10 @@ _CHOICES = {"reading": ("pose", "sensors")}
 _INTEGER_KEYS = {"ticks", "count"}
 
 OnFault = Callable[[FaultEvent], None]
+
+BREAK = "connector broke"
+"""The kind of the :class:`FaultEvent` of a connection the driver saw break under its
+load (its reason in :meth:`~msrr.core.driver.Driver.faults` and in library checks)."""
 
 
 @dataclass(frozen=True)
@@ -470,6 +475,8 @@ class GuardedDriver(_Wrapper):
         self.busy: tuple[str, float] | None = None
         self.stopped = ""
         self._stepped = 0.0
+        self._switches: dict[str, int] = {}
+        self._broke: set[str] = set()
         self._last: dict[tuple[str, str], Any] = {}
         self._bad: set[tuple[str, str]] = set()
 
@@ -497,6 +504,8 @@ class GuardedDriver(_Wrapper):
     def reset(self, start: Configuration) -> None:
         self._call("reset", self.inner.reset, start)
         self._stepped = 0.0
+        self._switches = {}
+        self._broke = set()
         self._last.clear()
         self._bad.clear()
 
@@ -552,6 +561,21 @@ class GuardedDriver(_Wrapper):
             raise ExecutionError(f"run deadline of {self.wall_deadline:g} s of wall time "
                                  "reached (--wall-deadline)")
         self._call("step", self.inner.step, dt)
+        self._breaks()
+
+    def _breaks(self) -> None:
+        """Report each connection the driver saw break (``"connector broke: ..."`` of
+        :meth:`~msrr.core.driver.Driver.faults`) once, as a ``"connector broke"``
+        :class:`FaultEvent`: read when the driver's constraint switches change."""
+        switches = self.inner.constraint_events()
+        if switches == self._switches:
+            return
+        self._switches = switches
+        for text in self.inner.faults():
+            reason, _, details = text.partition(": ")
+            if reason == BREAK and text not in self._broke:
+                self._broke.add(text)
+                self._report(BREAK, details)
 
 
 def unwrap(driver: Any) -> Any:

@@ -48,6 +48,10 @@ class Stage:
             most :data:`MAX_DISTANCE`.
         name: how the stage's goal is called in the summary; default the goal file's
             configuration name or the behavior's.
+        joint_mode: the joint mode a goal stage's moves run in (one of the robot's, such
+            as SnailBot's ``sucker_revolute``): each moving action the planner left
+            without a kinematic tree gets that mode's default tree; ``""``: the
+            robot's default mode.
     """
 
     goal: Path | None = None
@@ -57,6 +61,7 @@ class Stage:
     loops: int | None = None
     distance: float | None = None
     name: str = ""
+    joint_mode: str = ""
 
     def __post_init__(self) -> None:
         if (self.goal is None) == (self.behavior is None):

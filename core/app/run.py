@@ -27,7 +27,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from datetime import datetime
@@ -50,7 +50,7 @@ from ..faults import Fault, FaultyDriver, GuardedDriver, check_fault_modules, pa
 from ..files import atomic_write_text, check_output_place
 from ..interrupts import Interrupted, shielded
 from ..judge import Judge
-from ..plan import Action, Plan, join_plans, save_plan
+from ..plan import Action, ActionType, Plan, join_plans, save_plan
 from ..scenario import MAX_TIME, Scenario, Stage
 from ..watchdog import DRIVER_STALL, Watchdog
 
@@ -238,6 +238,8 @@ def plan_stages(capabilities: Capabilities, planner: Planner, start: Configurati
     for stage, goal in stages:
         if goal is not None:
             plan = planner.plan(here, goal, seed=seed)
+            if stage.joint_mode:
+                _moves_in(plan, capabilities.robot.joint_modes, stage.joint_mode)
             if plan.actions:
                 plan.actions[-1].reaches = stage.name or goal.name or \
                     (stage.goal.stem if stage.goal else "goal")
@@ -249,6 +251,22 @@ def plan_stages(capabilities: Capabilities, planner: Planner, start: Configurati
         plans.append(plan)
         here = plan.goal
     return join_plans(plans)
+
+
+def _moves_in(plan: Plan, modes: Mapping[str, type], name: str) -> None:
+    """Give each moving action of ``plan`` without a kinematic tree the default tree of
+    joint mode ``name`` on its target.
+
+    Raises:
+        UnknownNameError: the robot has no joint mode ``name``.
+    """
+    from ..kinematics import default_tree
+
+    if name not in modes:
+        raise UnknownNameError("joint mode of a scenario stage", name, modes)
+    for action in plan.actions:
+        if action.type is ActionType.MOVING and action.kinematic_tree is None:
+            action.kinematic_tree = default_tree(action.target, modes[name])
 
 
 def resolve_scenario(robot: str, name: str | None) -> Scenario:

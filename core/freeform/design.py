@@ -22,7 +22,8 @@ from ..robot import ModuleKind, PortSpec, RobotDefaults, RobotSpec
 __all__ = ["DESIGN_GEOMETRY", "MISO_RULES", "ModuleDesign", "freeform_robot", "read_freeform_robot",
            "read_miso_rules"]
 
-DESIGN_GEOMETRY = ("radius", "mass", "connector_mass", "max_speed", "max_torque")
+DESIGN_GEOMETRY = ("radius", "mass", "connector_mass", "max_speed", "max_torque",
+                   "connection_strength")
 """The module geometry the MuJoCo world is built from (:func:`freeform_robot`)."""
 
 
@@ -41,8 +42,10 @@ def freeform_robot(*, name: str, title: str, symbol: str, port: str, joint_mode:
         joint_mode: the default joint mode.
         geometry: at least ``radius`` (shell) [m], ``mass`` (the whole module) [kg],
             ``connector_mass`` (the part carrying the connector, within ``mass``) [kg],
-            ``max_speed`` (fastest turn about the parent's centre) [rad/s] and
-            ``max_torque`` (drive torque limit) [N m]: what the MuJoCo world is built from.
+            ``max_speed`` (fastest turn about the parent's centre) [rad/s],
+            ``max_torque`` (drive torque limit) [N m] and ``connection_strength`` (the
+            pull-off and shear force the connector holds) [N]: what the MuJoCo world is
+            built from; optionally ``sucker_strength`` [N], what an engaged sucker adds.
         module: the module kind's one-line description.
         description: the robot's description.
         reference: where the robot is published.
@@ -144,6 +147,8 @@ class ModuleDesign:
         connector_mass: the connector body (magnet and drive, FreeBOT) [kg].
         max_rate: fastest turn about the parent's centre [rad/s].
         max_torque: drive torque limit [N m].
+        strength: the force a connection holds before it breaks (pull-off and shear) [N].
+        sucker_strength: what an engaged sucker adds to it [N].
         bearing: the connector turns freely inside the shell (FreeBOT).
         sucker: the module has a vacuum sucker (SnailBot).
         rgba: shell colour.
@@ -156,6 +161,8 @@ class ModuleDesign:
     connector_mass: float
     max_rate: float
     max_torque: float
+    strength: float
+    sucker_strength: float
     bearing: bool
     sucker: bool
     rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)
@@ -164,8 +171,8 @@ class ModuleDesign:
     def from_spec(cls, spec: RobotSpec, kind: str, *, bearing: bool, sucker: bool,
                   rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)
                   ) -> ModuleDesign:
-        """Read ``radius``, ``mass``, ``connector_mass``, ``max_speed`` and ``max_torque``
-        from the kind's geometry; an error names the missing key."""
+        """Read :data:`DESIGN_GEOMETRY` (and ``sucker_strength``, 0 when absent) from the
+        kind's geometry; an error names the missing key."""
         geometry = spec.kind(kind).geometry
         for key in DESIGN_GEOMETRY:
             if key not in geometry:
@@ -173,4 +180,5 @@ class ModuleDesign:
                                      f"geometry {key!r}, which the MuJoCo world needs")
         g = {k: float(v) for k, v in geometry.items()}
         return cls(spec.name, kind, g["radius"], g["mass"], g["connector_mass"], g["max_speed"],
-                   g["max_torque"], bearing, sucker, rgba)
+                   g["max_torque"], g["connection_strength"], g.get("sucker_strength", 0.0),
+                   bearing, sucker, rgba)

@@ -5,7 +5,8 @@ Commands (per module, :class:`~msrr.core.driver.ModuleCommand`):
 * ``joints={"dir_x", "dir_y", "dir_z"}``: the connection vector (from the module toward
   the module it is docked on) in that module's horizontal frame; the drive turns the
   module about its parent's centre toward it. ``"sucker": 1`` engages the vacuum sucker
-  (SnailBot), ``0`` releases it. ``{"roll_x", "roll_y"}``: a free FreeBOT rolls on the
+  (SnailBot), ``0`` releases it; ``"twist"`` [rad] turns a module whose sucker holds
+  about the sucker's axis by that angle from where it is now. ``{"roll_x", "roll_y"}``: a free FreeBOT rolls on the
   ground at this velocity [m/s] in its own horizontal frame (pendulum drive);
 * ``dock=("@Q",)`` arms the connector to latch on ``Q`` when the shells touch (while
   docked on ``P``: a flow, the switch happens at once); ``dock=(port,)`` (the module's
@@ -70,17 +71,19 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
         self._moving = set(commands)
         for module, command in commands.items():
             joints = dict(command.joints)
-            extra = set(joints) - {*_JOINTS, *_ROLL, "sucker"}
+            extra = set(joints) - {*_JOINTS, *_ROLL, "sucker", "twist"}
             if extra or command.wheels:
                 raise ExecutionError(f"module {module}: unknown joint(s) "
                                      f"{sorted(extra | set(command.wheels))} (known: "
-                                     f"{', '.join(_JOINTS + _ROLL)}, sucker)")
+                                     f"{', '.join(_JOINTS + _ROLL)}, sucker, twist)")
             for port in command.dock:      # first: an undock with a dock armed is a flow
                 world.command_dock(module, self._other(module, port))
             for port in command.undock:
                 world.command_undock(module, self._other(module, port))
             if "sucker" in joints:
                 world.command_sucker(module, joints["sucker"] > 0.5)
+            if "twist" in joints:
+                world.command_twist(module, float(joints["twist"]))
             if any(n in joints for n in _ROLL):
                 world.command_roll(module, np.array([joints.get("roll_x", 0.0),
                                                      joints.get("roll_y", 0.0), 0.0]))
@@ -101,10 +104,18 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
         return port[1:] if port.startswith("@") else ""
 
     def constraint_events(self) -> dict[str, int]:
-        """Docks, undocks and flows since :meth:`reset`, from the world's constraint switches
-        (a flow is one switch, counted once as a flow and not as a dock or an undock)."""
+        """Docks, undocks (commanded or broken) and flows since :meth:`reset`, from the
+        world's constraint switches (a flow is one switch, counted once as a flow and not
+        as a dock or an undock)."""
         events = self._world().events
-        return {kind: sum(e.kind == kind for e in events) for kind in ("dock", "undock", "flow")}
+        return {"dock": sum(e.kind == "dock" for e in events),
+                "undock": sum(e.kind in ("undock", "break") for e in events),
+                "flow": sum(e.kind == "flow" for e in events)}
+
+    def faults(self) -> list[str]:
+        """Connections that broke under their load (``"connector broke: ..."``)."""
+        return [f"connector broke: {e.module} at {e.target}, {e.load:.1f} N at t={e.time:.2f} s"
+                for e in self._world().events if e.kind == "break"]
 
 
 @dataclass(frozen=True)

@@ -136,7 +136,8 @@ class FreeformPlugin:
         from .recognition import ContactController
 
         shared = self.recognizer()
-        return [ContactController(mode.controller, shared, sucker=mode.name == self.sucker)
+        return [ContactController(mode.controller, shared, sucker=mode.name == self.sucker,
+                                  spacing=2.0 * self.design.radius)
                 for mode in self.joint_modes()]
 
     # -- hooks --------------------------------------------------------------------------

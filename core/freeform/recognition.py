@@ -43,6 +43,7 @@ from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
+from .travel import Locator, floor_path, pursue
 from .world import ModuleReport
 
 __all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
@@ -217,6 +218,40 @@ def common_turn(current: Configuration, target: Configuration) -> float:
     return float(np.median(wrapped))
 
 
+def sucker_twist(current: Configuration, target: Configuration, module: str) -> float:
+    """The turn [rad] of ``module`` about its connection vector (its sucker's axis,
+    right-handed about the vector) that brings the connections of the modules on it
+    from ``current``'s vectors to ``target``'s (both in one frame): the angle of the
+    sum of their rotations, each seen in the plane across the axis. 0 when none is on
+    it or ``module`` is free in ``current``."""
+    own = _outgoing(current, module)
+    if own is None:
+        return 0.0
+    axis = own / np.linalg.norm(own)
+    across = np.eye(3) - np.outer(axis, axis)
+    num = den = 0.0
+    for e in target.edges():
+        have = _vector(current, e.source, module)
+        if e.target != module or e.z is None or have is None:
+            continue
+        a, b = across @ have, across @ np.asarray(e.z)
+        num += float(np.cross(a, b) @ axis)
+        den += float(a @ b)
+    return float(np.arctan2(num, den)) if num or den else 0.0
+
+
+def _vector(config: Configuration, source: str, target: str) -> np.ndarray | None:
+    """The vector ``z`` (3,) of ``config``'s connection ``source -> target``, or ``None``."""
+    e = next((e for e in config.edges() if e.source == source and e.target == target), None)
+    return None if e is None or e.z is None else np.asarray(e.z, dtype=float)
+
+
+def _outgoing(config: Configuration, module: str) -> np.ndarray | None:
+    """The vector of ``module``'s own connection (its connector's), or ``None``."""
+    e = next((e for e in config.edges() if e.source == module and e.z is not None), None)
+    return None if e is None else np.asarray(e.z, dtype=float)
+
+
 def _direction(vector: np.ndarray) -> dict[str, float]:
     return {f"dir_{a}": float(c) for a, c in zip("xyz", vector, strict=True)}
 
@@ -235,10 +270,14 @@ class ContactController:
         tolerance: RMS angle [rad] under which a direct move is reached.
         flow_tolerance: angle [rad] from the place touching the new parent under which a
             flow's rolling is reached.
+        spacing: centre distance of two docked modules [m] (the dead reckoning's scale).
+        ground_speed: fastest travel of a free module over the floor [m/s].
+        arrive: distance [m] from the docking spot under which an approach is reached.
     """
 
     def __init__(self, name: str, recognizer: ContactRecognizer, *, sucker: bool = False,
-                 tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0)):
+                 tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0),
+                 spacing: float = 0.1, ground_speed: float = 0.04, arrive: float = 0.005):
         self.name = name
         self.description = (f"{recognizer.robot} connection vectors -> drive commands"
                              + (" (sucker engaged)" if sucker else ""))
@@ -246,7 +285,11 @@ class ContactController:
         self.sucker = sucker
         self.tolerance = tolerance
         self.flow_tolerance = flow_tolerance
+        self.ground_speed = ground_speed
+        self.arrive = arrive
+        self.locator = Locator(spacing)
         self._yaw = 0.0
+        self._ways: dict[str, tuple[str, np.ndarray]] = {}   # module -> (target, way in O)
 
     def commands(self, target: Configuration, observation: Observation, *,
                  yaw: float | None = None, current: Configuration | None = None
@@ -265,20 +308,77 @@ class ContactController:
         links = links_of(reports)
         heading = module_headings(reports, links)
         turn = rot_z(yaw)
+        turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
         for e in target.edges():
             if e.z is None or links.get(e.source) != e.target:
                 continue
-            joints = _direction(rot_z(-heading[e.target]) @ turn @ np.asarray(e.z))
-            if self.sucker:
-                joints["sucker"] = 1.0
+            if self.sucker:   # anchored: only a turn about the sucker's axis
+                joints = {"sucker": 1.0, "twist": sucker_twist(current, turned, e.source)}
+            else:
+                joints = _direction(rot_z(-heading[e.target]) @ turn @ np.asarray(e.z))
             out[e.source] = ModuleCommand(joints=joints)
         return out
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
-        """Fix the yaw of the action's target for this phase (eq. 8 alignment)."""
-        current = self.recognizer.recognize(observation.sensors)
+        """Fix the yaw of the action's target for this phase (eq. 8 alignment); for an
+        approach, find the way of each free module to the module it docks on."""
+        reports = observation.sensors
+        self._locate(reports)
+        current = self.recognizer.recognize(reports)
+        if phase is Phase.APPROACH:
+            self._ways = self._plan_ways(current, action, reports)
+            return
+        if phase is Phase.CONNECT and self._ways:
+            return
+        self._ways = {}
         self._yaw = skeletal_errors(current, action.target)[2]
+
+    def _locate(self, reports: Reports) -> None:
+        """Give the locator this tick's reports."""
+        links = links_of(reports)
+        self.locator.update(reports, links, module_headings(reports, links))
+
+    def _plan_ways(self, current: Configuration, action: Action, reports: Reports
+                   ) -> dict[str, tuple[str, np.ndarray]]:
+        """The way over the floor (points (n, 2) in its odometry frame) of each module the
+        action docks while it is free: it travels alone to a spot touching its target.
+
+        Raises:
+            ExecutionError: such a module carries others (a group does not travel), or no
+                way is free (:func:`~msrr.core.freeform.travel.floor_path`).
+        """
+        ways = {}
+        for change in topology_diff(current, action.target).made:
+            module, target = change.source, change.target
+            if _joined(current, module, target):
+                continue
+            if not self.locator.alone(module):
+                raise ExecutionError(f"module {module} is to dock on {target} but carries "
+                                     "other modules: only a module alone travels over the floor")
+            way = floor_path(self.locator.relative(module), target, self.locator.spacing)
+            odometry = reports[module].odometry
+            into = rot_z(float(odometry[2]))[:2, :2]
+            ways[module] = (target, odometry[:2] + np.array(way) @ into.T)
+        return ways
+
+    def _travel(self, phase: Phase, reports: Reports) -> Control:
+        """One tick of the free modules' travel (approach), or of their last push onto
+        the target with the connector armed (connect)."""
+        commands, errors = {}, {}
+        for module, (target, way) in self._ways.items():
+            odometry = reports[module].odometry
+            if phase is Phase.CONNECT:   # aim a little inside the target: the shells touch
+                last = way[-1] - way[-2] if len(way) > 1 else np.zeros(2)
+                way = np.vstack([way, way[-1] + 0.5 * self.arrive * _unit(last)])
+            velocity, left = pursue(way, odometry[:2], speed=self.ground_speed)
+            v = rot_z(-float(odometry[2]))[:2, :2] @ velocity
+            dock = (f"@{target}",) if phase is Phase.CONNECT else ()
+            commands[module] = ModuleCommand(joints={"roll_x": float(v[0]),
+                                                     "roll_y": float(v[1])}, dock=dock)
+            errors[module] = left
+        return Control(commands=commands, errors=errors,
+                       reached=all(e < self.arrive for e in errors.values()))
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         """One tick of ``phase`` without IK (the executor's flow contract for flows).
@@ -295,6 +395,9 @@ class ContactController:
             ExecutionError: a flow whose leaf is not the owner of both links' connector.
         """
         reports = observation.sensors
+        self._locate(reports)
+        if self._ways and phase in (Phase.APPROACH, Phase.CONNECT):
+            return self._travel(phase, reports)
         if action.type is ActionType.FLOW and phase in (Phase.FLOW, Phase.HANDOVER):
             flow = flow_of(action)
             if flow.broken.source != flow.leaf or flow.made.source != flow.leaf:
@@ -325,6 +428,21 @@ class ContactController:
             commands = self.commands(action.target, observation, yaw=self._yaw)
             reached = skeletal_errors(current, action.target)[0] < self.tolerance
         return Control(commands=commands, reached=reached)
+
+
+def _unit(vector: np.ndarray) -> np.ndarray:
+    norm = float(np.linalg.norm(vector))
+    return vector / norm if norm > 1e-12 else np.zeros_like(vector)
+
+
+def _joined(config: Configuration, a: str, b: str) -> bool:
+    """Whether modules ``a`` and ``b`` are in one connected group of ``config``."""
+    import networkx as nx
+
+    graph = nx.Graph()
+    graph.add_nodes_from(config.modules())
+    graph.add_edges_from((e.source, e.target) for e in config.edges())
+    return nx.has_path(graph, a, b)
 
 
 def _edge_id(config: Configuration, source: str, target: str) -> str:

@@ -91,6 +91,12 @@ _ROLL_SPEED_GAIN = 5.0  # pendulum drive: lead angle per speed error [rad / (m/s
 _ROLL_TILT = 0.5        # largest lead angle of the hanging magnet unit [rad]
 _ROLL_KP = 0.1          # its angle loop [N m / rad]
 _ROLL_KD = 0.005        # [N m s / rad]
+_CRAWL_GAIN = 60.0      # SnailBot tracks: acceleration per speed error [1/s]
+_TRACTION = 0.3         # their largest force, in units of the module's weight
+_FOOT_KP = 2.0          # the footprint holding the foot down [N m / rad]
+_FOOT_KD = 0.1          # [N m s / rad]
+_GRAVITY = 9.81         # [m/s^2]
+_TRACK_SLIDE = 0.01     # floor friction of a crawling SnailBot's shell (its tracks carry it)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -103,6 +109,10 @@ class FreeformOptions(MujocoOptions):
         dock_tolerance: a connector told to dock latches when the shells are this close
             to touching [m].
         seat: time constant of a fresh dock drawing the foot onto the centre [s].
+        strength_factor: connection strength as a fraction of the description's
+            ``connection_strength`` (and ``sucker_strength``).
+        break_filter: time constant of the connection-load low-pass before the strength
+            check [s] (a magnet does not let go on a one-step impulse).
     """
 
     OPTIONS: ClassVar[tuple[DriverOption, ...]] = MujocoOptions.OPTIONS + (
@@ -112,15 +122,22 @@ class FreeformOptions(MujocoOptions):
                      low_open=True),
         DriverOption("seat", float, "time constant of a fresh dock's seating", "s", 0.0, 10.0,
                      low_open=True),
+        DriverOption("strength_factor", float, "connection strength / the description's", "",
+                     0.0, 10.0, low_open=True),
+        DriverOption("break_filter", float, "time constant of the connection-load filter", "s",
+                     0.0, 10.0, low_open=True),
     )
 
     gap: float = 0.001
     dock_tolerance: float = 0.006
     seat: float = 0.15
+    strength_factor: float = 1.0
+    break_filter: float = 0.05
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        self._check(positive=("gap", "dock_tolerance", "seat"))
+        self._check(positive=("gap", "dock_tolerance", "seat", "strength_factor",
+                              "break_filter"))
 
 
 @dataclass(frozen=True)
@@ -128,9 +145,11 @@ class ConstraintEvent:
     """A switch of a dock constraint, as the simulator made it.
 
     Attributes:
-        time: [s]. module: whose connector. kind: ``"dock"``, ``"undock"`` or ``"flow"``.
-        target: the module docked on (dock, flow) or left (undock).
+        time: [s]. module: whose connector. kind: ``"dock"``, ``"undock"``, ``"flow"`` or
+            ``"break"`` (the load exceeded the connection's strength).
+        target: the module docked on (dock, flow) or left (undock, break).
         previous: the module left by a flow.
+        load: the filtered pull-off and shear force at a break [N].
     """
 
     time: float
@@ -138,6 +157,7 @@ class ConstraintEvent:
     kind: str
     target: str
     previous: str | None = None
+    load: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -152,6 +172,11 @@ class ModuleReport:
             ``attached`` (drive and bearing encoders), or ``None`` when free.
         sucker: whether the sucker holds.
         events: its connector's constraint events since the previous report.
+        odometry: ``(x, y, yaw)`` (3,): its dead-reckoned pose on the floor in its own
+            odometry frame (its horizontal frame at reset) [m, m, rad]: the turn about the
+            vertical its gyro integrates (its frame of travel commands), and the centre's travel its drive senses while its connector is
+            free (FreeBOT: the shell's rotation, rolling without slip; SnailBot: the
+            tracks); docked, the position stays where it was.
     """
 
     attached: str | None
@@ -159,6 +184,7 @@ class ModuleReport:
     relative: np.ndarray | None
     sucker: bool = False
     events: tuple[ConstraintEvent, ...] = field(default_factory=tuple)
+    odometry: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 def place(config: Configuration, length: float, radius: float
@@ -263,8 +289,15 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         self._braked = np.zeros(n, dtype=bool)     # bearing held at ``_brake_at``
         self._brake_at = np.tile(np.array([1.0, 0, 0, 0]), (n, 1))
         self._damping = design.max_torque / design.max_rate
+        self._wrench = np.zeros((n, 6))            # tracks of crawling SnailBots
+        self._shell_geom = np.array([m.geom(f"shell/{i}").id for i in self.modules])
+        self._load = np.zeros(n)                   # filtered connection loads [N]
+        self._odometry = np.zeros((n, 2))          # travel sensed while free, world [m]
+        self._turned = np.zeros(n)                 # yaw the gyros integrated [rad]
+        self._gyro = np.random.default_rng([options.seed, 1])  # the yaw's own noise
         mujoco.mj_forward(self.model, self.data)
         self._upright = np.array([_upright(r) for r in self.data.xmat[self._conn].reshape(-1, 3, 3)])
+        self._heading0 = self._headings()
         for e in config.edges():
             self._dock(self._index[e.source], e.target, kind="")
         mujoco.mj_forward(self.model, self.data)
@@ -290,7 +323,7 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             body.add_freejoint(name=f"free/{name}")
             body.add_geom(name=f"shell/{name}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
                           size=[d.radius, 0, 0], friction=list(GROUND_FRICTION), mass=0,
-                          rgba=list(d.rgba))
+                          rgba=list(d.rgba), priority=1)   # its friction rules its contacts
             inner = quat if d.bearing else [1, 0, 0, 0]
             conn = body.add_body(name=f"connector/{name}", quat=inner, mass=d.connector_mass,
                                  inertia=[core] * 3, explicitinertial=True, ipos=[0, 0, 0],
@@ -348,23 +381,44 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         self._target[k] = Rotation.from_matrix(joint).as_quat(scalar_first=True)
         self._rolling[k] = float(np.arccos(np.clip(want @ r_conn[:, 2], -1, 1))) > _ROLLING
 
-    def command_roll(self, module: str, velocity: np.ndarray) -> None:
-        """Roll a free FreeBOT on the ground at ``velocity`` (3,) [m/s], given in its own
-        horizontal frame (its vertical part is ignored): the magnet unit, heavier at its
-        magnet's end, hangs as a pendulum, and the drive turns the shell against it; the
-        shell speed is servoed to ``v / r`` about the horizontal axis across ``v``."""
+    def command_twist(self, module: str, angle: float) -> None:
+        """Turn ``module`` about its sucker's axis (the line through its centre and its
+        parent's) by ``angle`` [rad] from where it is now, right-handed about the
+        connection vector; only while the sucker holds (the sucker-revolute joint)."""
         k = self._k(module)
-        if not self.design.bearing:
-            raise ExecutionError(f"module {module}: a {self.design.kind} does not roll on the "
-                                 "ground (it has no bearing)")
-        if self.docked[k] is not None:
-            raise ExecutionError(f"module {module} is docked on {self.docked[k]}; only a free "
-                                 "module rolls on the ground")
-        v = rot_z(float(self._headings()[k])) @ np.asarray(velocity, dtype=np.float64)
+        if self.docked[k] is None or not self.sucker[k]:
+            return
+        q = self.data.qpos[self._qadr[k]:self._qadr[k] + 4]
+        joint = Rotation.from_quat(q, scalar_first=True).as_matrix()   # foot in connector
+        # the connector turns by ``angle`` about its own z (towards the parent): the foot,
+        # seen from it, turns back
+        self._target[k] = Rotation.from_matrix(rot_z(-angle) @ joint).as_quat(scalar_first=True)
+
+    def command_roll(self, module: str, velocity: np.ndarray) -> None:
+        """Move a free module on the ground at ``velocity`` (3,) [m/s], given in its own
+        horizontal frame as its gyro keeps it (its odometry frame turned by the reported
+        yaw; the vertical part is ignored). A FreeBOT rolls: the magnet unit,
+        heavier at its magnet's end, hangs as a pendulum, and the drive turns the shell
+        against it (:meth:`_roll_torques`). A SnailBot crawls on its tracks, foot down
+        (:meth:`_crawl`). Ignored once the module is docked."""
+        k = self._k(module)
+        if self.docked[k] is not None:   # it latched: the drive now turns it on its parent
+            return
+        frame = rot_z(float(self._heading0[k] + self._turned[k]))   # as its gyro keeps it
+        v = frame @ np.asarray(velocity, dtype=np.float64)
         v[2] = 0.0
         self._roll[k] = v
-        self._rolling[k] = bool(np.any(v))
-        self._pendulum(k, self._rolling[k])
+        if self.design.bearing:
+            self._rolling[k] = bool(np.any(v))
+            self._pendulum(k, self._rolling[k])
+        else:
+            self._tracks(k, bool(np.any(v)))
+
+    def _tracks(self, k: int, on: bool) -> None:
+        """A crawling SnailBot stands on its tracks, not on its shell: the shell's floor
+        friction gives way to the tracks' bounded traction (:meth:`_crawl`)."""
+        self.model.geom_friction[self._shell_geom[k], 0] = (_TRACK_SLIDE if on
+                                                            else GROUND_FRICTION[0])
 
     def _pendulum(self, k: int, on: bool) -> None:
         """Put the magnet unit's weight on its magnet's end (the drive climbs the inside
@@ -382,7 +436,10 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         self._rolling[k] = False
         if np.any(self._roll[k]):
             self._roll[k] = 0.0
-            self._pendulum(k, False)
+            if self.design.bearing:
+                self._pendulum(k, False)
+            else:
+                self._tracks(k, False)
 
     def command_dock(self, module: str, target: str = "") -> None:
         """Arm ``module``'s connector to latch on ``target`` (``""``: any module it touches)."""
@@ -442,11 +499,16 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             self.events.append(ConstraintEvent(self.time, module, kind, target,
                                                previous if kind == "flow" else None))
 
+    def _carrying(self, k: int) -> bool:
+        """Whether a module is docked on module ``k``."""
+        return self.modules[k] in self.docked
+
     def _turn_connector(self, k: int, towards: np.ndarray) -> None:
         """Point ``k``'s connector at ``towards`` (world, (3,)) about its own centre: the
-        magnet slides over the seam of a flow (FreeBOT: inside the shell, on the bearing;
-        SnailBot: the body turns in place). The flowing module is a leaf, so nothing
-        hangs on it; the foot keeps its world orientation."""
+        magnet slides over the seam of a flow, or turns to a module a free module
+        reached (FreeBOT: inside the shell, on the bearing; SnailBot: the body turns in
+        place). The module is a leaf, so nothing hangs on it; the foot keeps its world
+        orientation."""
         d, m = self.data, self.model
         r_conn = d.xmat[self._conn[k]].reshape(3, 3)
         turn = rotation_between(r_conn[:, 2], towards / np.linalg.norm(towards))
@@ -497,7 +559,7 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             j = self._index[want] if want else int(np.argmin(gaps))
             if gaps[j] <= reach:
                 flow = self.docked[k] is not None
-                if flow:
+                if flow or not self._carrying(k):
                     self._turn_connector(k, centres[j] - centres[k])
                 self._dock(k, self.modules[j], kind="flow" if flow else "dock")
 
@@ -515,6 +577,69 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             adr = self._bearing_q[newly][:, None] + np.arange(4)
             self._brake_at[newly] = self.data.qpos[adr]
             self._braked = ~free
+
+    def _period_done(self, steps: int) -> None:
+        """Free modules' odometry integrates, connections over their strength break, then
+        fresh docks seat."""
+        duration = steps * self.options.timestep
+        self._integrate_odometry(duration)
+        self._check_loads(duration)
+        super()._period_done(steps)
+
+    def _integrate_odometry(self, duration: float) -> None:
+        """Add what the modules sense over ``duration`` [s]: every gyro's turn about the
+        vertical, and the travel of a free module: a FreeBOT's shell rolling without
+        slip, ``v = r omega x e_z`` (``omega`` from its gyro and bearing encoders), a
+        SnailBot's tracks (the body's speed over the floor)."""
+        d = self.data
+        self._turned += duration * d.cvel[self._conn, 2]
+        ks = np.array([k for k, p in enumerate(self.docked) if p is None], dtype=int)
+        if not len(ks):
+            return
+        if self.design.bearing:
+            v = self.design.radius * np.cross(d.cvel[self._shell[ks], :3], _EZ)
+        else:
+            v = d.qvel[self._free_adr[ks][:, None] + np.arange(3)]
+        self._odometry[ks] += duration * v[:, :2]
+
+    def _check_loads(self, duration: float) -> None:
+        """Break every connection whose load, low-passed over ``break_filter``, exceeds
+        its strength (FreeSN's rule): the pull-off and shear part of the force on the
+        foot (a compression presses the shells together and is carried by contact),
+        with an engaged sucker's force and strength added."""
+        d = self.data
+        rows = np.flatnonzero(d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        ids = d.efc_id[rows]
+        first = rows[np.r_[True, ids[1:] != ids[:-1]]] if len(rows) else rows
+        force = {int(d.efc_id[r]): d.efc_force[r:r + 3] for r in first}
+        load = np.zeros(len(self.modules))
+        strength = np.zeros(len(self.modules))
+        factor = self.options.strength_factor
+        for k, parent in enumerate(self.docked):
+            if parent is None:
+                continue
+            key = (self.modules[k], parent)
+            on_foot = force.get(self.welds.id(key), np.zeros(3)).copy()
+            strength[k] = factor * self.design.strength
+            if self.sucker[k]:
+                on_foot += force.get(self._suckers.id(key), np.zeros(3))
+                strength[k] += factor * self.design.sucker_strength
+            out = d.xpos[self._shell[k]] - d.xpos[self._shell[self._index[parent]]]
+            out /= max(float(np.linalg.norm(out)), 1e-12)
+            held = on_foot - max(float(on_foot @ out), 0.0) * out
+            load[k] = float(np.linalg.norm(held))
+        alpha = min(1.0, duration / self.options.break_filter)
+        docked = strength > 0
+        self._load = np.where(docked, self._load + alpha * (load - self._load), 0.0)
+        for k in np.flatnonzero(docked & (self._load > strength)):
+            parent = self.docked[k]
+            assert parent is not None
+            self._unlatch(int(k))
+            self.armed[k] = None
+            self.release[k] = False
+            self.events.append(ConstraintEvent(self.time, self.modules[k], "break", parent,
+                                               load=float(self._load[k])))
+            self._load[k] = 0.0
 
     def _docking(self) -> bool:
         """Whether a connector is armed (a dock or a flow waits for the shells to touch)."""
@@ -537,6 +662,30 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         self.data.qfrc_applied[self._dofs] = tau
         if self._bearing is not None:
             self.data.qfrc_applied[self._bearing] = self._roll_torques() + self._brakes()
+        else:
+            self._crawl()
+
+    def _crawl(self) -> None:
+        """Tracks of free SnailBots on the ground (a wrench on the shell, whose own floor
+        friction gives way while it crawls, :meth:`_tracks`): a traction force
+        ``m K (v - v_now)``, horizontal and bounded by ``_TRACTION m g``, and the
+        footprint's torque holding the foot down (a PD loop on the foot's axis)."""
+        d = self.data
+        for k in np.flatnonzero(np.any(self._roll, axis=1) | np.any(self._wrench, axis=1)):
+            body = self._shell[k]
+            if self.docked[k] is not None or not np.any(self._roll[k]):
+                self._wrench[k] = 0.0
+                d.xfrc_applied[body] = 0.0
+                continue
+            speed = d.qvel[self._free_adr[k]:self._free_adr[k] + 3].copy()
+            speed[2] = 0.0
+            force = self.design.mass * _CRAWL_GAIN * (self._roll[k] - speed)
+            force *= min(1.0, _TRACTION * self.design.mass * _GRAVITY
+                         / max(float(np.linalg.norm(force)), 1e-12))
+            axis = d.xmat[self._conn[k]].reshape(3, 3)[:, 2]
+            torque = _FOOT_KP * np.cross(axis, -_EZ) - _FOOT_KD * d.cvel[body, :3]
+            self._wrench[k] = np.concatenate([force, torque])
+            d.xfrc_applied[body] = self._wrench[k]
 
     def _brakes(self) -> np.ndarray:
         """Bearing torques (n, 3), connector frames, holding braked shells where they were
@@ -609,9 +758,13 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
             relative = None
             if parent is not None:
                 relative = self.noise.rotation(rot[self._index[parent]].T @ rot[k])
+            turned = self._turned[k] + (self._gyro.normal(0.0, self.noise.std)
+                                        if self.noise.std else 0.0)
+            odometry = np.append(rot_z(-self._heading0[k])[:2, :2] @ self._odometry[k],
+                                 _wrap(turned))
             out[module] = ModuleReport(parent, self.noise.rotation(rot_z(-yaw[k]) @ rot[k]),
                                        relative, self.sucker[k],
-                                       tuple(e for e in new if e.module == module))
+                                       tuple(e for e in new if e.module == module), odometry)
         return out
 
     def centre(self, module: str) -> np.ndarray:
@@ -638,6 +791,11 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         return connected_groups(self.modules, ((self.modules[k], target)
                                                for k, target in enumerate(self.docked)
                                                if target is not None))
+
+
+def _wrap(angle: float) -> float:
+    """``angle`` [rad] in [-pi, pi)."""
+    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 def _upright(rotation: np.ndarray) -> np.ndarray:

@@ -5,6 +5,11 @@ whose magnet is free). One stage per flow (FreeSN paper, section 4.1): F1 rolls 
 onto F3, F6 over F5 onto F4 and then onto F3, F5 over F4 onto F3 -- a five-armed star
 around F3 (``star6-flat``) -- and the same four flows in reverse bring the row back.
 Each intermediate configuration is a goal the run is judged on (ground truth).
+
+``roll-to-dock``: four FreeBOTs in a row (``row4``, every magnet towards F4); F1 lets go
+of F2, rolls round the row over the floor, found again from its own reports (dead
+reckoning, :mod:`msrr.core.freeform.travel`), and docks on F4 at the other end
+(``row4-turned``): one break-and-make step of the MISO plan.
 """
 
 from __future__ import annotations
@@ -36,5 +41,8 @@ SCENARIOS = (
     Scenario(name="star-to-chain", start=CONFIGS / "star6-flat.json",
              goal=CONFIGS / f"{_BACK[0]}.json", stages=_stages(_BACK[1:]),
              description="six FreeBOTs: a star becomes a row by four flows"),
+    Scenario(name="roll-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
+             description="four FreeBOTs: F1 lets go of the row, rolls round it over the floor "
+                         "and docks on F4 at the other end"),
 )
 """The default first."""

@@ -33,5 +33,12 @@ SCENARIOS = (
     Scenario(name="tree-to-chain", start=CONFIGS / "tree5-flat.json",
              goal=CONFIGS / "chain5-a.json", stages=_stages("chain5"),
              description="five SnailBots: a tree becomes a row by two flows"),
+    Scenario(name="sucker-turn", start=CONFIGS / "stand5.json",
+             stages=(Stage(goal=CONFIGS / "stand5-laid.json", joint_mode="sucker_revolute"),),
+             description="five SnailBots: B2 anchors on B3 with its sucker and turns about "
+                         "it, laying B1 (anchored on B2) down on the floor"),
+    Scenario(name="crawl-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
+             description="four SnailBots: B1 lets go of the row, crawls round it over the floor "
+                         "and docks on B4 at the other end"),
 )
 """The default first."""

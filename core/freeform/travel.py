@@ -1,0 +1,253 @@
+"""Free single-connector modules on the floor: where they are, from their reports alone,
+and the way to the module they are to dock on.
+
+**Dead reckoning** (:class:`Locator`). While a module is docked in a group, the group's
+reports place it: breadth-first from the group's root, ``p_j = p_i + s z_{i->j}`` (``s``
+the centre spacing, ``z`` the recognized connection vectors, root horizontal frame),
+with its heading ``psi_i`` in that frame. Each tick the locator keeps, for every module
+of a group of two or more, that *fix*: the group's centres, the module's heading and its
+odometry ``(x, y, yaw)`` (:class:`~msrr.core.freeform.world.ModuleReport`: the gyro's
+yaw, and the travel its drive senses while free, both in its own odometry frame ``O``).
+Once the module is free (a break, or a release), a vector ``v_R`` of the last fix (root
+frame) is, in ``O``, ``v_O = Rz(yaw_0) Rz(-psi) v_R``; the module has since travelled
+``o(t) - o_0``, so the vector from where it is now is ``v_O - (o(t) - o_0)`` and, in its
+horizontal frame now (the frame of its roll command), ``Rz(-yaw(t))`` of that. The rest
+of the group is taken to stay where it was (its modules hold while one travels).
+
+**The way** (:func:`floor_path`). The module goes to a *spot* touching the target (at
+the spacing from its centre, level), the free spot nearest to it; other modules at floor
+level are discs it keeps clear of. A* over a 1 cm grid (8-connected, Euclidean cost and
+heuristic) finds the way; :func:`pursue` follows it (a point ``lookahead`` ahead, speed
+proportional to the distance left, bounded).
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..alignment import rot_z
+from ..errors import ExecutionError
+
+__all__ = ["Fix", "Locator", "floor_path", "pursue"]
+
+_CELL = 0.01          # grid of the floor path [m]
+_CLEARANCE = 0.008    # kept between shells on the way [m]
+_BACK_OFF = 0.015     # a module touching others first moves this far away from them [m]
+_GRAZE = 0.003        # kept from a module the start touches, beyond where the start is [m]
+_SPOTS = 72           # directions tried for the docking spot
+_LEVEL = 0.5          # a module is on the floor level within this many spacings in z
+
+
+@dataclass(frozen=True)
+class Fix:
+    """Where a module last was in a group of two or more.
+
+    Attributes:
+        centres: every module of the group, centre (3,) in the group's root frame [m].
+        heading: the module's heading in that frame [rad].
+        odometry: its ``(x, y, yaw)`` report then.
+    """
+
+    centres: Mapping[str, np.ndarray]
+    heading: float
+    odometry: np.ndarray
+
+
+def centres_of(reports: Mapping[str, object], links: Mapping[str, str],
+               heading: Mapping[str, float], spacing: float
+               ) -> tuple[dict[str, np.ndarray], dict[str, float], list[set[str]]]:
+    """Centres (3,) [m] and headings [rad] of every reporting module in its group's root
+    frame, and the groups (sets of modules joined by docks), from the reports, their
+    links (``module -> the module its connector holds``) and the modules' headings in
+    their groups' root frames (:func:`~msrr.core.freeform.recognition.links_of`,
+    :func:`~msrr.core.freeform.recognition.module_headings`)."""
+    heading = dict(heading)
+    neighbours: dict[str, list[tuple[str, np.ndarray]]] = {m: [] for m in reports}
+    for i, j in links.items():
+        tilt = reports[i].tilt  # type: ignore[attr-defined]
+        z = rot_z(heading[i]) @ tilt[:, 2]
+        z = z / np.linalg.norm(z)
+        neighbours[i].append((j, z))
+        neighbours[j].append((i, -z))
+    centres: dict[str, np.ndarray] = {}
+    groups: list[set[str]] = []
+    for start in sorted(reports, key=lambda m: (m in links, m)):
+        if start in centres:
+            continue
+        centres[start] = np.zeros(3)
+        group, queue = {start}, [start]
+        while queue:
+            u = queue.pop()
+            for v, z in neighbours[u]:
+                if v not in centres:
+                    centres[v] = centres[u] + spacing * z
+                    group.add(v)
+                    queue.append(v)
+        groups.append(group)
+    return centres, heading, groups
+
+
+class Locator:
+    """Where free modules are relative to the modules of the group they left, by dead
+    reckoning from their reports (module docstring).
+
+    Args:
+        spacing: centre distance of two docked modules [m].
+    """
+
+    def __init__(self, spacing: float):
+        self.spacing = spacing
+        self.fixes: dict[str, Fix] = {}
+        self._now: tuple[dict[str, np.ndarray], dict[str, float], list[set[str]]] | None = None
+        self._odometry: dict[str, np.ndarray] = {}
+
+    def update(self, reports: Mapping[str, object], links: Mapping[str, str],
+               heading: Mapping[str, float]) -> None:
+        """Read one tick's reports (with their links and headings, see
+        :func:`centres_of`): fixes of every module in a group of two or more."""
+        centres, heading, groups = self._now = centres_of(reports, links, heading,
+                                                          self.spacing)
+        self._odometry = {m: np.asarray(r.odometry, dtype=float)  # type: ignore[attr-defined]
+                          for m, r in reports.items()}
+        for group in groups:
+            if len(group) < 2:
+                continue
+            shared = {m: centres[m] for m in group}
+            for m in group:
+                self.fixes[m] = Fix(shared, heading[m], self._odometry[m])
+
+    def alone(self, module: str) -> bool:
+        """Whether ``module`` is free and carries no module (a group of its own)."""
+        assert self._now is not None, "update first"
+        return any(g == {module} for g in self._now[2])
+
+    def relative(self, module: str) -> dict[str, np.ndarray]:
+        """Every module of ``module``'s last group, as a vector (3,) from ``module``'s
+        centre in its horizontal frame now [m]: from the group's reports while it is in
+        one, by dead reckoning since its last fix once it is alone.
+
+        Raises:
+            ExecutionError: ``module`` never was in a group (no report places it).
+        """
+        assert self._now is not None, "update first"
+        centres, heading, groups = self._now
+        group = next(g for g in groups if module in g)
+        if len(group) > 1:
+            turn = rot_z(-heading[module])
+            return {m: turn @ (centres[m] - centres[module]) for m in group if m != module}
+        fix = self.fixes.get(module)
+        if fix is None:
+            raise ExecutionError(f"module {module} was never docked in a group: no report "
+                                 "tells where it is")
+        now = self._odometry[module]
+        into_odometry = rot_z(float(fix.odometry[2]) - fix.heading)
+        travelled = np.append(now[:2] - fix.odometry[:2], 0.0)
+        back = rot_z(-float(now[2]))
+        return {m: back @ (into_odometry @ (c - fix.centres[module]) - travelled)
+                for m, c in fix.centres.items() if m != module}
+
+
+def floor_path(others: Mapping[str, np.ndarray], target: str, spacing: float
+               ) -> list[np.ndarray]:
+    """The way (points (2,) [m], from the module at the origin to the spot where it
+    touches ``target``) around the other modules at floor level; ``others`` are their
+    centres relative to the module (3,) [m].
+
+    Raises:
+        ExecutionError: ``target`` is not at the module's level, or no spot or no way is
+            free.
+    """
+    goal = np.asarray(others[target], dtype=float)
+    if abs(goal[2]) > _LEVEL * spacing:
+        raise ExecutionError(f"module {target} is {goal[2]:+.3f} m above the moving module's "
+                             "centre: it is not reached over the floor")
+    level = [np.asarray(c, dtype=float)[:2] for m, c in others.items()
+             if m != target and abs(c[2]) < 2 * spacing]
+    angles = np.linspace(0.0, 2 * np.pi, _SPOTS, endpoint=False)
+    spots = goal[:2] + spacing * np.column_stack([np.cos(angles), np.sin(angles)])
+    free = [s for s in spots if all(np.linalg.norm(s - c) >= spacing + _CLEARANCE
+                                    for c in level)]
+    # first straight away from the modules it touches: a shell grazing a row while it
+    # starts to roll pushes the row, which rolls away sideways like a rolling pin
+    touching = [c for c in [*level, goal[:2]] if np.linalg.norm(c) < spacing + _CLEARANCE]
+    away = -sum((c / np.linalg.norm(c) for c in touching), np.zeros(2))
+    start = _BACK_OFF * away / np.linalg.norm(away) if np.linalg.norm(away) > 1e-9 \
+        else np.zeros(2)
+    for spot in sorted(free, key=lambda s: float(np.linalg.norm(s))):
+        path = _astar(start, spot, [*level, goal[:2]],
+                      [spacing + _CLEARANCE] * len(level) + [spacing - 0.5 * _CLEARANCE])
+        if path is not None:
+            return [start, *path] if np.any(start) else path
+    raise ExecutionError(f"no free way over the floor to module {target}")
+
+
+def _astar(start: np.ndarray, end: np.ndarray, centres: Sequence[np.ndarray],
+           radii: Sequence[float]) -> list[np.ndarray] | None:
+    """A* over a grid of ``_CELL`` from ``start`` to ``end`` (2,) [m], avoiding the discs
+    (``centres``, ``radii``); the cells' centres along the way, ``end`` last."""
+    points = np.array([start, end, *centres]) if len(centres) else np.array([start, end])
+    margin = 3 * max(radii, default=0.1)
+    low = points.min(axis=0) - margin
+    shape = np.ceil((points.max(axis=0) + margin - low) / _CELL).astype(int) + 1
+    xs = low[0] + _CELL * np.arange(shape[0])
+    ys = low[1] + _CELL * np.arange(shape[1])
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    blocked = np.zeros(shape, dtype=bool)
+    for c, r in zip(centres, radii, strict=True):
+        # a module the start already touches: the way never comes closer to it than the
+        # start is (grazing a shell while rolling pushes its group away)
+        r = min(r, float(np.linalg.norm(start - c)) + _GRAZE)
+        blocked |= np.hypot(gx - c[0], gy - c[1]) < r
+
+    def cell(p: np.ndarray) -> tuple[int, int]:
+        i, j = np.rint((p - low) / _CELL).astype(int)
+        return int(i), int(j)
+
+    first, last = cell(start), cell(end)
+    blocked[first] = blocked[last] = False
+    steps = [(di, dj, float(np.hypot(di, dj))) for di in (-1, 0, 1) for dj in (-1, 0, 1)
+             if di or dj]
+    cost = {first: 0.0}
+    came: dict[tuple[int, int], tuple[int, int]] = {}
+    heap = [(0.0, first)]
+    while heap:
+        _, here = heapq.heappop(heap)
+        if here == last:
+            way = [end]
+            while here in came:
+                here = came[here]
+                way.append(np.array([xs[here[0]], ys[here[1]]]))
+            return way[::-1][1:] or [end]
+        for di, dj, step in steps:
+            there = (here[0] + di, here[1] + dj)
+            if not (0 <= there[0] < shape[0] and 0 <= there[1] < shape[1]) or blocked[there]:
+                continue
+            new = cost[here] + step
+            if new < cost.get(there, np.inf):
+                cost[there] = new
+                came[there] = here
+                heapq.heappush(heap, (new + float(np.hypot(last[0] - there[0],
+                                                           last[1] - there[1])), there))
+    return None
+
+
+def pursue(path: Sequence[np.ndarray], position: np.ndarray, *, speed: float,
+           lookahead: float = 0.03, gain: float = 1.0) -> tuple[np.ndarray, float]:
+    """The velocity (2,) [m/s] that follows ``path`` (points (2,)) from ``position``
+    (same frame): toward the first point at least ``lookahead`` [m] beyond the nearest
+    one, at ``min(speed, gain * distance left)``; and that distance left [m] (along the
+    path from the nearest point)."""
+    pts = np.asarray(path, dtype=float)
+    near = int(np.argmin(np.linalg.norm(pts - position, axis=1)))
+    left = float(np.linalg.norm(pts[near] - position)
+                 + np.sum(np.linalg.norm(np.diff(pts[near:], axis=0), axis=1)))
+    ahead = next((p for p in pts[near:] if np.linalg.norm(p - position) >= lookahead), pts[-1])
+    direction = ahead - position
+    norm = float(np.linalg.norm(direction))
+    if norm < 1e-9:
+        return np.zeros(2), left
+    return direction / norm * min(speed, gain * left), left
