@@ -346,11 +346,14 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
 
 def _split(group: list[str], links: set[frozenset[str]]) -> tuple[list[str], list[str],
                                                                  frozenset[str]]:
-    """Cut the kept connection of ``group`` that leaves the most even two pieces."""
-    inner = [e for e in links if e <= set(group)]
+    """Cut the kept connection of ``group`` that leaves the most even two pieces (ties: the
+    first in the order of ``group``, so the choice never depends on string hashing)."""
+    rank = {m: k for k, m in enumerate(group)}
+    inner = sorted((e for e in links if e <= rank.keys()),
+                   key=lambda e: sorted(rank[m] for m in e))
     best: tuple[int, list[str], list[str], frozenset[str]] | None = None
     for cut in inner:
-        a = next(iter(cut))
+        a = min(cut, key=rank.__getitem__)
         piece, stack = {a}, [a]
         while stack:
             u = stack.pop()
@@ -398,7 +401,7 @@ def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
             if walled.neighbours - moving:
                 moving |= walled.neighbours
                 continue
-            largest = max(walled.neighbours | walled.stuck, key=lambda i: len(parts[i]))
+            largest = max(sorted(walled.neighbours | walled.stuck), key=lambda i: len(parts[i]))
             if len(parts[largest]) < 2:
                 raise PlanningError("no collision-free order of the moves found: single "
                                     f"module {parts[largest][0]} is walled in") from None
