@@ -260,7 +260,7 @@ class DistributedRecognizer:
 
     The recognized configuration is a function of the links and the seed alone, and the
     links change only at a dock or an undock, so the last ``CACHE`` recognitions are
-    kept by their links (the executor asks every tick, once per group: 20 % of a
+    kept by their links (the executor asks every tick: 20 % of a
     30-module run's time before).
     """
 
