@@ -301,6 +301,42 @@ def _map(start: Configuration, tree: Configuration, goal: Configuration,
                    len(kept_edge_ids(start, face_links(goal), mapping)))
 
 
+def _fewest_pairs(start: Configuration, tree: Configuration, goal: Configuration,
+                  roots: tuple[str, str],
+                  found: list[tuple[int, Decomposition, SubconfigurationMatching]], *,
+                  field: FieldParameters | None, field_limit: int, seed: int
+                  ) -> tuple[_Mapped, list[Action], int]:
+    """Of the ``ALTERNATIVES`` decompositions whose matchings keep the most connections,
+    the plan with the fewest dock/undock pairs (cuts for motion included) and its
+    mapping. Lazily: one is mapped (section 4.3) only while it could keep more than the
+    best plan so far (its matching's connections plus every start connection at a free
+    vertex), and routed (section 4.4) only while its mapping could need fewer pairs."""
+    edges = [(e.source, e.target) for e in tree.edges()]
+    ceiling = len(goal.edges())
+
+    def upper(k: int) -> int:
+        free = set(found[k][2].free_current)
+        return min(ceiling, found[k][0] + sum(u in free or v in free for u, v in edges))
+
+    ranked = sorted(range(len(found)), key=lambda k: -found[k][0])[:ALTERNATIVES]
+    best: tuple[_Mapped, list[Action], int] | None = None
+    for k in sorted(ranked, key=lambda k: -upper(k)):
+        if best is not None and ceiling - upper(k) >= best[2]:
+            break
+        candidate = _map(start, tree, goal, roots, found[k][1], found[k][2], field=field,
+                         field_limit=field_limit, seed=seed)
+        if best is not None and ceiling - candidate.kept >= best[2]:
+            continue
+        actions = generate_actions(start, goal, candidate.mapping, candidate.layout.start_cells,
+                                   candidate.goal_cells, start_root=roots[0], goal_root=roots[1],
+                                   unit=candidate.layout.unit, priority=candidate.priority)
+        pairs = sum(a.type is ActionType.CONNECTION for a in actions)
+        if best is None or pairs < best[2]:
+            best = (candidate, actions, pairs)
+    assert best is not None  # there is always a first decomposition
+    return best
+
+
 def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
                 window: int = HEIGHT_WINDOW, lookahead: int | None = None,
                 field: FieldParameters | None = None,
@@ -345,21 +381,8 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
         if not 0 <= alternative < len(found):
             raise PlanningError(f"alternative {alternative} of {len(found)} decompositions")
         found = [found[alternative]]
-    ranked = sorted(range(len(found)), key=lambda k: -found[k][0])[:ALTERNATIVES]
-    candidates = sorted((_map(start, tree, goal, roots, found[k][1], found[k][2], field=field,
-                              field_limit=field_limit, seed=seed) for k in ranked),
-                        key=lambda c: -c.kept)
-    best: tuple[_Mapped, list[Action], int] | None = None
-    for candidate in candidates:  # section 4.4 for each, while it could need fewer pairs
-        if best is not None and len(goal.edges()) - candidate.kept >= best[2]:
-            break
-        actions = generate_actions(start, goal, candidate.mapping, candidate.layout.start_cells,
-                                   candidate.goal_cells, start_root=tau_c, goal_root=tau_g,
-                                   unit=candidate.layout.unit, priority=candidate.priority)
-        pairs = sum(a.type is ActionType.CONNECTION for a in actions)
-        if best is None or pairs < best[2]:
-            best = (candidate, actions, pairs)
-    assert best is not None  # there is always a first decomposition
+    best = _fewest_pairs(start, tree, goal, roots, found, field=field, field_limit=field_limit,
+                         seed=seed)
     chosen, actions, pairs = best
     decomposition, matching, result, mapping = (chosen.decomposition, chosen.matching,
                                                 chosen.field, chosen.mapping)

@@ -282,7 +282,7 @@ class _Greedy:
         self.pending = _pocket_order(groups, start, goal, priority)
         margin = max(len(g) for g in groups) + 3
         bounds = self.bounds = _bounds([*start.values(), *goal.values()], margin)
-        self.limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 800)
+        self.limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 4000)
         self.box = (bounds[0] + margin, bounds[1] + margin, bounds[2] - margin,
                     bounds[3] - margin)
         self.parks = [0] * len(groups)
