@@ -79,8 +79,8 @@ def main(seed: int, small: int, large: int, sizes: str, timeout: float) -> None:
                 rows.append([n, k, "success" if r["success"] else "FAILED", r["actions"],
                              f"{r['docks']}/{r['planned']}", r["undocks"], f"{r['sim']:.0f}",
                              f"{r['wall']:.0f}", f"{r['sim'] / r['wall']:.2f}", r["reason"]])
-                console.print(f"  {n} modules, pair {k}: {rows[-1][2]} ({r['wall']:.0f} s)",
-                              style="dim")
+                console.print(f"  {n} modules, pair {k}: {rows[-1][2]}, {r['sim']:.0f} s "
+                              f"simulated in {r['wall']:.0f} s {r['reason']}", style="dim")
     console.print(table("MMRP random reconfigurations in PyBullet", [
         "modules", "pair", "result", "actions", "docks", "undocks", "sim [s]", "wall [s]",
         "real-time factor", "reason"], rows))
