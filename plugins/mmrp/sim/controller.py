@@ -105,7 +105,8 @@ class MmrpController:
         self.half_diagonal = math.hypot(geometry["length"], geometry["width"]) / 2
         self.lateral_limit = float(geometry["dock_tolerance"]) * 0.6
         self.approach_distance = approach_distance
-        self.speed = min(speed, float(geometry["max_speed"]) * 0.8)
+        self.max_speed = float(geometry["max_speed"])
+        self.speed = min(speed, self.max_speed * 0.8)
         self.turn_rate = turn_rate
         self.extrusion = extrusion
         self.tolerance = tolerance
@@ -223,12 +224,16 @@ class MmrpController:
         poses = _planar(observation)
         centre = self._current_centre(plan, poses)
         v, omega, reached = self._drive(plan, centre, poses)
-        commands = {}
+        tracks = {}
         for module in plan.modules:
             r = np.subtract(poses[module][:2], centre[:2])
             left_offset = float(-r[0] * math.sin(centre[2]) + r[1] * math.cos(centre[2]))
-            left, right = track_speeds(v, omega, left_offset, self.width)
-            commands[module] = ModuleCommand(wheels={"left": left, "right": right})
+            tracks[module] = track_speeds(v, omega, left_offset, self.width)
+        # one scale for the whole group: a module's driver clips its own tracks to
+        # max_speed, which would bend the group's twist (a turn would drift its centre)
+        scale = max(1.0, *(abs(t) / self.max_speed for pair in tracks.values() for t in pair))
+        commands = {m: ModuleCommand(wheels={"left": left / scale, "right": right / scale})
+                    for m, (left, right) in tracks.items()}
         errors = {m: math.dist(poses[m][:2], plan.targets[m][:2]) for m in plan.modules}
         return Control(commands=commands, errors=errors, reached=reached)
 
@@ -279,6 +284,9 @@ class MmrpController:
         lateral_reach = self.tolerance * 2
         if plan.legged:  # a plan's leg: its sweep, no detours; the next leg or dock corrects
             lateral_reach = self.leg_tolerance
+            if abs(lateral) >= lateral_reach and abs(along) < 0.02:  # the leg again from here
+                plan.stops, plan.stage = self._leg_stops(centre, target), "stops"
+                return 0.0, 0.0, False
         elif (abs(lateral) > self.lateral_limit * 2.5 and abs(along) < 0.08) or (
                 abs(lateral) > 2 * self.tolerance and abs(along) < 0.02):
             self._plan_path(plan, poses)
