@@ -309,14 +309,25 @@ def _fewest_pairs(start: Configuration, tree: Configuration, goal: Configuration
     """Of the ``ALTERNATIVES`` decompositions whose matchings keep the most connections,
     the plan with the fewest dock/undock pairs (cuts for motion included) and its
     mapping. Lazily: one is mapped (section 4.3) only while it could keep more than the
-    best plan so far (its matching's connections plus every start connection at a free
-    vertex), and routed (section 4.4) only while its mapping could need fewer pairs."""
-    edges = [(e.source, e.target) for e in tree.edges()]
+    best plan so far (the start connections its matched modules keep, plus every one at
+    a free vertex), and routed (section 4.4) only while its mapping could need fewer
+    pairs."""
+    links_g = face_links(goal)
     ceiling = len(goal.edges())
 
     def upper(k: int) -> int:
-        free = set(found[k][2].free_current)
-        return min(ceiling, found[k][0] + sum(u in free or v in free for u, v in edges))
+        _, decomposition, matching = found[k]
+        matched = dict(decomposition.common)
+        for pair in matching.pairs:
+            matched.update(pair.mapping)
+        could = 0
+        for e in start.edges():
+            u, v = e.source, e.target
+            if u not in matched or v not in matched:
+                could += 1  # a free vertex: its mapping is not known yet
+            elif links_g[matched[u]].get(e.ports[0]) == (matched[v], e.ports[1]):
+                could += 1
+        return min(ceiling, could)
 
     ranked = sorted(range(len(found)), key=lambda k: -found[k][0])[:ALTERNATIVES]
     best: tuple[_Mapped, list[Action], int] | None = None
