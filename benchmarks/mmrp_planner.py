@@ -5,14 +5,20 @@ Per size, on seeded random pairs of legal planar MMRP trees:
 * 5-9 modules: plan pairs against the exhaustive optimum (``optimum.optimum``);
 * 10-20 modules: against the certified optimum of the integer program
   (``exact.certified_optimum``, HiGHS, 60 s limit each);
-* 50-1,000 modules: pairs and time only;
-* every plan replayed by the grid checker (``check.check_plan``): collisions and
-  invalid steps must be 0;
-* ``--sim N``: N random 30-module reconfigurations run in the PyBullet simulation
-  (``platform run``), success rate and simulated time.
+* 50-1,000 modules: pairs and time only; at the ``--alternatives`` sizes (500 and
+  1,000) every alternative decomposition is also planned alone (``plan_hybrid(...,
+  alternative=k)``, to the end, cuts included): "alone: best / first" is the mean of
+  the fewest pairs over them and of the first (the largest common subconfiguration);
+* cuts for motion per size (kept connections undocked and docked again so hooked
+  groups can separate; each costs one dock/undock pair);
+* every plan replayed by the grid checker (``check.check_plan``): collisions, turns
+  included, and invalid steps must be 0.
+
+Runs in PyBullet are ``benchmarks/mmrp_sim.py``.
 
 Usage: ``python benchmarks/mmrp_planner.py [--seed N] [--pairs N] [--mid N] [--runs N]
-[--sizes 50,100,...] [--sim N] [--plot FILE] [--workers N] [--cluster ADDRESS]``. The
+[--sizes 50,100,...] [--alternatives 500,1000] [--plot FILE] [--workers N]
+[--cluster ADDRESS]``. The
 pairs are drawn in order from one generator, then planned as batch tasks
 (:mod:`msrr.core.app.batch`; ``--workers 0``, the default, uses every core): the table's
 counts are the same for the same seed whichever backend runs them. The last line is
@@ -22,11 +28,7 @@ median_ms_500=... median_ms_1000=...``.
 
 from __future__ import annotations
 
-import json
 import statistics
-import subprocess
-import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -37,7 +39,8 @@ import numpy as np
 from msrr.core.app.batch import batch_options, exit_on_interrupt, run_batch
 from msrr.core.configuration import Configuration
 from msrr.core.console import console, exit_unless_installed, table
-from msrr.core.io import load_configuration, save_configuration
+from msrr.core.errors import PlanningError
+from msrr.core.io import load_configuration
 from msrr.plugins.mmrp.check import check_plan
 from msrr.plugins.mmrp.exact import certified_optimum
 from msrr.plugins.mmrp.optimum import optimum
@@ -70,6 +73,14 @@ def _solve(task: tuple[Configuration, Configuration, int, str | None]) -> dict[s
     elif reference == "milp":
         exact = certified_optimum(start, goal, time_limit=60.0)
         out.update(best=exact.bound, uncertified=not exact.certified, ref_s=exact.seconds)
+    elif reference == "alternatives":  # each decomposition planned alone, to the end
+        each = []
+        while True:
+            try:
+                each.append(plan_hybrid(start, goal, seed=seed, alternative=len(each)).pairs)
+            except PlanningError:
+                break
+        out.update(alternatives=min(each), first=each[0])
     return out
 
 
@@ -93,36 +104,17 @@ def _run_size(n: int, count: int, rng: np.random.Generator, reference: str | Non
         raise SystemExit(f"plan below the proven optimum at {n} modules: a solver bug")
     summary = {"n": n, "count": count, "ms": ms, "diff": diff, "problems": problems,
                "mean_pairs": statistics.mean(found)}
+    alone = [d["alternatives"] for d in done if "alternatives" in d]
+    paper = [d["first"] for d in done if "first" in d]
     row = [n, count, f"{statistics.mean(found):.2f}",
            f"{statistics.mean(best):.2f}" if best else "-",
            f"{sum(d == 0 for d in diff) / len(diff):.3f}" if diff else "-",
            f"{statistics.mean(diff):.3f} / {max(diff)}" if diff else "-",
-           problems, stalls, cuts, parks, f"{statistics.median(ms):.1f}", f"{_p95(ms):.1f}",
+           problems, stalls, cuts, f"{cuts / count:.2f}", parks,
+           f"{statistics.mean(alone):.2f} / {statistics.mean(paper):.2f}" if alone else "-",
+           f"{statistics.median(ms):.1f}", f"{_p95(ms):.1f}",
            (f"{uncertified} / {max(ref_s):.1f}" if reference == "milp" else "-")]
     return row, summary
-
-
-def _simulate(count: int, rng: np.random.Generator) -> list[list]:
-    rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for k in range(count):
-            start, goal = random_tree(30, rng, name="start"), random_tree(30, rng, name="goal")
-            a, b = Path(tmp) / f"start{k}.json", Path(tmp) / f"goal{k}.json"
-            save_configuration(start, a)
-            save_configuration(goal, b)
-            out = Path(tmp) / f"run{k}"
-            began = time.perf_counter()
-            done = subprocess.run([sys.executable, "-c", "from msrr.core.app.cli import main; main()",
-                                   "run", "--robot",
-                                   "mmrp", "--from", str(a), "--to", str(b), "--out", str(out),
-                                   "--no-log"], capture_output=True, text=True)
-            wall = time.perf_counter() - began
-            summary = out / "summary.json"
-            data = json.loads(summary.read_text()) if summary.exists() else {}
-            rows.append([k, done.returncode == 0 and bool(data.get("success")),
-                         data.get("docks", "-"), data.get("undocks", "-"),
-                         f"{data.get('sim_time_s', float('nan')):.1f}", f"{wall:.1f}"])
-    return rows
 
 
 @click.command()
@@ -134,12 +126,12 @@ def _simulate(count: int, rng: np.random.Generator) -> list[list]:
 @click.option("--runs", default=9, show_default=True, help="Random pairs per large size.")
 @click.option("--sizes", default=",".join(map(str, LARGE)), show_default=True,
               help="Large sizes, comma-separated.")
-@click.option("--sim", "n_sim", default=0, show_default=True,
-              help="30-module runs in the PyBullet simulation.")
+@click.option("--alternatives", default="500,1000", show_default=True,
+              help="Sizes at which every alternative decomposition is also planned alone.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None,
               help="Save a plot of time and optimality gap per size to this file.")
 @batch_options
-def main(seed: int, n_pairs: int, n_mid: int, runs: int, sizes: str, n_sim: int,
+def main(seed: int, n_pairs: int, n_mid: int, runs: int, sizes: str, alternatives: str,
          plot: Path | None, workers: int, cluster: str | None) -> None:
     if plot is not None:  # before the work: a missing matplotlib is one line
         exit_unless_installed("matplotlib", "plot", "--plot")
@@ -148,9 +140,11 @@ def main(seed: int, n_pairs: int, n_mid: int, runs: int, sizes: str, n_sim: int,
     paper = plan_hybrid(load_configuration(CONFIGS / "cross.json"),
                         load_configuration(CONFIGS / "probe.json")).pairs
     rows, summaries = [], []
+    each = {int(n) for n in alternatives.split(",") if n}
     plan = [(n, n_pairs, "exhaustive") for n in SMALL] + \
            [(n, n_mid, "milp") for n in MID if n_mid] + \
-           [(int(n), runs, None) for n in sizes.split(",") if n]
+           [(int(n), runs, "alternatives" if int(n) in each else None)
+            for n in sizes.split(",") if n]
     for n, count, reference in plan:
         row, summary = _run_size(n, count, rng, reference,
                                  {"workers": workers, "cluster": cluster})
@@ -160,14 +154,9 @@ def main(seed: int, n_pairs: int, n_mid: int, runs: int, sizes: str, n_sim: int,
     console.print(table(
         "MMRP mcs-hybrid planner vs the proven optimum",
         ["modules", "pairs run", "mean plan pairs", "mean optimum pairs", "optimal rate",
-         "gap mean / max", "checker problems", "field fallback", "cuts", "parking legs",
-         "median ms", "p95 ms", "uncertified / max MILP s"], rows))
-    if n_sim:
-        sim_rows = _simulate(n_sim, rng)
-        console.print(table("30-module random reconfigurations in PyBullet",
-                            ["run", "success", "docks", "undocks", "sim time [s]", "wall [s]"],
-                            sim_rows))
-        console.print(f"sim success rate {sum(r[1] for r in sim_rows) / len(sim_rows):.2f}")
+         "gap mean / max", "checker problems", "field fallback", "cuts",
+         "cuts per plan", "parking legs", "alone: best / first", "median ms", "p95 ms",
+         "uncertified / max MILP s"], rows))
     small = [d for s in summaries if s["n"] in SMALL for d in s["diff"]]
     medians = {s["n"]: statistics.median(s["ms"]) for s in summaries}
     if plot is not None:

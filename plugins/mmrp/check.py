@@ -10,8 +10,10 @@ the plan's goal poses); then every action is replayed:
   modules sit on neighbouring cells in the direction of the face, and the
   connection joins two different components (the structure stays a forest);
 * move -- the modules are whole components, heading 0, translated rigidly along one
-  grid axis by whole cells; every cell they pass over, including where they stop,
-  is free of other modules (no swept overlap);
+  grid axis by whole cells, driven as :mod:`.motion` says (a leg along y turns a
+  quarter about the group's centre first and back after); no other module's centre
+  comes within ``CLEARANCE`` of a path of the moving module centres, turns included
+  (no swept overlap; groups move one at a time, so every other module stands still);
 
 and after each action no two modules share a cell. At the end, the connections
 must equal the plan's goal.
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 from msrr.core.plan import Action, ActionType, Plan
 
 from .centre import root_of
+from .motion import CLEARANCE, Arc, distance, leg_paths, near
 from .representation import GRID_STEP, edge_set, pitch, to_tree
 from .rules import LEGAL_PAIRS
 
@@ -175,19 +178,22 @@ def _move(grid: _Replay, action: Action, where: str) -> None:
         return
     dx, dy = shift
     cells, holder = grid.cells, grid.holder
-    n = abs(dx) + abs(dy)
-    ux, uy = (dx > 0) - (dx < 0), (dy > 0) - (dy < 0)
     for m in group:
         del holder[cells[m]]
-    for t in range(1, n + 1):
-        for m in group:
-            c = (cells[m][0] + t * ux, cells[m][1] + t * uy)
-            if c in holder:
-                grid.problems.append(f"{where}: {m} passes over {holder[c]} at {c}")
-                break
-        else:
+    order = sorted(group)
+    paths = leg_paths([cells[m] for m in order], (dx, dy))
+    movers = order * (len(paths) // len(order))  # path k is module k mod n's
+    for c in near(paths):
+        other = holder.get(c)
+        if other is None:
             continue
-        break
+        hit = next((k for k, path in enumerate(paths) if distance(c, path) < CLEARANCE - 1e-9),
+                   None)
+        if hit is not None:
+            what = "turning" if isinstance(paths[hit], Arc) else "driving"
+            grid.problems.append(f"{where}: {movers[hit]} sweeps over {other} at {c} while "
+                                 f"{what}")
+            break
     for m in group:
         cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
         if cells[m] in holder:

@@ -58,6 +58,10 @@ for n modules, so small systems try every one and large ones stay O(n^2)."""
 FIELD_LIMIT = 12
 """Most free modules mapped by simulating the potential field (see :func:`plan_hybrid`)."""
 
+ALTERNATIVES = 4
+"""Decompositions (those keeping the most connections) carried through to actions: the
+plan with the fewest dock/undock pairs, cuts for motion included, wins."""
+
 
 @dataclass(frozen=True)
 class HybridResult:
@@ -128,27 +132,25 @@ def _checked(start: Configuration, goal: Configuration) -> Configuration:
         raise PlanningError(f"start {start.name or '(unnamed)'}: {exc}") from None
 
 
-def _decompose_and_match(links_c: FaceLinks, links_g: FaceLinks, all_c: list[str],
-                         all_g: list[str], prefer: tuple[str, str], *, window: int,
-                         lookahead: int) -> tuple[Decomposition, SubconfigurationMatching]:
-    """Sections 4.1-4.2: decompose by each of the ``lookahead`` largest common
-    subconfigurations and match the rest; the matching that keeps the most connections
-    wins (the first on ties), the search stopping once none could keep more."""
+def _decompositions(links_c: FaceLinks, links_g: FaceLinks, all_c: list[str],
+                    all_g: list[str], prefer: tuple[str, str], *, window: int,
+                    lookahead: int) -> list[tuple[int, Decomposition, SubconfigurationMatching]]:
+    """Sections 4.1-4.2 for each of the ``lookahead`` largest common subconfigurations:
+    the decomposition, its matching and the connections they keep, in candidate order;
+    the search stops once one keeps as many connections as any bijection can."""
     ceiling = _kept_ceiling(links_c, links_g)
-    best: tuple[int, Decomposition, SubconfigurationMatching] | None = None
+    found: list[tuple[int, Decomposition, SubconfigurationMatching]] = []
     for common in common_candidates(links_c, links_g, all_c, all_g, prefer=prefer,
                                     limit=lookahead):
-        if best is not None and best[0] >= ceiling:
+        if found and max(f[0] for f in found) >= ceiling:
             break
         split = decompose(links_c, links_g, all_c, all_g, common)
         matched_subs = match_subconfigurations(links_c, links_g, split.current, split.goal,
                                                split.free_current, split.free_goal,
                                                window=window)
-        kept_here = split.kept + sum(len(p.mapping) - 1 for p in matched_subs.pairs)
-        if best is None or kept_here > best[0]:
-            best = (kept_here, split, matched_subs)
-    _, decomposition, matching = best
-    return decomposition, matching
+        found.append((split.kept + sum(len(p.mapping) - 1 for p in matched_subs.pairs),
+                      split, matched_subs))
+    return found
 
 
 @dataclass(frozen=True)
@@ -251,10 +253,105 @@ def _stats(start: Configuration, actions: list[Action], matching: Subconfigurati
             "plan_ms": elapsed}
 
 
+@dataclass(frozen=True)
+class _Mapped:
+    """One decomposition carried through section 4.3: the bijection and what it keeps.
+
+    Attributes:
+        decomposition: CS(G_c, tau_c, G_g, tau_g) of this alternative.
+        matching: its subconfiguration matching (section 4.2).
+        field: the mapping of its free vertices (section 4.3).
+        mapping: the bijection f, start id -> goal id.
+        layout: start and goal on one grid.
+        goal_cells: goal cell of every start module.
+        priority: module order for the moves (matched first, then by arrival).
+        kept: start connections the goal keeps under ``mapping``.
+    """
+
+    decomposition: Decomposition
+    matching: SubconfigurationMatching
+    field: FieldResult
+    mapping: dict[str, str]
+    layout: _Layout
+    goal_cells: dict[str, tuple[int, int]]
+    priority: list[str]
+    kept: int
+
+
+def _map(start: Configuration, tree: Configuration, goal: Configuration,
+         roots: tuple[str, str],
+         decomposition: Decomposition, matching: SubconfigurationMatching, *,
+         field: FieldParameters | None, field_limit: int, seed: int) -> _Mapped:
+    """Section 4.3 for one decomposition: map the free vertices, count what is kept."""
+    common = decomposition.common
+    matched = dict(common)
+    for pair in matching.pairs:
+        matched.update(pair.mapping)
+    layout = _layout(tree, goal, roots, common)
+    result = _map_free(layout, matching, matched, field=field, field_limit=field_limit,
+                       seed=seed)
+    mapping = {**matched, **result.mapping}
+    all_c, all_g = tree.vertices(), goal.vertices()
+    if sorted(mapping) != sorted(all_c) or sorted(mapping.values()) != sorted(all_g):
+        raise AssertionError("the hybrid mapping is not a bijection")  # an internal bug
+    priority = [*common, *(m for p in matching.pairs for m in p.mapping), *result.arrival,
+                *result.fallback]
+    return _Mapped(decomposition, matching, result, mapping, layout,
+                   {m: layout.placed[mapping[m]] for m in all_c}, priority,
+                   len(kept_edge_ids(start, face_links(goal), mapping)))
+
+
+def _fewest_pairs(start: Configuration, tree: Configuration, goal: Configuration,
+                  roots: tuple[str, str],
+                  found: list[tuple[int, Decomposition, SubconfigurationMatching]], *,
+                  field: FieldParameters | None, field_limit: int, seed: int
+                  ) -> tuple[_Mapped, list[Action], int]:
+    """Of the ``ALTERNATIVES`` decompositions whose matchings keep the most connections,
+    the plan with the fewest dock/undock pairs (cuts for motion included) and its
+    mapping. Lazily: one is mapped (section 4.3) only while it could keep more than the
+    best plan so far (the start connections its matched modules keep, plus every one at
+    a free vertex), and routed (section 4.4) only while its mapping could need fewer
+    pairs."""
+    links_g = face_links(goal)
+    ceiling = len(goal.edges())
+
+    def upper(k: int) -> int:
+        _, decomposition, matching = found[k]
+        matched = dict(decomposition.common)
+        for pair in matching.pairs:
+            matched.update(pair.mapping)
+        could = 0
+        for e in start.edges():
+            u, v = e.source, e.target
+            if u not in matched or v not in matched:
+                could += 1  # a free vertex: its mapping is not known yet
+            elif links_g[matched[u]].get(e.ports[0]) == (matched[v], e.ports[1]):
+                could += 1
+        return min(ceiling, could)
+
+    ranked = sorted(range(len(found)), key=lambda k: -found[k][0])[:ALTERNATIVES]
+    best: tuple[_Mapped, list[Action], int] | None = None
+    for k in sorted(ranked, key=lambda k: -upper(k)):
+        if best is not None and ceiling - upper(k) >= best[2]:
+            break
+        candidate = _map(start, tree, goal, roots, found[k][1], found[k][2], field=field,
+                         field_limit=field_limit, seed=seed)
+        if best is not None and ceiling - candidate.kept >= best[2]:
+            continue
+        actions = generate_actions(start, goal, candidate.mapping, candidate.layout.start_cells,
+                                   candidate.goal_cells, start_root=roots[0], goal_root=roots[1],
+                                   unit=candidate.layout.unit, priority=candidate.priority)
+        pairs = sum(a.type is ActionType.CONNECTION for a in actions)
+        if best is None or pairs < best[2]:
+            best = (candidate, actions, pairs)
+    assert best is not None  # there is always a first decomposition
+    return best
+
+
 def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
                 window: int = HEIGHT_WINDOW, lookahead: int | None = None,
                 field: FieldParameters | None = None,
-                field_limit: int = FIELD_LIMIT) -> HybridResult:
+                field_limit: int = FIELD_LIMIT, alternative: int | None = None) -> HybridResult:
     """Plan the reconfiguration from ``start`` to ``goal`` (section 4).
 
     Args:
@@ -263,17 +360,23 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
         seed: seed of the potential-field start perturbation.
         window: the height-adjacent rule's largest height difference.
         lookahead: how many of the largest common subconfigurations to try as the
-            first decomposition (1 = the paper's single MCS); the one whose matching
-            keeps the most connections wins, the paper's choice on ties. Default
-            adaptive: ``max(LOOKAHEAD, LOOKAHEAD_BUDGET // n)``; the search stops
-            early once a decomposition keeps as many connections as any bijection
-            can (per face pair T-B / L-R, the fewer of start and goal connections).
+            first decomposition (1 = the paper's single MCS). Default adaptive:
+            ``max(LOOKAHEAD, LOOKAHEAD_BUDGET // n)``; the search stops early once a
+            decomposition keeps as many connections as any bijection can (per face
+            pair T-B / L-R, the fewer of start and goal connections). The
+            ``ALTERNATIVES`` whose matchings keep the most connections are mapped
+            (section 4.3) and, while one could still need fewer pairs, routed
+            (section 4.4): the plan with the fewest dock/undock pairs, cuts for
+            motion included, wins (the paper's centre pair on ties).
         field: potential-field gains and distances.
         field_limit: most free modules mapped by simulating the field; more are
             mapped by :func:`assign_free_vertices` (the field's intent, no stall).
+        alternative: plan only with this decomposition (an index into the
+            candidates, largest common subconfiguration first); for benchmarks.
 
     Raises:
-        PlanningError: different module counts, or an illegal goal.
+        PlanningError: different module counts, an illegal goal, or no such
+            ``alternative``.
     """
     began = time.perf_counter()
     tree = _checked(start, goal)
@@ -283,29 +386,22 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     all_c, all_g = tree.vertices(), goal.vertices()
     if lookahead is None:
         lookahead = max(LOOKAHEAD, LOOKAHEAD_BUDGET // max(len(all_c), 1))
-    decomposition, matching = _decompose_and_match(links_c, links_g, all_c, all_g, roots,
-                                                   window=window, lookahead=lookahead)
+    found = _decompositions(links_c, links_g, all_c, all_g, roots, window=window,
+                            lookahead=lookahead)
+    if alternative is not None:
+        if not 0 <= alternative < len(found):
+            raise PlanningError(f"alternative {alternative} of {len(found)} decompositions")
+        found = [found[alternative]]
+    best = _fewest_pairs(start, tree, goal, roots, found, field=field, field_limit=field_limit,
+                         seed=seed)
+    chosen, actions, pairs = best
+    decomposition, matching, result, mapping = (chosen.decomposition, chosen.matching,
+                                                chosen.field, chosen.mapping)
     common = decomposition.common
-    matched = dict(common)
-    for pair in matching.pairs:
-        matched.update(pair.mapping)
-    layout = _layout(tree, goal, roots, common)
-    result = _map_free(layout, matching, matched, field=field, field_limit=field_limit,
-                       seed=seed)
-    mapping = {**matched, **result.mapping}
-    if sorted(mapping) != sorted(all_c) or sorted(mapping.values()) != sorted(all_g):
-        raise AssertionError("the hybrid mapping is not a bijection")  # an internal bug
-    unit = layout.unit
-    goal_cells = {m: layout.placed[mapping[m]] for m in all_c}
-    goal_poses = {m: (i * unit, j * unit, 0.0) for m, (i, j) in goal_cells.items()}
-    priority = [*common, *(m for p in matching.pairs for m in p.mapping), *result.arrival,
-                *result.fallback]
-    actions = generate_actions(start, goal, mapping, layout.start_cells, goal_cells,
-                               start_root=tau_c, goal_root=tau_g, unit=unit,
-                               priority=priority)  # section 4.4
-    pairs = sum(a.type is ActionType.CONNECTION for a in actions)
     kept = len(goal.edges()) - pairs
-    cut = len(kept_edge_ids(start, links_g, mapping)) - kept
+    cut = chosen.kept - kept
+    unit = chosen.layout.unit
+    goal_poses = {m: (i * unit, j * unit, 0.0) for m, (i, j) in chosen.goal_cells.items()}
     elapsed = (time.perf_counter() - began) * 1e3
     recognition = recognize_with_stats(observe(start), seed=seed)
     final = DerivedConfiguration(actions[-1].target if actions else start)

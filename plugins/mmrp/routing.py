@@ -21,8 +21,11 @@ import heapq
 from collections import deque
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 from msrr.core.errors import PlanningError
+
+from .motion import blocked, drive_paths, turn_paths
 
 __all__ = ["Cell", "Route", "Routing", "route_groups"]
 
@@ -50,97 +53,167 @@ class Route:
     parking: bool = False
 
 
+TURN = 1
+"""Cost of a quarter turn of a group in the route search [cells]."""
+
+
+@lru_cache(maxsize=4096)
+def _sweeps(shape: tuple[Cell, ...]) -> dict[tuple[int, int, int] | str, tuple[Cell, ...]]:
+    """The cells (offsets from the placement) that each motion of a group of ``shape``
+    sweeps (:mod:`.motion`): a unit drive ``(dx, dy, rotated)`` and a quarter turn."""
+    cells = [(float(x), float(y)) for x, y in shape]
+    out: dict[tuple[int, int, int] | str, tuple[Cell, ...]] = {
+        "turn": tuple(sorted(blocked(turn_paths(cells))))}
+    for dx, dy in STEPS:
+        rotated = int(dy != 0)
+        out[(dx, dy, rotated)] = tuple(sorted(blocked(drive_paths(cells, (dx, dy),
+                                                                  rotated=bool(rotated)))))
+    return out
+
+
+def _blocked(offsets: Sequence[Cell], t: Cell, occupied: Mapping[Cell, int], me: int,
+             count: bool) -> int:
+    """How many cells ``offsets + t`` hold another group (``count`` False: 0 or 1)."""
+    get, n = occupied.get, 0
+    for s in offsets:
+        if get((s[0] + t[0], s[1] + t[1]), me) != me:
+            n += 1
+            if not count:
+                return 1
+    return n
+
+
 def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me: int,
             done: Callable[[Cell], bool], goal: Cell | None, bounds: tuple[int, int, int, int],
             limit: int, penalty: int = 0,
             heuristic: Callable[[Cell], int] | None = None) -> list[Cell] | None:
-    """A* (``goal`` given) or best-first to ``done`` over translations of ``shape``.
+    """A* (``goal`` given) or best-first to ``done`` over the motions of a group of ``shape``.
 
-    A translation ``t`` is allowed when every cell ``s + t`` is free (held by nobody
-    or by ``me``); consecutive translations differ by one unit step, so a step sweeps
-    only its two placements. With ``penalty`` > 0 occupied cells are allowed at that
+    A state is a placement ``t`` and a heading, 0 or turned a quarter (:mod:`.motion`):
+    at heading 0 the group drives along x, turned along y, and turns in place between
+    them; every motion is allowed when the cells it sweeps are free (held by nobody or
+    by ``me``), and the search ends at heading 0. A single module turns within its
+    cell, so it just steps. With ``penalty`` > 0 occupied cells are allowed at that
     extra cost per cell (to find which groups block the cheapest route).
+
+    Returns:
+        The placements in order (a turn repeats none), or None.
     """
     lo_x, lo_y, hi_x, hi_y = bounds
     single = len(shape) == 1 and shape[0] == (0, 0)
-    parent: dict[Cell, Cell | None] = {start: None}
-    cost = {start: 0}
-    h0 = heuristic(start) if heuristic is not None else (
-        0 if goal is None else abs(start[0] - goal[0]) + abs(start[1] - goal[1]))
-    frontier = [(h0, 0, start)]
+    sweeps = None if single else _sweeps(tuple(shape))
+    counted = bool(penalty)
+    first = (start[0], start[1], 0)
+    parent: dict[tuple[int, int, int], tuple[int, int, int] | None] = {first: None}
+    cost = {first: 0}
+
+    def h(t: Cell) -> int:
+        if heuristic is not None:
+            return heuristic(t)
+        return 0 if goal is None else abs(t[0] - goal[0]) + abs(t[1] - goal[1])
+
+    frontier = [(h(start), 0, first)]
     expanded = 0
     get = occupied.get
     while frontier:
-        _, g, t = heapq.heappop(frontier)
+        _, g, state = heapq.heappop(frontier)
         g = -g
-        if g > cost[t]:
+        if g > cost[state]:
             continue
-        if done(t):
-            path = [t]
+        x, y, turned_ = state
+        if not turned_ and done((x, y)):
+            path = [state]
             while parent[path[-1]] is not None:
                 path.append(parent[path[-1]])
-            return path[::-1]
+            cells = [(q[0], q[1]) for q in reversed(path)]
+            return [c for k, c in enumerate(cells) if k == 0 or cells[k - 1] != c]
         expanded += 1
         if expanded > limit:
             return None
-        x, y = t
+        moves: list[tuple[tuple[int, int, int], int]] = []
         for dx, dy in STEPS:
-            n = (x + dx, y + dy)
+            n = (x + dx, y + dy, turned_)
             if not (lo_x <= n[0] <= hi_x and lo_y <= n[1] <= hi_y):
                 continue
             if single:
-                blocked = get(n, me) != me
-            else:
-                blocked = 0
-                for s in shape:
-                    if get((s[0] + n[0], s[1] + n[1]), me) != me:
-                        blocked += 1
-                        if not penalty:
-                            break
-            if blocked and not penalty:
+                blocked_ = int(get((n[0], n[1]), me) != me)
+            elif (dy != 0) != bool(turned_):
                 continue
-            c = g + 1 + penalty * blocked
+            else:
+                blocked_ = _blocked(sweeps[(dx, dy, turned_)], (x, y), occupied, me, counted)
+            moves.append((n, 1 + penalty * blocked_ if (not blocked_ or penalty) else -1))
+        if not single:
+            blocked_ = _blocked(sweeps["turn"], (x, y), occupied, me, counted)
+            moves.append(((x, y, 1 - turned_),
+                          TURN + penalty * blocked_ if (not blocked_ or penalty) else -1))
+        for n, step in moves:
+            if step < 0:
+                continue
+            c = g + step
             if c < cost.get(n, 1 << 30):
                 cost[n] = c
-                parent[n] = t
-                h = heuristic(n) if heuristic is not None else (
-                    0 if goal is None else abs(n[0] - goal[0]) + abs(n[1] - goal[1]))
-                heapq.heappush(frontier, (c + h, -c, n))
+                parent[n] = state
+                heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
     return None
+
+
+@lru_cache(maxsize=4096)
+def _envelope(shape: tuple[Cell, ...]) -> tuple[Cell, ...]:
+    """Every cell (offset from the placement) a group of ``shape`` may sweep while it
+    turns or drives turned, besides its own cells."""
+    if len(shape) == 1 and shape[0] == (0, 0):
+        return shape
+    sweeps = _sweeps(shape)
+    return tuple(sorted({*shape, *sweeps["turn"], *sweeps[(0, 1, 1)], *sweeps[(0, -1, 1)]}))
+
+
+def _leg_clear(shape: Sequence[Cell], a: Cell, b: Cell, occupied: Mapping[Cell, int],
+               me: int) -> bool:
+    """Whether a group of ``shape`` can drive the straight leg ``a`` -> ``b``, turns
+    included (:mod:`.motion`), over cells free of other groups."""
+    step = ((b[0] > a[0]) - (b[0] < a[0]), (b[1] > a[1]) - (b[1] < a[1]))
+    single = len(shape) == 1 and shape[0] == (0, 0)
+    if single:
+        sweep: Sequence[Cell] = ((0, 0), step)
+    else:
+        sweeps = _sweeps(tuple(shape))
+        sweep = sweeps[(*step, int(step[1] != 0))]
+        if step[1] and (_blocked(sweeps["turn"], a, occupied, me, False)
+                        or _blocked(sweeps["turn"], b, occupied, me, False)):
+            return False
+    t = a
+    while t != b:
+        if _blocked(sweep, t, occupied, me, False):
+            return False
+        t = (t[0] + step[0], t[1] + step[1])
+    return True
 
 
 def _straighten(path: list[Cell], shape: Sequence[Cell], occupied: Mapping[Cell, int],
                 me: int) -> list[Cell]:
-    """Fewer turns: replace stretches of ``path`` by one straight leg or one L where the
-    shape's swept cells are free (the same test as the search), farthest first."""
-    def clear(a: Cell, b: Cell) -> bool:
-        step = ((b[0] > a[0]) - (b[0] < a[0]), (b[1] > a[1]) - (b[1] < a[1]))
-        t = a
-        while t != b:
-            t = (t[0] + step[0], t[1] + step[1])
-            if any(occupied.get((s[0] + t[0], s[1] + t[1]), me) != me for s in shape):
-                return False
-        return True
-
-    out = [path[0]]
+    """Fewer turns: replace runs of legs of ``path`` by one straight leg or one L where
+    the group's sweep is free (the same test as the search), farthest first."""
+    corners = list(_corners(path))
+    out = [corners[0]]
     i = 0
-    while i < len(path) - 1:
-        a = path[i]
-        for j in range(len(path) - 1, i, -1):
-            b = path[j]
+    while i < len(corners) - 1:
+        a = corners[i]
+        for j in range(len(corners) - 1, i + 1, -1):
+            b = corners[j]
             if a[0] == b[0] or a[1] == b[1]:
-                if clear(a, b):
+                if _leg_clear(shape, a, b, occupied, me):
                     out.append(b)
                     break
                 continue
             corner = next((c for c in ((b[0], a[1]), (a[0], b[1]))
-                           if clear(a, c) and clear(c, b)), None)
+                           if _leg_clear(shape, a, c, occupied, me)
+                           and _leg_clear(shape, c, b, occupied, me)), None)
             if corner is not None:
                 out += [corner, b]
                 break
-        else:  # unreachable: consecutive cells are one free unit step apart
+        else:  # the search's own leg, valid as found
             j = i + 1
-            out.append(path[j])
+            out.append(corners[j])
         i = j
     return out
 
@@ -209,7 +282,7 @@ class _Greedy:
         self.pending = _pocket_order(groups, start, goal, priority)
         margin = max(len(g) for g in groups) + 3
         bounds = self.bounds = _bounds([*start.values(), *goal.values()], margin)
-        self.limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 800)
+        self.limit = min(4 * (bounds[2] - bounds[0] + 1) * (bounds[3] - bounds[1] + 1), 4000)
         self.box = (bounds[0] + margin, bounds[1] + margin, bounds[2] - margin,
                     bounds[3] - margin)
         self.parks = [0] * len(groups)
@@ -346,11 +419,14 @@ def _direct(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
 
 def _split(group: list[str], links: set[frozenset[str]]) -> tuple[list[str], list[str],
                                                                  frozenset[str]]:
-    """Cut the kept connection of ``group`` that leaves the most even two pieces."""
-    inner = [e for e in links if e <= set(group)]
+    """Cut the kept connection of ``group`` that leaves the most even two pieces (ties: the
+    first in the order of ``group``, so the choice never depends on string hashing)."""
+    rank = {m: k for k, m in enumerate(group)}
+    inner = sorted((e for e in links if e <= rank.keys()),
+                   key=lambda e: sorted(rank[m] for m in e))
     best: tuple[int, list[str], list[str], frozenset[str]] | None = None
     for cut in inner:
-        a = next(iter(cut))
+        a = min(cut, key=rank.__getitem__)
         piece, stack = {a}, [a]
         while stack:
             u = stack.pop()
@@ -398,7 +474,7 @@ def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
             if walled.neighbours - moving:
                 moving |= walled.neighbours
                 continue
-            largest = max(walled.neighbours | walled.stuck, key=lambda i: len(parts[i]))
+            largest = max(sorted(walled.neighbours | walled.stuck), key=lambda i: len(parts[i]))
             if len(parts[largest]) < 2:
                 raise PlanningError("no collision-free order of the moves found: single "
                                     f"module {parts[largest][0]} is walled in") from None
@@ -435,15 +511,17 @@ class _Frame:
     def around(cls, box: tuple[int, int, int, int], shapes: Sequence[tuple[Cell, ...]]
                ) -> _Frame:
         lo_x, lo_y, hi_x, hi_y = box
-        reach = max(max(abs(c) for s in sh for c in s) for sh in shapes) + 2
+        reach = max(max(abs(c) for s in _envelope(sh) for c in s) for sh in shapes) + 2
         return cls(box, reach, (lo_x - 2 * reach, lo_y - 2 * reach, hi_x + 2 * reach,
                                 hi_y + 2 * reach))
 
     def outside(self, shape: Sequence[Cell]) -> Callable[[Cell], bool]:
-        """Whether a placement of ``shape`` has every cell outside the box."""
+        """Whether a placement of ``shape`` has every cell of its envelope outside the box
+        (there it can turn and drive out without touching the box)."""
         lo_x, lo_y, hi_x, hi_y = self.box
+        cover = _envelope(tuple(shape))
         return lambda t: all(not (lo_x <= s[0] + t[0] <= hi_x and lo_y <= s[1] + t[1] <= hi_y)
-                             for s in shape)
+                             for s in cover)
 
     def to_border(self) -> Callable[[Cell], int]:
         """Cells from a placement to just outside the box (the peel's A* heuristic)."""
@@ -455,7 +533,7 @@ class _Frame:
         direction in which no cell crosses the box, then along the lane to its bottom side."""
         lo_x, lo_y, hi_x, hi_y = self.box
         lane = self.lane
-        cells = [(c[0] + t[0], c[1] + t[1]) for c in shape]
+        cells = [(c[0] + t[0], c[1] + t[1]) for c in _envelope(tuple(shape))]
         beside_x = [not lo_x <= x <= hi_x for x, _ in cells]
         beside_y = [not lo_y <= y <= hi_y for _, y in cells]
         if all(y < lo_y or b for (_, y), b in zip(cells, beside_x, strict=True)):
@@ -531,8 +609,8 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
     in_peel, in_paths = _peel(shapes, moving, frame, lambda i: [goal[m] for m in groups[i]])
     slot: dict[int, Cell] = {}
     x = box[0]
-    for i in out_order:
-        xs = [c[0] for c in shapes[i]]
+    for i in out_order:  # side by side, each clear of its neighbours' turns
+        xs = [c[0] for c in _envelope(shapes[i])]
         slot[i] = (x - min(xs), lane[1] - 2 * reach)
         x += max(xs) - min(xs) + 2
     routes: list[Route] = []

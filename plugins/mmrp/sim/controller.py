@@ -3,9 +3,14 @@
 Per moving group (modules docked together), the centroid is steered like a
 tracked vehicle (forward speed and yaw rate only):
 
-1. ``path`` -- follow a grid A* path around the other modules (pure pursuit,
-   forwards or backwards) to the pre-goal point, ``approach_distance`` before the
-   goal along the goal heading;
+0. ``stops`` -- a plan's moving action is one leg of a route, driven exactly as
+   :mod:`msrr.plugins.mmrp.motion` says and the plan checker replays (along x
+   straight; along y a quarter turn about the centroid, the drive, the turn back),
+   so the group sweeps only what the plan was checked for; then ``line`` settles
+   on the goal without detours;
+1. ``path`` -- (docking phases) follow a grid A* path around the other modules
+   (pure pursuit, forwards or backwards) to the pre-goal point,
+   ``approach_distance`` before the goal along the goal heading;
 2. ``align`` -- turn in place to the goal heading;
 3. ``line`` -- drive straight along the goal heading onto the goal, correcting
    lateral error; a lateral error larger than the latch tolerance near the goal
@@ -33,7 +38,7 @@ from msrr.core.driver import ModuleCommand, Observation
 from msrr.core.events import Phase
 from msrr.core.plan import Action
 
-from ..robot import MODULE
+from ..robot import MODULE, SPEC
 from .geometry import neighbour_pose, track_speeds, wrap
 from .paths import plan_path, segment_clearance
 
@@ -51,6 +56,8 @@ class _GroupPlan:
     sign: float
     stage: str = "path"
     waypoints: list[tuple[float, float]] = field(default_factory=list)
+    stops: list[Pose2] = field(default_factory=list)
+    legged: bool = False
 
     @property
     def centre(self) -> Pose2:
@@ -98,11 +105,13 @@ class MmrpController:
         self.half_diagonal = math.hypot(geometry["length"], geometry["width"]) / 2
         self.lateral_limit = float(geometry["dock_tolerance"]) * 0.6
         self.approach_distance = approach_distance
-        self.speed = min(speed, float(geometry["max_speed"]) * 0.8)
+        self.max_speed = float(geometry["max_speed"])
+        self.speed = min(speed, self.max_speed * 0.8)
         self.turn_rate = turn_rate
         self.extrusion = extrusion
         self.tolerance = tolerance
         self.yaw_tolerance = yaw_tolerance
+        self.leg_tolerance = float(SPEC.defaults.shape_tolerance.position)
         self.goals: dict[str, Pose2] = {}
         self.plan: _GroupPlan | None = None
 
@@ -126,12 +135,24 @@ class MmrpController:
         plan = _GroupPlan(modules, targets, self._approach_sign(targets, others))
         centre = self._current_centre(plan, poses)
         target = plan.centre
-        if phase is not Phase.MOVE and math.dist(centre[:2], target[:2]) < 0.05 \
-                and abs(wrap(centre[2] - target[2])) < 0.1:
+        if phase is Phase.MOVE:
+            plan.stops, plan.stage = self._leg_stops(centre, target), "stops"
+            plan.legged = True
+        elif math.dist(centre[:2], target[:2]) < 0.05 and abs(wrap(centre[2] - target[2])) < 0.1:
             plan.stage = "line"
         else:
             self._plan_path(plan, poses)
         self.plan = plan
+
+    @staticmethod
+    def _leg_stops(centre: Pose2, target: Pose2) -> list[Pose2]:
+        """The group centre's poses along one leg of a plan, as :mod:`..motion` drives it:
+        along x straight to the target; along y a quarter turn in place, the drive
+        turned, and the turn back."""
+        if abs(target[1] - centre[1]) <= abs(target[0] - centre[0]):
+            return [target]
+        turned = wrap(target[2] + math.pi / 2)
+        return [(centre[0], centre[1], turned), (target[0], target[1], turned), target]
 
     def _connection_targets(self, action: Action, phase: Phase, observation: Observation,
                             poses: Mapping[str, Pose2]) -> dict[str, Pose2]:
@@ -203,18 +224,46 @@ class MmrpController:
         poses = _planar(observation)
         centre = self._current_centre(plan, poses)
         v, omega, reached = self._drive(plan, centre, poses)
-        commands = {}
+        tracks = {}
         for module in plan.modules:
             r = np.subtract(poses[module][:2], centre[:2])
             left_offset = float(-r[0] * math.sin(centre[2]) + r[1] * math.cos(centre[2]))
-            left, right = track_speeds(v, omega, left_offset, self.width)
-            commands[module] = ModuleCommand(wheels={"left": left, "right": right})
+            tracks[module] = track_speeds(v, omega, left_offset, self.width)
+        # one scale for the whole group: a module's driver clips its own tracks to
+        # max_speed, which would bend the group's twist (a turn would drift its centre)
+        scale = max(1.0, *(abs(t) / self.max_speed for pair in tracks.values() for t in pair))
+        commands = {m: ModuleCommand(wheels={"left": left / scale, "right": right / scale})
+                    for m, (left, right) in tracks.items()}
         errors = {m: math.dist(poses[m][:2], plan.targets[m][:2]) for m in plan.modules}
         return Control(commands=commands, errors=errors, reached=reached)
+
+    def _follow_stops(self, plan: _GroupPlan, centre: Pose2) -> tuple[float, float]:
+        """Toward the next stop of a leg: turn in place at it, else drive straight along
+        its heading (forwards or backwards) with lateral and heading correction."""
+        stop = plan.stops[0]
+        heading = np.array([math.cos(stop[2]), math.sin(stop[2])])
+        delta = np.subtract(stop[:2], centre[:2])
+        along = float(delta @ heading)
+        lateral = float(delta @ np.array([-heading[1], heading[0]]))
+        yaw_error = wrap(stop[2] - centre[2])
+        if abs(along) < self.tolerance:
+            if abs(yaw_error) < self.yaw_tolerance:
+                plan.stops.pop(0)
+                return 0.0, 0.0
+            return 0.0, float(np.clip(2.0 * yaw_error, -self.turn_rate, self.turn_rate))
+        v = float(np.clip(0.8 * along, -self.speed, self.speed))
+        if abs(v) < 0.01:
+            v = math.copysign(0.01, along)
+        omega = 2.5 * yaw_error + 6.0 * lateral * math.copysign(1.0, v)
+        return v, float(np.clip(omega, -self.turn_rate, self.turn_rate))
 
     def _drive(self, plan: _GroupPlan, centre: Pose2, poses: Mapping[str, Pose2]
                ) -> tuple[float, float, bool]:
         target = plan.centre
+        if plan.stage == "stops":
+            if plan.stops:
+                return (*self._follow_stops(plan, centre), False)
+            plan.stage = "line"
         if plan.stage == "path":
             goal = plan.waypoints[-1]
             if math.dist(centre[:2], goal) < 0.02:
@@ -232,11 +281,17 @@ class MmrpController:
         delta = np.subtract(target[:2], centre[:2])
         along, lateral = float(delta @ heading), float(delta @ left)
         yaw_error = wrap(target[2] - centre[2])
-        if (abs(lateral) > self.lateral_limit * 2.5 and abs(along) < 0.08) or (
+        lateral_reach = self.tolerance * 2
+        if plan.legged:  # a plan's leg: its sweep, no detours; the next leg or dock corrects
+            lateral_reach = self.leg_tolerance
+            if abs(lateral) >= lateral_reach and abs(along) < 0.02:  # the leg again from here
+                plan.stops, plan.stage = self._leg_stops(centre, target), "stops"
+                return 0.0, 0.0, False
+        elif (abs(lateral) > self.lateral_limit * 2.5 and abs(along) < 0.08) or (
                 abs(lateral) > 2 * self.tolerance and abs(along) < 0.02):
             self._plan_path(plan, poses)
             return 0.0, 0.0, False
-        if abs(along) < self.tolerance and abs(lateral) < self.tolerance * 2 \
+        if abs(along) < self.tolerance and abs(lateral) < lateral_reach \
                 and abs(yaw_error) < self.yaw_tolerance:
             return 0.0, 0.0, True
         v = float(np.clip(0.8 * along, -self.speed * 0.6, self.speed * 0.6))

@@ -145,7 +145,7 @@ def test_checker_accepts_a_valid_hand_made_plan():
 
 @pytest.mark.parametrize(("actions", "expected"), [
     ([_undock(LINE, "a", "b"), _undock(LINE, "b", "c"), _move(LINE, {"a": (2, 0)})],
-     "passes over b"),
+     "sweeps over b"),
     ([_undock(LINE, "b", "c"), _move(LINE, {"c": (2, 1)})], "not along one grid axis"),
     ([_undock(LINE, "b", "c"), _move(LINE, {"b": (0, 1)})], "without the modules docked"),
     ([_undock(LINE, "b", "c"), _move(LINE, {"c": (1, 2)}), _dock(LINE, "c", "B", "b", "T")],

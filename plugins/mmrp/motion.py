@@ -1,0 +1,154 @@
+"""How a rigid group of tracked modules drives a leg of its route, and what it sweeps (pure).
+
+Tracks drive a module only along its heading, and every MMRP module keeps heading 0
+between moves, so a docked group executes an axis-aligned leg of its route as:
+
+* a leg along x: drive straight, forwards or backwards;
+* a leg along y: turn +90 degrees in place about the group's centre (the mean of its
+  module centres), drive straight along y, and turn back -90 degrees about the new
+  centre. The group ends translated by the leg, at heading 0, on the grid.
+
+A turning group of several modules sweeps arcs around its centre and drives a y-leg
+rotated, so it passes over cells that its grid translation never touches (before
+issue 29 the planner and the checker modelled translations only and a seven-module
+group turning in place could brush a structure out of latch tolerance).
+
+**Body model.** A module's body (a square of side ``length``) lies within the disc
+of its half-diagonal ``h`` around its centre, whatever its heading, so two modules
+cannot touch while their centres are at least ``CLEARANCE`` = ``2 h`` plus a margin
+apart. On the grid, neighbours are one pitch (0.30 m) apart and ``CLEARANCE`` is
+0.293 m, so modules may pass alongside each other, and the test is exact for the
+paths of centres: straight segments (drives) and circular arcs (turns).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+
+from .robot import MODULE
+
+__all__ = [
+    "CLEARANCE",
+    "Arc",
+    "Segment",
+    "blocked",
+    "centre",
+    "distance",
+    "distance_to_arc",
+    "distance_to_segment",
+    "drive_paths",
+    "leg_paths",
+    "turn_paths",
+    "turned",
+]
+
+Point = tuple[float, float]
+
+MARGIN = 0.01
+"""Extra clearance between two bodies [m] (a turn's track slip, the latch's play)."""
+
+CLEARANCE = (math.hypot(MODULE.geometry["length"], MODULE.geometry["width"]) + MARGIN) \
+    / MODULE.geometry["pitch"]
+"""Smallest distance between the centres of two modules that cannot touch [cells]."""
+
+
+def centre(cells: Sequence[Point]) -> Point:
+    """The centre of a group: the mean of its module centres [cells]."""
+    return (sum(c[0] for c in cells) / len(cells), sum(c[1] for c in cells) / len(cells))
+
+
+def turned(cells: Sequence[Point], sign: int = 1) -> list[Point]:
+    """Module centres after a quarter turn (``sign`` +1 counter-clockwise) about the centre."""
+    cx, cy = centre(cells)
+    return [(cx - sign * (y - cy), cy + sign * (x - cx)) for x, y in cells]
+
+
+class Segment(tuple):
+    """A module centre's straight path ``(a, b)`` [cells]."""
+
+
+class Arc(tuple):
+    """A module centre's quarter turn ``(pivot, start, sign)`` about ``pivot`` [cells]."""
+
+
+def distance_to_segment(p: Point, a: Point, b: Point) -> float:
+    """Distance from ``p`` to the segment ``a``-``b``."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    length2 = dx * dx + dy * dy
+    t = 0.0 if length2 == 0 else max(0.0, min(1.0, ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy)
+                                             / length2))
+    return math.hypot(a[0] + t * dx - p[0], a[1] + t * dy - p[1])
+
+
+def distance_to_arc(p: Point, pivot: Point, start: Point, sign: int) -> float:
+    """Distance from ``p`` to the quarter circle that ``start`` traces about ``pivot``
+    (counter-clockwise for ``sign`` +1)."""
+    rx, ry = start[0] - pivot[0], start[1] - pivot[1]
+    r = math.hypot(rx, ry)
+    vx, vy = p[0] - pivot[0], p[1] - pivot[1]
+    d = math.hypot(vx, vy)
+    if r == 0 or d == 0:
+        return abs(d - r)
+    swept = math.atan2(rx * vy - ry * vx, rx * vx + ry * vy) * sign  # from start, turn-wise
+    if 0.0 <= swept <= math.pi / 2:
+        return abs(d - r)
+    end = (pivot[0] - sign * ry, pivot[1] + sign * rx)
+    return min(math.hypot(p[0] - start[0], p[1] - start[1]), math.hypot(p[0] - end[0],
+                                                                         p[1] - end[1]))
+
+
+def turn_paths(cells: Sequence[Point]) -> list[Arc]:
+    """The arcs of the module centres while the group at ``cells`` turns +90 degrees about
+    its centre (turning back sweeps the same arcs)."""
+    pivot = centre(cells)
+    return [Arc((pivot, c, 1)) for c in cells]
+
+
+def drive_paths(cells: Sequence[Point], shift: tuple[int, int], *, rotated: bool
+                ) -> list[Segment]:
+    """The segments of the module centres while the group at ``cells`` (turned +90
+    degrees about its centre if ``rotated``) drives straight by ``shift``."""
+    dx, dy = shift
+    return [Segment(((x, y), (x + dx, y + dy)))
+            for x, y in (turned(cells) if rotated else cells)]
+
+
+def leg_paths(cells: Sequence[Point], shift: tuple[int, int]) -> list[Segment | Arc]:
+    """The paths of the module centres while the group at ``cells`` drives one leg
+    ``shift`` (along one axis, whole cells), turns included."""
+    if not shift[1]:
+        return list(drive_paths(cells, shift, rotated=False))
+    end = [(x + shift[0], y + shift[1]) for x, y in cells]
+    return [*turn_paths(cells), *drive_paths(cells, shift, rotated=True), *turn_paths(end)]
+
+
+def distance(p: Point, path: Segment | Arc) -> float:
+    """Distance from ``p`` to a module centre's path."""
+    if isinstance(path, Arc):
+        return distance_to_arc(p, *path)
+    return distance_to_segment(p, *path)
+
+
+def near(paths: Sequence[Segment | Arc]) -> Iterator[tuple[int, int]]:
+    """The grid cells within ``CLEARANCE`` of the bounding box of ``paths``."""
+    xs, ys = [], []
+    for path in paths:
+        if isinstance(path, Arc):
+            (px, py), (sx, sy), _ = path
+            r = math.hypot(sx - px, sy - py)
+            xs += [px - r, px + r]
+            ys += [py - r, py + r]
+        else:
+            xs += [path[0][0], path[1][0]]
+            ys += [path[0][1], path[1][1]]
+    for i in range(math.floor(min(xs) - CLEARANCE), math.ceil(max(xs) + CLEARANCE) + 1):
+        for j in range(math.floor(min(ys) - CLEARANCE), math.ceil(max(ys) + CLEARANCE) + 1):
+            yield i, j
+
+
+def blocked(paths: Sequence[Segment | Arc]) -> frozenset[tuple[int, int]]:
+    """Every grid cell that must hold no other module while module centres follow
+    ``paths``: those whose centre comes closer than ``CLEARANCE`` to a path."""
+    return frozenset(c for c in near(paths)
+                     if any(distance(c, path) < CLEARANCE - 1e-9 for path in paths))

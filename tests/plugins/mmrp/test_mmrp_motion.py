@@ -1,0 +1,137 @@
+"""Issue 29, item 1: the swept area of turning and driving groups, in the router and the
+checker, against an independent reference (the true square bodies, densely sampled)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from msrr.core.plan import Action, ActionType, ConnectionChange, Plan
+from msrr.plugins.mmrp.check import check_plan
+from msrr.plugins.mmrp.motion import blocked, drive_paths, leg_paths, turn_paths
+from msrr.plugins.mmrp.random_trees import random_tree
+from msrr.plugins.mmrp.representation import from_links, grid_cells
+from msrr.plugins.mmrp.robot import MODULE
+from msrr.plugins.mmrp.routing import route_groups
+
+HALF = MODULE.geometry["length"] / 2 / MODULE.geometry["pitch"]  # half a body side [cells]
+
+
+def _corners(x: float, y: float, yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([(x + c * u - s * v, y + s * u + c * v)
+                     for u, v in ((HALF, HALF), (-HALF, HALF), (-HALF, -HALF), (HALF, -HALF))])
+
+
+def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    """Separating axis test of two convex quadrilaterals."""
+    for poly in (a, b):
+        for k in range(4):
+            edge = poly[(k + 1) % 4] - poly[k]
+            axis = np.array([-edge[1], edge[0]])
+            pa, pb = a @ axis, b @ axis
+            if pa.max() < pb.min() - 1e-9 or pb.max() < pa.min() - 1e-9:
+                return False
+    return True
+
+
+def _bodies_along(cells: list[tuple[int, int]], shift: tuple[int, int], samples: int = 60):
+    """The true module bodies (squares) at ``samples`` instants of every motion of a leg."""
+    cx = sum(c[0] for c in cells) / len(cells)
+    cy = sum(c[1] for c in cells) / len(cells)
+    dx, dy = shift
+    if not dy:
+        for k in range(samples + 1):
+            t = k / samples
+            yield [_corners(x + t * dx, y, 0.0) for x, y in cells]
+        return
+    for phase in range(3):
+        for k in range(samples + 1):
+            t = k / samples
+            yaw = math.pi / 2 * (t if phase == 0 else 1 - t if phase == 2 else 1)
+            shift_y = dy * (0 if phase == 0 else t if phase == 1 else 1)
+            c, s = math.cos(yaw), math.sin(yaw)
+            yield [_corners(cx + c * (x - cx) - s * (y - cy),
+                            cy + shift_y + s * (x - cx) + c * (y - cy), yaw) for x, y in cells]
+
+
+@settings(max_examples=8, deadline=None)
+@given(n=st.integers(2, 6), seed=st.integers(0, 10_000), axis=st.sampled_from(["x", "y"]),
+       length=st.integers(1, 2))
+def test_cells_outside_the_sweep_are_never_touched_by_a_body(n, seed, axis, length):
+    cells = list(grid_cells(random_tree(n, np.random.default_rng(seed))).values())
+    shift = (length, 0) if axis == "x" else (0, length)
+    sweep = blocked(leg_paths(cells, shift))
+    xs = [c[0] for c in cells]
+    ys = [c[1] for c in cells]
+    reach = max(max(xs) - min(xs), max(ys) - min(ys)) + 2
+    outside = [(i, j) for i in range(min(xs) - reach, max(xs) + reach + 1)
+               for j in range(min(ys) - reach, max(ys) + reach + length + 1)
+               if (i, j) not in sweep]
+    squares = {c: _corners(c[0], c[1], 0.0) for c in outside}
+    for bodies in _bodies_along(cells, shift, samples=16):
+        for body in bodies:
+            bx, by = body.mean(axis=0)
+            for c, square in squares.items():
+                if abs(c[0] - bx) < 1 and abs(c[1] - by) < 1:  # farther never touches
+                    assert not _overlap(square, body), (cells, shift, c)
+
+
+def test_a_long_group_turning_sweeps_beyond_its_translation():
+    bar = [(i, 0) for i in range(7)]
+    turn = blocked(turn_paths(bar))
+    assert (3, 3) in turn and (6, 2) in turn  # a quarter of the disc around the centre
+    assert blocked(drive_paths(bar, (1, 0), rotated=False)) == {(i, 0) for i in range(8)}
+
+
+def test_the_router_turns_a_long_group_clear_of_a_neighbour():
+    # a 5-module bar moves up by 4; a module stands where the bar's turn would sweep
+    bar = [f"b{i}" for i in range(5)]
+    start = {m: (i, 0) for i, m in enumerate(bar)} | {"x": (1, 2)}
+    goal = {m: (i, 4) for i, m in enumerate(bar)} | {"x": (1, 2)}
+    routing = route_groups([bar, ["x"]], start, goal, links=[frozenset(p) for p in
+                                                              zip(bar, bar[1:], strict=False)])
+    where = dict(start)
+    for route in routing.routes:
+        cells = [where[m] for m in route.modules]
+        for a, b in zip(route.corners, route.corners[1:], strict=False):
+            shift = (b[0] - a[0], b[1] - a[1])
+            others = {c for m, c in where.items() if m not in route.modules}
+            assert not others & blocked(leg_paths(cells, shift))
+            cells = [(c[0] + shift[0], c[1] + shift[1]) for c in cells]
+        for m, c in zip(route.modules, cells, strict=True):
+            where[m] = c
+    assert where == goal
+
+
+def test_the_checker_finds_a_turn_that_a_translation_check_passes():
+    # a bar of five (0..4, 0) with x docked on the left of its middle; x steps up one cell
+    # to (2, 2), then the bar drives down three cells: its cells below are free (the
+    # translation check of issue 17 passed this), but turning a quarter about its centre
+    # (2, 0) swings b4 through (2, 2)
+    bar = [f"b{i}" for i in range(5)]
+    links = [(u, "T", v, "B") for u, v in zip(bar, bar[1:], strict=False)]
+    start = from_links([*bar, "x"], [*links, ("b2", "L", "x", "R")])
+    loose = from_links([*bar, "x"], links)
+    p = MODULE.geometry["pitch"]
+    undock = Action(ActionType.DISCONNECTION, loose, modules=("x", "b2"),
+                    changes=(ConnectionChange("x", "b2", "R", "L", start.edges()[-1].id),))
+    lay = grid_cells(start)
+    here = {m: (c[0] * p, c[1] * p) for m, c in lay.items()}
+
+    def move(modules, dx, dy):
+        for m in modules:
+            here[m] = (here[m][0] + dx * p, here[m][1] + dy * p)
+        return Action(ActionType.MOVING, loose, modules=tuple(modules),
+                      goals={m: [*here[m], 0.0] for m in modules})
+
+    plan = Plan("mmrp", "hand", start, loose, [undock, move(["x"], 0, 1), move(bar, 0, -3)])
+    problems = check_plan(plan)
+    assert len(problems) == 1 and "action 3" in problems[0] and "turning" in problems[0]
+    for m in bar:  # a drive along x instead sweeps only the bar's row
+        here[m] = (here[m][0], here[m][1] + 3 * p)
+    plan.actions[2] = move(bar, -6, 0)
+    assert check_plan(plan) == []
