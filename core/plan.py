@@ -12,6 +12,7 @@ neighbour of the parent, disconnection and connection at once; defined in
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -134,8 +135,10 @@ STRUT_ENDS = ("a", "b")
 """Names of the source and target end of a connection that is a module."""
 
 
-def links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]:
-    """Every physical link of ``config`` with its direction-free key.
+def links(config: Configuration, edges: Iterable[Edge] | None = None
+          ) -> list[tuple[ConnectionKey, ConnectionChange]]:
+    """Every physical link of ``config`` (of ``edges`` of it, when given) with its
+    direction-free key.
 
     A connection between two modules is one link; a connection that is itself a
     module (a FreeSN strut) is one link per end resting on a module,
@@ -143,7 +146,7 @@ def links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]
     is no link.
     """
     found = []
-    for edge in config.edges():
+    for edge in config.edges() if edges is None else edges:
         ports = edge.ports or (None, None)
         if edge.kind is None:
             if not (config.is_virtual(edge.source) or config.is_virtual(edge.target)):
@@ -296,13 +299,27 @@ class Action:
 
     def made(self) -> tuple[ConnectionChange, ...]:
         """The changes that are connections of ``target`` (connections made)."""
-        keys = {key for key, _ in links(self.target)}
+        keys = self._target_links()
         return tuple(c for c in self.changes if c.key in keys)
 
     def broken(self) -> tuple[ConnectionChange, ...]:
         """The changes that are not connections of ``target`` (connections broken)."""
-        keys = {key for key, _ in links(self.target)}
+        keys = self._target_links()
         return tuple(c for c in self.changes if c.key not in keys)
+
+    def _target_links(self) -> set[ConnectionKey]:
+        """The links of ``target`` at the modules the changes name (O(their degree), not
+        O(the target): a plan of thousands of actions counts its docks quickly)."""
+        target = self.target if self.changes else None
+        if target is None:
+            return set()
+        near = {m for c in self.changes for m in (c.source, c.target)}
+        edges = {e.id: e for m in near if m in target.graph for e in target.incident(m)}
+        for module in near - edges.keys():  # an edge module (a strut) names itself
+            if module not in target.graph:
+                with contextlib.suppress(ConfigurationError):
+                    edges[module] = target.edge(module)
+        return {key for key, _ in links(target, edges.values())}
 
 
 @dataclass
