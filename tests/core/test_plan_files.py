@@ -90,8 +90,8 @@ def test_every_planner_round_trips_through_its_file(robot: str, planner: str,
         assert any(a.kinematic_tree is not None for a in plan.actions)
 
 
-@settings(max_examples=12, deadline=None)
-@given(n=st.integers(2, 40), seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=8, deadline=None)
+@given(n=st.integers(2, 30), seed=st.integers(0, 2**32 - 1))
 def test_random_mmrp_plans_round_trip(n: int, seed: int, tmp_path_factory) -> None:
     rng = np.random.default_rng(seed)
     plan = plugins.planners.get("mmrp").plan(random_tree(n, rng), random_tree(n, rng),
@@ -110,7 +110,7 @@ def freebot(parent: tuple[int, ...], rng: np.random.Generator) -> Configuration:
     return config
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(n=st.integers(2, 30), seed=st.integers(0, 2**32 - 1))
 def test_random_freebot_plans_round_trip(n: int, seed: int, tmp_path_factory) -> None:
     rng = np.random.default_rng(seed)
@@ -147,7 +147,7 @@ def _edit(config: Configuration, rng: np.random.Generator) -> Configuration:
     return out
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(robot=st.sampled_from(["freesn", "freebot", "snailbot", "mmrp"]),
        n=st.integers(1, 12), seed=st.integers(0, 2**32 - 1))
 def test_the_changes_between_two_configurations_rebuild_the_second(robot: str, n: int,
