@@ -195,7 +195,10 @@ class Draft:
         self.robot, self.name, self.description = config.robot, config.name, config.description
         self.vertices: dict[str, Vertex] = {
             v: Vertex(v, d["kind"], d["position"]) for v, d in config.graph._node.items()}
-        self.edges: dict[str, Edge] = {e: config.edge(e) for e in config._edge_ends}
+        succ = config.graph._succ  # plain dicts: Configuration.edge's views cost 5x
+        self.edges: dict[str, Edge] = {
+            e: Edge(e, s, t, d["kind"], d["z"], d["x"], d["ports"])
+            for e, (s, t) in config._edge_ends.items() for d in (succ[s][t][e],)}
         self.incident: dict[str, set[str]] = {v: set() for v in self.vertices}
         for edge in self.edges.values():
             self.incident[edge.source].add(edge.id)

@@ -480,11 +480,12 @@ class DeltaModel(StrictModel):
 
     name: str | None = Field(None, description="The new name, when it changes.")
     description: str | None = Field(None, description="The new description, when it changes.")
-    removed_connections: list[str] = Field([], description="Ids of connections removed.")
-    removed_modules: list[str] = Field([], description="Ids of modules removed (with no "
+    removed_connections: list[str] = Field(default_factory=list, description="Ids of connections removed.")
+    removed_modules: list[str] = Field(default_factory=list, description="Ids of modules removed (with no "
                                        "connection left).")
-    modules: list[ModuleDeltaModel] = Field([], description="Modules added or changed.")
-    connections: list[ConnectionDeltaModel] = Field([], description="Connections added or "
+    modules: list[ModuleDeltaModel] = Field(default_factory=list, description="Modules added or changed.")
+    connections: list[ConnectionDeltaModel] = Field(
+        default_factory=list, description="Connections added or "
                                                     "changed.")
 
 
@@ -501,9 +502,9 @@ class ActionModel(StrictModel):
     target: DeltaModel = Field(default_factory=DeltaModel, description="The action's target configuration "
                                "as its changes to the previous target (the start for the "
                                "first action).")
-    modules: list[str] = []
-    changes: list[ChangeModel] = []
-    goals: dict[str, list[Coordinate]] = {}
+    modules: list[str] = Field(default_factory=list)
+    changes: list[ChangeModel] = Field(default_factory=list)
+    goals: dict[str, list[Coordinate]] = Field(default_factory=dict)
     cost: Cost = 0.0
     kinematic_tree: TreeModel | None = None
     note: str = ""
@@ -727,7 +728,8 @@ def _tree_document(model: TreeModel | None, target: Configuration, source: str |
 def _action(a: ActionModel, target: Configuration, tree: KinematicTree | None,
             source: str | None, where: str) -> Action:
     action = Action(type=a.type, target=target, modules=tuple(a.modules),
-                    changes=tuple(ConnectionChange(**c.model_dump()) for c in a.changes),
+                    changes=tuple(ConnectionChange(c.source, c.target, c.source_port,
+                                                   c.target_port, c.edge_id) for c in a.changes),
                     goals=a.goals, cost=a.cost, kinematic_tree=tree, note=a.note,
                     behavior=_behavior_call(a.behavior, source, f"{where}.behavior"),
                     reaches=a.reaches, retrieved=a.retrieved)
@@ -943,7 +945,7 @@ def check_chain(plan: Plan, robot: Robot | None = None) -> None:
                     f"is not where the actions end: {step.said} lacks {_names(step.made)} "
                     f"and has {_names(step.broken)} besides", field="goal")
             break
-        if robot is not None:
+        if robot is not None and (unchecked or step.delta.size):
             found = (unchecked + check_structure(step.after, robot.spec)  # type: ignore[arg-type]
                      + _port_pairs(step.after, robot))  # type: ignore[arg-type]
             if found:
