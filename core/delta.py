@@ -46,8 +46,8 @@ class ConfigurationDelta:
     Applied in this order: ``removed_edges``, ``removed_vertices``, then ``vertices``
     and ``edges``: one whose id is present replaces it in its place, a new one is
     appended, or inserted at its index in the new order when one is given. A vertex
-    removed (and not written again) must have no connection left at the end. ``name`` / ``description``: the new
-    ones, ``None`` when they stay.
+    removed (and not written again) must have no connection left at the end.
+    ``name`` / ``description``: the new ones, ``None`` when they stay.
 
     Attributes:
         removed_vertices: ids of vertices removed.
@@ -208,10 +208,10 @@ class Draft:
         """Apply ``delta`` in place (see :class:`ConfigurationDelta` for the order).
 
         Raises:
-            ConfigurationError: an id to remove that is not there, an id written twice, a
-                vertex removed with connections left, an index out of range or given for an id that is
-                there, a connection whose end is not a vertex, an id both a vertex and
-                a connection; the field names the delta's list and item
+            ConfigurationError: an id to remove that is not there, an id written twice,
+                a vertex removed with connections left, an index out of range or given
+                for an id that is there, a connection whose end is not a vertex, an id
+                both a vertex and a connection; the field names the delta's list and item
                 (``removed_connections[2]``, ``connections[0].source``).
         """
         for i, edge_id in enumerate(delta.removed_edges):

@@ -53,9 +53,9 @@ from .robot import Robot, Violation, check_structure
 from .scenario import MAX_DISTANCE, MAX_LOOPS, MAX_TIME
 
 __all__ = ["STRUT_ENDS", "Action", "ActionType", "BehaviorCall", "CommandGain",
-           "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_chain", "check_plan",
-           "connection_key", "join_plans", "links", "load_plan", "natural_key", "parse_plan_file",
-           "save_plan"]
+           "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_chain",
+           "check_plan", "connection_key", "join_plans", "links", "load_plan", "natural_key",
+           "parse_plan_file", "save_plan"]
 
 
 class ActionType(StrEnum):
@@ -480,18 +480,20 @@ class DeltaModel(StrictModel):
 
     name: str | None = Field(None, description="The new name, when it changes.")
     description: str | None = Field(None, description="The new description, when it changes.")
-    removed_connections: list[str] = Field(default_factory=list, description="Ids of connections removed.")
-    removed_modules: list[str] = Field(default_factory=list, description="Ids of modules removed (with no "
-                                       "connection left).")
-    modules: list[ModuleDeltaModel] = Field(default_factory=list, description="Modules added or changed.")
-    connections: list[ConnectionDeltaModel] = Field(
-        default_factory=list, description="Connections added or "
-                                                    "changed.")
+    removed_connections: list[str] = Field(default_factory=list,
+                                           description="Ids of connections removed.")
+    removed_modules: list[str] = Field(default_factory=list, description="Ids of modules "
+                                       "removed (with no connection left).")
+    modules: list[ModuleDeltaModel] = Field(default_factory=list,
+                                            description="Modules added or changed.")
+    connections: list[ConnectionDeltaModel] = Field(default_factory=list,
+                                                    description="Connections added or changed.")
 
 
 class TreeModel(StrictModel):
     """An action's kinematic tree: its topology as changes to the action's target without
-    its vectors (usually none), and its nodes in BFS order (:mod:`msrr.core.kinematics.tree_file`)."""
+    its vectors (usually none), and its nodes in BFS order
+    (:mod:`msrr.core.kinematics.tree_file`)."""
 
     topology: DeltaModel = Field(default_factory=DeltaModel)
     nodes: list[NodeModel] = Field(min_length=1)
@@ -499,7 +501,7 @@ class TreeModel(StrictModel):
 
 class ActionModel(StrictModel):
     type: ActionType
-    target: DeltaModel = Field(default_factory=DeltaModel, description="The action's target configuration "
+    target: DeltaModel = Field(default_factory=DeltaModel, description="The action's target "
                                "as its changes to the previous target (the start for the "
                                "first action).")
     modules: list[str] = Field(default_factory=list)
@@ -523,8 +525,9 @@ class PlanFile(StrictModel):
     planner: str
     start: ConfigurationFile
     actions: list[ActionModel] = Field(max_length=MAX_ACTIONS)
-    goal: DeltaModel = Field(default_factory=DeltaModel, description="The goal as its changes to the last "
-                             "action's target (the start when there is none).")
+    goal: DeltaModel = Field(default_factory=DeltaModel, description="The goal as its "
+                             "changes to the last action's target (the start when there is "
+                             "none).")
     mapping: dict[str, str] = {}
     notes: list[str] = []
     stats: dict[str, Number] = {}
