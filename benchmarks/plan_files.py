@@ -36,24 +36,13 @@ import numpy as np
 from msrr.core import plugins
 from msrr.core.configuration import Configuration
 from msrr.core.console import console, table
-from msrr.core.freeform.miso import FREE, random_miso_tree
+from msrr.core.freeform.miso import random_miso_tree
 from msrr.core.io import configuration_to_model, save_configuration
 from msrr.core.plan import Plan, save_plan
-from msrr.core.random_configurations import random_unit
+from msrr.core.random_configurations import pointer_configuration
 
 ROOT = Path(__file__).resolve().parents[1]
 LIBRARY = ROOT / "plugins/freesn/configs/library"
-
-
-def freebot(parent: tuple[int, ...], rng: np.random.Generator) -> Configuration:
-    """A FreeBOT configuration of a MISO pointer array with random connection vectors."""
-    config = Configuration("freebot")
-    for i in range(len(parent)):
-        config.add_module(f"F{i + 1}", "freebot")
-    for i, p in enumerate(parent):
-        if p != FREE:
-            config.connect(f"F{i + 1}", f"F{p + 1}", z=random_unit(rng))
-    return config
 
 
 def pairs(sizes: list[int], seed: int, branching: int | None
@@ -70,8 +59,9 @@ def pairs(sizes: list[int], seed: int, branching: int | None
     rng = np.random.default_rng(seed)
     for n in sizes:
         rows.append(("freebot", "miso", n,
-                     freebot(random_miso_tree(n, rng, max_branching=branching), rng),
-                     freebot(random_miso_tree(n, rng, max_branching=branching), rng)))
+                     *(pointer_configuration("freebot", "freebot",
+                                             random_miso_tree(n, rng, max_branching=branching),
+                                             rng) for _ in range(2))))
     start, goal = (plugins.load_configuration(LIBRARY / f"S12N6-{g}.json") for g in ("1.1", "5.2"))
     rows.append(("freesn", "library", len(start.modules()), start, goal))
     return rows

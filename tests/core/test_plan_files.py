@@ -16,10 +16,14 @@ from hypothesis import strategies as st
 from msrr.core import plugins
 from msrr.core.configuration import Configuration
 from msrr.core.delta import DerivedConfiguration, Draft, difference
-from msrr.core.freeform.miso import FREE, random_miso_tree
+from msrr.core.freeform.miso import random_miso_tree
 from msrr.core.io import configuration_to_model
 from msrr.core.plan import Plan, load_plan, save_plan
-from msrr.core.random_configurations import random_configuration, random_unit
+from msrr.core.random_configurations import (
+    pointer_configuration,
+    random_configuration,
+    random_unit,
+)
 from msrr.plugins.mmrp.random_trees import random_tree
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -99,22 +103,13 @@ def test_random_mmrp_plans_round_trip(n: int, seed: int, tmp_path_factory) -> No
     _round_trip(plan, tmp_path_factory.mktemp("mmrp") / "plan.json")
 
 
-def freebot(parent: tuple[int, ...], rng: np.random.Generator) -> Configuration:
-    """A FreeBOT configuration of a MISO pointer array, random connection vectors."""
-    config = Configuration("freebot")
-    for i in range(len(parent)):
-        config.add_module(f"F{i + 1}", "freebot")
-    for i, p in enumerate(parent):
-        if p != FREE:
-            config.connect(f"F{i + 1}", f"F{p + 1}", z=random_unit(rng))
-    return config
-
-
 @settings(max_examples=8, deadline=None)
 @given(n=st.integers(2, 30), seed=st.integers(0, 2**32 - 1))
 def test_random_freebot_plans_round_trip(n: int, seed: int, tmp_path_factory) -> None:
     rng = np.random.default_rng(seed)
-    start, goal = (freebot(random_miso_tree(n, rng, max_branching=3), rng) for _ in range(2))
+    start, goal = (pointer_configuration("freebot", "freebot",
+                                         random_miso_tree(n, rng, max_branching=3), rng)
+                   for _ in range(2))
     plan = plugins.planners.get("freebot").plan(start, goal)
     _round_trip(plan, tmp_path_factory.mktemp("freebot") / "plan.json")
 
