@@ -12,30 +12,50 @@ neighbour of the parent, disconnection and connection at once; defined in
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 import re
 from collections import Counter
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from itertools import pairwise
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import AllowInfNan, Field, Strict
+import numpy as np
+from pydantic import AllowInfNan, BeforeValidator, ConfigDict, Field, Strict
 
-from .configuration import Configuration
+from .configuration import VIRTUAL, Configuration, Edge, unit
+from .delta import ConfigurationDelta, DerivedConfiguration, Draft, Vertex, difference
 from .errors import ConfigurationError
-from .files import Coordinate, Cost, Number, StrictModel, atomic_write_text, parse_model, read_json
-from .io import ConfigurationFile, configuration_from_model, configuration_to_model
+from .files import (
+    Coordinate,
+    Cost,
+    Number,
+    StrictModel,
+    atomic_write_text,
+    not_boolean,
+    parse_model,
+    read_json,
+)
+from .io import (
+    ConfigurationFile,
+    ConnectionModel,
+    ModuleModel,
+    configuration_from_model,
+    configuration_to_model,
+)
 from .kinematics import KinematicTree, KinematicTreeFile
+from .kinematics.tree_file import TREE_SCHEMA_VERSION, NodeModel
 from .robot import Robot, Violation, check_structure
 from .scenario import MAX_DISTANCE, MAX_LOOPS, MAX_TIME
 
 __all__ = ["STRUT_ENDS", "Action", "ActionType", "BehaviorCall", "CommandGain",
-           "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_chain", "check_plan",
-           "connection_key", "join_plans", "links", "load_plan", "natural_key", "save_plan"]
+           "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_chain",
+           "check_plan", "connection_key", "join_plans", "links", "load_plan", "natural_key",
+           "parse_plan_file", "save_plan"]
 
 
 class ActionType(StrEnum):
@@ -115,8 +135,10 @@ STRUT_ENDS = ("a", "b")
 """Names of the source and target end of a connection that is a module."""
 
 
-def links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]:
-    """Every physical link of ``config`` with its direction-free key.
+def links(config: Configuration, edges: Iterable[Edge] | None = None
+          ) -> list[tuple[ConnectionKey, ConnectionChange]]:
+    """Every physical link of ``config`` (of ``edges`` of it, when given) with its
+    direction-free key.
 
     A connection between two modules is one link; a connection that is itself a
     module (a FreeSN strut) is one link per end resting on a module,
@@ -124,7 +146,7 @@ def links(config: Configuration) -> list[tuple[ConnectionKey, ConnectionChange]]
     is no link.
     """
     found = []
-    for edge in config.edges():
+    for edge in config.edges() if edges is None else edges:
         ports = edge.ports or (None, None)
         if edge.kind is None:
             if not (config.is_virtual(edge.source) or config.is_virtual(edge.target)):
@@ -277,13 +299,27 @@ class Action:
 
     def made(self) -> tuple[ConnectionChange, ...]:
         """The changes that are connections of ``target`` (connections made)."""
-        keys = {key for key, _ in links(self.target)}
+        keys = self._target_links()
         return tuple(c for c in self.changes if c.key in keys)
 
     def broken(self) -> tuple[ConnectionChange, ...]:
         """The changes that are not connections of ``target`` (connections broken)."""
-        keys = {key for key, _ in links(self.target)}
+        keys = self._target_links()
         return tuple(c for c in self.changes if c.key not in keys)
+
+    def _target_links(self) -> set[ConnectionKey]:
+        """The links of ``target`` at the modules the changes name (O(their degree), not
+        O(the target): a plan of thousands of actions counts its docks quickly)."""
+        target = self.target if self.changes else None
+        if target is None:
+            return set()
+        near = {m for c in self.changes for m in (c.source, c.target)}
+        edges = {e.id: e for m in near if m in target.graph for e in target.incident(m)}
+        for module in near - edges.keys():  # an edge module (a strut) names itself
+            if module not in target.graph:
+                with contextlib.suppress(ConfigurationError):
+                    edges[module] = target.edge(module)
+        return {key for key, _ in links(target, edges.values())}
 
 
 @dataclass
@@ -379,6 +415,10 @@ def join_plans(plans: Sequence[Plan]) -> Plan:
 # -- file format ------------------------------------------------------------------------
 
 
+SCHEMA_VERSION = 2
+"""The plan file format written: the start whole, every later configuration as its
+changes (:class:`DeltaModel`). Version 1 (every target whole) is still read."""
+
 MAX_ACTIONS = 100_000
 """Most actions a plan file may hold (a thousand loops of a long sequence behavior fit)."""
 
@@ -414,14 +454,61 @@ class BehaviorModel(StrictModel):
     direction: Annotated[list[Number], Field(min_length=3, max_length=3)] | None = None
 
 
+Index = Annotated[int, Strict(), Field(ge=0)] | None
+
+
+class ModuleDeltaModel(ModuleModel):
+    """A module added or changed (whole); ``at``: its index in the new module order
+    when inserted before the end."""
+
+    at: Index = Field(None, description="Index in the new module order (default: the end).")
+
+
+class ConnectionDeltaModel(ConnectionModel):
+    """A connection added or changed (whole, its id required); ``at``: its index in the
+    new connection order when inserted before the end."""
+
+    id: str = Field(min_length=1, description="Edge id (module id for edge modules).")
+    at: Index = Field(None, description="Index in the new connection order (default: the end).")
+
+
+class DeltaModel(StrictModel):
+    """A configuration as its changes to the one before (:class:`ConfigurationDelta`):
+    applied in the order removed connections, removed modules, modules, connections."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, coerce_numbers_to_str=True)
+
+    name: str | None = Field(None, description="The new name, when it changes.")
+    description: str | None = Field(None, description="The new description, when it changes.")
+    removed_connections: list[str] = Field(default_factory=list,
+                                           description="Ids of connections removed.")
+    removed_modules: list[str] = Field(default_factory=list, description="Ids of modules "
+                                       "removed (with no connection left).")
+    modules: list[ModuleDeltaModel] = Field(default_factory=list,
+                                            description="Modules added or changed.")
+    connections: list[ConnectionDeltaModel] = Field(default_factory=list,
+                                                    description="Connections added or changed.")
+
+
+class TreeModel(StrictModel):
+    """An action's kinematic tree: its topology as changes to the action's target without
+    its vectors (usually none), and its nodes in BFS order
+    (:mod:`msrr.core.kinematics.tree_file`)."""
+
+    topology: DeltaModel = Field(default_factory=DeltaModel)
+    nodes: list[NodeModel] = Field(min_length=1)
+
+
 class ActionModel(StrictModel):
     type: ActionType
-    target: ConfigurationFile
-    modules: list[str] = []
-    changes: list[ChangeModel] = []
-    goals: dict[str, list[Coordinate]] = {}
+    target: DeltaModel = Field(default_factory=DeltaModel, description="The action's target "
+                               "as its changes to the previous target (the start for the "
+                               "first action).")
+    modules: list[str] = Field(default_factory=list)
+    changes: list[ChangeModel] = Field(default_factory=list)
+    goals: dict[str, list[Coordinate]] = Field(default_factory=dict)
     cost: Cost = 0.0
-    kinematic_tree: KinematicTreeFile | None = None
+    kinematic_tree: TreeModel | None = None
     note: str = ""
     behavior: BehaviorModel | None = None
     reaches: str = ""
@@ -429,14 +516,39 @@ class ActionModel(StrictModel):
 
 
 class PlanFile(StrictModel):
-    """A plan file (``platform plan --json``; read back with :func:`load_plan`)."""
+    """A plan file (``platform plan --json``; read back with :func:`load_plan`): the start
+    whole, every action's target and then the goal as changes to the one before."""
+
+    schema_version: Annotated[Literal[2], BeforeValidator(not_boolean)] = Field(
+        description="File format version.")
+    robot: str = Field(min_length=1)
+    planner: str
+    start: ConfigurationFile
+    actions: list[ActionModel] = Field(max_length=MAX_ACTIONS)
+    goal: DeltaModel = Field(default_factory=DeltaModel, description="The goal as its "
+                             "changes to the last action's target (the start when there is "
+                             "none).")
+    mapping: dict[str, str] = {}
+    notes: list[str] = []
+    stats: dict[str, Number] = {}
+
+
+class ActionModelV1(ActionModel):
+    """An action of a version 1 plan file: its target and tree whole."""
+
+    target: ConfigurationFile  # type: ignore[assignment]
+    kinematic_tree: KinematicTreeFile | None = None  # type: ignore[assignment]
+
+
+class PlanFileV1(StrictModel):
+    """A version 1 plan file: every configuration whole (read, no longer written)."""
 
     schema_version: Annotated[int, Strict()] = Field(1, ge=1, le=1)
     robot: str = Field(min_length=1)
     planner: str
     start: ConfigurationFile
     goal: ConfigurationFile
-    actions: list[ActionModel] = Field(max_length=MAX_ACTIONS)
+    actions: list[ActionModelV1] = Field(max_length=MAX_ACTIONS)
     mapping: dict[str, str] = {}
     notes: list[str] = []
     stats: dict[str, Number] = {}
@@ -471,24 +583,81 @@ def _behavior_call(model: BehaviorModel | None, source: str | None, field: str
                                  field=f"{field}.{exc.field}" if exc.field else field) from None
 
 
-def _tree_model(tree: KinematicTree | None) -> KinematicTreeFile | None:
-    return None if tree is None else KinematicTreeFile.model_validate(tree.to_dict())
+def _vector(v: np.ndarray | None) -> list[float] | None:
+    return None if v is None else v.tolist()
+
+
+def delta_to_model(delta: ConfigurationDelta) -> DeltaModel:
+    """The file model of ``delta`` (exact floats: a round trip is lossless)."""
+    return DeltaModel(
+        name=delta.name, description=delta.description,
+        removed_connections=list(delta.removed_edges),
+        removed_modules=list(delta.removed_vertices),
+        modules=[ModuleDeltaModel(id=v.id, kind=v.kind, position=_vector(v.position), at=at)
+                 for v, at in delta.vertices],
+        connections=[ConnectionDeltaModel(id=e.id, source=e.source, target=e.target,
+                                          kind=e.kind, z=_vector(e.z), x=_vector(e.x),
+                                          ports=e.ports, at=at) for e, at in delta.edges])
+
+
+def _read_only(values: list[float] | None, check: bool) -> np.ndarray | None:
+    if values is None:
+        return None
+    if check:
+        return unit(values)
+    array = np.array(values, dtype=np.float64)
+    array.flags.writeable = False
+    return array
+
+
+def delta_from_model(model: DeltaModel) -> ConfigurationDelta:
+    """The :class:`ConfigurationDelta` of a file model (vectors checked unit by the model)."""
+    return ConfigurationDelta(
+        removed_vertices=tuple(model.removed_modules),
+        vertices=tuple((Vertex(m.id, m.kind, _read_only(m.position, False)), m.at)
+                       for m in model.modules),
+        removed_edges=tuple(model.removed_connections),
+        edges=tuple((Edge(c.id, c.source, c.target, c.kind, _read_only(c.z, True),
+                          _read_only(c.x, True), None if c.ports is None else tuple(c.ports)),
+                     c.at) for c in model.connections),
+        name=model.name, description=model.description)
+
+
+def _skeleton(config: Configuration) -> Configuration:
+    """``config`` without vectors: the base a kinematic tree's topology is stored against."""
+    return config.derive(z={}, x={})
+
+
+def _tree_model(tree: KinematicTree | None, target: Configuration) -> TreeModel | None:
+    if tree is None:
+        return None
+    delta = replace(difference(_skeleton(target), tree.configuration), description=None)
+    return TreeModel(topology=delta_to_model(delta),
+                     nodes=[NodeModel.model_validate(node.to_dict()) for node in tree.nodes])
 
 
 def plan_to_model(plan: Plan) -> PlanFile:
-    return PlanFile(
-        robot=plan.robot, planner=plan.planner,
-        start=configuration_to_model(plan.start), goal=configuration_to_model(plan.goal),
-        actions=[ActionModel(type=a.type, target=configuration_to_model(a.target),
-                             modules=list(a.modules),
-                             changes=[ChangeModel(**c.__dict__) for c in a.changes],
-                             goals=a.goals, cost=a.cost,
-                             kinematic_tree=_tree_model(a.kinematic_tree), note=a.note,
-                             behavior=_behavior_model(a.behavior), reaches=a.reaches,
-                             retrieved=a.retrieved)
-                 for a in plan.actions],
-        mapping=plan.mapping, notes=plan.notes, stats=plan.stats,
-    )
+    """The file model of ``plan``: the start whole, every later configuration as its
+    :func:`~msrr.core.delta.difference` from the one before."""
+    actions, before = [], plan.start
+    for a in plan.actions:
+        actions.append(ActionModel(
+            type=a.type, target=delta_to_model(difference(before, a.target)),
+            modules=list(a.modules), changes=[ChangeModel(**c.__dict__) for c in a.changes],
+            goals=a.goals, cost=a.cost, kinematic_tree=_tree_model(a.kinematic_tree, a.target),
+            note=a.note, behavior=_behavior_model(a.behavior), reaches=a.reaches,
+            retrieved=a.retrieved))
+        before = a.target
+    return PlanFile(schema_version=SCHEMA_VERSION, robot=plan.robot, planner=plan.planner,
+                    start=configuration_to_model(plan.start), actions=actions,
+                    goal=delta_to_model(difference(before, plan.goal)), mapping=plan.mapping,
+                    notes=plan.notes, stats=plan.stats)
+
+
+def _at(exc: ConfigurationError, source: str | None, field: str) -> ConfigurationError:
+    """``exc`` naming ``source`` and its field under ``field``."""
+    return ConfigurationError(exc.message, source=source,
+                              field=f"{field}.{exc.field}" if exc.field else field)
 
 
 def _configuration(model: ConfigurationFile, robot: str, source: str | None, field: str
@@ -496,57 +665,99 @@ def _configuration(model: ConfigurationFile, robot: str, source: str | None, fie
     try:
         config = configuration_from_model(model)
     except ConfigurationError as exc:
-        raise ConfigurationError(exc.message, source=source,
-                                 field=f"{field}.{exc.field}" if exc.field else field) from None
+        raise _at(exc, source, field) from None
     if config.robot != robot:
         raise ConfigurationError(f"a configuration of robot {config.robot!r} in a plan for "
                                  f"{robot!r}", source=source, field=f"{field}.robot")
     return config
 
 
-def _check_action(action: Action, i: int, source: str | None) -> None:
-    """The ids an action names exist in its target (vertices, or edges that are modules)."""
-    target = set(action.target.vertices()) | set(action.target.edge_ids())
+def _check_action(action: Action, i: int, source: str | None, has: Callable[[str], bool]
+                  ) -> None:
+    """The ids an action names exist in its target (``has``: vertices, or edges that are
+    modules)."""
     for j, module in enumerate(action.modules):
-        if module not in target:
+        if not has(module):
             raise ConfigurationError(f"module {module!r} is not in the action's target",
                                      source=source, field=f"actions[{i}].modules[{j}]")
     for module in action.goals:
-        if module not in target:
+        if not has(module):
             raise ConfigurationError(f"module {module!r} is not in the action's target",
                                      source=source, field=f"actions[{i}].goals")
     for j, change in enumerate(action.changes):
         for end in (change.source, change.target):
-            if end not in target:
+            if not has(end):
                 raise ConfigurationError(f"module {end!r} is not in the action's target",
                                          source=source, field=f"actions[{i}].changes[{j}]")
     for j, command in enumerate(action.behavior.commands if action.behavior else ()):
-        if command.module not in target:
+        if not has(command.module):
             raise ConfigurationError(f"module {command.module!r} is not in the action's "
                                      "target", source=source,
                                      field=f"actions[{i}].behavior.commands[{j}]")
 
 
-def _tree(model: KinematicTreeFile | None, robot: str, modes: Mapping[str, type],
+def _tree(document: dict[str, Any] | None, robot: str, modes: Mapping[str, type],
           source: str | None, field: str) -> KinematicTree | None:
-    if model is None:
+    if document is None:
         return None
     try:
-        tree = KinematicTree.from_dict(model.model_dump(mode="json", exclude_none=True),
-                                       modes=modes, source=source)
+        tree = KinematicTree.from_dict(document, modes=modes, source=source)
     except ConfigurationError as exc:
-        raise ConfigurationError(exc.message, source=source,
-                                 field=f"{field}.{exc.field}" if exc.field else field) from None
+        raise _at(exc, source, field) from None
     if tree.configuration.robot != robot:
         raise ConfigurationError(f"a tree of robot {tree.configuration.robot!r} in a plan for "
                                  f"{robot!r}", source=source, field=f"{field}.robot")
     return tree
 
 
-def plan_from_model(model: PlanFile, source: str | None = None,
+def _tree_document(model: TreeModel | None, target: Configuration, source: str | None,
+                   field: str) -> dict[str, Any] | None:
+    """The kinematic tree document (:mod:`~msrr.core.kinematics.tree_file`) of a
+    version 2 tree: its topology applied to the target's skeleton."""
+    if model is None:
+        return None
+    draft = Draft(_skeleton(target))
+    try:
+        draft.apply(delta_from_model(model.topology))
+    except ConfigurationError as exc:
+        raise _at(exc, source, f"{field}.topology") from None
+    topology = configuration_to_model(draft.build()).model_dump(mode="json", exclude_none=True)
+    return {"schema_version": TREE_SCHEMA_VERSION, "robot": target.robot,
+            "configuration": draft.name, "modules": topology["modules"],
+            "connections": topology["connections"],
+            "nodes": [n.model_dump(mode="json") for n in model.nodes]}
+
+
+def _action(a: ActionModel, target: Configuration, tree: KinematicTree | None,
+            source: str | None, where: str) -> Action:
+    action = Action(type=a.type, target=target, modules=tuple(a.modules),
+                    changes=tuple(ConnectionChange(c.source, c.target, c.source_port,
+                                                   c.target_port, c.edge_id) for c in a.changes),
+                    goals=a.goals, cost=a.cost, kinematic_tree=tree, note=a.note,
+                    behavior=_behavior_call(a.behavior, source, f"{where}.behavior"),
+                    reaches=a.reaches, retrieved=a.retrieved)
+    if action.type is ActionType.BEHAVIOR and action.behavior is None:
+        raise ConfigurationError("a behavior action names no behavior", source=source,
+                                 field=f"{where}.behavior")
+    return action
+
+
+def _check_mapping(plan: Plan, source: str | None) -> Plan:
+    for module in plan.mapping:
+        if module not in plan.start:
+            raise ConfigurationError(f"module {module!r} is not in the start",
+                                     source=source, field="mapping")
+    return plan
+
+
+def plan_from_model(model: PlanFile | PlanFileV1, source: str | None = None,
                     modes: Mapping[str, type] | None = None) -> Plan:
-    """A :class:`Plan` from its file model; every configuration names the plan's robot,
-    every id an action names is in its target; errors name ``source`` and the field.
+    """A :class:`Plan` from its file model (either version); every configuration names
+    the plan's robot, every change applies to the configuration before it, every id an
+    action names is in its target; errors name ``source`` and the field.
+
+    A version 2 file's targets are :class:`~msrr.core.delta.DerivedConfiguration` s, each
+    built the first time it is read.
 
     Args:
         model: the parsed file.
@@ -554,32 +765,144 @@ def plan_from_model(model: PlanFile, source: str | None = None,
         modes: the robot's joint modes (``Robot.joint_modes``), to read the actions'
             kinematic trees back as :class:`~msrr.core.kinematics.KinematicTree` s.
     """
+    if isinstance(model, PlanFileV1):
+        return _plan_from_v1(model, source, modes or {})
+    start = _configuration(model.start, model.robot, source, "start")
+    draft, before, actions = Draft(start), start, []
+    for i, a in enumerate(model.actions):
+        where = f"actions[{i}]"
+        target = _derived(before, a.target, draft, source, f"{where}.target")
+        tree = _tree(_tree_document(a.kinematic_tree, target, source, f"{where}.kinematic_tree"),
+                     model.robot, modes or {}, source, f"{where}.kinematic_tree")
+        action = _action(a, target, tree, source, where)
+        _check_action(action, i, source, lambda m: m in draft.vertices or m in draft.edges)
+        actions.append(action)
+        before = target
+    goal = _derived(before, model.goal, draft, source, "goal")
+    return _check_mapping(Plan(robot=model.robot, planner=model.planner, start=start, goal=goal,
+                               actions=actions, mapping=model.mapping, notes=model.notes,
+                               stats=model.stats), source)
+
+
+def _derived(before: Configuration, model: DeltaModel, draft: Draft, source: str | None,
+             field: str) -> Configuration:
+    """``before`` changed by ``model``, checked on ``draft`` (which it changes too)."""
+    delta = delta_from_model(model)
+    try:
+        draft.apply(delta)
+    except ConfigurationError as exc:
+        raise _at(exc, source, field) from None
+    return DerivedConfiguration(before, delta) if delta else before
+
+
+def _plan_from_v1(model: PlanFileV1, source: str | None, modes: Mapping[str, type]) -> Plan:
     actions = []
     for i, a in enumerate(model.actions):
         where = f"actions[{i}]"
-        action = Action(type=a.type,
-                        target=_configuration(a.target, model.robot, source, f"{where}.target"),
-                        modules=tuple(a.modules),
-                        changes=tuple(ConnectionChange(**c.model_dump()) for c in a.changes),
-                        goals=a.goals, cost=a.cost,
-                        kinematic_tree=_tree(a.kinematic_tree, model.robot, modes or {}, source,
-                                             f"{where}.kinematic_tree"),
-                        note=a.note,
-                        behavior=_behavior_call(a.behavior, source, f"{where}.behavior"),
-                        reaches=a.reaches, retrieved=a.retrieved)
-        if action.type is ActionType.BEHAVIOR and action.behavior is None:
-            raise ConfigurationError("a behavior action names no behavior", source=source,
-                                     field=f"{where}.behavior")
-        _check_action(action, i, source)
+        target = _configuration(a.target, model.robot, source, f"{where}.target")
+        document = None if a.kinematic_tree is None else \
+            a.kinematic_tree.model_dump(mode="json", exclude_none=True)
+        tree = _tree(document, model.robot, modes, source, f"{where}.kinematic_tree")
+        action = _action(a, target, tree, source, where)
+        names = set(target.vertices()) | set(target.edge_ids())
+        _check_action(action, i, source, names.__contains__)
         actions.append(action)
     start = _configuration(model.start, model.robot, source, "start")
     goal = _configuration(model.goal, model.robot, source, "goal")
-    for module in model.mapping:
-        if module not in start:
-            raise ConfigurationError(f"module {module!r} is not in the start",
-                                     source=source, field="mapping")
-    return Plan(robot=model.robot, planner=model.planner, start=start, goal=goal,
-                actions=actions, mapping=model.mapping, notes=model.notes, stats=model.stats)
+    return _check_mapping(Plan(robot=model.robot, planner=model.planner, start=start, goal=goal,
+                               actions=actions, mapping=model.mapping, notes=model.notes,
+                               stats=model.stats), source)
+
+
+# -- validation ---------------------------------------------------------------------------
+
+
+class _Window:
+    """The part of a :class:`~msrr.core.delta.Draft` one step touched, read the way
+    :func:`~msrr.core.robot.check_structure`, :func:`links` and :func:`_port_pairs` read a
+    configuration (kinds and degrees from the whole draft), so a step is checked in
+    O(its changes): the rest was checked before and did not change."""
+
+    def __init__(self, draft: Draft, vertices: Iterable[str], edges: Iterable[str]):
+        self.robot = draft.robot
+        self._draft = draft
+        self._vertices = [v for v in dict.fromkeys(vertices) if v in draft.vertices]
+        self._edges = [draft.edges[e] for e in dict.fromkeys(edges) if e in draft.edges]
+
+    def vertices(self) -> list[str]:
+        return self._vertices
+
+    def edges(self) -> list[Edge]:
+        return self._edges
+
+    def kind_of(self, vertex: str) -> str:
+        return self._draft.vertices[vertex].kind
+
+    def is_virtual(self, vertex: str) -> bool:
+        return self._draft.vertices[vertex].kind == VIRTUAL
+
+    def degree(self, vertex: str) -> int:
+        return len(self._draft.incident[vertex])
+
+    def modules(self) -> dict[str, str]:
+        found = {v: self.kind_of(v) for v in self._vertices if not self.is_virtual(v)}
+        found.update({e.id: e.kind for e in self._edges if e.kind is not None})
+        return found
+
+
+@dataclass
+class _Step:
+    """One step of a plan walked by :func:`_walk`: what it touched before and after."""
+
+    where: str
+    said: str
+    delta: ConfigurationDelta
+    before: dict[str, str]
+    after: _Window
+    made: set[ConnectionKey]
+    broken: set[ConnectionKey]
+
+
+def _touched(draft: Draft, delta: ConfigurationDelta) -> tuple[set[str], set[str]]:
+    """The vertices and edges whose checks ``delta`` can change on ``draft``: those it
+    writes or removes, the ends of the edges it writes or removes (degrees), and the
+    edges of a vertex whose kind changes (ports, links)."""
+    vertices = set(delta.removed_vertices) | {v.id for v, _ in delta.vertices}
+    edges = set(delta.removed_edges) | {e.id for e, _ in delta.edges}
+    for edge_id in edges:
+        old = draft.edges.get(edge_id)
+        if old is not None:
+            vertices.update((old.source, old.target))
+    vertices.update(end for e, _ in delta.edges for end in (e.source, e.target))
+    for v, _ in delta.vertices:
+        old = draft.vertices.get(v.id)
+        if old is not None and old.kind != v.kind:
+            edges.update(draft.incident[v.id])
+    return vertices, edges
+
+
+def _walk(plan: Plan) -> Iterator[_Step]:
+    """Every step of ``plan`` (each action, then the goal) with the links it makes and
+    breaks and the modules it touches, from one draft changed by each step's
+    :func:`~msrr.core.delta.difference` (O(changes) for derived targets)."""
+    draft, before, said = Draft(plan.start), plan.start, "the start"
+    steps = [(f"actions[{i}]", a.target, f"actions[{i}].target")
+             for i, a in enumerate(plan.actions)]
+    for where, config, name in [*steps, ("goal", plan.goal, "goal")]:
+        delta = difference(before, config)
+        if not delta.size:  # nothing to apply: no link, module or rule can change
+            draft.apply(delta)
+            yield _Step(where, said, delta, {}, _Window(draft, (), ()), set(), set())
+            before, said = config, name
+            continue
+        vertices, edges = _touched(draft, delta)
+        old = _Window(draft, vertices, edges)
+        have, modules = Counter(key for key, _ in links(old)), old.modules()
+        draft.apply(delta)
+        after = _Window(draft, vertices, edges)
+        want = Counter(key for key, _ in links(after))
+        yield _Step(where, said, delta, modules, after, set(want - have), set(have - want))
+        before, said = config, name
 
 
 def check_plan(plan: Plan, robot: Robot) -> None:
@@ -588,6 +911,9 @@ def check_plan(plan: Plan, robot: Robot) -> None:
     port pairs (an intermediate configuration may break a topology rule on purpose,
     e.g. while split); and the actions follow one another from the start to the goal
     (:func:`check_chain`).
+
+    A target is checked where it differs from the one before (the start is checked
+    whole), so a plan of k actions over n modules costs O(n + its changes).
 
     Raises:
         ConfigurationError: naming the field (``start``, ``actions[3].target``...).
@@ -599,12 +925,60 @@ def check_plan(plan: Plan, robot: Robot) -> None:
         found = robot.violations(config)
         if found:
             raise ConfigurationError(f"{found[0].where}: {found[0].message}", field=where)
-    for i, action in enumerate(plan.actions):
-        found = check_structure(action.target, robot.spec) + _port_pairs(action.target, robot)
-        if found:
-            raise ConfigurationError(f"{found[0].where}: {found[0].message}",
-                                     field=f"actions[{i}].target")
-    check_chain(plan)
+    check_chain(plan, robot)
+
+
+def check_chain(plan: Plan, robot: Robot | None = None) -> None:
+    """Validate that ``plan``'s actions follow one another: each action's target has the
+    modules of the step before (the start for the first), its type and ``changes`` are
+    the links that step makes and breaks, its ``modules`` name every module its changes
+    and goals name, no action repeats the one before it, and the last target is the
+    plan's goal (its modules and links). With ``robot``, every action target has only
+    its module kinds, ports and legal port pairs too.
+
+    Raises:
+        ConfigurationError: naming the field (``actions[3].changes``, ``goal``...).
+    """
+    unchecked = _port_pairs(plan.start, robot) if robot is not None else []
+    for i, step in enumerate(_walk(plan)):
+        if step.where == "goal":
+            _same_modules(step.before, step.after.modules(), step.said, "goal")
+            if step.made or step.broken:
+                raise ConfigurationError(
+                    f"is not where the actions end: {step.said} lacks {_names(step.made)} "
+                    f"and has {_names(step.broken)} besides", field="goal")
+            break
+        if robot is not None and (unchecked or step.delta.size):
+            found = (unchecked + check_structure(step.after, robot.spec)  # type: ignore[arg-type]
+                     + _port_pairs(step.after, robot))  # type: ignore[arg-type]
+            if found:
+                raise ConfigurationError(f"{found[0].where}: {found[0].message}",
+                                         field=f"{step.where}.target")
+            unchecked = []
+        _check_step(plan, i, step)
+
+
+def _check_step(plan: Plan, i: int, step: _Step) -> None:
+    """The checks of :func:`check_chain` on one action."""
+    action, where, said = plan.actions[i], step.where, step.said
+    _same_modules(step.before, step.after.modules(), said, f"{where}.target")
+    made, broken = step.made, step.broken
+    if not _KINDS[action.type](len(made), len(broken)):
+        raise ConfigurationError(
+            f"a {action.type.value} action, but from {said} its target makes "
+            f"{_names(made)} and breaks {_names(broken)}", field=f"{where}.type")
+    planned = {c.key for c in action.changes}
+    if planned != made | broken and (planned or action.type is not ActionType.FLOW):
+        raise ConfigurationError(
+            f"are {_names(planned)}, but from {said} its target makes {_names(made)} "
+            f"and breaks {_names(broken)}", field=f"{where}.changes")
+    acting = {m for c in action.changes for m in (c.source, c.target)} | set(action.goals)
+    missing = sorted(acting - set(action.modules), key=natural_key)
+    if missing:
+        raise ConfigurationError(f"leaves out {', '.join(missing)}, which the action's "
+                                 "changes or goals name", field=f"{where}.modules")
+    if i and _repeats(action, plan.actions[i - 1], step.delta):
+        raise ConfigurationError("repeats the action before it", field=where)
 
 
 def _port_pairs(config: Configuration, robot: Robot) -> list[Violation]:
@@ -618,14 +992,6 @@ def _port_pairs(config: Configuration, robot: Robot) -> list[Violation]:
             found.append(Violation(f"connection {edge.id}", f"illegal port pair "
                                    f"{edge.source}{ports[0] or ''}-{edge.target}{ports[1] or ''}"))
     return found
-
-
-def _link_changes(before: Configuration, after: Configuration
-                  ) -> tuple[set[ConnectionKey], set[ConnectionKey]]:
-    """The links (:func:`links`) ``after`` has that ``before`` lacks, and those it lost."""
-    have = Counter(key for key, _ in links(before))
-    want = Counter(key for key, _ in links(after))
-    return set(want - have), set(have - want)
 
 
 def _names(keys: set[ConnectionKey]) -> str:
@@ -648,47 +1014,10 @@ is one of each, of one module: :func:`msrr.core.actions.flow_move` has the exact
 which the executor applies)."""
 
 
-def check_chain(plan: Plan) -> None:
-    """Validate that ``plan``'s actions follow one another: each action's target has the
-    modules of the step before (the start for the first), its type and ``changes`` are
-    the links that step makes and breaks, its ``modules`` name every module its changes
-    and goals name, no action repeats the one before it, and the last target is the
-    plan's goal (its modules and links).
-
-    Raises:
-        ConfigurationError: naming the field (``actions[3].changes``, ``goal``...).
-    """
-    before, said = plan.start, "the start"
-    for i, action in enumerate(plan.actions):
-        where = f"actions[{i}]"
-        _same_modules(before, action.target, said, f"{where}.target")
-        made, broken = _link_changes(before, action.target)
-        if not _KINDS[action.type](len(made), len(broken)):
-            raise ConfigurationError(
-                f"a {action.type.value} action, but from {said} its target makes "
-                f"{_names(made)} and breaks {_names(broken)}", field=f"{where}.type")
-        planned = {c.key for c in action.changes}
-        if planned != made | broken and (planned or action.type is not ActionType.FLOW):
-            raise ConfigurationError(
-                f"are {_names(planned)}, but from {said} its target makes {_names(made)} "
-                f"and breaks {_names(broken)}", field=f"{where}.changes")
-        acting = {m for c in action.changes for m in (c.source, c.target)} | set(action.goals)
-        missing = sorted(acting - set(action.modules), key=natural_key)
-        if missing:
-            raise ConfigurationError(f"leaves out {', '.join(missing)}, which the action's "
-                                     "changes or goals name", field=f"{where}.modules")
-        if i and _repeats(action, plan.actions[i - 1]):
-            raise ConfigurationError("repeats the action before it", field=where)
-        before, said = action.target, f"{where}.target"
-    _same_modules(before, plan.goal, said, "goal")
-    made, broken = _link_changes(before, plan.goal)
-    if made or broken:
-        raise ConfigurationError(f"is not where the actions end: {said} lacks {_names(made)} "
-                                 f"and has {_names(broken)} besides", field="goal")
-
-
-def _same_modules(before: Configuration, after: Configuration, said: str, field: str) -> None:
-    have, want = before.modules(), after.modules()
+def _same_modules(have: Mapping[str, str], want: Mapping[str, str], said: str, field: str
+                  ) -> None:
+    """Refuse a step whose modules (id -> kind, of the ids it touched) differ from those
+    of the step before."""
     if have != want:
         extra = sorted(set(want) - set(have), key=natural_key)
         gone = sorted(set(have) - set(want), key=natural_key)
@@ -700,24 +1029,59 @@ def _same_modules(before: Configuration, after: Configuration, said: str, field:
                                  field=field)
 
 
-def _repeats(action: Action, before: Action) -> bool:
-    """Whether ``action`` is ``before`` again (a copied step: nothing left to do)."""
+def _repeats(action: Action, before: Action, delta: ConfigurationDelta) -> bool:
+    """Whether ``action`` is ``before`` again (a copied step: nothing left to do);
+    ``delta`` takes ``before``'s target to ``action``'s."""
     if (action.type, action.modules, action.changes, action.goals, action.behavior,
             action.reaches) != (before.type, before.modules, before.changes, before.goals,
                                 before.behavior, before.reaches):
         return False
-    return configuration_to_model(action.target) == configuration_to_model(before.target)
+    return not delta or \
+        configuration_to_model(action.target) == configuration_to_model(before.target)
+
+
+def _dumps(data: dict[str, Any]) -> str:
+    """A plan file's text: compact JSON, one line per top-level field and per action."""
+    def compact(value: Any) -> str:
+        return json.dumps(value, separators=(",", ":"))
+
+    fields = []
+    for key, value in data.items():
+        text = compact(value)
+        if key == "actions" and value:
+            text = "[\n" + ",\n".join(compact(a) for a in value) + "\n]"
+        fields.append(f"{compact(key)}:{text}")
+    return "{\n" + ",\n".join(fields) + "\n}\n"
 
 
 def save_plan(plan: Plan, path: str | os.PathLike[str]) -> None:
-    """Write ``plan`` as JSON, atomically."""
-    data = plan_to_model(plan).model_dump(mode="json", exclude_none=True)
-    atomic_write_text(path, json.dumps(data, indent=2) + "\n")
+    """Write ``plan`` as JSON (:class:`PlanFile`, version :data:`SCHEMA_VERSION`),
+    atomically."""
+    data = plan_to_model(plan).model_dump(mode="json", exclude_none=True, exclude_defaults=True)
+    data = {"schema_version": SCHEMA_VERSION, **data}
+    atomic_write_text(path, _dumps(data))
+
+
+def parse_plan_file(data: Any, source: str | None = None) -> PlanFile | PlanFileV1:
+    """The file model of a parsed plan file, by its ``schema_version`` (1 when absent).
+
+    Raises:
+        ConfigurationError: an unknown version or a bad field, naming ``source`` and it.
+    """
+    version = data.get("schema_version", 1) if isinstance(data, dict) else SCHEMA_VERSION
+    if version == 1 and not isinstance(version, bool):
+        return parse_model(PlanFileV1, data, source)
+    if version != SCHEMA_VERSION or isinstance(version, bool):
+        raise ConfigurationError(f"unknown plan file version {version!r}: this platform "
+                                 f"reads versions 1 and {SCHEMA_VERSION}", source=source,
+                                 field="schema_version")
+    return parse_model(PlanFile, data, source)
 
 
 def load_plan(path: str | os.PathLike[str],
               robot: Robot | Callable[[str], Robot] | None = None) -> Plan:
-    """Read a plan file and, when ``robot`` is given, validate it (:func:`check_plan`).
+    """Read a plan file (version 1 or 2) and, when ``robot`` is given, validate it
+    (:func:`check_plan`).
 
     ``robot`` may be a function giving the robot of the name the file holds, as
     :func:`msrr.core.plugins.load_plan` passes.
@@ -726,7 +1090,7 @@ def load_plan(path: str | os.PathLike[str],
         ConfigurationError: a bad file, field or id, or a broken rule of ``robot``;
             naming the file and the field.
     """
-    model = parse_model(PlanFile, read_json(path), str(path))
+    model = parse_plan_file(read_json(path), str(path))
     if robot is not None and not isinstance(robot, Robot):
         robot = robot(model.robot)
     plan = plan_from_model(model, str(path), None if robot is None else robot.joint_modes)

@@ -6,13 +6,15 @@ third-party) and by benchmarks. Deterministic for a given ``numpy`` generator.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from .alignment import rot_z
 from .configuration import Configuration
 from .robot import DockingRules, RobotSpec
 
-__all__ = ["newly_built", "random_configuration", "random_unit"]
+__all__ = ["newly_built", "pointer_configuration", "random_configuration", "random_unit"]
 
 
 def random_unit(rng: np.random.Generator) -> np.ndarray:
@@ -22,6 +24,20 @@ def random_unit(rng: np.random.Generator) -> np.ndarray:
         norm = float(np.linalg.norm(v))
         if norm > 1e-9:
             return v / norm
+
+
+def pointer_configuration(robot: str, kind: str, parent: Sequence[int],
+                          rng: np.random.Generator, *, prefix: str = "F") -> Configuration:
+    """The configuration of a MISO pointer array (``parent[i]`` the module ``i``
+    connects to, ``-1`` none; :func:`msrr.core.freeform.miso.random_miso_tree` draws
+    them): modules ``F1``... of ``kind``, random unit connection vectors."""
+    config = Configuration(robot)
+    for i in range(len(parent)):
+        config.add_module(f"{prefix}{i + 1}", kind)
+    for i, p in enumerate(parent):
+        if p >= 0:
+            config.connect(f"{prefix}{i + 1}", f"{prefix}{p + 1}", z=random_unit(rng))
+    return config
 
 
 def _port_pair(rules: DockingRules, spec: RobotSpec, config: Configuration, child: str,

@@ -221,7 +221,8 @@ def test_plan_files_are_validated_on_load(tiny, tmp_path: Path) -> None:
         d["actions"][0]["changes"][0]["source"] = "z"
 
     def kind(d):
-        d["actions"][0]["target"]["modules"][0]["kind"] = "warpdrive"
+        d["actions"][0]["target"]["modules"] = [{"id": "a", "kind": "warpdrive"}]
+        d["actions"][1]["target"] = {"modules": [{"id": "a", "kind": "cube"}]}  # and back
 
     def cost(d):
         d["actions"][0]["cost"] = -1

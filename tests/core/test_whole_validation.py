@@ -25,6 +25,11 @@ LIBRARY = ROOT / "plugins/freesn/libraries/S6N3.json"
 SOURCES = ROOT / "plugins/freesn/library_sources/S6N3"
 
 
+V1_PLAN = Path(__file__).resolve().parent / "plans_v1" / "mmrp-t-series.json"
+"""The same plan in a version 1 file (every target whole), as the platform wrote it
+before plan files stored changes."""
+
+
 @pytest.fixture(scope="module")
 def plan_doc(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """An MMRP plan file: undock 3R-1, undock 4L-1, four moves, dock 4B-1, dock 3B-4."""
@@ -82,7 +87,19 @@ def _module_gone(doc: dict[str, Any]) -> None:
                              (c["source"], c["target"])]
 
 
-PLANS = {
+def _module_added(doc: dict[str, Any]) -> None:
+    """Module 9 appears in a move's target and leaves with the next move."""
+    doc["actions"][2]["target"] = {"modules": [{"id": "9", "kind": "mmrp"}]}
+    doc["actions"][3]["target"] = {"removed_modules": ["9"]}
+
+
+def _changed(index: int, **delta: Any) -> Callable[[dict[str, Any]], None]:
+    def mutate(doc: dict[str, Any]) -> None:
+        doc["actions"][index]["target"] = delta
+    return mutate
+
+
+V1_PLANS = {
     "modules of an undock deleted": (_without_modules("disconnection"), "actions[0].modules",
                                      "leaves out 1, 3"),
     "modules of a move deleted": (_without_modules("moving"), "actions[2].modules",
@@ -98,13 +115,48 @@ PLANS = {
     "goal of the start": (_goal_of_the_start, "goal", "is not where the actions end"),
     "a module gone": (_module_gone, "actions[2].target", "has other modules than"),
 }
+"""Broken version 1 files: every check of :func:`msrr.core.plan.check_chain` still
+refuses them."""
+
+PLANS = {
+    "modules of an undock deleted": V1_PLANS["modules of an undock deleted"],
+    "modules of a move deleted": V1_PLANS["modules of a move deleted"],
+    "a move duplicated": V1_PLANS["a move duplicated"],
+    "another type": V1_PLANS["another type"],
+    "another change": V1_PLANS["another change"],
+    "first action duplicated": (_duplicate("disconnection"),
+                                "actions[1].target.removed_connections[0]",
+                                "no connection '1L-3R' to remove"),
+    "start of another configuration": (_start_of_the_goal,
+                                       "actions[0].target.removed_connections[0]",
+                                       "no connection '1L-3R' to remove"),
+    "the last dock missing": (_drop(-1), "goal", "the modules form 2 separate groups"),
+    "a module added": (_module_added, "actions[2].target", "modules not in "
+                       "actions[1].target: 9"),
+    "a dock to a module not there": (_changed(-1, connections=[
+        {"id": "x", "source": "3", "target": "7", "ports": ["B", "T"]}]),
+        "actions[7].target.connections[0].target", "connection end '7' is not a module"),
+    "an index past the end": (_changed(-1, connections=[
+        {"id": "x", "source": "3", "target": "4", "ports": ["B", "T"], "at": 9}]),
+        "actions[7].target.connections[0].at", "index 9 is outside the 2 connections"),
+    "a module removed with its connections": (_changed(2, removed_modules=["1"]),
+                                              "actions[2].target.removed_modules[0]",
+                                              "keeps connection(s)"),
+    "a vector that is not unit": (_changed(2, connections=[
+        {"id": "x", "source": "3", "target": "4", "z": [1, 1, 0]}]),
+        "actions[2].target.connections[0].z", "must be a unit vector"),
+    "an unknown version": (lambda doc: doc.update(schema_version=3), "schema_version",
+                           "unknown plan file version 3"),
+}
+"""Broken version 2 files (changes to the target before)."""
 
 
-@pytest.mark.parametrize("name", PLANS)
+@pytest.mark.parametrize("version, name", [*((2, name) for name in PLANS),
+                                           *((1, name) for name in V1_PLANS)])
 def test_a_plan_whose_actions_do_not_follow_is_refused(
-        plan_doc: dict[str, Any], tmp_path: Path, name: str) -> None:
-    mutate, field, says = PLANS[name]
-    doc = copy.deepcopy(plan_doc)
+        plan_doc: dict[str, Any], tmp_path: Path, version: int, name: str) -> None:
+    mutate, field, says = (PLANS if version == 2 else V1_PLANS)[name]
+    doc = copy.deepcopy(plan_doc if version == 2 else json.loads(V1_PLAN.read_text()))
     mutate(doc)
     path = tmp_path / "plan.json"
     path.write_text(json.dumps(doc))

@@ -1,7 +1,8 @@
 """A seeded fuzzer of every file reader and file-reading command (issues 11 and 30).
 
 Valid files of every kind (configurations of every installed robot, the shipped
-libraries, library sources, plans made by the MMRP planner, kinematic tree files) are
+libraries, library sources, plans made by the MMRP, MISO and library planners in both
+plan file versions, kinematic tree files) are
 mutated in the ways of issue 11 and fed in-process to the readers and, through click's
 ``CliRunner``, to the commands. Every case must end either
 
@@ -105,6 +106,14 @@ def seeds() -> tuple[Seed, ...]:
             save_plan(plan, Path(tmp) / "plan.json")
             out.append(Seed("plan", f"{start}-{goal}.plan.json",
                             json.loads((Path(tmp) / "plan.json").read_text())))
+        for robot, start, goal in PLAN_PAIRS:  # vectors, kinematic trees
+            plan = plugins.planners.get(robot).plan(load_configuration(ROOT / start),
+                                                    load_configuration(ROOT / goal))
+            save_plan(plan, Path(tmp) / "plan.json")
+            out.append(Seed("plan", f"{robot}.plan.json",
+                            json.loads((Path(tmp) / "plan.json").read_text())))
+        for path in sorted(V1_PLANS.glob("*.json")):  # version 1: every target whole
+            out.append(Seed("plan", f"v1-{path.name}", json.loads(path.read_text())))
         freesn = plugins.resolve("freesn")
         for name in TREE_CONFIGURATIONS:
             config = _configuration_named(name)
@@ -402,6 +411,17 @@ def m_not_object(rng, seed):
     return "not_object", raw.encode()
 
 
+PLAN_PAIRS = (("freebot", "plugins/freebot/configs/chain6.json",
+               "plugins/freebot/configs/star6.json"),
+              ("freesn", "plugins/freesn/configs/library/S6N3-1.1.json",
+               "plugins/freesn/configs/library/S6N3-2.1.json"))
+"""Plans of other robots than MMRP among the seeds: connection vectors (FreeBOT),
+kinematic trees (a FreeSN library plan)."""
+
+V1_PLANS = ROOT / "tests/core/plans_v1"
+"""Version 1 plan files (every target whole), still read."""
+
+
 def _changing(doc: Any) -> list[int]:
     """Indices of a plan's actions that make or break connections."""
     return [i for i, a in enumerate(doc.get("actions", [])) if a.get("changes")]
@@ -410,11 +430,17 @@ def _changing(doc: Any) -> list[int]:
 def m_plan_steps(rng, seed):
     """An action copied next to itself, one that changes connections dropped, two next to
     each other (one changing connections) swapped, or the start swapped for the goal:
-    each breaks the chain from the start to the goal."""
+    each breaks the chain from the start to the goal.
+
+    In a version 2 file each target is its changes to the one before, so two actions
+    swap all but their targets (swapped whole, with their changes, they would be
+    another valid plan), and the start loses a connection instead (the goal is changes
+    too)."""
     if seed.kind != "plan" or not _changing(seed.doc):
         return None
     doc = _copy(seed.doc)
     actions = doc["actions"]
+    changes = doc.get("schema_version", 1) == 2
     how = rng.choice(["copy", "drop", "swap", "start"])
     if how == "copy":
         i = rng.randrange(len(actions))
@@ -422,12 +448,41 @@ def m_plan_steps(rng, seed):
     elif how == "drop":
         del actions[rng.choice(_changing(doc))]
     elif how == "swap":
-        i = rng.choice([i for i in _changing(doc) if i + 1 < len(actions)] or [0])
-        if i + 1 >= len(actions):
+        i = rng.choice([i for i in _changing(doc) if i + 1 < len(actions)]
+                       or [i - 1 for i in _changing(doc) if i] or [-1])
+        if i < 0:  # no changing action has a neighbour: two moves may swap validly
             return None
         actions[i], actions[i + 1] = actions[i + 1], actions[i]
+        if changes:
+            targets = [actions[j].pop("target", None) for j in (i + 1, i)]
+            for j, target in zip((i, i + 1), targets, strict=True):
+                if target is not None:
+                    actions[j]["target"] = target
+    elif changes:
+        doc["start"]["connections"].pop()
     else:
         doc["start"] = doc["goal"]
+    return f"plan_{how}", _dump(doc)
+
+
+def m_plan_changes(rng, seed):
+    """Version 2: an action's target changes emptied (it changes connections), a
+    connection it removes that is not there, or an insertion index past the end."""
+    changing = [i for i in _changing(seed.doc) if seed.doc["actions"][i].get("target")]
+    if seed.kind != "plan" or seed.doc.get("schema_version") != 2 or not changing:
+        return None
+    doc = _copy(seed.doc)
+    target = doc["actions"][rng.choice(changing)]["target"]
+    how = rng.choice(["emptied", "unknown", "index"])
+    if how == "emptied":
+        target.clear()
+    elif how == "unknown":
+        target.setdefault("removed_connections", []).append("no-such-connection")
+    else:
+        written = target.get("connections") or target.get("modules")
+        if not written:
+            return None
+        rng.choice(written)["at"] = 10_000 + rng.randrange(10**6)
     return f"plan_{how}", _dump(doc)
 
 
@@ -471,7 +526,8 @@ MUTATORS: tuple[Mutator, ...] = (
     m_truncate, m_empty, m_directory, m_non_utf8, m_delete_key, m_rename_key, m_duplicate_key,
     m_wrong_type, m_non_finite, m_huge, m_bool_number, m_deep, m_surrogate, m_unknown_kind,
     m_unknown_port, m_self_loop, m_duplicate_id, m_drop_connection, m_add_connection,
-    m_markup_name, m_not_object, m_plan_steps, m_plan_modules, m_library_parts)
+    m_markup_name, m_not_object, m_plan_steps, m_plan_modules, m_plan_changes,
+    m_library_parts)
 
 
 KIND_WEIGHTS = {"configuration": 4, "library": 2, "sources": 1.5, "plan": 1.5, "tree": 1}
@@ -583,7 +639,8 @@ def _commands(case: Case, path: Path) -> list[list[str]]:
                         str(ROOT / "plugins/mmrp/configs/series.json")])
         return out
     if kind == "plan" and case.mutation not in MAY_PASS:
-        return [["run", "--robot", "mmrp", "--plan", str(path), "--no-log", "--out",
+        return [["run", "--robot", case.seed.doc["robot"], "--plan", str(path), "--no-log",
+                 "--out",
                  str(path.with_name(path.name + ".run"))]]
     if kind == "library":
         out = [["library", "show", str(path)]]
