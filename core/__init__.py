@@ -45,7 +45,10 @@ if TYPE_CHECKING:
     )
     from .plan import Action, ActionType, ConnectionChange, Plan
     from .robot import (
+        Body,
         DockingRules,
+        DockTolerance,
+        Hinge,
         ModuleKind,
         PortSpec,
         Robot,
@@ -53,12 +56,14 @@ if TYPE_CHECKING:
         RobotSpec,
         ShapeTolerance,
         Violation,
+        Wheels,
     )
     from .scenario import Scenario
 
 _EXPORTS: dict[str, str] = {
     "Action": "plan",
     "ActionType": "plan",
+    "Body": "robot",
     "check_configuration": "io",
     "Configuration": "configuration",
     "ConfigurationError": "errors",
@@ -66,10 +71,12 @@ _EXPORTS: dict[str, str] = {
     "Control": "control",
     "DockingRuleError": "errors",
     "DockingRules": "robot",
+    "DockTolerance": "robot",
     "Driver": "driver",
     "dump_configuration": "io",
     "Edge": "configuration",
     "ExecutionError": "errors",
+    "Hinge": "robot",
     "hookimpl": "hookspecs",
     "hookspec": "hookspecs",
     "load_configuration": "io",
@@ -96,21 +103,25 @@ _EXPORTS: dict[str, str] = {
     "UnknownRobotError": "errors",
     "Violation": "robot",
     "VIRTUAL": "configuration",
+    "Wheels": "robot",
 }
 """Public name -> the module of ``msrr.core`` that defines it (imported on first use)."""
 
 __all__ = [
     "Action",
     "ActionType",
+    "Body",
     "Configuration",
     "ConfigurationError",
     "ConnectionChange",
     "Control",
     "DockingRuleError",
+    "DockTolerance",
     "DockingRules",
     "Driver",
     "Edge",
     "ExecutionError",
+    "Hinge",
     "ModuleCommand",
     "ModuleKind",
     "MsrrError",
@@ -131,6 +142,7 @@ __all__ = [
     "UnknownRobotError",
     "VIRTUAL",
     "Violation",
+    "Wheels",
     "check_configuration",
     "dump_configuration",
     "hookimpl",

@@ -12,6 +12,7 @@ from typing import Annotated, Final
 
 from pydantic import ConfigDict, Field, ValidationInfo, field_validator
 
+from .bodies import with_port_vectors
 from .configuration import Configuration, unit
 from .errors import ConfigurationError, DockingRuleError
 from .files import (
@@ -153,6 +154,7 @@ def load_configuration(path: str | os.PathLike[str], robot: Robot | None = None
             check_configuration(config, robot)
         except ConfigurationError as exc:
             raise exc.at(str(path)) from None
+        config = with_port_vectors(config, robot.spec)
     return config
 
 

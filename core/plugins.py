@@ -598,12 +598,15 @@ def load_configuration(path: str | os.PathLike[str]) -> Configuration:
     """
     from . import io
 
+    from .bodies import with_port_vectors
+
     config = io.load_configuration(path)
+    robot = _robot_of(config.robot, path)
     try:
-        io.check_configuration(config, _robot_of(config.robot, path))
+        io.check_configuration(config, robot)
     except ConfigurationError as exc:
         raise exc.at(str(path)) from None
-    return config
+    return with_port_vectors(config, robot.spec)
 
 
 def _robot_of(name: str, path: str | os.PathLike[str]) -> Robot:

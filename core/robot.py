@@ -21,7 +21,10 @@ if TYPE_CHECKING:  # a plugin builds its RobotSpec when it loads, on every --hel
 
 __all__ = [
     "DEFAULT_HALF_SIZE",
+    "Body",
+    "DockTolerance",
     "DockingRules",
+    "Hinge",
     "Robot",
     "MisoRules",
     "ModuleKind",
@@ -30,6 +33,7 @@ __all__ = [
     "RobotSpec",
     "ShapeTolerance",
     "Violation",
+    "Wheels",
     "body_half_size",
     "check_structure",
     "out_degree_violations",
@@ -39,6 +43,27 @@ __all__ = [
 ]
 
 PortRole = Literal["active", "passive", "neutral"]
+PORT_ROLES: tuple[str, ...] = ("active", "passive", "neutral")
+"""Every port role; any other is refused when the description loads."""
+BodyShape = Literal["box", "sphere", "capsule", "cylinder"]
+BODY_SIZES: Mapping[str, tuple[str, ...]] = {
+    "box": ("length", "width", "height"), "sphere": ("radius",),
+    "capsule": ("radius", "length"), "cylinder": ("radius", "length")}
+"""The sizes [m] each body shape takes, in order (a capsule's and a cylinder's
+``length`` is that of their axis, the module's x axis, without the capsule's caps)."""
+
+
+def _vector(owner: str, name: str, value: object, *, unit: bool) -> tuple[float, float, float]:
+    """``value`` as three finite floats (of norm 1 when ``unit``); else a one-line PluginError."""
+    try:
+        out = tuple(float(v) for v in value)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        out = ()
+    if len(out) != 3 or not all(math.isfinite(v) for v in out) or (
+            unit and abs(math.sqrt(sum(v * v for v in out)) - 1.0) > 1e-6):
+        what = "a unit vector (x, y, z)" if unit else "a point (x, y, z) [m]"
+        raise PluginError(f"{owner}.{name} must be {what}, got {value!r}")
+    return out  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
@@ -55,6 +80,115 @@ class PortSpec:
     name: str
     role: PortRole = "neutral"
     normal: tuple[float, float, float] | None = None
+    position: tuple[float, float, float] | None = None
+    up: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        owner = f"PortSpec {self.name!r}"
+        if self.role not in PORT_ROLES:
+            raise PluginError(f"{owner}.role must be one of {', '.join(PORT_ROLES)}, "
+                              f"got {self.role!r}")
+        for name, unit in (("normal", True), ("position", False), ("up", True)):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, _vector(owner, name, value, unit=unit))
+        if self.up is not None and (self.normal is None or abs(
+                sum(a * b for a, b in zip(self.up, self.normal, strict=True))) > 1e-6):
+            raise PluginError(f"{owner}.up must be perpendicular to its normal "
+                              f"(normal {self.normal}, up {self.up})")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Body:
+    """The rigid body a module kind is simulated as (its frame: x forward, z up).
+
+    Attributes:
+        shape: ``"box"``, ``"sphere"``, ``"capsule"`` or ``"cylinder"`` (the last two
+            along the module's x axis).
+        size: the shape's sizes [m] (:data:`BODY_SIZES`): a box's length, width and
+            height; a sphere's radius; a capsule's or cylinder's radius and length.
+        mass: [kg], > 0.
+        friction: sliding friction coefficient against the floor and other bodies.
+
+    Raises:
+        PluginError: an unknown shape, or sizes or mass that are not numbers > 0.
+    """
+
+    shape: BodyShape
+    size: tuple[float, ...]
+    mass: float
+    friction: float = 0.8
+
+    def __post_init__(self) -> None:
+        names = BODY_SIZES.get(self.shape)
+        if names is None:
+            raise PluginError(f"Body.shape must be one of {', '.join(BODY_SIZES)}, "
+                              f"got {self.shape!r}")
+        if not isinstance(self.size, tuple | list) or len(self.size) != len(names):
+            raise PluginError(f"Body.size of a {self.shape} is ({', '.join(names)}) [m], "
+                              f"got {self.size!r}")
+        object.__setattr__(self, "size", tuple(_positive(f"Body({self.shape})", n, v, "m")
+                                               for n, v in zip(names, self.size, strict=True)))
+        object.__setattr__(self, "mass", _positive("Body", "mass", self.mass, "kg"))
+        object.__setattr__(self, "friction", _positive("Body", "friction", self.friction, "1"))
+
+    @property
+    def half_extents(self) -> tuple[float, float, float]:
+        """Half extents [m] of the body's bounding box in the module frame."""
+        if self.shape == "box":
+            return tuple(v / 2 for v in self.size)  # type: ignore[return-value]
+        r = self.size[0]
+        if self.shape == "sphere":
+            return r, r, r
+        return self.size[1] / 2 + (r if self.shape == "capsule" else 0.0), r, r
+
+
+@dataclass(frozen=True, kw_only=True)
+class Wheels:
+    """Differential drive: two wheels on the module's y axis under its body, driving it
+    along its x axis on the floor (MMRP's modules), with frictionless casters fore and aft.
+
+    Attributes:
+        radius: wheel radius [m].
+        track: distance between the two wheels [m].
+        speed: largest wheel rim speed [m/s].
+        torque: largest wheel torque [N m].
+    """
+
+    radius: float
+    track: float
+    speed: float = 0.2
+    torque: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name, unit in (("radius", "m"), ("track", "m"), ("speed", "m/s"),
+                           ("torque", "N m")):
+            object.__setattr__(self, name, _positive("Wheels", name, getattr(self, name), unit))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Hinge:
+    """A revolute joint at one port: a module docked there turns about ``axis`` (module
+    frame, through the port's position), driven by a position servo of bounded torque.
+
+    Attributes:
+        port: the port the hinge is at.
+        axis: unit axis in the module frame.
+        torque: largest servo torque [N m].
+        limit: the joint turns within ``[-limit, limit]`` [rad].
+        speed: largest joint speed the servo commands [rad/s].
+    """
+
+    port: str
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    torque: float = 2.0
+    limit: float = math.pi * 0.75
+    speed: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "axis", _vector("Hinge", "axis", self.axis, unit=True))
+        for name, unit in (("torque", "N m"), ("limit", "rad"), ("speed", "rad/s")):
+            object.__setattr__(self, name, _positive("Hinge", name, getattr(self, name), unit))
 
 
 @dataclass(frozen=True)
@@ -72,6 +206,15 @@ class ModuleKind:
         commands: the commands a behavior may give a module of this kind (a library's
             ``commands[].command``, ``"wheel_speed"``); ``None``: not declared, any is
             accepted; ``()``: it takes none.
+        body: the rigid body it is simulated as (``None``: no physics description);
+            with it, each port with a ``normal`` gets a pose on it (``position`` and
+            ``up`` of the :class:`PortSpec`, derived when not given).
+        wheels: its differential drive (wheeled mobility), or ``None``.
+        hinge: the revolute joint at one of its ports (jointed mobility), or ``None``.
+
+    Raises:
+        PluginError: a hinge at a port the kind does not have, wheels or a hinge without
+            a body.
     """
 
     name: str
@@ -81,6 +224,20 @@ class ModuleKind:
     geometry: Mapping[str, float] = field(default_factory=dict)
     description: str = ""
     commands: tuple[str, ...] | None = None
+    body: Body | None = None
+    wheels: Wheels | None = None
+    hinge: Hinge | None = None
+
+    def __post_init__(self) -> None:
+        if self.body is not None and not isinstance(self.body, Body):
+            raise PluginError(f"ModuleKind {self.name!r}: body must be a Body, got {self.body!r}")
+        if (self.wheels is not None or self.hinge is not None) and self.body is None:
+            raise PluginError(f"ModuleKind {self.name!r}: wheels and a hinge need a body")
+        if self.hinge is not None and self.hinge.port not in {p.name for p in self.ports}:
+            raise PluginError(f"ModuleKind {self.name!r}: hinge at unknown port "
+                              f"{self.hinge.port!r}")
+        if self.body is not None and any(p.normal is None for p in self.ports):
+            raise PluginError(f"ModuleKind {self.name!r}: with a body every port needs a normal")
 
     def port(self, name: str) -> PortSpec:
         """The port called ``name``; raises listing the known ports."""
@@ -102,6 +259,8 @@ def body_half_size(kind: ModuleKind) -> tuple[float, float, float]:
     ``radius`` (its bounding cube); :data:`DEFAULT_HALF_SIZE` when neither is given.
     The timeline draws this box and the generic kinematic driver simulates it.
     """
+    if kind.body is not None:
+        return kind.body.half_extents
     g = kind.geometry
     if "length" in g or "width" in g or "height" in g:
         length = float(g.get("length", g.get("width", g.get("height", 0.0))))
@@ -152,6 +311,29 @@ class ShapeTolerance:
 
 
 @dataclass(frozen=True, kw_only=True)
+class DockTolerance:
+    """How well two ports must be aligned for their latch to hold, and so how closely
+    the generic controller brings them together (physics drivers only).
+
+    Attributes:
+        position: largest distance between the two ports' positions [m], > 0.
+        angle: largest angle between one port's normal and the other's reversed, and
+            between their ``up`` vectors (a hinge port: between the hinge axes) [rad], > 0.
+
+    Raises:
+        PluginError: a bound is not a finite number > 0 (the message names it).
+    """
+
+    position: float = 0.01
+    angle: float = 0.1
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "position",
+                           _positive("DockTolerance", "position", self.position, "m"))
+        object.__setattr__(self, "angle", _positive("DockTolerance", "angle", self.angle, "rad"))
+
+
+@dataclass(frozen=True, kw_only=True)
 class RobotDefaults:
     """Robot-wide defaults, each read by one part of the core.
 
@@ -165,6 +347,8 @@ class RobotDefaults:
             2-D view (:mod:`msrr.core.timeline.recorder`).
         stay_connected: every intermediate configuration of a plan must be one
             connected system (:class:`msrr.core.generic.planner.GenericPlanner`).
+        dock_tolerance: the alignment a latch needs in a physics driver and the
+            generic controller reaches (:class:`DockTolerance`).
 
     Raises:
         PluginError: a field has the wrong type (the message names it).
@@ -174,8 +358,12 @@ class RobotDefaults:
     shape_tolerance: ShapeTolerance | None = None
     planar: bool = False
     stay_connected: bool = False
+    dock_tolerance: DockTolerance = field(default_factory=DockTolerance)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.dock_tolerance, DockTolerance):
+            raise PluginError("RobotDefaults.dock_tolerance must be a DockTolerance("
+                              f"position=m, angle=rad), got {self.dock_tolerance!r}")
         if self.joint_mode is not None and (not isinstance(self.joint_mode, str)
                                             or not self.joint_mode):
             raise PluginError("RobotDefaults.joint_mode must be a joint mode name or None, "
@@ -318,8 +506,15 @@ class Robot:
                                 if getattr(c, "family", None) == "module_joint"])
 
     def violations(self, config: Configuration) -> list[Violation]:
-        """Structural violations (:func:`check_structure`), else the docking rules'."""
-        return check_structure(config, self.spec) or self.rules.check(config)
+        """Structural violations (:func:`check_structure`), else the docking rules', then
+        the geometric consistency of described bodies
+        (:func:`msrr.core.bodies.geometry_violations`)."""
+        found = check_structure(config, self.spec) or self.rules.check(config)
+        if found or not any(k.body is not None for k in self.spec.module_kinds):
+            return found
+        from .bodies import geometry_violations  # numpy: not on every plugin's load
+
+        return geometry_violations(config, self.spec)
 
 
 def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:

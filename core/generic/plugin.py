@@ -31,9 +31,15 @@ def msrr_planners(robot: str, register: Register[Planner]) -> None:
 @hookimpl(trylast=True)
 def msrr_drivers(robot: str, register: Register[DriverFactory]) -> None:
     from .. import plugins
+    from ..bodies import has_bodies
     from .driver import KinematicDriverFactory
 
-    register(KinematicDriverFactory(plugins.robot(robot)))
+    spec = plugins.robot(robot)
+    register(KinematicDriverFactory(spec))
+    if has_bodies(spec):
+        from .physics import PhysicsDriverFactory  # MuJoCo: only for robots with bodies
+
+        register(PhysicsDriverFactory(spec))
 
 
 @hookimpl(trylast=True)
@@ -47,6 +53,12 @@ def msrr_recognizers(robot: str, register: Register[Recognizer]) -> None:
 @hookimpl(trylast=True)
 def msrr_controllers(robot: str, register: Register[Controller]) -> None:
     from .. import plugins
+    from ..bodies import has_bodies
     from .controller import LatchController
 
-    register(LatchController(plugins.robot(robot)))
+    spec = plugins.robot(robot)
+    register(LatchController(spec))
+    if has_bodies(spec):
+        from .drive import DriveController
+
+        register(DriveController(spec))

@@ -4,7 +4,8 @@ simulates them: the controller and the recognizer read these, never the driver's
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 __all__ = ["FREEFORM_PREFIX", "SLIDE_KEYS", "Latch", "ModuleReading"]
 
@@ -34,7 +35,11 @@ class Latch:
 
 @dataclass(frozen=True)
 class ModuleReading:
-    """What one module reports: its kind and the latches it is the source of."""
+    """What one module reports: its kind and the latches it is the source of; in a
+    physics driver also its joint encoders (hinge port -> angle [rad]) and its IMU's
+    orientation (unit quaternion ``(w, x, y, z)``, world frame)."""
 
     kind: str
     latches: tuple[Latch, ...] = ()
+    joints: Mapping[str, float] = field(default_factory=dict)
+    imu: tuple[float, float, float, float] | None = None

@@ -1,0 +1,513 @@
+"""The drive controller: the generic runtime's controller in physics (the ``mujoco`` driver).
+
+It reads only the observation -- the tracker's poses and the modules' reports
+(:class:`~msrr.core.generic.driver.ModuleReading`: latches, joint encoders) -- and
+commands wheel speeds and hinge goals; the executor arms and releases the ports. Every
+tolerance is the robot's :class:`~msrr.core.robot.DockTolerance`.
+
+* **dock between two groups** (approach, then connect): the group that can move (every
+  module wheeled), the smaller one first, drives so that its port comes to the other's:
+  clear of its neighbours first (straight along its heading), to a point ``APPROACH``
+  body sizes out on the line of its final heading, through a detour around the others
+  if the straight way is blocked, turns onto that line and drives along it to the docked
+  pose (a side port slides in alongside), a small gap left along the port normal for
+  the latch to close. Each module of a moving group gets the wheel speeds of the
+  group's rigid motion at its place (differential drive).
+* **dock within a group** (closing a loop): the hinge angles of the group that bring the
+  two ports together (least squares from the reported angles, :func:`close_loop`) become
+  hinge goals; reached when the encoders are there and the ports within tolerance.
+* **move**: planar goals ``{module: [x, y, yaw]}`` are driven to like a dock's pose; a
+  move without goals that changes connection vectors (a goal that differs in shape
+  only) sets the hinge angles that lay the target out
+  (:func:`msrr.core.bodies.vector_angles`) and is reached when the encoders are there.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from ..bodies import (
+    FLIP,
+    Frame,
+    connection_hinge,
+    docked_pose,
+    frame_of,
+    hinge_edges,
+    inscribed,
+    layout,
+    port_frame,
+    vector_angles,
+)
+from ..configuration import Configuration
+from ..control import Control
+from ..driver import ModuleCommand, Observation
+from ..errors import ExecutionError
+from ..events import Phase
+from ..plan import Action, ConnectionChange
+from ..robot import ModuleKind, RobotSpec
+from .driver import ModuleReading
+from .geometry import wrap_angle
+
+__all__ = ["DriveController", "close_loop", "port_mismatch"]
+
+APPROACH = 1.6
+"""Distance of the approach point from the docked pose, in sizes of the moving module."""
+
+GAIN_TURN = 2.5
+"""Heading loop gain [1/s]."""
+
+GAIN_LINE = 10.0
+"""Heading toward the final line per lateral error [1/m] (of ``atan``)."""
+
+LINE_ANGLE = 0.1
+"""Largest angle [rad] at which a module steers back onto its final line."""
+
+
+MAX_TURN_RATE = 1.5
+"""Largest commanded turn rate [rad/s] (a tenth of a turn per 10 Hz tick at most)."""
+
+
+def _turn_rate(turn: float) -> float:
+    """The turn rate [rad/s] that steers out a heading error ``turn`` [rad]."""
+    return max(-MAX_TURN_RATE, min(MAX_TURN_RATE, GAIN_TURN * turn))
+
+
+def _yaw(rotation: np.ndarray) -> float:
+    return math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))
+
+
+def _frame(observation: Observation, module: str) -> Frame:
+    pose = observation.poses[module]
+    x, y, z, w = (float(v) for v in pose.orientation)
+    rotation = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return rotation, np.asarray(pose.position, dtype=float)
+
+
+def _reported(spec: RobotSpec, observation: Observation) -> tuple[Configuration,
+                                                                   dict[str, float]]:
+    """The configuration the reports show (ports only) and each hinge edge's angle [rad]
+    in the convention of :func:`~msrr.core.bodies.docked_pose` (from its encoder)."""
+    config = Configuration(spec.name)
+    readings = {m: r for m, r in observation.sensors.items() if isinstance(r, ModuleReading)}
+    for module, reading in readings.items():
+        config.add_module(module, reading.kind)
+    angles = {}
+    for module, reading in readings.items():
+        for latch in reading.latches:
+            if latch.port is None or latch.other_port is None:
+                continue
+            edge = config.connect(module, latch.other, ports=(latch.port, latch.other_port))
+            source, target = spec.kind(reading.kind), spec.kind(readings[latch.other].kind)
+            if connection_hinge((source, target), (latch.port, latch.other_port)) is None:
+                continue
+            if source.hinge is not None and source.hinge.port == latch.port:
+                angles[edge.id] = float(reading.joints.get(latch.port, 0.0))
+            else:
+                angles[edge.id] = -float(readings[latch.other].joints.get(latch.other_port, 0.0))
+    return config, angles
+
+
+def close_loop(config: Configuration, spec: RobotSpec, angles: dict[str, float],
+               change: ConnectionChange, seed: int = 0) -> tuple[dict[str, float], float]:
+    """Hinge angles [rad] of ``config`` near ``angles`` that bring the ports of ``change``
+    (two modules of one group) together, no two bodies overlapping, and the residual gap
+    [m] left (least squares, seeded restarts when the first start stalls)."""
+    from scipy.optimize import least_squares
+
+    hinges = hinge_edges(config, spec)
+    if not hinges:
+        return {}, math.inf
+    kinds = (spec.kind(config.kind_of(change.source)), spec.kind(config.kind_of(change.target)))
+    ports = (change.source_port, change.target_port)
+    limits = np.array([_hinge_limit(config, spec, e) for e in hinges])
+    start = np.array([angles.get(e, 0.0) for e in hinges])
+    modules = config.vertices(virtual=False)
+    radius = np.array([inscribed(spec.kind(config.kind_of(m))) for m in modules])
+
+    def residual(values: np.ndarray) -> np.ndarray:
+        poses, _ = layout(config, spec, dict(zip(hinges, values, strict=True)))
+        gap, turn = port_mismatch(poses[change.source], poses[change.target], kinds, ports)
+        centres = np.array([poses[m][1] for m in modules])
+        gaps = np.linalg.norm(centres[:, None] - centres[None, :], axis=2)
+        need = radius[:, None] + radius[None, :]
+        overlap = np.triu(np.maximum(0.0, need - gaps), 1).ravel()
+        return np.concatenate([gap, 0.05 * turn, overlap, 0.002 * (values - start)])
+
+    rng = np.random.default_rng(seed)
+    best = None
+    for attempt in range(6):
+        guess = start if attempt == 0 else rng.uniform(-limits, limits)
+        fit = least_squares(residual, np.clip(guess, -limits, limits), bounds=(-limits, limits))
+        gap = float(np.linalg.norm(residual(fit.x)[:3]))
+        if best is None or gap < best[1]:
+            best = (fit.x, gap)
+        if gap < 1e-4:
+            break
+    assert best is not None
+    return dict(zip(hinges, (float(v) for v in best[0]), strict=True)), best[1]
+
+
+def port_mismatch(source: Frame, target: Frame, kinds: tuple[ModuleKind, ModuleKind],
+                  ports: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    """How far two modules at ``source`` and ``target`` (world poses) are from docking
+    their ``ports``: the gap between the port positions [m] (3,), and the rotation
+    mismatch: of the hinge axes for a hinge (3,), of the whole docked pose for rigid
+    ports (9,)."""
+    ra, pa = port_frame(kinds[0], ports[0])
+    rb, pb = port_frame(kinds[1], ports[1])
+    gap = (target[0] @ pb + target[1]) - (source[0] @ pa + source[1])
+    axis = connection_hinge(kinds, ports)
+    if axis is None:
+        want = source[0] @ docked_pose(kinds, ports)[0]
+        return gap, (target[0] - want).ravel()
+    return gap, target[0] @ rb @ FLIP.T @ axis - source[0] @ ra @ axis
+
+
+def _hinge_limit(config: Configuration, spec: RobotSpec, edge_id: str) -> float:
+    edge = config.edge(edge_id)
+    ka, kb = spec.kind(config.kind_of(edge.source)), spec.kind(config.kind_of(edge.target))
+    hinge = ka.hinge if ka.hinge is not None and ka.hinge.port == edge.ports[0] else kb.hinge
+    return hinge.limit
+
+
+@dataclass
+class _Drive:
+    """A wheeled group led by ``leader`` to ``final`` (rotation, position), along
+    ``waypoints`` (positions), then the final line from ``line`` (its start)."""
+
+    leader: str
+    group: set[str]
+    final: Frame
+    waypoints: deque = field(default_factory=deque)
+    clear: bool = False
+    line: np.ndarray | None = None
+    dock: tuple[str, str, str] | None = None  # fixed module, its port, the leader's port
+
+
+@dataclass
+class _Fold:
+    """Hinge goals (edge id -> rad) of a group, and the dock they make, if any."""
+
+    goals: dict[str, float]
+    change: ConnectionChange | None = None
+
+
+class DriveController:
+    """The generic runtime's controller in physics (see the module docstring)."""
+
+    name = "drive"
+    description = "wheels and hinges to docked poses in physics (generic runtime)"
+    generic = True
+
+    def __init__(self, spec: RobotSpec):
+        self.spec = spec
+        self.tolerance = spec.defaults.dock_tolerance
+        self.jobs: deque = deque()
+        self.job: _Drive | _Fold | None = None
+
+    # -- the controller protocol --------------------------------------------------------
+
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+        if phase is Phase.CONNECT:
+            return  # the approach's last job keeps pushing while the ports latch
+        self.job, self.jobs = None, deque()
+        if phase is Phase.MOVE:
+            if action.goals:
+                self.jobs.extend(sorted(action.goals.items()))
+            else:
+                goals = vector_angles(action.target, self.spec)
+                if goals:
+                    self.jobs.append(_Fold(goals))
+        elif phase is Phase.APPROACH:
+            self.jobs.extend(action.made())
+
+    def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
+        commands: dict[str, ModuleCommand] = {}
+        errors: dict[str, float] = {}
+        if phase in (Phase.MOVE, Phase.APPROACH, Phase.CONNECT):
+            self._advance(observation, commands, errors, phase)
+        return Control(commands, errors, reached=self.job is None and not self.jobs)
+
+    # -- jobs ---------------------------------------------------------------------------
+
+    def _advance(self, observation: Observation, commands: dict[str, ModuleCommand],
+                 errors: dict[str, float], phase: Phase) -> None:
+        config, angles = _reported(self.spec, observation)
+        while True:
+            if self.job is None:
+                if not self.jobs:
+                    return
+                self.job = self._start(self.jobs.popleft(), observation, config, angles)
+                if self.job is None:
+                    continue
+            done = (self._drive(self.job, observation, commands, errors)
+                    if isinstance(self.job, _Drive)
+                    else self._fold(self.job, observation, config, angles, commands, errors))
+            if not done or phase is Phase.CONNECT:
+                return
+            self.job = None
+
+    def _start(self, item: object, observation: Observation, config: Configuration,
+               angles: dict[str, float]) -> _Drive | _Fold | None:
+        groups = {m: g for g in nx.connected_components(config.undirected()) for m in g}
+        if isinstance(item, _Fold):
+            return item
+        if isinstance(item, ConnectionChange):
+            if any({e.source, e.target} == {item.source, item.target}
+                   and set(e.ports or ()) == {item.source_port, item.target_port}
+                   for e in config.edges()):
+                return None  # already latched
+            if groups[item.source] is groups[item.target]:
+                goals, gap = close_loop(config, self.spec, angles, item)
+                if gap > self.tolerance.position / 2:
+                    raise ExecutionError(f"drive controller: no hinge angles of the group close "
+                                         f"{item.source}{item.source_port}-{item.target}"
+                                         f"{item.target_port} (gap {gap:.3g} m)")
+                return _Fold(goals, item)
+            return self._dock_drive(item, observation, groups)
+        module, goal = item  # type: ignore[misc]
+        x, y, yaw = (float(v) for v in goal[:3])
+        rotation, position = _frame(observation, module)
+        turn = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw),
+                                                               0.0], [0.0, 0.0, 1.0]])
+        return self._plan_drive(module, set(groups[module]), (turn, np.array(
+            [x, y, position[2]])), observation, None)
+
+    def _dock_drive(self, change: ConnectionChange, observation: Observation,
+                    groups: dict[str, set[str]]) -> _Drive:
+        options = []
+        for moving, fixed in ((change.target, change.source), (change.source, change.target)):
+            if all(self._kind(observation, m).wheels is not None for m in groups[moving]):
+                options.append((len(groups[moving]), moving != change.target, moving, fixed))
+        if not options:
+            raise ExecutionError(f"drive controller: neither {change.source} nor "
+                                 f"{change.target} can move to dock (their groups are not all "
+                                 "wheeled)")
+        _, _, moving, fixed = min(options)
+        fixed_port = change.source_port if fixed == change.source else change.target_port
+        moving_port = change.target_port if fixed == change.source else change.source_port
+        kinds = (self._kind(observation, fixed), self._kind(observation, moving))
+        dock = (fixed, fixed_port, moving_port)
+        final, normal = self._docked(observation, moving, dock)
+        job = self._plan_drive(moving, set(groups[moving]), final, observation, normal)
+        job.dock = dock
+        return job
+
+    def _docked(self, observation: Observation, moving: str, dock: tuple[str, str, str]
+                ) -> tuple[Frame, np.ndarray]:
+        """Where ``moving`` docks to ``dock`` (fixed module, its port, moving's port) as
+        the fixed module is now, a gap of half the latch distance left along the fixed
+        port's horizontal normal; and that normal."""
+        fixed, fixed_port, moving_port = dock
+        kinds = (self._kind(observation, fixed), self._kind(observation, moving))
+        here = _frame(observation, fixed)
+        final = frame_of(here, docked_pose(kinds, (fixed_port, moving_port)))
+        normal = here[0] @ port_frame(kinds[0], fixed_port)[0][:, 0]
+        normal[2] = 0.0
+        normal /= max(float(np.linalg.norm(normal)), 1e-9)
+        return (final[0], final[1] + 0.5 * self.tolerance.position * normal), normal
+
+    def _plan_drive(self, leader: str, group: set[str], final: Frame, observation: Observation,
+                    normal: np.ndarray | None) -> _Drive:
+        """The approach line's side (along the final heading, from outside the fixed
+        port, else whichever line is clear) and the detour to its start."""
+        heading = final[0][:, 0].copy()
+        heading[2] = 0.0
+        heading /= np.linalg.norm(heading)
+        size = 2 * max(max(self._kind(observation, m).body.half_extents) for m in group)
+        signs = [1.0, -1.0]
+        if normal is not None and abs(float(normal @ heading)) > 0.5:
+            signs = [-math.copysign(1.0, float(normal @ heading))]  # come in against the normal
+        offsets = self._offsets(observation, group, leader)
+        others = [m for m in observation.poses if m not in group]
+        fixed = np.array([_frame(observation, m)[1] for m in others]) if others else None
+        choices = []
+        for sign in signs:  # a clear line first, then the most room at its start
+            start = final[1] - sign * APPROACH * size * heading
+            room = 0.0 if fixed is None else float(np.min(np.linalg.norm(
+                (start + offsets)[:, None, :2] - fixed[None, :, :2], axis=2)))
+            choices.append((not self._free(observation, offsets, others, start, final[1]),
+                            -room, sign, start))
+        _, _, sign, start = min(choices, key=lambda c: c[:2])
+        here = _frame(observation, leader)[1]
+        route = self._route(observation, offsets, others, here, start, size)
+        return _Drive(leader, group, final, deque([*route, start]), line=start - final[1])
+
+    def _offsets(self, observation: Observation, group: set[str], leader: str) -> np.ndarray:
+        here = _frame(observation, leader)[1]
+        return np.array([_frame(observation, m)[1] - here for m in sorted(group)])
+
+    def _free(self, observation: Observation, offsets: np.ndarray, others: list[str],
+              a: np.ndarray, b: np.ndarray, margin: float = 0.0) -> bool:
+        """Whether the group (``offsets`` from its leader) carried from ``a`` to ``b`` keeps
+        its centres a body size (plus ``margin``) from every other module's."""
+        if not others:
+            return True
+        fixed = np.array([_frame(observation, m)[1] for m in others])
+        size = 2 * max(inscribed(self._kind(observation, m)) for m in observation.poses)
+        for t in np.linspace(0.0, 1.0, 25):
+            at = a + t * (b - a) + offsets
+            gaps = np.linalg.norm(at[:, None, :2] - fixed[None, :, :2], axis=2)
+            if np.any(gaps < size - 1e-3 + margin):
+                return False
+        return True
+
+    def _route(self, observation: Observation, offsets: np.ndarray, others: list[str],
+               here: np.ndarray, goal: np.ndarray, size: float) -> list[np.ndarray]:
+        """Waypoints before ``goal``: none when the way is clear, else the shortest clear
+        detour through one or two corners of the others' bounding box, ``size`` out."""
+        margin = 0.2 * size
+        if self._free(observation, offsets, others, here, goal, margin):
+            return []
+        fixed = np.array([_frame(observation, m)[1] for m in others])
+        reach = float(np.max(np.linalg.norm(offsets[:, :2], axis=1))) + 1.5 * size
+        low, high = fixed.min(axis=0) - reach, fixed.max(axis=0) + reach
+        corners = [np.array([x, y, here[2]]) for x in (low[0], high[0]) for y in (low[1], high[1])]
+        paths = [[c] for c in corners] + [[c, d] for c in corners for d in corners
+                                          if not np.allclose(c, d)]
+        best = None
+        for path in paths:
+            points = [here, *path, goal]
+            if all(self._free(observation, offsets, others, p, q, margin)
+                   for p, q in zip(points, points[1:], strict=False)):
+                length = sum(float(np.linalg.norm(q - p)) for p, q in zip(points, points[1:],
+                                                                           strict=False))
+                if best is None or length < best[0]:
+                    best = (length, path)
+        return [] if best is None else best[1]
+
+    # -- driving ------------------------------------------------------------------------
+
+    def _drive(self, job: _Drive, observation: Observation,
+               commands: dict[str, ModuleCommand], errors: dict[str, float]) -> bool:
+        rotation, here = _frame(observation, job.leader)
+        yaw = _yaw(rotation)
+        if job.dock is not None:  # the fixed module may have been pushed: follow it
+            job.final = self._docked(observation, job.leader, job.dock)[0]
+        final_yaw = _yaw(job.final[0])
+        tol = self.tolerance
+        error = job.final[1][:2] - here[:2]
+        errors[job.leader] = float(np.linalg.norm(error))
+        if not job.clear:
+            job.clear = self._clear_out(job, observation, commands, yaw)
+            if not job.clear:
+                return False
+        if job.waypoints:
+            target = job.waypoints[0]
+            delta = target[:2] - here[:2]
+            distance = float(np.linalg.norm(delta))
+            if distance < tol.position * (0.25 if len(job.waypoints) == 1 else 2):
+                job.waypoints.popleft()
+                return False
+            turn = wrap_angle(math.atan2(delta[1], delta[0]) - yaw)
+            speed = 0.0 if abs(turn) > min(0.25, 4 * distance) else min(1.0, distance / 0.05)
+            self._command(job, observation, commands, speed, _turn_rate(turn))
+            return False
+        heading = np.array([math.cos(final_yaw), math.sin(final_yaw)])
+        along = float(error @ heading)
+        lateral = float(error @ np.array([-heading[1], heading[0]]))
+        turn = wrap_angle(final_yaw - yaw)
+        if abs(along) <= tol.position / 2 and abs(lateral) <= tol.position / 2 and \
+                abs(turn) <= tol.angle / 2:
+            self._command(job, observation, commands, 0.0, 0.0)
+            return True
+        if job.line is not None and abs(lateral) > tol.position and \
+                abs(along) < 0.3 * float(np.linalg.norm(job.line)):
+            job.waypoints.append(job.final[1] + job.line)  # off the line near its end: again
+            return False
+        direction = 1.0 if along >= 0 else -1.0
+        steer = max(-LINE_ANGLE, min(LINE_ANGLE, math.atan(GAIN_LINE * lateral)))
+        turn = wrap_angle(final_yaw + direction * steer - yaw)
+        if abs(turn) > LINE_ANGLE + tol.angle / 2 or abs(along) <= tol.position / 2:
+            self._command(job, observation, commands, 0.0, _turn_rate(turn))
+            return False
+        speed = direction * max(0.1, min(1.0, abs(along) / 0.05))
+        self._command(job, observation, commands, speed, _turn_rate(turn))
+        return False
+
+    def _clear_out(self, job: _Drive, observation: Observation,
+                   commands: dict[str, ModuleCommand], yaw: float) -> bool:
+        """Drive straight along the heading until every other body is a turning circle
+        away (a module just undocked touches its old neighbour); whether clear."""
+        others = [m for m in observation.poses if m not in job.group]
+        if not others:
+            return True
+        offsets = self._offsets(observation, job.group, job.leader)
+        here = _frame(observation, job.leader)[1]
+        reach = max(float(np.linalg.norm(self._kind(observation, m).body.half_extents[:2]))
+                    for m in observation.poses)
+        heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+        fixed = np.array([_frame(observation, m)[1] for m in others])
+
+        def nearest(at: np.ndarray) -> float:
+            points = at + offsets
+            return float(np.min(np.linalg.norm(points[:, None, :2] - fixed[None, :, :2],
+                                               axis=2)))
+
+        if nearest(here) >= 2 * reach or not job.waypoints and nearest(here) >= 0.99 * 2 * min(
+                inscribed(self._kind(observation, m)) for m in observation.poses):
+            return True
+        forward = nearest(here + 0.02 * heading) >= nearest(here - 0.02 * heading)
+        self._command(job, observation, commands, 0.6 if forward else -0.6, 0.0)
+        return False
+
+    def _command(self, job: _Drive, observation: Observation,
+                 commands: dict[str, ModuleCommand], speed: float, omega: float) -> None:
+        """Wheel speeds of every module of the group for the leader's forward ``speed``
+        (fraction of the slowest module's) and turn rate ``omega`` [rad/s]."""
+        top = min(self._kind(observation, m).wheels.speed for m in job.group)
+        v = speed * top
+        rotation, here = _frame(observation, job.leader)
+        heading = rotation[:, 0]
+        for m in job.group:
+            wheels = self._kind(observation, m).wheels
+            r, at = _frame(observation, m)
+            velocity = v * heading + np.cross([0.0, 0.0, omega], at - here)
+            forward = float(velocity @ r[:, 0])
+            half = wheels.track / 2 * omega
+            scale = max(1.0, abs(forward - half) / wheels.speed, abs(forward + half) / wheels.speed)
+            commands[m] = ModuleCommand(wheels={"left": (forward - half) / scale,
+                                                "right": (forward + half) / scale})
+
+    # -- folding ------------------------------------------------------------------------
+
+    def _fold(self, job: _Fold, observation: Observation, config: Configuration,
+              angles: dict[str, float], commands: dict[str, ModuleCommand],
+              errors: dict[str, float]) -> bool:
+        worst = 0.0
+        for edge_id, goal in job.goals.items():
+            edge = config.edge(edge_id) if edge_id in config.edge_ids() else None
+            if edge is None:
+                continue
+            source = self.spec.kind(config.kind_of(edge.source))
+            owner, sign = ((edge.source, 1.0) if source.hinge is not None
+                           and source.hinge.port == edge.ports[0] else (edge.target, -1.0))
+            port = edge.ports[0] if owner == edge.source else edge.ports[1]
+            base = commands.get(owner, ModuleCommand())
+            commands[owner] = ModuleCommand(joints={**base.joints, port: sign * goal})
+            worst = max(worst, abs(wrap_angle(goal - angles.get(edge_id, 0.0))))
+        errors["joints"] = worst
+        if worst > self.tolerance.angle / 2:
+            return False
+        if job.change is None:
+            return True
+        poses, _ = layout(config, self.spec, angles)
+        change = job.change
+        kinds = (self.spec.kind(config.kind_of(change.source)),
+                 self.spec.kind(config.kind_of(change.target)))
+        gap = float(np.linalg.norm(port_mismatch(
+            poses[change.source], poses[change.target], kinds,
+            (change.source_port, change.target_port))[0]))
+        errors[change.target] = gap
+        return gap <= self.tolerance.position / 2
+
+    def _kind(self, observation: Observation, module: str) -> ModuleKind:
+        return self.spec.kind(observation.sensors[module].kind)

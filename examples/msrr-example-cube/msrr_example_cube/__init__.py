@@ -1,0 +1,1 @@
+"""A third-party msrr robot described only: wheeled four-face cubes, run in MuJoCo."""
