@@ -11,7 +11,8 @@ through the port.
 From these the core lays out a configuration (:func:`layout`), derives the connection
 vectors ``z`` (unit, from the source module's centre to the target's) and ``x`` (the
 source port's ``up``, made perpendicular to ``z``) that a lattice robot never writes
-(:func:`with_port_vectors`), and checks that a configuration of rigid ports is
+(:func:`with_port_vectors`; loops through hinges folded shut by :func:`close_loops`,
+from small positive angles), and checks that a configuration of rigid ports is
 consistent (:func:`geometry_violations`: every loop closes, no two bodies overlap).
 
 Pure functions on numpy; module kinds and configurations are read by attribute only.
@@ -29,8 +30,8 @@ if TYPE_CHECKING:
     from .configuration import Configuration
     from .robot import ModuleKind, RobotSpec, Violation
 
-__all__ = ["Frame", "body_reach", "connection_hinge", "docked_pose", "frame_of", "has_bodies",
-           "hinge_edges", "vector_angles",
+__all__ = ["Frame", "body_reach", "close_loops", "connection_hinge", "docked_pose", "frame_of",
+           "has_bodies", "hinge_edges", "port_mismatch", "vector_angles",
            "inscribed", "layout", "geometry_violations", "port_frame", "rotation_about",
            "with_port_vectors"]
 
@@ -204,7 +205,13 @@ def with_port_vectors(config: Configuration, spec: RobotSpec) -> Configuration:
     robot declares no bodies or nothing is missing."""
     if not has_bodies(spec) or all(e.z is not None or e.ports is None for e in config.edges()):
         return config
-    poses, _ = layout(config, spec)
+    poses, closing = layout(config, spec)
+    if closing and hinge_edges(config, spec):  # hinges close the loops: fold them shut
+        edges = [config.edge(e) for e in closing]
+        angles, _ = close_loops(config, spec, [(e.source, e.ports[0], e.target, e.ports[1])
+                                               for e in edges], dict.fromkeys(
+            hinge_edges(config, spec), 0.1))
+        poses, _ = layout(config, spec, angles)
     z: dict[str, np.ndarray | None] = {}
     x: dict[str, np.ndarray | None] = {}
     for edge in config.edges():
@@ -296,3 +303,74 @@ def vector_angles(config: Configuration, spec: RobotSpec) -> dict[str, float]:
     bound = np.array([math.pi * 4, *limits])
     fit = least_squares(residual, np.zeros(len(hinges) + 1), bounds=(-bound, bound))
     return dict(zip(hinges, (float(v) for v in fit.x[1:]), strict=True))
+
+
+def port_mismatch(source: Frame, target: Frame, kinds: tuple[ModuleKind, ModuleKind],
+                  ports: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    """How far two modules at ``source`` and ``target`` (world poses) are from docking
+    their ``ports``: the gap between the port positions [m] (3,), and the rotation
+    mismatch: of the hinge axes for a hinge (3,), of the whole docked pose for rigid
+    ports (9,)."""
+    ra, pa = port_frame(kinds[0], ports[0])
+    rb, pb = port_frame(kinds[1], ports[1])
+    gap = (target[0] @ pb + target[1]) - (source[0] @ pa + source[1])
+    axis = connection_hinge(kinds, ports)
+    if axis is None:
+        want = source[0] @ docked_pose(kinds, ports)[0]
+        return gap, (target[0] - want).ravel()
+    return gap, target[0] @ rb @ FLIP.T @ axis - source[0] @ ra @ axis
+
+
+Closing = tuple[str, str, str, str]
+"""A port pair to bring together: source module, its port, target module, its port."""
+
+
+def _hinge_limit(config: Configuration, spec: RobotSpec, edge_id: str) -> float:
+    edge = config.edge(edge_id)
+    ka, kb = _kinds(config, spec, edge)
+    hinge = ka.hinge if ka.hinge is not None and ka.hinge.port == edge.ports[0] else kb.hinge
+    return hinge.limit
+
+
+def close_loops(config: Configuration, spec: RobotSpec, closing: list[Closing],
+                start: Mapping[str, float], *, seed: int = 0) -> tuple[dict[str, float], float]:
+    """Hinge angles [rad] of ``config`` near ``start`` that bring each port pair of
+    ``closing`` together (ports of modules already joined through ``config``), no two
+    bodies overlapping; and the largest gap [m] left. Least squares within the hinges'
+    limits, from ``start`` and then from seeded random starts while a gap is left."""
+    from scipy.optimize import least_squares  # only where hinges close loops
+
+    hinges = hinge_edges(config, spec)
+    if not hinges or not closing:
+        return {}, math.inf if closing else 0.0
+    limits = np.array([_hinge_limit(config, spec, e) for e in hinges])
+    first = np.clip([start.get(e, 0.0) for e in hinges], -limits, limits)
+    modules = config.vertices(virtual=False)
+    radius = np.array([inscribed(spec.kind(config.kind_of(m))) for m in modules])
+    pairs = [((spec.kind(config.kind_of(s)), spec.kind(config.kind_of(t))), (sp, tp), s, t)
+             for s, sp, t, tp in closing]
+
+    def gaps(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        poses, _ = layout(config, spec, dict(zip(hinges, values, strict=True)))
+        parts = [port_mismatch(poses[s], poses[t], kinds, ports) for kinds, ports, s, t in pairs]
+        return np.concatenate([g for g, _ in parts]), np.concatenate([r for _, r in parts]), poses
+
+    def residual(values: np.ndarray) -> np.ndarray:
+        gap, turn, poses = gaps(values)
+        centres = np.array([poses[m][1] for m in modules])
+        apart = np.linalg.norm(centres[:, None] - centres[None, :], axis=2)
+        overlap = np.triu(np.maximum(0.0, radius[:, None] + radius[None, :] - apart), 1)
+        return np.concatenate([gap, 0.05 * turn, overlap.ravel(), 0.002 * (values - first)])
+
+    rng = np.random.default_rng(seed)
+    best: tuple[np.ndarray, float] | None = None
+    for attempt in range(8):
+        guess = first if attempt == 0 else rng.uniform(-limits, limits)
+        fit = least_squares(residual, guess, bounds=(-limits, limits))
+        gap = float(np.max(np.linalg.norm(gaps(fit.x)[0].reshape(-1, 3), axis=1)))
+        if best is None or gap < best[1]:
+            best = (fit.x, gap)
+        if gap < 1e-4:
+            break
+    assert best is not None
+    return dict(zip(hinges, (float(v) for v in best[0]), strict=True)), best[1]

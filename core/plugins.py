@@ -597,7 +597,6 @@ def load_configuration(path: str | os.PathLike[str]) -> Configuration:
         PluginError: the robot's plugins fail or clash.
     """
     from . import io
-
     from .bodies import with_port_vectors
 
     config = io.load_configuration(path)

@@ -31,8 +31,13 @@ failure and raises one :class:`ConformanceError` listing them):
 5. in the kinematic driver (:mod:`msrr.core.generic`; robots with a physical simulator
    too), each configuration runs to itself and every plan of check 4 runs to success
    with the generic recognizer and controller (plans that move the ends of connections
-   that are modules, FreeSN struts, are skipped and listed: the kinematic driver does
-   not dock them).
+   that are modules, FreeSN struts, and plans that need joints -- a dock within one
+   connected group, a goal that differs in shape only -- are skipped and listed: the
+   kinematic driver does not dock the first and has no joints);
+6. a robot whose module kinds declare bodies (:class:`~msrr.core.robot.Body`) runs one
+   plan of check 4 in the generic ``mujoco`` driver (:func:`run_physics`), judged on the
+   simulator's ground truth (topology and shape): the first that needs joints, else the
+   first with the fewest actions.
 """
 
 from __future__ import annotations
@@ -45,10 +50,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import networkx as nx
 import numpy as np
 
 from .. import plugins
 from ..actions import topology_diff
+from ..bodies import has_bodies
 from ..capabilities import Capabilities, Planner
 from ..configuration import Configuration
 from ..driver import ModuleCommand
@@ -59,7 +66,7 @@ from ..generic import KinematicDriver, LatchController, LatchRecognizer
 from ..io import check_configuration, dump_configuration, parse_configuration
 from ..kinematics import Evaluator, KinematicNode, KinematicTree, tree_vectors
 from ..matching import Candidate, match
-from ..plan import Plan
+from ..plan import ActionType, Plan
 from ..robot import Robot, RobotSpec
 
 __all__ = [
@@ -71,6 +78,7 @@ __all__ = [
     "replay_problems",
     "robot_parameters",
     "run_kinematic",
+    "run_physics",
     "shipped_configurations",
     "tree_gradient_error",
 ]
@@ -131,6 +139,45 @@ def run_kinematic(plan: Plan, spec: RobotSpec, *, rate: float = 10.0,
                             ExecutorOptions(rate=rate, action_timeout=action_timeout),
                             sink=plugins.emit)
         return executor.execute()
+
+
+def run_physics(plan: Plan, spec: RobotSpec, *, rate: float = 10.0,
+                action_timeout: float = 60.0, seed: int = 0) -> RunResult:
+    """Execute ``plan`` in the generic ``mujoco`` driver with the generic recognizer and
+    the drive controller, and judge it as ``platform run`` does: on the simulator's ground
+    truth, topology and shape (the goal laid out by a second driver)."""
+    from ..generic.drive import DriveController
+    from ..generic.physics import PhysicsDriver
+    from ..judge import Judge
+
+    def layout(goal: Configuration) -> dict:
+        with PhysicsDriver(spec, seed=seed) as other:
+            other.reset(goal)
+            return dict(other.get_observation().poses)
+
+    run = Run(robot=spec.name, scenario="conformance", plan=plan, spec=spec,
+              driver="mujoco", rate=rate, seed=seed)
+    with PhysicsDriver(spec, seed=seed) as world:
+        world.reset(plan.start)
+        judge = Judge(run, world, layout=layout, tolerance=spec.defaults.shape_tolerance)
+        executor = Executor(run, world, LatchRecognizer(spec), DriveController(spec),
+                            ExecutorOptions(rate=rate, action_timeout=action_timeout),
+                            sink=judge)
+        return judge.conclude(executor.execute())
+
+
+def needs_joints(plan: Plan) -> bool:
+    """Whether ``plan`` has an action only joints can make: a dock of two modules already
+    joined (closing a loop), or a move with neither changes nor planar goals (a shape)."""
+    current = plan.start
+    for action in plan.actions:
+        if action.type is ActionType.MOVING and not action.goals:
+            return True
+        groups = {m: g for g in nx.connected_components(current.undirected()) for m in g}
+        if any(groups[c.source] is groups[c.target] for c in action.made()):
+            return True
+        current = action.target
+    return False
 
 
 def shipped_configurations(name: str) -> list[Path]:
@@ -269,6 +316,8 @@ def check_robot(name: str, *, run: bool = True, all_pairs: bool = False,
     plans = _check_plans(report, capabilities.planner(), configs, all_pairs)
     if run:
         _check_runs(report, capabilities.robot, configs, plans, rate)
+        if has_bodies(capabilities.robot.spec):
+            _check_physics(report, capabilities.robot.spec, plans)
     if report.failures:
         raise ConformanceError(f"robot {name!r} fails {len(report.failures)} check(s):\n  "
                                + "\n  ".join(report.failures))
@@ -346,11 +395,28 @@ def _check_runs(report: ConformanceReport, robot: Robot, configs: dict[str, Conf
             report.skipped.append(f"run {label}: the kinematic driver does not dock the ends "
                                   "of connections that are modules")
             continue
+        if needs_joints(plan):
+            report.skipped.append(f"run {label}: it needs joints, which the kinematic driver "
+                                  "does not have")
+            continue
         report.check(f"run {label} in the kinematic driver",
                      lambda p=plan: _succeeds(run_kinematic(
                          p, spec, rate=rate,
                          driver=KinematicDriver(spec, speed=CHECK_SPEED,
                                                 turn_rate=CHECK_TURN_RATE))))
+
+
+def _check_physics(report: ConformanceReport, spec: RobotSpec,
+                   plans: list[tuple[str, Plan]]) -> None:
+    """Check 6: one plan in the generic ``mujoco`` driver, judged on its ground truth."""
+    moving = [(label, plan) for label, plan in plans if plan.actions]
+    if not moving:
+        report.skipped.append("physics run: no plan of check 4 has an action")
+        return
+    label, plan = min(moving, key=lambda item: (not needs_joints(item[1]),
+                                                len(item[1].actions)))
+    report.check(f"run {label} in the mujoco driver (judged on ground truth)",
+                 lambda: _succeeds(run_physics(plan, spec)))
 
 
 def _round_trip(config: Configuration) -> None:

@@ -32,15 +32,15 @@ import networkx as nx
 import numpy as np
 
 from ..bodies import (
-    FLIP,
     Frame,
+    close_loops,
     connection_hinge,
     docked_pose,
     frame_of,
-    hinge_edges,
     inscribed,
     layout,
     port_frame,
+    port_mismatch,
     vector_angles,
 )
 from ..configuration import Configuration
@@ -53,10 +53,11 @@ from ..robot import ModuleKind, RobotSpec
 from .driver import ModuleReading
 from .geometry import wrap_angle
 
-__all__ = ["DriveController", "close_loop", "port_mismatch"]
+__all__ = ["DriveController"]
 
-APPROACH = 1.6
-"""Distance of the approach point from the docked pose, in sizes of the moving module."""
+APPROACH = (1.6, 2.0, 2.5, 3.0, 4.0)
+"""Distances of the approach point from the docked pose, in sizes of the moving group:
+the first with room to turn there is taken."""
 
 GAIN_TURN = 2.5
 """Heading loop gain [1/s]."""
@@ -104,78 +105,15 @@ def _reported(spec: RobotSpec, observation: Observation) -> tuple[Configuration,
         for latch in reading.latches:
             if latch.port is None or latch.other_port is None:
                 continue
-            edge = config.connect(module, latch.other, ports=(latch.port, latch.other_port))
+            edge_id = config.connect(module, latch.other, ports=(latch.port, latch.other_port))
             source, target = spec.kind(reading.kind), spec.kind(readings[latch.other].kind)
             if connection_hinge((source, target), (latch.port, latch.other_port)) is None:
                 continue
             if source.hinge is not None and source.hinge.port == latch.port:
-                angles[edge.id] = float(reading.joints.get(latch.port, 0.0))
+                angles[edge_id] = float(reading.joints.get(latch.port, 0.0))
             else:
-                angles[edge.id] = -float(readings[latch.other].joints.get(latch.other_port, 0.0))
+                angles[edge_id] = -float(readings[latch.other].joints.get(latch.other_port, 0.0))
     return config, angles
-
-
-def close_loop(config: Configuration, spec: RobotSpec, angles: dict[str, float],
-               change: ConnectionChange, seed: int = 0) -> tuple[dict[str, float], float]:
-    """Hinge angles [rad] of ``config`` near ``angles`` that bring the ports of ``change``
-    (two modules of one group) together, no two bodies overlapping, and the residual gap
-    [m] left (least squares, seeded restarts when the first start stalls)."""
-    from scipy.optimize import least_squares
-
-    hinges = hinge_edges(config, spec)
-    if not hinges:
-        return {}, math.inf
-    kinds = (spec.kind(config.kind_of(change.source)), spec.kind(config.kind_of(change.target)))
-    ports = (change.source_port, change.target_port)
-    limits = np.array([_hinge_limit(config, spec, e) for e in hinges])
-    start = np.array([angles.get(e, 0.0) for e in hinges])
-    modules = config.vertices(virtual=False)
-    radius = np.array([inscribed(spec.kind(config.kind_of(m))) for m in modules])
-
-    def residual(values: np.ndarray) -> np.ndarray:
-        poses, _ = layout(config, spec, dict(zip(hinges, values, strict=True)))
-        gap, turn = port_mismatch(poses[change.source], poses[change.target], kinds, ports)
-        centres = np.array([poses[m][1] for m in modules])
-        gaps = np.linalg.norm(centres[:, None] - centres[None, :], axis=2)
-        need = radius[:, None] + radius[None, :]
-        overlap = np.triu(np.maximum(0.0, need - gaps), 1).ravel()
-        return np.concatenate([gap, 0.05 * turn, overlap, 0.002 * (values - start)])
-
-    rng = np.random.default_rng(seed)
-    best = None
-    for attempt in range(6):
-        guess = start if attempt == 0 else rng.uniform(-limits, limits)
-        fit = least_squares(residual, np.clip(guess, -limits, limits), bounds=(-limits, limits))
-        gap = float(np.linalg.norm(residual(fit.x)[:3]))
-        if best is None or gap < best[1]:
-            best = (fit.x, gap)
-        if gap < 1e-4:
-            break
-    assert best is not None
-    return dict(zip(hinges, (float(v) for v in best[0]), strict=True)), best[1]
-
-
-def port_mismatch(source: Frame, target: Frame, kinds: tuple[ModuleKind, ModuleKind],
-                  ports: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
-    """How far two modules at ``source`` and ``target`` (world poses) are from docking
-    their ``ports``: the gap between the port positions [m] (3,), and the rotation
-    mismatch: of the hinge axes for a hinge (3,), of the whole docked pose for rigid
-    ports (9,)."""
-    ra, pa = port_frame(kinds[0], ports[0])
-    rb, pb = port_frame(kinds[1], ports[1])
-    gap = (target[0] @ pb + target[1]) - (source[0] @ pa + source[1])
-    axis = connection_hinge(kinds, ports)
-    if axis is None:
-        want = source[0] @ docked_pose(kinds, ports)[0]
-        return gap, (target[0] - want).ravel()
-    return gap, target[0] @ rb @ FLIP.T @ axis - source[0] @ ra @ axis
-
-
-def _hinge_limit(config: Configuration, spec: RobotSpec, edge_id: str) -> float:
-    edge = config.edge(edge_id)
-    ka, kb = spec.kind(config.kind_of(edge.source)), spec.kind(config.kind_of(edge.target))
-    hinge = ka.hinge if ka.hinge is not None and ka.hinge.port == edge.ports[0] else kb.hinge
-    return hinge.limit
 
 
 @dataclass
@@ -188,6 +126,8 @@ class _Drive:
     final: Frame
     waypoints: deque = field(default_factory=deque)
     clear: bool = False
+    out: float = 0.0  # the way out of its neighbours: +1 forward, -1 backward
+    pivot: np.ndarray = field(default_factory=lambda: np.zeros(3))  # group centre, leader frame
     line: np.ndarray | None = None
     dock: tuple[str, str, str] | None = None  # fixed module, its port, the leader's port
 
@@ -212,13 +152,16 @@ class DriveController:
         self.tolerance = spec.defaults.dock_tolerance
         self.jobs: deque = deque()
         self.job: _Drive | _Fold | None = None
+        self.target: Configuration | None = None
+        self.arrived = False
 
     # -- the controller protocol --------------------------------------------------------
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
         if phase is Phase.CONNECT:
             return  # the approach's last job keeps pushing while the ports latch
-        self.job, self.jobs = None, deque()
+        self.job, self.jobs, self.arrived = None, deque(), False
+        self.target = action.target
         if phase is Phase.MOVE:
             if action.goals:
                 self.jobs.extend(sorted(action.goals.items()))
@@ -234,7 +177,8 @@ class DriveController:
         errors: dict[str, float] = {}
         if phase in (Phase.MOVE, Phase.APPROACH, Phase.CONNECT):
             self._advance(observation, commands, errors, phase)
-        return Control(commands, errors, reached=self.job is None and not self.jobs)
+        return Control(commands, errors, reached=(self.job is None or self.arrived)
+                       and not self.jobs)
 
     # -- jobs ---------------------------------------------------------------------------
 
@@ -248,10 +192,13 @@ class DriveController:
                 self.job = self._start(self.jobs.popleft(), observation, config, angles)
                 if self.job is None:
                     continue
-            done = (self._drive(self.job, observation, commands, errors)
+            done = (self._drive(self.job, observation, commands, errors, phase)
                     if isinstance(self.job, _Drive)
                     else self._fold(self.job, observation, config, angles, commands, errors))
             if not done or phase is Phase.CONNECT:
+                return
+            if phase is Phase.APPROACH and not self.jobs:
+                self.arrived = True  # the last dock: it keeps pressing while it latches
                 return
             self.job = None
 
@@ -266,12 +213,7 @@ class DriveController:
                    for e in config.edges()):
                 return None  # already latched
             if groups[item.source] is groups[item.target]:
-                goals, gap = close_loop(config, self.spec, angles, item)
-                if gap > self.tolerance.position / 2:
-                    raise ExecutionError(f"drive controller: no hinge angles of the group close "
-                                         f"{item.source}{item.source_port}-{item.target}"
-                                         f"{item.target_port} (gap {gap:.3g} m)")
-                return _Fold(goals, item)
+                return self._close(item, config, angles)
             return self._dock_drive(item, observation, groups)
         module, goal = item  # type: ignore[misc]
         x, y, yaw = (float(v) for v in goal[:3])
@@ -280,6 +222,20 @@ class DriveController:
                                                                0.0], [0.0, 0.0, 1.0]])
         return self._plan_drive(module, set(groups[module]), (turn, np.array(
             [x, y, position[2]])), observation, None)
+
+    def _close(self, change: ConnectionChange, config: Configuration,
+               angles: dict[str, float]) -> _Fold:
+        """Hinge goals that dock ``change`` within one group: the angles that lay the
+        action's target out (its vectors say which way to fold), closed exactly from there."""
+        start = {**angles, **vector_angles(self.target, self.spec)}
+        goals, gap = close_loops(config, self.spec, [(change.source, change.source_port,
+                                                      change.target, change.target_port)],
+                                 start)
+        if gap > self.tolerance.position / 2:
+            raise ExecutionError(f"drive controller: no hinge angles of the group dock "
+                                 f"{change.source}{change.source_port}-{change.target}"
+                                 f"{change.target_port} (a gap of {gap:.3g} m is left)")
+        return _Fold(goals, change)
 
     def _dock_drive(self, change: ConnectionChange, observation: Observation,
                     groups: dict[str, set[str]]) -> _Drive:
@@ -294,18 +250,17 @@ class DriveController:
         _, _, moving, fixed = min(options)
         fixed_port = change.source_port if fixed == change.source else change.target_port
         moving_port = change.target_port if fixed == change.source else change.source_port
-        kinds = (self._kind(observation, fixed), self._kind(observation, moving))
         dock = (fixed, fixed_port, moving_port)
         final, normal = self._docked(observation, moving, dock)
         job = self._plan_drive(moving, set(groups[moving]), final, observation, normal)
         job.dock = dock
         return job
 
-    def _docked(self, observation: Observation, moving: str, dock: tuple[str, str, str]
-                ) -> tuple[Frame, np.ndarray]:
+    def _docked(self, observation: Observation, moving: str, dock: tuple[str, str, str],
+                *, gap: bool = True) -> tuple[Frame, np.ndarray]:
         """Where ``moving`` docks to ``dock`` (fixed module, its port, moving's port) as
-        the fixed module is now, a gap of half the latch distance left along the fixed
-        port's horizontal normal; and that normal."""
+        the fixed module is now, with ``gap`` a third of the latch distance left along
+        the fixed port's horizontal normal; and that normal."""
         fixed, fixed_port, moving_port = dock
         kinds = (self._kind(observation, fixed), self._kind(observation, moving))
         here = _frame(observation, fixed)
@@ -313,7 +268,8 @@ class DriveController:
         normal = here[0] @ port_frame(kinds[0], fixed_port)[0][:, 0]
         normal[2] = 0.0
         normal /= max(float(np.linalg.norm(normal)), 1e-9)
-        return (final[0], final[1] + 0.5 * self.tolerance.position * normal), normal
+        shift = self.tolerance.position / 3 if gap else 0.0
+        return (final[0], final[1] + shift * normal), normal
 
     def _plan_drive(self, leader: str, group: set[str], final: Frame, observation: Observation,
                     normal: np.ndarray | None) -> _Drive:
@@ -326,24 +282,33 @@ class DriveController:
         signs = [1.0, -1.0]
         if normal is not None and abs(float(normal @ heading)) > 0.5:
             signs = [-math.copysign(1.0, float(normal @ heading))]  # come in against the normal
-        offsets = self._offsets(observation, group, leader)
+        rotation, position = _frame(observation, leader)
+        centre = np.mean([_frame(observation, m)[1] for m in group], axis=0)
+        pivot = rotation.T @ (centre - position)
+        pivot[2] = 0.0
+        final = (final[0], final[1] + final[0] @ pivot)  # where the group's centre goes
+        offsets = self._offsets(observation, group, centre)
         others = [m for m in observation.poses if m not in group]
         fixed = np.array([_frame(observation, m)[1] for m in others]) if others else None
+        turning = 2 * self._reach(observation, group, centre)
         choices = []
-        for sign in signs:  # a clear line first, then the most room at its start
-            start = final[1] - sign * APPROACH * size * heading
-            room = 0.0 if fixed is None else float(np.min(np.linalg.norm(
-                (start + offsets)[:, None, :2] - fixed[None, :, :2], axis=2)))
+        for sign in signs:  # a clear line first, then room to turn at its start, shorter
+            for distance in APPROACH:
+                start = final[1] - sign * distance * size * heading
+                room = math.inf if fixed is None else float(np.min(np.linalg.norm(
+                    (start + offsets)[:, None, :2] - fixed[None, :, :2], axis=2)))
+                if room >= turning or distance == APPROACH[-1]:
+                    break
             choices.append((not self._free(observation, offsets, others, start, final[1]),
-                            -room, sign, start))
-        _, _, sign, start = min(choices, key=lambda c: c[:2])
-        here = _frame(observation, leader)[1]
-        route = self._route(observation, offsets, others, here, start, size)
-        return _Drive(leader, group, final, deque([*route, start]), line=start - final[1])
+                            room < turning, distance, sign, start))
+        *_, sign, start = min(choices, key=lambda c: c[:3])
+        route = self._route(observation, offsets, others, centre, start, size)
+        return _Drive(leader, group, (final[0], final[1] - final[0] @ pivot),
+                      deque([*route, start]), line=start - final[1], pivot=pivot)
 
-    def _offsets(self, observation: Observation, group: set[str], leader: str) -> np.ndarray:
-        here = _frame(observation, leader)[1]
-        return np.array([_frame(observation, m)[1] - here for m in sorted(group)])
+    def _offsets(self, observation: Observation, group: set[str], centre: np.ndarray
+                 ) -> np.ndarray:
+        return np.array([_frame(observation, m)[1] - centre for m in sorted(group)])
 
     def _free(self, observation: Observation, offsets: np.ndarray, others: list[str],
               a: np.ndarray, b: np.ndarray, margin: float = 0.0) -> bool:
@@ -387,14 +352,18 @@ class DriveController:
     # -- driving ------------------------------------------------------------------------
 
     def _drive(self, job: _Drive, observation: Observation,
-               commands: dict[str, ModuleCommand], errors: dict[str, float]) -> bool:
+               commands: dict[str, ModuleCommand], errors: dict[str, float],
+               phase: Phase) -> bool:
         rotation, here = _frame(observation, job.leader)
+        here = here + rotation @ job.pivot
         yaw = _yaw(rotation)
-        if job.dock is not None:  # the fixed module may have been pushed: follow it
-            job.final = self._docked(observation, job.leader, job.dock)[0]
+        if job.dock is not None:  # the fixed module may have been pushed: follow it; in
+            job.final = self._docked(observation, job.leader, job.dock,  # the connect phase,
+                                     gap=phase is not Phase.CONNECT)[0]  # press on the port
         final_yaw = _yaw(job.final[0])
         tol = self.tolerance
-        error = job.final[1][:2] - here[:2]
+        goal = job.final[1] + job.final[0] @ job.pivot
+        error = goal[:2] - here[:2]
         errors[job.leader] = float(np.linalg.norm(error))
         if not job.clear:
             job.clear = self._clear_out(job, observation, commands, yaw)
@@ -421,7 +390,7 @@ class DriveController:
             return True
         if job.line is not None and abs(lateral) > tol.position and \
                 abs(along) < 0.3 * float(np.linalg.norm(job.line)):
-            job.waypoints.append(job.final[1] + job.line)  # off the line near its end: again
+            job.waypoints.append(goal + job.line)  # off the line near its end: again
             return False
         direction = 1.0 if along >= 0 else -1.0
         steer = max(-LINE_ANGLE, min(LINE_ANGLE, math.atan(GAIN_LINE * lateral)))
@@ -440,10 +409,10 @@ class DriveController:
         others = [m for m in observation.poses if m not in job.group]
         if not others:
             return True
-        offsets = self._offsets(observation, job.group, job.leader)
-        here = _frame(observation, job.leader)[1]
-        reach = max(float(np.linalg.norm(self._kind(observation, m).body.half_extents[:2]))
-                    for m in observation.poses)
+        rotation, here = _frame(observation, job.leader)
+        here = here + rotation @ job.pivot
+        offsets = self._offsets(observation, job.group, here)
+        reach = self._reach(observation, job.group, here)
         heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
         fixed = np.array([_frame(observation, m)[1] for m in others])
 
@@ -455,9 +424,26 @@ class DriveController:
         if nearest(here) >= 2 * reach or not job.waypoints and nearest(here) >= 0.99 * 2 * min(
                 inscribed(self._kind(observation, m)) for m in observation.poses):
             return True
-        forward = nearest(here + 0.02 * heading) >= nearest(here - 0.02 * heading)
-        self._command(job, observation, commands, 0.6 if forward else -0.6, 0.0)
+        if job.out == 0.0:  # once: the way with more room a turning circle out, else
+            goal = job.waypoints[0] if job.waypoints else here  # toward the goal
+            room = [(round(nearest(here + sign * 2 * reach * heading), 3),
+                     -float(np.linalg.norm(here + sign * 2 * reach * heading - goal)), sign)
+                    for sign in (1.0, -1.0)]
+            job.out = max(room)[2]
+        self._command(job, observation, commands, 0.6 * job.out, 0.0)
         return False
+
+    def _reach(self, observation: Observation, group: set[str] | None = None,
+               centre: np.ndarray | None = None) -> float:
+        """The largest horizontal radius [m] a module's body (or ``group`` turning about
+        ``centre``) sweeps turning in place."""
+        def radius(m: str) -> float:
+            return float(np.linalg.norm(self._kind(observation, m).body.half_extents[:2]))
+
+        if group is None or centre is None:
+            return max(radius(m) for m in observation.poses)
+        return max(radius(m) + float(np.linalg.norm((_frame(observation, m)[1] - centre)[:2]))
+                   for m in group)
 
     def _command(self, job: _Drive, observation: Observation,
                  commands: dict[str, ModuleCommand], speed: float, omega: float) -> None:
@@ -466,6 +452,7 @@ class DriveController:
         top = min(self._kind(observation, m).wheels.speed for m in job.group)
         v = speed * top
         rotation, here = _frame(observation, job.leader)
+        here = here + rotation @ job.pivot  # the group turns about its centre
         heading = rotation[:, 0]
         for m in job.group:
             wheels = self._kind(observation, m).wheels

@@ -6,8 +6,9 @@ is the set of its links (:func:`msrr.core.actions.topology_diff`'s direction-fre
 ``(module, port)`` pairs); one action docks or undocks one link. The planner finds a
 shortest sequence by A* with ``h = |links(state) xor links(goal)|``: every action
 changes one link, so ``h`` never overestimates and is consistent, and the first goal
-popped is optimal (Hart, Nilsson and Raphael 1968). Moving the modules into place for
-a dock is the controller's job (:class:`~msrr.core.generic.controller.LatchController`);
+popped is optimal (Hart, Nilsson and Raphael 1968). A goal with the start's links whose
+connection vectors differ (a shape reached by joint angles) is one moving action to it.
+Moving the modules into place for a dock is the controller's job (:class:`~msrr.core.generic.controller.LatchController`);
 the plan says only which links change.
 
 **Legality.** A step is legal when every intermediate configuration is: each of its
@@ -47,6 +48,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import networkx as nx
+import numpy as np
 
 from ..actions import detect_action
 from ..configuration import Configuration
@@ -147,7 +149,9 @@ class GenericPlanner:
         self._check_modules(start, goal)
         have, want = links_of(start), links_of(goal)
         if have.keys() == want.keys():
-            return Plan(self.robot.name, self.name, start, goal, [],
+            bend = [] if not _bent(have, want) else [detect_action(
+                start, goal.derive(), note="move: the goal differs in shape only (joint angles)")]
+            return Plan(self.robot.name, self.name, start, goal, bend,
                         stats={"expanded": 0, "time_ms": 0.0})
         self._check_plannable(start, goal)
         path, expanded = self._search(start, have, want)
@@ -278,6 +282,19 @@ class GenericPlanner:
                                          f"{link.target_port or ''}"))
             current = nxt
         return actions
+
+
+def _bent(have: dict[ConnectionKey, Link], want: dict[ConnectionKey, Link]) -> bool:
+    """Whether a link of ``want`` points another way (``z`` or ``x``, direction-free)
+    than the same link of ``have``: the goal differs in shape (joint angles)."""
+    for key, goal in want.items():
+        now = have[key]
+        sign = 1.0 if (now.source, now.source_port) == (goal.source, goal.source_port) else -1.0
+        for a, b, flip in ((now.z, goal.z, sign), (now.x, goal.x, 1.0)):
+            if b is not None and (a is None or not np.allclose(np.multiply(a, flip), b,
+                                                               atol=1e-6)):
+                return True
+    return False
 
 
 def _order(key: ConnectionKey) -> list[str]:

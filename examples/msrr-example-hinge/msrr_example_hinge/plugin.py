@@ -6,7 +6,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from msrr.core import (
+    Body,
     DockingRules,
+    Hinge,
     ModuleKind,
     PortSpec,
     RobotSpec,
@@ -15,7 +17,7 @@ from msrr.core import (
     hookimpl,
 )
 from msrr.core.hookspecs import Register
-from msrr.core.robot import port_reuse_violations, tree_violations
+from msrr.core.robot import port_reuse_violations
 
 if TYPE_CHECKING:  # annotations only: configurations import numpy and networkx
     from msrr.core import Configuration
@@ -26,10 +28,11 @@ HINGE = ModuleKind(
     name="hinge",
     symbol="H",
     role="vertex",
-    ports=(PortSpec("head", "active", (1.0, 0.0, 0.0)),
-           PortSpec("tail", "passive", (-1.0, 0.0, 0.0))),
-    geometry={"length": 0.1, "mass": 0.2},  # SI units: [m], [kg]
-    description="one revolute hinge between a head port and a tail port",
+    ports=(PortSpec("head", "active", (1.0, 0.0, 0.0), position=(0.095, 0.0, 0.0)),
+           PortSpec("tail", "passive", (-1.0, 0.0, 0.0), position=(-0.095, 0.0, 0.0))),
+    body=Body(shape="box", size=(0.1, 0.03, 0.03), mass=0.2, friction=0.3),  # [m], [kg]
+    hinge=Hinge(port="head", axis=(0.0, 0.0, 1.0), torque=1.0, limit=2.0),
+    description="a link with a revolute hinge at its head port",
 )
 
 SPEC = RobotSpec(
@@ -46,7 +49,7 @@ def msrr_robot() -> RobotSpec | None:
 
 
 class HingeRules(DockingRules):
-    """A head docks only to a tail; each port once; one chain."""
+    """A head docks only to a tail; each port once; one connected chain (or ring)."""
 
     robot = "hinge"
 
@@ -55,7 +58,9 @@ class HingeRules(DockingRules):
         return {source_port, target_port} == {"head", "tail"}
 
     def check_topology(self, config: Configuration) -> list[Violation]:
-        return port_reuse_violations(config) + tree_violations(config)
+        split = [] if config.is_connected() else [
+            Violation("connections", "the hinges must form one chain or ring")]
+        return port_reuse_violations(config) + split
 
 
 @hookimpl
@@ -69,3 +74,5 @@ def msrr_scenarios(robot: str, register: Register[Scenario]) -> None:
         register(Scenario("reverse", "reverse a chain of three hinges",
                           CONFIGS / "chain3.json", CONFIGS / "chain3-reversed.json",
                           default=True))
+        register(Scenario("fold", "a chain of four folds until its ends dock (physics)",
+                          CONFIGS / "chain4.json", CONFIGS / "ring4.json"))
