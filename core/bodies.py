@@ -41,6 +41,10 @@ Frame = tuple[np.ndarray, np.ndarray]
 FLIP = np.diag([-1.0, -1.0, 1.0])
 """A port frame turned by pi about its ``up`` axis: the frame of the port docked to it."""
 
+UNBENT = 0.1
+"""The hinge angle [rad] a loop starts folding from (the positive way) when nothing
+says which way it folds."""
+
 LOOP_TOLERANCE = 1e-3
 """Largest gap [m] (and angle [rad]) of a closed loop of rigid ports that still closes."""
 
@@ -210,7 +214,7 @@ def with_port_vectors(config: Configuration, spec: RobotSpec) -> Configuration:
         edges = [config.edge(e) for e in closing]
         angles, _ = close_loops(config, spec, [(e.source, e.ports[0], e.target, e.ports[1])
                                                for e in edges], dict.fromkeys(
-            hinge_edges(config, spec), 0.1))
+            hinge_edges(config, spec), UNBENT))
         poses, _ = layout(config, spec, angles)
     z: dict[str, np.ndarray | None] = {}
     x: dict[str, np.ndarray | None] = {}

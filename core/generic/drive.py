@@ -32,6 +32,7 @@ import networkx as nx
 import numpy as np
 
 from ..bodies import (
+    UNBENT,
     Frame,
     close_loops,
     connection_hinge,
@@ -226,8 +227,11 @@ class DriveController:
     def _close(self, change: ConnectionChange, config: Configuration,
                angles: dict[str, float]) -> _Fold:
         """Hinge goals that dock ``change`` within one group: the angles that lay the
-        action's target out (its vectors say which way to fold), closed exactly from there."""
+        action's target out (its vectors say which way to fold; a straight hinge folds the
+        positive way, as :func:`~msrr.core.bodies.with_port_vectors` lays loops out),
+        closed exactly from there."""
         start = {**angles, **vector_angles(self.target, self.spec)}
+        start = {e: a if abs(a) > UNBENT else UNBENT for e, a in start.items()}
         goals, gap = close_loops(config, self.spec, [(change.source, change.source_port,
                                                       change.target, change.target_port)],
                                  start)
