@@ -31,7 +31,7 @@ def test_platform_robots_lists_the_example_robot() -> None:
 
 def test_example_configurations_validate() -> None:
     files = sorted(EXAMPLE.glob("msrr_example_hinge/configs/*.json"))
-    assert len(files) == 2
+    assert len(files) == 4
     for path in files:
         assert load_configuration(path).robot == "hinge"
     result = CliRunner().invoke(get_cli(), ["validate", *map(str, files)])
@@ -41,3 +41,15 @@ def test_example_configurations_validate() -> None:
 def test_example_scenario_points_at_shipped_files() -> None:
     scenario = plugins.scenarios("hinge")["reverse"]
     assert load_configuration(scenario.start).signature() == load_configuration(scenario.goal).signature()
+
+
+CUBE = ROOT / "examples/msrr-example-cube"
+
+
+def test_the_cube_example_is_installed_and_described_only() -> None:
+    dist = distribution("msrr-example-cube")
+    assert any(ep.group == "msrr.plugins" and ep.name == "cube" for ep in dist.entry_points)
+    sources = sorted(p.name for p in CUBE.glob("msrr_example_cube/*.py"))
+    assert sources == ["__init__.py", "plugin.py"]  # a description, no simulation code
+    capabilities = plugins.capabilities("cube")
+    assert "mujoco" in capabilities.drivers and capabilities.drivers["mujoco"].generic
