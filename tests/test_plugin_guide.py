@@ -118,9 +118,10 @@ def test_every_other_hook_of_the_guide_works(package: Path, tmp_path: Path) -> N
     try:
         with plugins.temporary(extras, "hinge-extras"):
             robot = plugins.resolve("hinge")
-            assert robot.joint_modes["hinge"] is extras.HingeJoint
+            assert robot.joint_modes["hinge"] is importlib.import_module(
+                "msrr_example_hinge.joints").HingeJoint
             assert list(plugins.planners("hinge")) == ["undock-then-dock", "generic"]
-            assert list(plugins.drivers("hinge")) == ["fast", "kinematic", "link"]
+            assert list(plugins.drivers("hinge")) == ["fast", "kinematic", "mujoco", "link"]
             start = plugins.load_configuration(package / "msrr_example_hinge/configs/chain3.json")
             goal = plugins.load_configuration(
                 package / "msrr_example_hinge/configs/chain3-reversed.json")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -26,22 +26,18 @@ from msrr.core.capabilities import Controller, DriverFactory, Planner, Recognize
 from msrr.core.events import ActionStatus, Run, RunResult, Tick, TopologyEvent
 from msrr.core.generic import KinematicDriverFactory
 from msrr.core.hookspecs import Register
-from msrr.core.kinematics.joints import RevoluteJoint
-from msrr.core.kinematics.node import KinematicNode
 
 from .plugin import HINGE, SPEC
 
-
-class HingeJoint(RevoluteJoint):
-    """The hinge turns about its connection axis ``z`` by ``sigma`` [rad]."""
-
-    name = "hinge"
-    controller = "hinge"
+if TYPE_CHECKING:  # annotations only: the kinematics import scipy
+    from msrr.core.kinematics.node import KinematicNode
 
 
 @hookimpl
 def msrr_kinematic_nodes(robot: str, register: Register[type[KinematicNode]]) -> None:
     if robot == SPEC.name:
+        from .joints import HingeJoint  # scipy: imported when the robot is resolved
+
         register(HingeJoint)
 
 

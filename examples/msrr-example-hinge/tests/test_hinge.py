@@ -18,8 +18,9 @@ def test_hinge_conforms() -> None:
 
 def test_hinge_with_its_extras_conforms() -> None:
     extras = importlib.import_module("msrr_example_hinge.extras")
+    joints = importlib.import_module("msrr_example_hinge.joints")
     with plugins.temporary(extras, "hinge-extras"):
-        assert plugins.capabilities("hinge").robot.joint_modes["hinge"] is extras.HingeJoint
+        assert plugins.capabilities("hinge").robot.joint_modes["hinge"] is joints.HingeJoint
         check_robot("hinge")
 
 
