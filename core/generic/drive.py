@@ -66,7 +66,7 @@ GAIN_TURN = 2.5
 GAIN_LINE = 10.0
 """Heading toward the final line per lateral error [1/m] (of ``atan``)."""
 
-LINE_ANGLE = 0.1
+LINE_ANGLE = 0.03
 """Largest angle [rad] at which a module steers back onto its final line."""
 
 
@@ -263,7 +263,7 @@ class DriveController:
     def _docked(self, observation: Observation, moving: str, dock: tuple[str, str, str],
                 *, gap: bool = True) -> tuple[Frame, np.ndarray]:
         """Where ``moving`` docks to ``dock`` (fixed module, its port, moving's port) as
-        the fixed module is now, with ``gap`` a third of the latch distance left along
+        the fixed module is now, with ``gap`` half the latch distance left along
         the fixed port's horizontal normal; and that normal."""
         fixed, fixed_port, moving_port = dock
         kinds = (self._kind(observation, fixed), self._kind(observation, moving))
@@ -272,7 +272,7 @@ class DriveController:
         normal = here[0] @ port_frame(kinds[0], fixed_port)[0][:, 0]
         normal[2] = 0.0
         normal /= max(float(np.linalg.norm(normal)), 1e-9)
-        shift = self.tolerance.position / 3 if gap else 0.0
+        shift = self.tolerance.position / 2 if gap else 0.0
         return (final[0], final[1] + shift * normal), normal
 
     def _plan_drive(self, leader: str, group: set[str], final: Frame, observation: Observation,
@@ -399,7 +399,7 @@ class DriveController:
         direction = 1.0 if along >= 0 else -1.0
         steer = max(-LINE_ANGLE, min(LINE_ANGLE, math.atan(GAIN_LINE * lateral)))
         turn = wrap_angle(final_yaw + direction * steer - yaw)
-        if abs(turn) > LINE_ANGLE + tol.angle / 2 or abs(along) <= tol.position / 2:
+        if abs(turn) > LINE_ANGLE + tol.angle / 4 or abs(along) <= tol.position / 2:
             self._command(job, observation, commands, 0.0, _turn_rate(turn))
             return False
         speed = direction * max(0.1, min(1.0, abs(along) / 0.05))
