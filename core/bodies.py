@@ -13,7 +13,7 @@ vectors ``z`` (unit, from the source module's centre to the target's) and ``x`` 
 source port's ``up``, made perpendicular to ``z``) that a lattice robot never writes
 (:func:`with_port_vectors`; loops through hinges folded shut by :func:`close_loops`,
 from small positive angles), and checks that a configuration of rigid ports is
-consistent (:func:`geometry_violations`: every loop closes, no two bodies overlap).
+consistent (:func:`geometry_problems`: every loop closes, no two bodies overlap).
 
 Pure functions on numpy; module kinds and configurations are read by attribute only.
 """
@@ -28,11 +28,11 @@ import numpy as np
 
 if TYPE_CHECKING:
     from .configuration import Configuration
-    from .robot import ModuleKind, RobotSpec, Violation
+    from .robot import ModuleKind, RobotSpec
 
 __all__ = ["Frame", "body_reach", "close_loops", "connection_hinge", "docked_pose", "frame_of",
            "has_bodies", "hinge_edges", "port_mismatch", "vector_angles",
-           "inscribed", "layout", "geometry_violations", "port_frame", "rotation_about",
+           "geometry_problems", "inscribed", "layout", "port_frame", "rotation_about",
            "with_port_vectors"]
 
 Frame = tuple[np.ndarray, np.ndarray]
@@ -232,14 +232,13 @@ def with_port_vectors(config: Configuration, spec: RobotSpec) -> Configuration:
     return config.derive(z=z, x=x)
 
 
-def geometry_violations(config: Configuration, spec: RobotSpec) -> list[Violation]:
-    """Where a configuration of described bodies is not geometrically consistent: a loop
+def geometry_problems(config: Configuration, spec: RobotSpec) -> list[tuple[str, str]]:
+    """Where a configuration of described bodies is not geometrically consistent, as
+    ``(where, message)`` pairs (:class:`~msrr.core.robot.Violation` fields): a loop
     of rigid ports that does not close (the closing ports more than
     :data:`LOOP_TOLERANCE` apart or turned), or two bodies that overlap (their inscribed
     balls intersect). Loops through a hinge are not checked (their angles close them).
     Empty when the robot declares no bodies."""
-    from .robot import Violation
-
     if not has_bodies(spec):
         return []
     poses, closing = layout(config, spec)
@@ -255,17 +254,15 @@ def geometry_violations(config: Configuration, spec: RobotSpec) -> list[Violatio
         gap = float(np.linalg.norm(want[1] - have[1]))
         turn = math.acos(max(-1.0, min(1.0, (float(np.trace(want[0].T @ have[0])) - 1) / 2)))
         if gap > LOOP_TOLERANCE or turn > LOOP_TOLERANCE:
-            found.append(Violation(f"connection {edge_id}", f"the loop does not close: its ports "
-                                   f"are {gap:.3g} m apart and turned {math.degrees(turn):.1f} "
-                                   "deg from docked"))
+            found.append((f"connection {edge_id}", f"the loop does not close: its ports are "
+                          f"{gap:.3g} m apart and turned {math.degrees(turn):.1f} deg from docked"))
     modules = sorted(poses)
     for i, a in enumerate(modules):
         for b in modules[i + 1:]:
             limit = inscribed(spec.kind(config.kind_of(a))) + inscribed(
                 spec.kind(config.kind_of(b)))
             if float(np.linalg.norm(poses[a][1] - poses[b][1])) < limit - 1e-9:
-                found.append(Violation(f"module {a}", f"overlaps module {b} where the ports "
-                                       "place them"))
+                found.append((f"module {a}", f"overlaps module {b} where the ports place them"))
     return found
 
 

@@ -508,13 +508,14 @@ class Robot:
     def violations(self, config: Configuration) -> list[Violation]:
         """Structural violations (:func:`check_structure`), else the docking rules', then
         the geometric consistency of described bodies
-        (:func:`msrr.core.bodies.geometry_violations`)."""
+        (:func:`msrr.core.bodies.geometry_problems`)."""
         found = check_structure(config, self.spec) or self.rules.check(config)
         if found or not any(k.body is not None for k in self.spec.module_kinds):
             return found
-        from .bodies import geometry_violations  # numpy: not on every plugin's load
+        from .bodies import geometry_problems  # numpy: not on every plugin's load
 
-        return geometry_violations(config, self.spec)
+        return [Violation(where, message) for where, message in
+                geometry_problems(config, self.spec)]
 
 
 def check_structure(config: Configuration, spec: RobotSpec) -> list[Violation]:

@@ -8,12 +8,21 @@ import math
 import numpy as np
 import pytest
 
-from msrr.core import Body, Configuration, Hinge, ModuleKind, PluginError, PortSpec, RobotSpec
+from msrr.core import (
+    Body,
+    Configuration,
+    Hinge,
+    ModuleKind,
+    PluginError,
+    PortSpec,
+    Robot,
+    RobotSpec,
+)
 from msrr.core.bodies import (
     body_reach,
     close_loops,
     docked_pose,
-    geometry_violations,
+    geometry_problems,
     layout,
     port_frame,
     port_mismatch,
@@ -87,15 +96,16 @@ def test_derived_vectors_follow_the_ports() -> None:
 def test_a_loop_of_rigid_ports_must_close_and_bodies_must_not_overlap() -> None:
     square = _cubes(("c1", "E", "c2", "W"), ("c2", "N", "c3", "S"), ("c3", "W", "c4", "E"),
                     ("c4", "S", "c1", "N"))
-    assert geometry_violations(square, SPEC) == []
+    assert geometry_problems(square, SPEC) == []
     twisted = _cubes(("c1", "E", "c2", "W"), ("c2", "N", "c3", "S"), ("c3", "W", "c4", "E"),
                      ("c4", "E", "c1", "N"))
-    found = geometry_violations(twisted, SPEC)
-    assert found and "does not close" in found[0].message
+    found = geometry_problems(twisted, SPEC)
+    assert found and "does not close" in found[0][1]
+    assert [str(v) for v in Robot(SPEC).violations(twisted)] == [f"{w}: {m}" for w, m in found]
     crowded = _cubes(("c1", "E", "c2", "W"), ("c2", "N", "c3", "S"), ("c3", "W", "c4", "E"),
                      ("c4", "S", "c5", "N"), n=5)  # c5 lands on c1
-    assert [str(v) for v in geometry_violations(crowded, SPEC)] == [
-        "module c1: overlaps module c5 where the ports place them"]
+    assert geometry_problems(crowded, SPEC) == [
+        ("module c1", "overlaps module c5 where the ports place them")]
 
 
 def test_hinges_fold_a_chain_shut() -> None:
