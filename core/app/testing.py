@@ -153,7 +153,7 @@ def run_physics(plan: Plan, spec: RobotSpec, *, rate: float = 10.0,
     def layout(goal: Configuration) -> dict:
         with PhysicsDriver(spec, seed=seed) as other:
             other.reset(goal)
-            return dict(other.get_observation().poses)
+            return dict(other.witness().poses)
 
     run = Run(robot=spec.name, scenario="conformance", plan=plan, spec=spec,
               driver="mujoco", rate=rate, seed=seed)

@@ -1,6 +1,7 @@
 """The drive controller: the generic runtime's controller in physics (the ``mujoco`` driver).
 
-It reads only the observation -- the tracker's poses and the modules' reports
+It reads only the observation -- the tracker's poses (``Observation.tracked``) and the
+modules' reports
 (:class:`~msrr.core.generic.driver.ModuleReading`: latches, joint encoders) -- and
 commands wheel speeds and hinge goals; the executor arms and releases the ports. Every
 tolerance is the robot's :class:`~msrr.core.robot.DockTolerance`.
@@ -51,8 +52,8 @@ from ..errors import ExecutionError
 from ..events import Phase
 from ..plan import Action, ConnectionChange
 from ..robot import ModuleKind, RobotSpec
-from .driver import ModuleReading
 from .geometry import wrap_angle
+from .readings import ModuleReading
 
 __all__ = ["DriveController"]
 
@@ -84,7 +85,7 @@ def _yaw(rotation: np.ndarray) -> float:
 
 
 def _frame(observation: Observation, module: str) -> Frame:
-    pose = observation.poses[module]
+    pose = observation.tracked[module]
     x, y, z, w = (float(v) for v in pose.orientation)
     rotation = np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -292,7 +293,7 @@ class DriveController:
         pivot[2] = 0.0
         final = (final[0], final[1] + final[0] @ pivot)  # where the group's centre goes
         offsets = self._offsets(observation, group, centre)
-        others = [m for m in observation.poses if m not in group]
+        others = [m for m in observation.tracked if m not in group]
         fixed = np.array([_frame(observation, m)[1] for m in others]) if others else None
         turning = 2 * self._reach(observation, group, centre)
         choices = []
@@ -321,7 +322,7 @@ class DriveController:
         if not others:
             return True
         fixed = np.array([_frame(observation, m)[1] for m in others])
-        size = 2 * max(inscribed(self._kind(observation, m)) for m in observation.poses)
+        size = 2 * max(inscribed(self._kind(observation, m)) for m in observation.tracked)
         for t in np.linspace(0.0, 1.0, 25):
             at = a + t * (b - a) + offsets
             gaps = np.linalg.norm(at[:, None, :2] - fixed[None, :, :2], axis=2)
@@ -410,7 +411,7 @@ class DriveController:
                    commands: dict[str, ModuleCommand], yaw: float) -> bool:
         """Drive straight along the heading until every other body is a turning circle
         away (a module just undocked touches its old neighbour); whether clear."""
-        others = [m for m in observation.poses if m not in job.group]
+        others = [m for m in observation.tracked if m not in job.group]
         if not others:
             return True
         rotation, here = _frame(observation, job.leader)
@@ -426,7 +427,7 @@ class DriveController:
                                                axis=2)))
 
         if nearest(here) >= 2 * reach or not job.waypoints and nearest(here) >= 0.99 * 2 * min(
-                inscribed(self._kind(observation, m)) for m in observation.poses):
+                inscribed(self._kind(observation, m)) for m in observation.tracked):
             return True
         if job.out == 0.0:  # once: the way with more room a turning circle out, else
             goal = job.waypoints[0] if job.waypoints else here  # toward the goal
@@ -445,7 +446,7 @@ class DriveController:
             return float(np.linalg.norm(self._kind(observation, m).body.half_extents[:2]))
 
         if group is None or centre is None:
-            return max(radius(m) for m in observation.poses)
+            return max(radius(m) for m in observation.tracked)
         return max(radius(m) + float(np.linalg.norm((_frame(observation, m)[1] - centre)[:2]))
                    for m in group)
 

@@ -24,7 +24,7 @@ ground, implicit integrator, servo loop, switched equalities, seeded noise):
 * **reports** (:class:`ModuleReading`): latched ports, each with the direction ``z`` to
   the other module that the module computes from its IMU, its encoder and its geometry;
   the joint encoder; the IMU's orientation, all with seeded noise (``noise`` [rad]).
-  ``Observation.poses`` are a tracker's estimates (``tracking`` [m] of noise).
+  ``Observation.tracked`` holds a tracker's poses (``tracking`` [m] of noise).
 
 The generic recognizer reads the reports only; :meth:`PhysicsWorld.ground_truth` (the
 judge's) reads the simulator's equalities and bodies.
@@ -45,9 +45,10 @@ from ..bodies import FLIP, Frame, connection_hinge, docked_pose, layout, port_fr
 from ..configuration import Configuration
 from ..driver import Companions, DriverOption, ModuleCommand, Observation, Pose
 from ..errors import ExecutionError
-from ..freeform.mujoco import WELD_SOLIMP, WELD_SOLREF, MujocoDriver, MujocoOptions, MujocoWorld
+from ..freeform.mujoco import WELD_SOLIMP, WELD_SOLREF, MujocoOptions, MujocoWorld
+from ..freeform.mujoco_driver import MujocoDriver
 from ..robot import ModuleKind, RobotSpec
-from .driver import Latch, ModuleReading
+from .readings import Latch, ModuleReading
 
 __all__ = ["PhysicsDriver", "PhysicsDriverFactory", "PhysicsOptions", "PhysicsWorld",
            "hinge_angle"]
@@ -540,10 +541,10 @@ class PhysicsDriver(MujocoDriver[PhysicsWorld]):
         return PhysicsWorld(self.spec, start, self.sim_options)  # type: ignore[arg-type]
 
     def get_observation(self) -> Observation:
+        """The modules' reports and the tracker's poses (the bodies' exact poses are the
+        witness's)."""
         world = self._world()
-        groups = world.groups()
-        return Observation(time=world.time, poses=world.tracked(), sensors=world.reports(),
-                           groups=tuple(groups) if len(groups) > 1 else ())
+        return Observation(time=world.time, sensors=world.reports(), tracked=world.tracked())
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         self._world().command(commands)

@@ -29,7 +29,7 @@ CHANNEL = re.compile(r"\.witness\(|\bground_truth\(|\.constraint_events\(|\.satu
 ALLOWED = re.compile(r"^core/(app/|timeline/|judge\.py|faults\.py|witness\.py|link/emulator\.py)"
                      r"|^core/(driver|events)\.py"
                      r"|^core/freeform/(mujoco|mujoco_driver|world|driver)\.py"
-                     r"|^core/generic/driver\.py|^plugins/[^/]+/sim/(driver|world)\.py"
+                     r"|^core/generic/(driver|physics)\.py|^plugins/[^/]+/sim/(driver|world)\.py"
                      r"|^plugins/freesn/sim/(connectors|collision|docking)\.py")
 """The judge, the recording, the application wing, pass-through wrappers, the link's
 module side, the drivers and worlds themselves, and the interface modules that name the

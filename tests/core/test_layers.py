@@ -135,7 +135,7 @@ def test_no_plugin_imports_another():
 WITNESS = "msrr.core.witness"
 CONTROL_PATH = ("msrr.core.executor", "msrr.core.closed_loop", "msrr.core.control",
                 "msrr.core.capabilities", "msrr.core.estimation", "msrr.core.events",
-                "msrr.core.driver", "msrr.core.generic.controller",
+                "msrr.core.driver", "msrr.core.generic.controller", "msrr.core.generic.drive",
                 "msrr.core.generic.recognizer", "msrr.core.generic.planner",
                 "msrr.core.freeform.recognition", "msrr.core.freeform.miso",
                 "msrr.core.matching", "msrr.core.kinematics", "msrr.core.plan")
@@ -152,7 +152,8 @@ def test_the_control_path_cannot_import_the_witness_channel(module):
 
 def test_only_the_judge_the_recording_and_the_drivers_import_the_witness_channel():
     allowed = ("msrr.core.judge", "msrr.core.faults", "msrr.core.app.", "msrr.core.timeline.",
-               "msrr.core.link.emulator", "msrr.core.freeform.mujoco", "msrr.core.generic.driver")
+               "msrr.core.link.emulator", "msrr.core.freeform.mujoco", "msrr.core.generic.driver",
+               "msrr.core.generic.physics")
     importers = sorted(GRAPH.predecessors(WITNESS))
     assert "msrr.core.judge" in importers
     assert [m for m in importers if not m.startswith(allowed)] == []
