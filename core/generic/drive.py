@@ -39,6 +39,7 @@ from ..bodies import (
     connection_hinge,
     docked_pose,
     frame_of,
+    hinge_edges,
     inscribed,
     layout,
     port_frame,
@@ -231,11 +232,13 @@ class DriveController:
         action's target out (its vectors say which way to fold; a straight hinge folds the
         positive way, as :func:`~msrr.core.bodies.with_port_vectors` lays loops out),
         closed exactly from there."""
-        start = {**angles, **vector_angles(self.target, self.spec)}
-        start = {e: a if abs(a) > UNBENT else UNBENT for e, a in start.items()}
-        goals, gap = close_loops(config, self.spec, [(change.source, change.source_port,
-                                                      change.target, change.target_port)],
-                                 start)
+        closing = [(change.source, change.source_port, change.target, change.target_port)]
+        if hinge_edges(config, self.spec):
+            start = {**angles, **vector_angles(self.target, self.spec)}
+            start = {e: a if abs(a) > UNBENT else UNBENT for e, a in start.items()}
+            goals, gap = close_loops(config, self.spec, closing, start)
+        else:  # rigid ports: a loop the geometry closes is already aligned
+            goals, gap = {}, self._gap(config, angles, change)
         if gap > self.tolerance.position / 2:
             raise ExecutionError(f"drive controller: no hinge angles of the group dock "
                                  f"{change.source}{change.source_port}-{change.target}"
@@ -491,15 +494,19 @@ class DriveController:
             return False
         if job.change is None:
             return True
+        gap = self._gap(config, angles, job.change)
+        errors[job.change.target] = gap
+        return gap <= self.tolerance.position / 2
+
+    def _gap(self, config: Configuration, angles: dict[str, float],
+             change: ConnectionChange) -> float:
+        """How far apart [m] the ports of ``change`` are, laid out from the reports."""
         poses, _ = layout(config, self.spec, angles)
-        change = job.change
         kinds = (self.spec.kind(config.kind_of(change.source)),
                  self.spec.kind(config.kind_of(change.target)))
-        gap = float(np.linalg.norm(port_mismatch(
+        return float(np.linalg.norm(port_mismatch(
             poses[change.source], poses[change.target], kinds,
             (change.source_port, change.target_port))[0]))
-        errors[change.target] = gap
-        return gap <= self.tolerance.position / 2
 
     def _kind(self, observation: Observation, module: str) -> ModuleKind:
         return self.spec.kind(observation.sensors[module].kind)

@@ -7,8 +7,10 @@ runtime). Its size comes from its :class:`~msrr.core.robot.ModuleKind`'s ``geome
 
 * a body: ``length``/``width``/``height`` (a box) or ``radius`` (a ball), read by
   :func:`msrr.core.robot.body_half_size` (default: a cube of half edge 0.05 m);
-* a port sits on the body's surface along its ``normal`` (a box face, or the
-  ball's surface); with ``geometry["pitch"]`` the port sits ``pitch / 2`` from the
+* a port sits where its kind's :class:`~msrr.core.robot.Body` puts it
+  (:func:`msrr.core.bodies.port_frame`: its ``position``, else on the body along its
+  normal); without a body, on the body's surface along its ``normal`` (a box face, or
+  the ball's surface); with ``geometry["pitch"]`` the port sits ``pitch / 2`` from the
   centre instead, so two docked modules' centres are ``pitch`` apart (MMRP's
   latch protrudes from the body);
 * a port without a normal, or a connection without ports (freeform connectors,
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import bodies
 from ..errors import ExecutionError
 from ..robot import ModuleKind, body_half_size
 
@@ -87,6 +90,9 @@ def _port_offset(kind: ModuleKind, port: str) -> tuple[np.ndarray, np.ndarray] |
     spec = kind.port(port)
     if spec.normal is None:
         return None
+    if kind.body is not None:  # a described body: the port's own pose (msrr.core.bodies)
+        rotation, position = bodies.port_frame(kind, port)
+        return position, rotation[:, 0]
     normal = np.asarray(spec.normal, dtype=float)
     normal = normal / np.linalg.norm(normal)
     if "pitch" in kind.geometry:

@@ -248,16 +248,14 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         count = sum(len(k.ports) for k in self.kinds.values()) // 2 if len(modules) > 1 else 0
         slots = []
         for i in range(count):
-            ids = []
-            for name, kind in ((f"dock{i}", mujoco.mjtEq.mjEQ_WELD),
-                               (f"dock{i}/p", mujoco.mjtEq.mjEQ_CONNECT),
-                               (f"dock{i}/q", mujoco.mjtEq.mjEQ_CONNECT)):
-                self.welds.add(mj, len(self.welds._names), name, type=kind,
-                               objtype=mujoco.mjtObj.mjOBJ_BODY, name1=modules[0],
-                               name2=modules[1], solref=list(WELD_SOLREF),
+            for key, (name, kind) in enumerate(((f"dock{i}", mujoco.mjtEq.mjEQ_WELD),
+                                                (f"dock{i}/p", mujoco.mjtEq.mjEQ_CONNECT),
+                                                (f"dock{i}/q", mujoco.mjtEq.mjEQ_CONNECT)),
+                                               start=3 * i):
+                self.welds.add(mj, key, name, type=kind, objtype=mujoco.mjtObj.mjOBJ_BODY,
+                               name1=modules[0], name2=modules[1], solref=list(WELD_SOLREF),
                                solimp=list(WELD_SOLIMP))
-                ids.append(len(self.welds._names) - 1)
-            slots.append(_Slot(ids[0], (ids[1], ids[2])))
+            slots.append(_Slot(3 * i, (3 * i + 1, 3 * i + 2)))
         return slots
 
     # -- docking ------------------------------------------------------------------------

@@ -178,7 +178,7 @@ def test_hinge_outline_has_the_modules_length_and_ends_on_them(tmp_path: Path) -
     drawn = [r for r in rows["/world/ghost/boxes"] if "Boxes3D:centers" in r.values]
     first = dict(zip(drawn[0].values["Boxes3D:labels"],
                      np.array(drawn[0].values["Boxes3D:centers"]), strict=True))
-    assert np.linalg.norm(first["h2"] - first["h1"]) == pytest.approx(0.1)  # its length
+    assert np.linalg.norm(first["h2"] - first["h1"]) == pytest.approx(0.19)  # port to port
     last = drawn[-1].tick
     for module, centre in _ghost(rows, last).items():
         assert np.linalg.norm((centre - _module_at(rows, module, last))[:2]) < 1e-3, module
