@@ -11,6 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .alignment import rot_z
+from .bodies import geometry_problems, has_bodies
 from .configuration import Configuration
 from .robot import DockingRules, RobotSpec
 
@@ -60,7 +61,8 @@ def random_configuration(spec: RobotSpec, rules: DockingRules, n_vertices: int,
     The base is a random tree whose every edge points from child to parent, so each
     module makes at most one out-connection (legal for MISO robots too). Robots with
     discrete ports get a random compatible free port pair per edge (a child whose
-    ports cannot meet any earlier vertex is re-attached elsewhere); freeform robots get
+    ports cannot meet any earlier vertex, or whose body would overlap another where its
+    ports place it, is re-attached elsewhere); freeform robots get
     random unit ``z`` (and sometimes ``x``) vectors. Robots whose connections are
     modules (FreeSN struts) can also get ``extra_edges`` closing cycles or doubling
     edges, and ``free_connectors`` struts ending on virtual vertices.
@@ -99,6 +101,7 @@ def random_configuration(spec: RobotSpec, rules: DockingRules, n_vertices: int,
                 attrs["x"] = random_unit(rng)
         return attrs
 
+    described = ported and has_bodies(spec)
     vertices = [add_vertex(0)]
     for i in range(1, n_vertices):
         child = add_vertex(i)
@@ -108,8 +111,12 @@ def random_configuration(spec: RobotSpec, rules: DockingRules, n_vertices: int,
                 ports = _port_pair(rules, spec, config, child, str(parent), used, rng)
                 if ports is None:
                     continue
+            edge = config.connect(child, str(parent), ports=ports, **edge_attrs())
+            if described and geometry_problems(config, spec):  # bodies would overlap there
+                config.disconnect(edge)
+                continue
+            if ports is not None:
                 used.update({(child, ports[0]), (str(parent), ports[1])})
-            config.connect(child, str(parent), ports=ports, **edge_attrs())
             break
         else:
             config.remove_module(child)
