@@ -29,12 +29,12 @@ them is estimated to stand still; those behaviors run for a duration.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from msrr.core.alignment import rot_z
 from msrr.core.configuration import Configuration
@@ -57,22 +57,35 @@ def _wrap(angle: float) -> float:
     return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
 
 
+def _turned(rotvec: np.ndarray) -> np.ndarray:
+    """The rotation matrix (3, 3) of a rotation vector (3,) (Rodrigues)."""
+    angle = float(np.sqrt(rotvec @ rotvec))
+    if angle < 1e-12:
+        return np.eye(3)
+    x, y, z = rotvec / angle
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
 def node_positions(config: Configuration, root: str, length: float) -> dict[str, np.ndarray]:
     """Node centres [m], shape (3,) each, relative to ``root`` in ``config``'s frame: a
     breadth-first spanning tree of the struts between nodes, ``p_t = p_s + length z``.
     Nodes not connected to ``root`` are left out."""
+    steps: dict[str, list[tuple[str, np.ndarray]]] = {}
+    for edge in config.edges():
+        if edge.z is None or config.is_virtual(edge.source) or config.is_virtual(edge.target):
+            continue
+        z = length * np.asarray(edge.z, dtype=float)
+        steps.setdefault(edge.source, []).append((edge.target, z))
+        steps.setdefault(edge.target, []).append((edge.source, -z))
     positions = {root: np.zeros(3)}
-    graph = config.undirected()
     queue = deque([root])
     while queue:
         u = queue.popleft()
-        for _, v, key in graph.edges(u, keys=True):
-            edge = config.edge(key)
-            if v in positions or config.is_virtual(v) or edge.z is None:
-                continue
-            sign = 1.0 if edge.source == u else -1.0
-            positions[v] = positions[u] + sign * length * np.asarray(edge.z, dtype=float)
-            queue.append(v)
+        for v, step in steps.get(u, ()):
+            if v not in positions:
+                positions[v] = positions[u] + step
+                queue.append(v)
     return positions
 
 
@@ -121,7 +134,7 @@ class ImuOdometry:
             if node in self.yaw:
                 before = rot_z(self.yaw[node]) @ self.tilt[node]
                 rates[node] = before @ gyro
-                self.yaw[node] = yaw_of(before @ Rotation.from_rotvec(gyro * dt).as_matrix())
+                self.yaw[node] = yaw_of(before @ _turned(gyro * dt))
             tilt = np.asarray(report.tilt, dtype=float)
             self.tilt[node] = rot_z(-yaw_of(tilt)) @ tilt  # a tilt has no heading: noise
         return rates
@@ -146,11 +159,11 @@ class ImuOdometry:
         lowest = min(float(q[2]) for q in offsets.values())
         feet = {n for n, q in offsets.items() if float(q[2]) <= lowest + CONTACT}
         stayed = [n for n in feet if n in self.anchors]
-        up = np.array([0.0, 0.0, self.radius])
         for node in stayed:
             rate = rates.get(node)
-            if rate is not None:
-                self.anchors[node] = self.anchors[node] + dt * np.cross(rate, up)[:2]
+            if rate is not None:  # w x (r e_z), horizontal
+                self.anchors[node] = self.anchors[node] + dt * self.radius * np.array(
+                    [rate[1], -rate[0]])
         if stayed:
             self.origin = np.mean([self.anchors[n] - offsets[n][:2] for n in stayed], axis=0)
         self.anchors = {n: self.anchors[n] if n in stayed else self.origin + offsets[n][:2]
