@@ -559,10 +559,15 @@ class _Progress:
         self.current: int | None = None
         self.done = 0
         self.faults: list[FaultEvent] = []
+        self.started = False  # faults before run_start (the first observation) wait for it
 
     def run_start(self, run: Run) -> None:
         for listener in self.listeners:
             listener.run_start(run)
+        self.started = True
+        for fault in self.faults:
+            for listener in self.listeners:
+                listener.fault(run, fault)
 
     def tick(self, run: Run, tick: Tick) -> None:
         if self.driver is not None:
@@ -586,7 +591,7 @@ class _Progress:
 
     def fault(self, run: Run, fault: FaultEvent) -> None:
         self.faults.append(fault)
-        for listener in self.listeners:
+        for listener in self.listeners if self.started else ():
             listener.fault(run, fault)
 
     def run_end(self, run: Run, result: RunResult) -> None:
