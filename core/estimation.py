@@ -17,6 +17,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from .configuration import Configuration
 from .driver import Observation, horizontal_centre
 
 __all__ = ["Estimate", "Estimator", "Localizing", "TrackedEstimator", "estimator_for"]
@@ -39,9 +40,10 @@ class Estimate:
 
 
 class Estimator(Protocol):
-    """Fed every observation of a run in order, returns the estimate after it."""
+    """Fed every control tick's observation of a run in order, with the configuration
+    recognized from it, returns the estimate after it."""
 
-    def update(self, observation: Observation) -> Estimate:
+    def update(self, observation: Observation, configuration: Configuration) -> Estimate:
         """The estimate after ``observation`` (its ``time`` [s] is the driver's)."""
         ...
 
@@ -58,7 +60,7 @@ class Localizing(Protocol):
 class TrackedEstimator:
     """The centre of the tracked poses (an external pose sensor); no heading."""
 
-    def update(self, observation: Observation) -> Estimate:
+    def update(self, observation: Observation, configuration: Configuration) -> Estimate:
         """The mean horizontal position of ``observation.tracked`` [m]."""
         return Estimate(position=horizontal_centre(observation.tracked))
 

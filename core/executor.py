@@ -45,7 +45,9 @@ and the ``broken``/``made`` links with their ports.
 * behavior (mapping behaviors, sections 4.3 and 6.3): ``behavior`` -- every tick the
   shape is held (IK tracking toward the target where it applies) and each
   :class:`~msrr.core.plan.CommandGain`'s value ``sum(gain * parameter)`` goes into
-  ``ModuleCommand.wheels[key]`` (:func:`behavior_commands`), for the call's duration
+  ``ModuleCommand.wheels[key]`` (:func:`behavior_commands`), its ``yaw_rate`` closed in
+  a heading loop on the estimated heading (:class:`HeadingLoop`: the commanded direction
+  stays fixed in the world frame the behavior started in), for the call's duration
   or until the system moved its distance *as its own sensors estimate it*
   (:mod:`msrr.core.estimation`: odometry and IMU with their drift, or a pose sensor the
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
@@ -112,11 +114,12 @@ from .events import (
     TopologyEvent,
 )
 from .kinematics import GroundModel
-from .plan import Action, ActionType, ConnectionChange, behavior_runs
+from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_runs
 from .robot import Robot
 from .shape import skeletal_error
 
-__all__ = ["Executor", "ExecutorOptions", "behavior_commands", "phases_of"]
+__all__ = ["Executor", "ExecutorOptions", "HeadingLoop", "behavior_commands", "heading_loop",
+           "phases_of"]
 
 
 @dataclass(frozen=True)
@@ -129,6 +132,10 @@ class ExecutorOptions:
         retries: attempts repeated after a timeout before the action fails.
         tracking: IK tracking settings (robots with joint modes).
         ik: use IK tracking where it applies (``False``: the controller's own path).
+        heading_gain: gain of a mapping behavior's heading loop [1/s]: ``yaw_rate``
+            added per radian of heading error (0: no loop; :class:`HeadingLoop`).
+        heading_integral: its integral gain [1/s^2] (a turn the wheels make unasked).
+        max_heading_correction: bound of what the loop adds to ``yaw_rate`` [rad/s].
     """
 
     rate: float = 10.0
@@ -136,6 +143,9 @@ class ExecutorOptions:
     retries: int = 1
     tracking: TrackingOptions = TrackingOptions()
     ik: bool = True
+    heading_gain: float = 1.0
+    heading_integral: float = 0.2
+    max_heading_correction: float = 0.5
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -144,6 +154,10 @@ class ExecutorOptions:
             raise ExecutionError(f"action timeout must be positive, got {self.action_timeout} s")
         if self.retries < 0:
             raise ExecutionError(f"retries must be >= 0, got {self.retries}")
+        if min(self.heading_gain, self.heading_integral, self.max_heading_correction) < 0:
+            raise ExecutionError("heading gains and correction bound must be >= 0, got "
+                                 f"{self.heading_gain}, {self.heading_integral}, "
+                                 f"{self.max_heading_correction}")
 
 
 def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> list[Phase]:
@@ -200,18 +214,66 @@ class _ActionFailed(Exception):
         self.reason = reason
 
 
-def behavior_commands(action: Action) -> dict[str, dict[str, float]]:
+def behavior_commands(action: Action, parameters: Mapping[str, float] | None = None
+                      ) -> dict[str, dict[str, float]]:
     """A mapping behavior's wheel values for this tick, per module: each
     :class:`~msrr.core.plan.CommandGain`'s ``sum(gain * parameter)`` under its
-    :attr:`~msrr.core.plan.CommandGain.key` (``{"S4": {"a": 12.5, "b": 12.5}}``)."""
+    :attr:`~msrr.core.plan.CommandGain.key` (``{"S4": {"a": 12.5, "b": 12.5}}``), for
+    ``parameters`` (default: the call's own)."""
     call = action.behavior
     out: dict[str, dict[str, float]] = {}
     if call is None or call.kind != "mapping":
         return out
+    values = call.parameters if parameters is None else parameters
     for command in call.commands:
         wheels = out.setdefault(command.module, {})
-        wheels[command.key] = wheels.get(command.key, 0.0) + command.value(call.parameters)
+        wheels[command.key] = wheels.get(command.key, 0.0) + command.value(values)
     return out
+
+
+@dataclass
+class HeadingLoop:
+    """A mapping behavior's heading loop (issue 31): a PI loop on its ``yaw_rate`` that
+    keeps the estimated heading on ``start + asked * t``, so the commanded direction
+    stays where it was in the world frame the behavior started in.
+
+    Attributes:
+        start: the estimated heading when the behavior began [rad].
+        asked: the ``yaw_rate`` the call asks for [rad/s].
+        gain: proportional gain [1/s]; integral_gain: integral gain [1/s^2].
+        bound: bound of the correction added to ``yaw_rate`` [rad/s] (the integral is
+            held within it: no wind-up).
+        integral: the heading error integrated so far [rad s].
+    """
+
+    start: float
+    asked: float
+    gain: float
+    integral_gain: float
+    bound: float
+    integral: float = 0.0
+
+    def correction(self, heading: float, elapsed: float, dt: float) -> float:
+        """What to add to ``yaw_rate`` [rad/s] at ``elapsed`` [s] into the behavior, with
+        the heading estimated at ``heading`` [rad], ``dt`` [s] after the last call."""
+        error = (self.start + self.asked * elapsed - heading + math.pi) % (2 * math.pi) - math.pi
+        if self.integral_gain > 0:
+            held = self.bound / self.integral_gain
+            self.integral = float(np.clip(self.integral + error * dt, -held, held))
+        return float(np.clip(self.gain * error + self.integral_gain * self.integral,
+                             -self.bound, self.bound))
+
+
+def heading_loop(call: BehaviorCall | None, heading: float | None,
+                 options: ExecutorOptions) -> HeadingLoop | None:
+    """The heading loop of a mapping behavior that has a ``yaw_rate`` gain, starting at
+    ``heading`` [rad]; ``None`` when it has none or the heading is not known."""
+    if call is None or call.kind != "mapping" or heading is None or options.heading_gain == 0 \
+            or not any(p == "yaw_rate" and g for c in call.commands for p, g in c.gains):
+        return None
+    return HeadingLoop(heading, float(call.parameters.get("yaw_rate", 0.0)),
+                       options.heading_gain, options.heading_integral,
+                       options.max_heading_correction)
 
 
 def _with_wheels(commands: dict[str, ModuleCommand], wheels: dict[str, dict[str, float]]
@@ -267,6 +329,7 @@ class Executor:
         self._moving_from: np.ndarray | None = None
         self._estimator = estimator_for(recognizer)
         self.estimate = Estimate()
+        self._loop: HeadingLoop | None = None  # the running mapping behavior's
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -289,7 +352,7 @@ class Executor:
         plan = self.run.plan
         self._started = wallclock.perf_counter()
         result = self.result
-        self._current = self._recognize(self._observe())
+        self._current = self._estimated(self.driver.get_observation())
         index = -1
         try:
             for index, action in enumerate(plan.actions):
@@ -372,11 +435,13 @@ class Executor:
             if attempt:
                 self.retries += 1
                 self.sink.action(self.run, action, ActionStatus.RETRYING)
-            observation = self._observe()
+            observation = self.driver.get_observation()
             if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0) \
                     and phase is not Phase.BEHAVIOR:
                 self.controller.begin(action, phase, observation)
             self._phase_began = self.driver.time
+            self._loop = heading_loop(action.behavior, self.estimate.heading, self.options) \
+                if phase is Phase.BEHAVIOR else None
             deadline = self.driver.time + self.options.action_timeout
             if phase is Phase.BEHAVIOR and action.behavior is not None \
                     and action.behavior.duration is not None:
@@ -476,9 +541,11 @@ class Executor:
 
     def _tick(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> bool:
         """Run one control tick; whether the phase is finished."""
-        observation = self._observe()
-        configuration = self._recognize(observation)
+        observation = self.driver.get_observation()
+        configuration = self._estimated(observation)
         self._detect_changes(index, configuration)
+        if phase is Phase.BEHAVIOR and self._covered(action):
+            return True  # its distance, as this observation shows it: nothing more to send
         if self._tracks(action) and phase is Phase.RELEASE:  # the controller's undocks only
             control = _undocks(self.controller.control(action, phase, observation))
         elif self._tracker is not None:
@@ -494,7 +561,7 @@ class Executor:
             extra = _merge(Control(commands=extra), _port_commands(diff.made, "dock"))
         commands = _merge(control, extra)
         if phase is Phase.BEHAVIOR:
-            commands = _with_wheels(commands, behavior_commands(action))
+            commands = _with_wheels(commands, behavior_commands(action, self._steered(action)))
         self.driver.send_action(commands)
         self.driver.step(self.dt)
         self.tick_index += 1  # executed: counted even if a listener is interrupted below
@@ -510,20 +577,30 @@ class Executor:
     # -- goals and behaviors ------------------------------------------------------------
 
     def _behavior_done(self, action: Action) -> bool:
-        """A mapping behavior ran its duration, or moved the centre its distance."""
+        """A mapping behavior ran its duration (its distance is checked on the next
+        tick's observation: :meth:`_covered`)."""
         call = action.behavior
-        if call is None:
-            return True
-        if call.duration is not None and \
-                self.driver.time - self._phase_began >= call.duration - 1e-9:
-            return True
-        return call.distance is not None and self._moved() >= call.distance
+        return call is None or (call.duration is not None and
+                                self.driver.time - self._phase_began >= call.duration - 1e-9)
 
-    def _observe(self) -> Observation:
-        """The driver's observation, fed to the estimator."""
-        observation = self.driver.get_observation()
-        self.estimate = self._estimator.update(observation)
-        return observation
+    def _covered(self, action: Action) -> bool:
+        """The running behavior moved the system its distance, as estimated now."""
+        call = action.behavior
+        return call is not None and call.distance is not None and self._moved() >= call.distance
+
+    def _steered(self, action: Action) -> dict[str, float] | None:
+        """The behavior's parameters, ``yaw_rate`` corrected by its heading loop."""
+        loop, call, heading = self._loop, action.behavior, self.estimate.heading
+        if loop is None or call is None or heading is None:
+            return None
+        correction = loop.correction(heading, self.driver.time - self._phase_began, self.dt)
+        return {**call.parameters, "yaw_rate": loop.asked + correction}
+
+    def _estimated(self, observation: Observation) -> Configuration:
+        """The configuration ``observation`` shows; the estimate updated with both."""
+        configuration = self._recognize(observation)
+        self.estimate = self._estimator.update(observation, configuration)
+        return configuration
 
     def _centre(self) -> np.ndarray | None:
         """Where the system is [m], shape (2,), as its sensors estimate it now."""
@@ -547,8 +624,9 @@ class Executor:
             return True
         before = self.run.plan.actions[index - 1].behavior
         if call.kind == "sequence" and call.distance is not None and before is not None \
-                and before.loop != call.loop and self._moved() >= call.distance:
-            self._skipping = True
+                and before.loop != call.loop:
+            self._estimated(self.driver.get_observation())  # where the last loop ended
+            self._skipping = self._covered(action)
         return self._skipping
 
     def _recognize(self, observation: Observation) -> Configuration:

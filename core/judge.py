@@ -49,7 +49,7 @@ from .events import (
 )
 from .plan import Action, BehaviorCall, behavior_runs
 from .shape import ShapeVerdict, pose_errors, skeletal_errors, skeletal_verdict
-from .witness import Witness
+from .witness import Witness, poses_seen
 
 __all__ = ["BehaviorVerdict", "GoalVerdict", "Judge", "JudgeOptions", "Witnessed",
            "asked_distance", "judge_behavior", "judge_goal"]
@@ -334,10 +334,8 @@ class Judge:
                            GROUND_TRUTH if truth is not None else REPORTED)
 
     def _poses(self) -> Mapping[str, Pose]:
-        """Every module's world pose: the simulator's own where it has them, else what a
-        pose sensor of the robot reports (hardware)."""
-        seen = self.witness.witness()
-        return seen.poses if seen is not None else self.witness.get_observation().tracked
+        """Every module's world pose (:func:`~msrr.core.witness.poses_seen`)."""
+        return poses_seen(self.witness)
 
     def _centre(self) -> np.ndarray | None:
         """Mean horizontal position of the modules [m], shape (2,), from the driver."""

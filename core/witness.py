@@ -20,10 +20,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
-from .driver import Pose
+from .driver import Observation, Pose
 
-__all__ = ["Witness"]
+__all__ = ["Witness", "poses_seen"]
 
 
 @dataclass(frozen=True)
@@ -37,3 +38,17 @@ class Witness:
 
     time: float
     poses: Mapping[str, Pose]
+
+
+class _Seen(Protocol):
+    def witness(self) -> Witness | None: ...
+
+    def get_observation(self) -> Observation: ...
+
+
+def poses_seen(driver: _Seen) -> Mapping[str, Pose]:
+    """Every module's world pose as the judge sees it: the simulator's own (the witness)
+    where it has them, else what the robot's pose sensor reports (hardware; empty for a
+    robot without one)."""
+    seen = driver.witness()
+    return seen.poses if seen is not None else driver.get_observation().tracked

@@ -2,11 +2,13 @@
 
 :func:`prepare_run` checks the request and the output folder, loads and checks the two
 configurations, resolves the robot's driver, controller, recognizer and planner once
-(a :class:`PreparedRun`), plans, and only then claims the output folder;
-:func:`execute_run` runs that on a fresh driver; :func:`write_outputs` writes the
-files. Every bad option or output place, an unreachable goal (different module counts,
-an illegal face pair) fails with a one-line error before anything is written. A run
-writes into its folder:
+(a :class:`PreparedRun`), plans from the start file, and only then claims the output
+folder; :func:`execute_run` places the modules on a fresh driver, plans again from the
+configuration the recognizer reports at the first tick (the run recognizes and matches
+itself, FreeSN Alg. 4: the start file only placed the modules; the plan written is this
+one) and runs it; :func:`write_outputs` writes the files. Every bad option or output
+place, an unreachable goal (different module counts, an illegal face pair) fails with
+a one-line error before anything is written. A run writes into its folder:
 
 * ``run.rrd`` -- the rerun recording (via the timeline plugin), unless ``log=False``;
 * ``plan.json`` -- the executed plan (:func:`msrr.core.plan.save_plan`);
@@ -53,6 +55,7 @@ from ..judge import Judge
 from ..plan import Action, ActionType, Plan, join_plans, save_plan
 from ..scenario import MAX_TIME, Scenario, Stage
 from ..watchdog import DRIVER_STALL, Watchdog
+from ..witness import poses_seen
 
 __all__ = ["MAX_RATE", "RUN_FILES", "PreparedRun", "RunRequest", "check_out_dir", "claim_out_dir",
            "default_deadline", "default_out_dir", "default_wall_deadline", "execute_run", "interrupted_result", "leftovers", "parse_driver_options",
@@ -409,6 +412,10 @@ class PreparedRun:
         notes: what was found in the output folder and replaced (one line each).
         problems: what could not be written at the run's end (the recording on a full
             disk: one line each, filled by :func:`execute_run`; the command exits 1).
+        planner: the planner of the goal stages; ``None`` for a saved plan (``--plan``),
+            executed as it is.
+        stages: the stages with their goals loaded, planned again by
+            :func:`execute_run` from the recognized start.
     """
 
     run: Run
@@ -425,6 +432,8 @@ class PreparedRun:
     stall: float = DRIVER_STALL
     notes: tuple[str, ...] = ()
     problems: list[str] = field(default_factory=list)
+    planner: Planner | None = None
+    stages: tuple[tuple[Stage, Configuration | None], ...] = ()
 
 
 def _configurations(request: RunRequest
@@ -503,8 +512,11 @@ def prepare_run(request: RunRequest) -> PreparedRun:
     controller = capabilities.controller(factory.companions.controller)
     recognizer = capabilities.recognizer(factory.companions.recognizer)
     options = ExecutorOptions(rate=request.rate, action_timeout=request.action_timeout)
+    planner = None if saved is not None else capabilities.planner(request.planner)
+    # planned from the file here, so an unreachable goal is refused before anything is
+    # written; execute_run plans again from what the modules report
     plan: Plan = saved if saved is not None else plan_stages(
-        capabilities, capabilities.planner(request.planner), start, stages, seed=request.seed)
+        capabilities, planner, start, stages, seed=request.seed)
     check_fault_modules(faults, plan.start.modules())
     deadline = request.deadline or default_deadline(plan, request.action_timeout)
     wall_deadline = request.wall_deadline or default_wall_deadline(deadline)
@@ -517,7 +529,8 @@ def prepare_run(request: RunRequest) -> PreparedRun:
               recording=out / "run.rrd" if request.log else None)
     return PreparedRun(run, capabilities, factory, recognizer, controller, options, request.gui,
                        driver_options, faults, deadline, wall_deadline, request.stall,
-                       tuple(notes))
+                       tuple(notes), planner=planner,
+                       stages=() if saved is not None else tuple(stages))
 
 
 def _try_driver(factory: DriverFactory, request: RunRequest,
@@ -546,10 +559,15 @@ class _Progress:
         self.current: int | None = None
         self.done = 0
         self.faults: list[FaultEvent] = []
+        self.started = False  # faults before run_start (the first observation) wait for it
 
     def run_start(self, run: Run) -> None:
         for listener in self.listeners:
             listener.run_start(run)
+        self.started = True
+        for fault in self.faults:
+            for listener in self.listeners:
+                listener.fault(run, fault)
 
     def tick(self, run: Run, tick: Tick) -> None:
         if self.driver is not None:
@@ -573,7 +591,7 @@ class _Progress:
 
     def fault(self, run: Run, fault: FaultEvent) -> None:
         self.faults.append(fault)
-        for listener in self.listeners:
+        for listener in self.listeners if self.started else ():
             listener.fault(run, fault)
 
     def run_end(self, run: Run, result: RunResult) -> None:
@@ -636,8 +654,23 @@ def _goal_layout(prepared: PreparedRun, goal: Configuration) -> dict[str, Pose] 
                         else (prepared.driver, dict(prepared.driver_options)))
     with factory(gui=False, seed=run.seed, **options) as driver:
         driver.reset(goal)
-        seen = driver.witness()
-        return dict(seen.poses) if seen is not None else None
+        return dict(poses_seen(driver)) or None
+
+
+def _recognized_plan(prepared: PreparedRun, driver: Driver) -> Plan:
+    """The run's plan from the configuration the recognizer reports at the first tick
+    (docs/freesn.md: a run recognizes and matches itself); a saved plan as it is.
+
+    Raises:
+        PlanningError: the recognized start cannot reach a goal (the run stops there).
+    """
+    run = prepared.run
+    if prepared.planner is None:
+        return run.plan
+    seen = prepared.recognizer.recognize(driver.get_observation().sensors, seed=run.seed)
+    seen.name, seen.description = run.plan.start.name, "as recognized at the first tick"
+    return plan_stages(prepared.capabilities, prepared.planner, seen, prepared.stages,
+                       seed=run.seed)
 
 
 def execute_run(prepared: PreparedRun, *,
@@ -675,6 +708,8 @@ def execute_run(prepared: PreparedRun, *,
     try:
         with _driver_for(prepared, progress, stuck if last_resort else None) as driver:
             driver.reset(run.plan.start)
+            run.plan = _recognized_plan(prepared, driver)
+            result.actions_total = len(run.plan.actions)
             judge = Judge(run, driver, layout=lambda goal: _goal_layout(prepared, goal),
                           tolerance=run.spec.defaults.shape_tolerance)
             progress.listeners = (judge, *progress.listeners)

@@ -342,10 +342,13 @@ def s4n5() -> None:
     for i in range(4):
         leaf = nodes[f"N{i + 1}"]
         side = 1.0 if leaf[1] > 0 else -1.0
-        # the connector on the leaf node spins the node about the strut axis
+        # the connector on the leaf node spins the node about the strut axis; a positive
+        # spin rolls the node along d = u x e_z (u the leg's direction), whose x part has
+        # the sign of ``side``; the body's turn (e_z x p) . d is -|p| at every diagonal leaf
+        # (the yaw gain was +|p| until issue 31: the heading loop turned the wrong way)
         commands.append({"module": f"S{i + 1}", "command": "wheel_speed", "connector": "target",
                          "gains": {"speed": round(side / R_WHEEL, 9),
-                                   "yaw_rate": round(float(np.hypot(*leaf[:2])) / R_WHEEL, 9)}})
+                                   "yaw_rate": round(-float(np.hypot(*leaf[:2])) / R_WHEEL, 9)}})
     behaviors = [{"name": "node-wheels", "start": "standup", "parameters": ["speed", "yaw_rate"],
                   "description": "Fig. 18(a)-(c): the four leaf nodes driven as wheels",
                   "commands": commands}]

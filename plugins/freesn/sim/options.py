@@ -44,7 +44,16 @@ class SimOptions(MujocoOptions):
             default 250 is the strut firmware's base control period, 4 ms.
         break_filter: time constant of the connection-load low-pass before the strength
             check [s] (a magnet does not let go on a one-step impulse).
-        seed: seed of the noise, drift and slip generators.
+        gyro_bias: standard deviation of each node gyro's constant bias per axis
+            [rad/s], drawn once per run (what is left after calibrating at rest).
+        gyro_walk: random walk of that bias (bias instability) [rad/s / sqrt(s)].
+        gyro_noise: the gyro's angle random walk [rad / sqrt(s)] (its white rate noise).
+        seed: seed of the noise, drift, slip and gyro generators.
+
+    The gyro figures are assumptions of a MEMS IMU calibrated at start-up (the FreeSN
+    papers name no part): rate noise about 0.01 deg/s/sqrt(Hz) (1.7e-4 rad/sqrt(s)) as a
+    consumer MEMS gyro's data sheet gives, a residual bias of 0.03 deg/s, and a bias
+    instability of the same order per minute.
     """
 
     OPTIONS: ClassVar[tuple[DriverOption, ...]] = MujocoOptions.OPTIONS + (
@@ -59,6 +68,11 @@ class SimOptions(MujocoOptions):
         DriverOption("integral_gain", float, "connector integral gain", "1/s^2", 0.0, 1e5),
         DriverOption("break_filter", float, "time constant of the connection-load filter", "s",
                      0.0, 10.0, low_open=True),
+        DriverOption("gyro_bias", float, "std of each node gyro's constant bias", "rad/s",
+                     0.0, 1.0),
+        DriverOption("gyro_walk", float, "random walk of the gyro bias", "rad/s/sqrt(s)",
+                     0.0, 1.0),
+        DriverOption("gyro_noise", float, "gyro angle random walk", "rad/sqrt(s)", 0.0, 1.0),
     )
 
     drift: float = 0.0
@@ -68,11 +82,15 @@ class SimOptions(MujocoOptions):
     position_gain: float = 40.0
     integral_gain: float = 400.0
     break_filter: float = 0.05
+    gyro_bias: float = 5e-4
+    gyro_walk: float = 1e-4
+    gyro_noise: float = 2e-4
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self._check(positive=("strength_factor", "torque_factor", "break_filter"),
-                    non_negative=("drift", "slip", "integral_gain"))
+                    non_negative=("drift", "slip", "integral_gain", "gyro_bias", "gyro_walk",
+                                  "gyro_noise"))
 
 
 @dataclass(frozen=True)

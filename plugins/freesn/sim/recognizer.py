@@ -25,6 +25,7 @@ commands given in it.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +38,9 @@ from msrr.core.freeform.recognition import spread_headings
 from .commands import ENDS
 from .geometry import END_SIGN
 from .world import NodeReport, StrutReport
+
+if TYPE_CHECKING:
+    from .odometry import ImuOdometry
 
 __all__ = ["FreeSNRecognizer", "Links", "links_of", "node_headings", "root_order"]
 
@@ -131,10 +135,17 @@ class FreeSNRecognizer:
 
     name = "freesn"
     description = ("magnetic localisation + IMU + odometry reports -> configuration in the "
-                   "root node's horizontal frame")
+                   "root node's horizontal frame; gyros + rolling contacts -> heading, place")
 
     def __init__(self, root: str | None = None):
         self.root = root
+
+    def estimator(self) -> ImuOdometry:
+        """A fresh estimate of the system's heading and place for one run: the nodes'
+        gyros and rolling-contact odometry (:mod:`.odometry`)."""
+        from .odometry import ImuOdometry  # it reads this module's links and headings
+
+        return ImuOdometry(self.root)
 
     def recognize(self, observation: Reports, *, seed: int = 0) -> Configuration:
         """The configuration the reports show, in the modules' own ids.

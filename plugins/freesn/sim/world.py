@@ -37,6 +37,13 @@ rotation about the strut axis that its encoders do not see); it grows by ``slip`
 per radian rolled and by ``drift`` per square-root second. The connector servos its
 *estimate*, so the physical pose is off by ``eps``, and its reports carry it.
 
+IMU (sections 2.1, 4.2): a node reports its tilt (the accelerometer's, with the run's
+``noise``) and its gyro: the mean body-frame angular rate over the last :meth:`step`
+(what the IMU's samples average to), plus a constant bias per node (``gyro_bias``),
+its random walk (``gyro_walk``) and white rate noise (``gyro_noise``), from a generator
+of its own so the other noise draws stay as they were. No heading is reported: the
+recognizer's estimator integrates the gyros (:mod:`.recognizer`).
+
 Docking (Fig. 11c-d): a dock command extends the magnet array; an extended free end
 docks when its joint centre is within ``dock_tolerance`` of a node centre. An undock
 command retracts the array and releases the weld. A connection breaks (weld released,
@@ -51,7 +58,7 @@ the connectors' motors and wheels, loads and breaks, odometry and the module rep
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -118,10 +125,13 @@ class NodeReport:
         tilt: rotation (3, 3) of the node in its own horizontal frame (IMU; yaw-free).
         connectors: ``"<strut>:<end>"`` -> unit vector (3,) in the node frame where that
             connector sits (magnetic localisation).
+        gyro: the node's angular rate (3,) in its own frame [rad/s], averaged over the
+            last step, with the gyro's bias, drift and noise.
     """
 
     tilt: np.ndarray
     connectors: dict[str, np.ndarray]
+    gyro: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 @dataclass(frozen=True)
@@ -213,6 +223,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             + _SIDE_BY_SIDE_MARGIN
         self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
         self._capsule = np.array([m.geom(f"capsule/{s}").id for s in self.struts], dtype=int)
+        self._gyro_rng = np.random.default_rng([options.seed, 0x6779])  # "gy"
+        self._gyro_bias = self._gyro_rng.normal(0.0, options.gyro_bias, (len(self.nodes), 3))
+        self._gyro = np.zeros((len(self.nodes), 3))        # last reported rates [rad/s]
+        self._node_rot = np.tile(np.eye(3), (len(self.nodes), 1, 1))
         mujoco.mj_forward(self.model, self.data)
         for s, (a, b) in self.placement.ends.items():
             for end, node in zip(ENDS, (a, b), strict=True):
@@ -488,6 +502,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         for the topology now."""
         self._update_ball_targets()
         self._collision_groups()
+        self._node_rot = self.data.xmat[self._node_body].reshape(-1, 3, 3).copy()
 
     def _period_done(self, steps: int) -> None:
         """Connections over their strength break, then fresh docks seat."""
@@ -499,8 +514,19 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         return "extended" in self.magnet
 
     def _after_step(self, duration: float) -> None:
-        """The connectors' odometry errors grow by what they rolled."""
+        """The connectors' odometry errors grow by what they rolled; the gyros read."""
         self._odometry(duration)
+        self._read_gyros(duration)
+
+    def _read_gyros(self, duration: float) -> None:
+        """Each node's mean body rate over the step just taken, as its gyro reads it."""
+        now = self.data.xmat[self._node_body].reshape(-1, 3, 3)
+        turned = np.einsum("nji,njk->nik", self._node_rot, now)   # R_before^T R_after
+        rate = Rotation.from_matrix(turned).as_rotvec() / duration
+        o, rng = self.options, self._gyro_rng
+        self._gyro_bias += rng.normal(0.0, o.gyro_walk * np.sqrt(duration), self._gyro.shape)
+        self._gyro = rate + self._gyro_bias + rng.normal(0.0, o.gyro_noise / np.sqrt(duration),
+                                                          self._gyro.shape)
 
     def _servo(self) -> None:
         p = self.phys
@@ -642,7 +668,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                      tuple(e for e in new if e.strut == strut))
         for i, node in enumerate(self.nodes):
             out[node] = NodeReport(self.noise.rotation(rot_z(-node_yaw[i]) @ node_rot[i]),
-                                   located[node])
+                                   located[node], self._gyro[i].copy())
         return out
 
     def ground_truth(self, root: str | None = None, *, name: str = "") -> Configuration:

@@ -11,6 +11,7 @@ import numpy as np
 
 from msrr.core import plugins
 from msrr.core.actions import detect_actions
+from msrr.core.app.run import RunRequest, prepare_run
 from msrr.core.events import NoEvents, Run, Tick
 from msrr.core.executor import Executor, ExecutorOptions
 from msrr.core.library import load_library
@@ -69,4 +70,29 @@ def test_a_run_without_the_witness_channel_sends_the_same_commands():
     blind, without = _run(blind=True)
     assert with_truth.success and without.success, (with_truth.reason, without.reason)
     assert len(seen) == len(blind) >= 5
+    assert seen == blind
+
+
+def _scenario(name: str, blind: bool, tmp_path: Path) -> tuple[list[dict], object]:
+    prepared = prepare_run(RunRequest(robot="freesn", scenario=name, out=tmp_path / "run",
+                                      force=True, log=False))
+    run = prepared.run
+    with prepared.driver(gui=False, seed=run.seed, **dict(prepared.driver_options)) as driver:
+        driver.reset(run.plan.start)
+        sink = Commands(None if blind else driver)
+        result = Executor(run, Blind(driver) if blind else driver, prepared.recognizer,
+                          prepared.controller, prepared.options, sink=sink,
+                          robot=prepared.capabilities.robot,
+                          controllers=prepared.capabilities.controllers).execute()
+    return sink.ticks, result
+
+
+def test_a_behavior_with_ik_tracking_and_odometry_sends_the_same_commands_blind(tmp_path):
+    """The S12N6 crawl: IK tracking every tick, and loops skipped once the odometry says
+    the distance is covered -- all from reports."""
+    seen, with_truth = _scenario("fig19-crawl-s12n6", False, tmp_path)
+    blind, without = _scenario("fig19-crawl-s12n6", True, tmp_path)
+    assert with_truth.success and without.success, (with_truth.reason, without.reason)
+    assert with_truth.actions_skipped > 0 and without.actions_skipped == \
+        with_truth.actions_skipped
     assert seen == blind

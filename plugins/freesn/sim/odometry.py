@@ -1,0 +1,170 @@
+"""Where a FreeSN system is, from its own sensors: gyro headings and rolling-contact
+odometry (issue 31, item 1; issue 32, item 1). Dead reckoning: it drifts.
+
+The FreeSN paper commands a system in its root node's horizontal frame and gives each
+node an IMU (sections 2.1, 4.2); nothing on the robot measures where it stands on the
+floor. :class:`ImuOdometry` estimates both from the module reports and the recognized
+configuration, never from a simulator:
+
+* **heading**: each node's rotation is propagated by its gyro,
+  ``R <- Rz(psi) T_prev exp([w dt])`` (``T`` the reported tilt, ``w`` the gyro's mean body
+  rate over the step), and its heading is the twist of the result about the vertical
+  (:func:`~msrr.core.freeform.mujoco.yaw_of`), the tilt being the accelerometer's at
+  every report (its own twist about the vertical is noise and is taken out, or each
+  report's noise would add to the heading). A node seen for the first time takes the heading the recognizer gives
+  it relative to the root (:func:`.recognizer.node_headings`). The system's heading is
+  its root node's (:func:`.recognizer.root_order`), the frame its commands are in.
+* **position**: the recognized configuration places the nodes relative to the root
+  (skeletal forward kinematics, ``p_t = p_s + L z``); the lowest nodes (within
+  :data:`CONTACT` of the lowest) stand on the floor. A node on the floor rolls without
+  slipping: its centre moves at ``w x (r e_z)`` (``w`` its world rate from the gyro, ``r``
+  the node radius), so a foot at rest stays put and a wheel node rolls. The root's place
+  is the mean over the feet that stayed on the floor of ``anchor_i - q_i`` (``q_i`` the
+  foot's offset from the root, turned by the heading); a foot that lands is anchored
+  where the shape puts it. The estimate is the centre of the nodes.
+
+A strut's wheels on the floor (Fig. 18(d)-(i)) report no encoder, so a system rolling on
+them is estimated to stand still; those behaviors run for a duration.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from msrr.core.alignment import rot_z
+from msrr.core.configuration import Configuration
+from msrr.core.driver import Observation
+from msrr.core.estimation import Estimate
+from msrr.core.freeform.mujoco import yaw_of
+
+from ..robot import NODE, STRUT
+from .recognizer import links_of, node_headings, root_order
+from .world import NodeReport
+
+__all__ = ["CONTACT", "ImuOdometry", "node_positions"]
+
+CONTACT = 0.015
+"""A node whose centre is at most this much [m] above the lowest node's stands on the
+floor (recognized heights carry the reports' noise: 2 deg over a 0.2 m strut is 7 mm)."""
+
+
+def _wrap(angle: float) -> float:
+    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
+
+
+def _turned(rotvec: np.ndarray) -> np.ndarray:
+    """The rotation matrix (3, 3) of a rotation vector (3,) (Rodrigues)."""
+    angle = float(np.sqrt(rotvec @ rotvec))
+    if angle < 1e-12:
+        return np.eye(3)
+    x, y, z = rotvec / angle
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+def node_positions(config: Configuration, root: str, length: float) -> dict[str, np.ndarray]:
+    """Node centres [m], shape (3,) each, relative to ``root`` in ``config``'s frame: a
+    breadth-first spanning tree of the struts between nodes, ``p_t = p_s + length z``.
+    Nodes not connected to ``root`` are left out."""
+    steps: dict[str, list[tuple[str, np.ndarray]]] = {}
+    for edge in config.edges():
+        if edge.z is None or config.is_virtual(edge.source) or config.is_virtual(edge.target):
+            continue
+        z = length * np.asarray(edge.z, dtype=float)
+        steps.setdefault(edge.source, []).append((edge.target, z))
+        steps.setdefault(edge.target, []).append((edge.source, -z))
+    positions = {root: np.zeros(3)}
+    queue = deque([root])
+    while queue:
+        u = queue.popleft()
+        for v, step in steps.get(u, ()):
+            if v not in positions:
+                positions[v] = positions[u] + step
+                queue.append(v)
+    return positions
+
+
+class ImuOdometry:
+    """Heading and place of one FreeSN system over one run (see the module docstring).
+
+    Args:
+        root: the root node the recognizer was given (``None``: :func:`root_order`'s).
+        length: strut length, node centre to node centre [m].
+        radius: node radius [m].
+    """
+
+    def __init__(self, root: str | None = None, *, length: float = STRUT.geometry["length"],
+                 radius: float = NODE.geometry["radius"]):
+        self.root, self.length, self.radius = root, float(length), float(radius)
+        self.time: float | None = None
+        self.yaw: dict[str, float] = {}          # each node's heading [rad]
+        self.tilt: dict[str, np.ndarray] = {}
+        self.anchors: dict[str, np.ndarray] = {}  # feet on the floor, horizontal [m]
+        self.origin = np.zeros(2)                 # the root's horizontal place [m]
+
+    def update(self, observation: Observation, configuration: Configuration) -> Estimate:
+        """The estimate after ``observation`` and the configuration recognized from it."""
+        reports: Mapping[str, Any] = observation.sensors
+        nodes = {m: r for m, r in reports.items() if isinstance(r, NodeReport)}
+        if not nodes:
+            return Estimate()
+        dt = 0.0 if self.time is None else max(0.0, observation.time - self.time)
+        self.time = observation.time
+        links = links_of(reports)
+        root = self.root if self.root in nodes else root_order(list(nodes), links)[0]
+        turned = self._turn(nodes, dt)
+        self._first_seen(reports, links, root, [n for n in nodes if n not in self.yaw])
+        heading = self.yaw[root]
+        placed = node_positions(configuration, root, self.length)
+        offsets = {n: rot_z(heading) @ p for n, p in placed.items()}
+        self._step_feet(offsets, turned, dt)
+        centre = self.origin + np.mean([q[:2] for q in offsets.values()], axis=0)
+        return Estimate(position=centre, heading=heading)
+
+    def _turn(self, nodes: Mapping[str, NodeReport], dt: float) -> dict[str, np.ndarray]:
+        """Each known node's heading propagated by its gyro; its world rate (3,) [rad/s]."""
+        rates: dict[str, np.ndarray] = {}
+        for node, report in nodes.items():
+            gyro = np.asarray(report.gyro, dtype=float)
+            if node in self.yaw:
+                before = rot_z(self.yaw[node]) @ self.tilt[node]
+                rates[node] = before @ gyro
+                self.yaw[node] = yaw_of(before @ _turned(gyro * dt))
+            tilt = np.asarray(report.tilt, dtype=float)
+            self.tilt[node] = rot_z(-yaw_of(tilt)) @ tilt  # a tilt has no heading: noise
+        return rates
+
+    def _first_seen(self, reports: Mapping[str, Any], links: dict, root: str,
+                    new: list[str]) -> None:
+        """Headings of nodes seen for the first time, from the recognizer's relative ones."""
+        if not new:
+            return
+        relative = node_headings(reports, links, root)
+        known = [n for n in relative if n in self.yaw and n not in new]
+        base = self.yaw[known[0]] - relative[known[0]] if known else 0.0
+        for node in new:
+            self.yaw[node] = _wrap(base + relative.get(node, 0.0))
+
+    def _step_feet(self, offsets: Mapping[str, np.ndarray], rates: Mapping[str, np.ndarray],
+                   dt: float) -> None:
+        """The feet on the floor roll by their rates; the root's place from those that
+        stayed; new feet anchored where the shape puts them."""
+        if not offsets:
+            return
+        lowest = min(float(q[2]) for q in offsets.values())
+        feet = {n for n, q in offsets.items() if float(q[2]) <= lowest + CONTACT}
+        stayed = [n for n in feet if n in self.anchors]
+        for node in stayed:
+            rate = rates.get(node)
+            if rate is not None:  # w x (r e_z), horizontal
+                self.anchors[node] = self.anchors[node] + dt * self.radius * np.array(
+                    [rate[1], -rate[0]])
+        if stayed:
+            self.origin = np.mean([self.anchors[n] - offsets[n][:2] for n in stayed], axis=0)
+        self.anchors = {n: self.anchors[n] if n in stayed else self.origin + offsets[n][:2]
+                        for n in feet}

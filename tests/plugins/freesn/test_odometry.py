@@ -1,0 +1,97 @@
+"""FreeSN's own estimate of where it is (issue 31 item 1, issue 32 item 1): the nodes'
+gyros and rolling-contact odometry, against the simulator's ground truth."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msrr.core.driver import ModuleCommand
+from msrr.core.executor import HeadingLoop
+from msrr.core.freeform.mujoco import heading
+from msrr.core.io import load_configuration
+from msrr.core.library import load_library
+from msrr.plugins.freesn.robot import NODE, STRUT
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver, FreeSNRecognizer
+from msrr.plugins.freesn.sim.geometry import place
+from msrr.plugins.freesn.sim.odometry import node_positions
+
+FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def _node_wheels(params: dict[str, float], seconds: float, **options) -> tuple:
+    """S4N5 on its four leaf nodes as wheels (Fig. 18(a)), driven open loop; the
+    estimate and the truth (root heading change [rad], centre shift [m]) at the end."""
+    library = load_library(FREESN / "libraries" / "S4N5.json")
+    behavior = library.sublibraries["S4N5"].behaviors["node-wheels"]
+    start = load_configuration(FREESN / "configs" / "library" / f"{behavior.start}.json")
+    wheels = {c.module: {c.key: c.value(params)} for c in behavior.commands}
+    recognizer = FreeSNRecognizer()
+    odometry = recognizer.estimator()
+    with FreeSNMujocoDriver(**options) as driver:
+        driver.reset(start)
+        world = driver.world
+        root = world._node_body[world._node_index["N0"]]    # the hub: the root
+        estimates, truth = [], []
+        for tick in range(round(seconds / 0.1)):
+            observation = driver.get_observation()
+            estimates.append(odometry.update(observation,
+                                             recognizer.recognize(observation.sensors)))
+            truth.append((float(heading(world.data.xquat[root])),
+                           world.data.xpos[world._node_body].mean(axis=0)[:2].copy()))
+            if tick >= 3:  # settled
+                driver.send_action({m: ModuleCommand(wheels=w) for m, w in wheels.items()})
+            driver.step(0.1)
+    turned = _wrap(truth[-1][0] - truth[0][0])
+    estimated = _wrap(estimates[-1].heading - estimates[0].heading)
+    frame = truth[0][0] - estimates[0].heading   # the estimate's frame in the world's
+    c, s = math.cos(frame), math.sin(frame)
+    shift = np.array([[c, -s], [s, c]]) @ (estimates[-1].position - estimates[0].position)
+    return estimated, shift, turned, truth[-1][1] - truth[0][1]
+
+
+def test_the_gyros_follow_a_turn_the_robot_makes():
+    estimated, _, turned, _ = _node_wheels({"yaw_rate": 0.2}, 3.0,
+                                           noise=math.radians(2.0), slip=0.05, seed=4)
+    assert turned > math.radians(30.0)                       # it turned, counterclockwise
+    assert abs(estimated - turned) < math.radians(3.0)
+
+
+def test_rolling_contacts_follow_the_node_wheels_forward():
+    """Dead reckoning over 3 s of Fig. 18(a)'s node wheels, with 2 deg noise and 5 % slip."""
+    _, shift, _, moved = _node_wheels({"speed": 0.03}, 3.0, noise=math.radians(2.0),
+                                      slip=0.05, seed=5)
+    assert np.linalg.norm(moved) > 0.08
+    # the distance covered (what a behavior's --distance reads) within 30 %: the wheels
+    # slip sideways by design (each rolls along its own diagonal), which the no-slip
+    # contacts take as motion (the direction is off by up to 20 deg over 3 s)
+    assert abs(np.linalg.norm(shift) - np.linalg.norm(moved)) < 0.3 * np.linalg.norm(moved)
+
+
+def test_node_positions_are_the_placement_relative_to_the_root():
+    start = load_configuration(FREESN / "configs" / "library" / "S4N5-1.2.json")
+    placed = place(start, STRUT.geometry["length"], NODE.geometry["radius"],
+                   STRUT.geometry["radius"]).nodes
+    ours = node_positions(start, "N0", STRUT.geometry["length"])
+    assert set(ours) == set(placed)
+    for node, p in ours.items():
+        assert np.allclose(p, placed[node] - placed["N0"], atol=1e-9)
+
+
+def test_the_heading_loop_turns_back_toward_the_start_within_its_bound():
+    loop = HeadingLoop(start=0.0, asked=0.0, gain=1.0, integral_gain=0.2, bound=0.5)
+    assert loop.correction(0.1, 1.0, 0.1) == pytest.approx(-0.1 - 0.2 * 0.01)  # turned left
+    assert loop.correction(-3.0, 1.1, 0.1) == 0.5                                # bounded
+    for _ in range(1000):
+        loop.correction(-3.0, 1.2, 0.1)
+    assert loop.integral_gain * abs(loop.integral) <= 0.5 + 1e-12              # no wind-up
+    asked = HeadingLoop(start=0.0, asked=0.1, gain=1.0, integral_gain=0.0, bound=0.5)
+    assert asked.correction(0.1, 1.0, 0.1) == pytest.approx(0.0)  # on its asked turn
+    assert asked.correction(math.pi - 0.05, 0.0, 0.1) == -0.5      # wraps: the short way
