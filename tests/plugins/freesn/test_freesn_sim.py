@@ -445,3 +445,43 @@ def test_the_integral_action_removes_the_static_error_a_load_leaves():
             errors.append(skeletal_errors(driver.world.ground_truth(), goal)[0])
     assert SimOptions().integral_gain > 0.0
     assert errors[1] < 0.5 * errors[0], [f"{np.degrees(e):.2f} deg" for e in errors]
+
+
+def test_connectors_servo_on_their_own_noisy_sensors():
+    """The connectors' loops read the node's IMU and their localisation with the reports'
+    noise: a held aim wanders by a fraction of the noise, exactly without noise."""
+    start = _library_config("S6N3", "S6N3-1.1")
+
+    def wander(noise: float) -> float:
+        world = FreeSNWorld(start, SPEC, SimOptions(noise=noise, seed=4))
+        k = world.ends.index(("S4", "a"))
+        node = world.docked[k]
+        want = world.ground_truth(node).edge("S4").z
+        errors = []
+        for _ in range(20):
+            world.command_target("S4", "a", (want, None, 1.0))
+            world.step(0.1)
+            have = world.ground_truth(node).edge("S4").z
+            errors.append(np.degrees(np.arccos(np.clip(have @ want, -1.0, 1.0))))
+        return float(np.max(errors[5:]))
+
+    assert wander(0.0) < 0.2
+    assert 0.3 < wander(np.radians(2.0)) < 4.0
+
+
+@pytest.mark.parametrize("off_deg, docks", [(2.0, True), (4.0, False)])
+def test_a_magnet_docks_only_touching_and_aligned(off_deg, docks):
+    """S4's free end aimed at N2 but turned about N1: 2 deg touches the shell squarely
+    and docks; 4 deg (1.4 cm off, 15 deg askew: a weld from a distance before) only
+    pulls, with a force bounded by the connection strength, against S4's held connector."""
+    aimed = _library_config("S6N3", "S6N3-1.3")
+    turn = rot_z(np.radians(off_deg))
+    world = FreeSNWorld(aimed.with_vectors(z={e.id: turn @ e.z if e.id == "S4" else e.z
+                                              for e in aimed.edges()}), SPEC, SimOptions())
+    world.command_dock("S4", "b")
+    pull = 0.0
+    for _ in range(50):
+        world.step(0.01)
+        pull = max(pull, float(np.linalg.norm(world.data.xfrc_applied[world.bodies["N2"], :3])))
+    assert (world.docked[world.ends.index(("S4", "b"))] == "N2") is docks
+    assert pull <= world.phys.strength + 1e-9
