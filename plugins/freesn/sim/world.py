@@ -778,6 +778,29 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                             float(-contact.dist)))
         return out
 
+    def strut_overlaps(self, depth: float = 0.001) -> list[tuple[str, str, float]]:
+        """Strut pairs whose capsules overlap by more than ``depth`` [m] now, the
+        side-by-side exclusion (:meth:`_collision_groups`) ignored: ``(strut, strut,
+        depth)``, each pair once. What the skeletal vectors imply for the struts'
+        real thickness: two struts docked to the same two nodes coincide (40 mm), since
+        a strut's axis passes through the centres of the nodes it docks to."""
+        m, d = self.model, self.data
+        kept = m.geom_contype[self._capsule].copy(), m.geom_conaffinity[self._capsule].copy()
+        m.geom_contype[self._capsule] = m.geom_conaffinity[self._capsule] = 1
+        try:
+            mujoco.mj_collision(m, d)
+            out: dict[tuple[str, str], float] = {}
+            capsule = {int(g): s for g, s in zip(self._capsule, self.struts, strict=True)}
+            for contact in d.contact[:d.ncon]:
+                pair = capsule.get(int(contact.geom[0])), capsule.get(int(contact.geom[1]))
+                if None not in pair and contact.dist < -depth:
+                    key = tuple(sorted(pair))
+                    out[key] = max(out.get(key, 0.0), float(-contact.dist))
+        finally:
+            m.geom_contype[self._capsule], m.geom_conaffinity[self._capsule] = kept
+            mujoco.mj_collision(m, d)
+        return [(a, b, v) for (a, b), v in sorted(out.items())]
+
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""
         return connected_groups([*self.nodes, *self.struts],
