@@ -629,13 +629,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         for k in np.flatnonzero(self._load > self.phys.strength):
             self._release(int(k), "break")
 
-    def _magnets(self) -> list[tuple[int, np.ndarray, np.ndarray, float, float]]:
+    def _magnets(self) -> list[tuple[int, int, np.ndarray, np.ndarray, float, float]]:
         """Every extended free magnet near a node, nearest node first per end (not the
         strut's other node): ``(k, i, tip, toward, gap, angle)`` with ``k`` the end,
         ``i`` the node index, ``tip`` (3,) the magnet face's centre, ``toward`` (3,) the
-        unit vector from it to the node centre. ``gap`` is the magnet face's distance to the node surface beyond
-        the docked stand-off (0 when seated, down to ``-_GAP`` pressed on the shell);
-        ``angle`` is between the strut axis and the line to the node centre."""
+        unit vector from it to the node centre. ``gap`` [m] is the magnet face's
+        distance to the node surface beyond the docked stand-off (0 when seated, down to
+        ``-_GAP`` pressed on the shell); ``angle`` [rad] is between the strut axis and
+        the line to the node centre."""
         d, p = self.data, self.phys
         out = []
         centres = d.xpos[self._node_body]
