@@ -34,7 +34,7 @@ STRUT = ModuleKind(
         # assumed: the hardware's (the simulation takes less: torque_factor, strength_factor)
         "max_torque": 2.0,       # connector drive torque about the node centre, hardware [N m]
         "connection_strength": 40.0,  # magnetic pull-off force of a connector, hardware [N]
-        "dock_tolerance": 0.02,  # extended magnet: strut end to node centre that docks [m]; assumed
+        "dock_tolerance": 0.02,  # extended magnet: gap to a node surface within which it pulls [m]; assumed
         "connector_mass": 0.03,  # magnet array, wheels and motors of one connector [kg]; assumed
     },
     description="two magnetic differential-drive connectors, one at each end",

@@ -109,12 +109,21 @@ LEGS = [("S4", "N1"), ("S5", "N2"), ("S6", "N3")]
 DOCK = {"S4": "N2", "S5": "N3", "S6": "N1"}   # each leg docks to the next node
 
 
+def leg_forward(u: np.ndarray) -> np.ndarray:
+    """A free leg's forward vector ``x`` with its connector's wheel axle (its ``y``)
+    perpendicular to world ``x``: on the floor its wheels roll along
+    ``x`` (Fig. 18(d)-(f), the locomotion tests' tripod)."""
+    axle = np.cross([1.0, 0.0, 0.0], u)
+    return np.cross(axle / np.linalg.norm(axle), u)
+
+
 def s6n3_state(name: str, docked: set[str], aimed: set[str], *, standing: bool = False,
                description: str = "") -> dict:
     """Triangle N1 N2 N3 (struts S1-S3) with legs S4-S6 on N1-N3.
 
     Legs in ``docked`` are connected to the next node; legs in ``aimed`` point at it
-    (``S_conn``); the others point outward, down to the floor when ``standing``.
+    (``S_conn``); the others point outward, down to the floor when ``standing``, their
+    wheel axles perpendicular to ``x`` (:func:`leg_forward`).
     """
     nodes = triangle(height=L * 0.7 if standing else 0.0)
     struts: list[tuple] = list(RING)
@@ -125,7 +134,8 @@ def s6n3_state(name: str, docked: set[str], aimed: set[str], *, standing: bool =
         elif leg in aimed:
             struts.append((leg, at, None, nodes[DOCK[leg]] - nodes[at]))
         else:
-            struts.append((leg, at, None, horizontal(out, math.radians(45 if standing else 0))))
+            u = horizontal(out, math.radians(45 if standing else 0))
+            struts.append((leg, at, None, u, leg_forward(u)))
     return configuration(name, nodes, struts, description)
 
 
@@ -162,44 +172,33 @@ def s6n3() -> None:
         {"name": "fig20-d-to-h", "description": "Fig. 20(d)-(h): undock back to the legs",
          "steps": [step(c) for c in back]},
     ]
-    # wheeled move on the doubled triangle: the outer struts' wheels roll on the floor
+    # wheeled move standing on the legs' free connector wheels (all rolling along x)
     behaviors = [{
-        "name": "wheeled-move", "start": "fig20d",
-        "description": "Fig. 15: system speed [m/s] and yaw rate [rad/s] to wheel speeds [rad/s]",
+        "name": "wheeled-move", "start": "fig20a",
+        "description": "Fig. 15: system speed [m/s] and yaw rate [rad/s] to the wheel speeds "
+        "[rad/s] of the three legs' free connectors, standing on them",
         "parameters": ["speed", "yaw_rate"],
-        "commands": wheel_commands(triangle(), DOCK_STRUTS),
+        "commands": leg_wheel_commands(triangle(height=L * 0.7)),
     }]
     write(out / "sequences.json", source("S6N3", "recorded sequences of S6N3",
                                          sequences=sequences, behaviors=behaviors))
 
 
-DOCK_STRUTS = {"S4": ("N1", "N2"), "S5": ("N2", "N3"), "S6": ("N3", "N1")}
-
-
-def wheel_commands(nodes: dict[str, np.ndarray], struts: dict[str, tuple[str, str]]
-                   ) -> list[dict]:
-    """Differential-drive gains of strut wheels rolling on the floor (Fig. 18(d)-(f)).
-
-    A strut whose axis makes angle ``phi`` with the driving direction x rolls its
-    wheels along its normal; its wheel speed for body speed ``v`` and yaw rate ``w``
-    is ``(v sin(phi) + w d) / r`` with ``d`` the lever arm of its middle about the
-    centre.
-    """
+def leg_wheel_commands(nodes: dict[str, np.ndarray]) -> list[dict]:
+    """Gains of the legs' free connector wheels, axles perpendicular to ``x``
+    (:func:`leg_forward`): ``+w`` rolls a wheel along ``+x`` at ``w r`` (the tripod of
+    the locomotion tests), so body speed ``v`` and yaw rate ``w_z`` need
+    ``(v - w_z y_i) / r`` at a wheel ``y_i`` aside the centre (skid steering: the wheels
+    slip sideways to turn)."""
     centre = np.mean(list(nodes.values()), axis=0)
     commands = []
-    for sid, (s, t) in struts.items():
-        axis = nodes[t] - nodes[s]
-        axis = axis / np.linalg.norm(axis)
-        middle = (nodes[s] + nodes[t]) / 2 - centre
-        lever = float(np.cross(axis, middle)[2])
-        for end in ("source", "target"):
-            commands.append({"module": sid, "command": "wheel_speed", "connector": end,
-                             "gains": {"speed": round(float(axis[1]) / R_WHEEL, 9) or 0.0,
-                                       "yaw_rate": round(lever / R_WHEEL, 9) or 0.0}})
+    for leg, at in LEGS:
+        out = math.atan2(nodes[at][1], nodes[at][0])
+        contact = nodes[at] + L * horizontal(out, math.radians(45)) - centre
+        commands.append({"module": leg, "command": "wheel_speed", "connector": "target",
+                         "gains": {"speed": round(1.0 / R_WHEEL, 9),
+                                   "yaw_rate": round(-float(contact[1]) / R_WHEEL, 9) or 0.0}})
     return commands
-
-
-# -- S4N5: standup and wheels (Fig. 18(a)-(c)), squirm and crawl (Fig. 19) --------------
 
 
 def star(name: str, centre_height: float, azimuths: list[float], description: str = "") -> dict:
@@ -824,12 +823,16 @@ def s12n6_fig21_sequences(star_: dict) -> list[dict]:
 
 
 def s12n6_fig22_sequences(octa: dict, star_: dict) -> list[dict]:
-    """The star folded into the octahedron, and Fig. 22(a)-(p): the octahedron opened
+    """The folded ring docked into the octahedron, and Fig. 22(a)-(p): the octahedron opened
     to roll on one face's struts, then on its nodes, and closed again."""
     return [
-        {"name": "star-to-octahedron", "description": "fold the ring and dock the legs in "
+        # The star itself does not fold: the edge's tree holds the closed ring in one
+        # fixed node (a cycle has no joint mode), and the fold broke a connector (20.2 N,
+        # 74.7 deg off). The library goes around it: the folded ring (S12N6-2.2) docks
+        # its legs into the octahedron, no sequence leads from the star to it.
+        {"name": "folded-to-octahedron", "description": "dock the folded ring's legs in "
          "two parallel connections",
-         "steps": [step(star_), step(octa_state("folded", set())),
+         "steps": [step(octa_state("folded", set())),
                    step(octa_state("three-docked", {1, 3, 5})), step(octa)]},
         {"name": "fig22-a-to-e", "description": "Fig. 22(a)-(e): free one face in parallel, "
          "legs down",

@@ -110,7 +110,7 @@ class Physical:
         damping: motor back-EMF damping [N m s/rad] = torque / roll rate (a DC motor's
             linear torque-speed line from stall to no-load speed).
         strength: connection strength used in simulation [N].
-        dock_tolerance: [m].
+        dock_tolerance: range of an extended magnet's pull: its gap to a node surface [m].
         wheel_radius: [m]. wheel_base: distance between a connector's two wheels [m].
         max_wheel_speed: [rad/s], the bound of a ``wheel_speed`` command.
         wheel_torque: torque limit of a connector's wheel pair about its axle [N m]: the

@@ -44,12 +44,23 @@ its random walk (``gyro_walk``) and white rate noise (``gyro_noise``), from a ge
 of its own so the other noise draws stay as they were. No heading is reported: the
 recognizer's estimator integrates the gyros (:mod:`.recognizer`).
 
+Sensing in the loop: a connector servos on its own sensors with the reports' noise
+model (``noise``, the same seeded generator): the node's IMU tilt (one reading per
+node and tick, shared by its connectors) turns a command into the node frame, and its
+pose on the node is its encoders fused with a magnetic-localisation fix per command
+(the fixes' error low-passed, ``_FUSION``); it never reads the true node orientation.
+
 Docking (Fig. 11c-d): a dock command extends the magnet array; an extended free end
-docks when its joint centre is within ``dock_tolerance`` of a node centre. An undock
-command retracts the array and releases the weld. A connection breaks (weld released,
-``break`` event) when its low-passed constraint force exceeds the connection strength;
-a compressive force (the connector pressed onto its node) is carried by contact, not by
-the magnet, so only the pull-off and shear parts count.
+docks when its magnet touches a node (the face within ``_CONTACT`` of the docked
+stand-off) squarely (the strut axis within ``_ALIGNMENT`` of the node centre). Nearer
+than ``dock_tolerance`` the magnet pulls on the node, a force bounded by the
+connection strength and falling with the gap, applied at the strut tip and back on
+the node; what docks is only what touches. The weld then starts at the current offset
+(a few millimetres at most) and seats. An undock command retracts the array and
+releases the weld. A connection breaks (weld released, ``break`` event) when its
+low-passed constraint force exceeds the connection strength; a compressive force (the
+connector pressed onto its node) is carried by contact, not by the magnet, so only the
+pull-off and shear parts count.
 
 The step loop, the dock welds and the event bookkeeping are those of every freeform
 world (:class:`~msrr.core.freeform.mujoco.MujocoWorld`); this module adds the bodies,
@@ -97,6 +108,11 @@ _WHEEL_MASS = 0.005   # one connector's wheel pair [kg]
 _WHEEL_PROUD = 0.003  # wheel rim past the node surface point of the strut end [m]
 _WHEEL_FRICTION = [1.0, 1.0, 0.005, 0.0001, 0.0001]  # polyurethane on the floor
 _WHEEL_ARMATURE = 1e-5  # wheel-motor rotor through its gearbox [kg m^2]
+_CONTACT = 0.001      # magnet face within this of its seated stand-off: touching [m]
+_ALIGNMENT = np.radians(10.0)  # strut axis to the node centre: a magnet that docks lies flat
+_ATTRACTION_CONE = np.radians(45.0)  # a magnet pulls on a node in front of it
+_MAGNET_FALLOFF = 0.005  # distance over which a magnet's pull falls to a quarter [m]
+_FUSION = 0.2         # weight of a fresh localisation fix in a connector's estimate (10 Hz: 0.45 s)
 
 
 @dataclass(frozen=True)
@@ -205,6 +221,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._ball_target = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
         self._conn_node = np.tile(np.eye(3), (k, 1, 1))  # connector->node rotation while docked
         self._eps = np.zeros(k)                            # odometry heading error [rad]
+        self._fix = np.zeros((k, 3))                       # localisation error, node frame [rad]
+        self._imu: dict[int, np.ndarray] = {}              # node tilt readings this tick
         self._load = np.zeros(k)
         self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
@@ -330,6 +348,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._braked[k] = False
         self._refresh_driven()
         self._eps[k] = 0.0
+        self._fix[k] = 0.0
         self.events.append(DockEvent(self.time, strut, end, node, kind, float(self._load[k])))
         self._load[k] = 0.0
 
@@ -440,9 +459,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         direction, forward, effort = target
         self._set_effort(k, effort)
         self._braked[k] = False
-        r_wn = self.data.xmat[self._node_body[self._node_index[node]]].reshape(3, 3)
-        tilt = rot_z(-float(heading(self.data.xquat[self._node_body[self._node_index[node]]])))
-        to_node = r_wn.T @ tilt.T          # horizontal frame -> node frame
+        to_node = self._node_tilt(self._node_index[node])   # horizontal -> node frame
+        self._localise(k)
         want = to_node @ direction
         current = self._believed(np.array([k]))[0]   # node -> strut, believed
         u = self._sign[k] * _EZ
@@ -481,17 +499,41 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _ball(self, ks: np.ndarray) -> np.ndarray:
         return self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
 
+    def _node_tilt(self, i: int) -> np.ndarray:
+        """Node frame from node ``i``'s horizontal frame (3, 3), as its connectors get
+        it: the transpose of its IMU reading (the node's rotation in its horizontal
+        frame, with the reports' noise; one reading per node and tick, shared by its
+        connectors)."""
+        if i not in self._imu:
+            body = self._node_body[i]
+            tilt = self.noise.rotation(rot_z(-float(heading(self.data.xquat[body]))))
+            self._imu[i] = self.data.xmat[body].reshape(3, 3).T @ tilt.T
+        return self._imu[i]
+
+    def _localise(self, k: int) -> None:
+        """Connector ``k`` takes a magnetic-localisation fix (the reports' noise, node
+        frame) and fuses it with its encoders: its pose error is the fixes' error
+        low-passed, ``f <- (1 - b) f + b n`` per fix (``_FUSION``)."""
+        if self.noise.std:
+            sample = self.noise.rng.normal(0.0, self.noise.std, 3)
+            self._fix[k] += _FUSION * (sample - self._fix[k])
+
     def _believed(self, ks: np.ndarray) -> np.ndarray:
-        """Node -> strut rotations (n, 3, 3) as the connectors believe them (with ``eps``)."""
+        """Node -> strut rotations (n, 3, 3) as the connectors believe them: the truth
+        off by the last localisation fix's error (node frame) and the odometry error
+        ``eps`` (about the strut axis), ``F R E``."""
         r_c = Rotation.from_quat(self._ball(ks), scalar_first=True).as_matrix()
         true = np.einsum("nji,nkj->nik", self._conn_node[ks], r_c)  # (R_c R_cn)^T
-        return true @ Rotation.from_rotvec(self._eps[ks, None] * _EZ).as_matrix()
+        fix = Rotation.from_rotvec(self._fix[ks]).as_matrix()
+        return fix @ true @ Rotation.from_rotvec(self._eps[ks, None] * _EZ).as_matrix()
 
     def _update_ball_targets(self) -> None:
         ks = np.flatnonzero(self._has_target)
         if not len(ks):
             return
-        true = self._target[ks] @ Rotation.from_rotvec(-self._eps[ks, None] * _EZ).as_matrix()
+        fix = Rotation.from_rotvec(-self._fix[ks]).as_matrix()
+        true = fix @ self._target[ks] \
+            @ Rotation.from_rotvec(-self._eps[ks, None] * _EZ).as_matrix()   # F^T T E^T
         r_c = np.einsum("nij,njk->nik", self._conn_node[ks], true).transpose(0, 2, 1)
         self._ball_target[ks] = Rotation.from_matrix(r_c).as_quat(scalar_first=True)
 
@@ -501,6 +543,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """The connectors' joint targets from their commands; the struts' collision groups
         for the topology now."""
         self._update_ball_targets()
+        self._imu.clear()
         self._collision_groups()
         self._node_rot = self.data.xmat[self._node_body].reshape(-1, 3, 3).copy()
 
@@ -530,6 +573,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
 
     def _servo(self) -> None:
         p = self.phys
+        self._attract()
         ks = self._driven
         tau = self._tau
         tau[:] = 0.0
@@ -611,20 +655,62 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         for k in np.flatnonzero(self._load > self.phys.strength):
             self._release(int(k), "break")
 
-    def _check_docks(self) -> None:
-        centres = self.data.xpos[self._node_body]
+    def _magnets(self) -> list[tuple[int, int, np.ndarray, np.ndarray, float, float]]:
+        """Every extended free magnet near a node, nearest node first per end (not the
+        strut's other node): ``(k, i, tip, toward, gap, angle)`` with ``k`` the end,
+        ``i`` the node index, ``tip`` (3,) the magnet face's centre, ``toward`` (3,) the
+        unit vector from it to the node centre. ``gap`` [m] is the magnet face's
+        distance to the node surface beyond the docked stand-off (0 when seated, down to
+        ``-_GAP`` pressed on the shell); ``angle`` [rad] is between the strut axis and
+        the line to the node centre."""
+        d, p = self.data, self.phys
+        out = []
+        centres = d.xpos[self._node_body]
         for k, state in enumerate(self.magnet):
             if state != "extended" or self.docked[k] is not None:
                 continue
             strut, end = self.ends[k]
             other = self.docked[self._end_index[(strut, "b" if end == "a" else "a")]]
-            gap = np.linalg.norm(centres - self.data.xpos[self._conn_body[k]], axis=1)
-            for i in np.argsort(gap):
-                if gap[i] > self.phys.dock_tolerance:
+            inward = -self._sign[k] * d.xmat[self._strut_body[k // 2]].reshape(3, 3)[:, 2]
+            tip = d.xpos[self._conn_body[k]] - (p.node_radius + _GAP) * inward
+            offset = centres - tip
+            dist = np.linalg.norm(offset, axis=1)
+            gap = dist - p.node_radius - _GAP
+            for i in np.argsort(dist):
+                if gap[i] > p.dock_tolerance:
                     break
-                if self.nodes[i] != other:
-                    self._dock(k, self.nodes[i])
-                    break
+                if self.nodes[i] == other:
+                    continue
+                toward = offset[i] / dist[i]
+                angle = float(np.arccos(np.clip(toward @ inward, -1.0, 1.0)))
+                out.append((k, int(i), tip, toward, float(gap[i]), angle))
+        return out
+
+    def _attract(self) -> None:
+        """Extended free magnets pull on the nodes within ``dock_tolerance`` of their face:
+        a bounded force ``S (g0 / (g0 + gap))^2`` (the connection strength ``S`` at the
+        seat, ``g0`` = ``_MAGNET_FALLOFF``), at the strut tip toward the node centre and
+        back on the node."""
+        d = self.data
+        d.xfrc_applied[self._strut_body] = 0.0
+        d.xfrc_applied[self._node_body] = 0.0
+        for k, i, tip, toward, gap, angle in self._magnets():
+            if angle > _ATTRACTION_CONE:
+                continue
+            force = self.phys.strength * (_MAGNET_FALLOFF / (_MAGNET_FALLOFF + max(gap, 0.0)))**2 \
+                * toward
+            body = self._strut_body[k // 2]
+            d.xfrc_applied[body, :3] += force
+            d.xfrc_applied[body, 3:] += np.cross(tip - d.xipos[body], force)
+            d.xfrc_applied[self._node_body[i], :3] -= force
+
+    def _check_docks(self) -> None:
+        """An extended free magnet docks on a node it touches (its face within
+        ``_CONTACT`` of the seated stand-off) squarely (strut axis within ``_ALIGNMENT``
+        of the node centre)."""
+        for k, i, _, _, gap, angle in self._magnets():
+            if gap <= _CONTACT and angle <= _ALIGNMENT and self.docked[k] is None:
+                self._dock(k, self.nodes[i])
 
     def _odometry(self, duration: float) -> None:
         ball = self._ball(np.arange(len(self.ends)))
@@ -718,6 +804,29 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                 out.append((m.geom(contact.geom[0]).name, m.geom(contact.geom[1]).name,
                             float(-contact.dist)))
         return out
+
+    def strut_overlaps(self, depth: float = 0.001) -> list[tuple[str, str, float]]:
+        """Strut pairs whose capsules overlap by more than ``depth`` [m] now, the
+        side-by-side exclusion (:meth:`_collision_groups`) ignored: ``(strut, strut,
+        depth)``, each pair once. What the skeletal vectors imply for the struts'
+        real thickness: two struts docked to the same two nodes coincide (40 mm), since
+        a strut's axis passes through the centres of the nodes it docks to."""
+        m, d = self.model, self.data
+        kept = m.geom_contype[self._capsule].copy(), m.geom_conaffinity[self._capsule].copy()
+        m.geom_contype[self._capsule] = m.geom_conaffinity[self._capsule] = 1
+        try:
+            mujoco.mj_collision(m, d)
+            out: dict[tuple[str, str], float] = {}
+            capsule = {int(g): s for g, s in zip(self._capsule, self.struts, strict=True)}
+            for contact in d.contact[:d.ncon]:
+                pair = capsule.get(int(contact.geom[0])), capsule.get(int(contact.geom[1]))
+                if None not in pair and contact.dist < -depth:
+                    key = tuple(sorted(pair))
+                    out[key] = max(out.get(key, 0.0), float(-contact.dist))
+        finally:
+            m.geom_contype[self._capsule], m.geom_conaffinity[self._capsule] = kept
+            mujoco.mj_collision(m, d)
+        return [(a, b, v) for (a, b), v in sorted(out.items())]
 
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""

@@ -105,12 +105,15 @@ def test_wheel_names_and_values_are_checked():
             parse_wheels("S1", ModuleCommand(wheels=wheels))
 
 
-@pytest.mark.parametrize("behavior", ["strut-wheels", "struts-as-wheels"])
-def test_s4n1_wheel_behaviors_drive_along_the_library_x(behavior):
-    """Fig. 18(d)-(i): the S4N1 library's gains (from the design's geometry) drive the
-    simulated spider along its ``+x`` -- the sign and rough size of ``speed`` hold."""
-    library = load_library(FREESN / "libraries" / "S4N1.json")
-    chosen = library.sublibraries["S4N1"].behaviors[behavior]
+@pytest.mark.parametrize("name, behavior", [("S4N1", "strut-wheels"),
+                                            ("S4N1", "struts-as-wheels"),
+                                            ("S6N3", "wheeled-move")])
+def test_wheel_behaviors_drive_along_the_library_x(name, behavior):
+    """Fig. 18(d)-(i), Fig. 15: the library's gains (from the design's geometry) drive the
+    simulated spider, and the S6N3 triangle standing on its legs' wheels (fig20a), along
+    their ``+x`` -- the sign and rough size of ``speed`` hold."""
+    library = load_library(FREESN / "libraries" / f"{name}.json")
+    chosen = library.sublibraries[name].behaviors[behavior]
     start = load_configuration(FREESN / "configs" / "library" / f"{chosen.start}.json")
     speed = 0.03
     wheels: dict[str, dict[str, float]] = {}
