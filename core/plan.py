@@ -517,7 +517,8 @@ class ActionModel(StrictModel):
 
 class PlanFile(StrictModel):
     """A plan file (``platform plan --json``; read back with :func:`load_plan`): the start
-    whole, every action's target and then the goal as changes to the one before."""
+    whole, every action's target as changes to the one before, and the goal as changes to
+    the start (so a lost or repeated action shows as a chain that misses the goal)."""
 
     schema_version: Annotated[Literal[2], BeforeValidator(not_boolean)] = Field(
         description="File format version.")
@@ -526,8 +527,7 @@ class PlanFile(StrictModel):
     start: ConfigurationFile
     actions: list[ActionModel] = Field(max_length=MAX_ACTIONS)
     goal: DeltaModel = Field(default_factory=DeltaModel, description="The goal as its "
-                             "changes to the last action's target (the start when there is "
-                             "none).")
+                             "changes to the start.")
     mapping: dict[str, str] = {}
     notes: list[str] = []
     stats: dict[str, Number] = {}
@@ -637,8 +637,9 @@ def _tree_model(tree: KinematicTree | None, target: Configuration) -> TreeModel 
 
 
 def plan_to_model(plan: Plan) -> PlanFile:
-    """The file model of ``plan``: the start whole, every later configuration as its
-    :func:`~msrr.core.delta.difference` from the one before."""
+    """The file model of ``plan``: the start whole, every action's target as its
+    :func:`~msrr.core.delta.difference` from the one before, the goal as its difference
+    from the start (independent of the actions, so the chain is checked against it)."""
     actions, before = [], plan.start
     for a in plan.actions:
         actions.append(ActionModel(
@@ -650,7 +651,7 @@ def plan_to_model(plan: Plan) -> PlanFile:
         before = a.target
     return PlanFile(schema_version=SCHEMA_VERSION, robot=plan.robot, planner=plan.planner,
                     start=configuration_to_model(plan.start), actions=actions,
-                    goal=delta_to_model(difference(before, plan.goal)), mapping=plan.mapping,
+                    goal=delta_to_model(difference(plan.start, plan.goal)), mapping=plan.mapping,
                     notes=plan.notes, stats=plan.stats)
 
 
@@ -778,7 +779,7 @@ def plan_from_model(model: PlanFile | PlanFileV1, source: str | None = None,
         _check_action(action, i, source, lambda m: m in draft.vertices or m in draft.edges)
         actions.append(action)
         before = target
-    goal = _derived(before, model.goal, draft, source, "goal")
+    goal = _derived(start, model.goal, Draft(start), source, "goal")
     return _check_mapping(Plan(robot=model.robot, planner=model.planner, start=start, goal=goal,
                                actions=actions, mapping=model.mapping, notes=model.notes,
                                stats=model.stats), source)

@@ -130,7 +130,7 @@ PLANS = {
     "start of another configuration": (_start_of_the_goal,
                                        "actions[0].target.removed_connections[0]",
                                        "no connection '1L-3R' to remove"),
-    "the last dock missing": (_drop(-1), "goal", "the modules form 2 separate groups"),
+    "the last dock missing": (_drop(-1), "goal", "is not where the actions end"),
     "a module added": (_module_added, "actions[2].target", "modules not in "
                        "actions[1].target: 9"),
     "a dock to a module not there": (_changed(-1, connections=[
