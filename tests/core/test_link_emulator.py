@@ -266,8 +266,12 @@ def test_under_a_budget_the_host_polls_all_modules_at_once_and_keeps_within_it(t
     kbits = 8 * (sent["sent"] + sent["received"] + 28 * (sent["datagrams_sent"]
                                                         + sent["datagrams_received"]))
     assert 2 <= every <= 5 and kbits / seconds / 1000 <= 18.0
-    ticks = {}
-    for at, module in reports[len(reports) // 2:]:  # once the spacing settled
-        ticks.setdefault(at, set()).add(module)
+    ticks: dict[float, set[str]] = {}  # instants, keyed by their first arrival
+    settled = reports[len(reports) // 2][0]  # once the spacing settled: whole ticks after it
+    for at, module in sorted(r for r in reports if r[0] > settled):
+        # one poll's answers are timed by arrival: a datagram may land one control
+        # period (0.1 s) after the others, still the same instant of the robot
+        first = max((t for t in ticks if at - t <= 0.1 + 1e-9), default=at)
+        ticks.setdefault(first, set()).add(module)
     together = sum(len(m) == 3 for m in ticks.values())
     assert together >= 0.8 * len(ticks), ticks  # one instant of the robot
