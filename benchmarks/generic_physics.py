@@ -31,14 +31,20 @@ from msrr.core.bodies import with_port_vectors
 from msrr.core.generic.physics import PhysicsDriver
 
 
+def _chain(robot: str, prefix: str, n: int, ports: tuple[str, str]) -> Configuration:
+    """``n`` modules of ``robot``'s one kind in a row, each joined to the next by ``ports``."""
+    row = Configuration(robot, name=f"{robot}-row{n}")
+    for i in range(1, n + 1):
+        row.add_module(f"{prefix}{i}", robot)
+    for i in range(1, n):
+        row.connect(f"{prefix}{i}", f"{prefix}{i + 1}", ports=ports)
+    return row
+
+
 def cube_plan(n: int) -> Plan:
     """A line of ``n`` cubes to an L: the last moves onto the north face of the one before."""
     spec = plugins.robot("cube")
-    line = Configuration("cube", name=f"line{n}")
-    for i in range(1, n + 1):
-        line.add_module(f"c{i}", "cube")
-    for i in range(1, n):
-        line.connect(f"c{i}", f"c{i + 1}", ports=("E", "W"))
+    line = _chain("cube", "c", n, ("E", "W"))
     apart = line.copy()
     apart.disconnect(f"c{n - 1}E-c{n}W")
     goal = apart.copy()
@@ -51,11 +57,7 @@ def cube_plan(n: int) -> Plan:
 def hinge_plan(n: int) -> Plan:
     """A chain of ``n`` hinges to a ring: the last head docks to the first tail."""
     spec = plugins.robot("hinge")
-    chain = Configuration("hinge", name=f"chain{n}")
-    for i in range(1, n + 1):
-        chain.add_module(f"h{i}", "hinge")
-    for i in range(1, n):
-        chain.connect(f"h{i}", f"h{i + 1}", ports=("head", "tail"))
+    chain = _chain("hinge", "h", n, ("head", "tail"))
     ring = chain.copy()
     ring.connect(f"h{n}", "h1", ports=("head", "tail"))
     chain, ring = with_port_vectors(chain, spec), with_port_vectors(ring, spec)
