@@ -22,16 +22,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:
     from .configuration import Configuration
-    from .robot import ModuleKind, RobotSpec
+    from .robot import Body, ModuleKind, PortSpec, RobotSpec
 
 __all__ = ["Frame", "body_reach", "close_loops", "connection_hinge", "docked_pose", "frame_of",
-           "has_bodies", "hinge_edges", "port_mismatch", "vector_angles",
+           "has_bodies", "hinge_angle", "hinge_edges", "port_mismatch", "vector_angles",
            "geometry_problems", "inscribed", "layout", "port_frame", "rotation_about",
            "with_port_vectors"]
 
@@ -62,10 +63,8 @@ def has_bodies(spec: RobotSpec) -> bool:
     return bool(kinds) and all(k.body is not None for k in kinds)
 
 
-def _sdf(kind: ModuleKind, point: np.ndarray) -> float:
-    """Signed distance [m] of ``point`` (module frame) to ``kind``'s body surface."""
-    body = kind.body
-    assert body is not None
+def _sdf(body: Body, point: np.ndarray) -> float:
+    """Signed distance [m] of ``point`` (module frame) to ``body``'s surface."""
     if body.shape == "box":
         q = np.abs(point) - np.asarray(body.size) / 2
         return float(np.linalg.norm(np.maximum(q, 0.0)) + min(max(q[0], q[1], q[2]), 0.0))
@@ -83,11 +82,17 @@ def _sdf(kind: ModuleKind, point: np.ndarray) -> float:
 def body_reach(kind: ModuleKind, direction: np.ndarray) -> float:
     """Distance [m] from the centre of ``kind``'s body to its surface along the unit
     ``direction`` (module frame), by bisection on the body's signed distance."""
+    return _reach(kind.body, direction)
+
+
+def _reach(body: Body | None, direction: np.ndarray) -> float:
+    if body is None:
+        raise ValueError("a port without a position needs the module kind's body")
     d = np.asarray(direction, dtype=float)
-    low, high = 0.0, 2.0 * float(np.linalg.norm(kind.body.half_extents)) + 1e-9
+    low, high = 0.0, 2.0 * float(np.linalg.norm(body.half_extents)) + 1e-9
     for _ in range(60):
         mid = 0.5 * (low + high)
-        if _sdf(kind, mid * d) < 0:
+        if _sdf(body, mid * d) < 0:
             low = mid
         else:
             high = mid
@@ -104,11 +109,17 @@ def inscribed(kind: ModuleKind) -> float:
 
 def port_frame(kind: ModuleKind, port: str) -> Frame:
     """The frame of ``port`` in ``kind``'s module frame: rotation (3, 3) with columns
-    ``(normal, up x normal, up)``, and the port's position [m] (3,).
+    ``(normal, up x normal, up)``, and the port's position [m] (3,), both read-only.
 
     A port without ``position`` sits where its normal leaves the body; one without
     ``up`` takes the module's z (else x) made perpendicular to its normal."""
-    spec = kind.port(port)
+    return _port_frame(kind.port(port), kind.body)
+
+
+@lru_cache(maxsize=4096)
+def _port_frame(spec: PortSpec, body: Body | None) -> Frame:
+    """:func:`port_frame` of one port on one body: computed once (a servo reads it at
+    every period), the arrays read-only since they are shared."""
     n = np.asarray(spec.normal, dtype=float)
     if spec.up is not None:
         up = np.asarray(spec.up, dtype=float)
@@ -117,8 +128,10 @@ def port_frame(kind: ModuleKind, port: str) -> Frame:
         up = base - float(base @ n) * n
         up /= np.linalg.norm(up)
     position = (np.asarray(spec.position, dtype=float) if spec.position is not None
-                else n * body_reach(kind, n))
-    return np.column_stack([n, np.cross(up, n), up]), position
+                else n * _reach(body, n))
+    rotation = np.column_stack([n, np.cross(up, n), up])
+    rotation.flags.writeable = position.flags.writeable = False
+    return rotation, position
 
 
 def connection_hinge(kinds: tuple[ModuleKind, ModuleKind], ports: tuple[str, str]
@@ -142,6 +155,19 @@ def docked_pose(kinds: tuple[ModuleKind, ModuleKind], ports: tuple[str, str],
     turn = np.eye(3) if axis is None or not angle else rotation_about(axis, angle)
     rotation = ra @ turn @ FLIP @ rb.T
     return rotation, pa - rotation @ pb
+
+
+def hinge_angle(relative: np.ndarray, kinds: tuple[ModuleKind, ModuleKind],
+                ports: tuple[str, str]) -> float:
+    """The angle [rad] of a hinge connection whose target body is turned by ``relative``
+    (3, 3) in its source's frame: the turn about the hinge axis that
+    :func:`docked_pose` would need."""
+    ra, rb = port_frame(kinds[0], ports[0])[0], port_frame(kinds[1], ports[1])[0]
+    axis = connection_hinge(kinds, ports)
+    turn = ra.T @ relative @ rb @ FLIP.T
+    sine = 0.5 * np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0],
+                           turn[1, 0] - turn[0, 1]])
+    return math.atan2(float(sine @ axis), (float(np.trace(turn)) - 1.0) / 2.0)
 
 
 def frame_of(parent: Frame, relative: Frame) -> Frame:
@@ -303,7 +329,13 @@ def vector_angles(config: Configuration, spec: RobotSpec) -> dict[str, float]:
 
     bound = np.array([math.pi * 4, *limits])
     fit = least_squares(residual, np.zeros(len(hinges) + 1), bounds=(-bound, bound))
-    return dict(zip(hinges, (float(v) for v in fit.x[1:]), strict=True))
+    angles = dict(zip(hinges, (float(v) for v in fit.x[1:]), strict=True))
+    poses, closing = layout(config, spec, angles)
+    for edge_id in set(closing) & set(hinges):  # a loop's last hinge: as the layout has it
+        edge = config.edge(edge_id)
+        angles[edge_id] = hinge_angle(poses[edge.source][0].T @ poses[edge.target][0],
+                                      _kinds(config, spec, edge), edge.ports)
+    return angles
 
 
 def port_mismatch(source: Frame, target: Frame, kinds: tuple[ModuleKind, ModuleKind],

@@ -28,11 +28,15 @@ class Control:
         commands: per-module commands (modules not named stop).
         errors: per-module distance to the goal [m].
         reached: the configuration of this phase is reached.
+        stalled: why the phase cannot finish, as the controller sees it (a joint that no
+            longer moves toward its goal); empty while it can. The executor fails the
+            action with it instead of waiting out its timeout.
     """
 
     commands: Mapping[str, ModuleCommand] = field(default_factory=dict)
     errors: Mapping[str, float] = field(default_factory=dict)
     reached: bool = False
+    stalled: str = ""
 
 
 @runtime_checkable

@@ -568,6 +568,9 @@ class Executor:
         self.sink.tick(self.run, Tick(self.tick_index - 1, self.driver.time, index, action,
                                       phase, observation, configuration, commands,
                                       control.errors))
+        if control.stalled:
+            raise _ActionFailed(f"action {index + 1} ({action}) failed: phase {phase.value} "
+                                f"stalled: {control.stalled}")
         if phase in (Phase.APPROACH, Phase.MOVE, Phase.FLOW):
             return control.reached
         if phase is Phase.BEHAVIOR:

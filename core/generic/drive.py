@@ -52,7 +52,7 @@ from ..driver import ModuleCommand, Observation
 from ..errors import ExecutionError
 from ..events import Phase
 from ..plan import Action, ConnectionChange
-from ..robot import ModuleKind, RobotSpec
+from ..robot import Hinge, ModuleKind, RobotSpec
 from .geometry import wrap_angle
 from .readings import ModuleReading
 
@@ -70,6 +70,13 @@ GAIN_LINE = 10.0
 
 LINE_ANGLE = 0.03
 """Largest angle [rad] at which a module steers back onto its final line."""
+
+GAIN_TRIM = 1.0
+"""Integral gain [1/s] of a hinge goal's trim on its encoder's error."""
+
+STALL = (3.0, 0.01)
+"""A fold has stalled when its worst hinge error has not fallen by ``STALL[1]`` [rad]
+in ``STALL[0]`` [s]."""
 
 
 MAX_TURN_RATE = 1.5
@@ -137,10 +144,17 @@ class _Drive:
 
 @dataclass
 class _Fold:
-    """Hinge goals (edge id -> rad) of a group, and the dock they make, if any."""
+    """Hinge goals (edge id -> rad) of a group, and the dock they make, if any; ``trim``
+    (edge id -> rad) the integral of the encoders' error near the goals, added to what
+    the servos are told (a servo of bounded stiffness sags under load: folding a long
+    chain on the floor, a few hundredths of a radian at each hinge add up along it)."""
 
     goals: dict[str, float]
     change: ConnectionChange | None = None
+    trim: dict[str, float] = field(default_factory=dict)
+    time: float | None = None
+    best: tuple[float, float] = (math.inf, 0.0)  # least worst error [rad], since [s]
+    stalled: str = ""
 
 
 class DriveController:
@@ -180,8 +194,9 @@ class DriveController:
         errors: dict[str, float] = {}
         if phase in (Phase.MOVE, Phase.APPROACH, Phase.CONNECT):
             self._advance(observation, commands, errors, phase)
+        stalled = self.job.stalled if isinstance(self.job, _Fold) else ""
         return Control(commands, errors, reached=(self.job is None or self.arrived)
-                       and not self.jobs)
+                       and not self.jobs, stalled=stalled)
 
     # -- jobs ---------------------------------------------------------------------------
 
@@ -477,19 +492,33 @@ class DriveController:
     def _fold(self, job: _Fold, observation: Observation, config: Configuration,
               angles: dict[str, float], commands: dict[str, ModuleCommand],
               errors: dict[str, float]) -> bool:
-        worst = 0.0
+        worst, stuck = 0.0, ""
+        period = 0.0 if job.time is None else observation.time - job.time
+        job.time = observation.time
         for edge_id, goal in job.goals.items():
             edge = config.edge(edge_id) if edge_id in config.edge_ids() else None
             if edge is None:
                 continue
-            source = self.spec.kind(config.kind_of(edge.source))
-            owner, sign = ((edge.source, 1.0) if source.hinge is not None
-                           and source.hinge.port == edge.ports[0] else (edge.target, -1.0))
+            owner, sign = ((edge.source, 1.0) if self._hinge(config, edge)
+                           is self.spec.kind(config.kind_of(edge.source)).hinge
+                           else (edge.target, -1.0))
             port = edge.ports[0] if owner == edge.source else edge.ports[1]
+            error = wrap_angle(goal - angles.get(edge_id, 0.0))
+            if abs(error) < self.tolerance.angle:  # near: no wind-up while it moves
+                job.trim[edge_id] = job.trim.get(edge_id, 0.0) + GAIN_TRIM * error * period
             base = commands.get(owner, ModuleCommand())
-            commands[owner] = ModuleCommand(joints={**base.joints, port: sign * goal})
-            worst = max(worst, abs(wrap_angle(goal - angles.get(edge_id, 0.0))))
+            commands[owner] = ModuleCommand(joints={
+                **base.joints, port: sign * (goal + job.trim.get(edge_id, 0.0))})
+            if abs(error) > worst:
+                worst, stuck = abs(error), (
+                    f"hinge {edge_id} at {angles.get(edge_id, 0.0):+.2f} rad, {error:+.2f} rad "
+                    f"from its goal {goal:+.2f} rad, its servo at most "
+                    f"{self._hinge(config, edge).torque:g} N m")
         errors["joints"] = worst
+        if worst < job.best[0] - STALL[1]:
+            job.best = (worst, observation.time)
+        elif worst > self.tolerance.angle / 2 and observation.time - job.best[1] > STALL[0]:
+            job.stalled = f"{stuck}, has not moved for {STALL[0]:g} s"
         if worst > self.tolerance.angle / 2:
             return False
         if job.change is None:
@@ -497,6 +526,13 @@ class DriveController:
         gap = self._gap(config, angles, job.change)
         errors[job.change.target] = gap
         return gap <= self.tolerance.position / 2
+
+    def _hinge(self, config: Configuration, edge: object) -> Hinge:
+        """The hinge of a hinge connection (its source's at its port, else its target's)."""
+        source = self.spec.kind(config.kind_of(edge.source))
+        if source.hinge is not None and source.hinge.port == edge.ports[0]:
+            return source.hinge
+        return self.spec.kind(config.kind_of(edge.target)).hinge
 
     def _gap(self, config: Configuration, angles: dict[str, float],
              change: ConnectionChange) -> float:

@@ -18,9 +18,12 @@ ground, implicit integrator, servo loop, switched equalities, seeded noise):
   constraints on the hinge axis (the axes parallel within ``angle``), leaving the
   joint free;
 * **jointed** modules: each docked hinge is a position servo of bounded torque (the
-  hinge's ``torque``, the setpoint moving at its ``speed``), applied as equal and
-  opposite torques on the two bodies; ``ModuleCommand.joints = {hinge port: rad}`` sets
-  the goal, which the servo keeps until told otherwise;
+  hinge's ``torque``, the setpoint moving at its ``speed``): a MuJoCo position actuator
+  on a site transmission from the source port's site to the target port's, so its
+  damping is integrated implicitly with the bodies (an explicit PD torque on bodies of a
+  few grams' inertia rings at any useful gain: a chain of ten never settled) and its
+  torque acts equal and opposite on the two bodies; ``ModuleCommand.joints = {hinge
+  port: rad}`` sets the goal, which the servo keeps until told otherwise;
 * **reports** (:class:`ModuleReading`): latched ports, each with the direction ``z`` to
   the other module that the module computes from its IMU, its encoder and its geometry;
   the joint encoder; the IMU's orientation, all with seeded noise (``noise`` [rad]).
@@ -41,7 +44,16 @@ import mujoco
 import networkx as nx
 import numpy as np
 
-from ..bodies import FLIP, Frame, connection_hinge, docked_pose, layout, port_frame, vector_angles
+from ..bodies import (
+    FLIP,
+    Frame,
+    connection_hinge,
+    docked_pose,
+    hinge_angle,
+    layout,
+    port_frame,
+    vector_angles,
+)
 from ..configuration import Configuration
 from ..driver import Companions, DriverOption, ModuleCommand, Observation, Pose
 from ..errors import ExecutionError
@@ -50,8 +62,7 @@ from ..freeform.mujoco_driver import MujocoDriver
 from ..robot import ModuleKind, RobotSpec
 from .readings import Latch, ModuleReading
 
-__all__ = ["PhysicsDriver", "PhysicsDriverFactory", "PhysicsOptions", "PhysicsWorld",
-           "hinge_angle"]
+__all__ = ["PhysicsDriver", "PhysicsDriverFactory", "PhysicsOptions", "PhysicsWorld"]
 
 WHEEL_WIDTH = 0.01
 """Width [m] of a wheel."""
@@ -69,6 +80,12 @@ nothing, while their weld holds them)."""
 
 CLEARANCE = 0.002
 """Height [m] above the floor at which a start layout is released."""
+
+SERVO_SPAN = 0.15
+"""A hinge servo gives its full torque at this error [rad] from its setpoint."""
+
+SERVO_DAMPING = 0.03
+"""A hinge servo's damping per stiffness [s]."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -92,25 +109,13 @@ class PhysicsOptions(MujocoOptions):
         self._check(non_negative=("tracking",))
 
 
-def hinge_angle(relative: np.ndarray, kinds: tuple[ModuleKind, ModuleKind],
-                ports: tuple[str, str]) -> float:
-    """The angle [rad] of a hinge connection whose target body is turned by ``relative``
-    (3, 3) in its source's frame: the turn about the hinge axis that
-    :func:`~msrr.core.bodies.docked_pose` would need."""
-    ra, rb = port_frame(kinds[0], ports[0])[0], port_frame(kinds[1], ports[1])[0]
-    axis = connection_hinge(kinds, ports)
-    turn = ra.T @ relative @ rb @ FLIP.T
-    sine = 0.5 * np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0],
-                           turn[1, 0] - turn[0, 1]])
-    return math.atan2(float(sine @ axis), (float(np.trace(turn)) - 1.0) / 2.0)
-
-
 @dataclass
 class _Slot:
     """One connection of the pool: its equalities and, when docked, what it joins."""
 
     weld: int
     points: tuple[int, int]
+    servo: int = -1  # the hinge servo's actuator id (-1: the robot has no hinges)
     source: str = ""
     target: str = ""
     ports: tuple[str, str] = ("", "")
@@ -150,6 +155,12 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         self.slots = self._add_slots(mj)
         self.compile(mj)
         self.bodies = {m: self.model.body(m).id for m in self.kinds}
+        self.sites = {(m, p.name): self.model.site(f"{m}/{p.name}").id
+                      for m, k in self.kinds.items() for p in k.ports}
+        self.model.site_sameframe[list(self.sites.values())] = 0  # their frames are set
+        for slot in self.slots:  # at each dock
+            if slot.servo >= 0:
+                slot.servo = self.model.actuator(f"dock{slot.servo}/servo").id
         self.actuators = {m: (self.model.actuator(f"{m}/left").id,
                               self.model.actuator(f"{m}/right").id)
                           for m, k in self.kinds.items() if k.wheels is not None}
@@ -198,9 +209,8 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
                     position: np.ndarray) -> None:
         kind = self.kinds[module]
         body = kind.body
-        quat = np.empty(4)
-        mujoco.mju_mat2Quat(quat, rotation.reshape(-1))
-        part = mj.worldbody.add_body(name=module, pos=position.tolist(), quat=quat.tolist())
+        part = mj.worldbody.add_body(name=module, pos=position.tolist(),
+                                     quat=_quat(rotation).tolist())
         part.add_freejoint(name=f"{module}/free")
         friction = [body.friction, 0.02, 0.001]
         along_x = [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0]  # z axis turned onto x
@@ -216,6 +226,10 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
                      else mujoco.mjtGeom.mjGEOM_CYLINDER)
             part.add_geom(type=shape, size=[body.size[0], body.size[1] / 2, 0], quat=along_x,
                           mass=body.mass, friction=friction)
+        for port in kind.ports:  # where a hinge servo measures and acts
+            rotation, at = port_frame(kind, port.name)
+            part.add_site(name=f"{module}/{port.name}", pos=at.tolist(),
+                          quat=_quat(rotation).tolist())
         if kind.wheels is not None:
             self._add_wheels(mj, part, module, kind)
 
@@ -243,9 +257,13 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
             motor.forcerange = [-wheels.torque, wheels.torque]
 
     def _add_slots(self, mj: mujoco.MjSpec) -> list[_Slot]:
-        """The pool: as many slots as port pairs can be docked at once."""
+        """The pool: as many slots as port pairs can be docked at once; each a weld, two
+        axis points and, when a kind has a hinge, a servo (idle until docked)."""
         modules = list(self.kinds)
         count = sum(len(k.ports) for k in self.kinds.values()) // 2 if len(modules) > 1 else 0
+        hinges = any(k.hinge is not None for k in self.kinds.values())
+        # compiled between two bodies: MuJoCo sizes each servo's moment for their dofs
+        sites = [f"{m}/{self.kinds[m].ports[0].name}" for m in modules[:2]]
         slots = []
         for i in range(count):
             for key, (name, kind) in enumerate(((f"dock{i}", mujoco.mjtEq.mjEQ_WELD),
@@ -255,7 +273,14 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
                 self.welds.add(mj, key, name, type=kind, objtype=mujoco.mjtObj.mjOBJ_BODY,
                                name1=modules[0], name2=modules[1], solref=list(WELD_SOLREF),
                                solimp=list(WELD_SOLIMP))
-            slots.append(_Slot(3 * i, (3 * i + 1, 3 * i + 2)))
+            slots.append(_Slot(3 * i, (3 * i + 1, 3 * i + 2), i if hinges else -1))
+            if hinges:
+                servo = mj.add_actuator(name=f"dock{i}/servo", trntype=mujoco.mjtTrn.mjTRN_SITE,
+                                        target=sites[1], refsite=sites[0])
+                servo.gear = [0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+                servo.set_to_position(kp=0.0, kv=0.0)
+                servo.forcelimited = True
+                servo.forcerange = [-1.0, 1.0]  # the hinge's, set when docked
         return slots
 
     # -- docking ------------------------------------------------------------------------
@@ -287,13 +312,11 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         a, b = self.bodies[source], self.bodies[target]
         if slot.hinge is None:
             rotation, position = docked_pose(kinds, ports)
-            quat = np.empty(4)
-            mujoco.mju_mat2Quat(quat, rotation.reshape(-1))
             eq = self.welds.id(slot.weld)
             m.eq_obj1id[eq], m.eq_obj2id[eq] = a, b
             m.eq_data[eq, :3] = 0.0
             m.eq_data[eq, 3:6] = position
-            m.eq_data[eq, 6:10] = quat
+            m.eq_data[eq, 6:10] = _quat(rotation)
             m.eq_data[eq, 10] = 1.0
             self.welds.on(self.data, slot.weld)
         else:
@@ -310,6 +333,7 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
                 m.eq_data[eq, 3:6] = rt.T @ (world - pt)
                 self.welds.on(self.data, key)
             slot.goal = slot.setpoint = self._angle(slot)
+            self._servo_on(slot)
         self.events.append(("dock", f"{source}{source_port}-{target}{target_port}"))
 
     def _undock(self, module: str, port: str) -> None:
@@ -318,11 +342,35 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
                                                 (slot.target, slot.ports[1])):
                 for key in (slot.weld, *slot.points):
                     self.welds.off(self.data, key)
-                self.data.xfrc_applied[self.bodies[slot.source], 3:] = 0.0
-                self.data.xfrc_applied[self.bodies[slot.target], 3:] = 0.0
+                if slot.hinge is not None:
+                    self._servo_gains(slot.servo, 0.0, 0.0)
                 self.events.append(("undock", f"{slot.source}{slot.ports[0]}-"
                                     f"{slot.target}{slot.ports[1]}"))
                 slot.source = slot.target = ""
+
+    def _servo_on(self, slot: _Slot) -> None:
+        """Point the slot's servo from the source port's site (its frame the port's) to the
+        target port's (the port's turned onto the source's: their relative turn is the
+        hinge angle about ``slot.hinge``) with the hinge's gains and torque bound."""
+        m = self.model
+        kinds = (self.kinds[slot.source], self.kinds[slot.target])
+        source = self.sites[(slot.source, slot.ports[0])]
+        target = self.sites[(slot.target, slot.ports[1])]
+        m.site_quat[source] = _quat(port_frame(kinds[0], slot.ports[0])[0])
+        m.site_quat[target] = _quat(port_frame(kinds[1], slot.ports[1])[0] @ FLIP)
+        m.actuator_trnid[slot.servo] = (target, source)
+        m.actuator_gear[slot.servo, 3:] = slot.hinge
+        hinge = self._hinge_of(slot)
+        gain = hinge.torque / SERVO_SPAN
+        self._servo_gains(slot.servo, gain, SERVO_DAMPING * gain)
+        m.actuator_forcerange[slot.servo] = (-hinge.torque, hinge.torque)
+        self.data.ctrl[slot.servo] = slot.setpoint
+
+    def _servo_gains(self, servo: int, stiffness: float, damping: float) -> None:
+        """A position actuator's stiffness [N m/rad] and damping [N m s/rad] (0, 0: idle)."""
+        m = self.model
+        m.actuator_gainprm[servo, 0] = stiffness
+        m.actuator_biasprm[servo, 1:3] = (-stiffness, -damping)
 
     def _angle(self, slot: _Slot) -> float:
         rs, _ = self._frame(slot.source)
@@ -428,7 +476,7 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
 
     def _servo(self) -> None:
         """Wheel velocity goals; each hinge's setpoint moved toward its goal at the hinge's
-        speed and its torque from a PD law, bounded, equal and opposite on the two bodies."""
+        speed (its servo holds it, see :meth:`_servo_on`)."""
         period = self._every * self.options.timestep
         for module, (left, right) in self.wheel_goals.items():
             radius = self.kinds[module].wheels.radius
@@ -437,22 +485,11 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         for module, ids in self.actuators.items():
             if module not in self.wheel_goals:
                 self.data.ctrl[ids[0]] = self.data.ctrl[ids[1]] = 0.0
-        self.data.xfrc_applied[:, 3:] = 0.0
         for slot in self.slots:
-            if not slot.used or slot.hinge is None:
-                continue
-            kind = self._hinge_of(slot)
-            step = kind.speed * period
-            slot.setpoint += max(-step, min(step, slot.goal - slot.setpoint))
-            rs, _ = self._frame(slot.source)
-            axis = rs @ port_frame(self.kinds[slot.source], slot.ports[0])[0] @ slot.hinge
-            a, b = self.bodies[slot.source], self.bodies[slot.target]
-            rate = float((self.data.cvel[b][:3] - self.data.cvel[a][:3]) @ axis)
-            gain = kind.torque / 0.15
-            torque = gain * (slot.setpoint - self._angle(slot)) - 0.03 * gain * rate
-            torque = max(-kind.torque, min(kind.torque, torque))
-            self.data.xfrc_applied[b, 3:] += torque * axis
-            self.data.xfrc_applied[a, 3:] -= torque * axis
+            if slot.used and slot.hinge is not None:
+                step = self._hinge_of(slot).speed * period
+                slot.setpoint += max(-step, min(step, slot.goal - slot.setpoint))
+                self.data.ctrl[slot.servo] = slot.setpoint
 
     def _hinge_of(self, slot: _Slot) -> Any:
         source = self.kinds[slot.source]
@@ -484,10 +521,8 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
                                               tuple(float(c) for c in z)))
         out = {}
         for m, kind in self.kinds.items():
-            quat = np.empty(4)
-            mujoco.mju_mat2Quat(quat, imu[m].reshape(-1))
             out[m] = ModuleReading(kind.name, tuple(latches[m]), joints=joints[m],
-                                   imu=tuple(float(q) for q in quat))
+                                   imu=tuple(float(q) for q in _quat(imu[m])))
         return out
 
     def tracked(self) -> dict[str, Pose]:
@@ -495,10 +530,7 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         out = {}
         for m in self.kinds:
             rotation, position = self._frame(m)
-            noisy = self.noise.rotation(rotation)
-            quat = np.empty(4)
-            mujoco.mju_mat2Quat(quat, noisy.reshape(-1))
-            w, x, y, z = quat
+            w, x, y, z = _quat(self.noise.rotation(rotation))
             out[m] = Pose(position + self.rng.normal(0.0, self.options.tracking, 3),
                           np.array([x, y, z, w]))
         return out
@@ -521,6 +553,13 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         graph.add_nodes_from(self.kinds)
         graph.add_edges_from((s.source, s.target) for s in self.slots if s.used)
         return [frozenset(c) for c in nx.connected_components(graph)]
+
+
+def _quat(rotation: np.ndarray) -> np.ndarray:
+    """MuJoCo's quaternion (w, x, y, z) of a rotation matrix (3, 3)."""
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation, dtype=float).reshape(-1))
+    return quat
 
 
 class PhysicsDriver(MujocoDriver[PhysicsWorld]):
