@@ -152,6 +152,7 @@ class _Fold:
     goals: dict[str, float]
     change: ConnectionChange | None = None
     trim: dict[str, float] = field(default_factory=dict)
+    start: dict[str, tuple[float, float]] = field(default_factory=dict)  # [s], [rad]
     time: float | None = None
     best: tuple[float, float] = (math.inf, 0.0)  # least worst error [rad], since [s]
     stalled: str = ""
@@ -504,8 +505,12 @@ class DriveController:
                            else (edge.target, -1.0))
             port = edge.ports[0] if owner == edge.source else edge.ports[1]
             error = wrap_angle(goal - angles.get(edge_id, 0.0))
-            if abs(error) < self.tolerance.angle:  # near: no wind-up while it moves
-                job.trim[edge_id] = job.trim.get(edge_id, 0.0) + GAIN_TRIM * error * period
+            hinge = self._hinge(config, edge)
+            job.start.setdefault(edge_id, (observation.time, angles.get(edge_id, 0.0)))
+            began, start = job.start[edge_id]
+            if observation.time - began > abs(goal - start) / hinge.speed:  # not while the
+                job.trim[edge_id] = max(-hinge.limit, min(hinge.limit, job.trim.get(  # servo
+                    edge_id, 0.0) + GAIN_TRIM * error * period))  # still turns to the goal
             base = commands.get(owner, ModuleCommand())
             commands[owner] = ModuleCommand(joints={
                 **base.joints, port: sign * (goal + job.trim.get(edge_id, 0.0))})
@@ -513,7 +518,7 @@ class DriveController:
                 worst, stuck = abs(error), (
                     f"hinge {edge_id} at {angles.get(edge_id, 0.0):+.2f} rad, {error:+.2f} rad "
                     f"from its goal {goal:+.2f} rad, its servo at most "
-                    f"{self._hinge(config, edge).torque:g} N m")
+                    f"{hinge.torque:g} N m")
         errors["joints"] = worst
         if worst < job.best[0] - STALL[1]:
             job.best = (worst, observation.time)

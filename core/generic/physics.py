@@ -87,6 +87,11 @@ SERVO_SPAN = 0.15
 SERVO_DAMPING = 0.03
 """A hinge servo's damping per stiffness [s]."""
 
+SERVO_STABLE = 0.3
+"""A hinge servo's stiffness is at most this times the smaller principal inertia of its
+two bodies over the timestep squared: its spring acts explicitly, and a body between
+two stiffer servos rings and throws the chain apart (a ring of 30 at 5 N m did)."""
+
 
 @dataclass(frozen=True, kw_only=True)
 class PhysicsOptions(MujocoOptions):
@@ -361,7 +366,9 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         m.actuator_trnid[slot.servo] = (target, source)
         m.actuator_gear[slot.servo, 3:] = slot.hinge
         hinge = self._hinge_of(slot)
-        gain = hinge.torque / SERVO_SPAN
+        inertia = float(np.min(m.body_inertia[[self.bodies[slot.source],
+                                                self.bodies[slot.target]]]))
+        gain = min(hinge.torque / SERVO_SPAN, SERVO_STABLE * inertia / m.opt.timestep ** 2)
         self._servo_gains(slot.servo, gain, SERVO_DAMPING * gain)
         m.actuator_forcerange[slot.servo] = (-hinge.torque, hinge.torque)
         self.data.ctrl[slot.servo] = slot.setpoint
