@@ -64,8 +64,10 @@ from .readings import FREEFORM_PREFIX, SLIDE_KEYS, ModuleReading
 
 __all__ = ["LatchController"]
 
-REACHED = 1e-6
-"""Distance [m] (and angle [rad]) at which a waypoint counts as reached."""
+REACHED = 0.5
+"""A waypoint counts as reached within this fraction of the robot's
+:class:`~msrr.core.robot.DockTolerance` (its position [m] and angle [rad]), as in the
+drive controller: the kinematic world moves exactly, so it is reached well within."""
 
 CONTACT_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1),
                       (1, 1, 0), (1, -1, 0), (-1, 1, 0), (-1, -1, 0))
@@ -109,6 +111,7 @@ class LatchController:
 
     def __init__(self, spec: RobotSpec):
         self.spec = spec
+        self.tolerance = spec.defaults.dock_tolerance
         self.jobs: deque[_Job | ConnectionChange | tuple[str, list[float]]] = deque()
         self.job: _Job | None = None
         self.parked = 0
@@ -248,7 +251,7 @@ class LatchController:
                                                                  slide.parent).position
         radius = float(np.linalg.norm(offset))
         here = offset / radius
-        while slide.waypoints and float(here @ slide.waypoints[0]) >= math.cos(REACHED):
+        while slide.waypoints and float(here @ slide.waypoints[0]) >= math.cos(REACHED * self.tolerance.angle):
             slide.waypoints.popleft()
         if not slide.waypoints:
             return
@@ -272,7 +275,7 @@ class LatchController:
                     continue
             job = self.job
             here = _body(observation, job.leader)
-            while job.waypoints and _close(here, job.waypoints[0]):
+            while job.waypoints and self._close(here, job.waypoints[0]):
                 job.waypoints.popleft()
             if job.final is not None:
                 errors[job.leader] = float(np.linalg.norm(here.position - job.final.position))
@@ -447,7 +450,7 @@ class LatchController:
         (away from the nearest bodies, else along +-x, +-y, one to three body sizes); the lift path if none is free
         (the driver then refuses the move and says where)."""
         here = _body(observation, leader)
-        if _close(here, final):
+        if self._close(here, final):
             return deque()
         candidates = [[final]]
         for side in self._side_steps(observation, group, here):
@@ -518,6 +521,12 @@ class LatchController:
             self._add(commands, change.source, dock=change.source_port)
             self._add(commands, change.target, dock=change.target_port)
 
+    def _close(self, pose: BodyPose, target: BodyPose) -> bool:
+        """Whether ``pose`` is within reach of ``target`` (see :data:`REACHED`)."""
+        return (float(np.linalg.norm(pose.position - target.position))
+                <= REACHED * self.tolerance.position
+                and abs(wrap_angle(pose.yaw - target.yaw)) <= REACHED * self.tolerance.angle)
+
     @staticmethod
     def _add(commands: dict[str, ModuleCommand], module: str, *, pose: BodyPose | None = None,
              dock: str | None = None, undock: str | None = None) -> None:
@@ -531,9 +540,6 @@ class LatchController:
                                          undock=base.undock + ((undock,) if undock else ()))
 
 
-def _close(pose: BodyPose, target: BodyPose) -> bool:
-    return (float(np.linalg.norm(pose.position - target.position)) <= REACHED
-            and abs(wrap_angle(pose.yaw - target.yaw)) <= REACHED)
 
 
 def _latched(observation: Observation) -> set[ConnectionKey]:
