@@ -12,7 +12,8 @@ The plan is built directly (one undock, one dock; or one dock), since the generi
 planner stops at 12 modules. The table gives the simulated and wall time of the run,
 their ratio (the real-time factor of the whole loop: physics, reports, recognition,
 control), the physics alone (steps per wall second of a run without commands), and the
-verdict.
+verdict: success judged on ground truth, or the reason (a fold whose hinge no longer
+moves names it, its angle, its goal and its servo's torque bound).
 
 Usage: ``python benchmarks/generic_physics.py [--seed N] [--sizes 4,10,30]
 [--robots cube,hinge] [--timeout S]``.
