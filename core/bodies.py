@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from .robot import Body, ModuleKind, PortSpec, RobotSpec
 
 __all__ = ["Frame", "body_reach", "close_loops", "connection_hinge", "docked_pose", "frame_of",
-           "has_bodies", "hinge_angle", "hinge_edges", "port_mismatch", "vector_angles",
+           "even_bend", "has_bodies", "hinge_angle", "hinge_edges", "port_mismatch", "vector_angles",
            "geometry_problems", "inscribed", "layout", "port_frame", "rotation_about",
            "with_port_vectors"]
 
@@ -238,9 +238,8 @@ def with_port_vectors(config: Configuration, spec: RobotSpec) -> Configuration:
     poses, closing = layout(config, spec)
     if closing and hinge_edges(config, spec):  # hinges close the loops: fold them shut
         edges = [config.edge(e) for e in closing]
-        angles, _ = close_loops(config, spec, [(e.source, e.ports[0], e.target, e.ports[1])
-                                               for e in edges], dict.fromkeys(
-            hinge_edges(config, spec), UNBENT))
+        pairs = [(e.source, e.ports[0], e.target, e.ports[1]) for e in edges]
+        angles, _ = close_loops(config, spec, pairs, even_bend(config, spec, pairs))
         poses, _ = layout(config, spec, angles)
     z: dict[str, np.ndarray | None] = {}
     x: dict[str, np.ndarray | None] = {}
@@ -363,6 +362,43 @@ def _hinge_limit(config: Configuration, spec: RobotSpec, edge_id: str) -> float:
     ka, kb = _kinds(config, spec, edge)
     hinge = ka.hinge if ka.hinge is not None and ka.hinge.port == edge.ports[0] else kb.hinge
     return hinge.limit
+
+
+def even_bend(config: Configuration, spec: RobotSpec, closing: list[Closing],
+              steps: int = 64) -> dict[str, float]:
+    """One angle [rad] for every hinge of ``config`` -- of ``steps`` from :data:`UNBENT`
+    to the smallest hinge limit, the positive way -- whose layout brings the ports of
+    ``closing`` closest: where :func:`close_loops` starts folding a loop, so that a ring
+    of like hinges folds evenly (a regular polygon) rather than at whichever hinge least
+    squares reaches first."""
+    hinges = hinge_edges(config, spec)
+    if not hinges:
+        return {}
+    pairs = [((spec.kind(config.kind_of(s)), spec.kind(config.kind_of(t))), (sp, tp), s, t)
+             for s, sp, t, tp in closing]
+    top = min(_hinge_limit(config, spec, e) for e in hinges)
+
+    def gap(angle: float) -> float:
+        poses, _ = layout(config, spec, dict.fromkeys(hinges, angle))
+        return max((float(np.linalg.norm(port_mismatch(poses[s], poses[t], kinds, ports)[0]))
+                    for kinds, ports, s, t in pairs), default=0.0)
+
+    from scipy.optimize import minimize_scalar  # only where hinges close loops
+
+    grid = np.linspace(UNBENT, max(UNBENT, top), steps)
+    gaps = [gap(a) for a in grid]
+    step = float(grid[1] - grid[0]) if steps > 1 else 0.0
+    found = []  # each local minimum of the grid refined, the least bend first: more would
+    for i, g in enumerate(gaps):  # wind the loop round twice
+        if (i == 0 or g <= gaps[i - 1]) and (i + 1 == steps or g <= gaps[i + 1]):
+            fit = minimize_scalar(gap, bounds=(max(UNBENT, grid[i] - step),
+                                               min(top, grid[i] + step)), method="bounded")
+            found.append((float(fit.fun), float(fit.x)))
+            if fit.fun < LOOP_TOLERANCE:
+                break
+    first = next((a for g, a in found if g < LOOP_TOLERANCE), min(found)[1] if found
+                 else UNBENT)
+    return dict.fromkeys(hinges, float(first))
 
 
 def close_loops(config: Configuration, spec: RobotSpec, closing: list[Closing],

@@ -217,20 +217,20 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         part = mj.worldbody.add_body(name=module, pos=position.tolist(),
                                      quat=_quat(rotation).tolist())
         part.add_freejoint(name=f"{module}/free")
-        friction = [body.friction, 0.02, 0.001]
+        friction = [body.friction, 0.02, 0.001]  # its own against the floor: MuJoCo takes
+        shell = {"friction": friction, "priority": 1}  # the higher priority's (else the max)
         along_x = [math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0]  # z axis turned onto x
         if body.shape == "box":  # a hair smaller: docked faces do not collide
             part.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX,
-                          size=[s / 2 - SKIN for s in body.size], mass=body.mass,
-                          friction=friction)
+                          size=[s / 2 - SKIN for s in body.size], mass=body.mass, **shell)
         elif body.shape == "sphere":
             part.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[body.size[0], 0, 0],
-                          mass=body.mass, friction=friction)
+                          mass=body.mass, **shell)
         else:
             shape = (mujoco.mjtGeom.mjGEOM_CAPSULE if body.shape == "capsule"
                      else mujoco.mjtGeom.mjGEOM_CYLINDER)
             part.add_geom(type=shape, size=[body.size[0], body.size[1] / 2, 0], quat=along_x,
-                          mass=body.mass, friction=friction)
+                          mass=body.mass, **shell)
         for port in kind.ports:  # where a hinge servo measures and acts
             rotation, at = port_frame(kind, port.name)
             part.add_site(name=f"{module}/{port.name}", pos=at.tolist(),
