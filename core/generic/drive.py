@@ -75,8 +75,8 @@ GAIN_TRIM = 1.0
 """Integral gain [1/s] of a hinge goal's trim on its encoder's error."""
 
 STALL = (3.0, 0.01)
-"""A fold has stalled when its worst hinge error has not fallen by ``STALL[1]`` [rad]
-in ``STALL[0]`` [s]."""
+"""A fold has stalled when the sum of its hinges' errors has not fallen by ``STALL[1]``
+[rad] in ``STALL[0]`` [s] after its servos have had time to turn to their goals."""
 
 
 MAX_TURN_RATE = 1.5
@@ -154,7 +154,7 @@ class _Fold:
     trim: dict[str, float] = field(default_factory=dict)
     start: dict[str, tuple[float, float]] = field(default_factory=dict)  # [s], [rad]
     time: float | None = None
-    best: tuple[float, float] = (math.inf, 0.0)  # least worst error [rad], since [s]
+    best: tuple[float, float] = (math.inf, 0.0)  # least error sum [rad], since [s]
     stalled: str = ""
 
 
@@ -493,7 +493,7 @@ class DriveController:
     def _fold(self, job: _Fold, observation: Observation, config: Configuration,
               angles: dict[str, float], commands: dict[str, ModuleCommand],
               errors: dict[str, float]) -> bool:
-        worst, stuck = 0.0, ""
+        worst, total, turned, stuck = 0.0, 0.0, 0.0, ""
         period = 0.0 if job.time is None else observation.time - job.time
         job.time = observation.time
         for edge_id, goal in job.goals.items():
@@ -508,7 +508,9 @@ class DriveController:
             hinge = self._hinge(config, edge)
             job.start.setdefault(edge_id, (observation.time, angles.get(edge_id, 0.0)))
             began, start = job.start[edge_id]
-            if observation.time - began > abs(goal - start) / hinge.speed:  # not while the
+            turned = max(turned, began + abs(goal - start) / hinge.speed)
+            total += abs(error)
+            if observation.time > began + abs(goal - start) / hinge.speed:  # not while the
                 job.trim[edge_id] = max(-hinge.limit, min(hinge.limit, job.trim.get(  # servo
                     edge_id, 0.0) + GAIN_TRIM * error * period))  # still turns to the goal
             base = commands.get(owner, ModuleCommand())
@@ -520,8 +522,8 @@ class DriveController:
                     f"from its goal {goal:+.2f} rad, its servo at most "
                     f"{hinge.torque:g} N m")
         errors["joints"] = worst
-        if worst < job.best[0] - STALL[1]:
-            job.best = (worst, observation.time)
+        if total < job.best[0] - STALL[1] or observation.time < turned:
+            job.best = (min(total, job.best[0]), observation.time)
         elif worst > self.tolerance.angle / 2 and observation.time - job.best[1] > STALL[0]:
             job.stalled = f"{stuck}, has not moved for {STALL[0]:g} s"
         if worst > self.tolerance.angle / 2:
