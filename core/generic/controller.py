@@ -251,7 +251,8 @@ class LatchController:
                                                                  slide.parent).position
         radius = float(np.linalg.norm(offset))
         here = offset / radius
-        while slide.waypoints and float(here @ slide.waypoints[0]) >= math.cos(REACHED * self.tolerance.angle):
+        near = math.cos(REACHED * self.tolerance.angle)
+        while slide.waypoints and float(here @ slide.waypoints[0]) >= near:
             slide.waypoints.popleft()
         if not slide.waypoints:
             return
@@ -538,8 +539,6 @@ class LatchController:
         commands[module] = ModuleCommand(joints=joints, wheels=base.wheels,
                                          dock=base.dock + ((dock,) if dock else ()),
                                          undock=base.undock + ((undock,) if undock else ()))
-
-
 
 
 def _latched(observation: Observation) -> set[ConnectionKey]:

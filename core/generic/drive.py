@@ -145,14 +145,15 @@ class _Drive:
 @dataclass
 class _Fold:
     """Hinge goals (edge id -> rad) of a group, and the dock they make, if any; ``trim``
-    (edge id -> rad) the integral of the encoders' error near the goals, added to what
-    the servos are told (a servo of bounded stiffness sags under load: folding a long
-    chain on the floor, a few hundredths of a radian at each hinge add up along it)."""
+    (edge id -> rad) the integral of each encoder's error once its servo has had time to
+    turn to the goal, added to what the servo is told (a servo of bounded stiffness sags
+    under load: folding a long chain on the floor, a few hundredths of a radian at each
+    hinge add up along it); ``start`` when and where each hinge began [s], [rad]."""
 
     goals: dict[str, float]
     change: ConnectionChange | None = None
     trim: dict[str, float] = field(default_factory=dict)
-    start: dict[str, tuple[float, float]] = field(default_factory=dict)  # [s], [rad]
+    start: dict[str, tuple[float, float]] = field(default_factory=dict)
     time: float | None = None
     best: tuple[float, float] = (math.inf, 0.0)  # least error sum [rad], since [s]
     stalled: str = ""
@@ -508,11 +509,11 @@ class DriveController:
             hinge = self._hinge(config, edge)
             job.start.setdefault(edge_id, (observation.time, angles.get(edge_id, 0.0)))
             began, start = job.start[edge_id]
-            turned = max(turned, began + abs(goal - start) / hinge.speed)
-            total += abs(error)
-            if observation.time > began + abs(goal - start) / hinge.speed:  # not while the
-                job.trim[edge_id] = max(-hinge.limit, min(hinge.limit, job.trim.get(  # servo
-                    edge_id, 0.0) + GAIN_TRIM * error * period))  # still turns to the goal
+            there = began + abs(goal - start) / hinge.speed  # its servo has turned by then
+            turned, total = max(turned, there), total + abs(error)
+            if observation.time > there:
+                trim = job.trim.get(edge_id, 0.0) + GAIN_TRIM * error * period
+                job.trim[edge_id] = max(-hinge.limit, min(hinge.limit, trim))
             base = commands.get(owner, ModuleCommand())
             commands[owner] = ModuleCommand(joints={
                 **base.joints, port: sign * (goal + job.trim.get(edge_id, 0.0))})

@@ -162,10 +162,10 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
         self.bodies = {m: self.model.body(m).id for m in self.kinds}
         self.sites = {(m, p.name): self.model.site(f"{m}/{p.name}").id
                       for m, k in self.kinds.items() for p in k.ports}
-        self.model.site_sameframe[list(self.sites.values())] = 0  # their frames are set
-        for slot in self.slots:  # at each dock
-            if slot.servo >= 0:
-                slot.servo = self.model.actuator(f"dock{slot.servo}/servo").id
+        self.model.site_sameframe[list(self.sites.values())] = 0  # set at each dock
+        if any(k.hinge is not None for k in self.kinds.values()):
+            for i, slot in enumerate(self.slots):
+                slot.servo = self.model.actuator(f"dock{i}/servo").id
         self.actuators = {m: (self.model.actuator(f"{m}/left").id,
                               self.model.actuator(f"{m}/right").id)
                           for m, k in self.kinds.items() if k.wheels is not None}
@@ -278,7 +278,7 @@ class PhysicsWorld(MujocoWorld[int, tuple[str, str]]):
                 self.welds.add(mj, key, name, type=kind, objtype=mujoco.mjtObj.mjOBJ_BODY,
                                name1=modules[0], name2=modules[1], solref=list(WELD_SOLREF),
                                solimp=list(WELD_SOLIMP))
-            slots.append(_Slot(3 * i, (3 * i + 1, 3 * i + 2), i if hinges else -1))
+            slots.append(_Slot(3 * i, (3 * i + 1, 3 * i + 2)))
             if hinges:
                 servo = mj.add_actuator(name=f"dock{i}/servo", trntype=mujoco.mjtTrn.mjTRN_SITE,
                                         target=sites[1], refsite=sites[0])

@@ -22,6 +22,7 @@ from msrr.core.bodies import (
     body_reach,
     close_loops,
     docked_pose,
+    even_bend,
     geometry_problems,
     layout,
     port_frame,
@@ -120,6 +121,23 @@ def test_hinges_fold_a_chain_shut() -> None:
     head = poses["h4"][0] @ np.array([0.095, 0, 0]) + poses["h4"][1]
     tail = poses["h1"][0] @ np.array([-0.095, 0, 0]) + poses["h1"][1]
     assert np.linalg.norm(head - tail) < 1e-4  # forward kinematics agrees
+
+
+@pytest.mark.parametrize("n", [4, 10, 30])
+def test_a_ring_of_like_hinges_folds_into_a_regular_polygon(n: int) -> None:
+    """The least even bend that closes a planar ring of n like links is 2 pi / n (one
+    turn; 4 pi / n would wind it twice), and close_loops keeps it."""
+    chain = Configuration("links")
+    for i in range(1, n + 1):
+        chain.add_module(f"h{i}", "link")
+    for i in range(1, n):
+        chain.connect(f"h{i}", f"h{i + 1}", ports=("head", "tail"))
+    closing = [(f"h{n}", "head", "h1", "tail")]
+    start = even_bend(chain, LINKS, closing)
+    assert all(a == pytest.approx(2 * math.pi / n, abs=1e-4) for a in start.values())
+    angles, gap = close_loops(chain, LINKS, closing, start)
+    assert gap < 1e-6
+    assert all(a == pytest.approx(2 * math.pi / n, abs=1e-4) for a in angles.values())
 
 
 @pytest.mark.parametrize(("make", "needle"), [

@@ -137,3 +137,4 @@ def test_a_goal_that_only_bends_a_hinge_is_judged_by_its_shape(tmp_path: Path) -
     # eq. 8 turns the goal by the yaw that fits best: 13 deg off on each of the two edges
     assert summary["goal"]["shape"]["error_deg"] == pytest.approx(13.0, abs=0.01)
     assert "shape outside the tolerance" in summary["reason"]
+    assert summary["goal"]["basis"] == "ground truth"  # the kinematic world's own state
