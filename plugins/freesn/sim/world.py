@@ -114,6 +114,7 @@ _ATTRACTION_CONE = np.radians(45.0)  # a magnet pulls on a node in front of it
 _MAGNET_FALLOFF = 0.005  # distance over which a magnet's pull falls to a quarter [m]
 _FUSION = 0.2         # weight of a fresh localisation fix in a connector's estimate (10 Hz: 0.45 s)
 _GRIP_LEVER = 0.05    # a grip tendon's length: contact point to its anchor along the axle [m]
+_GRIP_SOLIMP = [0.999, 0.9999, 0.001, 0.5, 2.0]  # a stiff grip (MuJoCo's default creeps)
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
 _TURN_OFF = np.radians(2.0)   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
@@ -360,7 +361,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         contact = [0.0, 0.0, -sign * (0.5 * p.strut_length - p.node_radius)]
         strut_body.add_site(name=f"contact/{strut}/{end}", pos=contact)
         roller.add_site(name=f"grip/{strut}/{end}", pos=[0.0, _GRIP_LEVER, sign * p.node_radius])
-        tendon = spec.add_tendon(name=f"grip/{strut}/{end}", frictionloss=p.grip)
+        tendon = spec.add_tendon(name=f"grip/{strut}/{end}", frictionloss=p.grip,
+                                 solimp_friction=_GRIP_SOLIMP)
         tendon.wrap_site(f"contact/{strut}/{end}")
         tendon.wrap_site(f"grip/{strut}/{end}")
         for side, turn in (("left", -1.0), ("right", 1.0)):
