@@ -14,12 +14,19 @@ Bodies (FreeSN paper, section 2.1, Fig. 2):
   node's centre whose three rotations are driven by the connector's motors; loops (a
   triangle, the octahedron) close through the same welds.
 
-Actuation (section 4.2, Fig. 11b): the wheels of a docked connector roll the strut
-end over the node (two directions) and turn the strut about its axis. The motors are
-DC motors: a passive damping ``D = torque / roll rate`` on the ball joint (their
-back-EMF, integrated implicitly) and a drive torque ``D * omega_cmd`` bounded by the
-torque limit, with ``omega_cmd`` from a position loop toward the commanded pose,
-bounded by the wheel speed (rolling) and the differential speed (spinning).
+Actuation (section 4.2, Fig. 11b), two models (``SimOptions.connector_drive``):
+
+* ``"differential"``: the paper's connector, two wheels that roll the strut end along
+  their heading and turn the strut about its axis, gripping sideways. Each wheel motor
+  is a velocity actuator on the ball joint in the strut's frame (its back-EMF implicit,
+  its torque bounded, :meth:`FreeSNWorld._drive`), the grip Coulomb friction on a tendon
+  through the contact point (:meth:`FreeSNWorld._add_drive`), and the connector turns,
+  then rolls toward its target (:meth:`FreeSNWorld._steer`);
+* ``"holonomic"`` (the default): three torques on the ball joint. The motors are DC
+  motors: a passive damping ``D = torque / roll rate`` on the ball joint (their
+  back-EMF, integrated implicitly) and a drive torque ``D * omega_cmd`` bounded by the
+  torque limit, with ``omega_cmd`` from a position loop toward the commanded pose,
+  bounded by the wheel speed (rolling) and the differential speed (spinning).
 
 Wheels (sections 4.2, 7.3): a connector's wheel pair also takes a speed command (see
 :mod:`.commands`). Docked, the two wheels run in opposition: the twist of the ball
@@ -541,7 +548,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
 
     def _set_effort(self, k: int, effort: float) -> None:
         """Connector ``k``'s torque fraction; ``0`` coasts: its drivers off, so neither
-        drive nor back-EMF damping (the ball joint turns freely)."""
+        drive nor back-EMF damping (the ball joint turns freely; a differential drive's
+        wheels still grip sideways)."""
         self._effort[k] = effort
         if not self._differential:
             self.model.dof_damping[self._dofs[k]] = self.phys.damping if effort > 0.0 else 0.0
