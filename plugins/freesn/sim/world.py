@@ -780,15 +780,18 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
 
     def _drive(self, speed: np.ndarray) -> None:
         """Every wheel motor toward ``speed`` (k, 2) [rad/s]: a DC motor's torque ``D_w
-        (speed - v)`` at the wheel speed ``v`` now, bounded by the wheel torque times the
-        connector's effort (full torque when its wheels are commanded), passed as the
-        velocity actuator's control ``v + torque / D_w`` so the back-EMF stays implicit;
-        free ends' wheel hinges likewise."""
+        (speed - v)`` at the wheel speed ``v`` now, bounded by the wheel torque, passed as
+        the velocity actuator's control ``v + torque / D_w`` so the back-EMF stays
+        implicit; free ends' wheel hinges likewise. A reduced effort (a connector that
+        closes a loop) does not weaken the wheels, only ``0`` (coasting) stops them: a
+        node is held by its connectors' wheels, whose turning is weak already (its
+        back-EMF ``2 D_w tau^2``), and with softened wheels the nodes of S6N3's triangle
+        spun under its legs' loads."""
         p = self.phys
         kv = 0.5 * p.wheel_damping
         v = self.data.actuator_velocity[self._motor]
-        limit = 0.5 * p.wheel_torque * np.where(self._wheel != 0.0, 1.0, self._effort)
-        torque = np.clip(kv * (speed - v), -limit[:, None], limit[:, None])
+        limit = 0.5 * p.wheel_torque
+        torque = np.clip(kv * (speed - v), -limit, limit)
         self._torque = torque * (self._effort > 0.0)[:, None]
         self.data.ctrl[self._motor] = v + torque / kv
         self._drive_free_wheels()
