@@ -410,6 +410,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._refresh_driven()
         self._eps[k] = 0.0
         self._fix[k] = 0.0
+        self._turning[k] = self._backwards[k] = False
         self.events.append(DockEvent(self.time, strut, end, node, kind, float(self._load[k])))
         self._load[k] = 0.0
 
