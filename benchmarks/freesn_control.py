@@ -11,7 +11,8 @@ Targets at 18 modules (issue 12): tick median <= 20 ms and the simulation's real
 factor (physics) >= 5; the loop RTF (reports + tick + physics, one core) is shown too.
 
 Usage: ``python benchmarks/freesn_control.py [--seed N] [--ticks N] [--workers N]
-[--cluster ADDRESS]`` (one batch task per library, :mod:`msrr.core.app.batch`; the default
+[--cluster ADDRESS] [--drive holonomic|differential]`` (one batch task per library,
+:mod:`msrr.core.app.batch`; the default
 one worker keeps the timings those of one core alone). The last line is
 ``tick_median_ms_18=... tick_p95_ms_18=... rtf_loop_18=... rtf_physics_18=...``.
 """
@@ -41,7 +42,8 @@ EDGES = {"S4N5": "S4N5:S4N5-1.1->S4N5-1.2", "S6N3": "S6N3:S6N3-1.1->S6N3-1.2",
 """One moving edge per library (a large motion, so the tracker works every tick)."""
 
 
-def measure(name: str, seed: int, ticks: int, rate: float = 10.0) -> dict[str, float]:
+def measure(name: str, seed: int, ticks: int, rate: float = 10.0, drive: str = "holonomic"
+            ) -> dict[str, float]:
     """Time ``ticks`` control ticks of ``name``'s edge (a batch task: one library each)."""
     robot = plugins.resolve("freesn")
     case = next(c for c in edge_cases(load_library(LIBRARIES / f"{name}.json"), robot)
@@ -49,7 +51,8 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0) -> dict[str, f
     recognizer = plugins.recognizers.get("freesn")
     controller = plugins.controllers.get("freesn")
     tick_s, physics_s = [], 0.0
-    with FreeSNMujocoDriver(noise=math.radians(2.0), slip=0.05, seed=seed) as driver:
+    with FreeSNMujocoDriver(noise=math.radians(2.0), slip=0.05, seed=seed,
+                            connector_drive=drive) as driver:
         driver.reset(case.start)
         current = recognizer.recognize(driver.get_observation().sensors)
         tree = tree_for(current, case.action.kinematic_tree, robot.default_joint_mode())
@@ -85,11 +88,14 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0) -> dict[str, f
                    "core alone; 0: one per core).")
 @click.option("--cluster", default=None, metavar="ADDRESS",
               help="Run on Ray: auto, ray://HOST:PORT or local.")
-def main(seed: int, ticks: int, workers: int, cluster: str | None) -> None:
-    console.print(f"seed {seed}, {ticks} ticks at 10 Hz per library, noise 2 deg, slip 0.05")
+@click.option("--drive", type=click.Choice(["holonomic", "differential"]), default="holonomic",
+              show_default=True, help="The connectors' model (the world's connector_drive).")
+def main(seed: int, ticks: int, workers: int, cluster: str | None, drive: str) -> None:
+    console.print(f"seed {seed}, {ticks} ticks at 10 Hz per library, noise 2 deg, slip 0.05, "
+                  f"{drive} connectors")
     rows, results = [], {}
     with exit_on_interrupt():
-        measured = run_batch(partial(measure, seed=seed, ticks=ticks), list(EDGES),
+        measured = run_batch(partial(measure, seed=seed, ticks=ticks, drive=drive), list(EDGES),
                              keys=list(EDGES), workers=workers, cluster=cluster,
                              label="libraries").values()
     for name, r in zip(EDGES, measured, strict=True):

@@ -332,3 +332,17 @@ def test_iso_search_refuses_an_edge_module_without_z() -> None:
     system.connect("a", "b", id="e", kind="strut")
     with pytest.raises(MatchingError, match="system sys: connection e \\(strut\\) has no z"):
         next(iso_search(system, system))
+
+
+@pytest.mark.parametrize("option, says", [("bogus=1", "unknown option 'bogus'"),
+                                          ("connector_drive=tracked", "connector_drive"),
+                                          ("noise", "is not KEY=VALUE")])
+def test_library_check_refuses_a_driver_option_its_driver_does_not_take(
+        tmp_path: Path, option: str, says: str) -> None:
+    out = tmp_path / "check.json"
+    library = Path(__file__).resolve().parents[2] / "plugins/freesn/libraries/S4N1.json"
+    result = run("library", "check", str(library), "-o", str(out),
+                 "--driver-option", option)
+    assert result.exit_code != 0 and "Traceback" not in result.output
+    assert says in result.output and "--driver-option" in result.output
+    assert not out.exists()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -127,14 +128,16 @@ def show(library: Path) -> None:
 @click.option("--slip", type=FiniteFloat(0.0, 1.0), default=0.0, show_default=True,
               help="Odometry heading error per radian rolled [rad/rad], in [0, 1].")
 @click.option("--edge", "only", multiple=True, help="Check only edges whose key contains this.")
+@click.option("--driver-option", "extra", multiple=True, metavar="KEY=VALUE",
+              help="Keyword option of the driver, repeatable (as for `platform run`).")
 @click.option("--resume", is_flag=True,
               help="Continue an interrupted or failed check from its journal "
                    "(<OUTPUT>.journal): only the edges without a result run.")
 @retries_option
 @batch_options
 def check_command(library: Path, output: Path | None, seed: int, action_timeout: float,
-                  noise: float, slip: float, only: tuple[str, ...], resume: bool, retries: int,
-                  workers: int, cluster: str | None) -> None:
+                  noise: float, slip: float, only: tuple[str, ...], extra: tuple[str, ...],
+                  resume: bool, retries: int, workers: int, cluster: str | None) -> None:
     """Run every action edge of LIBRARY in simulation from its source configuration and
     record per edge: feasible, the reason when not, the simulated time (paper 6.2).
 
@@ -147,7 +150,8 @@ def check_command(library: Path, output: Path | None, seed: int, action_timeout:
     from ...library.check import check_path
 
     check = _CheckRun.prepare(library, output or check_path(library), seed=seed,
-                              action_timeout=action_timeout, noise=noise, slip=slip, only=only)
+                              action_timeout=action_timeout, noise=noise, slip=slip, only=only,
+                              extra=extra)
     check.run(resume=resume, retries=retries, workers=workers, cluster=cluster)
     check.write()
 
@@ -165,26 +169,33 @@ class _CheckRun:
 
     @classmethod
     def prepare(cls, library: Path, target: Path, *, seed: int, action_timeout: float,
-                noise: float, slip: float, only: tuple[str, ...]) -> _CheckRun:
-        """Load the library and resolve the robot; refuse a bad output place."""
+                noise: float, slip: float, only: tuple[str, ...], extra: tuple[str, ...] = ()
+                ) -> _CheckRun:
+        """Load the library and resolve the robot; refuse a bad output place or a driver
+        option the driver does not take."""
+        from ...driver import check_driver_options
         from ...executor import ExecutorOptions
         from ...files import check_output_place
         from ...library.check import edge_cases, library_digest
         from ..feasibility import default_runner
+        from ..run import parse_driver_options
 
         lib = load_library(library)
         check_output_place(target, option="--output")
-        driver_options: tuple[tuple[str, float], ...] = ()
+        driver_options: tuple[tuple[str, Any], ...] = ()
         if noise:
             driver_options += (("noise", math.radians(noise)),)
         if slip:
             driver_options += (("slip", slip),)
         runner = default_runner(lib.robot, options=ExecutorOptions(
-            action_timeout=action_timeout, retries=0), driver_options=driver_options, seed=seed)
+            action_timeout=action_timeout, retries=0), seed=seed)
+        runner = replace(runner, driver_options=driver_options + check_driver_options(
+            runner.driver, parse_driver_options(extra)))
         cases = [c for c in edge_cases(lib, runner.robot)
                  if not only or any(o in c.key for o in only)]
         options = {"rate_hz": runner.options.rate, "action_timeout_s": action_timeout,
-                   "timeout_per_rad_s": runner.timeout_per_rad, "noise_deg": noise, "slip": slip}
+                   "timeout_per_rad_s": runner.timeout_per_rad, "noise_deg": noise, "slip": slip,
+                   **dict(runner.driver_options[len(driver_options):])}
         header = {"library": lib.name, "library_sha256": library_digest(library),
                   "robot": lib.robot, "driver": runner.driver.name, "seed": seed,
                   "options": options}

@@ -49,6 +49,10 @@ class SimOptions(MujocoOptions):
         gyro_walk: random walk of that bias (bias instability) [rad/s / sqrt(s)].
         gyro_noise: the gyro's angle random walk [rad / sqrt(s)] (its white rate noise).
         seed: seed of the noise, drift, slip and gyro generators.
+        connector_drive: ``"differential"``: a docked connector is the paper's two-wheel
+            differential drive (Fig. 11), which rolls and turns on its node but grips
+            sideways; ``"holonomic"``: three torques on its ball joint (the model before
+            issue 32 item 6, kept to compare).
 
     The gyro figures are assumptions of a MEMS IMU calibrated at start-up (the FreeSN
     papers name no part): rate noise about 0.01 deg/s/sqrt(Hz) (1.7e-4 rad/sqrt(s)) as a
@@ -57,6 +61,8 @@ class SimOptions(MujocoOptions):
     """
 
     OPTIONS: ClassVar[tuple[DriverOption, ...]] = MujocoOptions.OPTIONS + (
+        DriverOption("connector_drive", str, "docked connectors: two-wheel drives or 3-axis "
+                     "torques", choices=("differential", "holonomic")),
         DriverOption("drift", float, "random walk of each connector's odometry heading",
                      "rad/sqrt(s)", 0.0, 1.0),
         DriverOption("slip", float, "heading error of a connector per radian it rolls (std)",
@@ -75,6 +81,7 @@ class SimOptions(MujocoOptions):
         DriverOption("gyro_noise", float, "gyro angle random walk", "rad/sqrt(s)", 0.0, 1.0),
     )
 
+    connector_drive: str = "holonomic"
     drift: float = 0.0
     slip: float = 0.0
     strength_factor: float = 0.5
@@ -91,6 +98,9 @@ class SimOptions(MujocoOptions):
         self._check(positive=("strength_factor", "torque_factor", "break_filter"),
                     non_negative=("drift", "slip", "integral_gain", "gyro_bias", "gyro_walk",
                                   "gyro_noise"))
+        if self.connector_drive not in ("differential", "holonomic"):
+            raise ExecutionError(f"connector_drive must be 'differential' or 'holonomic', "
+                                 f"got {self.connector_drive!r}")
 
 
 @dataclass(frozen=True)
@@ -118,6 +128,14 @@ class Physical:
             times the wheel radius.
         wheel_damping: back-EMF damping of the wheel pair [N m s/rad] (stall torque over
             no-load speed, as ``damping``).
+        roll_ratio: rolling of a docked connector's wheels per radian it rolls about the
+            node centre, ``node_radius / wheel_radius`` [rad/rad].
+        turn_ratio: wheel radians (each wheel, in opposition) per radian the strut turns
+            about its axis, ``wheel_base / (2 wheel_radius)`` [rad/rad].
+        grip: side grip of a docked connector's wheels on the node shell [N]: the
+            largest sideways force before they skid, the wheels' friction coefficient
+            (polyurethane on steel, ``wheel_friction``) times the magnet's pull, the
+            connection strength.
     """
 
     node_radius: float
@@ -137,9 +155,13 @@ class Physical:
     max_wheel_speed: float
     wheel_torque: float
     wheel_damping: float
+    roll_ratio: float
+    turn_ratio: float
+    grip: float
 
     @classmethod
-    def from_spec(cls, spec: RobotSpec, options: SimOptions) -> Physical:
+    def from_spec(cls, spec: RobotSpec, options: SimOptions, *, wheel_friction: float = 1.0
+                  ) -> Physical:
         """Read ``spec``'s ``node`` and ``strut`` geometry; errors name the missing key."""
         node = _geometry(spec, "node")
         strut = _geometry(spec, "strut")
@@ -159,6 +181,9 @@ class Physical:
             wheel_radius=strut["wheel_radius"], wheel_base=strut["wheel_base"],
             max_wheel_speed=strut["max_wheel_speed"], wheel_torque=wheel_torque,
             wheel_damping=wheel_torque / strut["max_wheel_speed"],
+            roll_ratio=node["radius"] / strut["wheel_radius"],
+            turn_ratio=0.5 * strut["wheel_base"] / strut["wheel_radius"],
+            grip=wheel_friction * strut["connection_strength"] * options.strength_factor,
         )
 
 

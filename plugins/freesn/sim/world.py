@@ -14,12 +14,19 @@ Bodies (FreeSN paper, section 2.1, Fig. 2):
   node's centre whose three rotations are driven by the connector's motors; loops (a
   triangle, the octahedron) close through the same welds.
 
-Actuation (section 4.2, Fig. 11b): the wheels of a docked connector roll the strut
-end over the node (two directions) and turn the strut about its axis. The motors are
-DC motors: a passive damping ``D = torque / roll rate`` on the ball joint (their
-back-EMF, integrated implicitly) and a drive torque ``D * omega_cmd`` bounded by the
-torque limit, with ``omega_cmd`` from a position loop toward the commanded pose,
-bounded by the wheel speed (rolling) and the differential speed (spinning).
+Actuation (section 4.2, Fig. 11b), two models (``SimOptions.connector_drive``):
+
+* ``"differential"``: the paper's connector, two wheels that roll the strut end along
+  their heading and turn the strut about its axis, gripping sideways. Each wheel motor
+  is a velocity actuator on the ball joint in the strut's frame (its back-EMF implicit,
+  its torque bounded, :meth:`FreeSNWorld._drive`), the grip Coulomb friction on a tendon
+  through the contact point (:meth:`FreeSNWorld._add_drive`), and the connector turns,
+  then rolls toward its target (:meth:`FreeSNWorld._steer`);
+* ``"holonomic"`` (the default): three torques on the ball joint. The motors are DC
+  motors: a passive damping ``D = torque / roll rate`` on the ball joint (their
+  back-EMF, integrated implicitly) and a drive torque ``D * omega_cmd`` bounded by the
+  torque limit, with ``omega_cmd`` from a position loop toward the commanded pose,
+  bounded by the wheel speed (rolling) and the differential speed (spinning).
 
 Wheels (sections 4.2, 7.3): a connector's wheel pair also takes a speed command (see
 :mod:`.commands`). Docked, the two wheels run in opposition: the twist of the ball
@@ -113,6 +120,12 @@ _ALIGNMENT = np.radians(10.0)  # strut axis to the node centre: a magnet that do
 _ATTRACTION_CONE = np.radians(45.0)  # a magnet pulls on a node in front of it
 _MAGNET_FALLOFF = 0.005  # distance over which a magnet's pull falls to a quarter [m]
 _FUSION = 0.2         # weight of a fresh localisation fix in a connector's estimate (10 Hz: 0.45 s)
+_GRIP_LEVER = 0.05    # a grip tendon's length: contact point to its anchor along the axle [m]
+_GRIP_SOLIMP = [0.999, 0.9999, 0.001, 0.5, 2.0]  # a stiff grip (MuJoCo's default creeps)
+_TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
+_TURN_OFF = np.radians(2.0)   # ... and rolls straight (no turning) once this near
+_HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
+_HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
 
 
 @dataclass(frozen=True)
@@ -190,6 +203,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def __init__(self, config: Configuration, spec: RobotSpec, options: SimOptions):
         super().__init__(options, seat=_SEAT)
         self.phys = phys = Physical.from_spec(spec, options)
+        self._differential = options.connector_drive == "differential"
         self.placement = place(config, phys.strut_length, phys.node_radius, phys.strut_radius)
         self.nodes = [v for v in config.vertices() if not config.is_virtual(v)]
         self.struts = [e.id for e in config.edges()]
@@ -226,16 +240,27 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._load = np.zeros(k)
         self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
-        self._tau = np.zeros((k, 3))
+        self._torque = np.zeros((k, 2))                    # wheel motor torques [N m]
+        self._turning = np.zeros(k, dtype=bool)            # turning toward a target
+        self._backwards = np.zeros(k, dtype=bool)          # ... to roll there backwards
+        self._twist_free = np.zeros(k, dtype=bool)         # target twist left to the turns
         self._integral = np.zeros((k, 3))                  # position loop's error integral [rad s]
         self._effort = np.ones(k)                          # fraction of the torque limit
         self._braked = np.zeros(k, dtype=bool)             # held by command_brake
         self._saturated_since = np.full(k, np.nan)        # start of each saturation streak [s]
         self._net_torque = np.zeros(k)                     # low-passed motor torque net of EMF
-        self._dofs = self._dadr[:, None] + np.arange(3)
         self._axle = np.array([m.joint(f"axle/{s}/{e}").dofadr[0] for s, e in self.ends],
                               dtype=int)
         self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
+        drives = self.ends if self._differential else []
+        self._motor = np.array([[m.actuator(f"wheel/{s}/{e}/{side}").id
+                                 for side in ("left", "right")] for s, e in drives],
+                               dtype=int).reshape(-1, 2)
+        self._grip_site = np.array([m.site(f"grip/{s}/{e}").id for s, e in drives], dtype=int)
+        self._dofs = self._dadr[:, None] + np.arange(3)
+        self._tau = np.zeros((k, 3))                       # holonomic connectors' torques
+        self._grip_at = np.column_stack([np.zeros(k), np.full(k, _GRIP_LEVER),
+                                         self._sign * phys.node_radius])  # strut frame
         tip = phys.node_radius + _GAP + phys.strut_radius   # capsule cap centre from the node
         self._side_by_side = 2.0 * np.arcsin(min(1.0, phys.strut_radius / tip)) \
             + _SIDE_BY_SIDE_MARGIN
@@ -296,7 +321,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                        explicitinertial=True, ipos=[0, 0, 0],
                                            iquat=[1, 0, 0, 0])
                 roller.add_joint(name=f"ball/{strut}/{end}", type=mujoco.mjtJoint.mjJNT_BALL,
-                                 damping=p.damping, armature=_ARMATURE)
+                                 damping=0.0 if self._differential else p.damping,
+                                 armature=_ARMATURE)
+                if self._differential:
+                    self._add_drive(spec, body, roller, strut, end)
                 wheel = body.add_body(name=f"wheel/{strut}/{end}",
                                       pos=[0, 0, -END_SIGN[end] * reach],
                                       mass=_WHEEL_MASS, inertia=[wheel_inertia] * 3,
@@ -317,6 +345,39 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                     self.add_weld(spec, (strut, end, node), f"dock/{strut}/{end}/{node}",
                                   f"connector/{strut}/{end}", f"node/{node}")
         return spec
+
+    def _add_drive(self, spec: mujoco.MjSpec, strut_body: mujoco.MjsBody,
+                   roller: mujoco.MjsBody, strut: str, end: str) -> None:
+        """A connector's differential drive on its ball joint (Fig. 11): two wheel motors
+        and the wheels' side grip.
+
+        Each wheel motor is a velocity actuator on the ball joint in the strut's frame
+        (``jointinparent``, the wheels sit on the strut end) with gear ``rho y -+ tau z``
+        (``rho = R / r`` wheel radians per radian rolled about the node centre, ``tau =
+        b / 2r`` per radian turned about the strut axis): its velocity is the wheel's
+        speed and its gain the motor's back-EMF damping ``D_w``, integrated implicitly;
+        :meth:`_drive` bounds its torque. The grip is Coulomb friction on a spatial
+        tendon from the wheels' contact point on the node (a strut site) to a point one
+        lever sideways along the axle on the node (a connector site that
+        :meth:`_place_grips` keeps there): the tendon's rate is the sideways slip of the
+        contact, held at zero up to ``grip`` newtons (``frictionloss``, solved as a
+        constraint), skidding beyond.
+        """
+        p = self.phys
+        sign = END_SIGN[end]
+        contact = [0.0, 0.0, -sign * (0.5 * p.strut_length - p.node_radius)]
+        strut_body.add_site(name=f"contact/{strut}/{end}", pos=contact)
+        roller.add_site(name=f"grip/{strut}/{end}", pos=[0.0, _GRIP_LEVER, sign * p.node_radius])
+        tendon = spec.add_tendon(name=f"grip/{strut}/{end}", frictionloss=p.grip,
+                                 solimp_friction=_GRIP_SOLIMP)
+        tendon.wrap_site(f"contact/{strut}/{end}")
+        tendon.wrap_site(f"grip/{strut}/{end}")
+        for side, turn in (("left", -1.0), ("right", 1.0)):
+            motor = spec.add_actuator(name=f"wheel/{strut}/{end}/{side}",
+                                      target=f"ball/{strut}/{end}",
+                                      trntype=mujoco.mjtTrn.mjTRN_JOINTINPARENT,
+                                      gear=[0.0, p.roll_ratio, turn * p.turn_ratio, 0, 0, 0])
+            motor.set_to_velocity(kv=0.5 * p.wheel_damping)
 
     # -- docking ----------------------------------------------------------------------
 
@@ -349,6 +410,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._refresh_driven()
         self._eps[k] = 0.0
         self._fix[k] = 0.0
+        self._turning[k] = self._backwards[k] = False
         self.events.append(DockEvent(self.time, strut, end, node, kind, float(self._load[k])))
         self._load[k] = 0.0
 
@@ -395,6 +457,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """Brake connector ``k`` where it believes it is."""
         self._target[k] = self._believed(np.array([k]))[0]
         self._has_target[k] = True
+        self._twist_free[k] = False
         self._refresh_driven()
 
     def _refresh_driven(self) -> None:
@@ -472,20 +535,29 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             # follows its other end's pull
             other = self.docked[self._end_index[(strut, "b" if end == "a" else "a")]]
             leaf = other is None or self.docked.count(other) == 1
-            if leaf and self._has_target[k] and not self._wheel[k]:
+            keep = leaf and self._has_target[k] and not self._wheel[k]
+            if keep:
                 current = self._target[k]
             have = current @ u
             self._target[k] = _minimal(have, want) @ current
+            self._twist_free[k] = not keep   # else the turns on the way set its twist
         else:
             self._target[k] = _frame(self._sign[k] * want, to_node @ forward)
+            self._twist_free[k] = False
         self._has_target[k] = True
         self._refresh_driven()
 
     def _set_effort(self, k: int, effort: float) -> None:
         """Connector ``k``'s torque fraction; ``0`` coasts: its drivers off, so neither
-        drive nor back-EMF damping (the ball joint turns freely)."""
+        drive nor back-EMF damping (the ball joint turns freely; a differential drive's
+        wheels still grip sideways)."""
         self._effort[k] = effort
-        self.model.dof_damping[self._dofs[k]] = self.phys.damping if effort > 0.0 else 0.0
+        if not self._differential:
+            self.model.dof_damping[self._dofs[k]] = self.phys.damping if effort > 0.0 else 0.0
+            return
+        kv = 0.5 * self.phys.wheel_damping if effort > 0.0 else 0.0
+        self.model.actuator_gainprm[self._motor[k], 0] = kv
+        self.model.actuator_biasprm[self._motor[k], 2] = -kv
 
     def _end(self, strut: str, end: str) -> int:
         try:
@@ -572,9 +644,28 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                                           self._gyro.shape)
 
     def _servo(self) -> None:
-        p = self.phys
+        """The connectors' motor loops (``servo_rate``): magnets pull, driven connectors
+        steer (:meth:`_steer`), every wheel motor gets its command (:meth:`_drive`), the
+        grips follow their contact points."""
         self._attract()
         ks = self._driven
+        if not self._differential:
+            self._servo_torques(ks)
+            return
+        speed = np.zeros((len(self.ends), 2))
+        if len(ks):
+            speed[ks] = self._steer(ks)
+        self._drive(speed)
+        self._track_saturation(ks, np.max(np.abs(self._torque[ks]), axis=1)
+                               / (0.5 * self.phys.wheel_torque))
+        self._place_grips()
+
+    def _servo_torques(self, ks: np.ndarray) -> None:
+        """Holonomic connectors (``connector_drive="holonomic"``): three motor torques on
+        each ball joint, the rotation error split into rolling (bounded by the roll rate)
+        and spinning (by the spin rate), under the torque limit, against the passive
+        back-EMF damping ``D`` of the ball joint (see docs/freesn.md, Actuation)."""
+        p = self.phys
         tau = self._tau
         tau[:] = 0.0
         if len(ks):
@@ -612,24 +703,126 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             spin_limit = np.where(wheeling, p.max_torque, limit)
             t_spin = np.minimum(np.maximum(p.damping * spin, -spin_limit), spin_limit)
             tau[ks] = (p.damping * scale)[:, None] * roll + t_spin[:, None] * axis
-        self._track_saturation(ks)
+        torque = self._tau[ks] - p.damping * self.data.qvel[self._dofs[ks]]
+        self._track_saturation(ks, np.sqrt(np.einsum("ni,ni->n", torque, torque)) / p.max_torque)
         self.data.qfrc_applied[self._dofs] = tau
+        self._drive_free_wheels()
+
+    def _steer(self, ks: np.ndarray) -> np.ndarray:
+        """Wheel speeds (n, 2) [rad/s] (left, right) that take connectors ``ks`` to their
+        targets: turn, then roll (the firmware's turn-then-roll, a unicycle on the sphere).
+
+        In the strut frame the wheels roll the connector about ``y`` (``omega_y``) and
+        turn it about ``z`` (``omega_z``); about ``x`` they grip. The error ``E = q_t
+        q^-1`` is removed by right factors, so its ZYZ angles ``E = Rz(g) Ry(b) Rz(d)``
+        are the plan: turn ``d``, roll ``b``, turn ``g``; ``d`` comes from ``E^T z``'s
+        azimuth, taken in ``(-pi/2, pi/2]`` so a connector may roll backwards. Beyond
+        ``_TURN_ON`` from its target a connector turns (``omega_z = k d``) and rolls as its
+        heading comes within ``_HEADING_GO`` (fully within ``_HEADING_OK``); nearer than
+        ``_TURN_OFF`` it only rolls out the error along its heading and corrects its twist
+        (the error's ``y`` and ``z`` components; ``x`` is left to the grip), unless the
+        twist is free (a strut whose aim alone was commanded). Each channel is the
+        position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); wheels
+        commanded in opposition set ``omega_z`` themselves. The wheel speeds ``rho
+        omega_y -+ tau omega_z`` are scaled together into the wheels' top speed.
+        """
+        p, o = self.phys, self.options
+        e_q = quat_mul(self._ball_target[ks], quat_conj(self._ball(ks)))
+        w, x, y, z = e_q.T
+        u = np.column_stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
+        swing = np.arccos(np.clip(u[:, 2], -1.0, 1.0))
+        ahead = _wrap(np.pi - np.arctan2(u[:, 1], u[:, 0]))
+        behind = _wrap(ahead - np.pi)
+        # forwards or backwards, whichever needs the smaller turn; the way chosen is
+        # kept until the other is _HEADING_GO better, so noise does not flip it
+        was = self._backwards[ks]
+        back = np.where(was, np.abs(behind) < np.abs(ahead) + _HEADING_GO,
+                        np.abs(behind) + _HEADING_GO < np.abs(ahead))
+        self._backwards[ks] = back
+        heading = np.where(back, behind, ahead)
+        swing = np.where(back, -swing, swing)
+        self._turning[ks] = np.abs(swing) > np.where(self._turning[ks], _TURN_OFF, _TURN_ON)
+        turning = self._turning[ks]
+        error = quat_log(e_q)
+        gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
+        roll = np.where(turning, swing * np.cos(heading) * gate, error[:, 1])
+        twist = np.where(self._twist_free[ks], 0.0, error[:, 2])
+        turn = np.where(turning, heading, twist)
+        wheeling = self._wheel[ks] != 0.0
+        turn = self._common_turn(ks, turn, np.abs(swing) * turning * self._effort[ks])
+        channels = np.column_stack([roll, np.where(wheeling, 0.0, turn)])
+        omega = o.position_gain * channels
+        if o.integral_gain > 0.0:
+            integral = self._integral[ks, 1:] + channels * self._every * o.timestep
+            bound = p.max_roll_rate / o.integral_gain   # anti-windup
+            integral = np.clip(integral, -bound, bound)
+            self._integral[ks, 1:] = integral
+            omega = omega + o.integral_gain * integral
+        omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
+        speed = p.roll_ratio * omega[:, :1] + np.array([-1.0, 1.0]) * p.turn_ratio * omega[:, 1:]
+        fastest = np.max(np.abs(speed), axis=1, keepdims=True)
+        return speed * np.minimum(1.0, p.max_wheel_speed / np.maximum(fastest, 1e-12))
+
+    def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray) -> np.ndarray:
+        """One turn for both ends of a strut docked and driven at both (FreeSN paper,
+        Fig. 6(c)): a turn spins the strut about its axis, on both nodes at once, so the
+        other end steers opposite (in its own wheels' sense) and the nodes stay put. The
+        end that leads (larger ``lead``: its swing while turning, times its effort) sets
+        the turn of both; when neither turns, the mean of their twist corrections."""
+        where = np.full(len(self.ends), -1)
+        where[ks] = np.arange(len(ks))
+        partner = where[ks ^ 1]
+        pair = partner >= 0
+        other = np.where(pair, partner, np.arange(len(ks)))
+        mine = lead >= lead[other]
+        chosen = np.where(mine, turn, turn[other])
+        neither = (lead == 0.0) & (lead[other] == 0.0)
+        return np.where(pair, np.where(neither, 0.5 * (turn + turn[other]), chosen), turn)
+
+    def _drive(self, speed: np.ndarray) -> None:
+        """Every wheel motor toward ``speed`` (k, 2) [rad/s]: a DC motor's torque ``D_w
+        (speed - v)`` at the wheel speed ``v`` now, bounded by the wheel torque, passed as
+        the velocity actuator's control ``v + torque / D_w`` so the back-EMF stays
+        implicit; free ends' wheel hinges likewise. A reduced effort (a connector that
+        closes a loop) does not weaken the wheels, only ``0`` (coasting) stops them: a
+        node is held by its connectors' wheels, whose turning is weak already (its
+        back-EMF ``2 D_w tau^2``), and with softened wheels the nodes of S6N3's triangle
+        spun under its legs' loads."""
+        p = self.phys
+        kv = 0.5 * p.wheel_damping
+        v = self.data.actuator_velocity[self._motor]
+        limit = 0.5 * p.wheel_torque
+        torque = np.clip(kv * (speed - v), -limit, limit)
+        self._torque = torque * (self._effort > 0.0)[:, None]
+        self.data.ctrl[self._motor] = v + torque / kv
+        self._drive_free_wheels()
+
+    def _drive_free_wheels(self) -> None:
+        """Free ends' wheel hinges toward their commanded speeds (a bounded DC motor)."""
+        p = self.phys
         free = np.array([node is None for node in self.docked])
         drive = np.clip(p.wheel_damping * self._wheel, -p.wheel_torque, p.wheel_torque)
         self.data.qfrc_applied[self._axle] = np.where(free, drive, 0.0)
 
-    def _track_saturation(self, ks: np.ndarray) -> None:
-        """Start or end each connector's saturation streak: a driven connector at full
-        effort whose motors deliver at least ``_SATURATED`` of the torque limit (drive
-        minus back-EMF ``D omega``: stalled against a load), low-passed over
-        ``_SATURATION_FILTER`` so contact chatter does not break a streak."""
+    def _place_grips(self) -> None:
+        """Each grip tendon's node end one lever along its wheels' axle from their
+        contact point (the connector frame of the strut-frame point ``_grip_at``), so the
+        tendon's rate is the contact's sideways slip."""
+        inverse = quat_conj(self._ball(np.arange(len(self.ends))))
+        self.model.site_pos[self._grip_site] = Rotation.from_quat(
+            inverse, scalar_first=True).apply(self._grip_at)
+
+    def _track_saturation(self, ks: np.ndarray, load: np.ndarray) -> None:
+        """Start or end each connector's saturation streak: a driven connector ``ks`` at
+        full effort whose motors deliver (drive minus back-EMF: stalled against a load)
+        at least ``_SATURATED`` of their torque limit (``load``, (n,), that fraction now),
+        low-passed over ``_SATURATION_FILTER`` so contact chatter does not break a
+        streak."""
         net = np.zeros(len(self.ends))
-        if len(ks):
-            torque = self._tau[ks] - self.phys.damping * self.data.qvel[self._dofs[ks]]
-            net[ks] = np.sqrt(np.einsum("ni,ni->n", torque, torque)) * (self._effort[ks] >= 1.0)
+        net[ks] = load * (self._effort[ks] >= 1.0)
         alpha = min(1.0, self._every * self.options.timestep / _SATURATION_FILTER)
         self._net_torque += alpha * (net - self._net_torque)
-        saturated = self._net_torque >= _SATURATED * self.phys.max_torque
+        saturated = self._net_torque >= _SATURATED
         self._saturated_since = np.where(saturated, np.fmin(self._saturated_since, self.time),
                                          np.nan)
 
@@ -843,6 +1036,11 @@ def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
     norm = np.linalg.norm(twist, axis=1, keepdims=True)
     twist = np.where(norm > 1e-12, twist / np.maximum(norm, 1e-12), np.array([1.0, 0, 0, 0]))
     return quat_mul(q, quat_conj(twist))
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    """Angles [rad] wrapped into ``(-pi, pi]``."""
+    return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
 
 
 def _minimal(v: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -1,0 +1,94 @@
+"""FreeSN connectors as differential drives (issue 32, item 6; paper Fig. 11).
+
+One strut docked to one node, gravity off, so only the connector's wheels and grip act
+between the two bodies; the simulator's state is the judge.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from msrr.core import Configuration
+from msrr.core.errors import ExecutionError
+from msrr.plugins.freesn.robot import SPEC
+from msrr.plugins.freesn.sim.options import SimOptions
+from msrr.plugins.freesn.sim.world import FreeSNWorld
+
+
+def _one_strut(**options: object) -> FreeSNWorld:
+    """N1 with strut S1 docked by end a along +x, its wheels' forward axis (strut x) up."""
+    config = Configuration("freesn")
+    config.add_module("N1", "node")
+    config.add_virtual("S1:b")
+    config.connect("N1", "S1:b", id="S1", kind="strut", z=np.array([1.0, 0.0, 0.0]),
+                   x=np.array([0.0, 0.0, 1.0]))
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential", **options))
+    world.model.opt.gravity[:] = 0.0
+    return world
+
+
+def _on_node(world: FreeSNWorld) -> tuple[np.ndarray, np.ndarray]:
+    """The strut's axis and its ``x`` (the wheels' forward direction) in the node frame."""
+    node = world.data.xmat[world._node_body[0]].reshape(3, 3)
+    strut = world.data.xmat[world._strut_body[0]].reshape(3, 3)
+    return node.T @ strut[:, 2], node.T @ strut[:, 0]
+
+
+def _angle(u: np.ndarray, v: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip(u @ v / np.linalg.norm(u) / np.linalg.norm(v),
+                                              -1.0, 1.0))))
+
+
+def test_a_connector_turns_before_it_rolls_sideways():
+    """A target 60 deg to the side of the wheels' heading: the strut first turns about
+    its axis (the contact point stays), then rolls there; a driving wheel stays within
+    the top speed (a braking one may be overrun by the strut's spin), every torque within
+    the motor's bound."""
+    world = _one_strut()
+    phys = world.phys
+    start, heading0 = _on_node(world)
+    target = Rotation.from_rotvec(np.radians(60.0) * np.array([0.0, 0.0, 1.0])).apply(start)
+    world.command_target("S1", "a", (target, None, 1.0))
+    turned_in_place = fastest = strongest = 0.0
+    for _ in range(150):
+        world.step(0.02)
+        axis, heading = _on_node(world)
+        if _angle(axis, start) < 1.0:
+            turned_in_place = max(turned_in_place, _angle(heading, heading0))
+        speed = world.data.actuator_velocity[world._motor[0]]
+        driving = world._torque[0] * speed > 0.0   # motoring, not braking a spinning strut
+        fastest = max(fastest, float(np.abs(speed[driving]).max(initial=0.0)))
+        strongest = max(strongest, float(np.abs(world._torque[0]).max()))
+    assert turned_in_place > 45.0, "the wheels rolled sideways instead of turning first"
+    assert _angle(_on_node(world)[0], target) < 1.0
+    assert fastest <= 1.02 * phys.max_wheel_speed
+    assert strongest <= 0.5 * phys.wheel_torque + 1e-9
+
+
+@pytest.mark.parametrize("load, slides", [(0.5, False), (2.0, True)])
+def test_the_wheels_grip_sideways_until_the_load_beats_friction(load, slides):
+    """A torque about the wheels' axis of travel (the strut's x, which would slide the
+    wheels along their axles) on a braked connector: under the grip (friction x magnet
+    pull, at the node radius) the contact point stays; twice over it, the wheels skid."""
+    world = _one_strut()
+    world.command_brake("S1", "a")
+    start, _ = _on_node(world)
+    torque = load * world.phys.grip * world.phys.node_radius
+    dofs = world._dadr[0] + np.arange(3)
+    for _ in range(50):
+        ball = world._ball(np.array([0]))[0]
+        lateral = Rotation.from_quat(ball, scalar_first=True).inv().apply([1.0, 0.0, 0.0])
+        world.data.qfrc_applied[dofs] = torque * lateral   # on the connector, child frame
+        world.step(0.01)
+    moved = _angle(_on_node(world)[0], start)
+    if slides:
+        assert moved > 5.0
+    else:
+        assert moved < 0.5
+
+
+def test_an_unknown_connector_drive_is_refused():
+    with pytest.raises(ExecutionError, match="connector_drive"):
+        SimOptions(connector_drive="tracked")
