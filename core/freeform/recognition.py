@@ -327,8 +327,6 @@ class ContactController:
         reports = observation.sensors
         self._locate(reports)
         current = self.recognizer.recognize(reports)
-        if phase is Phase.RELEASE:
-            _refuse_carried_travel(current, action)
         if phase is Phase.APPROACH:
             self._ways = self._plan_ways(current, action, reports)
             return
@@ -431,6 +429,7 @@ class ContactController:
         diff = topology_diff(current, action.target)
         commands: dict[str, ModuleCommand] = {}
         if phase is Phase.RELEASE:
+            _refuse_carried_travel(current, action)
             commands = {c.source: ModuleCommand(undock=(f"@{c.target}",)) for c in diff.broken}
         elif phase is Phase.CONNECT:
             commands = {c.source: ModuleCommand(dock=(f"@{c.target}",)) for c in diff.made}
@@ -453,9 +452,18 @@ def _refuse_carried_travel(current: Configuration, action: Action) -> None:
     after = current.copy()
     for change in diff.broken:
         after.disconnect(_edge_id(after, change.source, change.target))
+    on: dict[str, list[str]] = {}
+    for e in after.edges():
+        on.setdefault(e.target, []).append(e.source)
     for change in diff.made:
         module = change.source
-        carried = sorted(e.source for e in after.edges() if e.target == module)
+        seen, todo = {module}, list(on.get(module, ()))
+        while todo:   # its in-tree: whatever sits on it, directly or not (cycles too)
+            m = todo.pop()
+            if m not in seen:
+                seen.add(m)
+                todo.extend(on.get(m, ()))
+        carried = sorted(seen - {module})
         if carried and not _joined(after, module, change.target):
             raise ExecutionError(
                 f"module {module} is to dock on {change.target} over the floor but carries "
