@@ -187,3 +187,26 @@ def test_a_module_that_would_drag_others_over_the_floor_is_refused_before_any_re
     freed.connect("F2", "F1", z=[1.0, 0.0, 0.0])
     _refuse_carried_travel(alone, SimpleNamespace(target=freed))
 
+
+
+def test_a_docked_row_pushed_sideways_rolls_as_one_rigid_body(mujoco_driver):
+    # 1 N for 0.5 s at the middle of a row of six: the row rolls on the floor like a
+    # rolling pin, every module by the same amount; no dock bends or slips
+    driver = mujoco_driver("freebot", "line6")
+    world = driver.world
+    driver.step(0.3)
+    modules = [f"F{i}" for i in range(1, 7)]
+    before = np.array([world.centre(m) for m in modules])
+    world.data.xfrc_applied[world.bodies["F3"], :3] = [0.0, 1.0, 0.0]
+    driver.step(0.5)
+    world.data.xfrc_applied[world.bodies["F3"], :3] = 0.0
+    driver.step(0.5)
+    after = np.array([world.centre(m) for m in modules])
+    shift = after - before
+    assert shift[:, 1].min() > 0.05, "it rolled"
+    assert np.ptp(shift[:, 1]) < 1e-3 and np.abs(shift[:, 2]).max() < 1e-3
+    line = np.polyfit(after[:, 0], after[:, 1], 1)
+    assert np.abs(after[:, 1] - np.polyval(line, after[:, 0])).max() < 1e-3
+    assert world.docked_pairs() == {(e.source, e.target) for e in
+                                    load_configuration(ROOT / "plugins" / "freebot" / "configs"
+                                                       / "line6.json").edges()}
