@@ -15,7 +15,7 @@ tallest child continues, or of the shortest, or of the one in the middle), packs
 paths into the chains -- for each chain, longest first, a subset of whole paths that
 fills it exactly (subset-sum), and what is left laid end to end into the rest, a cut at
 every chain boundary it crosses -- and returns the pairing with the fewest stretches.
-Polynomial: ``O(n L)`` per cover. A goal made of chains is the same problem with start
+Polynomial: a subset-sum of ``O(n L)`` per chain and cover. A goal made of chains is the same problem with start
 and goal exchanged (a pairing and its inverse keep the same connections).
 """
 
@@ -93,7 +93,7 @@ def _exact_subset(lengths: list[int], want: int) -> list[int] | None:
     came: list[int] = [0] * (want + 1)
     for i, size in enumerate(lengths):
         for s in range(want, size - 1, -1):
-            if reach[s] is None and reach[s - size] is not None and reach[s - size] != i:
+            if reach[s] is None and reach[s - size] is not None:   # items before i
                 reach[s], came[s] = i, s - size
     if reach[want] is None:
         return None
@@ -113,7 +113,7 @@ def _pack(chains: list[list[int]], paths: list[list[int]]) -> list[int]:
         picked = _exact_subset([len(p) for p in left], len(chain))
         if picked is not None:
             fills[c] = [left[i] for i in sorted(picked)]
-            left = [p for i, p in enumerate(left) if i not in set(picked)]
+            left = [p for i, p in enumerate(left) if i not in picked]
     rest = [m for p in left for m in p]
     out: list[int] = []
     for c, chain in enumerate(chains):
