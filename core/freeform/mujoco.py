@@ -64,7 +64,12 @@ class Switches(Generic[K]):
 
     Declare each while building (:meth:`add`, inactive), then :meth:`bind` the compiled
     model; :meth:`on` and :meth:`off` flip ``data.eq_active``; :meth:`active` reads it
-    back from the simulator.
+    back from the simulator. A key may be a slot of a pool rather than one pair of
+    bodies: :meth:`attach` points its equality at the two bodies it joins now.
+    MuJoCo reads ``eq_obj1id``, ``eq_obj2id`` and ``eq_data`` afresh at every step
+    (``mj_instantiateEquality``; the islands and sleeping trees too, through
+    ``body_treeid``), and nothing the compiler derives depends on them, so both may
+    change between steps (``eq_data`` "has no side effects", MuJoCo issue #1404).
     """
 
     def __init__(self) -> None:
@@ -90,6 +95,12 @@ class Switches(Generic[K]):
         """Activate ``key``'s equality; its id."""
         eq = self._ids[key]
         data.eq_active[eq] = 1
+        return eq
+
+    def attach(self, model: mujoco.MjModel, key: K, body1: int, body2: int) -> int:
+        """Point ``key``'s equality at bodies ``body1`` and ``body2``; its id."""
+        eq = self._ids[key]
+        model.eq_obj1id[eq], model.eq_obj2id[eq] = body1, body2
         return eq
 
     def off(self, data: mujoco.MjData, key: K) -> None:
@@ -306,9 +317,12 @@ class MujocoWorld(ABC, Generic[K, E]):
 
     def weld(self, key: K, body: int, onto: int) -> int:
         """Switch on ``key``'s weld, holding ``body`` to ``onto`` as the two are now; its
-        equality id. The anchor is ``onto``'s centre: the magnet then draws ``body``'s
-        origin onto it (:meth:`_seat`) instead of snapping it there."""
+        equality id. The weld is pointed at the two bodies (a slot of a pool may join
+        any pair; a weld declared for this pair keeps its bodies). The anchor is
+        ``onto``'s centre: the magnet then draws ``body``'s origin onto it (:meth:`_seat`)
+        instead of snapping it there."""
         d = self.data
+        self.welds.attach(self.model, key, body, onto)
         eq = self.welds.on(d, key)
         rel, inv = np.empty(4), np.empty(4)
         mujoco.mju_negQuat(inv, d.xquat[body])
@@ -389,9 +403,14 @@ class MujocoWorld(ABC, Generic[K, E]):
             out[module] = (d.xpos[body].copy(), np.array([x, y, z, w]))
         return out
 
-    def docked_pairs(self) -> set[K]:
-        """Keys of every active dock weld (simulator state)."""
-        return set(self.welds.active(self.data))
+    def docked_pairs(self) -> set[Hashable]:
+        """The connection every active dock weld makes (simulator state, :meth:`_joins`)."""
+        return {self._joins(key) for key in self.welds.active(self.data)}
+
+    def _joins(self, key: K) -> Hashable:
+        """The connection the active weld ``key`` makes: the key itself, for a weld
+        declared per connection; a pool's slot reads the bodies it holds."""
+        return key
 
     def constraint_residual(self) -> float:
         """Largest distance [m] between a welded body and its target's centre."""

@@ -289,7 +289,8 @@ class ContactController:
         self.arrive = arrive
         self.locator = Locator(spacing)
         self._yaw = 0.0
-        self._ways: dict[str, tuple[str, np.ndarray]] = {}   # module -> (target, way in O)
+        self._ways: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
+        """module -> (target, its way, the target's centre): odometry frame ``O``."""
 
     def commands(self, target: Configuration, observation: Observation, *,
                  yaw: float | None = None, current: Configuration | None = None
@@ -340,9 +341,10 @@ class ContactController:
         self.locator.update(reports, links, module_headings(reports, links))
 
     def _plan_ways(self, current: Configuration, action: Action, reports: Reports
-                   ) -> dict[str, tuple[str, np.ndarray]]:
+                   ) -> dict[str, tuple[str, np.ndarray, np.ndarray]]:
         """The way over the floor (points (n, 2) in its odometry frame) of each module the
-        action docks while it is free: it travels alone to a spot touching its target.
+        action docks while it is free, and its target's centre (2,) in that frame: it
+        travels alone to a spot touching its target.
 
         Raises:
             ExecutionError: such a module carries others (a group does not travel), or no
@@ -356,22 +358,29 @@ class ContactController:
             if not self.locator.alone(module):
                 raise ExecutionError(f"module {module} is to dock on {target} but carries "
                                      "other modules: only a module alone travels over the floor")
-            way = floor_path(self.locator.relative(module), target, self.locator.spacing)
+            others = self.locator.relative(module)
+            way = floor_path(others, target, self.locator.spacing)
             odometry = reports[module].odometry
             into = rot_z(float(odometry[2]))[:2, :2]
-            ways[module] = (target, odometry[:2] + np.array(way) @ into.T)
+            ways[module] = (target, odometry[:2] + np.array(way) @ into.T,
+                            odometry[:2] + into @ others[target][:2])
         return ways
 
     def _travel(self, phase: Phase, reports: Reports) -> Control:
         """One tick of the free modules' travel (approach), or of their last push onto
-        the target with the connector armed (connect)."""
+        the target with the connector armed (connect): a guarded move toward the
+        target's estimated centre at half the travel speed until the connector reports
+        the latch (dead reckoning is centimetres off after a long way; the shells
+        touching stop the push)."""
         commands, errors = {}, {}
-        for module, (target, way) in self._ways.items():
+        for module, (target, way, centre) in self._ways.items():
             odometry = reports[module].odometry
-            if phase is Phase.CONNECT:   # aim a little inside the target: the shells touch
-                last = way[-1] - way[-2] if len(way) > 1 else np.zeros(2)
-                way = np.vstack([way, way[-1] + 0.5 * self.arrive * _unit(last)])
-            velocity, left = pursue(way, odometry[:2], speed=self.ground_speed)
+            if phase is Phase.CONNECT:
+                toward = centre - odometry[:2]
+                velocity = 0.5 * self.ground_speed * _unit(toward)
+                left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
+            else:
+                velocity, left = pursue(way, odometry[:2], speed=self.ground_speed)
             v = rot_z(-float(odometry[2]))[:2, :2] @ velocity
             dock = (f"@{target}",) if phase is Phase.CONNECT else ()
             commands[module] = ModuleCommand(joints={"roll_x": float(v[0]),
@@ -420,6 +429,7 @@ class ContactController:
         diff = topology_diff(current, action.target)
         commands: dict[str, ModuleCommand] = {}
         if phase is Phase.RELEASE:
+            _refuse_carried_travel(current, action)
             commands = {c.source: ModuleCommand(undock=(f"@{c.target}",)) for c in diff.broken}
         elif phase is Phase.CONNECT:
             commands = {c.source: ModuleCommand(dock=(f"@{c.target}",)) for c in diff.made}
@@ -428,6 +438,38 @@ class ContactController:
             commands = self.commands(action.target, observation, yaw=self._yaw)
             reached = skeletal_errors(current, action.target)[0] < self.tolerance
         return Control(commands=commands, reached=reached)
+
+
+def _refuse_carried_travel(current: Configuration, action: Action) -> None:
+    """Refuse, before anything is released, an action whose module must travel over the
+    floor to its new parent while others sit on it: a group has no floor locomotion (one
+    module's drive cannot drag the others' floor friction).
+
+    Raises:
+        ExecutionError: naming the module, its target and what it carries.
+    """
+    diff = topology_diff(current, action.target)
+    after = current.copy()
+    for change in diff.broken:
+        after.disconnect(_edge_id(after, change.source, change.target))
+    on: dict[str, list[str]] = {}
+    for e in after.edges():
+        on.setdefault(e.target, []).append(e.source)
+    for change in diff.made:
+        module = change.source
+        seen, todo = {module}, list(on.get(module, ()))
+        while todo:   # its in-tree: whatever sits on it, directly or not (cycles too)
+            m = todo.pop()
+            if m not in seen:
+                seen.add(m)
+                todo.extend(on.get(m, ()))
+        carried = sorted(seen - {module})
+        if carried and not _joined(after, module, change.target):
+            raise ExecutionError(
+                f"module {module} is to dock on {change.target} over the floor but carries "
+                f"{len(carried)} module(s) ({', '.join(carried[:3])}"
+                f"{', ...' if len(carried) > 3 else ''}): only a module alone travels over "
+                "the floor")
 
 
 def _unit(vector: np.ndarray) -> np.ndarray:

@@ -55,6 +55,7 @@ from typing import ClassVar
 
 import mujoco
 import numpy as np
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from ..alignment import rot_z
@@ -228,11 +229,10 @@ def place(config: Configuration, length: float, radius: float
             centres[m] = p + shift
         offset += points[:, 1].max() - points[:, 1].min() + 4 * radius
     names = sorted(centres)
-    for a in range(len(names)):
-        for b in range(a + 1, len(names)):
-            if np.linalg.norm(centres[names[a]] - centres[names[b]]) < 2 * radius - 1e-3:
-                raise ExecutionError(f"modules {names[a]} and {names[b]} overlap in this "
-                                     f"configuration")
+    close = cKDTree(np.array([centres[m] for m in names])).query_pairs(2 * radius - 1e-3)
+    if close:
+        a, b = min(close)
+        raise ExecutionError(f"modules {names[a]} and {names[b]} overlap in this configuration")
     frames = {m: _frame_along(axis.get(m, -_EZ)) for m in modules}
     return centres, frames
 
@@ -242,9 +242,10 @@ def _frame_along(z: np.ndarray) -> np.ndarray:
     return rotation_between(_EZ, z / np.linalg.norm(z))
 
 
-class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
-    """One configuration of single-connector freeform modules in MuJoCo (its welds keyed
-    ``(module, target)``).
+class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
+    """One configuration of single-connector freeform modules in MuJoCo: a pool of one
+    weld slot per module (its connector), keyed by the module and pointed at its target
+    when it docks.
 
     Args:
         config: the starting configuration; its connections start docked.
@@ -262,12 +263,13 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         self._index = {m: i for i, m in enumerate(self.modules)}
         centres, frames = place(config, self.length, design.radius)
         self._conn0 = [frames[m] if design.bearing else np.eye(3) for m in self.modules]
-        self._suckers: Switches[tuple[str, str]] = Switches()
+        self._suckers: Switches[str] = Switches()
         self.compile(self._build(centres, frames))
         self._suckers.bind(self.model)
         m = self.model
         self._shell = np.array([m.body(f"module/{i}").id for i in self.modules])
         self.bodies = dict(zip(self.modules, self._shell.tolist(), strict=True))
+        self._owner = {body: module for module, body in self.bodies.items()}
         self._conn = np.array([m.body(f"connector/{i}").id for i in self.modules])
         self._foot = np.array([m.body(f"foot/{i}").id for i in self.modules])
         drives = [m.joint(f"drive/{i}") for i in self.modules]
@@ -340,17 +342,17 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
                                  iquat=[1, 0, 0, 0])
             foot.add_joint(name=f"drive/{name}", type=mujoco.mjtJoint.mjJNT_BALL,
                            damping=d.max_torque / d.max_rate, armature=_ARMATURE)
-        for a in self.modules:
-            for b in self.modules:
-                if a == b:
-                    continue
-                self.add_weld(spec, (a, b), f"dock/{a}/{b}", f"foot/{a}", f"module/{b}")
-                if d.sucker:
-                    self._suckers.add(spec, (a, b), f"sucker/{a}/{b}",
-                                      type=mujoco.mjtEq.mjEQ_CONNECT,
-                                      objtype=mujoco.mjtObj.mjOBJ_BODY, name1=f"connector/{a}",
-                                      name2=f"module/{b}", solref=list(WELD_SOLREF),
-                                      solimp=list(WELD_SOLIMP))
+        # one weld (and sucker) slot per module: a module has one connector, so it holds
+        # at most one connection; the slot is pointed at its target when it docks
+        for a, b in zip(self.modules, self.modules[1:] + self.modules[:1], strict=True):
+            if a == b:
+                break
+            self.add_weld(spec, a, f"dock/{a}", f"foot/{a}", f"module/{b}")
+            if d.sucker:
+                self._suckers.add(spec, a, f"sucker/{a}", type=mujoco.mjtEq.mjEQ_CONNECT,
+                                  objtype=mujoco.mjtObj.mjOBJ_BODY, name1=f"connector/{a}",
+                                  name2=f"module/{b}", solref=list(WELD_SOLREF),
+                                  solimp=list(WELD_SOLIMP))
         return spec
 
     # -- commands -----------------------------------------------------------------------
@@ -469,12 +471,13 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         if on == self.sucker[k] or (on and parent is None):
             return
         if not on:
-            self._suckers.off(self.data, (module, parent))
+            self._suckers.off(self.data, module)
             self.sucker[k] = False
             return
         d = self.data
-        eq = self._suckers.on(d, (module, parent))
         j = self._index[parent]
+        self._suckers.attach(self.model, module, self._conn[k], self._shell[j])
+        eq = self._suckers.on(d, module)
         contact = d.xpos[self._conn[k]] + d.xmat[self._conn[k]].reshape(3, 3)[:, 2] * (
             self.design.radius + 0.5 * self.options.gap)
         self.model.eq_data[eq, :3] = [0.0, 0.0, self.design.radius + 0.5 * self.options.gap]
@@ -490,7 +493,7 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         previous = self.docked[k]
         if previous is not None:
             self._unlatch(k)
-        self.weld((module, target), self._foot[k], self._shell[self._index[target]])
+        self.weld(module, self._foot[k], self._shell[self._index[target]])
         self.docked[k] = target
         self.armed[k] = None
         self.release[k] = False
@@ -532,9 +535,9 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         module, parent = self.modules[k], self.docked[k]
         if parent is None:
             return
-        self.welds.off(self.data, (module, parent))
+        self.welds.off(self.data, module)
         if self.sucker[k]:
-            self._suckers.off(self.data, (module, parent))
+            self._suckers.off(self.data, module)
             self.sucker[k] = False
         self.docked[k] = None
 
@@ -618,7 +621,7 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         for k, parent in enumerate(self.docked):
             if parent is None:
                 continue
-            key = (self.modules[k], parent)
+            key = self.modules[k]
             on_foot = force.get(self.welds.id(key), np.zeros(3)).copy()
             strength[k] = factor * self.design.strength
             if self.sucker[k]:
@@ -781,10 +784,15 @@ class FreeformWorld(MujocoWorld[tuple[str, str], ConstraintEvent]):
         config = Configuration(self.design.robot, name=name)
         for module in self.modules:
             config.add_module(module, self.design.kind)
-        for a, b in sorted(self.welds.active(d)):
+        for a, b in sorted(map(self._joins, self.welds.active(d))):
             z = d.xpos[self._shell[self._index[b]]] - d.xpos[self._shell[self._index[a]]]
             config.connect(a, b, z=frame @ (z / np.linalg.norm(z)))
         return config
+
+    def _joins(self, key: str) -> tuple[str, str]:
+        """``(module, target)`` of module ``key``'s active weld slot: the module whose
+        shell it holds (``eq_obj2id``, simulator state)."""
+        return key, self._owner[int(self.model.eq_obj2id[self.welds.id(key)])]
 
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""

@@ -44,5 +44,9 @@ SCENARIOS = (
     Scenario(name="roll-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
              description="four FreeBOTs: F1 lets go of the row, rolls round it over the floor "
                          "and docks on F4 at the other end"),
+    Scenario(name="forest-to-tree", start=CONFIGS / "comb20" / "comb20.json",
+             goal=CONFIGS / "comb20" / "comb20-forest.json", stages=(Stage(goal=CONFIGS / "comb20" / "comb20-tree.json"),),
+             description="twenty FreeBOTs: six let go of a row of fourteen (a forest of "
+                         "seven pieces), then each rolls one module along and docks (a tree)"),
 )
 """The default first."""

@@ -40,5 +40,9 @@ SCENARIOS = (
     Scenario(name="crawl-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
              description="four SnailBots: B1 lets go of the row, crawls round it over the floor "
                          "and docks on B4 at the other end"),
+    Scenario(name="forest-to-tree", start=CONFIGS / "comb20" / "comb20.json",
+             goal=CONFIGS / "comb20" / "comb20-forest.json", stages=(Stage(goal=CONFIGS / "comb20" / "comb20-tree.json"),),
+             description="twenty SnailBots: six let go of a row of fourteen (a forest of "
+                         "seven pieces), then each crawls one module along and docks (a tree)"),
 )
 """The default first."""

@@ -36,6 +36,7 @@ from msrr.core.freeform.miso import (
     step_is_legal,
     targets,
 )
+from msrr.core.freeform.miso.chains import chain_pairing
 from msrr.core.io import load_configuration
 from msrr.core.plan import ActionType
 
@@ -236,6 +237,43 @@ def test_six_chains_plan_into_the_human_example_with_fewer_changes_than_im():
     assert plan.goal.is_connected()
     problem = MisoProblem.from_configurations(start, goal, FREEBOT_RULES)
     assert plan.stats["changes"] < changes(problem.start, targets(problem, im_pairing(problem)))
+    # the fewest possible: every goal leaf ends its own stretch of a chain, so at most
+    # n - leaves connections are kept (Luo and Lam's IM: 91)
+    carrying = {e.target for e in goal.edges()}
+    leaves = sum(1 for v in goal.vertices() if v not in carrying)
+    bound = len(start.edges()) + len(goal.edges()) - 2 * (len(goal.vertices()) - leaves)
+    assert (leaves, bound) == (48, 89)
+    assert plan.stats["changes"] == bound
+
+
+def _chains(n: int, k: int, rng: np.random.Generator) -> tuple[int, ...]:
+    """``k`` chains of ``n`` modules, relabelled at random."""
+    cuts = sorted(int(c) for c in rng.choice(np.arange(1, n), k - 1, replace=False))
+    parent = [FREE if i in (0, *cuts) else i - 1 for i in range(n)]
+    perm = rng.permutation(n)
+    out = [FREE] * n
+    for i, p in enumerate(parent):
+        out[int(perm[i])] = FREE if p == FREE else int(perm[p])
+    return tuple(out)
+
+
+def test_path_cover_of_chains_is_fewest_changes_almost_always_and_the_heuristic_always():
+    """Chains -> a tree (and back): the cover packed into the chains against brute force."""
+    rng = np.random.default_rng(0)
+    cover_optimal = heuristic_optimal = 0
+    for trial in range(40):
+        n = int(rng.integers(5, 9))
+        chains, tree = _chains(n, int(rng.integers(1, 4)), rng), random_miso_tree(n, rng)
+        start, goal = (chains, tree) if trial % 2 else (tree, chains)
+        problem = MisoProblem.from_parents(start, goal, FREEBOT_RULES)
+        best = brute_force_changes(problem)
+        cover = changes(problem.start, targets(problem, chain_pairing(problem)))
+        assert cover >= best
+        cover_optimal += cover == best
+        heuristic_optimal += solve_heuristic(problem).changes == best
+    assert cover_optimal >= 36 and heuristic_optimal == 40
+    assert chain_pairing(MisoProblem.from_parents((1, 2, FREE), (FREE, 0, 0))) is not None
+    assert chain_pairing(MisoProblem.from_parents((FREE, 0, 0), (FREE, 0, 0))) is None
 
 
 def test_planning_to_itself_changes_nothing():

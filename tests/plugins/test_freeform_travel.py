@@ -19,6 +19,9 @@ from msrr.core.events import GROUND_TRUTH
 from msrr.core.faults import BREAK, GuardedDriver
 from msrr.core.freeform import links_of, module_headings
 from msrr.core.freeform.travel import Locator, floor_path, pursue
+from msrr.core.io import load_configuration
+
+from msrr_test_support import ROOT
 
 
 def _lift(driver, steps: int = 30) -> None:
@@ -159,3 +162,51 @@ def test_sucker_turn_anchors_every_module_and_turns_b2_about_its_sucker(tmp_path
     turned = sum(c["B2"].joints["twist"] for c in sent[:1])
     assert abs(abs(turned) - np.pi / 2) < np.radians(5.0), "the first command asks a quarter turn"
     assert all(abs(c[m].joints["twist"]) < np.radians(1.0) for c in sent for m in ("B4", "B5"))
+
+
+def test_a_module_that_would_drag_others_over_the_floor_is_refused_before_any_release():
+    from types import SimpleNamespace
+
+    from msrr.core.freeform.recognition import _refuse_carried_travel
+
+    row = load_configuration(ROOT / "plugins" / "freebot" / "configs" / "row4.json")
+    # F2 (F1 sits on it) lets go of F3 to dock on F4 at the far end: refused
+    target = row.copy()
+    target.disconnect(next(e.id for e in row.edges() if e.source == "F2"))
+    target.connect("F2", "F4", z=[1.0, 0.0, 0.0])
+    with pytest.raises(ExecutionError, match=r"module F2 is to dock on F4 over the floor but "
+                                             r"carries 1 module\(s\) \(F1\)"):
+        _refuse_carried_travel(row, SimpleNamespace(target=target))
+    # F1, carrying nothing, may; so may F2 once F1 has left it
+    alone = row.copy()
+    alone.disconnect(next(e.id for e in row.edges() if e.source == "F1"))
+    alone.connect("F1", "F4", z=[1.0, 0.0, 0.0])
+    _refuse_carried_travel(row, SimpleNamespace(target=alone))
+    freed = alone.copy()
+    freed.disconnect(next(e.id for e in alone.edges() if e.source == "F2"))
+    freed.connect("F2", "F1", z=[1.0, 0.0, 0.0])
+    _refuse_carried_travel(alone, SimpleNamespace(target=freed))
+
+
+
+def test_a_docked_row_pushed_sideways_rolls_as_one_rigid_body(mujoco_driver):
+    # 1 N for 0.5 s at the middle of a row of six: the row rolls on the floor like a
+    # rolling pin, every module by the same amount; no dock bends or slips
+    driver = mujoco_driver("freebot", "line6")
+    world = driver.world
+    driver.step(0.3)
+    modules = [f"F{i}" for i in range(1, 7)]
+    before = np.array([world.centre(m) for m in modules])
+    world.data.xfrc_applied[world.bodies["F3"], :3] = [0.0, 1.0, 0.0]
+    driver.step(0.5)
+    world.data.xfrc_applied[world.bodies["F3"], :3] = 0.0
+    driver.step(0.5)
+    after = np.array([world.centre(m) for m in modules])
+    shift = after - before
+    assert shift[:, 1].min() > 0.05, "it rolled"
+    assert np.ptp(shift[:, 1]) < 1e-3 and np.abs(shift[:, 2]).max() < 1e-3
+    line = np.polyfit(after[:, 0], after[:, 1], 1)
+    assert np.abs(after[:, 1] - np.polyval(line, after[:, 0])).max() < 1e-3
+    assert world.docked_pairs() == {(e.source, e.target) for e in
+                                    load_configuration(ROOT / "plugins" / "freebot" / "configs"
+                                                       / "line6.json").edges()}

@@ -42,6 +42,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from .chains import chain_pairing
 from .model import FREE, MisoProblem, children_of, cycles, rooted, targets
 
 __all__ = ["PROFILE_DEPTH", "heuristic_pairing", "improve_by_swaps"]
@@ -449,7 +450,20 @@ ALL_SWAPS_LIMIT = 40
 
 
 def heuristic_pairing(problem: MisoProblem) -> list[int]:
-    """A pairing ``pi`` (start index -> goal index) that keeps many connections."""
+    """A pairing ``pi`` (start index -> goal index) that keeps many connections: the
+    greedy's, or, when one side is made of chains and it keeps more, the best path
+    cover packed into the chains (:func:`~.chains.chain_pairing`)."""
+    pair = _greedy_best(problem)
+    chained = chain_pairing(problem)
+    if chained is not None:
+        chained = improve_by_swaps(problem, chained)
+        if _value(problem, chained) > _value(problem, pair):
+            return chained
+    return pair
+
+
+def _greedy_best(problem: MisoProblem) -> list[int]:
+    """Steps 1-3 of the module docstring."""
     n = problem.n
     if n > EXHAUSTIVE_LIMIT:
         return improve_by_swaps(problem, _Rounds(problem).run())

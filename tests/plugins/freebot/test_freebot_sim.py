@@ -28,8 +28,9 @@ def test_undock_and_dock_through_the_driver_switch_the_simulators_constraint(muj
 
     driver = mujoco_driver("freebot", "line6")
     world = driver.world
-    eq = world.welds.id(("F1", "F2"))
+    eq = world.welds.id("F1")                      # F1's slot, pointed at F2's shell
     assert world.data.eq_active[eq] == 1
+    assert world.model.eq_obj2id[eq] == world.bodies["F2"]
     driver.send_action({"F1": ModuleCommand(undock=("@F2",))})
     driver.step(0.1)
     assert world.data.eq_active[eq] == 0 and ("F1", "F2") not in world.docked_pairs()
