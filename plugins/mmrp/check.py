@@ -9,11 +9,13 @@ the plan's goal poses); then every action is replayed:
 * dock -- the faces form a legal pair (T-B or L-R), neither is in use, the two
   modules sit on neighbouring cells in the direction of the face, and the
   connection joins two different components (the structure stays a forest);
-* move -- the modules are whole components, heading 0, translated rigidly along one
-  grid axis by whole cells, driven as :mod:`.motion` says (a leg along y turns a
-  quarter about the group's centre first and back after); no other module's centre
-  comes within ``CLEARANCE`` of a path of the moving module centres, turns included
-  (no swept overlap; groups move one at a time, so every other module stands still);
+* move -- the modules are whole components (one group, or several driving at once:
+  :mod:`.schedule`), each at heading 0 and translated rigidly along one grid axis by
+  whole cells, driven as :mod:`.motion` says (a leg along y turns a quarter about the
+  group's centre first and back after); no still module's centre comes within
+  ``CLEARANCE`` of a path of the moving module centres, turns included (no swept
+  overlap), and groups moving at once keep their paths apart in any timing
+  (:func:`~.motion.apart`);
 
 and after each action no two modules share a cell. At the end, the connections
 must equal the plan's goal.
@@ -23,12 +25,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from itertools import combinations
 from dataclasses import dataclass
 
 from msrr.core.plan import Action, ActionType, Plan
 
 from .centre import root_of
-from .motion import CLEARANCE, Arc, distance, leg_paths, near
+from .motion import CLEARANCE, Arc, apart, distance, leg_paths, near, sweep_points
 from .representation import GRID_STEP, edge_set, pitch, to_tree
 from .rules import LEGAL_PAIRS
 
@@ -141,21 +144,12 @@ def _dock(grid: _Replay, action: Action, where: str) -> None:
         grid.edges[ch.edge_id or f"{a}{fa}-{b}{fb}"] = (a, fa, b, fb)
 
 
-def _shift(grid: _Replay, action: Action, group: set[str], where: str
-           ) -> tuple[int, int] | None:
-    """The one translation [cells] of a move of ``group``: whole components, heading 0, on
-    the grid; None (the problem noted) if the goals are no such translation."""
+def _shift(grid: _Replay, goals: dict[str, list[float]], where: str) -> tuple[int, int] | None:
+    """The one translation [cells] of the group moved to ``goals``: heading 0, on the grid;
+    None (the problem noted) if the goals are no such translation."""
     problems = grid.problems
-    if set(action.goals) != group:
-        problems.append(f"{where}: goals for {sorted(action.goals)} but modules "
-                        f"{sorted(group)}")
-        return None
-    for m in group:
-        if not grid.component(m) <= group:
-            problems.append(f"{where}: {m} moves without the modules docked to it")
-            break
     shift = set()
-    for m, (x, y, yaw) in action.goals.items():
+    for m, (x, y, yaw) in goals.items():
         if abs(math.remainder(yaw, 2 * math.pi)) > 1e-6:
             problems.append(f"{where}: module {m} heading {yaw} rad, not 0")
         target = (_cell(x, grid.unit, where, problems), _cell(y, grid.unit, where, problems))
@@ -170,21 +164,31 @@ def _shift(grid: _Replay, action: Action, group: set[str], where: str
     return dx, dy
 
 
-def _move(grid: _Replay, action: Action, where: str) -> None:
-    """A move: a rigid translation along one grid axis over cells free of other modules."""
-    group = set(action.modules)
-    shift = _shift(grid, action, group, where)
-    if shift is None:
-        return
-    dx, dy = shift
-    cells, holder = grid.cells, grid.holder
-    for m in group:
-        del holder[cells[m]]
-    order = sorted(group)
-    paths = leg_paths([cells[m] for m in order], (dx, dy))
+def _groups(grid: _Replay, action: Action, where: str) -> list[list[str]]:
+    """The whole components an action moves (several move at once), each sorted."""
+    movers = set(action.modules)
+    if set(action.goals) != movers:
+        grid.problems.append(f"{where}: goals for {sorted(action.goals)} but modules "
+                             f"{sorted(movers)}")
+        return []
+    groups, seen = [], set()
+    for m in sorted(movers):
+        if m in seen:
+            continue
+        group = grid.component(m)
+        seen |= group
+        if not group <= movers:
+            grid.problems.append(f"{where}: {m} moves without the modules docked to it")
+            return []
+        groups.append(sorted(group))
+    return groups
+
+
+def _sweeps_clear(grid: _Replay, order: list[str], paths: list, where: str) -> None:
+    """No still module's centre within ``CLEARANCE`` of the paths of ``order``'s centres."""
     movers = order * (len(paths) // len(order))  # path k is module k mod n's
     for c in near(paths):
-        other = holder.get(c)
+        other = grid.holder.get(c)
         if other is None:
             continue
         hit = next((k for k, path in enumerate(paths) if distance(c, path) < CLEARANCE - 1e-9),
@@ -193,12 +197,36 @@ def _move(grid: _Replay, action: Action, where: str) -> None:
             what = "turning" if isinstance(paths[hit], Arc) else "driving"
             grid.problems.append(f"{where}: {movers[hit]} sweeps over {other} at {c} while "
                                  f"{what}")
-            break
-    for m in group:
-        cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
-        if cells[m] in holder:
-            grid.problems.append(f"{where}: {m} and {holder[cells[m]]} on one cell")
-        holder[cells[m]] = m
+            return
+
+
+def _move(grid: _Replay, action: Action, where: str) -> None:
+    """A move: each group a rigid translation along one grid axis, over cells free of
+    the still modules, and clear of every group moving at the same time in any timing."""
+    legs = []
+    for group in _groups(grid, action, where):
+        shift = _shift(grid, {m: action.goals[m] for m in group}, where)
+        if shift is not None:
+            legs.append((group, shift))
+    cells, holder = grid.cells, grid.holder
+    for group, _ in legs:
+        for m in group:
+            del holder[cells[m]]
+    swept = []
+    for group, shift in legs:
+        paths = leg_paths([cells[m] for m in group], shift)
+        _sweeps_clear(grid, group, paths, where)
+        swept.append(sweep_points(paths))
+    for i, j in combinations(range(len(legs)), 2):
+        if not apart(swept[i], swept[j]):
+            grid.problems.append(f"{where}: groups {','.join(legs[i][0])} and "
+                                 f"{','.join(legs[j][0])} move at once within reach")
+    for group, (dx, dy) in legs:
+        for m in group:
+            cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
+            if cells[m] in holder:
+                grid.problems.append(f"{where}: {m} and {holder[cells[m]]} on one cell")
+            holder[cells[m]] = m
 
 
 _STEPS: dict[ActionType, Callable[[_Replay, Action, str], None]] = {

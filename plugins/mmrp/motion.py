@@ -26,12 +26,17 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 
+import numpy as np
+from scipy.spatial import cKDTree
+
 from .robot import MODULE
 
 __all__ = [
     "CLEARANCE",
+    "SAMPLE_STEP",
     "Arc",
     "Segment",
+    "apart",
     "blocked",
     "centre",
     "distance",
@@ -39,6 +44,7 @@ __all__ = [
     "distance_to_segment",
     "drive_paths",
     "leg_paths",
+    "sweep_points",
     "turn_paths",
     "turned",
 ]
@@ -152,3 +158,47 @@ def blocked(paths: Sequence[Segment | Arc]) -> frozenset[tuple[int, int]]:
     ``paths``: those whose centre comes closer than ``CLEARANCE`` to a path."""
     return frozenset(c for c in near(paths)
                      if any(distance(c, path) < CLEARANCE - 1e-9 for path in paths))
+
+
+SAMPLE_STEP = 0.05
+"""Largest distance between two neighbouring points of :func:`sweep_points` [cells]."""
+
+
+def sweep_points(paths: Sequence[Segment | Arc], step: float = SAMPLE_STEP) -> np.ndarray:
+    """Points along ``paths``, ends included, no two neighbours farther apart than
+    ``step`` along a path [cells], shape (k, 2): every point of a path lies within
+    ``step / 2`` of one of them."""
+    out = []
+    for path in paths:
+        if isinstance(path, Arc):
+            (px, py), (sx, sy), sign = path
+            r = math.hypot(sx - px, sy - py)
+            start = math.atan2(sy - py, sx - px)
+            n = max(1, math.ceil(r * math.pi / 2 / step))  # chord <= arc length / n
+            angles = start + sign * np.linspace(0.0, math.pi / 2, n + 1)
+            out.append(np.column_stack([px + r * np.cos(angles), py + r * np.sin(angles)]))
+        else:
+            (ax, ay), (bx, by) = path
+            n = max(1, math.ceil(math.hypot(bx - ax, by - ay) / step))
+            t = np.linspace(0.0, 1.0, n + 1)
+            out.append(np.column_stack([ax + t * (bx - ax), ay + t * (by - ay)]))
+    return np.concatenate(out) if out else np.zeros((0, 2))
+
+
+def apart(a: np.ndarray, b: np.ndarray, step: float = SAMPLE_STEP) -> bool:
+    """Whether two groups moving at the same time, in any timing, keep their bodies apart.
+
+    ``a`` and ``b`` are :func:`sweep_points` of the two groups' paths. A point of either
+    path lies within ``step / 2`` of a sample, so when every pair of samples is at
+    least ``CLEARANCE + step`` apart, every pair of path points is at least
+    ``CLEARANCE`` apart: no module of one group comes near a module of the other,
+    wherever along its path each is (a sufficient test, never optimistic).
+    """
+    if not len(a) or not len(b):
+        return True
+    reach = CLEARANCE + step
+    if (a.min(axis=0) > b.max(axis=0) + reach).any() or \
+            (b.min(axis=0) > a.max(axis=0) + reach).any():
+        return True
+    nearest, _ = cKDTree(b).query(a, k=1, distance_upper_bound=reach)
+    return bool(np.all(nearest >= reach - 1e-9))

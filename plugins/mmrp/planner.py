@@ -44,6 +44,7 @@ from .representation import (
     to_tree,
 )
 from .robot import SPEC
+from .schedule import concurrent_moves
 from .targets import DerivedConfiguration
 
 __all__ = ["LOOKAHEAD", "HybridResult", "McsHybridPlanner", "plan_hybrid"]
@@ -408,7 +409,7 @@ def plan_hybrid(start: Configuration, goal: Configuration, *, seed: int = 0,
     final.name, final.description = goal.name, goal.description
     plan = Plan(
         robot=SPEC.name, planner=McsHybridPlanner.name, start=start.copy(), goal=final,
-        actions=actions, mapping=mapping,
+        actions=concurrent_moves(actions, chosen.layout.start_cells, unit), mapping=mapping,
         notes=_notes(recognition, roots, decomposition, matching, result, virtual),
         stats=_stats(start, actions, matching, result, recognition, pairs=pairs, kept=kept,
                      mcs_modules=len(common), cut=cut, elapsed=elapsed),

@@ -1,7 +1,8 @@
 """The MMRP controller: drives module groups to goal poses and docks them.
 
-Per moving group (modules docked together), the centroid is steered like a
-tracked vehicle (forward speed and yaw rate only):
+Per moving group (modules docked together; a moving action may drive several groups
+at once, :mod:`..schedule`), the centroid is steered like a tracked vehicle (forward
+speed and yaw rate only):
 
 0. ``stops`` -- a plan's moving action is one leg of a route, driven exactly as
    :mod:`msrr.plugins.mmrp.motion` says and the plan checker replays (along x
@@ -113,14 +114,14 @@ class MmrpController:
         self.yaw_tolerance = yaw_tolerance
         self.leg_tolerance = float(SPEC.defaults.shape_tolerance.position)
         self.goals: dict[str, Pose2] = {}
-        self.plan: _GroupPlan | None = None
+        self.plans: list[_GroupPlan] = []
 
     # -- setting up a phase ------------------------------------------------------------
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
         for module, goal in action.goals.items():
             self.goals[module] = (float(goal[0]), float(goal[1]), float(goal[2]))
-        self.plan = None
+        self.plans = []
         poses = _planar(observation)
         if phase is Phase.MOVE and action.goals:
             targets = {m: self.goals[m] for m in action.goals}
@@ -128,11 +129,17 @@ class MmrpController:
             targets = self._connection_targets(action, phase, observation, poses)
         else:
             return
-        if not targets:
-            return
-        modules = sorted(targets)
-        others = [poses[m][:2] for m in poses if m not in targets]
-        plan = _GroupPlan(modules, targets, self._approach_sign(targets, others))
+        # one plan per docked group: a moving action may drive several groups at once
+        for component in _components(observation):
+            modules = sorted(component & set(targets))
+            if modules:
+                self.plans.append(self._group_plan(modules, targets, phase, poses))
+
+    def _group_plan(self, modules: list[str], targets: Mapping[str, Pose2], phase: Phase,
+                    poses: Mapping[str, Pose2]) -> _GroupPlan:
+        mine = {m: targets[m] for m in modules}
+        others = [poses[m][:2] for m in poses if m not in mine]
+        plan = _GroupPlan(modules, mine, self._approach_sign(mine, others))
         centre = self._current_centre(plan, poses)
         target = plan.centre
         if phase is Phase.MOVE:
@@ -142,7 +149,7 @@ class MmrpController:
             plan.stage = "line"
         else:
             self._plan_path(plan, poses)
-        self.plan = plan
+        return plan
 
     @staticmethod
     def _leg_stops(centre: Pose2, target: Pose2) -> list[Pose2]:
@@ -218,12 +225,22 @@ class MmrpController:
     # -- one tick ---------------------------------------------------------------------
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
-        plan = self.plan
-        if plan is None:
-            return Control(reached=True)
         poses = _planar(observation)
-        centre = self._current_centre(plan, poses)
-        v, omega, reached = self._drive(plan, centre, poses)
+        commands: dict[str, ModuleCommand] = {}
+        errors: dict[str, float] = {}
+        reached = True
+        for plan in self.plans:
+            centre = self._current_centre(plan, poses)
+            v, omega, done = self._drive(plan, centre, poses)
+            reached &= done
+            commands.update(self._tracks(plan, centre, poses, v, omega))
+            errors.update({m: math.dist(poses[m][:2], plan.targets[m][:2])
+                           for m in plan.modules})
+        return Control(commands=commands, errors=errors, reached=reached)
+
+    def _tracks(self, plan: _GroupPlan, centre: Pose2, poses: Mapping[str, Pose2], v: float,
+                omega: float) -> dict[str, ModuleCommand]:
+        """Each member's track speeds for the group twist ``(v, omega)`` about ``centre``."""
         tracks = {}
         for module in plan.modules:
             r = np.subtract(poses[module][:2], centre[:2])
@@ -232,10 +249,8 @@ class MmrpController:
         # one scale for the whole group: a module's driver clips its own tracks to
         # max_speed, which would bend the group's twist (a turn would drift its centre)
         scale = max(1.0, *(abs(t) / self.max_speed for pair in tracks.values() for t in pair))
-        commands = {m: ModuleCommand(wheels={"left": left / scale, "right": right / scale})
-                    for m, (left, right) in tracks.items()}
-        errors = {m: math.dist(poses[m][:2], plan.targets[m][:2]) for m in plan.modules}
-        return Control(commands=commands, errors=errors, reached=reached)
+        return {m: ModuleCommand(wheels={"left": left / scale, "right": right / scale})
+                for m, (left, right) in tracks.items()}
 
     def _follow_stops(self, plan: _GroupPlan, centre: Pose2) -> tuple[float, float]:
         """Toward the next stop of a leg: turn in place at it, else drive straight along

@@ -97,15 +97,16 @@ class MmrpSimDriver(Driver):
         if unknown:
             raise ExecutionError(f"commands for unknown module(s) {sorted(unknown)}")
         world.armed = set()
-        for module in world.bodies:
-            command = commands.get(module, ModuleCommand())
+        tracks = {}
+        for module, command in commands.items():
             left = float(command.wheels.get("left", 0.0))
             right = float(command.wheels.get("right", 0.0))
             scale = max(1.0, abs(left) / self.max_speed, abs(right) / self.max_speed)
-            world.tracks[module] = (left / scale, right / scale)
+            tracks[module] = (left / scale, right / scale)
             for face in command.undock:
                 world.unlatch(module, face)
             world.armed |= {(module, face) for face in command.dock}
+        world.set_tracks(tracks)
 
     def step(self, dt: float) -> None:
         world = self._world()

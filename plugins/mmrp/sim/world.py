@@ -1,10 +1,10 @@
 """The PyBullet world of MMRP modules.
 
 Each module is a box body resting on the floor. Tracks are modelled by velocity
-control: every physics step, each docked group (connected by dock constraints)
-gets the rigid planar velocity fitted to its modules' track speeds, with the
-lateral component removed (non-holonomic); modules without commands brake to
-zero. Contacts between bodies are simulated, so modules collide. A dock is a
+control: every physics step, each driven docked group (connected by dock
+constraints) gets the rigid planar velocity fitted to its modules' track speeds, with
+the lateral component removed (non-holonomic); modules without commands brake to
+zero when they stop and after every contact that touched them. Contacts between bodies are simulated, so modules collide. A dock is a
 ``JOINT_FIXED`` constraint between two bodies, created only when an armed face is
 within the latch's alignment tolerance of the opposite face of another module.
 
@@ -71,6 +71,12 @@ class MmrpWorld:
         self.armed: set[Face] = set()
         self.docks: dict[frozenset[Face], int] = {}
         self._groups: list[list[str]] | None = None
+        self._driven: list[list[str]] | None = None  # groups with a track turning
+        self._moving: set[str] = set()  # modules driven in the last step
+        self._touched: set[str] = set()  # modules in a contact in the last step
+        self._module_of: dict[int, str] = {}
+        self._group_of: dict[str, list[str]] = {}
+        self._awake: set[str] = set()  # modules kept awake (driven)
         self.time = 0.0
 
     def close(self) -> None:
@@ -92,8 +98,11 @@ class MmrpWorld:
                                  basePosition=[pose[0], pose[1], half[2]],
                                  baseOrientation=p.getQuaternionFromEuler([0, 0, pose[2]]),
                                  physicsClientId=self.client)
-        p.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=self.client)
+        p.changeDynamics(body, -1, lateralFriction=0.0,
+                         activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING,
+                         physicsClientId=self.client)
         self.bodies[module] = body
+        self._module_of[body] = module
         self.tracks[module] = (0.0, 0.0)
         self._groups = None
 
@@ -149,28 +158,60 @@ class MmrpWorld:
 
     # -- stepping ---------------------------------------------------------------------
 
+    def set_tracks(self, tracks: Mapping[str, tuple[float, float]]) -> None:
+        """Every module's ``(left, right)`` track speeds [m/s] (absent: 0, braked)."""
+        self.tracks = {m: tuple(tracks.get(m, (0.0, 0.0))) for m in self.bodies}
+        self._driven = None
+
     def step(self) -> None:
-        """One physics step: group velocities, integration, then latch armed faces."""
+        """One physics step: group velocities, integration, then latch armed faces.
+
+        Driven groups get their rigid twist; a module is braked (velocity zeroed) when
+        its group stops and whenever a contact touched its group in the last step. Nothing else
+        moves an idle body (no gravity, no floor contact), so idle modules cost no
+        Python per step.
+        """
         if self._groups is None:
             self._groups = self.groups()
+            self._group_of = {m: g for g in self._groups for m in g}
+            self._driven = None
         client, still = self.client, (0.0, 0.0, 0.0)
-        for group in self._groups:
-            tracks = [self.tracks[m] for m in group]
-            if not any(left or right for left, right in tracks):
-                for module in group:
-                    p.resetBaseVelocity(self.bodies[module], still, still, physicsClientId=client)
-                continue
+        if self._driven is None:
+            self._driven = [g for g in self._groups
+                            if any(left or right for m in g for left, right in [self.tracks[m]])]
+            self._rest({m for g in self._driven for m in g})
+        moving: set[str] = set()
+        for group in self._driven:
+            moving.update(group)
             poses = np.array([self.pose2(m) for m in group])
-            v, omega = group_twist(poses[:, :2], poses[:, 2], np.array(tracks), self.width)
+            v, omega = group_twist(poses[:, :2], poses[:, 2],
+                                   np.array([self.tracks[m] for m in group]), self.width)
             cx, cy = poses[:, :2].mean(axis=0)
             for module, (x, y, _) in zip(group, poses.tolist(), strict=True):
                 p.resetBaseVelocity(self.bodies[module],
                                     (v[0] - omega * (y - cy), v[1] + omega * (x - cx), 0.0),
                                     (0.0, 0.0, omega), physicsClientId=client)
-        p.stepSimulation(physicsClientId=self.client)
+        stirred = self._moving | {m for t in self._touched for m in self._group_of[t]}
+        for module in stirred - moving:
+            p.resetBaseVelocity(self.bodies[module], still, still, physicsClientId=client)
+        self._moving = moving
+        p.stepSimulation(physicsClientId=client)
+        self._touched = {self._module_of[c[k]] for c in p.getContactPoints(physicsClientId=client)
+                         for k in (1, 2) if c[k] in self._module_of}
         self.time += self.dt
         if self.armed:
             self._latch_armed()
+
+    def _rest(self, driven: set[str]) -> None:
+        """Let idle modules sleep in the physics engine (Bullet skips a sleeping island:
+        most of a step's cost is the solver of the dock constraints of idle groups) and
+        keep driven ones awake; a contact with an awake body wakes a sleeping one."""
+        for module in driven ^ self._awake:
+            state = (p.ACTIVATION_STATE_DISABLE_SLEEPING | p.ACTIVATION_STATE_WAKE_UP
+                     if module in driven else p.ACTIVATION_STATE_ENABLE_SLEEPING)
+            p.changeDynamics(self.bodies[module], -1, activationState=state,
+                             physicsClientId=self.client)
+        self._awake = set(driven)
 
     def _latch_armed(self) -> None:
         links = self.links()
