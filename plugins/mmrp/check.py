@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from itertools import combinations
 from dataclasses import dataclass
+from itertools import combinations
 
 from msrr.core.plan import Action, ActionType, Plan
 
