@@ -8,8 +8,9 @@ run's own one-line reason. Pairs are seeded random legal planar trees
 generator.
 
 Usage: ``python benchmarks/mmrp_sim.py [--seed N] [--small N] [--large N]
-[--sizes 30,100] [--timeout S]``: ``--small`` pairs of the first size, ``--large``
-of the second. Prints the seed, one row per run (docks, undocks, simulated and wall
+[--sizes 30,100] [--timeout S] [--only 30:3,100:1] [--out DIR]``: ``--small`` pairs of
+the first size, ``--large`` of the second; ``--only`` reruns chosen pairs (the same
+pairs as in a full run), ``--out`` keeps every pair's files and run folder. Prints the seed, one row per run (docks, undocks, simulated and wall
 time, real-time factor, reason) and per size the success rate and totals; the last
 line is ``runs=... succeeded=... failed=... sim_s=... wall_s=... rtf=...``. Exits 1 if
 a run failed.
@@ -43,8 +44,9 @@ def _run(n: int, k: int, rng: np.random.Generator, folder: Path, timeout: float)
     began = time.perf_counter()
     try:
         done = subprocess.run([sys.executable, "-c", _PLATFORM, "run", "--robot", "mmrp",
-                               "--from", str(a), "--to", str(b), "--out", str(out), "--no-log"],
-                              capture_output=True, text=True, timeout=timeout)
+                               "--from", str(a), "--to", str(b), "--out", str(out), "--no-log",
+                               "--force"], capture_output=True, text=True, timeout=timeout)
+        (folder / f"{n}-{k}.log").write_text(done.stdout + done.stderr)
         last = (done.stdout.strip().splitlines() or [""])[-1]
     except subprocess.TimeoutExpired:
         last = f"benchmark timeout after {timeout:g} s of wall time"
@@ -66,21 +68,33 @@ def _run(n: int, k: int, rng: np.random.Generator, folder: Path, timeout: float)
               help="The two sizes, comma-separated.")
 @click.option("--timeout", default=3600.0, show_default=True,
               help="Wall time one run may take [s].")
-def main(seed: int, small: int, large: int, sizes: str, timeout: float) -> None:
+@click.option("--only", default="", help="Run only these pairs, e.g. '30:3,30:7,100:1' "
+              "(the others are still drawn, so each pair is the same as in a full run).")
+@click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Keep every pair's start, goal and run folder here (default: deleted).")
+def main(seed: int, small: int, large: int, sizes: str, timeout: float, only: str,
+         out: Path | None) -> None:
     console.print(f"seed={seed}")
     rng = np.random.default_rng(seed)
     first, second = (int(n) for n in sizes.split(","))
+    chosen = {tuple(int(v) for v in item.split(":")) for item in only.split(",") if item}
     rows, results = [], []
     with tempfile.TemporaryDirectory() as tmp:
+        folder = out or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
         for n, count in ((first, small), (second, large)):
             for k in range(count):
-                r = _run(n, k, rng, Path(tmp), timeout)
+                if chosen and (n, k) not in chosen:
+                    random_tree(n, rng), random_tree(n, rng)  # the same draws as a full run
+                    continue
+                r = _run(n, k, rng, folder, timeout)
                 results.append(r)
                 rows.append([n, k, "success" if r["success"] else "FAILED", r["actions"],
                              f"{r['docks']}/{r['planned']}", r["undocks"], f"{r['sim']:.0f}",
                              f"{r['wall']:.0f}", f"{r['sim'] / r['wall']:.2f}", r["reason"]])
                 console.print(f"  {n} modules, pair {k}: {rows[-1][2]}, {r['sim']:.0f} s "
                               f"simulated in {r['wall']:.0f} s {r['reason']}", style="dim")
+                sys.stdout.flush()  # progress lines reach a log as each run ends
     console.print(table("MMRP random reconfigurations in PyBullet", [
         "modules", "pair", "result", "actions", "docks", "undocks", "sim [s]", "wall [s]",
         "real-time factor", "reason"], rows))

@@ -414,7 +414,7 @@ def _poisoned(value: Any) -> Any:
 def _finite(value: Any, depth: int = 0) -> bool:
     """Whether every number in ``value`` (arrays, mappings, sequences, dataclasses) is
     finite."""
-    if depth > 20:
+    if depth > 20 or value is None or isinstance(value, str | int):  # the common leaves
         return True
     if isinstance(value, np.ndarray):
         return value.dtype.kind not in "fc" or bool(np.all(np.isfinite(value)))

@@ -71,7 +71,7 @@ class MmrpWorld:
         self.armed: set[Face] = set()
         self.docks: dict[frozenset[Face], int] = {}
         self._groups: list[list[str]] | None = None
-        self._driven: list[list[str]] | None = None  # groups with a track turning
+        self._driven: list[tuple[list[str], list[int], float, float]] | None = None
         self._moving: set[str] = set()  # modules driven in the last step
         self._touched: set[str] = set()  # modules in a contact in the last step
         self._module_of: dict[int, str] = {}
@@ -177,20 +177,22 @@ class MmrpWorld:
             self._driven = None
         client, still = self.client, (0.0, 0.0, 0.0)
         if self._driven is None:
-            self._driven = [g for g in self._groups
+            self._driven = [self._twist(g) for g in self._groups
                             if any(left or right for m in g for left, right in [self.tracks[m]])]
-            self._rest({m for g in self._driven for m in g})
+            self._rest({m for g, *_ in self._driven for m in g})
         moving: set[str] = set()
-        for group in self._driven:
+        for group, bodies, along, omega in self._driven:
             moving.update(group)
-            poses = np.array([self.pose2(m) for m in group])
-            v, omega = group_twist(poses[:, :2], poses[:, 2],
-                                   np.array([self.tracks[m] for m in group]), self.width)
-            cx, cy = poses[:, :2].mean(axis=0)
-            for module, (x, y, _) in zip(group, poses.tolist(), strict=True):
-                p.resetBaseVelocity(self.bodies[module],
-                                    (v[0] - omega * (y - cy), v[1] + omega * (x - cx), 0.0),
-                                    (0.0, 0.0, omega), physicsClientId=client)
+            states = [p.getBasePositionAndOrientation(b, physicsClientId=client) for b in bodies]
+            cx = sum(pos[0] for pos, _ in states) / len(states)
+            cy = sum(pos[1] for pos, _ in states) / len(states)
+            hx = sum(1 - 2 * (q[1] * q[1] + q[2] * q[2]) for _, q in states)  # sum of cos yaw
+            hy = sum(2 * (q[3] * q[2] + q[0] * q[1]) for _, q in states)  # sum of sin yaw
+            norm = math.hypot(hx, hy)
+            vx, vy = along * hx / norm, along * hy / norm
+            for body, (pos, _) in zip(bodies, states, strict=True):
+                p.resetBaseVelocity(body, (vx - omega * (pos[1] - cy), vy + omega * (pos[0] - cx),
+                                           0.0), (0.0, 0.0, omega), physicsClientId=client)
         stirred = self._moving | {m for t in self._touched for m in self._group_of[t]}
         for module in stirred - moving:
             p.resetBaseVelocity(self.bodies[module], still, still, physicsClientId=client)
@@ -201,6 +203,18 @@ class MmrpWorld:
         self.time += self.dt
         if self.armed:
             self._latch_armed()
+
+    def _twist(self, group: list[str]) -> tuple[list[str], list[int], float, float]:
+        """A driven group, its bodies, and its twist as its tracks set it: speed along its
+        heading [m/s] and yaw rate [rad/s] (:func:`group_twist`; both are fixed in the
+        group's frame while the tracks keep their speeds, so each step only turns the
+        velocity with the group's heading and spreads it over its modules)."""
+        poses = np.array([self.pose2(m) for m in group])
+        v, omega = group_twist(poses[:, :2], poses[:, 2],
+                               np.array([self.tracks[m] for m in group]), self.width)
+        heading = np.array([np.cos(poses[:, 2]).sum(), np.sin(poses[:, 2]).sum()])
+        along = float(v @ heading) / max(float(np.linalg.norm(heading)), 1e-12)
+        return group, [self.bodies[m] for m in group], along, omega
 
     def _rest(self, driven: set[str]) -> None:
         """Let idle modules sleep in the physics engine (Bullet skips a sleeping island:

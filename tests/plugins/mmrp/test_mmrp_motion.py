@@ -1,5 +1,6 @@
-"""Issue 29, item 1: the swept area of turning and driving groups, in the router and the
-checker, against an independent reference (the true square bodies, densely sampled)."""
+"""Issue 29: the swept area of turning and driving groups, in the router and the checker
+(item 1), and groups driving at once (item 2), against an independent reference (the
+true square bodies, densely sampled)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,15 @@ from hypothesis import strategies as st
 
 from msrr.core.plan import Action, ActionType, ConnectionChange, Plan
 from msrr.plugins.mmrp.check import check_plan
-from msrr.plugins.mmrp.motion import blocked, drive_paths, leg_paths, turn_paths
+from msrr.plugins.mmrp.motion import (
+    apart,
+    blocked,
+    drive_paths,
+    leg_paths,
+    sweep_points,
+    turn_paths,
+)
+from msrr.plugins.mmrp.planner import plan_hybrid
 from msrr.plugins.mmrp.random_trees import random_tree
 from msrr.plugins.mmrp.representation import from_links, grid_cells
 from msrr.plugins.mmrp.robot import MODULE
@@ -135,3 +144,75 @@ def test_the_checker_finds_a_turn_that_a_translation_check_passes():
         here[m] = (here[m][0], here[m][1] + 3 * p)
     plan.actions[2] = move(bar, -6, 0)
     assert check_plan(plan) == []
+
+
+def _touch(a: list[np.ndarray], b: list[np.ndarray]) -> bool:
+    """Whether any body of one set overlaps any body of the other."""
+    return any(np.abs(x.mean(axis=0) - y.mean(axis=0)).max() < 1 and _overlap(x, y)
+               for x in a for y in b)
+
+
+@settings(max_examples=12, deadline=None)
+@given(n=st.integers(1, 4), m=st.integers(1, 4), seed=st.integers(0, 10_000),
+       dx=st.integers(-4, 4), dy=st.integers(-4, 4), axes=st.sampled_from(["xx", "xy", "yy"]))
+def test_groups_apart_never_touch_in_any_timing(n, m, seed, dx, dy, axes):
+    """The reference: every instant of one leg against every instant of the other."""
+    rng = np.random.default_rng(seed)
+    a = list(grid_cells(random_tree(n, rng)).values())
+    b = [(x + dx, y + dy) for x, y in grid_cells(random_tree(m, rng)).values()]
+    if set(a) & set(b):
+        return
+    shift_a = (2, 0) if axes[0] == "x" else (0, 2)
+    shift_b = (-1, 0) if axes[1] == "x" else (0, -1)
+    if not apart(sweep_points(leg_paths(a, shift_a)), sweep_points(leg_paths(b, shift_b))):
+        return
+    instants_a = [body for bodies in _bodies_along(a, shift_a, 12) for body in bodies]
+    instants_b = [body for bodies in _bodies_along(b, shift_b, 12) for body in bodies]
+    assert not _touch(instants_a, instants_b), (a, shift_a, b, shift_b)
+
+
+def test_apart_is_not_vacuous():
+    one = sweep_points(leg_paths([(0, 0)], (3, 0)))
+    assert apart(one, sweep_points(leg_paths([(0, 2)], (3, 0))))
+    assert not apart(one, sweep_points(leg_paths([(3, 1)], (0, -3))))  # crossing paths
+    # a turning bar of five swings two cells out: a module driving two rows up is hit
+    bar = sweep_points(leg_paths([(i, 0) for i in range(5)], (0, 1)))
+    assert not apart(bar, sweep_points(leg_paths([(-3, 2)], (8, 0))))
+    assert apart(bar, sweep_points(leg_paths([(-3, 5)], (8, 0))))  # its end turn reaches row 3
+
+
+def test_random_plans_pack_legs_into_checked_waves():
+    rng = np.random.default_rng(7)
+    merged = legs = 0
+    for _ in range(3):
+        plan = plan_hybrid(random_tree(30, rng), random_tree(30, rng)).plan
+        assert check_plan(plan) == []
+        moves = [a for a in plan.actions if a.type is ActionType.MOVING]
+        merged += len(moves)
+        legs += sum(a.note.count("(leg ") for a in moves)
+    assert merged < legs * 0.75  # legs of different groups do run at once
+
+
+def test_the_checker_refuses_two_groups_crossing_at_once():
+    # a chain a-b-c along x, undocked; c steps up two cells; then a drives up three
+    # while c drives left along row 2 (through a's column): their paths cross
+    start = from_links(["a", "b", "c"], [("a", "T", "b", "B"), ("b", "T", "c", "B")])
+    loose = from_links(["a", "b", "c"], [])
+    p = MODULE.geometry["pitch"]
+    cells = grid_cells(start)
+    (ax, ay), (cx, cy) = cells["a"], cells["c"]
+    undocks = [Action(ActionType.DISCONNECTION, from_links(["a", "b", "c"], links),
+                      modules=(e.source, e.target),
+                      changes=(ConnectionChange(e.source, e.target, *e.ports, e.id),))
+               for e, links in zip(start.edges(), ([("b", "T", "c", "B")], []), strict=True)]
+
+    def move(goals):
+        return Action(ActionType.MOVING, loose, modules=tuple(goals),
+                      goals={m: [x * p, y * p, 0.0] for m, (x, y) in goals.items()})
+
+    up = move({"c": (cx, cy + 2)})
+    apart_legs = move({"a": (ax, ay + 3), "c": (cx + 1, cy + 2)})
+    assert check_plan(Plan("mmrp", "hand", start, loose, [*undocks, up, apart_legs])) == []
+    crossing = move({"a": (ax, ay + 3), "c": (ax - 2, cy + 2)})
+    problems = check_plan(Plan("mmrp", "hand", start, loose, [*undocks, up, crossing]))
+    assert len(problems) == 1 and "move at once within reach" in problems[0]

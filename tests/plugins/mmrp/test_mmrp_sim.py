@@ -17,6 +17,7 @@ from msrr.core.driver import ModuleCommand
 from msrr.core.io import load_configuration
 from msrr.core.plan import load_plan
 from msrr.core.timeline import summarize_recording
+from msrr.plugins.mmrp.representation import from_links
 from msrr.plugins.mmrp.sim import MmrpSimDriver
 from msrr.plugins.mmrp.sim.geometry import alignment, group_twist, neighbour_pose, track_speeds
 from msrr.plugins.mmrp.sim.paths import plan_path, segment_clearance
@@ -127,3 +128,21 @@ def test_unreachable_goal_fails_before_writing_anything(tmp_path: Path, goal: st
     assert result.exit_code == 1
     assert result.output.count("\n") <= 2 and "Error:" in result.output
     assert "Traceback" not in result.output and not out.exists()
+
+
+def test_a_sleeping_group_drives_when_commanded_and_idle_ones_stay():
+    with MmrpSimDriver() as driver:
+        driver.reset(from_links(["a", "b", "c"], [("a", "T", "b", "B"), ("b", "T", "c", "B")]))
+        world = driver.world
+        assert world is not None
+        driver.send_action({"c": ModuleCommand(undock=("B",))})
+        driver.step(5.0)  # long enough for Bullet to put every body to sleep
+        before = {m: world.pose2(m) for m in world.bodies}
+        assert len(world.docks) == 1
+        go = {m: ModuleCommand(wheels={"left": -0.1, "right": -0.1}) for m in ("a", "b")}
+        driver.send_action(go)
+        driver.step(1.0)
+        for m in ("a", "b"):
+            assert np.subtract(world.pose2(m)[:2], before[m][:2]) @ [1, 0] == pytest.approx(
+                -0.1, abs=2e-3)
+        assert world.pose2("c") == before["c"]
