@@ -10,10 +10,11 @@ generator.
 Usage: ``python benchmarks/mmrp_sim.py [--seed N] [--small N] [--large N]
 [--sizes 30,100] [--timeout S] [--only 30:3,100:1] [--out DIR]``: ``--small`` pairs of
 the first size, ``--large`` of the second; ``--only`` reruns chosen pairs (the same
-pairs as in a full run), ``--out`` keeps every pair's files and run folder. Prints the seed, one row per run (docks, undocks, simulated and wall
-time, real-time factor, reason) and per size the success rate and totals; the last
-line is ``runs=... succeeded=... failed=... sim_s=... wall_s=... rtf=...``. Exits 1 if
-a run failed.
+pairs as in a full run), ``--out`` keeps every pair's files, run folder and the run's
+output as it is written (``30-3.log``). Prints the seed, a line as each run ends, one
+row per run (docks, undocks, simulated and wall time, real-time factor, reason) and
+per size the success rate and totals; the last line is ``runs=... succeeded=...
+failed=... sim_s=... wall_s=... rtf=...``. Exits 1 if a run failed.
 """
 
 from __future__ import annotations
@@ -42,14 +43,16 @@ def _run(n: int, k: int, rng: np.random.Generator, folder: Path, timeout: float)
     save_configuration(start, a)
     save_configuration(goal, b)
     began = time.perf_counter()
-    try:
-        done = subprocess.run([sys.executable, "-c", _PLATFORM, "run", "--robot", "mmrp",
-                               "--from", str(a), "--to", str(b), "--out", str(out), "--no-log",
-                               "--force"], capture_output=True, text=True, timeout=timeout)
-        (folder / f"{n}-{k}.log").write_text(done.stdout + done.stderr)
-        last = (done.stdout.strip().splitlines() or [""])[-1]
-    except subprocess.TimeoutExpired:
-        last = f"benchmark timeout after {timeout:g} s of wall time"
+    log = folder / f"{n}-{k}.log"
+    with log.open("w") as output:  # written as the run goes: a long run shows its progress
+        try:
+            subprocess.run([sys.executable, "-c", _PLATFORM, "run", "--robot", "mmrp",
+                            "--from", str(a), "--to", str(b), "--out", str(out), "--no-log",
+                            "--force"], stdout=output, stderr=subprocess.STDOUT, text=True,
+                           timeout=timeout)
+            last = (log.read_text().strip().splitlines() or [""])[-1]
+        except subprocess.TimeoutExpired:
+            last = f"benchmark timeout after {timeout:g} s of wall time"
     wall = time.perf_counter() - began
     summary = out / "summary.json"
     data = json.loads(summary.read_text()) if summary.exists() else {}

@@ -52,6 +52,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field, fields, is_dataclass, replace
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -416,17 +417,25 @@ def _finite(value: Any, depth: int = 0) -> bool:
     finite."""
     if depth > 20 or value is None or isinstance(value, str | int):  # the common leaves
         return True
-    if isinstance(value, np.ndarray):
-        return value.dtype.kind not in "fc" or bool(np.all(np.isfinite(value)))
     if isinstance(value, float):
         return math.isfinite(value)
-    if isinstance(value, Mapping):
-        return all(_finite(v, depth + 1) for v in value.values())
     if isinstance(value, list | tuple):
         return all(_finite(v, depth + 1) for v in value)
-    if is_dataclass(value) and not isinstance(value, type):
-        return all(_finite(getattr(value, f.name), depth + 1) for f in fields(value))
-    return True
+    if isinstance(value, dict | Mapping):
+        return all(_finite(v, depth + 1) for v in value.values())
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind == "f" and value.size <= 16:  # a pose: plain floats are faster
+            return all(map(math.isfinite, value.ravel().tolist()))
+        return value.dtype.kind not in "fc" or bool(np.isfinite(value).all())
+    names = _field_names(type(value))
+    return all(_finite(getattr(value, name), depth + 1) for name in names)
+
+
+@cache
+def _field_names(kind: type) -> tuple[str, ...]:
+    """The field names of a dataclass type (none for another type), found once per type
+    (the guard reads every module's report every tick)."""
+    return tuple(f.name for f in fields(kind)) if is_dataclass(kind) else ()
 
 
 def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -4,9 +4,11 @@ Each module is a box body resting on the floor. Tracks are modelled by velocity
 control: every physics step, each driven docked group (connected by dock
 constraints) gets the rigid planar velocity fitted to its modules' track speeds, with
 the lateral component removed (non-holonomic); modules without commands brake to
-zero when they stop and after every contact that touched them. Contacts between bodies are simulated, so modules collide. A dock is a
-``JOINT_FIXED`` constraint between two bodies, created only when an armed face is
-within the latch's alignment tolerance of the opposite face of another module.
+zero when they stop and after every contact that touched their group, and sleep in
+the physics engine meanwhile. Contacts between bodies are simulated, so modules
+collide. A dock is a ``JOINT_FIXED`` constraint between two bodies, created only when
+an armed face is within the latch's alignment tolerance of the opposite face of
+another module.
 
 The floor carries the modules' weight and nothing else: the tracks set every
 body's planar velocity and the floor is frictionless, so its contacts changed no
@@ -167,9 +169,9 @@ class MmrpWorld:
         """One physics step: group velocities, integration, then latch armed faces.
 
         Driven groups get their rigid twist; a module is braked (velocity zeroed) when
-        its group stops and whenever a contact touched its group in the last step. Nothing else
-        moves an idle body (no gravity, no floor contact), so idle modules cost no
-        Python per step.
+        its group stops and whenever a contact touched its group in the last step.
+        Nothing else moves an idle body (no gravity, no floor contact), so idle modules
+        cost no Python per step.
         """
         if self._groups is None:
             self._groups = self.groups()
