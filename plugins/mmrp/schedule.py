@@ -19,6 +19,7 @@ that stays clear of its own. The plan checker replays the waves itself
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -32,6 +33,12 @@ Cell = tuple[int, int]
 
 BUCKET = 4
 """Side of the spatial hash of the legs' swept boxes [cells]."""
+
+LONGEST_LEG = 20
+"""Longest drive of one moving action [cells]: 6 m, 50 s at the controller's cruise
+speed, well inside the executor's default phase timeout (90 s). A longer straight leg
+is driven in pieces (stopping in between), so that a parking leg across the field
+does not time out and restart."""
 
 
 def leg_shift(action: Action, cells: Mapping[str, Cell], unit: float) -> Cell:
@@ -80,6 +87,32 @@ def _waves(legs: Sequence[Action], cells: dict[str, Cell], unit: float) -> list[
     return waves
 
 
+def _pieces(legs: Sequence[Action], cells: Mapping[str, Cell], unit: float) -> list[Action]:
+    """``legs`` with every drive longer than ``LONGEST_LEG`` split into equal pieces.
+
+    Only legs whose pieces sweep nothing the whole leg does not: drives along x, and
+    drives along y of a single module (it turns in place; a group's turn halfway along
+    a y leg would sweep a new disc, so a group's y leg stays whole).
+    """
+    cells = dict(cells)
+    out = []
+    for leg in legs:
+        dx, dy = leg_shift(leg, cells, unit)
+        count = 1 if dy and len(leg.modules) > 1 else -(-max(abs(dx), abs(dy)) // LONGEST_LEG)
+        for i in range(1, count + 1):
+            if count == 1:
+                out.append(leg)
+                break
+            step = (round(dx * i / count), round(dy * i / count))
+            goals = {m: [(cells[m][0] + step[0]) * unit, (cells[m][1] + step[1]) * unit, 0.0]
+                     for m in leg.modules}
+            out.append(replace(leg, goals=goals, cost=leg.cost / count,
+                               note=f"{leg.note}, piece {i}/{count}"))
+        for m in leg.modules:
+            cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
+    return out
+
+
 def _merged(legs: Sequence[Action]) -> Action:
     if len(legs) == 1:
         return legs[0]
@@ -92,7 +125,8 @@ def _merged(legs: Sequence[Action]) -> Action:
 
 def concurrent_moves(actions: Sequence[Action], start_cells: Mapping[str, Cell], unit: float
                      ) -> list[Action]:
-    """``actions`` with every run of consecutive single-group legs packed into waves.
+    """``actions`` with every run of consecutive single-group legs packed into waves
+    (legs longer than ``LONGEST_LEG`` first split into pieces).
 
     Args:
         actions: a plan's actions; each moving action is one leg of one rigid group
@@ -110,8 +144,9 @@ def concurrent_moves(actions: Sequence[Action], start_cells: Mapping[str, Cell],
 
     def flush() -> None:
         if run:
-            for wave in _waves(run, cells, unit):
-                out.append(_merged([run[k] for k in wave]))
+            legs = _pieces(run, cells, unit)
+            for wave in _waves(legs, cells, unit):
+                out.append(_merged([legs[k] for k in wave]))
             run.clear()
 
     for action in actions:

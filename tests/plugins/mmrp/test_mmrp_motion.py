@@ -216,3 +216,31 @@ def test_the_checker_refuses_two_groups_crossing_at_once():
     crossing = move({"a": (ax, ay + 3), "c": (ax - 2, cy + 2)})
     problems = check_plan(Plan("mmrp", "hand", start, loose, [*undocks, up, crossing]))
     assert len(problems) == 1 and "move at once within reach" in problems[0]
+
+
+def test_long_straight_legs_are_driven_in_pieces():
+    from msrr.plugins.mmrp.schedule import LONGEST_LEG, concurrent_moves
+
+    start = from_links(["a", "b"], [("a", "T", "b", "B")])
+    loose = from_links(["a", "b"], [])
+    p = MODULE.geometry["pitch"]
+    cells = grid_cells(start)
+    undock = Action(ActionType.DISCONNECTION, loose, modules=("a", "b"),
+                    changes=(ConnectionChange("a", "b", "T", "B", start.edges()[0].id),))
+    far = 2 * LONGEST_LEG + 5
+    (ax, ay), (bx, by) = cells["a"], cells["b"]
+    legs = [Action(ActionType.MOVING, loose, modules=("a",),
+                   goals={"a": [(ax - far) * p, ay * p, 0.0]}),  # a far back along x
+            Action(ActionType.MOVING, loose, modules=("b",),
+                   goals={"b": [bx * p, (by + far) * p, 0.0]})]  # b far up along y
+    actions = concurrent_moves([undock, *legs], cells, p)
+    moves = [a for a in actions if a.type is ActionType.MOVING]
+    assert 3 <= len(moves) < 6  # three pieces each, most of them driven at once
+    assert check_plan(Plan("mmrp", "hand", start, loose, actions)) == []
+    where = dict(cells)
+    for move in moves:
+        for m, (x, y, _) in move.goals.items():
+            new = (round(x / p), round(y / p))
+            assert max(abs(new[0] - where[m][0]), abs(new[1] - where[m][1])) <= LONGEST_LEG
+            where[m] = new
+    assert where == {"a": (ax - far, ay), "b": (bx, by + far)}
