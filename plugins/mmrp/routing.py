@@ -445,8 +445,9 @@ def _split(group: list[str], links: set[frozenset[str]]) -> tuple[list[str], lis
 
 
 def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
-            goal: Mapping[str, Cell], links: Collection[frozenset[str]]
-            ) -> tuple[list[Route], list[frozenset[str]]]:
+            goal: Mapping[str, Cell], links: Collection[frozenset[str]],
+            max_cuts: int | None = None
+            ) -> tuple[list[Route], list[frozenset[str]]] | None:
     """Evacuate, then assemble: a slower order that does not get stuck.
 
     Every moving group leaves for its own slot in a row of parking slots below the
@@ -458,18 +459,29 @@ def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
     split: the kept connection that halves the largest such group is undocked (and
     docked again at the goal), one more dock/undock pair.
 
+    Both peels are incremental (:class:`_Peel`): when a peel gets stuck, what it found
+    before stays valid after a standing group is set moving (it stood in the way all
+    along) or a stuck group is split (its pieces cover the same cells), so each peel
+    resumes where it stopped, from the split group's turn on.
+
     Returns:
-        The routes and the kept connections cut, as module pairs.
+        The routes and the kept connections cut, as module pairs; None once more than
+        ``max_cuts`` connections would be cut.
     """
     parts = [list(g) for g in groups]
     kept = set(links)
     cut: list[frozenset[str]] = []
     moving = {i for i, g in enumerate(parts) if start[g[0]] != goal[g[0]]}
     box = _bounds([*start.values(), *goal.values()], 0)
+    peels = (_Peel(lambda i: [start[m] for m in parts[i]]),
+             _Peel(lambda i: [goal[m] for m in parts[i]]))
+    reach = 0
     while True:
         shapes = _shapes(parts, goal)
+        frame = _Frame.around(box, shapes, reach)
+        reach = frame.reach
         try:
-            return _staged_once(parts, shapes, start, goal, moving, box), cut
+            return _staged_once(parts, shapes, moving, frame, peels), cut
         except _Walled as walled:
             if walled.neighbours - moving:
                 moving |= walled.neighbours
@@ -478,12 +490,16 @@ def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
             if len(parts[largest]) < 2:
                 raise PlanningError("no collision-free order of the moves found: single "
                                     f"module {parts[largest][0]} is walled in") from None
+            if max_cuts is not None and len(cut) >= max_cuts:
+                return None
             piece_a, piece_b, edge = _split(parts[largest], kept)
             kept.discard(edge)
             cut.append(edge)
             parts[largest] = piece_a
             parts.append(piece_b)
             moving.add(len(parts) - 1)
+            for peel in peels:
+                peel.forget(largest)
 
 
 class _Walled(Exception):
@@ -508,10 +524,13 @@ class _Frame:
     lane: tuple[int, int, int, int]
 
     @classmethod
-    def around(cls, box: tuple[int, int, int, int], shapes: Sequence[tuple[Cell, ...]]
-               ) -> _Frame:
+    def around(cls, box: tuple[int, int, int, int], shapes: Sequence[tuple[Cell, ...]],
+               at_least: int = 0) -> _Frame:
+        """The frame of ``box`` for groups of ``shapes``, its reach at least ``at_least``
+        (a wider lane keeps every route found in a narrower one valid)."""
         lo_x, lo_y, hi_x, hi_y = box
-        reach = max(max(abs(c) for s in _envelope(sh) for c in s) for sh in shapes) + 2
+        reach = max(at_least,
+                    max(max(abs(c) for s in _envelope(sh) for c in s) for sh in shapes) + 2)
         return cls(box, reach, (lo_x - 2 * reach, lo_y - 2 * reach, hi_x + 2 * reach,
                                 hi_y + 2 * reach))
 
@@ -548,53 +567,79 @@ class _Frame:
         raise _Walled(set(), {i})  # wrapped round the box: no straight way out
 
 
-def _peel(shapes: Sequence[tuple[Cell, ...]], moving: set[int], frame: _Frame,
-          cells_of: Callable[[int], list[Cell]]) -> tuple[list[int], dict[int, list[Cell]]]:
-    """An order in which the moving groups can leave the box one by one, and how.
+class _Peel:
+    """An order in which the moving groups can leave the box one by one, and how, found
+    incrementally.
 
-    Raises:
-        _Walled: no moving group left has a way out; with the groups on their cheapest ways.
+    Every group not peeled yet stands where ``cells_of`` says; a peeled group has left.
+    What a peel found stays valid when a standing group is set moving (it stood in the
+    way of every earlier escape, and still does until its turn) and when a group not
+    peeled yet is split (its pieces cover the cells it covered); :meth:`forget` drops
+    the escapes from a split group's turn on.
+
+    Args:
+        cells_of: the cells of group ``i`` in this peel (start or goal).
     """
-    lo_x, lo_y, hi_x, hi_y = frame.box
-    to_border = frame.to_border()
-    occupied = {c: i for i in range(len(shapes)) for c in cells_of(i)}
-    inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], frame.reach)
-    limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
-    left = deque(sorted(moving, key=lambda i: to_border(cells_of(i)[0])))
-    order: list[int] = []
-    escape: dict[int, list[Cell]] = {}
-    failures = 0
-    while left:
-        i = left[0]
-        path = _search(shapes[i], cells_of(i)[0], occupied, i, frame.outside(shapes[i]), None,
-                       inside, limit, heuristic=to_border)
-        if path is None:
-            left.rotate(-1)
-            failures += 1
-            if failures <= len(left):
-                continue
-            near: set[int] = set()
-            for j in left:
-                path = _search(shapes[j], cells_of(j)[0], occupied, j, frame.outside(shapes[j]),
-                               None, inside, limit, penalty=4 * len(shapes),
-                               heuristic=to_border)
-                near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
-                         for s in shapes[j]
-                         if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
-            raise _Walled(near, set(left))
+
+    def __init__(self, cells_of: Callable[[int], list[Cell]]):
+        self.cells_of = cells_of
+        self.order: list[int] = []
+        self.escape: dict[int, list[Cell]] = {}
+
+    def forget(self, i: int) -> None:
+        """Group ``i`` changed shape: peel it, and every group after it, again."""
+        if i in self.escape:
+            for j in self.order[self.order.index(i):]:
+                del self.escape[j]
+            del self.order[len(self.escape):]
+
+    def run(self, shapes: Sequence[tuple[Cell, ...]], moving: set[int], frame: _Frame
+            ) -> tuple[list[int], dict[int, list[Cell]]]:
+        """Peel every moving group not peeled yet, outermost first.
+
+        Raises:
+            _Walled: no moving group left has a way out; with the groups on their
+                cheapest ways.
+        """
+        lo_x, lo_y, hi_x, hi_y = frame.box
+        to_border = frame.to_border()
+        cells_of, order, escape = self.cells_of, self.order, self.escape
+        occupied = {c: i for i in range(len(shapes)) if i not in escape for c in cells_of(i)}
+        inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], frame.reach)
+        limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
+        left = deque(sorted(moving - escape.keys(), key=lambda i: to_border(cells_of(i)[0])))
         failures = 0
-        left.popleft()
-        order.append(i)
-        escape[i] = _straighten(path, shapes[i], occupied, i)
-        for c in cells_of(i):
-            del occupied[c]
-    return order, escape
+        while left:
+            i = left[0]
+            path = _search(shapes[i], cells_of(i)[0], occupied, i, frame.outside(shapes[i]),
+                           None, inside, limit, heuristic=to_border)
+            if path is None:
+                left.rotate(-1)
+                failures += 1
+                if failures <= len(left):
+                    continue
+                near: set[int] = set()
+                for j in left:
+                    path = _search(shapes[j], cells_of(j)[0], occupied, j,
+                                   frame.outside(shapes[j]), None, inside, limit,
+                                   penalty=4 * len(shapes), heuristic=to_border)
+                    near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
+                             for s in shapes[j]
+                             if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
+                raise _Walled(near, set(left))
+            failures = 0
+            left.popleft()
+            order.append(i)
+            escape[i] = _straighten(path, shapes[i], occupied, i)
+            for c in cells_of(i):
+                del occupied[c]
+        return order, escape
 
 
 def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, ...]],
-                 start: Mapping[str, Cell], goal: Mapping[str, Cell], moving: set[int],
-                 box: tuple[int, int, int, int]) -> list[Route]:
-    """One evacuate-and-assemble plan; raises :class:`_Walled` if a peel gets stuck.
+                 moving: set[int], frame: _Frame, peels: tuple[_Peel, _Peel]) -> list[Route]:
+    """One evacuate-and-assemble plan from the peels of the start and of the goal
+    (resumed); raises :class:`_Walled` if a peel gets stuck.
 
     Outside the box, routes follow a rectangular lane ``2 * reach`` cells around it
     (``reach`` exceeds every group's extent, so a group on the lane is clear of the
@@ -603,10 +648,9 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
     when a group leaves (or, reversed, arrives) exactly the groups that the peel saw
     are in the box.
     """
-    frame = _Frame.around(box, shapes)
-    lane, reach = frame.lane, frame.reach
-    out_order, out_paths = _peel(shapes, moving, frame, lambda i: [start[m] for m in groups[i]])
-    in_peel, in_paths = _peel(shapes, moving, frame, lambda i: [goal[m] for m in groups[i]])
+    lane, reach, box = frame.lane, frame.reach, frame.box
+    out_order, out_paths = peels[0].run(shapes, moving, frame)
+    in_peel, in_paths = peels[1].run(shapes, moving, frame)
     slot: dict[int, Cell] = {}
     x = box[0]
     for i in out_order:  # side by side, each clear of its neighbours' turns
@@ -665,7 +709,7 @@ class Routing:
 def route_groups(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
                  goal: Mapping[str, Cell], *, links: Collection[frozenset[str]] = (),
                  priority: Sequence[str] = (), max_parks: int = 3,
-                 direct: bool = True) -> Routing:
+                 direct: bool = True, max_cuts: int | None = None) -> Routing | None:
     """Order the groups' moves and route each through free cells, parking where needed.
 
     First greedily (:func:`_direct`): a group moves when its goal is free, it has a
@@ -682,10 +726,12 @@ def route_groups(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
         priority: tie-break order of the moves (modules earlier move earlier).
         max_parks: how often the greedy order may park one group.
         direct: try the greedy order first (False: evacuate and assemble only).
+        max_cuts: give up (return None) rather than cut more kept connections.
 
     Returns:
         The moves in executable order (groups already at their goal do not appear
-        unless they had to move out of the way) and the connections cut.
+        unless they had to move out of the way) and the connections cut; None when
+        that would take more than ``max_cuts`` cuts.
 
     Raises:
         PlanningError: two modules on one cell, a group that is no translation of
@@ -708,4 +754,5 @@ def route_groups(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
         if direct and len(groups) <= DIRECT_LIMIT else None
     if routes is not None:
         return Routing(routes, [])
-    return Routing(*_staged(groups, start, goal, links))
+    staged = _staged(groups, start, goal, links, max_cuts)
+    return None if staged is None else Routing(*staged)
