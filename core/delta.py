@@ -336,6 +336,13 @@ class DerivedConfiguration(Configuration):
             self.__dict__["_origin"] = (origin[0], replace(origin[1], **{name: value}))
         object.__setattr__(self, name, value)
 
+    @property
+    def delta(self) -> ConfigurationDelta | None:
+        """Its delta from ``parent`` while it still describes it (None once the
+        configuration has been changed in place)."""
+        origin = self.__dict__.get("_origin")
+        return None if origin is None else origin[1]
+
     def _build(self) -> None:
         chain: list[ConfigurationDelta] = []
         node: Configuration = self
