@@ -71,15 +71,72 @@ def _sweeps(shape: tuple[Cell, ...]) -> dict[tuple[int, int, int] | str, tuple[C
     return out
 
 
-def _blocked(offsets: Sequence[Cell], t: Cell, occupied: Mapping[Cell, int], me: int,
-             count: bool) -> int:
-    """How many cells ``offsets + t`` hold another group (``count`` False: 0 or 1)."""
-    get, n = occupied.get, 0
-    for s in offsets:
-        if get((s[0] + t[0], s[1] + t[1]), me) != me:
-            n += 1
-            if not count:
-                return 1
+@lru_cache(maxsize=4096)
+def _sweep_masks(shape: tuple[Cell, ...]) -> dict[tuple[int, int, int] | str,
+                                                tuple[tuple[int, int, int], ...]]:
+    """:func:`_sweeps` as row masks (:func:`_masks`)."""
+    return {key: _masks(cells) for key, cells in _sweeps(shape).items()}
+
+
+class _Occupied(dict[Cell, int]):
+    """Which group holds each cell, kept also as one bit mask per row (bit ``k`` of row
+    ``y``: cell ``(base + k, y)`` is held), so that a sweep is tested a row at a time
+    (:func:`_hits`) instead of a cell at a time."""
+
+    def __init__(self, cells: Mapping[Cell, int] | None = None):
+        super().__init__()
+        self.rows: dict[int, int] = {}
+        self.base: int | None = None
+        for cell, group in (cells or {}).items():
+            self[cell] = group
+
+    def __setitem__(self, cell: Cell, group: int) -> None:
+        super().__setitem__(cell, group)
+        x, y = cell
+        if self.base is None or x < self.base:
+            shift = 64 if self.base is None else self.base - x + 64
+            self.rows = {k: v << shift for k, v in self.rows.items()}
+            self.base = x - 64 if self.base is None else self.base - shift
+        self.rows[y] = self.rows.get(y, 0) | 1 << (x - self.base)
+
+    def __delitem__(self, cell: Cell) -> None:
+        super().__delitem__(cell)
+        self.rows[cell[1]] &= ~(1 << (cell[0] - (self.base or 0)))
+
+    def others(self, me: int, cells: Sequence[Cell]) -> tuple[dict[int, int], int]:
+        """The row masks with ``cells`` that ``me`` holds left out, and the base."""
+        rows = dict(self.rows)
+        base = self.base or 0
+        for x, y in cells:
+            if self.get((x, y)) == me:
+                rows[y] &= ~(1 << (x - base))
+        return rows, base
+
+
+@lru_cache(maxsize=8192)
+def _masks(offsets: tuple[Cell, ...]) -> tuple[tuple[int, int, int], ...]:
+    """``offsets`` as ``(dy, dx of bit 0, bit mask)`` per row."""
+    by_row: dict[int, list[int]] = {}
+    for dx, dy in offsets:
+        by_row.setdefault(dy, []).append(dx)
+    return tuple((dy, min(xs), sum(1 << (x - min(xs)) for x in set(xs)))
+                 for dy, xs in sorted(by_row.items()))
+
+
+def _hits(masks: tuple[tuple[int, int, int], ...], t: Cell, rows: Mapping[int, int],
+          base: int, count: bool) -> int:
+    """How many cells of a sweep (:func:`_masks`) placed at ``t`` are held in ``rows``
+    (``count`` False: 0 or 1)."""
+    n = 0
+    for dy, dx, mask in masks:
+        row = rows.get(t[1] + dy)
+        if row:
+            shift = t[0] + dx - base
+            bits = (row >> shift if shift >= 0 else row << -shift) & mask
+            if bits:
+                if not count:
+                    return 1
+                n += bits.bit_count()
     return n
 
 
@@ -101,7 +158,10 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
     """
     lo_x, lo_y, hi_x, hi_y = bounds
     single = len(shape) == 1 and shape[0] == (0, 0)
-    sweeps = None if single else _sweeps(tuple(shape))
+    sweeps = None if single else _sweep_masks(tuple(shape))
+    if not isinstance(occupied, _Occupied):
+        occupied = _Occupied(occupied)
+    rows, base = occupied.others(me, [(start[0] + s[0], start[1] + s[1]) for s in shape])
     counted = bool(penalty)
     first = (start[0], start[1], 0)
     parent: dict[tuple[int, int, int], tuple[int, int, int] | None] = {first: None}
@@ -130,30 +190,44 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
         expanded += 1
         if expanded > limit:
             return None
-        moves: list[tuple[tuple[int, int, int], int]] = []
         for dx, dy in STEPS:
+            if not single and (dy != 0) != bool(turned_):
+                continue
             n = (x + dx, y + dy, turned_)
             if not (lo_x <= n[0] <= hi_x and lo_y <= n[1] <= hi_y):
                 continue
+            c = g + 1
+            if c >= cost.get(n, 1 << 30):  # no better even if free: skip the sweep test
+                continue
             if single:
                 blocked_ = int(get((n[0], n[1]), me) != me)
-            elif (dy != 0) != bool(turned_):
-                continue
             else:
-                blocked_ = _blocked(sweeps[(dx, dy, turned_)], (x, y), occupied, me, counted)
-            moves.append((n, 1 + penalty * blocked_ if (not blocked_ or penalty) else -1))
-        if not single:
-            blocked_ = _blocked(sweeps["turn"], (x, y), occupied, me, counted)
-            moves.append(((x, y, 1 - turned_),
-                          TURN + penalty * blocked_ if (not blocked_ or penalty) else -1))
-        for n, step in moves:
-            if step < 0:
+                blocked_ = _hits(sweeps[(dx, dy, turned_)], (x, y), rows, base, counted)
+            if blocked_:
+                if not penalty:
+                    continue
+                c += penalty * blocked_
+                if c >= cost.get(n, 1 << 30):
+                    continue
+            cost[n] = c
+            parent[n] = state
+            heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
+        if single:
+            continue
+        n = (x, y, 1 - turned_)
+        c = g + TURN
+        if c >= cost.get(n, 1 << 30):
+            continue
+        blocked_ = _hits(sweeps["turn"], (x, y), rows, base, counted)
+        if blocked_:
+            if not penalty:
                 continue
-            c = g + step
-            if c < cost.get(n, 1 << 30):
-                cost[n] = c
-                parent[n] = state
-                heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
+            c += penalty * blocked_
+            if c >= cost.get(n, 1 << 30):
+                continue
+        cost[n] = c
+        parent[n] = state
+        heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
     return None
 
 
@@ -167,23 +241,23 @@ def _envelope(shape: tuple[Cell, ...]) -> tuple[Cell, ...]:
     return tuple(sorted({*shape, *sweeps["turn"], *sweeps[(0, 1, 1)], *sweeps[(0, -1, 1)]}))
 
 
-def _leg_clear(shape: Sequence[Cell], a: Cell, b: Cell, occupied: Mapping[Cell, int],
-               me: int) -> bool:
+def _leg_clear(shape: Sequence[Cell], a: Cell, b: Cell, rows: Mapping[int, int],
+               base: int) -> bool:
     """Whether a group of ``shape`` can drive the straight leg ``a`` -> ``b``, turns
-    included (:mod:`.motion`), over cells free of other groups."""
+    included (:mod:`.motion`), over cells free in ``rows`` (:meth:`_Occupied.others`)."""
     step = ((b[0] > a[0]) - (b[0] < a[0]), (b[1] > a[1]) - (b[1] < a[1]))
     single = len(shape) == 1 and shape[0] == (0, 0)
     if single:
-        sweep: Sequence[Cell] = ((0, 0), step)
+        sweep = _masks(((0, 0), step))
     else:
-        sweeps = _sweeps(tuple(shape))
+        sweeps = _sweep_masks(tuple(shape))
         sweep = sweeps[(*step, int(step[1] != 0))]
-        if step[1] and (_blocked(sweeps["turn"], a, occupied, me, False)
-                        or _blocked(sweeps["turn"], b, occupied, me, False)):
+        if step[1] and (_hits(sweeps["turn"], a, rows, base, False)
+                        or _hits(sweeps["turn"], b, rows, base, False)):
             return False
     t = a
     while t != b:
-        if _blocked(sweep, t, occupied, me, False):
+        if _hits(sweep, t, rows, base, False):
             return False
         t = (t[0] + step[0], t[1] + step[1])
     return True
@@ -193,6 +267,9 @@ def _straighten(path: list[Cell], shape: Sequence[Cell], occupied: Mapping[Cell,
                 me: int) -> list[Cell]:
     """Fewer turns: replace runs of legs of ``path`` by one straight leg or one L where
     the group's sweep is free (the same test as the search), farthest first."""
+    if not isinstance(occupied, _Occupied):
+        occupied = _Occupied(occupied)
+    rows, base = occupied.others(me, [(path[0][0] + s[0], path[0][1] + s[1]) for s in shape])
     corners = list(_corners(path))
     out = [corners[0]]
     i = 0
@@ -201,13 +278,13 @@ def _straighten(path: list[Cell], shape: Sequence[Cell], occupied: Mapping[Cell,
         for j in range(len(corners) - 1, i + 1, -1):
             b = corners[j]
             if a[0] == b[0] or a[1] == b[1]:
-                if _leg_clear(shape, a, b, occupied, me):
+                if _leg_clear(shape, a, b, rows, base):
                     out.append(b)
                     break
                 continue
             corner = next((c for c in ((b[0], a[1]), (a[0], b[1]))
-                           if _leg_clear(shape, a, c, occupied, me)
-                           and _leg_clear(shape, c, b, occupied, me)), None)
+                           if _leg_clear(shape, a, c, rows, base)
+                           and _leg_clear(shape, c, b, rows, base)), None)
             if corner is not None:
                 out += [corner, b]
                 break
@@ -276,7 +353,8 @@ class _Greedy:
                  goal: Mapping[str, Cell], priority: Sequence[str], max_parks: int):
         self.groups, self.goal, self.max_parks = groups, goal, max_parks
         self.where = dict(start)
-        self.occupied = {start[m]: i for i, group in enumerate(groups) for m in group}
+        self.occupied = _Occupied({start[m]: i for i, group in enumerate(groups)
+                                   for m in group})
         self.goal_cells = {goal[m]: i for i, group in enumerate(groups) for m in group}
         self.shapes = _shapes(groups, goal)
         self.pending = _pocket_order(groups, start, goal, priority)
@@ -604,7 +682,8 @@ class _Peel:
         lo_x, lo_y, hi_x, hi_y = frame.box
         to_border = frame.to_border()
         cells_of, order, escape = self.cells_of, self.order, self.escape
-        occupied = {c: i for i in range(len(shapes)) if i not in escape for c in cells_of(i)}
+        occupied = _Occupied({c: i for i in range(len(shapes)) if i not in escape
+                              for c in cells_of(i)})
         inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], frame.reach)
         limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
         left = deque(sorted(moving - escape.keys(), key=lambda i: to_border(cells_of(i)[0])))
