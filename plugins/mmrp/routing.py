@@ -190,19 +190,21 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
         expanded += 1
         if expanded > limit:
             return None
+        # the motions: unit drives along the heading's axis, and a turn in place
+        motions: list[tuple[tuple[int, int, int], int, tuple | None]] = []
         for dx, dy in STEPS:
-            if not single and (dy != 0) != bool(turned_):
-                continue
-            n = (x + dx, y + dy, turned_)
-            if not (lo_x <= n[0] <= hi_x and lo_y <= n[1] <= hi_y):
-                continue
-            c = g + 1
+            if single or (dy != 0) == bool(turned_):
+                n = (x + dx, y + dy, turned_)
+                if lo_x <= n[0] <= hi_x and lo_y <= n[1] <= hi_y:
+                    motions.append((n, 1, None if single else sweeps[(dx, dy, turned_)]))
+        if not single:
+            motions.append(((x, y, 1 - turned_), TURN, sweeps["turn"]))
+        for n, step, masks in motions:
+            c = g + step
             if c >= cost.get(n, 1 << 30):  # no better even if free: skip the sweep test
                 continue
-            if single:
-                blocked_ = int(get((n[0], n[1]), me) != me)
-            else:
-                blocked_ = _hits(sweeps[(dx, dy, turned_)], (x, y), rows, base, counted)
+            blocked_ = int(get((n[0], n[1]), me) != me) if masks is None else \
+                _hits(masks, (x, y), rows, base, counted)
             if blocked_:
                 if not penalty:
                     continue
@@ -212,22 +214,6 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
             cost[n] = c
             parent[n] = state
             heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
-        if single:
-            continue
-        n = (x, y, 1 - turned_)
-        c = g + TURN
-        if c >= cost.get(n, 1 << 30):
-            continue
-        blocked_ = _hits(sweeps["turn"], (x, y), rows, base, counted)
-        if blocked_:
-            if not penalty:
-                continue
-            c += penalty * blocked_
-            if c >= cost.get(n, 1 << 30):
-                continue
-        cost[n] = c
-        parent[n] = state
-        heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
     return None
 
 
