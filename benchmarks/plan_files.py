@@ -33,6 +33,7 @@ max_load_s_1000=...`` (and ``hash_seeds_identical=K/N`` rows).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import os
@@ -126,7 +127,8 @@ def without_timings(path: Path) -> bytes:
 def cli_plan(robot: str, planner: str, seed: int, folder: Path, stem: str, hash_seed: str
              ) -> dict[str, float | bytes]:
     """``platform plan`` of a row's files in a process with ``PYTHONHASHSEED=hash_seed``:
-    its wall and CPU time [s], peak memory [MB], file size [MB] and file without timings."""
+    its wall and CPU time [s], peak resident memory [MB] (Linux: VmHWM, sampled every
+    50 ms), file size [MB] and file without timings."""
     out = folder / f"{stem}-hash{hash_seed}.plan.json"
     command = [str(Path(sys.executable).with_name("platform")), "plan", "--robot", robot,
                "--planner", planner, "--seed", str(seed), str(folder / f"{stem}-start.json"),
@@ -134,13 +136,24 @@ def cli_plan(robot: str, planner: str, seed: int, folder: Path, stem: str, hash_
     began = time.perf_counter()
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                env={**os.environ, "PYTHONHASHSEED": hash_seed})
-    _, status, usage = os.wait4(process.pid, 0)
+    # the peak resident memory of the command's own image (VmHWM: a forked child's
+    # ru_maxrss would start at this process's size), read while it runs
+    peak_kb, status_file = 0, Path(f"/proc/{process.pid}/status")
+    while True:
+        pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+        if pid:
+            break
+        with contextlib.suppress(OSError):
+            line = next((x for x in status_file.read_text().splitlines()
+                         if x.startswith("VmHWM:")), "VmHWM: 0 kB")
+            peak_kb = max(peak_kb, int(line.split()[1]))
+        time.sleep(0.05)
     wall = time.perf_counter() - began
     error = process.stderr.read().decode() if process.stderr else ""
     if status:
         raise SystemExit(f"{' '.join(command)} failed: {error.strip()}")
     return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
-            "peak_mb": usage.ru_maxrss / 1024, "mb": out.stat().st_size / 1e6,
+            "peak_mb": peak_kb / 1024, "mb": out.stat().st_size / 1e6,
             "content": without_timings(out)}
 
 
