@@ -19,14 +19,26 @@ robot) [s], wall and CPU of this process (the machine is shared: CPU time is wha
 load costs). ``--out DIR`` keeps the start, goal and plan files (``platform plan
 DIR/mmrp-1000-start.json DIR/mmrp-1000-goal.json --json plan.json`` repeats a row).
 
-Usage: ``python benchmarks/plan_files.py [--seed 1] [--sizes 100,500,1000] [--out DIR]``.
-The last line is machine-readable: ``max_mb_1000=... max_load_s_1000=...``.
+``--hash-seeds 11,12`` also runs ``platform plan`` on every row's files as a user would,
+once per ``PYTHONHASHSEED``, in its own process (wall time, CPU time and peak memory of
+that process; the whole command: loading, planning, printing, writing), and compares
+the plan files it writes: byte for byte once the timings (stats ending in ``_ms``) are
+set aside (issue 29 item 3: the same plan file under any hash seed).
+
+Usage: ``python benchmarks/plan_files.py [--seed 1] [--sizes 100,500,1000] [--out DIR]
+[--hash-seeds 11,12]``. The last line is machine-readable: ``max_mb_1000=...
+max_load_s_1000=...`` (and ``hash_seeds_identical=K/N`` rows).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import hashlib
 import json
+import os
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -105,6 +117,63 @@ def measure(robot: str, planner: str, start: Configuration, goal: Configuration,
             "load_s": loaded, "load_cpu_s": loaded_cpu}
 
 
+def without_timings(path: Path) -> bytes:
+    """A plan file's bytes as written, the timings (stats ending in ``_ms``) removed."""
+    plan = json.loads(path.read_bytes())
+    plan["stats"] = {k: v for k, v in plan.get("stats", {}).items() if not k.endswith("_ms")}
+    return json.dumps(plan, indent=2).encode()
+
+
+def cli_plan(robot: str, planner: str, seed: int, folder: Path, stem: str, hash_seed: str
+             ) -> dict[str, float | bytes]:
+    """``platform plan`` of a row's files in a process with ``PYTHONHASHSEED=hash_seed``:
+    its wall and CPU time [s], peak resident memory [MB] (Linux: VmHWM, sampled every
+    50 ms), file size [MB] and file without timings."""
+    out = folder / f"{stem}-hash{hash_seed}.plan.json"
+    command = [str(Path(sys.executable).with_name("platform")), "plan", "--robot", robot,
+               "--planner", planner, "--seed", str(seed), str(folder / f"{stem}-start.json"),
+               str(folder / f"{stem}-goal.json"), "--json", str(out)]
+    began = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               env={**os.environ, "PYTHONHASHSEED": hash_seed})
+    # the peak resident memory of the command's own image (VmHWM: a forked child's
+    # ru_maxrss would start at this process's size), read while it runs
+    peak_kb, status_file = 0, Path(f"/proc/{process.pid}/status")
+    while True:
+        pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+        if pid:
+            break
+        with contextlib.suppress(OSError):
+            line = next((x for x in status_file.read_text().splitlines()
+                         if x.startswith("VmHWM:")), "VmHWM: 0 kB")
+            peak_kb = max(peak_kb, int(line.split()[1]))
+        time.sleep(0.05)
+    wall = time.perf_counter() - began
+    error = process.stderr.read().decode() if process.stderr else ""
+    if status:
+        raise SystemExit(f"{' '.join(command)} failed: {error.strip()}")
+    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
+            "peak_mb": peak_kb / 1024, "mb": out.stat().st_size / 1e6,
+            "content": without_timings(out)}
+
+
+def hash_seed_rows(rows: list[tuple[str, str, int]], seed: int, folder: Path,
+                   hash_seeds: list[str]) -> list[list[str]]:
+    """Every row planned by ``platform plan`` under each hash seed, and whether the files
+    agree (timings aside)."""
+    table_rows = []
+    for robot, planner, n in rows:
+        runs = [cli_plan(robot, planner, seed, folder, f"{robot}-{n}", h) for h in hash_seeds]
+        same = all(r["content"] == runs[0]["content"] for r in runs)
+        digest = hashlib.sha256(runs[0]["content"]).hexdigest()[:12]
+        table_rows.append([str(n), f"{robot}/{planner}", ", ".join(hash_seeds),
+                           " / ".join(f"{r['wall_s']:.1f}" for r in runs),
+                           " / ".join(f"{r['cpu_s']:.1f}" for r in runs),
+                           f"{max(r['peak_mb'] for r in runs):.0f}", f"{runs[0]['mb']:.3f}",
+                           "yes" if same else "NO", digest])
+    return table_rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
@@ -113,27 +182,42 @@ def main() -> None:
                         help="FreeBOT: most modules that branch (default unbounded)")
     parser.add_argument("--out", type=Path, default=None,
                         help="keep the configurations and plan files here")
+    parser.add_argument("--hash-seeds", default="",
+                        help="also run platform plan under each PYTHONHASHSEED (e.g. 11,12) "
+                             "and compare its plan files")
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
+    hash_seeds = [h for h in args.hash_seeds.split(",") if h]
     console.print(f"seed {args.seed}, sizes {sizes}, FreeBOT branching "
                   f"{args.branching or 'unbounded'}")
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.out or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         rows, found = [], []
-        for robot, planner, n, start, goal in pairs(sizes, args.seed, args.branching):
+        done = pairs(sizes, args.seed, args.branching)
+        for robot, planner, n, start, goal in done:
             r = measure(robot, planner, start, goal, args.seed, folder, f"{robot}-{n}")
             found.append((robot, n, r))
             rows.append([str(n), f"{robot}/{planner}", str(r["actions"]), f"{r['mb']:.3f}",
                          f"{r['v1_mb']:.1f}", f"{r['plan_s']:.1f}", f"{r['write_s']:.2f}",
                          f"{r['load_s']:.2f}", f"{r['load_cpu_s']:.2f}"])
-    console.print(table("Plan files (schema version 2)",
-                        ["modules", "robot/planner", "actions", "file MB", "v1 MB (≈)",
-                         "plan s", "write s", "load+validate s", "load CPU s"], rows))
+            console.print(f"  {robot} {n} done", style="dim")
+        console.print(table("Plan files (schema version 2)",
+                            ["modules", "robot/planner", "actions", "file MB", "v1 MB (≈)",
+                             "plan s", "write s", "load+validate s", "load CPU s"], rows))
+        hashed = hash_seed_rows([(robot, planner, n) for robot, planner, n, *_ in done],
+                                args.seed, folder, hash_seeds) if hash_seeds else []
+    if hashed:
+        console.print(table("platform plan under each PYTHONHASHSEED (own process each)",
+                            ["modules", "robot/planner", "hash seeds", "wall s", "CPU s",
+                             "peak MB", "file MB", "same file (timings aside)",
+                             "sha256 (timings aside)"], hashed))
     top = [r for robot, n, r in found if n == max(sizes) and robot != "freesn"]
     console.print(f"max_mb_{max(sizes)}={max(r['mb'] for r in top):.3f} "
                   f"max_load_s_{max(sizes)}={max(r['load_s'] for r in top):.2f} "
-                  f"max_load_cpu_s_{max(sizes)}={max(r['load_cpu_s'] for r in top):.2f}")
+                  f"max_load_cpu_s_{max(sizes)}={max(r['load_cpu_s'] for r in top):.2f}"
+                  + (f" hash_seeds_identical={sum(r[7] == 'yes' for r in hashed)}/{len(hashed)}"
+                     if hashed else ""))
 
 
 if __name__ == "__main__":

@@ -87,11 +87,6 @@ def _same_array(a: np.ndarray | None, b: np.ndarray | None) -> bool:
     return a is not None and b is not None and a.tobytes() == b.tobytes()
 
 
-def _same_edge(a: Edge, b: Edge) -> bool:
-    return (a.source, a.target, a.kind, a.ports) == (b.source, b.target, b.kind, b.ports) \
-        and _same_array(a.z, b.z) and _same_array(a.x, b.x)
-
-
 def _increasing_subset(keys: list[str], order: list[int]) -> set[str]:
     """The keys of a longest strictly increasing subsequence of ``order`` (patience
     sorting, O(n log n)): the items that can stay where they are."""
@@ -157,7 +152,19 @@ def difference(before: Configuration, after: Configuration) -> ConfigurationDelt
     else:
         removed_v, vertices = _placement(list(bn), list(an), changed_v)
     be, ae = before._edge_ends, after._edge_ends
-    changed_e = {e for e in ae if e in be and not _same_edge(before.edge(e), after.edge(e))}
+    badj, aadj = before.graph._adj, after.graph._adj
+    changed_e = set()
+    for e, ends in ae.items():  # the graphs' own edge data: no Edge built per connection
+        if e not in be:
+            continue
+        if be[e] != ends:
+            changed_e.add(e)
+            continue
+        b, a = badj[ends[0]][ends[1]][e], aadj[ends[0]][ends[1]][e]
+        if a is not b and (a["kind"] != b["kind"] or a["ports"] != b["ports"]
+                           or not _same_array(a["z"], b["z"])
+                           or not _same_array(a["x"], b["x"])):
+            changed_e.add(e)
     if be.keys() == ae.keys() and list(be) == list(ae):
         removed_e: list[str] = []
         edges: list[tuple[str, int | None]] = [(e, None) for e in ae if e in changed_e]
@@ -335,6 +342,13 @@ class DerivedConfiguration(Configuration):
         if origin is not None and name in ("name", "description"):
             self.__dict__["_origin"] = (origin[0], replace(origin[1], **{name: value}))
         object.__setattr__(self, name, value)
+
+    @property
+    def delta(self) -> ConfigurationDelta | None:
+        """Its delta from ``parent`` while it still describes it (None once the
+        configuration has been changed in place)."""
+        origin = self.__dict__.get("_origin")
+        return None if origin is None else origin[1]
 
     def _build(self) -> None:
         chain: list[ConfigurationDelta] = []

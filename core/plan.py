@@ -309,10 +309,17 @@ class Action:
 
     def _target_links(self) -> set[ConnectionKey]:
         """The links of ``target`` at the modules the changes name (O(their degree), not
-        O(the target): a plan of thousands of actions counts its docks quickly)."""
+        O(the target): a plan of thousands of actions counts its docks quickly). Read
+        off the target's own delta when it is a :class:`DerivedConfiguration` whose
+        delta writes or removes every changed connection, without building it (printing
+        a 1,000-module plan built a thousand targets)."""
         target = self.target if self.changes else None
         if target is None:
             return set()
+        if isinstance(target, DerivedConfiguration) and target.delta is not None:
+            known = _delta_links(target.delta, self.changes)
+            if known is not None:
+                return known
         near = {m for c in self.changes for m in (c.source, c.target)}
         edges = {e.id: e for m in near if m in target.graph for e in target.incident(m)}
         for module in near - edges.keys():  # an edge module (a strut) names itself
@@ -320,6 +327,32 @@ class Action:
                 with contextlib.suppress(ConfigurationError):
                     edges[module] = target.edge(module)
         return {key for key, _ in links(target, edges.values())}
+
+
+def _delta_links(delta: ConfigurationDelta, changes: Sequence[ConnectionChange]
+                 ) -> set[ConnectionKey] | None:
+    """The keys of ``changes`` that are links of the configuration ``delta`` leads to,
+    read from ``delta`` alone: a change is a link when the delta writes its connection
+    (same id, ends and ports, between modules) and none when the delta removes it and
+    writes nothing with its key. None when a change is neither, or the delta changes
+    vertices (a vertex's kind decides whether a connection is a link)."""
+    if delta.vertices or delta.removed_vertices:
+        return None
+    written = {e.id: e for e, _ in delta.edges}
+    written_keys = {connection_key(e.source, e.target, *(e.ports or (None, None)))
+                    for e in written.values()}
+    removed = set(delta.removed_edges)
+    keys = set()
+    for change in changes:
+        edge = written.get(change.edge_id or "")
+        if edge is not None:
+            if edge.kind is not None or connection_key(
+                    edge.source, edge.target, *(edge.ports or (None, None))) != change.key:
+                return None
+            keys.add(change.key)
+        elif change.edge_id not in removed or change.key in written_keys:
+            return None
+    return keys
 
 
 @dataclass

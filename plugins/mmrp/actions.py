@@ -63,7 +63,8 @@ def _fresh_id(base: str, taken: set[str]) -> str:
 def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping[str, str],
                      start_cells: Mapping[str, Cell], goal_cells: Mapping[str, Cell], *,
                      start_root: str, goal_root: str, unit: float,
-                     priority: Sequence[str] = ()) -> list[Action]:
+                     priority: Sequence[str] = (), max_cuts: int | None = None
+                     ) -> list[Action] | None:
     """Undock, move and dock actions that take ``start`` to ``goal`` (start ids).
 
     Args:
@@ -78,6 +79,7 @@ def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping
         priority: module order for the moves (matched subconfigurations, then free
             modules in the order they reached their targets); see
             :func:`~msrr.plugins.mmrp.routing.route_groups`.
+        max_cuts: most kept connections the routing may cut for motion.
 
     Returns:
         The actions. Each moving action is one straight, axis-aligned translation of
@@ -85,6 +87,7 @@ def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping
         ``goals``); a route with turns or a parking stop is several moving actions.
         Targets are :class:`~msrr.plugins.mmrp.targets.DerivedConfiguration` s, each
         the previous one plus this action's change; moving actions share theirs.
+        None when the moves would need more than ``max_cuts`` cuts.
 
     Raises:
         PlanningError: no collision-free order of the moves exists (see routing).
@@ -94,7 +97,9 @@ def generate_actions(start: Configuration, goal: Configuration, mapping: Mapping
     keep = set(kept)
     links = [frozenset({e.source, e.target}) for e in start.edges() if e.id in keep]
     routing = route_groups(rigid_groups(start, kept), start_cells, goal_cells, links=links,
-                           priority=priority)
+                           priority=priority, max_cuts=max_cuts)
+    if routing is None:
+        return None
     cut = set(routing.cut)
     keep = {e.id for e in start.edges()
             if e.id in keep and frozenset({e.source, e.target}) not in cut}

@@ -312,7 +312,8 @@ def _fewest_pairs(start: Configuration, tree: Configuration, goal: Configuration
     mapping. Lazily: one is mapped (section 4.3) only while it could keep more than the
     best plan so far (the start connections its matched modules keep, plus every one at
     a free vertex), and routed (section 4.4) only while its mapping could need fewer
-    pairs."""
+    pairs, and given up once its cuts for motion would make it need as many as the best.
+    """
     links_g = face_links(goal)
     ceiling = len(goal.edges())
 
@@ -339,9 +340,13 @@ def _fewest_pairs(start: Configuration, tree: Configuration, goal: Configuration
                          field_limit=field_limit, seed=seed)
         if best is not None and ceiling - candidate.kept >= best[2]:
             continue
-        actions = generate_actions(start, goal, candidate.mapping, candidate.layout.start_cells,
-                                   candidate.goal_cells, start_root=roots[0], goal_root=roots[1],
-                                   unit=candidate.layout.unit, priority=candidate.priority)
+        actions = generate_actions(
+            start, goal, candidate.mapping, candidate.layout.start_cells, candidate.goal_cells,
+            start_root=roots[0], goal_root=roots[1], unit=candidate.layout.unit,
+            priority=candidate.priority,
+            max_cuts=None if best is None else best[2] - (ceiling - candidate.kept) - 1)
+        if actions is None:  # its cuts alone would need as many pairs as the best
+            continue
         pairs = sum(a.type is ActionType.CONNECTION for a in actions)
         if best is None or pairs < best[2]:
             best = (candidate, actions, pairs)

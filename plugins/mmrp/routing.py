@@ -71,15 +71,72 @@ def _sweeps(shape: tuple[Cell, ...]) -> dict[tuple[int, int, int] | str, tuple[C
     return out
 
 
-def _blocked(offsets: Sequence[Cell], t: Cell, occupied: Mapping[Cell, int], me: int,
-             count: bool) -> int:
-    """How many cells ``offsets + t`` hold another group (``count`` False: 0 or 1)."""
-    get, n = occupied.get, 0
-    for s in offsets:
-        if get((s[0] + t[0], s[1] + t[1]), me) != me:
-            n += 1
-            if not count:
-                return 1
+@lru_cache(maxsize=4096)
+def _sweep_masks(shape: tuple[Cell, ...]) -> dict[tuple[int, int, int] | str,
+                                                tuple[tuple[int, int, int], ...]]:
+    """:func:`_sweeps` as row masks (:func:`_masks`)."""
+    return {key: _masks(cells) for key, cells in _sweeps(shape).items()}
+
+
+class _Occupied(dict[Cell, int]):
+    """Which group holds each cell, kept also as one bit mask per row (bit ``k`` of row
+    ``y``: cell ``(base + k, y)`` is held), so that a sweep is tested a row at a time
+    (:func:`_hits`) instead of a cell at a time."""
+
+    def __init__(self, cells: Mapping[Cell, int] | None = None):
+        super().__init__()
+        self.rows: dict[int, int] = {}
+        self.base: int | None = None
+        for cell, group in (cells or {}).items():
+            self[cell] = group
+
+    def __setitem__(self, cell: Cell, group: int) -> None:
+        super().__setitem__(cell, group)
+        x, y = cell
+        if self.base is None or x < self.base:
+            shift = 64 if self.base is None else self.base - x + 64
+            self.rows = {k: v << shift for k, v in self.rows.items()}
+            self.base = x - 64 if self.base is None else self.base - shift
+        self.rows[y] = self.rows.get(y, 0) | 1 << (x - self.base)
+
+    def __delitem__(self, cell: Cell) -> None:
+        super().__delitem__(cell)
+        self.rows[cell[1]] &= ~(1 << (cell[0] - (self.base or 0)))
+
+    def others(self, me: int, cells: Sequence[Cell]) -> tuple[dict[int, int], int]:
+        """The row masks with ``cells`` that ``me`` holds left out, and the base."""
+        rows = dict(self.rows)
+        base = self.base or 0
+        for x, y in cells:
+            if self.get((x, y)) == me:
+                rows[y] &= ~(1 << (x - base))
+        return rows, base
+
+
+@lru_cache(maxsize=8192)
+def _masks(offsets: tuple[Cell, ...]) -> tuple[tuple[int, int, int], ...]:
+    """``offsets`` as ``(dy, dx of bit 0, bit mask)`` per row."""
+    by_row: dict[int, list[int]] = {}
+    for dx, dy in offsets:
+        by_row.setdefault(dy, []).append(dx)
+    return tuple((dy, min(xs), sum(1 << (x - min(xs)) for x in set(xs)))
+                 for dy, xs in sorted(by_row.items()))
+
+
+def _hits(masks: tuple[tuple[int, int, int], ...], t: Cell, rows: Mapping[int, int],
+          base: int, count: bool) -> int:
+    """How many cells of a sweep (:func:`_masks`) placed at ``t`` are held in ``rows``
+    (``count`` False: 0 or 1)."""
+    n = 0
+    for dy, dx, mask in masks:
+        row = rows.get(t[1] + dy)
+        if row:
+            shift = t[0] + dx - base
+            bits = (row >> shift if shift >= 0 else row << -shift) & mask
+            if bits:
+                if not count:
+                    return 1
+                n += bits.bit_count()
     return n
 
 
@@ -101,7 +158,10 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
     """
     lo_x, lo_y, hi_x, hi_y = bounds
     single = len(shape) == 1 and shape[0] == (0, 0)
-    sweeps = None if single else _sweeps(tuple(shape))
+    sweeps = None if single else _sweep_masks(tuple(shape))
+    if not isinstance(occupied, _Occupied):
+        occupied = _Occupied(occupied)
+    rows, base = occupied.others(me, [(start[0] + s[0], start[1] + s[1]) for s in shape])
     counted = bool(penalty)
     first = (start[0], start[1], 0)
     parent: dict[tuple[int, int, int], tuple[int, int, int] | None] = {first: None}
@@ -130,30 +190,30 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
         expanded += 1
         if expanded > limit:
             return None
-        moves: list[tuple[tuple[int, int, int], int]] = []
+        # the motions: unit drives along the heading's axis, and a turn in place
+        motions: list[tuple[tuple[int, int, int], int, tuple | None]] = []
         for dx, dy in STEPS:
-            n = (x + dx, y + dy, turned_)
-            if not (lo_x <= n[0] <= hi_x and lo_y <= n[1] <= hi_y):
-                continue
-            if single:
-                blocked_ = int(get((n[0], n[1]), me) != me)
-            elif (dy != 0) != bool(turned_):
-                continue
-            else:
-                blocked_ = _blocked(sweeps[(dx, dy, turned_)], (x, y), occupied, me, counted)
-            moves.append((n, 1 + penalty * blocked_ if (not blocked_ or penalty) else -1))
+            if single or (dy != 0) == bool(turned_):
+                n = (x + dx, y + dy, turned_)
+                if lo_x <= n[0] <= hi_x and lo_y <= n[1] <= hi_y:
+                    motions.append((n, 1, None if single else sweeps[(dx, dy, turned_)]))
         if not single:
-            blocked_ = _blocked(sweeps["turn"], (x, y), occupied, me, counted)
-            moves.append(((x, y, 1 - turned_),
-                          TURN + penalty * blocked_ if (not blocked_ or penalty) else -1))
-        for n, step in moves:
-            if step < 0:
-                continue
+            motions.append(((x, y, 1 - turned_), TURN, sweeps["turn"]))
+        for n, step, masks in motions:
             c = g + step
-            if c < cost.get(n, 1 << 30):
-                cost[n] = c
-                parent[n] = state
-                heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
+            if c >= cost.get(n, 1 << 30):  # no better even if free: skip the sweep test
+                continue
+            blocked_ = int(get((n[0], n[1]), me) != me) if masks is None else \
+                _hits(masks, (x, y), rows, base, counted)
+            if blocked_:
+                if not penalty:
+                    continue
+                c += penalty * blocked_
+                if c >= cost.get(n, 1 << 30):
+                    continue
+            cost[n] = c
+            parent[n] = state
+            heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
     return None
 
 
@@ -167,23 +227,23 @@ def _envelope(shape: tuple[Cell, ...]) -> tuple[Cell, ...]:
     return tuple(sorted({*shape, *sweeps["turn"], *sweeps[(0, 1, 1)], *sweeps[(0, -1, 1)]}))
 
 
-def _leg_clear(shape: Sequence[Cell], a: Cell, b: Cell, occupied: Mapping[Cell, int],
-               me: int) -> bool:
+def _leg_clear(shape: Sequence[Cell], a: Cell, b: Cell, rows: Mapping[int, int],
+               base: int) -> bool:
     """Whether a group of ``shape`` can drive the straight leg ``a`` -> ``b``, turns
-    included (:mod:`.motion`), over cells free of other groups."""
+    included (:mod:`.motion`), over cells free in ``rows`` (:meth:`_Occupied.others`)."""
     step = ((b[0] > a[0]) - (b[0] < a[0]), (b[1] > a[1]) - (b[1] < a[1]))
     single = len(shape) == 1 and shape[0] == (0, 0)
     if single:
-        sweep: Sequence[Cell] = ((0, 0), step)
+        sweep = _masks(((0, 0), step))
     else:
-        sweeps = _sweeps(tuple(shape))
+        sweeps = _sweep_masks(tuple(shape))
         sweep = sweeps[(*step, int(step[1] != 0))]
-        if step[1] and (_blocked(sweeps["turn"], a, occupied, me, False)
-                        or _blocked(sweeps["turn"], b, occupied, me, False)):
+        if step[1] and (_hits(sweeps["turn"], a, rows, base, False)
+                        or _hits(sweeps["turn"], b, rows, base, False)):
             return False
     t = a
     while t != b:
-        if _blocked(sweep, t, occupied, me, False):
+        if _hits(sweep, t, rows, base, False):
             return False
         t = (t[0] + step[0], t[1] + step[1])
     return True
@@ -193,6 +253,9 @@ def _straighten(path: list[Cell], shape: Sequence[Cell], occupied: Mapping[Cell,
                 me: int) -> list[Cell]:
     """Fewer turns: replace runs of legs of ``path`` by one straight leg or one L where
     the group's sweep is free (the same test as the search), farthest first."""
+    if not isinstance(occupied, _Occupied):
+        occupied = _Occupied(occupied)
+    rows, base = occupied.others(me, [(path[0][0] + s[0], path[0][1] + s[1]) for s in shape])
     corners = list(_corners(path))
     out = [corners[0]]
     i = 0
@@ -201,13 +264,13 @@ def _straighten(path: list[Cell], shape: Sequence[Cell], occupied: Mapping[Cell,
         for j in range(len(corners) - 1, i + 1, -1):
             b = corners[j]
             if a[0] == b[0] or a[1] == b[1]:
-                if _leg_clear(shape, a, b, occupied, me):
+                if _leg_clear(shape, a, b, rows, base):
                     out.append(b)
                     break
                 continue
             corner = next((c for c in ((b[0], a[1]), (a[0], b[1]))
-                           if _leg_clear(shape, a, c, occupied, me)
-                           and _leg_clear(shape, c, b, occupied, me)), None)
+                           if _leg_clear(shape, a, c, rows, base)
+                           and _leg_clear(shape, c, b, rows, base)), None)
             if corner is not None:
                 out += [corner, b]
                 break
@@ -276,7 +339,8 @@ class _Greedy:
                  goal: Mapping[str, Cell], priority: Sequence[str], max_parks: int):
         self.groups, self.goal, self.max_parks = groups, goal, max_parks
         self.where = dict(start)
-        self.occupied = {start[m]: i for i, group in enumerate(groups) for m in group}
+        self.occupied = _Occupied({start[m]: i for i, group in enumerate(groups)
+                                   for m in group})
         self.goal_cells = {goal[m]: i for i, group in enumerate(groups) for m in group}
         self.shapes = _shapes(groups, goal)
         self.pending = _pocket_order(groups, start, goal, priority)
@@ -445,8 +509,9 @@ def _split(group: list[str], links: set[frozenset[str]]) -> tuple[list[str], lis
 
 
 def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
-            goal: Mapping[str, Cell], links: Collection[frozenset[str]]
-            ) -> tuple[list[Route], list[frozenset[str]]]:
+            goal: Mapping[str, Cell], links: Collection[frozenset[str]],
+            max_cuts: int | None = None
+            ) -> tuple[list[Route], list[frozenset[str]]] | None:
     """Evacuate, then assemble: a slower order that does not get stuck.
 
     Every moving group leaves for its own slot in a row of parking slots below the
@@ -458,18 +523,29 @@ def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
     split: the kept connection that halves the largest such group is undocked (and
     docked again at the goal), one more dock/undock pair.
 
+    Both peels are incremental (:class:`_Peel`): when a peel gets stuck, what it found
+    before stays valid after a standing group is set moving (it stood in the way all
+    along) or a stuck group is split (its pieces cover the same cells), so each peel
+    resumes where it stopped, from the split group's turn on.
+
     Returns:
-        The routes and the kept connections cut, as module pairs.
+        The routes and the kept connections cut, as module pairs; None once more than
+        ``max_cuts`` connections would be cut.
     """
     parts = [list(g) for g in groups]
     kept = set(links)
     cut: list[frozenset[str]] = []
     moving = {i for i, g in enumerate(parts) if start[g[0]] != goal[g[0]]}
     box = _bounds([*start.values(), *goal.values()], 0)
+    peels = (_Peel(lambda i: [start[m] for m in parts[i]]),
+             _Peel(lambda i: [goal[m] for m in parts[i]]))
+    reach = 0
     while True:
         shapes = _shapes(parts, goal)
+        frame = _Frame.around(box, shapes, reach)
+        reach = frame.reach
         try:
-            return _staged_once(parts, shapes, start, goal, moving, box), cut
+            return _staged_once(parts, shapes, moving, frame, peels), cut
         except _Walled as walled:
             if walled.neighbours - moving:
                 moving |= walled.neighbours
@@ -478,12 +554,16 @@ def _staged(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
             if len(parts[largest]) < 2:
                 raise PlanningError("no collision-free order of the moves found: single "
                                     f"module {parts[largest][0]} is walled in") from None
+            if max_cuts is not None and len(cut) >= max_cuts:
+                return None
             piece_a, piece_b, edge = _split(parts[largest], kept)
             kept.discard(edge)
             cut.append(edge)
             parts[largest] = piece_a
             parts.append(piece_b)
             moving.add(len(parts) - 1)
+            for peel in peels:
+                peel.forget(largest)
 
 
 class _Walled(Exception):
@@ -508,10 +588,13 @@ class _Frame:
     lane: tuple[int, int, int, int]
 
     @classmethod
-    def around(cls, box: tuple[int, int, int, int], shapes: Sequence[tuple[Cell, ...]]
-               ) -> _Frame:
+    def around(cls, box: tuple[int, int, int, int], shapes: Sequence[tuple[Cell, ...]],
+               at_least: int = 0) -> _Frame:
+        """The frame of ``box`` for groups of ``shapes``, its reach at least ``at_least``
+        (a wider lane keeps every route found in a narrower one valid)."""
         lo_x, lo_y, hi_x, hi_y = box
-        reach = max(max(abs(c) for s in _envelope(sh) for c in s) for sh in shapes) + 2
+        reach = max(at_least,
+                    max(max(abs(c) for s in _envelope(sh) for c in s) for sh in shapes) + 2)
         return cls(box, reach, (lo_x - 2 * reach, lo_y - 2 * reach, hi_x + 2 * reach,
                                 hi_y + 2 * reach))
 
@@ -548,53 +631,80 @@ class _Frame:
         raise _Walled(set(), {i})  # wrapped round the box: no straight way out
 
 
-def _peel(shapes: Sequence[tuple[Cell, ...]], moving: set[int], frame: _Frame,
-          cells_of: Callable[[int], list[Cell]]) -> tuple[list[int], dict[int, list[Cell]]]:
-    """An order in which the moving groups can leave the box one by one, and how.
+class _Peel:
+    """An order in which the moving groups can leave the box one by one, and how, found
+    incrementally.
 
-    Raises:
-        _Walled: no moving group left has a way out; with the groups on their cheapest ways.
+    Every group not peeled yet stands where ``cells_of`` says; a peeled group has left.
+    What a peel found stays valid when a standing group is set moving (it stood in the
+    way of every earlier escape, and still does until its turn) and when a group not
+    peeled yet is split (its pieces cover the cells it covered); :meth:`forget` drops
+    the escapes from a split group's turn on.
+
+    Args:
+        cells_of: the cells of group ``i`` in this peel (start or goal).
     """
-    lo_x, lo_y, hi_x, hi_y = frame.box
-    to_border = frame.to_border()
-    occupied = {c: i for i in range(len(shapes)) for c in cells_of(i)}
-    inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], frame.reach)
-    limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
-    left = deque(sorted(moving, key=lambda i: to_border(cells_of(i)[0])))
-    order: list[int] = []
-    escape: dict[int, list[Cell]] = {}
-    failures = 0
-    while left:
-        i = left[0]
-        path = _search(shapes[i], cells_of(i)[0], occupied, i, frame.outside(shapes[i]), None,
-                       inside, limit, heuristic=to_border)
-        if path is None:
-            left.rotate(-1)
-            failures += 1
-            if failures <= len(left):
-                continue
-            near: set[int] = set()
-            for j in left:
-                path = _search(shapes[j], cells_of(j)[0], occupied, j, frame.outside(shapes[j]),
-                               None, inside, limit, penalty=4 * len(shapes),
-                               heuristic=to_border)
-                near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
-                         for s in shapes[j]
-                         if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
-            raise _Walled(near, set(left))
+
+    def __init__(self, cells_of: Callable[[int], list[Cell]]):
+        self.cells_of = cells_of
+        self.order: list[int] = []
+        self.escape: dict[int, list[Cell]] = {}
+
+    def forget(self, i: int) -> None:
+        """Group ``i`` changed shape: peel it, and every group after it, again."""
+        if i in self.escape:
+            for j in self.order[self.order.index(i):]:
+                del self.escape[j]
+            del self.order[len(self.escape):]
+
+    def run(self, shapes: Sequence[tuple[Cell, ...]], moving: set[int], frame: _Frame
+            ) -> tuple[list[int], dict[int, list[Cell]]]:
+        """Peel every moving group not peeled yet, outermost first.
+
+        Raises:
+            _Walled: no moving group left has a way out; with the groups on their
+                cheapest ways.
+        """
+        lo_x, lo_y, hi_x, hi_y = frame.box
+        to_border = frame.to_border()
+        cells_of, order, escape = self.cells_of, self.order, self.escape
+        occupied = _Occupied({c: i for i in range(len(shapes)) if i not in escape
+                              for c in cells_of(i)})
+        inside = _bounds([(lo_x, lo_y), (hi_x, hi_y)], frame.reach)
+        limit = 4 * (inside[2] - inside[0] + 1) * (inside[3] - inside[1] + 1)
+        left = deque(sorted(moving - escape.keys(), key=lambda i: to_border(cells_of(i)[0])))
         failures = 0
-        left.popleft()
-        order.append(i)
-        escape[i] = _straighten(path, shapes[i], occupied, i)
-        for c in cells_of(i):
-            del occupied[c]
-    return order, escape
+        while left:
+            i = left[0]
+            path = _search(shapes[i], cells_of(i)[0], occupied, i, frame.outside(shapes[i]),
+                           None, inside, limit, heuristic=to_border)
+            if path is None:
+                left.rotate(-1)
+                failures += 1
+                if failures <= len(left):
+                    continue
+                near: set[int] = set()
+                for j in left:
+                    path = _search(shapes[j], cells_of(j)[0], occupied, j,
+                                   frame.outside(shapes[j]), None, inside, limit,
+                                   penalty=4 * len(shapes), heuristic=to_border)
+                    near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
+                             for s in shapes[j]
+                             if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
+                raise _Walled(near, set(left))
+            failures = 0
+            left.popleft()
+            order.append(i)
+            escape[i] = _straighten(path, shapes[i], occupied, i)
+            for c in cells_of(i):
+                del occupied[c]
+        return order, escape
 
 
 def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, ...]],
-                 start: Mapping[str, Cell], goal: Mapping[str, Cell], moving: set[int],
-                 box: tuple[int, int, int, int]) -> list[Route]:
-    """One evacuate-and-assemble plan; raises :class:`_Walled` if a peel gets stuck.
+                 moving: set[int], frame: _Frame, peels: tuple[_Peel, _Peel]) -> list[Route]:
+    """One evacuate-and-assemble plan from the peels of the start and of the goal
+    (resumed); raises :class:`_Walled` if a peel gets stuck.
 
     Outside the box, routes follow a rectangular lane ``2 * reach`` cells around it
     (``reach`` exceeds every group's extent, so a group on the lane is clear of the
@@ -603,10 +713,9 @@ def _staged_once(groups: Sequence[Sequence[str]], shapes: Sequence[tuple[Cell, .
     when a group leaves (or, reversed, arrives) exactly the groups that the peel saw
     are in the box.
     """
-    frame = _Frame.around(box, shapes)
-    lane, reach = frame.lane, frame.reach
-    out_order, out_paths = _peel(shapes, moving, frame, lambda i: [start[m] for m in groups[i]])
-    in_peel, in_paths = _peel(shapes, moving, frame, lambda i: [goal[m] for m in groups[i]])
+    lane, reach, box = frame.lane, frame.reach, frame.box
+    out_order, out_paths = peels[0].run(shapes, moving, frame)
+    in_peel, in_paths = peels[1].run(shapes, moving, frame)
     slot: dict[int, Cell] = {}
     x = box[0]
     for i in out_order:  # side by side, each clear of its neighbours' turns
@@ -665,7 +774,7 @@ class Routing:
 def route_groups(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
                  goal: Mapping[str, Cell], *, links: Collection[frozenset[str]] = (),
                  priority: Sequence[str] = (), max_parks: int = 3,
-                 direct: bool = True) -> Routing:
+                 direct: bool = True, max_cuts: int | None = None) -> Routing | None:
     """Order the groups' moves and route each through free cells, parking where needed.
 
     First greedily (:func:`_direct`): a group moves when its goal is free, it has a
@@ -682,10 +791,12 @@ def route_groups(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
         priority: tie-break order of the moves (modules earlier move earlier).
         max_parks: how often the greedy order may park one group.
         direct: try the greedy order first (False: evacuate and assemble only).
+        max_cuts: give up (return None) rather than cut more kept connections.
 
     Returns:
         The moves in executable order (groups already at their goal do not appear
-        unless they had to move out of the way) and the connections cut.
+        unless they had to move out of the way) and the connections cut; None when
+        that would take more than ``max_cuts`` cuts.
 
     Raises:
         PlanningError: two modules on one cell, a group that is no translation of
@@ -708,4 +819,5 @@ def route_groups(groups: Sequence[Sequence[str]], start: Mapping[str, Cell],
         if direct and len(groups) <= DIRECT_LIMIT else None
     if routes is not None:
         return Routing(routes, [])
-    return Routing(*_staged(groups, start, goal, links))
+    staged = _staged(groups, start, goal, links, max_cuts)
+    return None if staged is None else Routing(*staged)

@@ -18,7 +18,7 @@ from msrr.core.configuration import Configuration
 from msrr.core.delta import DerivedConfiguration, Draft, difference
 from msrr.core.freeform.miso import random_miso_tree
 from msrr.core.io import configuration_to_model
-from msrr.core.plan import Plan, load_plan, save_plan
+from msrr.core.plan import Plan, links, load_plan, save_plan
 from msrr.core.random_configurations import (
     pointer_configuration,
     random_configuration,
@@ -68,10 +68,22 @@ def assert_same_plans(again: Plan, plan: Plan) -> None:
             assert a.kinematic_tree.to_dict() == b.kinematic_tree.to_dict()
 
 
+def assert_docks_read_from_deltas(plan: Plan) -> None:
+    """Which changes make and which break a connection, read before any target is built
+    (off the targets' deltas where they allow it), equals the links of every built target."""
+    fast = [(a.made(), a.broken()) for a in plan.actions]
+    for action, (made, broken) in zip(plan.actions, fast, strict=True):
+        keys = {key for key, _ in links(action.target)}
+        assert made == tuple(c for c in action.changes if c.key in keys), action.label
+        assert broken == tuple(c for c in action.changes if c.key not in keys), action.label
+
+
 def _round_trip(plan: Plan, path: Path) -> Plan:
     save_plan(plan, path)
     again = plugins.load_plan(path)  # validated whole against the robot
     assert_same_plans(again, plan)
+    assert_docks_read_from_deltas(plugins.load_plan(path))
+    assert_docks_read_from_deltas(plan)
     return again
 
 

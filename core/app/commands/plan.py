@@ -123,11 +123,15 @@ def command(robot: str | None, start: Path, goal: Path, planner_name: str | None
             raise PlanningError(f"{path}: a configuration of robot {config.robot!r}, "
                                 f"not {robot!r}")
     planner = plugins.planners.get(robot, planner_name)
-    try:
-        plan = planner.plan(configs[0], configs[1], seed=seed)
-    except PlanningError as exc:  # about the pair: name both files
-        raise PlanningError(f"{start} -> {goal}: {exc}") from None
+    # a spinner on a terminal while the planner works (seconds at a thousand modules)
+    with console.status(f"planning {plural(len(configs[0].modules()), 'module')} with "
+                        f"{getattr(planner, 'name', planner_name or 'the planner')}…"):
+        try:
+            plan = planner.plan(configs[0], configs[1], seed=seed)
+        except PlanningError as exc:  # about the pair: name both files
+            raise PlanningError(f"{start} -> {goal}: {exc}") from None
     print_plan(plan)
     if json_out is not None:
-        save_plan(plan, json_out)
+        with console.status(f"writing {json_out}…"):
+            save_plan(plan, json_out)
         console.print(f"plan written to {json_out}")

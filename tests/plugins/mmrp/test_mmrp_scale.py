@@ -304,3 +304,34 @@ def test_evacuate_and_assemble_plans_replay_without_a_collision(n, seed):
     finally:
         routing.DIRECT_LIMIT = limit
     assert check_plan(plan) == []
+
+
+def test_resumed_peels_with_cuts_replay_without_a_collision():
+    # seed 4 at 200 modules hooks groups: the peels stop, a group is split, and they
+    # resume where they stopped (issue 29)
+    rng = np.random.default_rng(4)
+    result = plan_hybrid(random_tree(200, rng), random_tree(200, rng), seed=4)
+    assert result.plan.stats["cut_for_motion"] >= 1
+    assert check_plan(result.plan) == []
+    assert result.plan.docks == result.pairs
+
+
+@settings(max_examples=60, deadline=None)
+@given(cells=st.dictionaries(st.tuples(st.integers(-9, 9), st.integers(-9, 9)),
+                             st.integers(0, 3), max_size=80),
+       sweep=st.sets(st.tuples(st.integers(-4, 4), st.integers(-4, 4)), min_size=1,
+                     max_size=20),
+       at=st.tuples(st.integers(-12, 12), st.integers(-12, 12)))
+def test_a_sweep_tested_by_rows_counts_the_cells_held_by_others(cells, sweep, at):
+    import msrr.plugins.mmrp.routing as routing
+
+    occupied = routing._Occupied(cells)
+    for cell in list(cells)[::3]:  # some groups moved away
+        del occupied[cell]
+    me = 0
+    own = [c for c, g in occupied.items() if g == me]
+    rows, base = occupied.others(me, own)
+    held = sum(occupied.get((at[0] + dx, at[1] + dy), me) != me for dx, dy in sweep)
+    masks = routing._masks(tuple(sorted(sweep)))
+    assert routing._hits(masks, at, rows, base, True) == held
+    assert routing._hits(masks, at, rows, base, False) == min(held, 1)
