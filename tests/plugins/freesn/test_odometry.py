@@ -124,3 +124,21 @@ def test_a_root_turned_over_takes_its_heading_from_the_upright_nodes():
     odometry.tilt[root] = rot_z(0.3) @ np.diag([1.0, -1.0, -1.0])        # turned over
     assert abs(_wrap(odometry._consensus(reports, links, root, group) - kept[root])) < 1e-6
     assert abs(_wrap(odometry.yaw[root] - kept[root])) < 1e-6
+
+
+def test_a_place_that_leaps_is_a_glitch_not_a_motion():
+    """Feet that stayed put place the root; a recognized shape that would move it faster
+    than the system can roll (0.6 m in a tick) is refused, and nothing changes."""
+    odometry = FreeSNRecognizer().estimator()
+    feet = {"N1": np.array([0.2, 0.0, 0.0]), "N2": np.array([-0.2, 0.0, 0.0])}
+    assert odometry._step_feet(feet, {}, 0.1)                       # landed: anchored
+    still = {n: q.copy() for n, q in feet.items()}
+    assert odometry._step_feet(still, {}, 0.1)
+    assert np.allclose(odometry.origin, 0.0)
+    crept = {n: q + np.array([0.01, 0.0, 0.0]) for n, q in feet.items()}
+    assert odometry._step_feet(crept, {}, 0.1)                      # 1 cm: the shape's noise
+    assert np.allclose(odometry.origin, [-0.01, 0.0])
+    anchors = dict(odometry.anchors)
+    leapt = {n: q + np.array([0.6, 0.0, 0.0]) for n, q in feet.items()}
+    assert not odometry._step_feet(leapt, {}, 0.1)
+    assert np.allclose(odometry.origin, [-0.01, 0.0]) and odometry.anchors == anchors
