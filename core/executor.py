@@ -268,17 +268,13 @@ class HeadingLoop:
         """What to add to ``yaw_rate`` [rad/s] at ``elapsed`` [s] into the behavior, with
         the heading estimated at ``heading`` [rad], ``dt`` [s] after the last call, and
         the reference turned by ``offset`` [rad]."""
-        error = _wrap(self.start + self.asked * elapsed + offset - heading)
+        error = (self.start + self.asked * elapsed + offset - heading + math.pi) \
+            % (2 * math.pi) - math.pi
         if self.integral_gain > 0:
             held = self.bound / self.integral_gain
             self.integral = float(np.clip(self.integral + error * dt, -held, held))
         return float(np.clip(self.gain * error + self.integral_gain * self.integral,
                              -self.bound, self.bound))
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` [rad] in [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 @dataclass
