@@ -47,7 +47,9 @@ and the ``broken``/``made`` links with their ports.
   :class:`~msrr.core.plan.CommandGain`'s value ``sum(gain * parameter)`` goes into
   ``ModuleCommand.wheels[key]`` (:func:`behavior_commands`), its ``yaw_rate`` closed in
   a heading loop on the estimated heading (:class:`HeadingLoop`: the commanded direction
-  stays fixed in the world frame the behavior started in), for the call's duration
+  stays fixed in the world frame the behavior started in) whose reference, for a straight
+  behavior that states its direction, a course loop sets so that the estimated place
+  follows the commanded line (:class:`CourseLoop`), for the call's duration
   or until the system moved its distance *as its own sensors estimate it*
   (:mod:`msrr.core.estimation`: odometry and IMU with their drift, or a pose sensor the
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
