@@ -47,7 +47,9 @@ and the ``broken``/``made`` links with their ports.
   :class:`~msrr.core.plan.CommandGain`'s value ``sum(gain * parameter)`` goes into
   ``ModuleCommand.wheels[key]`` (:func:`behavior_commands`), its ``yaw_rate`` closed in
   a heading loop on the estimated heading (:class:`HeadingLoop`: the commanded direction
-  stays fixed in the world frame the behavior started in), for the call's duration
+  stays fixed in the world frame the behavior started in) whose reference, for a straight
+  behavior that states its direction, a course loop sets so that the estimated place
+  follows the commanded line (:class:`CourseLoop`), for the call's duration
   or until the system moved its distance *as its own sensors estimate it*
   (:mod:`msrr.core.estimation`: odometry and IMU with their drift, or a pose sensor the
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
@@ -89,6 +91,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .actions import TopologyDiff, flow_move, topology_diff
+from .alignment import rot_z
 from .capabilities import Recognizer
 from .closed_loop import (
     JointController,
@@ -116,10 +119,10 @@ from .events import (
 from .kinematics import GroundModel
 from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_runs
 from .robot import Robot
-from .shape import skeletal_error
+from .shape import skeletal_error, skeletal_errors
 
-__all__ = ["Executor", "ExecutorOptions", "HeadingLoop", "behavior_commands", "heading_loop",
-           "phases_of"]
+__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "behavior_commands",
+           "course_loop", "heading_loop", "phases_of"]
 
 
 @dataclass(frozen=True)
@@ -136,6 +139,11 @@ class ExecutorOptions:
             added per radian of heading error (0: no loop; :class:`HeadingLoop`).
         heading_integral: its integral gain [1/s^2] (a turn the wheels make unasked).
         max_heading_correction: bound of what the loop adds to ``yaw_rate`` [rad/s].
+        course_gain: gain of a straight behavior's course loop [1/m]: heading offset per
+            metre off the commanded line (0: no course loop; :class:`CourseLoop`).
+        course_integral: its integral gain [1/m^2], per metre of travel (a crab the
+            wheels make unasked).
+        max_course_offset: bound of the heading offset it sets [rad].
     """
 
     rate: float = 10.0
@@ -146,6 +154,9 @@ class ExecutorOptions:
     heading_gain: float = 1.0
     heading_integral: float = 0.2
     max_heading_correction: float = 0.5
+    course_gain: float = 6.0
+    course_integral: float = 9.0
+    max_course_offset: float = math.radians(60.0)
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -154,10 +165,10 @@ class ExecutorOptions:
             raise ExecutionError(f"action timeout must be positive, got {self.action_timeout} s")
         if self.retries < 0:
             raise ExecutionError(f"retries must be >= 0, got {self.retries}")
-        if min(self.heading_gain, self.heading_integral, self.max_heading_correction) < 0:
-            raise ExecutionError("heading gains and correction bound must be >= 0, got "
-                                 f"{self.heading_gain}, {self.heading_integral}, "
-                                 f"{self.max_heading_correction}")
+        loops = (self.heading_gain, self.heading_integral, self.max_heading_correction,
+                 self.course_gain, self.course_integral, self.max_course_offset)
+        if min(loops) < 0:
+            raise ExecutionError(f"heading and course gains and bounds must be >= 0, got {loops}")
 
 
 def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> list[Phase]:
@@ -234,8 +245,9 @@ def behavior_commands(action: Action, parameters: Mapping[str, float] | None = N
 @dataclass
 class HeadingLoop:
     """A mapping behavior's heading loop (issue 31): a PI loop on its ``yaw_rate`` that
-    keeps the estimated heading on ``start + asked * t``, so the commanded direction
-    stays where it was in the world frame the behavior started in.
+    keeps the estimated heading on ``start + asked * t + offset``, so the commanded
+    direction stays where it was in the world frame the behavior started in (``offset``:
+    what a :class:`CourseLoop` asks on top).
 
     Attributes:
         start: the estimated heading when the behavior began [rad].
@@ -253,14 +265,64 @@ class HeadingLoop:
     bound: float
     integral: float = 0.0
 
-    def correction(self, heading: float, elapsed: float, dt: float) -> float:
+    def correction(self, heading: float, elapsed: float, dt: float, offset: float = 0.0
+                   ) -> float:
         """What to add to ``yaw_rate`` [rad/s] at ``elapsed`` [s] into the behavior, with
-        the heading estimated at ``heading`` [rad], ``dt`` [s] after the last call."""
-        error = (self.start + self.asked * elapsed - heading + math.pi) % (2 * math.pi) - math.pi
+        the heading estimated at ``heading`` [rad], ``dt`` [s] after the last call, and
+        the reference turned by ``offset`` [rad]."""
+        error = (self.start + self.asked * elapsed + offset - heading + math.pi) \
+            % (2 * math.pi) - math.pi
         if self.integral_gain > 0:
             held = self.bound / self.integral_gain
             self.integral = float(np.clip(self.integral + error * dt, -held, held))
         return float(np.clip(self.gain * error + self.integral_gain * self.integral,
+                             -self.bound, self.bound))
+
+
+@dataclass
+class CourseLoop:
+    """A straight mapping behavior's course loop (issue 31): wheels that crab (node
+    wheels: the direction of travel is not the body's heading) or slip go off the
+    commanded line however well the heading is held, so this outer loop follows the
+    line itself, from the estimated place: it sets the :class:`HeadingLoop`'s
+    reference ``offset = -gain y - integral_gain * integral(y ds)``, ``y`` [m] the
+    estimated distance left of the line through ``origin`` along ``direction``, ``s``
+    the estimated path length. With the travel turned by ``offset`` plus an unknown crab
+    ``c``, ``y' = offset + c`` per metre travelled, so ``I = integral(y ds)`` obeys
+    ``I'' + gain I' + integral_gain I = c``: no offset left from the line at rest
+    (``y = 0``), the crab cancelled by the integral; a damped second-order loop in the
+    path length (natural wavenumber ``sqrt(integral_gain)`` [1/m]), whatever the speed.
+
+    Attributes:
+        origin: the estimated place where the behavior began [m], shape (2,).
+        direction: the commanded direction of travel in the estimate's frame, unit,
+            shape (2,) (its sense that of the travel asked: ``-direction`` for a negative
+            ``speed``).
+        gain: [1/m]; integral_gain: [1/m^2]; bound: bound of the offset [rad] (the
+            integral is held within it: no wind-up).
+        integral: ``y`` integrated over the path so far [m^2].
+        last: the estimated place at the last call [m], shape (2,).
+    """
+
+    origin: np.ndarray
+    direction: np.ndarray
+    gain: float
+    integral_gain: float
+    bound: float
+    integral: float = 0.0
+    last: np.ndarray | None = None
+
+    def offset(self, position: np.ndarray) -> float:
+        """The heading offset [rad] at the estimated place ``position`` [m], shape (2,)."""
+        position = np.asarray(position, dtype=float)
+        shift = position - self.origin
+        left = float(self.direction[0] * shift[1] - self.direction[1] * shift[0])
+        step = 0.0 if self.last is None else float(np.linalg.norm(position - self.last))
+        self.last = position
+        if self.integral_gain > 0:
+            held = self.bound / self.integral_gain
+            self.integral = float(np.clip(self.integral + left * step, -held, held))
+        return float(np.clip(-self.gain * left - self.integral_gain * self.integral,
                              -self.bound, self.bound))
 
 
@@ -274,6 +336,26 @@ def heading_loop(call: BehaviorCall | None, heading: float | None,
     return HeadingLoop(heading, float(call.parameters.get("yaw_rate", 0.0)),
                        options.heading_gain, options.heading_integral,
                        options.max_heading_correction)
+
+
+def course_loop(call: BehaviorCall | None, estimate: Estimate, frame: float,
+                options: ExecutorOptions) -> CourseLoop | None:
+    """The course loop of a straight mapping behavior (no ``yaw_rate`` asked) that states
+    its direction, from the ``estimate`` where it begins; ``frame`` [rad] turns the
+    action target's frame (the call's ``direction``) onto the recognized configuration's,
+    whose heading the estimate gives. ``None`` when there is none to close, or the place
+    or heading is not known."""
+    if call is None or call.direction is None or call.parameters.get("yaw_rate", 0.0) \
+            or estimate.position is None or estimate.heading is None \
+            or options.course_gain == options.course_integral == 0:
+        return None
+    turned = (rot_z(estimate.heading + frame) @ np.asarray(call.direction, dtype=float))[:2]
+    norm = float(np.linalg.norm(turned))
+    if norm < 1e-9:
+        return None
+    sense = -1.0 if call.parameters.get("speed", 1.0) < 0 else 1.0
+    return CourseLoop(np.asarray(estimate.position, dtype=float).copy(), sense * turned / norm,
+                      options.course_gain, options.course_integral, options.max_course_offset)
 
 
 def _with_wheels(commands: dict[str, ModuleCommand], wheels: dict[str, dict[str, float]]
@@ -330,6 +412,7 @@ class Executor:
         self._estimator = estimator_for(recognizer)
         self.estimate = Estimate()
         self._loop: HeadingLoop | None = None  # the running mapping behavior's
+        self._course: CourseLoop | None = None  # and its course loop, if straight
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -442,6 +525,8 @@ class Executor:
             self._phase_began = self.driver.time
             self._loop = heading_loop(action.behavior, self.estimate.heading, self.options) \
                 if phase is Phase.BEHAVIOR else None
+            self._course = None if self._loop is None else course_loop(
+                action.behavior, self.estimate, self._frame(action), self.options)
             deadline = self.driver.time + self.options.action_timeout
             if phase is Phase.BEHAVIOR and action.behavior is not None \
                     and action.behavior.duration is not None:
@@ -596,8 +681,16 @@ class Executor:
         loop, call, heading = self._loop, action.behavior, self.estimate.heading
         if loop is None or call is None or heading is None:
             return None
-        correction = loop.correction(heading, self.driver.time - self._phase_began, self.dt)
+        place = self.estimate.position
+        offset = 0.0 if self._course is None or place is None else self._course.offset(place)
+        correction = loop.correction(heading, self.driver.time - self._phase_began, self.dt,
+                                     offset)
         return {**call.parameters, "yaw_rate": loop.asked + correction}
+
+    def _frame(self, action: Action) -> float:
+        """The turn [rad] of ``action``'s target onto the configuration recognized now
+        (eq. 8), the frame a behavior's ``direction`` is stated in."""
+        return 0.0 if self._current is None else skeletal_errors(self._current, action.target)[2]
 
     def _estimated(self, observation: Observation) -> Configuration:
         """The configuration ``observation`` shows; the estimate updated with both."""

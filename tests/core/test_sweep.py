@@ -5,12 +5,14 @@ from __future__ import annotations
 import csv
 import math
 import sys
+from dataclasses import replace
 
 import pytest
 from click.testing import CliRunner
 
 from msrr.core.app.cli import get_cli
-from msrr.core.app.commands.sweep import SweepRow, summarize, sweep_csv
+from msrr.core.app.commands.sweep import SweepRow, _locomotion, summarize, sweep_csv
+from msrr.core.events import BehaviorVerdict
 
 BASE = ["sweep", "--robot", "mmrp", "--scenario", "series-t", "--driver", "kinematic",
         "--workers", "1"]
@@ -33,10 +35,25 @@ def test_summary_counts_successes_and_spreads_per_setting():
     assert first[3] == "2.00 / 2.80 / 3.00" and first[5] == "5.0 / 5.8 / 6.0"
     assert first[4] == "-"  # no strut angles for this robot
     assert second[:4] == ["loss:p=0.5", 2, "1/2 (50%)", "2.00 / 2.00 / 2.00"]
-    assert second[6] == "action 2 timed out (1)"
+    assert first[6] == first[7] == "-"  # no behavior asked a distance or a direction
+    assert second[8] == "action 2 timed out (1)"
     table = list(csv.reader(sweep_csv(rows).splitlines()))
     assert table[0][:3] == ["faults", "seed", "success"] and len(table) == 5
     assert table[3][table[0].index("position_rms_m")] == ""  # nan: an empty cell
+
+
+def test_a_runs_worst_behavior_is_its_least_covered_and_its_largest_heading_error():
+    verdicts = [BehaviorVerdict("a", 0, 1, 10.0, 0.5, 0.4, 0.5, math.radians(12.0), "", True, ""),
+                BehaviorVerdict("b", 1, 1, 10.0, 0.3, 0.15, 0.6, math.radians(3.0), "", True, ""),
+                BehaviorVerdict("turn", 2, 1, 10.0, 0.0, None, None, None, "", True, "")]
+    worst = _locomotion(verdicts)
+    assert worst["covered_min"] == pytest.approx(0.25)
+    assert worst["heading_error_max_deg"] == pytest.approx(12.0)
+    assert all(math.isnan(v) for v in _locomotion(verdicts[2:]).values())
+    rows = [replace(_row("", s, True, 0.001, 4.0), **_locomotion(verdicts[:k]))
+            for s, k in ((0, 1), (1, 2))]
+    covered, heading = summarize(rows)[0][6:8]
+    assert covered.endswith(" / 0.80") and heading == "12.0 / 12.0 / 12.0"
 
 
 @pytest.mark.parametrize(("args", "message"), [

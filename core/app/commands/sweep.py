@@ -48,6 +48,7 @@ from ..batch import (
 )
 
 if TYPE_CHECKING:
+    from ...events import BehaviorVerdict
     from ..journal import Journal
     from ..run import RunRequest
 
@@ -139,6 +140,11 @@ class SweepRow:
         shape_error_deg: final RMS strut angle to the goal, ground truth where the driver
             has one, else recognized; ``nan`` when neither.
         faults_met: fault events during the run.
+        covered_min: the least fraction of its asked distance a behavior of the run
+            covered along its commanded direction (on the judge's basis); ``nan``
+            without a behavior that asks a distance and states a direction.
+        heading_error_max_deg: the largest angle between a behavior's travel and its
+            commanded direction [deg]; ``nan`` without one.
     """
 
     faults: str
@@ -156,6 +162,8 @@ class SweepRow:
     heading_max_rad: float
     shape_error_deg: float
     faults_met: int
+    covered_min: float = math.nan
+    heading_error_max_deg: float = math.nan
 
 
 def _nan(value: float | None, scale: float = 1.0) -> float:
@@ -194,7 +202,18 @@ def sweep_run(task: SweepTask) -> SweepRow:
                     position_max_m=_nan(None if poses is None else poses.error),
                     heading_max_rad=_nan(None if poses is None else poses.heading),
                     shape_error_deg=_nan(error, 180.0 / math.pi),
-                    faults_met=len(result.faults))
+                    faults_met=len(result.faults), **_locomotion(result.locomotion))
+
+
+def _locomotion(verdicts: list[BehaviorVerdict]) -> dict[str, float]:
+    """A run's worst behavior: the least fraction of its asked distance covered along the
+    commanded direction, and the largest heading error [deg] (``nan`` where none)."""
+    covered = [v.along / v.asked for v in verdicts
+               if v.along is not None and v.asked is not None and v.asked > 0]
+    headings = [v.heading_error for v in verdicts if v.heading_error is not None]
+    return {"covered_min": _nan(min(covered) if covered else None),
+            "heading_error_max_deg": _nan(max(headings) if headings else None,
+                                          180.0 / math.pi)}
 
 
 def sweep_csv(rows: list[SweepRow]) -> str:
@@ -220,7 +239,8 @@ def _spread(values: list[float], scale: float, digits: int) -> str:
 
 
 def summarize(rows: list[SweepRow]) -> list[list[object]]:
-    """Per fault setting: runs, success rate, final shape errors and simulated times
+    """Per fault setting: runs, success rate, final shape errors, simulated times, and the
+    behaviors' distance covered (of the asked, worst per run) and heading errors
     (median / p90 / max), and the most common failure."""
     out: list[list[object]] = []
     for setting in dict.fromkeys(r.faults for r in rows):
@@ -233,6 +253,8 @@ def summarize(rows: list[SweepRow]) -> list[list[object]]:
                     _spread([r.position_rms_m for r in group], 1000.0, 2),
                     _spread([r.shape_error_deg for r in group], 1.0, 2),
                     _spread([r.sim_time_s for r in group], 1.0, 1),
+                    _spread([r.covered_min for r in group], 1.0, 2),
+                    _spread([r.heading_error_max_deg for r in group], 1.0, 1),
                     f"{common} ({reasons.count(common)})" if common else ""])
     return out
 
@@ -436,7 +458,9 @@ def _write(rows: list[SweepRow], folder: Path, journal: Journal, header: str,
     journal.finish()
     console.print(table(header, ["faults", "runs", "success", "position RMS [mm] med/p90/max",
                                  "shape error [deg] med/p90/max", "sim time [s] med/p90/max",
-                                 "most common failure"], summarize(rows)))
+                                 "distance covered / asked med/p90/max",
+                                 "heading error [deg] med/p90/max", "most common failure"],
+                          summarize(rows)))
     console.print(f"wrote {table_path}", markup=False)
     console.print(_plot(rows, folder / "sweep.png", title), markup=False)
 

@@ -53,6 +53,17 @@ CONTACT = 0.015
 floor (recognized heights carry the reports' noise: 2 deg over a 0.2 m strut is 7 mm)."""
 
 
+LEAP = (0.05, 0.5)
+"""The farthest the root's estimated place may move in one update, ``(a, b)``: ``a + b dt``
+[m, m/s]; a FreeSN system rolls at most ~0.07 m/s (wheel speed x wheel radius), and a
+foot set that changes moves the place by the shape's noise (2 deg over 0.4 m: 1.4 cm)."""
+
+
+UPRIGHT = -0.5
+"""A node whose vertical axis points above this (its ``z`` component) is upright enough
+for its twist about the vertical to be its heading (within 120 deg of upright)."""
+
+
 def _wrap(angle: float) -> float:
     return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
 
@@ -106,6 +117,7 @@ class ImuOdometry:
         self.tilt: dict[str, np.ndarray] = {}
         self.anchors: dict[str, np.ndarray] = {}  # feet on the floor, horizontal [m]
         self.origin = np.zeros(2)                 # the root's horizontal place [m]
+        self.last: Estimate | None = None         # the last estimate accepted
 
     def update(self, observation: Observation, configuration: Configuration) -> Estimate:
         """The estimate after ``observation`` and the configuration recognized from it."""
@@ -119,12 +131,38 @@ class ImuOdometry:
         root = self.root if self.root in nodes else root_order(list(nodes), links)[0]
         turned = self._turn(nodes, dt)
         self._first_seen(reports, links, root, [n for n in nodes if n not in self.yaw])
-        heading = self.yaw[root]
         placed = node_positions(configuration, root, self.length)
+        heading = self._consensus(reports, links, root, placed)
         offsets = {n: rot_z(heading) @ p for n, p in placed.items()}
-        self._step_feet(offsets, turned, dt)
+        if not self._step_feet(offsets, turned, dt) and self.last is not None:
+            return self.last
         centre = self.origin + np.mean([q[:2] for q in offsets.values()], axis=0)
-        return Estimate(position=centre, heading=heading)
+        self.last = Estimate(position=centre, heading=heading)
+        return self.last
+
+    def _consensus(self, reports: Mapping[str, Any], links: dict, root: str,
+                   group: Mapping[str, np.ndarray]) -> float:
+        """The root's heading [rad]. A node's heading is the twist of its rotation about
+        the vertical, which is singular when the node is turned over (the squirm's
+        rolling root): there one report's noise swings it by radians. So a root turned
+        past :data:`UPRIGHT` takes the circular median over the group's upright nodes of
+        their gyro heading less their heading relative to the root (the struts'
+        attitudes, :func:`.recognizer.node_headings`), and so does every other node
+        turned over; an upright root keeps its own."""
+        if self.tilt[root][2, 2] >= UPRIGHT:
+            return self.yaw[root]
+        relative = node_headings(reports, links, root)
+        members = [n for n in group if n in relative and n in self.yaw]
+        upright = [n for n in members if self.tilt[n][2, 2] >= UPRIGHT]
+        if not upright:
+            return self.yaw[root]
+        votes = np.array([_wrap(self.yaw[n] - relative[n]) for n in upright])
+        spread = np.abs((votes[:, None] - votes[None, :] + np.pi) % (2 * np.pi) - np.pi)
+        heading = float(votes[int(np.argmin(spread.sum(axis=1)))])
+        for n in members:
+            if n not in upright:
+                self.yaw[n] = _wrap(heading + relative[n])
+        return heading
 
     def _turn(self, nodes: Mapping[str, NodeReport], dt: float) -> dict[str, np.ndarray]:
         """Each known node's heading propagated by its gyro; its world rate (3,) [rad/s]."""
@@ -151,20 +189,27 @@ class ImuOdometry:
             self.yaw[node] = _wrap(base + relative.get(node, 0.0))
 
     def _step_feet(self, offsets: Mapping[str, np.ndarray], rates: Mapping[str, np.ndarray],
-                   dt: float) -> None:
+                   dt: float) -> bool:
         """The feet on the floor roll by their rates; the root's place from those that
-        stayed; new feet anchored where the shape puts them."""
+        stayed; new feet anchored where the shape puts them. ``False`` (and nothing
+        changed) when that place would move faster than :data:`LEAP` allows: a glitch of
+        the recognized shape, not a motion."""
         if not offsets:
-            return
+            return True
         lowest = min(float(q[2]) for q in offsets.values())
         feet = {n for n, q in offsets.items() if float(q[2]) <= lowest + CONTACT}
         stayed = [n for n in feet if n in self.anchors]
+        anchors = dict(self.anchors)
         for node in stayed:
             rate = rates.get(node)
             if rate is not None:  # w x (r e_z), horizontal
-                self.anchors[node] = self.anchors[node] + dt * self.radius * np.array(
-                    [rate[1], -rate[0]])
+                anchors[node] = anchors[node] + dt * self.radius * np.array([rate[1], -rate[0]])
+        origin = self.origin
         if stayed:
-            self.origin = np.mean([self.anchors[n] - offsets[n][:2] for n in stayed], axis=0)
-        self.anchors = {n: self.anchors[n] if n in stayed else self.origin + offsets[n][:2]
+            origin = np.mean([anchors[n] - offsets[n][:2] for n in stayed], axis=0)
+            if float(np.linalg.norm(origin - self.origin)) > LEAP[0] + LEAP[1] * dt:
+                return False
+        self.origin = origin
+        self.anchors = {n: anchors[n] if n in stayed else origin + offsets[n][:2]
                         for n in feet}
+        return True

@@ -52,8 +52,9 @@ of its own so the other noise draws stay as they were. No heading is reported: t
 recognizer's estimator integrates the gyros (:mod:`.recognizer`).
 
 Sensing in the loop: a connector servos on its own sensors with the reports' noise
-model (``noise``, the same seeded generator): the node's IMU tilt (one reading per
-node and tick, shared by its connectors) turns a command into the node frame, and its
+model (``noise``, the same seeded generator): the node's IMU attitude (one estimate per
+node and tick, shared by its connectors; the readings' error low-passed, ``_FUSION``)
+turns a command into the node frame, and its
 pose on the node is its encoders fused with a magnetic-localisation fix per command
 (the fixes' error low-passed, ``_FUSION``); it never reads the true node orientation.
 
@@ -119,7 +120,7 @@ _CONTACT = 0.001      # magnet face within this of its seated stand-off: touchin
 _ALIGNMENT = np.radians(10.0)  # strut axis to the node centre: a magnet that docks lies flat
 _ATTRACTION_CONE = np.radians(45.0)  # a magnet pulls on a node in front of it
 _MAGNET_FALLOFF = 0.005  # distance over which a magnet's pull falls to a quarter [m]
-_FUSION = 0.2         # weight of a fresh localisation fix in a connector's estimate (10 Hz: 0.45 s)
+_FUSION = 0.2  # weight of a fresh fix (localisation, attitude) in an estimate (10 Hz: 0.45 s)
 _GRIP_LEVER = 0.05    # a grip tendon's length: contact point to its anchor along the axle [m]
 _GRIP_SOLIMP = [0.999, 0.9999, 0.001, 0.5, 2.0]  # a stiff grip (MuJoCo's default creeps)
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
@@ -237,6 +238,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._eps = np.zeros(k)                            # odometry heading error [rad]
         self._fix = np.zeros((k, 3))                       # localisation error, node frame [rad]
         self._imu: dict[int, np.ndarray] = {}              # node tilt readings this tick
+        self._attitude = np.zeros((len(self.nodes), 3))   # node attitude error [rad]
         self._load = np.zeros(k)
         self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
@@ -573,12 +575,20 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
 
     def _node_tilt(self, i: int) -> np.ndarray:
         """Node frame from node ``i``'s horizontal frame (3, 3), as its connectors get
-        it: the transpose of its IMU reading (the node's rotation in its horizontal
-        frame, with the reports' noise; one reading per node and tick, shared by its
-        connectors)."""
+        it: the transpose of its attitude estimate (the node's rotation in its horizontal
+        frame; one estimate per node and tick, shared by its connectors). The node's IMU
+        fuses each accelerometer reading, with the reports' noise, into its gyro-propagated
+        attitude as the connectors fuse their fixes: the estimate's error is the readings'
+        error low-passed, ``a <- (1 - b) a + b n`` (``_FUSION``). A raw reading per tick
+        would make every connector chase a fresh 2 deg jitter and the loop a chain closes
+        would never settle (fig21's last dock, issue 31)."""
         if i not in self._imu:
             body = self._node_body[i]
-            tilt = self.noise.rotation(rot_z(-float(heading(self.data.xquat[body]))))
+            tilt = rot_z(-float(heading(self.data.xquat[body])))
+            if self.noise.std:
+                sample = self.noise.rng.normal(0.0, self.noise.std, 3)
+                self._attitude[i] += _FUSION * (sample - self._attitude[i])
+                tilt = Rotation.from_rotvec(self._attitude[i]).as_matrix() @ tilt
             self._imu[i] = self.data.xmat[body].reshape(3, 3).T @ tilt.T
         return self._imu[i]
 

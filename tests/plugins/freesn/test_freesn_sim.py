@@ -469,6 +469,33 @@ def test_connectors_servo_on_their_own_noisy_sensors():
     assert 0.3 < wander(np.radians(2.0)) < 4.0
 
 
+def test_a_nodes_attitude_estimate_is_its_noisy_readings_low_passed():
+    """The connectors turn commands into the node frame through the node's attitude
+    estimate: each tick's reading (the reports' noise) fused at ``_FUSION`` into the
+    gyro-propagated attitude, so the error is a low-passed noise (std ``sigma b / sqrt(1 -
+    (1 - b)^2)`` ~ 0.33 sigma, lag-one correlation ``1 - b``), not a fresh 2 deg per tick;
+    exact without noise."""
+    start = _library_config("S6N3", "S6N3-1.1")
+
+    def errors(noise: float) -> np.ndarray:
+        world = FreeSNWorld(start, SPEC, SimOptions(noise=noise, seed=3))
+        body = world._node_body[0]
+        out = []
+        for _ in range(600):
+            world._imu.clear()
+            truth = world.data.xmat[body].reshape(3, 3).T \
+                @ rot_z(-float(heading(world.data.xquat[body]))).T
+            out.append(Rotation.from_matrix(world._node_tilt(0) @ truth.T).as_rotvec())
+        return np.array(out[50:])
+
+    assert np.abs(errors(0.0)).max() < 1e-9
+    sigma, b = np.radians(2.0), 0.2
+    e = errors(sigma)
+    assert np.std(e) == pytest.approx(sigma * b / np.sqrt(1 - (1 - b) ** 2), rel=0.2)
+    lag = np.mean([np.corrcoef(e[1:, i], e[:-1, i])[0, 1] for i in range(3)])
+    assert lag == pytest.approx(1 - b, abs=0.1)
+
+
 @pytest.mark.parametrize("off_deg, docks", [(2.0, True), (4.0, False)])
 def test_a_magnet_docks_only_touching_and_aligned(off_deg, docks):
     """S4's free end aimed at N2 but turned about N1: 2 deg touches the shell squarely

@@ -9,15 +9,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from msrr.core.driver import ModuleCommand
+from msrr.core.alignment import rot_z
+from msrr.core.driver import ModuleCommand, Observation
 from msrr.core.executor import HeadingLoop
 from msrr.core.freeform.mujoco import heading
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
-from msrr.plugins.freesn.robot import NODE, STRUT
+from msrr.plugins.freesn.robot import NODE, SPEC, STRUT
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver, FreeSNRecognizer
 from msrr.plugins.freesn.sim.geometry import place
 from msrr.plugins.freesn.sim.odometry import node_positions
+from msrr.plugins.freesn.sim.options import SimOptions
+from msrr.plugins.freesn.sim.recognizer import links_of
+from msrr.plugins.freesn.sim.world import FreeSNWorld
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 
@@ -95,3 +99,46 @@ def test_the_heading_loop_turns_back_toward_the_start_within_its_bound():
     asked = HeadingLoop(start=0.0, asked=0.1, gain=1.0, integral_gain=0.0, bound=0.5)
     assert asked.correction(0.1, 1.0, 0.1) == pytest.approx(0.0)  # on its asked turn
     assert asked.correction(math.pi - 0.05, 0.0, 0.1) == -0.5      # wraps: the short way
+
+
+def test_a_root_turned_over_takes_its_heading_from_the_upright_nodes():
+    """A node's heading (its twist about the vertical) is singular when it is turned over,
+    as the squirm's rolling root is; one report's noise there swung the estimate by
+    radians and the estimated place by 0.6 m (fig19-squirm, 2 deg + 5 %, seed 2). The
+    root then takes the median of its upright neighbours' headings less their relative
+    ones; an upright root keeps its own."""
+    library = load_library(FREESN / "libraries" / "S4N5.json")
+    stand = library.sublibraries["S4N5"].behaviors["node-wheels"].start
+    world = FreeSNWorld(load_configuration(FREESN / "configs" / "library" / f"{stand}.json"),
+                        SPEC, SimOptions())
+    reports = world.reports()
+    recognizer = FreeSNRecognizer()
+    odometry = recognizer.estimator()
+    configuration = recognizer.recognize(reports)
+    odometry.update(Observation(0.0, reports, {}), configuration)
+    root, links = "N0", links_of(reports)
+    group = node_positions(configuration, root, STRUT.geometry["length"])
+    kept = dict(odometry.yaw)
+    assert odometry._consensus(reports, links, root, group) == kept[root]   # upright
+    odometry.yaw[root] = _wrap(kept[root] + 2.5)                          # a swung twist
+    odometry.tilt[root] = rot_z(0.3) @ np.diag([1.0, -1.0, -1.0])        # turned over
+    assert abs(_wrap(odometry._consensus(reports, links, root, group) - kept[root])) < 1e-6
+    assert abs(_wrap(odometry.yaw[root] - kept[root])) < 1e-6
+
+
+def test_a_place_that_leaps_is_a_glitch_not_a_motion():
+    """Feet that stayed put place the root; a recognized shape that would move it faster
+    than the system can roll (0.6 m in a tick) is refused, and nothing changes."""
+    odometry = FreeSNRecognizer().estimator()
+    feet = {"N1": np.array([0.2, 0.0, 0.0]), "N2": np.array([-0.2, 0.0, 0.0])}
+    assert odometry._step_feet(feet, {}, 0.1)                       # landed: anchored
+    still = {n: q.copy() for n, q in feet.items()}
+    assert odometry._step_feet(still, {}, 0.1)
+    assert np.allclose(odometry.origin, 0.0)
+    crept = {n: q + np.array([0.01, 0.0, 0.0]) for n, q in feet.items()}
+    assert odometry._step_feet(crept, {}, 0.1)                      # 1 cm: the shape's noise
+    assert np.allclose(odometry.origin, [-0.01, 0.0])
+    anchors = dict(odometry.anchors)
+    leapt = {n: q + np.array([0.6, 0.0, 0.0]) for n, q in feet.items()}
+    assert not odometry._step_feet(leapt, {}, 0.1)
+    assert np.allclose(odometry.origin, [-0.01, 0.0]) and odometry.anchors == anchors
