@@ -76,8 +76,20 @@ def _declared(robot: str, driver: str) -> tuple[DriverOption, ...]:
 # -- driver options -----------------------------------------------------------------------
 
 
+def _value(rng: random.Random, option: DriverOption) -> tuple[str, bool]:
+    """A value for ``option`` as text, and whether the option takes it."""
+    if option.type is not str:
+        return _number(rng, option)
+    if rng.random() < 0.6:
+        choice = rng.choice(option.choices) if option.choices else "text"
+        return rng.choice([choice, f" {choice} "]), True
+    text = rng.choice(["", " ", "1.5", "-468.78", "1e+308", "nan", "\u2603",
+                       *(c.upper() for c in option.choices), *(c + "x" for c in option.choices)])
+    return text, bool(text.strip()) and (not option.choices or text.strip() in option.choices)
+
+
 def _number(rng: random.Random, option: DriverOption) -> tuple[str, bool]:
-    """A value for ``option`` as text, and whether it is within its bounds."""
+    """A value for the number ``option`` as text, and whether it is within its bounds."""
     low = option.low if option.low is not None else -1e3
     high = option.high if option.high is not None else 1e3
     kind = rng.choice(["inside", "inside", "edge", "outside", "text", "special"])
@@ -118,7 +130,7 @@ def _driver_case(rng: random.Random) -> Case:
         roll = rng.random()
         if roll < 0.7 and declared:
             name = rng.choice(sorted(declared))
-            text, good = _number(rng, declared[name])
+            text, good = _value(rng, declared[name])
             if not good:
                 valid, why = False, why or f"{name}={text!r} out of its declaration"
         elif roll < 0.8:

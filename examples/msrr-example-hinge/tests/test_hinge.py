@@ -5,6 +5,8 @@ import importlib
 import json
 import math
 import subprocess
+import sys
+from pathlib import Path
 
 from msrr.core import plugins
 from msrr.core.app.testing import check_robot, run_physics
@@ -47,7 +49,7 @@ def test_a_goal_that_only_bends_a_hinge_is_executed_and_judged_by_shape(tmp_path
     assert physics.success, physics.reason
     assert physics.goal.basis == "ground truth" and physics.goal.shape.error < math.radians(5)
     # the kinematic world has no joints: the run fails with the shape error, as a user sees it
-    out = subprocess.run(["platform", "run", "--robot", "hinge", "--from", str(
+    out = subprocess.run([str(Path(sys.executable).parent / "platform"), "run", "--robot", "hinge", "--from", str(
         plugins.capabilities("hinge").scenarios["reverse"].start), "--to", str(tmp_path / "bent.json"),
         "--driver", "kinematic", "--no-log", "--out", str(tmp_path / "run")],
         capture_output=True, text=True, timeout=120)
