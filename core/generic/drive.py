@@ -68,8 +68,12 @@ GAIN_TURN = 2.5
 GAIN_LINE = 10.0
 """Heading toward the final line per lateral error [1/m] (of ``atan``)."""
 
-LINE_ANGLE = 0.03
+LINE_ANGLE = 0.05
 """Largest angle [rad] at which a module steers back onto its final line."""
+
+GATE = 0.3
+"""Fraction of the final line, before the docked pose, within which the leader must be on
+the line within half the dock tolerance (else it backs off and comes in again)."""
 
 GAIN_TRIM = 1.0
 """Integral gain [1/s] of a hinge goal's trim on its encoder's error."""
@@ -140,6 +144,8 @@ class _Drive:
     pivot: np.ndarray = field(default_factory=lambda: np.zeros(3))  # group centre, leader frame
     line: np.ndarray | None = None
     dock: tuple[str, str, str] | None = None  # fixed module, its port, the leader's port
+    anchor: Frame | None = None  # the fixed module's pose when the final approach began
+    backing: bool = False  # backing off to the line's start to align again
 
 
 @dataclass
@@ -282,13 +288,13 @@ class DriveController:
         return job
 
     def _docked(self, observation: Observation, moving: str, dock: tuple[str, str, str],
-                *, gap: bool = True) -> tuple[Frame, np.ndarray]:
+                *, gap: bool = True, at: Frame | None = None) -> tuple[Frame, np.ndarray]:
         """Where ``moving`` docks to ``dock`` (fixed module, its port, moving's port) as
-        the fixed module is now, with ``gap`` half the latch distance left along
+        the fixed module is now (or ``at``), with ``gap`` half the latch distance left along
         the fixed port's horizontal normal; and that normal."""
         fixed, fixed_port, moving_port = dock
         kinds = (self._kind(observation, fixed), self._kind(observation, moving))
-        here = _frame(observation, fixed)
+        here = _frame(observation, fixed) if at is None else at
         final = frame_of(here, docked_pose(kinds, (fixed_port, moving_port)))
         normal = here[0] @ port_frame(kinds[0], fixed_port)[0][:, 0]
         normal[2] = 0.0
@@ -382,9 +388,8 @@ class DriveController:
         rotation, here = _frame(observation, job.leader)
         here = here + rotation @ job.pivot
         yaw = _yaw(rotation)
-        if job.dock is not None:  # the fixed module may have been pushed: follow it; in
-            job.final = self._docked(observation, job.leader, job.dock,  # the connect phase,
-                                     gap=phase is not Phase.CONNECT)[0]  # press on the port
+        if job.dock is not None:
+            job.final = self._target(job, observation, phase)
         final_yaw = _yaw(job.final[0])
         tol = self.tolerance
         goal = job.final[1] + job.final[0] @ job.pivot
@@ -413,10 +418,10 @@ class DriveController:
                 abs(turn) <= tol.angle / 2:
             self._command(job, observation, commands, 0.0, 0.0)
             return True
-        if job.line is not None and abs(lateral) > tol.position and \
-                abs(along) < 0.3 * float(np.linalg.norm(job.line)):
-            job.waypoints.append(goal + job.line)  # off the line near its end: again
-            return False
+        if job.line is not None:
+            if job.anchor is None and job.dock is not None:
+                job.anchor = _frame(observation, job.dock[0])  # the final approach begins
+            along, lateral = self._gate(job, along, lateral)
         direction = 1.0 if along >= 0 else -1.0
         steer = max(-LINE_ANGLE, min(LINE_ANGLE, math.atan(GAIN_LINE * lateral)))
         turn = wrap_angle(final_yaw + direction * steer - yaw)
@@ -426,6 +431,40 @@ class DriveController:
         speed = direction * max(0.1, min(1.0, abs(along) / 0.05))
         self._command(job, observation, commands, speed, _turn_rate(turn))
         return False
+
+    def _target(self, job: _Drive, observation: Observation, phase: Phase) -> Frame:
+        """The leader's docked pose at the fixed module as it was when the final approach
+        began (in the connect phase with no gap: it presses on the port); if the fixed
+        module has since moved by more than half the dock tolerance (pushed), the approach
+        is aborted: back off to the line's start and read its pose again."""
+        fixed = job.dock[0]
+        now = _frame(observation, fixed)
+        if job.anchor is not None and phase is not Phase.CONNECT:
+            moved = float(np.linalg.norm((now[1] - job.anchor[1])[:2]))
+            turned = abs(wrap_angle(_yaw(now[0]) - _yaw(job.anchor[0])))
+            if moved > self.tolerance.position / 2 or turned > self.tolerance.angle / 2:
+                job.anchor, job.backing = None, True
+        return self._docked(observation, job.leader, job.dock, gap=phase is not Phase.CONNECT,
+                            at=job.anchor or now)[0]
+
+    def _gate(self, job: _Drive, along: float, lateral: float) -> tuple[float, float]:
+        """The errors [m] along and across the final line to steer out: to the docked pose,
+        or, backing off, to the line's start. Near its end (within :data:`GATE` of the
+        line) the leader must be on the line within half the dock tolerance, else it backs
+        off to the line's start and comes in again (a wheeled group cannot slide sideways,
+        and pushing on would shove the target)."""
+        heading = job.final[0][:2, 0] / max(float(np.linalg.norm(job.final[0][:2, 0])), 1e-9)
+        offset = (float(job.line[:2] @ heading),
+                  float(job.line[:2] @ np.array([-heading[1], heading[0]])))
+        length = float(np.linalg.norm(job.line[:2]))
+        if job.backing and abs(along + offset[0]) <= self.tolerance.position / 2:
+            job.backing, job.anchor = False, None  # at the line's start: in again
+        elif not job.backing and abs(along) < GATE * length and \
+                abs(lateral) > self.tolerance.position / 2:
+            job.backing = True
+        if job.backing:
+            return along + offset[0], lateral + offset[1]
+        return along, lateral
 
     def _clear_out(self, job: _Drive, observation: Observation,
                    commands: dict[str, ModuleCommand], yaw: float) -> bool:
@@ -473,21 +512,26 @@ class DriveController:
     def _command(self, job: _Drive, observation: Observation,
                  commands: dict[str, ModuleCommand], speed: float, omega: float) -> None:
         """Wheel speeds of every module of the group for the leader's forward ``speed``
-        (fraction of the slowest module's) and turn rate ``omega`` [rad/s]."""
+        (fraction of the slowest module's) and turn rate ``omega`` [rad/s], all scaled by
+        one factor so that no wheel is asked beyond its top speed (a group's rigid motion
+        keeps its shape: scaled module by module, docked modules would fight)."""
         top = min(self._kind(observation, m).wheels.speed for m in job.group)
         v = speed * top
         rotation, here = _frame(observation, job.leader)
         here = here + rotation @ job.pivot  # the group turns about its centre
         heading = rotation[:, 0]
+        rims = {}
         for m in job.group:
             wheels = self._kind(observation, m).wheels
             r, at = _frame(observation, m)
             velocity = v * heading + np.cross([0.0, 0.0, omega], at - here)
             forward = float(velocity @ r[:, 0])
             half = wheels.track / 2 * omega
-            scale = max(1.0, abs(forward - half) / wheels.speed, abs(forward + half) / wheels.speed)
-            commands[m] = ModuleCommand(wheels={"left": (forward - half) / scale,
-                                                "right": (forward + half) / scale})
+            rims[m] = (forward - half, forward + half, wheels.speed)
+        scale = max([1.0] + [abs(w) / limit for left, right, limit in rims.values()
+                             for w in (left, right)])
+        for m, (left, right, _) in rims.items():
+            commands[m] = ModuleCommand(wheels={"left": left / scale, "right": right / scale})
 
     # -- folding ------------------------------------------------------------------------
 

@@ -38,3 +38,21 @@ def test_the_example_servo_folds_a_chain_of_four_into_a_square() -> None:
     result = run_physics(_fold(4), plugins.robot("hinge"))
     assert result.success, result.reason
     assert result.goal.basis == "ground truth"
+
+
+def test_a_docked_pair_of_cubes_drives_in_along_the_dock_axis_and_docks() -> None:
+    """Two wheeled cubes docked in a row turn only by sliding sideways; they dock a side
+    port to a pair at rest without shoving it (once failed after pushing it along)."""
+    spec = plugins.robot("cube")
+    start = Configuration("cube")
+    for m in "abcd":
+        start.add_module(m, "cube")
+    start.connect("a", "b", ports=("E", "W"))
+    start.connect("d", "c", ports=("E", "W"))
+    goal = start.copy()
+    goal.connect("c", "b", ports=("S", "N"))
+    start, goal = with_port_vectors(start, spec), with_port_vectors(goal, spec)
+    result = run_physics(Plan("cube", "test", start, goal, [detect_action(start, goal)]),
+                         spec, seed=1)
+    assert result.success, result.reason
+    assert result.goal.basis == "ground truth" and result.goal.shape.within
