@@ -12,8 +12,13 @@ tolerance is the robot's :class:`~msrr.core.robot.DockTolerance`.
   body sizes out on the line of its final heading, through a detour around the others
   if the straight way is blocked, turns onto that line and drives along it to the docked
   pose (a side port slides in alongside), a small gap left along the port normal for
-  the latch to close. Each module of a moving group gets the wheel speeds of the
-  group's rigid motion at its place (differential drive).
+  the latch to close. The docked pose is read from the fixed module's tracked pose when
+  this final approach begins; if that module moves (pushed), or if near the end of the
+  line the group is off it by more than half the dock tolerance (a group docked in a
+  row turns only by sliding its wheels sideways, and ends its turn off the line), it
+  backs off to the line's start, steering back onto it, and comes in again. Each
+  module of a moving group gets the wheel speeds of the group's rigid motion at its
+  place (differential drive), scaled together within the wheels' top speeds.
 * **dock within a group** (closing a loop): the hinge angles of the group that bring the
   two ports together (least squares from the reported angles, :func:`close_loop`) become
   hinge goals; reached when the encoders are there and the ports within tolerance.
