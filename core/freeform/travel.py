@@ -24,6 +24,7 @@ proportional to the distance left, bounded).
 from __future__ import annotations
 
 import heapq
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -73,22 +74,31 @@ def centres_of(reports: Mapping[str, object], links: Mapping[str, str],
         z = z / np.linalg.norm(z)
         neighbours[i].append((j, z))
         neighbours[j].append((i, -z))
-    centres: dict[str, np.ndarray] = {}
-    groups: list[set[str]] = []
-    for start in sorted(reports, key=lambda m: (m in links, m)):
-        if start in centres:
+    pieces = lay_out_pieces(neighbours, sorted(reports, key=lambda m: (m in links, m)), spacing)
+    centres = {m: p for piece in pieces for m, p in piece.items()}
+    return centres, heading, [set(piece) for piece in pieces]
+
+
+def lay_out_pieces(adjacent: Mapping[str, Sequence[tuple[str, np.ndarray]]],
+                   order: Sequence[str], spacing: float) -> list[dict[str, np.ndarray]]:
+    """The connected pieces of modules joined by unit vectors (``adjacent[u]`` holds
+    ``(v, z)``: ``v``'s centre is ``spacing * z`` [m] from ``u``'s), each as centres (3,)
+    [m] relative to its first module in ``order``, reached breadth first."""
+    placed: set[str] = set()
+    pieces: list[dict[str, np.ndarray]] = []
+    for start in order:
+        if start in placed:
             continue
-        centres[start] = np.zeros(3)
-        group, queue = {start}, [start]
+        piece, queue = {start: np.zeros(3)}, deque([start])
         while queue:
-            u = queue.pop()
-            for v, z in neighbours[u]:
-                if v not in centres:
-                    centres[v] = centres[u] + spacing * z
-                    group.add(v)
+            u = queue.popleft()
+            for v, z in adjacent[u]:
+                if v not in piece:
+                    piece[v] = piece[u] + spacing * z
                     queue.append(v)
-        groups.append(group)
-    return centres, heading, groups
+        placed.update(piece)
+        pieces.append(piece)
+    return pieces
 
 
 class Locator:

@@ -49,7 +49,6 @@ The step loop, the dock welds and the event bookkeeping are every freeform world
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -77,6 +76,7 @@ from .mujoco import (
     quat_log,
     quat_mul,
 )
+from .travel import lay_out_pieces
 
 __all__ = ["ConstraintEvent", "FreeformOptions", "FreeformWorld", "ModuleReport", "place"]
 
@@ -212,17 +212,7 @@ def place(config: Configuration, length: float, radius: float
         axis[e.source] = z
     centres: dict[str, np.ndarray] = {}
     offset = 0.0
-    for start in sorted(modules):
-        if start in centres:
-            continue
-        group = {start: np.zeros(3)}
-        queue = deque([start])
-        while queue:
-            u = queue.popleft()
-            for v, z in adjacent[u]:
-                if v not in group:
-                    group[v] = group[u] + length * z
-                    queue.append(v)
+    for group in lay_out_pieces(adjacent, sorted(modules), length):
         points = np.array(list(group.values()))
         shift = np.array([0.0, offset - points[:, 1].min(), radius - points[:, 2].min()])
         for m, p in group.items():
