@@ -30,6 +30,7 @@ from msrr.core.library import load_library
 from msrr.core.library.check import edge_cases, load_check
 from msrr.core.plugins import resolve
 from msrr.core.shape import skeletal_error
+from msrr.core.timeline import read_recording
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 S6N3 = load_library(FREESN / "libraries" / "S6N3.json")
@@ -170,3 +171,47 @@ def test_an_edge_run_ends_at_its_first_fault():
     assert not check.feasible and check.reason.startswith("connector broke")
     broke = float(check.reason.rsplit("t=", 1)[1].split()[0])
     assert check.sim_time <= broke + FAULT_CHECK_PERIOD + 0.2 < 20.0
+
+
+def _spider(azimuths_deg) -> dict:
+    """An S4N1 file: node N1 with four level leaf struts at ``azimuths_deg``."""
+    modules = [{"id": "N1", "kind": "node"}]
+    connections = []
+    for i, azimuth in enumerate(np.radians(azimuths_deg)):
+        modules.append({"id": f"S{i + 1}:b", "kind": "virtual"})
+        connections.append({"id": f"S{i + 1}", "kind": "strut", "source": "N1",
+                            "target": f"S{i + 1}:b",
+                            "z": [math.cos(azimuth), math.sin(azimuth), 0.0]})
+    return {"schema_version": 1, "robot": "freesn", "name": "spider", "modules": modules,
+            "connections": connections}
+
+
+@pytest.mark.parametrize("azimuths, collides", [((35, 55, 225, 315), True),
+                                                ((30, 150, 210, 330), False)],
+                         ids=["two-struts-20-deg-apart", "clean"])
+def test_a_run_whose_bodies_interpenetrate_fails_naming_them(tmp_path, azimuths, collides):
+    """Issue 32, item 4: a start with two struts 20 deg apart on one node (their capsules
+    overlap by 2 r - 2 (R + gap + r) sin 10 deg = 14.6 mm) fails at once with the struts,
+    the depth and the time, in summary.json and on the timeline; a clean start of the
+    same move succeeds."""
+    start = tmp_path / "start.json"
+    start.write_text(json.dumps(_spider(azimuths)))
+    out = tmp_path / "run"
+    result = CliRunner().invoke(get_cli(), [
+        "run", "--robot", "freesn", "--from", str(start),
+        "--to", str(FREESN / "configs" / "library" / "S4N1-1.1.json"), "--out", str(out)])
+    summary = json.loads((out / "summary.json").read_text())
+    faults = [f for f in summary["faults"] if f["kind"] == "self-collision"]
+    timeline = [str(t[0] if isinstance(t, list | tuple) else t) for t in (
+        r.values["TextLog:text"] for r in read_recording(out / "run.rrd").rows.get(
+            "/events/faults", []))]
+    if not collides:
+        assert result.exit_code == 0 and summary["success"], result.output
+        assert not faults and not timeline
+        return
+    assert result.exit_code != 0 and not summary["success"]
+    line = "S1 and S2 interpenetrate by 14.6 mm at t=0.00 s"
+    assert summary["reason"].endswith(f"self-collision: {line} (deepest 14.6 mm)")
+    assert [f["text"] for f in faults] == [f"{line} (deepest 14.6 mm)"]
+    assert not faults[0]["recovered"] and summary["sim_time_s"] < 0.2
+    assert len(timeline) == 1 and line in timeline[0]
