@@ -147,21 +147,21 @@ def test_a_connector_pressed_onto_its_node_does_not_count_the_press_against_the_
 
 
 def test_dock_engages_only_within_tolerance_and_undock_releases():
-    aimed = _library_config("S6N3", "S6N3-1.3")  # S4's free end on N2's centre
+    aimed = _library_config("S6N3", "S6N3-2.3")  # S5's free end on N1's centre
     driver = FreeSNMujocoDriver()
     with driver:
         driver.reset(aimed)
         driver.step(0.1)
-        assert ("S4", "b", "N2") not in driver.world.docked_pairs()  # magnet not extended
-        driver.send_action({"S4": ModuleCommand(dock=("b",))})
+        assert ("S5", "b", "N1") not in driver.world.docked_pairs()  # magnet not extended
+        driver.send_action({"S5": ModuleCommand(dock=("b",))})
         driver.step(0.1)
-        assert ("S4", "b", "N2") in driver.world.docked_pairs()
+        assert ("S5", "b", "N1") in driver.world.docked_pairs()
         assert [(e.kind, e.strut, e.end, e.node) for e in driver.world.events] == [
-            ("dock", "S4", "b", "N2")]
-        driver.send_action({"S4": ModuleCommand(undock=("b",))})
+            ("dock", "S5", "b", "N1")]
+        driver.send_action({"S5": ModuleCommand(undock=("b",))})
         driver.step(0.1)
-        assert ("S4", "b", "N2") not in driver.world.docked_pairs()
-        report = driver.get_observation().sensors["S4"]
+        assert ("S5", "b", "N1") not in driver.world.docked_pairs()
+        report = driver.get_observation().sensors["S5"]
         assert report.docked["b"] is None and report.magnet["b"] == "retracted"
         assert [e.kind for e in report.events] == ["dock", "undock"]
     legs = _library_config("S6N3", "S6N3-1.1")  # free ends far from every node
@@ -310,28 +310,28 @@ def _drive(driver, controller, goal, ticks, extra=None):
 
 def test_connection_then_disconnection_by_connector_commands():
     """S6N3: swing a leg onto a node, dock it (a loop closes), undock it, swing it back."""
-    flat, aimed, docked = (_library_config("S6N3", k) for k in ("S6N3-1.2", "S6N3-1.3",
-                                                                 "S6N3-2.1"))
+    flat, aimed, docked = (_library_config("S6N3", k) for k in ("S6N3-2.2", "S6N3-2.3",
+                                                                 "S6N3-3.1"))
     controller = FreeSNController()
     with FreeSNMujocoDriver(noise=np.radians(2.0), slip=0.05, seed=11) as driver:
         driver.reset(flat)
         _drive(driver, controller, aimed, 20)                      # moving (150 deg swing)
         assert skeletal_errors(driver.world.ground_truth(), aimed)[0] < np.radians(5.0)
-        _drive(driver, controller, docked, 10, {"S4": ModuleCommand(dock=("b",))})
+        _drive(driver, controller, docked, 10, {"S5": ModuleCommand(dock=("b",))})
         truth = driver.world.ground_truth()
-        assert not topology_diff(truth, docked), "S4's free end docked on N2"
+        assert not topology_diff(truth, docked), "S5's free end docked on N1"
         assert skeletal_errors(truth, docked)[0] < np.radians(5.0)
-        _drive(driver, controller, aimed, 3, {"S4": ModuleCommand(undock=("b",))})
+        _drive(driver, controller, aimed, 3, {"S5": ModuleCommand(undock=("b",))})
         _drive(driver, controller, flat, 20)
         truth = driver.world.ground_truth()
         assert not topology_diff(truth, flat)
         assert skeletal_errors(truth, flat)[0] < np.radians(5.0)
         kinds = [(e.kind, e.strut, e.end, e.node) for e in driver.world.events]
-    assert kinds == [("dock", "S4", "b", "N2"), ("undock", "S4", "b", "N2")]
+    assert kinds == [("dock", "S5", "b", "N1"), ("undock", "S5", "b", "N1")]
 
 
 def test_driving_ends_form_one_spanning_tree_of_locks():
-    config = _library_config("S6N3", "S6N3-3.1")  # triangle, two parallel struts, one leg
+    config = _library_config("S6N3", "S6N3-3.1")  # triangle, two legs on N1, one on N3
     links = {(e.id, end): n for e in config.edges()
              for end, n in (("a", e.source), ("b", e.target)) if not config.is_virtual(n)}
     driving = driving_ends(links)
@@ -371,7 +371,7 @@ def test_the_root_is_the_best_connected_node_never_a_wheel_or_a_foot():
 
 def test_core_executor_runs_a_connection_and_a_disconnection():
     """The core executor, unchanged, with this driver, recognizer and controller (no IK)."""
-    sequence = [_library_config("S6N3", k) for k in ("S6N3-1.3", "S6N3-2.1", "S6N3-1.3")]
+    sequence = [_library_config("S6N3", k) for k in ("S6N3-2.3", "S6N3-3.1", "S6N3-2.3")]
     actions = detect_actions(sequence)
     assert [a.type.value for a in actions] == ["connection", "disconnection"]
     plan = Plan(robot="freesn", planner="manual", start=sequence[0], goal=sequence[-1],
@@ -386,7 +386,7 @@ def test_core_executor_runs_a_connection_and_a_disconnection():
         truth = driver.world.ground_truth()
     assert result.success, result.reason
     assert (result.docks, result.undocks) == (1, 1)
-    assert events == [("dock", "S4", "b", "N2"), ("undock", "S4", "b", "N2")]
+    assert events == [("dock", "S5", "b", "N1"), ("undock", "S5", "b", "N1")]
     assert not topology_diff(truth, sequence[-1])
 
 
@@ -496,19 +496,20 @@ def test_a_nodes_attitude_estimate_is_its_noisy_readings_low_passed():
 
 @pytest.mark.parametrize("off_deg, docks", [(2.0, True), (4.0, False)])
 def test_a_magnet_docks_only_touching_and_aligned(off_deg, docks):
-    """S4's free end aimed at N2 but turned about N1: 2 deg touches the shell squarely
+    """S5's free end aimed at N1 but turned about N2: 2 deg touches the shell squarely
     and docks; 4 deg (1.4 cm off, 15 deg askew: a weld from a distance before) only
-    pulls, with a force bounded by the connection strength, against S4's held connector."""
-    aimed = _library_config("S6N3", "S6N3-1.3")
+    pulls, with a force bounded by the connection strength, against S5's held connector
+    and the open triangle's."""
+    aimed = _library_config("S6N3", "S6N3-2.3")
     turn = rot_z(np.radians(off_deg))
-    world = FreeSNWorld(aimed.with_vectors(z={e.id: turn @ e.z if e.id == "S4" else e.z
+    world = FreeSNWorld(aimed.with_vectors(z={e.id: turn @ e.z if e.id == "S5" else e.z
                                               for e in aimed.edges()}), SPEC, SimOptions())
-    world.command_dock("S4", "b")
+    world.command_dock("S5", "b")
     pull = 0.0
     for _ in range(50):
         world.step(0.01)
-        pull = max(pull, float(np.linalg.norm(world.data.xfrc_applied[world.bodies["N2"], :3])))
-    assert (world.docked[world.ends.index(("S4", "b"))] == "N2") is docks
+        pull = max(pull, float(np.linalg.norm(world.data.xfrc_applied[world.bodies["N1"], :3])))
+    assert (world.docked[world.ends.index(("S5", "b"))] == "N1") is docks
     assert pull <= world.phys.strength + 1e-9
 
 
