@@ -13,7 +13,6 @@ from click.testing import CliRunner
 from scipy.spatial.transform import Rotation
 
 from msrr.core.actions import topology_diff
-from msrr.core.configuration import Configuration
 from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.app.cli import get_cli
 from msrr.core.app.feasibility import FAULT_CHECK_PERIOD, default_runner, run_edge, tilted_error
@@ -24,6 +23,7 @@ from msrr.core.closed_loop import (
     extruded,
     tree_for,
 )
+from msrr.core.configuration import Configuration
 from msrr.core.events import Phase
 from msrr.core.executor import ExecutorOptions, phases_of
 from msrr.core.kinematics import FixedNode, GroundModel

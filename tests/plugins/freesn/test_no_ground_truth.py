@@ -51,8 +51,8 @@ class Commands(NoEvents):
 
 def _run(blind: bool) -> tuple[list[dict], object]:
     sub = next(iter(load_library(FREESN / "libraries" / "S6N3.json").sublibraries.values()))
-    sequence = [sub.configurations[k].configuration for k in ("S6N3-1.3", "S6N3-2.1",
-                                                               "S6N3-1.3")]
+    sequence = [sub.configurations[k].configuration for k in ("S6N3-2.3", "S6N3-3.1",
+                                                               "S6N3-2.3")]
     plan = Plan(robot="freesn", planner="manual", start=sequence[0], goal=sequence[-1],
                 actions=detect_actions(sequence))
     run = Run(robot="freesn", scenario="custom", plan=plan, spec=SPEC, driver="mujoco")
