@@ -510,8 +510,10 @@ RING_NODES = ["T1", "B1", "T2", "B2", "T3", "B3"]
 def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int] = frozenset(),
                 *, outward: bool = False) -> list[tuple]:
     """The ring struts; those in ``free`` undocked at their target end, aimed at it (or,
-    with ``outward``, along the floor 60 deg beside the radial direction, where the node's
-    free chord lies: two struts cannot sit on one spot of a node)."""
+    with ``outward``, along the floor 60 deg clockwise of the radial direction, where the
+    node's free chord lies: two struts cannot sit on one spot of a node. Counter-clockwise
+    the strut came down from its aim at the top node through the plane the freed chord
+    swings through on its way out, and the two met: Fig. 22(f)-(j) stalled)."""
     out: list[tuple] = []
     for i in range(6):
         sid, s, t = f"R{i + 1}", RING_NODES[i], RING_NODES[(i + 1) % 6]
@@ -520,7 +522,7 @@ def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int]
         else:
             assert nodes is not None
             out.append((sid, s, None,
-                        horizontal(math.atan2(nodes[s][1], nodes[s][0]) + math.radians(60.0))
+                        horizontal(math.atan2(nodes[s][1], nodes[s][0]) - math.radians(60.0))
                         if outward else nodes[t] - nodes[s]))
     return out
 
@@ -586,11 +588,14 @@ def hex_nodes(open_gap: float = 0.0) -> dict[str, np.ndarray]:
 
 
 def hex_star(name: str, description: str = "", *, aimed: bool = False,
-             open_ring: bool = False) -> dict:
+             open_ring: bool = False, c1_up: bool = False) -> dict:
     """Flat hexagon ring R1-R6 with the chords C1-C6 as outward legs (Fig. 21(a)).
 
     ``aimed``: the chords point at the node they dock to in the octahedron (after the
     ring is folded, see :func:`octa_state`). ``open_ring``: R6 is undocked from T1.
+    ``c1_up``: C1 points straight up, on the way between its outward rest and its aim
+    across the ear (:func:`ear_state`): swung along the floor it passes through R1 or R6
+    on its node.
     """
     nodes = hex_nodes()
     struts = ring_struts()
@@ -599,7 +604,7 @@ def hex_star(name: str, description: str = "", *, aimed: bool = False,
     for i in range(6):
         cid, s, t = chord(i)
         out = math.atan2(nodes[s][1], nodes[s][0])
-        struts.append((cid, s, None, horizontal(out)))
+        struts.append((cid, s, None, UP if c1_up and i == 0 else horizontal(out)))
     return configuration(name, nodes, struts, description)
 
 
@@ -837,19 +842,22 @@ def s12n6_fig21_sequences(star_: dict) -> list[dict]:
         # The ear -> ring move runs under K-root-T1: with the default root (the chain's
         # centre T2) or B2, T3, B3 it stalls 5-25 deg short (R4 17 deg off, IK residual
         # 0.1 deg); rooted at T1, where R6 docks, it finishes in 3.2 s.
-        # Fig. 21 with parallel actions (section 6.3): the open ring folds so that R6 and
-        # chord C1 both aim at their nodes and dock in one parallel connection; then R1
-        # and R4 undock in one parallel disconnection, leaving a branched tree. Back: the
-        # same two parallel actions reversed, the fold undone, R6 docked.
+        # Fig. 21 with parallel actions (section 6.3): C1 rises, the open ring folds so
+        # that R6 and chord C1 both aim at their nodes and dock in one parallel
+        # connection; then R1 and R4 undock in one parallel disconnection, leaving a
+        # branched tree. Back: the same two parallel actions reversed, the fold undone
+        # (C1 up on the way), R6 docked.
         {"name": "fig21-star-to-branched-tree", "description": "Fig. 21(a)-(e) with parallel "
          "actions: open the ring, fold it, dock R6 and C1, undock R1 and R4",
-         "steps": [step(star_), step(hex_star("ring-open", open_ring=True)), step(ear_aim),
+         "steps": [step(star_), step(hex_star("ring-open", open_ring=True)),
+                   step(hex_star("c1-up", open_ring=True, c1_up=True)), step(ear_aim),
                    step(ear_state("ear-closed", RING_IDS | {"C1"})),
                    step(ear_state("fig21-tree", BRANCHED))]},
         {"name": "fig21-branched-tree-to-star", "description": "Fig. 21(e)-(i) with parallel "
          "actions: dock R1 and R4, undock R6 and C1, unfold, dock R6",
          "steps": [step(ear_state("fig21-tree", BRANCHED)),
                    step(ear_state("ear-closed", RING_IDS | {"C1"})), step(ear_aim),
+                   step(hex_star("c1-up", open_ring=True, c1_up=True), "K-root-T1"),
                    step(hex_star("ring-aim", open_ring=True), "K-root-T1"),
                    step(star_, "K-root-T1")]},
         # the tree -> ring stretch stalls with R4 ~20 deg off (IK residual 0.1 deg) under
