@@ -65,8 +65,8 @@ from .events import FaultEvent
 from .watchdog import DriverStalled
 from .witness import Witness
 
-__all__ = ["BREAK", "FAULT_KINDS", "SELF_COLLISION", "Fault", "FaultyDriver", "GuardedDriver", "check_fault_modules",
-           "parse_faults"]
+__all__ = ["BREAK", "FAULT_KINDS", "SELF_COLLISION", "Fault", "FaultyDriver", "GuardedDriver",
+           "check_fault_modules", "parse_faults"]
 
 # kind -> {key: default}; ``None``: required
 FAULT_KINDS: dict[str, dict[str, float | str | None]] = {
@@ -466,11 +466,11 @@ class GuardedDriver(_Wrapper):
     (or of steps asked for, should the driver's clock stop), or past ``wall_deadline``
     seconds of wall time since the guard was made, stops the run likewise, and so does
     a self-collision the driver saw (``"self-collision: ..."`` of
-    :meth:`~msrr.core.driver.Driver.faults`, since the reset: the start's own
-    overlaps too), checked after every step: a ``"self-collision"`` :class:`FaultEvent` names the bodies, how deep and when,
-    and the :class:`ExecutionError` carries the same line). :attr:`busy`
-    names the call in progress, for the :class:`~msrr.core.watchdog.Watchdog` that ends
-    one that does not return; once it has set :attr:`stopped`, every further call but
+    :meth:`~msrr.core.driver.Driver.faults`, since the reset: the start's own overlaps
+    too), checked after every step: a ``"self-collision"`` :class:`FaultEvent` names
+    the bodies, how deep and when, and the :class:`ExecutionError` carries the same
+    line. :attr:`busy` names the call in progress, for the
+    :class:`~msrr.core.watchdog.Watchdog` that ends one that does not return; once it has set :attr:`stopped`, every further call but
     the clean-up's (``send_action``, ``disconnect``) raises.
 
     Args:
