@@ -315,14 +315,14 @@ def test_connection_then_disconnection_by_connector_commands():
     controller = FreeSNController()
     with FreeSNMujocoDriver(noise=np.radians(2.0), slip=0.05, seed=11) as driver:
         driver.reset(flat)
-        _drive(driver, controller, aimed, 20)                      # moving (150 deg swing)
+        _drive(driver, controller, aimed, 40)                      # moving (150 deg swing)
         assert skeletal_errors(driver.world.ground_truth(), aimed)[0] < np.radians(5.0)
         _drive(driver, controller, docked, 10, {"S5": ModuleCommand(dock=("b",))})
         truth = driver.world.ground_truth()
         assert not topology_diff(truth, docked), "S5's free end docked on N1"
         assert skeletal_errors(truth, docked)[0] < np.radians(5.0)
         _drive(driver, controller, aimed, 3, {"S5": ModuleCommand(undock=("b",))})
-        _drive(driver, controller, flat, 20)
+        _drive(driver, controller, flat, 40)
         truth = driver.world.ground_truth()
         assert not topology_diff(truth, flat)
         assert skeletal_errors(truth, flat)[0] < np.radians(5.0)
