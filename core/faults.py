@@ -7,8 +7,9 @@ Two :class:`~msrr.core.driver.Driver` wrappers, both transparent when nothing ha
 * :class:`GuardedDriver` sits outside it (and around every driver of ``platform run``):
   it replaces non-finite readings (tracked poses, sensors) with the module's last
   finite one (the controller never sees a NaN), stops the run when the overall
-  deadline of driver time has passed, and reports each connection the simulator broke
-  under its load.
+  deadline of driver time has passed, reports each connection the simulator broke
+  under its load, and stops the run at the first self-collision the simulator saw
+  (module bodies interpenetrating).
 
 Both report what happened as :class:`~msrr.core.events.FaultEvent` s through a callback
 (``platform run`` fires ``msrr_on_fault`` with each, so the timeline logs them under
@@ -64,8 +65,8 @@ from .events import FaultEvent
 from .watchdog import DriverStalled
 from .witness import Witness
 
-__all__ = ["BREAK", "FAULT_KINDS", "Fault", "FaultyDriver", "GuardedDriver", "check_fault_modules",
-           "parse_faults"]
+__all__ = ["BREAK", "FAULT_KINDS", "SELF_COLLISION", "Fault", "FaultyDriver", "GuardedDriver",
+           "check_fault_modules", "parse_faults"]
 
 # kind -> {key: default}; ``None``: required
 FAULT_KINDS: dict[str, dict[str, float | str | None]] = {
@@ -85,6 +86,11 @@ OnFault = Callable[[FaultEvent], None]
 BREAK = "connector broke"
 """The kind of the :class:`FaultEvent` of a connection the driver saw break under its
 load (its reason in :meth:`~msrr.core.driver.Driver.faults` and in library checks)."""
+
+SELF_COLLISION = "self-collision"
+"""The kind of the :class:`FaultEvent` of module bodies the driver saw interpenetrate
+(its reason in :meth:`~msrr.core.driver.Driver.faults` and in library checks): the run
+fails there."""
 
 
 @dataclass(frozen=True)
@@ -458,9 +464,13 @@ class GuardedDriver(_Wrapper):
     bad readings); a module that has never had a finite reading stops the run
     (:class:`ExecutionError`). A :meth:`step` past ``deadline`` seconds of driver time
     (or of steps asked for, should the driver's clock stop), or past ``wall_deadline``
-    seconds of wall time since the guard was made, stops the run likewise. :attr:`busy`
-    names the call in progress, for the :class:`~msrr.core.watchdog.Watchdog` that ends
-    one that does not return; once it has set :attr:`stopped`, every further call but
+    seconds of wall time since the guard was made, stops the run likewise, and so does
+    a self-collision the driver saw (``"self-collision: ..."`` of
+    :meth:`~msrr.core.driver.Driver.faults`, since the reset: the start's own overlaps
+    too), checked after every step: a ``"self-collision"`` :class:`FaultEvent` names
+    the bodies, how deep and when, and the :class:`ExecutionError` carries the same
+    line. :attr:`busy` names the call in progress, for the
+    :class:`~msrr.core.watchdog.Watchdog` that ends one that does not return; once it has set :attr:`stopped`, every further call but
     the clean-up's (``send_action``, ``disconnect``) raises.
 
     Args:
@@ -571,6 +581,17 @@ class GuardedDriver(_Wrapper):
                                  "reached (--wall-deadline)")
         self._call("step", self.inner.step, dt)
         self._breaks()
+        self._collisions()
+
+    def _collisions(self) -> None:
+        """Stop the run at the first self-collision the driver saw (``"self-collision:
+        ..."`` of :meth:`~msrr.core.driver.Driver.faults`), reported as a
+        ``"self-collision"`` :class:`FaultEvent`."""
+        for text in self.inner.faults():
+            reason, _, details = text.partition(": ")
+            if reason == SELF_COLLISION:
+                self._report(SELF_COLLISION, details, recovered=False)
+                raise ExecutionError(text)
 
     def _breaks(self) -> None:
         """Report each connection the driver saw break (``"connector broke: ..."`` of

@@ -26,8 +26,8 @@ systems report them (relabelled, yawed, tilted; ``generate.py`` there writes the
 
 FIGURES = (
     ("fig20", "fig20-start", ("S6N3-4.1", "S6N3-1.1"),
-     "Fig. 20: S6N3 triangle with three legs -> the doubled triangle (d) by retrieval -> back",
-     True),
+     "Fig. 20: S6N3 triangle with three legs -> the chain on four legs (d) by retrieval -> "
+     "back", True),
     ("fig21", "fig21-start", ("S12N6-7.1", "S12N6-2.1"),
      "Fig. 21: S12N6 hexagonal star -> tree -> hexagonal star, by moves and parallel "
      "connections and disconnections", False),
@@ -67,13 +67,13 @@ gait scenarios (section 7.3): the path to the behavior's start, then its configu
 sequence looped until the centre moved the distance."""
 
 SCENARIOS = (
-    ("s6n3-connect", "S6N3-1.3", "S6N3-2.1", "S6N3: a leg docks to a node (connection)", False),
-    ("s6n3-disconnect", "S6N3-2.1", "S6N3-1.3", "S6N3: a docked leg undocks (disconnection)",
+    ("s6n3-connect", "S6N3-2.3", "S6N3-3.1", "S6N3: a leg docks to a node (connection)", False),
+    ("s6n3-disconnect", "S6N3-3.1", "S6N3-2.3", "S6N3: a docked leg undocks (disconnection)",
      False),
     ("s6n3-crouch", "S6N3-1.1", "S6N3-1.2", "S6N3: the triangle lowers onto its legs (moving)",
      False),
-    ("s6n3-fig20", "S6N3-1.1", "S6N3-4.1", "S6N3: fig. 20(a) to 20(d), three connections",
-     False),
+    ("s6n3-fig20", "S6N3-1.1", "S6N3-4.1", "S6N3: fig. 20(a) to 20(d), a leg transfer and an "
+     "opening", False),
 )
 """``(name, start id, goal id, description, default)``: ``platform run --scenario``."""
 

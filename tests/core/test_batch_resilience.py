@@ -26,9 +26,9 @@ ROOT = Path(__file__).resolve().parents[2]
 LIBRARIES = ROOT / "plugins" / "freesn" / "libraries"
 # S6N3's longest edges (0.4-1.3 s of CPU each) and three short ones: the workers start
 # with the longest, so a worker past 0.1 s of CPU is in the middle of an edge
-EDGES = ("S6N3-1.2->S6N3-1.1", "S6N3-1.2->S6N3-1.3", "S6N3-2.1->S6N3-2.2",
-         "S6N3-3.1->S6N3-3.2", "S6N3-3.2->S6N3-3.1", "S6N3-1.3->S6N3-2.1",
-         "S6N3-2.2->S6N3-3.1", "S6N3-3.2->S6N3-4.1")
+EDGES = ("S6N3-1.2->S6N3-1.1", "S6N3-2.2->S6N3-2.3", "S6N3-2.3->S6N3-2.2",
+         "S6N3-4.1->S6N3-4.2", "S6N3-4.2->S6N3-4.1", "S6N3-2.3->S6N3-3.1",
+         "S6N3-3.1->S6N3-4.2", "S6N3-4.2->S6N3-3.1")
 CHECK = ["library", "check", "S6N3.json", "--seed", "0"] + [a for e in EDGES for a in ("--edge", e)]
 PLATFORM = [sys.executable, "-c", "import sys; from msrr.core.app.launch import main; "
             "sys.argv[0] = 'platform'; main()"]

@@ -106,7 +106,10 @@ def triangle(height: float = 0.0) -> dict[str, np.ndarray]:
 
 RING = [("S1", "N1", "N2"), ("S2", "N2", "N3"), ("S3", "N3", "N1")]
 LEGS = [("S4", "N1"), ("S5", "N2"), ("S6", "N3")]
-DOCK = {"S4": "N2", "S5": "N3", "S6": "N1"}   # each leg docks to the next node
+CLEAR = {"S1": 150.0, "S2": 210.0}
+"""Where a ring strut undocked for a leg transfer swings, in plan [deg]: S1 on N1
+square to the line N1-N2 (S5's capsule sweeping round N2 onto that line then passes
+its body 20 mm clear), S2 on N2 outward, where its leg S5 was."""
 
 
 def leg_forward(u: np.ndarray) -> np.ndarray:
@@ -117,59 +120,92 @@ def leg_forward(u: np.ndarray) -> np.ndarray:
     return np.cross(axle / np.linalg.norm(axle), u)
 
 
-def s6n3_state(name: str, docked: set[str], aimed: set[str], *, standing: bool = False,
+def s6n3_state(name: str, docked: dict[str, str] | None = None,
+               free: dict[str, str | float] | None = None, *, standing: bool = False,
                description: str = "") -> dict:
-    """Triangle N1 N2 N3 (struts S1-S3) with legs S4-S6 on N1-N3.
+    """Triangle N1 N2 N3 (ring struts S1-S3) with legs S4-S6 on N1-N3, changed by
+    ``docked`` and ``free``.
 
-    Legs in ``docked`` are connected to the next node; legs in ``aimed`` point at it
-    (``S_conn``); the others point outward, down to the floor when ``standing``, their
-    wheel axles perpendicular to ``x`` (:func:`leg_forward`).
+    ``docked``: leg -> the node its free end docks to (a leg transferred into the
+    ring). ``free``: strut -> what its free end does: a node name, aimed at it
+    (``S_conn``, or the vectors a disconnection keeps), or an azimuth [deg] in plan
+    along the floor; a ring strut in ``free`` is undocked at its target end. Legs
+    otherwise point outward, down to the floor when ``standing``, their wheel axles
+    perpendicular to ``x`` (:func:`leg_forward`). Every pair of struts at a node stays
+    at least 60 deg apart (their capsules touch under 31.8 deg).
     """
+    docked, free = docked or {}, free or {}
     nodes = triangle(height=L * 0.7 if standing else 0.0)
-    struts: list[tuple] = list(RING)
-    for leg, at in LEGS:
-        out = math.atan2(nodes[at][1], nodes[at][0])
-        if leg in docked:
-            struts.append((leg, at, DOCK[leg]))
-        elif leg in aimed:
-            struts.append((leg, at, None, nodes[DOCK[leg]] - nodes[at]))
+    struts: list[tuple] = []
+    for sid, at, to in [*RING, *((leg, at, docked.get(leg)) for leg, at in LEGS)]:
+        aim = free.get(sid)
+        if to is not None and aim is None:
+            struts.append((sid, at, to))
+        elif isinstance(aim, str):
+            struts.append((sid, at, None, nodes[aim] - nodes[at]))
         else:
+            out = math.atan2(nodes[at][1], nodes[at][0]) if aim is None else math.radians(aim)
             u = horizontal(out, math.radians(45 if standing else 0))
-            struts.append((leg, at, None, u, leg_forward(u)))
+            struts.append((sid, at, None, u, leg_forward(u)))
     return configuration(name, nodes, struts, description)
 
 
 def s6n3() -> None:
+    """S6N3 (Figs. 14, 15, 20): four groups, Fig. 20(a) to (d) and back by one leg
+    transfer and one opening.
+
+    Every strut docked at both ends joins two nodes ``L`` apart along the line through
+    their centres, so three nodes hold at most three such struts (a fourth would
+    coincide with one of them); the other struts are legs. Fig. 20(a)-(d): S1 undocks
+    from N2 (it becomes N1's second leg) and swings clear, N2's leg S5 docks to N1 in
+    its place (the triangle closed again with N1 holding two legs and N2 none), and S2
+    undocks from N3 and swings out: Fig. 20(d) is the chain N2-N1-N3 with two legs on
+    its middle node and one on each end. Fig. 20(e)-(h) reverses it.
+    """
     out = HERE / "S6N3"
-    a = s6n3_state("fig20a", set(), set(), standing=True,
+    a = s6n3_state("fig20a", standing=True,
                    description="Fig. 20(a): triangle standing on three legs")
-    flat = s6n3_state("flat", set(), set(), description="triangle lying flat, legs outward")
+    flat = s6n3_state("flat", description="triangle lying flat, legs outward")
+    free_s1 = s6n3_state("free-S1", free={"S1": "N2"},
+                         description="S1 undocked from N2, aimed at it: a chain N2-N3-N1")
+    clear_s1 = s6n3_state("clear-S1", free={"S1": CLEAR["S1"]},
+                          description="S1 swung clear: N1's second leg")
+    aim_s5 = s6n3_state("aim-S5", free={"S1": CLEAR["S1"], "S5": "N1"},
+                        description="N2's leg S5 aimed at N1")
+    fig20c = s6n3_state("fig20c", docked={"S5": "N1"}, free={"S1": CLEAR["S1"]},
+                        description="S5 docked to N1: the triangle closed with two legs "
+                        "on N1, none on N2")
+    free_s2 = s6n3_state("free-S2", docked={"S5": "N1"}, free={"S1": CLEAR["S1"], "S2": "N3"},
+                         description="S2 undocked from N3, aimed at it")
+    fig20d = s6n3_state("fig20d", docked={"S5": "N1"},
+                        free={"S1": CLEAR["S1"], "S2": CLEAR["S2"]},
+                        description="Fig. 20(d): the chain N2-N1-N3, two legs on N1, one "
+                        "on each end")
     groups = [
         {"name": "triangle-three-legs", "description": "Fig. 14(a) group 1: a triangle, one "
          "free leg per node", "reference": a, "trees": [tree("K1")]},
-        {"name": "one-leg-docked", "description": "group 2: one leg docked to the next node",
-         "reference": s6n3_state("ref2", {"S4"}, set()), "trees": [tree("K1")]},
-        {"name": "two-legs-docked", "description": "group 3: two legs docked",
-         "reference": s6n3_state("ref3", {"S4", "S5"}, set()), "trees": [tree("K1")]},
-        {"name": "double-triangle", "description": "group 4: every leg docked, a doubled "
-         "triangle (Fig. 20(d))", "reference": s6n3_state("fig20d", {"S4", "S5", "S6"}, set()),
+        {"name": "open-triangle", "description": "group 2: S1 undocked from N2, a chain of "
+         "three nodes with two legs on an end node", "reference": free_s1,
          "trees": [tree("K1")]},
+        {"name": "leg-transferred", "description": "group 3: the triangle closed by N2's leg, "
+         "two legs on N1, one on N3", "reference": fig20c, "trees": [tree("K1")]},
+        {"name": "chain-four-legs", "description": "group 4: the chain N2-N1-N3, two legs on "
+         "its middle node (Fig. 20(d))", "reference": fig20d, "trees": [tree("K1")]},
     ]
     write(out / "designs.json", source("S6N3", "FreeSN sub-library S6N3 (paper Figs. 14, 15, "
                                        "20): six struts, three nodes", groups=groups))
-    forward = [a, flat,
-               s6n3_state("aim-S4", set(), {"S4"}), s6n3_state("dock-S4", {"S4"}, set()),
-               s6n3_state("aim-S5", {"S4"}, {"S5"}), s6n3_state("dock-S5", {"S4", "S5"}, set()),
-               s6n3_state("aim-S6", {"S4", "S5"}, {"S6"}),
-               s6n3_state("fig20d", {"S4", "S5", "S6"}, set())]
-    back = [s6n3_state("fig20d", {"S4", "S5", "S6"}, set()),
-            s6n3_state("aim-S6", {"S4", "S5"}, {"S6"}), s6n3_state("free-S6", {"S4", "S5"}, set()),
-            s6n3_state("aim-S5", {"S4"}, {"S5"}), s6n3_state("free-S5", {"S4"}, set()),
-            s6n3_state("aim-S4", set(), {"S4"}), flat, a]
+    forward = [a, flat, free_s1, clear_s1, aim_s5, fig20c, free_s2, fig20d]
+    back = [fig20d, s6n3_state("aim-S2", docked={"S5": "N1"},
+                               free={"S1": CLEAR["S1"], "S2": "N3"}),
+            s6n3_state("dock-S2", docked={"S5": "N1"}, free={"S1": CLEAR["S1"]}),
+            s6n3_state("free-S5", free={"S1": CLEAR["S1"], "S5": "N1"}),
+            s6n3_state("out-S5", free={"S1": CLEAR["S1"]}),
+            s6n3_state("aim-S1", free={"S1": "N2"}), flat, a]
     sequences = [
-        {"name": "fig20-a-to-d", "description": "Fig. 20(a)-(d): dock the three legs one by one",
+        {"name": "fig20-a-to-d", "description": "Fig. 20(a)-(d): open the triangle at N2, "
+         "transfer N2's leg into it, open it at N3",
          "steps": [step(c) for c in forward]},
-        {"name": "fig20-d-to-h", "description": "Fig. 20(d)-(h): undock back to the legs",
+        {"name": "fig20-d-to-h", "description": "Fig. 20(d)-(h): the same reversed",
          "steps": [step(c) for c in back]},
     ]
     # wheeled move standing on the legs' free connector wheels (all rolling along x)
@@ -474,8 +510,10 @@ RING_NODES = ["T1", "B1", "T2", "B2", "T3", "B3"]
 def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int] = frozenset(),
                 *, outward: bool = False) -> list[tuple]:
     """The ring struts; those in ``free`` undocked at their target end, aimed at it (or,
-    with ``outward``, along the floor 60 deg beside the radial direction, where the node's
-    free chord lies: two struts cannot sit on one spot of a node)."""
+    with ``outward``, along the floor 60 deg clockwise of the radial direction, where the
+    node's free chord lies: two struts cannot sit on one spot of a node. Counter-clockwise
+    the strut came down from its aim at the top node through the plane the freed chord
+    swings through on its way out, and the two met: Fig. 22(f)-(j) stalled)."""
     out: list[tuple] = []
     for i in range(6):
         sid, s, t = f"R{i + 1}", RING_NODES[i], RING_NODES[(i + 1) % 6]
@@ -484,7 +522,7 @@ def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int]
         else:
             assert nodes is not None
             out.append((sid, s, None,
-                        horizontal(math.atan2(nodes[s][1], nodes[s][0]) + math.radians(60.0))
+                        horizontal(math.atan2(nodes[s][1], nodes[s][0]) - math.radians(60.0))
                         if outward else nodes[t] - nodes[s]))
     return out
 
@@ -550,11 +588,14 @@ def hex_nodes(open_gap: float = 0.0) -> dict[str, np.ndarray]:
 
 
 def hex_star(name: str, description: str = "", *, aimed: bool = False,
-             open_ring: bool = False) -> dict:
+             open_ring: bool = False, c1_up: bool = False) -> dict:
     """Flat hexagon ring R1-R6 with the chords C1-C6 as outward legs (Fig. 21(a)).
 
     ``aimed``: the chords point at the node they dock to in the octahedron (after the
     ring is folded, see :func:`octa_state`). ``open_ring``: R6 is undocked from T1.
+    ``c1_up``: C1 points straight up, on the way between its outward rest and its aim
+    across the ear (:func:`ear_state`): swung along the floor it passes through R1 or R6
+    on its node.
     """
     nodes = hex_nodes()
     struts = ring_struts()
@@ -563,7 +604,7 @@ def hex_star(name: str, description: str = "", *, aimed: bool = False,
     for i in range(6):
         cid, s, t = chord(i)
         out = math.atan2(nodes[s][1], nodes[s][0])
-        struts.append((cid, s, None, horizontal(out)))
+        struts.append((cid, s, None, UP if c1_up and i == 0 else horizontal(out)))
     return configuration(name, nodes, struts, description)
 
 
@@ -657,8 +698,11 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
 
 # The S12N6 crawl (Fig. 19(k)-(o)): a quadruped that crawls as the S4N5 star does, its
 # legs planted and swinging in turn. Two body nodes N1 (front) and N2 (rear), joined by
-# two parallel bars; each carries two legs to leaf-node feet (F1, F2 under N1; F3, F4
-# under N2) leaning aside, and three free masts up. A hip connector holds about (load
+# one bar S1 (a second bar between the same two nodes would lie inside it: a strut's axis
+# passes through the centres of the nodes it docks to); each carries two legs to
+# leaf-node feet (F1, F2 under N1; F3, F4 under N2) leaning aside, and three free masts
+# up; the twelfth strut S2 is a tail, level, back from N2 (>= 78 deg from every other
+# strut there; it moves the centre of mass 12.5 mm back, inside the feet). A hip connector holds about (load
 # on its foot) x (horizontal reach of its leg): 4.8 kg on four feet is ~12 N each, so
 # the legs stand steep, reaching aside only as far as keeps two feet apart (~0.5 N m
 # against the 1.2 N m of the simulated connectors). The feet move in diagonal pairs (a
@@ -692,7 +736,7 @@ def quadruped(name: str, ahead: dict[str, float], description: str = "") -> dict
     reach = max(abs(a) for a in ahead.values())
     drop = math.sqrt(L * L - side * side - reach * reach)
     nodes = {"N1": np.array([L / 2, 0.0, drop]), "N2": np.array([-L / 2, 0.0, drop])}
-    struts: list[tuple] = [("S1", "N1", "N2"), ("S2", "N2", "N1")]
+    struts: list[tuple] = [("S1", "N1", "N2"), ("S2", "N2", None, [-1.0, 0.0, 0.0])]
     for leg, (hip, foot, y) in QUAD_LEGS.items():
         nodes[foot] = nodes[hip] + np.array([ahead[leg], y * side, -drop])
         struts.append((leg, hip, foot))
@@ -703,10 +747,10 @@ def quadruped(name: str, ahead: dict[str, float], description: str = "") -> dict
 
 
 def quad_tree(name: str, topology: dict, planted: set[str]) -> dict:
-    """A crawl tree of the quadruped: the body (N1, N2 and their bars) a fixed root,
+    """A crawl tree of the quadruped: the body (N1, N2, the bar and the tail) a fixed root,
     the masts opposite-steering joints, ``planted`` legs gripping with their feet and
     the others swinging (:func:`legs_tree`'s joints, Fig. 19(f)-(o))."""
-    nodes = [{"type": "fixed", "edges": ["S1", "S2"], "vertices": ["N1", "N2"]}]
+    nodes = [{"type": "fixed", "edges": ["S1", "S2"], "vertices": ["N1", "N2", "S2:b"]}]
     nodes += [{"type": "opposite_steering", "edges": [mast], "vertices": [f"{mast}:b"]}
               for mast in QUAD_MASTS]
     nodes += [{"type": "planted" if leg in planted else "swing", "edges": [leg],
@@ -731,7 +775,7 @@ def s12n6_crawl_group() -> dict:
     first = trot_stances()[0]
     one, two = QUAD_DIAGONALS
     return {"name": "quadruped", "description": "Fig. 19(k): two body nodes on four legs "
-            "to leaf-node feet, six free masts up", "reference": first,
+            "to leaf-node feet, six free masts up, a tail", "reference": first,
             "trees": [tree("K1"), quad_tree("K-quad-plant-L1-L4", first, one),
                       quad_tree("K-quad-plant-L2-L3", first, two)]}
 
@@ -798,19 +842,22 @@ def s12n6_fig21_sequences(star_: dict) -> list[dict]:
         # The ear -> ring move runs under K-root-T1: with the default root (the chain's
         # centre T2) or B2, T3, B3 it stalls 5-25 deg short (R4 17 deg off, IK residual
         # 0.1 deg); rooted at T1, where R6 docks, it finishes in 3.2 s.
-        # Fig. 21 with parallel actions (section 6.3): the open ring folds so that R6 and
-        # chord C1 both aim at their nodes and dock in one parallel connection; then R1
-        # and R4 undock in one parallel disconnection, leaving a branched tree. Back: the
-        # same two parallel actions reversed, the fold undone, R6 docked.
+        # Fig. 21 with parallel actions (section 6.3): C1 rises, the open ring folds so
+        # that R6 and chord C1 both aim at their nodes and dock in one parallel
+        # connection; then R1 and R4 undock in one parallel disconnection, leaving a
+        # branched tree. Back: the same two parallel actions reversed, the fold undone
+        # (C1 up on the way), R6 docked.
         {"name": "fig21-star-to-branched-tree", "description": "Fig. 21(a)-(e) with parallel "
          "actions: open the ring, fold it, dock R6 and C1, undock R1 and R4",
-         "steps": [step(star_), step(hex_star("ring-open", open_ring=True)), step(ear_aim),
+         "steps": [step(star_), step(hex_star("ring-open", open_ring=True)),
+                   step(hex_star("c1-up", open_ring=True, c1_up=True)), step(ear_aim),
                    step(ear_state("ear-closed", RING_IDS | {"C1"})),
                    step(ear_state("fig21-tree", BRANCHED))]},
         {"name": "fig21-branched-tree-to-star", "description": "Fig. 21(e)-(i) with parallel "
          "actions: dock R1 and R4, undock R6 and C1, unfold, dock R6",
          "steps": [step(ear_state("fig21-tree", BRANCHED)),
                    step(ear_state("ear-closed", RING_IDS | {"C1"})), step(ear_aim),
+                   step(hex_star("c1-up", open_ring=True, c1_up=True), "K-root-T1"),
                    step(hex_star("ring-aim", open_ring=True), "K-root-T1"),
                    step(star_, "K-root-T1")]},
         # the tree -> ring stretch stalls with R4 ~20 deg off (IK residual 0.1 deg) under

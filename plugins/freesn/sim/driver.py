@@ -8,6 +8,7 @@ from typing import Any, ClassVar
 from msrr.core.configuration import Configuration
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
+from msrr.core.faults import SELF_COLLISION
 from msrr.core.freeform.mujoco_driver import MujocoDriver
 from msrr.core.robot import RobotSpec
 
@@ -50,16 +51,9 @@ class FreeSNMujocoDriver(MujocoDriver[FreeSNWorld]):
                  options: SimOptions | None = None, spec: RobotSpec = SPEC, **overrides: Any):
         super().__init__(gui=gui, seed=seed, options=options, **overrides)
         self.spec = spec
-        self._overlaps: set[tuple[str, str]] = set()
 
     def build(self, start: Configuration) -> FreeSNWorld:
         return FreeSNWorld(start, self.spec, self.sim_options)
-
-    def reset(self, start: Configuration) -> None:
-        """Build the world of ``start`` (its docked ends docked); time becomes 0. Bodies
-        that overlap at the start are not reported as self-collisions later."""
-        super().reset(start)
-        self._overlaps = {p[:2] for p in self._world().penetrations(0.003)}
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
         world = self._world()
@@ -87,12 +81,14 @@ class FreeSNMujocoDriver(MujocoDriver[FreeSNWorld]):
                 world.command_wheels(strut, end, speed)
 
     def faults(self) -> list[str]:
-        """Connector breaks, then overlaps of bodies that did not overlap at the start."""
+        """Connector breaks, then module bodies that interpenetrated since the reset (the
+        start included, :attr:`FreeSNWorld.interpenetrations`), in the order they first
+        did."""
         world = self._world()
         out = [f"connector broke: {e.strut}:{e.end} at {e.node}, {e.load:.1f} N at "
                f"t={e.time:.2f} s" for e in world.events if e.kind == "break"]
-        new = [p for p in world.penetrations(0.003) if p[:2] not in self._overlaps]
-        out += [f"self-collision: {a} in {b} by {1000 * d:.1f} mm" for a, b, d in new]
+        out += [f"{SELF_COLLISION}: {i}" for i in sorted(world.interpenetrations.values(),
+                                                            key=lambda i: (i.time, i.a, i.b))]
         return out
 
     def saturation(self) -> dict[str, float]:

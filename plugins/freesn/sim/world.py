@@ -77,7 +77,7 @@ the connectors' motors and wheels, loads and breaks, odometry and the module rep
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -101,15 +101,14 @@ from .commands import ENDS, ConnectorTarget
 from .geometry import END_SIGN, Placement, place
 from .options import Physical, SimOptions
 
-__all__ = ["DockEvent", "FreeSNWorld", "NodeReport", "StrutReport"]
+__all__ = ["INTERPENETRATION", "DockEvent", "FreeSNWorld", "Interpenetration", "NodeReport",
+           "StrutReport"]
 
 _GAP = 0.003          # strut capsule tip to node surface when docked [m]
 _ROLLER_MASS = 0.02   # rolling frame of a connector (wheels, magnet carrier) [kg]
 _ARMATURE = 1e-3     # wheel-motor rotors reflected through the gearbox (~1e-7 x 100^2) [kg m^2]
 _EZ = np.array([0.0, 0.0, 1.0])
-_ALL_BITS = 0x7FFFFFFF  # nodes and the ground touch every collision bit
 _SEAT = 0.1           # time constant of a magnet drawing a docked connector onto the centre [s]
-_SIDE_BY_SIDE_MARGIN = np.radians(8.0)  # beyond the angle at which two capsules touch
 _SATURATED = 0.8      # fraction of the torque limit a saturated (stalled) motor delivers
 _SATURATION_FILTER = 0.2  # time constant of the net motor torque for the saturation test [s]
 _WHEEL_MASS = 0.005   # one connector's wheel pair [kg]
@@ -145,6 +144,31 @@ class DockEvent:
     node: str
     kind: str
     load: float = 0.0
+
+
+INTERPENETRATION = 0.003
+"""Depth [m] past which two module bodies interpenetrate: a self-collision. MuJoCo's
+soft contacts let bodies pressed together sink in by a fraction of that."""
+
+
+@dataclass(frozen=True)
+class Interpenetration:
+    """Two module bodies interpenetrating past :data:`INTERPENETRATION`.
+
+    Attributes:
+        a, b: the modules (sorted). time: when they first did [s]. depth: how deep then
+            [m]. deepest: the deepest since [m].
+    """
+
+    a: str
+    b: str
+    time: float
+    depth: float
+    deepest: float
+
+    def __str__(self) -> str:
+        return (f"{self.a} and {self.b} interpenetrate by {1000 * self.depth:.1f} mm at "
+                f"t={self.time:.2f} s (deepest {1000 * self.deepest:.1f} mm)")
 
 
 @dataclass(frozen=True)
@@ -209,9 +233,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self.nodes = [v for v in config.vertices() if not config.is_virtual(v)]
         self.struts = [e.id for e in config.edges()]
         self.ends = [(s, e) for s in self.struts for e in ENDS]
-        if len(self.struts) > 30:
-            raise ExecutionError(f"the MuJoCo world holds at most 30 struts (collision bits), "
-                                 f"got {len(self.struts)}")
         self.compile(self._build(self.placement))
         m = self.model
         self._node_body = np.array([m.body(f"node/{n}").id for n in self.nodes], dtype=int)
@@ -263,11 +284,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._tau = np.zeros((k, 3))                       # holonomic connectors' torques
         self._grip_at = np.column_stack([np.zeros(k), np.full(k, _GRIP_LEVER),
                                          self._sign * phys.node_radius])  # strut frame
-        tip = phys.node_radius + _GAP + phys.strut_radius   # capsule cap centre from the node
-        self._side_by_side = 2.0 * np.arcsin(min(1.0, phys.strut_radius / tip)) \
-            + _SIDE_BY_SIDE_MARGIN
         self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
-        self._capsule = np.array([m.geom(f"capsule/{s}").id for s in self.struts], dtype=int)
+        self._modules = [*self.nodes, *self.struts]
+        self._geom_module = np.full(m.ngeom, -1, dtype=int)   # geom -> module index, or -1
+        self._geom_module[[m.geom(f"sphere/{n}").id for n in self.nodes]] = \
+            np.arange(len(self.nodes))
+        self._geom_module[[m.geom(f"capsule/{s}").id for s in self.struts]] = \
+            len(self.nodes) + np.arange(len(self.struts))
+        self.interpenetrations: dict[tuple[str, str], Interpenetration] = {}
         self._gyro_rng = np.random.default_rng([options.seed, 0x6779])  # "gy"
         self._gyro_bias = self._gyro_rng.normal(0.0, options.gyro_bias, (len(self.nodes), 3))
         self._gyro = np.zeros((len(self.nodes), 3))        # last reported rates [rad/s]
@@ -277,8 +301,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             for end, node in zip(ENDS, (a, b), strict=True):
                 if node is not None:
                     self._dock(self._end_index[(s, end)], node, event=False)
-        self._collision_groups()
         mujoco.mj_forward(self.model, self.data)
+        self._record_interpenetrations()
 
     # -- building ---------------------------------------------------------------------
 
@@ -294,7 +318,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             body.add_freejoint(name=f"free/{node}")
             body.add_geom(name=f"sphere/{node}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
                           size=[p.node_radius, 0, 0], friction=GROUND_FRICTION, mass=0,
-                          conaffinity=_ALL_BITS,
                           rgba=[0.6, 0.6, 0.65, 1.0])
         tip = 0.5 * p.strut_length - p.node_radius - _GAP
         segment = max(tip - p.strut_radius, 1e-4)
@@ -415,45 +438,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._turning[k] = self._backwards[k] = False
         self.events.append(DockEvent(self.time, strut, end, node, kind, float(self._load[k])))
         self._load[k] = 0.0
-
-    def _collision_groups(self) -> None:
-        """Collision bits: every body collides with every other except side-by-side struts.
-
-        Two struts docked to one node in (nearly) the same direction -- parallel struts
-        between two nodes, or a strut aimed along another to dock beside it -- lie on one
-        line in the skeletal model, where the hardware seats them side by side. Struts
-        whose capsules would touch at a shared node (axis angle under ``2 asin(r / (R +
-        gap + r))`` plus a margin) are grouped (transitively), so a strut can come
-        alongside another to dock beside it; a group shares one bit ``g`` with ``contype = g`` and
-        ``conaffinity = every other bit``, so its members skip each other and still
-        touch everything else. Nodes and the ground accept every bit.
-        """
-        group = list(range(len(self.struts)))
-
-        def find(j: int) -> int:
-            while group[j] != j:
-                group[j] = group[group[j]]
-                j = group[j]
-            return j
-
-        axes = self.data.xmat[self._strut_body].reshape(-1, 3, 3)[:, :, 2]
-        at_node: dict[str, list[tuple[int, np.ndarray]]] = {}
-        for k, node in enumerate(self.docked):
-            if node is not None:
-                j = self._strut_index[self.ends[k][0]]
-                at_node.setdefault(node, []).append((j, self._sign[k] * axes[j]))
-        cos_limit = np.cos(self._side_by_side)
-        for members in at_node.values():
-            for i, (j1, u1) in enumerate(members):
-                for j2, u2 in members[i + 1:]:
-                    if float(u1 @ u2) > cos_limit:
-                        group[find(j1)] = find(j2)
-        roots = sorted({find(j) for j in range(len(self.struts))})
-        bit = {r: 1 << (i + 1) for i, r in enumerate(roots)}
-        contype = np.array([bit[find(j)] for j in range(len(self.struts))], dtype=np.int64)
-        everything = (1 << (len(roots) + 1)) - 1
-        self.model.geom_contype[self._capsule] = contype
-        self.model.geom_conaffinity[self._capsule] = everything & ~contype
 
     def _hold(self, k: int) -> None:
         """Brake connector ``k`` where it believes it is."""
@@ -622,17 +606,17 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     # -- stepping ---------------------------------------------------------------------
 
     def _before_step(self) -> None:
-        """The connectors' joint targets from their commands; the struts' collision groups
-        for the topology now."""
+        """The connectors' joint targets from their commands."""
         self._update_ball_targets()
         self._imu.clear()
-        self._collision_groups()
         self._node_rot = self.data.xmat[self._node_body].reshape(-1, 3, 3).copy()
 
     def _period_done(self, steps: int) -> None:
-        """Connections over their strength break, then fresh docks seat."""
+        """Connections over their strength break, then fresh docks seat; interpenetrating
+        bodies are noted."""
         self._check_loads(steps)
         super()._period_done(steps)
+        self._record_interpenetrations()
 
     def _docking(self) -> bool:
         """Whether a magnet array is extended."""
@@ -992,44 +976,43 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                 for (strut, end), t in zip(self.ends, self._saturated_since, strict=True)
                 if not np.isnan(t)}
 
-    def penetrations(self, depth: float = 0.001) -> list[tuple[str, str, float]]:
-        """Module bodies that overlap by more than ``depth`` [m] now: ``(geom, geom, depth)``.
-
-        A configuration whose skeletal vectors put one module through another (the
-        skeletal model ignores the struts' thickness) starts with such overlaps; they
-        are self-collisions the world cannot resolve.
-        """
-        d, m = self.data, self.model
-        out = []
-        for contact in d.contact[:d.ncon]:
-            if contact.dist < -depth and 0 not in (m.geom_bodyid[contact.geom[0]],
-                                                   m.geom_bodyid[contact.geom[1]]):
-                out.append((m.geom(contact.geom[0]).name, m.geom(contact.geom[1]).name,
-                            float(-contact.dist)))
-        return out
-
-    def strut_overlaps(self, depth: float = 0.001) -> list[tuple[str, str, float]]:
-        """Strut pairs whose capsules overlap by more than ``depth`` [m] now, the
-        side-by-side exclusion (:meth:`_collision_groups`) ignored: ``(strut, strut,
-        depth)``, each pair once. What the skeletal vectors imply for the struts'
-        real thickness: two struts docked to the same two nodes coincide (40 mm), since
-        a strut's axis passes through the centres of the nodes it docks to."""
-        m, d = self.model, self.data
-        kept = m.geom_contype[self._capsule].copy(), m.geom_conaffinity[self._capsule].copy()
-        m.geom_contype[self._capsule] = m.geom_conaffinity[self._capsule] = 1
-        try:
-            mujoco.mj_collision(m, d)
-            out: dict[tuple[str, str], float] = {}
-            capsule = {int(g): s for g, s in zip(self._capsule, self.struts, strict=True)}
-            for contact in d.contact[:d.ncon]:
-                pair = capsule.get(int(contact.geom[0])), capsule.get(int(contact.geom[1]))
-                if None not in pair and contact.dist < -depth:
-                    key = tuple(sorted(pair))
-                    out[key] = max(out.get(key, 0.0), float(-contact.dist))
-        finally:
-            m.geom_contype[self._capsule], m.geom_conaffinity[self._capsule] = kept
-            mujoco.mj_collision(m, d)
+    def penetrations(self, depth: float = INTERPENETRATION) -> list[tuple[str, str, float]]:
+        """Module bodies that interpenetrate by more than ``depth`` [m] now, from
+        MuJoCo's contacts: ``(module, module, deepest penetration [m])``, each pair once,
+        sorted. Every module body collides with every other (see
+        :meth:`_record_interpenetrations`), so this is all the self-collision there is;
+        the ground is not a module."""
+        d = self.data
+        n = d.ncon
+        if not n:
+            return []
+        geoms = d.contact.geom[:n]
+        dist = d.contact.dist[:n]
+        module = self._geom_module[geoms]
+        hit = (dist < -depth) & (module >= 0).all(axis=1)
+        out: dict[tuple[str, str], float] = {}
+        for (i, j), gap in zip(module[hit], dist[hit], strict=True):
+            key = tuple(sorted((self._modules[i], self._modules[j])))
+            out[key] = max(out.get(key, 0.0), float(-gap))
         return [(a, b, v) for (a, b), v in sorted(out.items())]
+
+    def _record_interpenetrations(self) -> None:
+        """Note each module pair that interpenetrates past :data:`INTERPENETRATION`
+        (:attr:`interpenetrations`: when it first did, and its deepest since).
+
+        Collision is not filtered: the only geoms that share a joint are a connector's
+        wheels and the node they roll on (the spherical joint, a weld and a ball joint),
+        and the wheels touch nothing but the floor. A strut's capsule stops ``_GAP``
+        short of its node's shell, so a docked end never touches its own node, and
+        meeting it is a magnet face landing on the shell; two struts on one node are
+        two connectors on one shell and collide like any other bodies."""
+        for a, b, depth in self.penetrations():
+            seen = self.interpenetrations.get((a, b))
+            if seen is None:
+                self.interpenetrations[(a, b)] = Interpenetration(a, b, self.time, depth,
+                                                                  depth)
+            elif depth > seen.deepest:
+                self.interpenetrations[(a, b)] = replace(seen, deepest=depth)
 
     def groups(self) -> list[frozenset[str]]:
         """Modules of each physically separate system (connected through docks)."""

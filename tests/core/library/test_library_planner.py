@@ -69,9 +69,10 @@ def node_pairs(config: Configuration, rename: dict[str, str]) -> list[frozenset[
                   key=sorted)
 
 
-def triangle(config: Configuration) -> list[str]:
-    return [e.id for e in config.edges()
-            if not (config.is_virtual(e.source) or config.is_virtual(e.target))][:3]
+def closed(config: Configuration) -> set[str]:
+    """Struts docked at both ends."""
+    return {e.id for e in config.edges()
+            if not (config.is_virtual(e.source) or config.is_virtual(e.target))}
 
 
 def reframed(turns: dict[str, float]):
@@ -94,11 +95,12 @@ def docking(before: Configuration, after: Configuration) -> list[str]:
 
 
 def frame_jumps(library, start: Configuration, robot) -> tuple[float, float]:
-    """Largest change [deg] of a triangle strut between consecutive retrieved targets
-    (after the approach), and largest angle between a docking strut's aim and its
-    docked direction."""
+    """Largest change [deg] of a strut docked at both ends all along (S3, the triangle's
+    side that never opens) between consecutive retrieved targets (after the approach),
+    and largest angle between a docking strut's aim and its docked direction."""
     found = retrieve(library, start, robot, to="S6N3-4.1")
-    ids = triangle(start)
+    ids = sorted(closed(start).intersection(*(closed(s.target) for s in found.steps)))
+    assert ids
     jump = aim = 0.0
     for before, after in zip(found.steps, found.steps[1:], strict=False):
         moved = angles_between(before.target.vectors(ids), after.target.vectors(ids))
@@ -115,17 +117,17 @@ def test_retrieved_targets_share_one_frame(planner, monkeypatch):
     start = unseen("S6N3-1.1", seed=3)
     library = reframed({"S6N3-2.1": 120.0, "S6N3-3.1": -120.0, "S6N3-4.1": 120.0})
     jump, aim = frame_jumps(library, start, planner.robot)
-    assert jump < 0.5 and aim < 0.5                 # the rigid triangle holds still
+    assert jump < 0.5 and aim < 0.5                 # the closed side holds still
     monkeypatch.setattr(retrieve_module, "frame_turn", lambda config, previous: 0.0)
     jump, aim = frame_jumps(library, start, planner.robot)
     assert jump > 100.0 and aim > 100.0             # without it: the stored frames show
 
 
 def test_frame_turn_against_brute_force():
-    base = library_config("S6N3-1.3")
+    base = library_config("S6N3-2.3")
     rng = np.random.default_rng(0)
     for yaw in rng.uniform(-np.pi, np.pi, 5):
-        swung = {e.id: rot_z(2.6) @ e.z if e.id == "S4" else e.z for e in base.edges()}
+        swung = {e.id: rot_z(2.6) @ e.z if e.id == "S5" else e.z for e in base.edges()}
         moved = base.with_vectors(z=swung).derive(rotation=rot_z(yaw))
         ids = base.edge_ids()
         old, new = base.vectors(ids), moved.vectors(ids)
@@ -141,7 +143,7 @@ def test_frame_turn_against_brute_force():
 
 
 @pytest.mark.parametrize(("start_key", "goal_key", "seed"),
-                         [("S6N3-1.1", "S6N3-4.1", 11), ("S12N6-2.1", "S12N6-3.1", 12)])
+                         [("S6N3-1.1", "S6N3-4.1", 11), ("S12N6-2.1", "S12N6-7.1", 12)])
 def test_an_unseen_start_reaches_the_target(planner, start_key, goal_key, seed):
     start = unseen(start_key, seed)
     goal = library_config(goal_key)

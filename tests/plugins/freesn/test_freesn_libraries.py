@@ -142,7 +142,7 @@ def test_s6n3_build_merges_the_two_directions_of_fig20(libraries):
     (sub,) = libraries["S6N3"].sublibraries.values()
     assert list(sub.groups) == ["S6N3-1", "S6N3-2", "S6N3-3", "S6N3-4"]     # Fig. 14(f)
     assert len(sub.configurations) < build_steps(sources)
-    assert len(sub.configuration("aim-S6").origins) == 2
+    assert len(sub.configuration("aim-S5").origins) == 2
     wheels = sub.behaviors["wheeled-move"]
     assert wheels.kind == "mapping" and wheels.parameters == ("speed", "yaw_rate")
     assert {c.module for c in wheels.commands} <= set(

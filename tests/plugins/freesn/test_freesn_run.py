@@ -23,13 +23,16 @@ from msrr.core.closed_loop import (
     extruded,
     tree_for,
 )
+from msrr.core.configuration import Configuration
 from msrr.core.events import Phase
 from msrr.core.executor import ExecutorOptions, phases_of
 from msrr.core.kinematics import FixedNode, GroundModel
 from msrr.core.library import load_library
 from msrr.core.library.check import edge_cases, load_check
+from msrr.core.plan import ConnectionChange
 from msrr.core.plugins import resolve
 from msrr.core.shape import skeletal_error
+from msrr.core.timeline import read_recording
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 S6N3 = load_library(FREESN / "libraries" / "S6N3.json")
@@ -72,9 +75,15 @@ def test_extruded_brings_the_merged_nodes_closer_by_the_shrink():
 
 
 def test_extruded_leaves_a_one_edge_chain_alone():
-    case = _case("S6N3:S6N3-1.3->S6N3-2.1")        # S4 docks beside S1: a chain of one
-    conn = connection_goal(case.start, case.target)
-    extr = extruded(conn, case.action.changes, 0.1)
+    """S2 docks to N2 beside S1 (N1 -> N2): a chain of one cannot shorten. (No shipped
+    design does it: the two struts would coincide.)"""
+    conn = Configuration("freesn")
+    for node in ("N1", "N2"):
+        conn.add_module(node, "node")
+    conn.add_virtual("S2:b")
+    conn.connect("N1", "N2", id="S1", kind="strut", z=[1.0, 0.0, 0.0])
+    conn.connect("N1", "S2:b", id="S2", kind="strut", z=[1.0, 0.0, 0.0])
+    extr = extruded(conn, (ConnectionChange("S2", "N2", "b"),), 0.1)
     assert all(np.allclose(extr.edge(e).z, conn.edge(e).z) for e in conn.edge_ids())
 
 
@@ -102,7 +111,7 @@ def test_tracking_holds_fixed_nodes_at_their_goal_not_where_they_are_seen():
 
 
 def test_disconnection_moves_after_the_release_with_tracking():
-    case = _case("S6N3:S6N3-2.1->S6N3-1.3")
+    case = _case("S6N3:S6N3-3.1->S6N3-2.3")
     diff = topology_diff(case.start, case.target)
     assert phases_of(case.action, diff) == [Phase.RELEASE]
     assert phases_of(case.action, diff, tracking=True) == [Phase.RELEASE, Phase.MOVE]
@@ -118,7 +127,7 @@ def test_tilted_error_sees_a_robot_on_its_side():
     assert skeletal_error(tipped, config) > 0.3 and tilted_error(tipped, config) < 1e-6
 
 
-@pytest.mark.parametrize("key", ["S6N3:S6N3-1.3->S6N3-2.1", "S6N3:S6N3-2.1->S6N3-1.3",
+@pytest.mark.parametrize("key", ["S6N3:S6N3-2.3->S6N3-3.1", "S6N3:S6N3-3.1->S6N3-2.3",
                                  "S6N3:S6N3-1.1->S6N3-1.2"])
 @pytest.mark.parametrize("noisy", [False, True], ids=["exact", "noise2-slip"])
 def test_library_edges_run_closed_loop_to_the_target(key, noisy):
@@ -138,8 +147,8 @@ def test_library_edges_run_closed_loop_to_the_target(key, noisy):
 def test_platform_run_from_to_reports_the_ground_truth_shape_error(tmp_path):
     configs = FREESN / "configs" / "library"
     result = CliRunner().invoke(get_cli(), [
-        "run", "--robot", "freesn", "--from", str(configs / "S6N3-1.3.json"),
-        "--to", str(configs / "S6N3-2.1.json"), "--out", str(tmp_path / "run"),
+        "run", "--robot", "freesn", "--from", str(configs / "S6N3-2.3.json"),
+        "--to", str(configs / "S6N3-3.1.json"), "--out", str(tmp_path / "run"),
         "--no-log", "--driver-option", "noise=0.0349", "--driver-option", "slip=0.05"])
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
@@ -153,10 +162,10 @@ def test_library_check_writes_the_sidecar_atomically(tmp_path):
     library = tmp_path / "S6N3.json"
     library.write_bytes((FREESN / "libraries" / "S6N3.json").read_bytes())
     result = CliRunner().invoke(get_cli(), ["library", "check", str(library), "--edge",
-                                            "S6N3-3.2->S6N3-4.1", "--timeout", "5"])
+                                            "S6N3-4.2->S6N3-3.1", "--timeout", "5"])
     assert result.exit_code == 0, result.output
     check = load_check(tmp_path / "S6N3.check.json")
-    assert [e.edge for e in check.edges] == ["S6N3:S6N3-3.2->S6N3-4.1"]
+    assert [e.edge for e in check.edges] == ["S6N3:S6N3-4.2->S6N3-3.1"]
     assert check.edges[0].feasible and check.edges[0].docks == 1
     assert "1/1 edge" in result.output and "feasible" in result.output
 
@@ -170,3 +179,47 @@ def test_an_edge_run_ends_at_its_first_fault():
     assert not check.feasible and check.reason.startswith("connector broke")
     broke = float(check.reason.rsplit("t=", 1)[1].split()[0])
     assert check.sim_time <= broke + FAULT_CHECK_PERIOD + 0.2 < 20.0
+
+
+def _spider(azimuths_deg) -> dict:
+    """An S4N1 file: node N1 with four level leaf struts at ``azimuths_deg``."""
+    modules = [{"id": "N1", "kind": "node"}]
+    connections = []
+    for i, azimuth in enumerate(np.radians(azimuths_deg)):
+        modules.append({"id": f"S{i + 1}:b", "kind": "virtual"})
+        connections.append({"id": f"S{i + 1}", "kind": "strut", "source": "N1",
+                            "target": f"S{i + 1}:b",
+                            "z": [math.cos(azimuth), math.sin(azimuth), 0.0]})
+    return {"schema_version": 1, "robot": "freesn", "name": "spider", "modules": modules,
+            "connections": connections}
+
+
+@pytest.mark.parametrize("azimuths, collides", [((35, 55, 225, 315), True),
+                                                ((30, 150, 210, 330), False)],
+                         ids=["two-struts-20-deg-apart", "clean"])
+def test_a_run_whose_bodies_interpenetrate_fails_naming_them(tmp_path, azimuths, collides):
+    """Issue 32, item 4: a start with two struts 20 deg apart on one node (their capsules
+    overlap by 2 r - 2 (R + gap + r) sin 10 deg = 14.6 mm) fails at once with the struts,
+    the depth and the time, in summary.json and on the timeline; a clean start of the
+    same move succeeds."""
+    start = tmp_path / "start.json"
+    start.write_text(json.dumps(_spider(azimuths)))
+    out = tmp_path / "run"
+    result = CliRunner().invoke(get_cli(), [
+        "run", "--robot", "freesn", "--from", str(start),
+        "--to", str(FREESN / "configs" / "library" / "S4N1-1.1.json"), "--out", str(out)])
+    summary = json.loads((out / "summary.json").read_text())
+    faults = [f for f in summary["faults"] if f["kind"] == "self-collision"]
+    timeline = [str(t[0] if isinstance(t, list | tuple) else t) for t in (
+        r.values["TextLog:text"] for r in read_recording(out / "run.rrd").rows.get(
+            "/events/faults", []))]
+    if not collides:
+        assert result.exit_code == 0 and summary["success"], result.output
+        assert not faults and not timeline
+        return
+    assert result.exit_code != 0 and not summary["success"]
+    line = "S1 and S2 interpenetrate by 14.6 mm at t=0.00 s"
+    assert summary["reason"].endswith(f"self-collision: {line} (deepest 14.6 mm)")
+    assert [f["text"] for f in faults] == [f"{line} (deepest 14.6 mm)"]
+    assert not faults[0]["recovered"] and summary["sim_time_s"] < 0.2
+    assert len(timeline) == 1 and line in timeline[0]

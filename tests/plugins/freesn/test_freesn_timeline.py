@@ -11,7 +11,7 @@ CONFIGS = Path(__file__).resolve().parents[3] / "plugins" / "freesn" / "configs"
 
 
 def test_freesn_adds_one_connector_plot_per_strut_end_to_its_runs_only() -> None:
-    start = plugins.load_configuration(CONFIGS / "S6N3-1.3.json")
+    start = plugins.load_configuration(CONFIGS / "S6N3-2.3.json")
     run = SimpleNamespace(robot="freesn", plan=SimpleNamespace(start=start))
     views = plugins.timeline_views(run)
     struts = [e.id for e in start.edges()]
