@@ -16,8 +16,9 @@ pairs free modules with free ones: each such pair saves a step). Cycles are cut
    +1 when the pair keeps the connection to already paired parents -- and align them.
    Restarts from other forced first pairs (``RESTART_BUDGET // n``) and from other cuts
    of the cycles (``CUT_TRIES`` per side); the pairing keeping the most wins.
-2. *Larger: alignment rounds.* Each round pairs the roots of the still unpaired
-   fragments -- first, for every paired ``(p, q)``, unpaired children of ``p`` with those
+2. *Larger: alignment rounds* (up to ``GREEDY_LIMIT`` modules, one pass of the
+   exhaustive greedy too, the better kept). Each round pairs the roots of the still
+   unpaired fragments -- first, for every paired ``(p, q)``, unpaired children of ``p`` with those
    of ``q`` (a kept connection each), then free roots with free roots, then the rest --
    by one assignment, and aligns every couple top down. The weight of a couple is an
    estimate of the connections its alignment keeps, from level profiles
@@ -352,6 +353,11 @@ RESTART_BUDGET = 400
 EXHAUSTIVE_LIMIT = 40
 """Largest module count paired by the exhaustive greedy (larger: the rounds)."""
 
+GREEDY_LIMIT = 120
+"""Largest module count for which the rounds' pairing competes with one pass of the
+exhaustive greedy (no restarts): 3-7 % fewer changes at 50-120 modules, at most a few
+hundred milliseconds (a count, not a clock, so the plan stays deterministic)."""
+
 
 def improve_by_swaps(problem: MisoProblem, pair: list[int], *, passes: int = 20,
                      thorough: bool = True) -> list[int]:
@@ -484,7 +490,12 @@ def _greedy_best(problem: MisoProblem) -> list[int]:
     """Steps 1-3 of the module docstring."""
     n = problem.n
     if n > EXHAUSTIVE_LIMIT:
-        return improve_by_swaps(problem, _Rounds(problem).run())
+        best = improve_by_swaps(problem, _Rounds(problem).run())
+        if n <= GREEDY_LIMIT:   # one greedy pass too, while it costs little
+            other = improve_by_swaps(problem, _greedy_pairing(problem, None))
+            if pairing_score(problem, other) > pairing_score(problem, best):
+                best = other
+        return best
     best = improve_by_swaps(problem, _greedy_pairing(problem, None), thorough=False)
     best_v = pairing_score(problem, best)
     restarts = RESTART_BUDGET // n - 1
