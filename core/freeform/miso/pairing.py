@@ -18,10 +18,10 @@ pairs free modules with free ones: each such pair saves a step). Cycles are cut
    of the cycles (``CUT_TRIES`` per side); the pairing keeping the most wins.
 2. *Larger: alignment rounds* (up to ``GREEDY_LIMIT`` modules, one pass of the
    exhaustive greedy too, the better kept). Each round pairs the roots of the still
-   unpaired fragments -- first, for every paired ``(p, q)``, unpaired children of ``p`` with those
-   of ``q`` (a kept connection each), then free roots with free roots, then the rest --
-   by one assignment, and aligns every couple top down. The weight of a couple is an
-   estimate of the connections its alignment keeps, from level profiles
+   unpaired fragments -- first, for every paired ``(p, q)``, unpaired children of ``p``
+   with those of ``q`` (a kept connection each), then free roots with free roots, then
+   the rest -- by one assignment, and aligns every couple top down. The weight of a
+   couple is an estimate of the connections its alignment keeps, from level profiles
    (``sum_k min(L_u(k), L_v(k))`` over the first ``PROFILE_DEPTH`` levels, then the
    smaller remainder: an upper bound, exact for chains), with equal heights preferred
    (``EXACT_FIT``: a chain that ends where the other ends leaves no cut). Alignment
@@ -476,26 +476,24 @@ def heuristic_pairing(problem: MisoProblem) -> list[int]:
     into the chains (:func:`~.chains.chain_pairing`) improved by swaps. Swaps never lose a
     kept connection, so the result keeps at least as many as IM's pairing: its connection
     changes are never more than IM's."""
-    best = _greedy_best(problem)
-    others = [im_pairing(problem), chain_pairing(problem)]
-    for other in others:
-        if other is not None:
-            other = improve_by_swaps(problem, other)
-            if pairing_score(problem, other) > pairing_score(problem, best):
-                best = other
-    return best
+    others = (im_pairing(problem), chain_pairing(problem))
+    return _best_of(problem, [_greedy_best(problem)] + [
+        improve_by_swaps(problem, other) for other in others if other is not None])
+
+
+def _best_of(problem: MisoProblem, pairings: list[list[int]]) -> list[int]:
+    """The pairing of highest :func:`~.model.pairing_score`, the first on a tie."""
+    return max(pairings, key=lambda pair: pairing_score(problem, pair))
 
 
 def _greedy_best(problem: MisoProblem) -> list[int]:
     """Steps 1-3 of the module docstring."""
     n = problem.n
     if n > EXHAUSTIVE_LIMIT:
-        best = improve_by_swaps(problem, _Rounds(problem).run())
+        firsts = [_Rounds(problem).run()]
         if n <= GREEDY_LIMIT:   # one greedy pass too, while it costs little
-            other = improve_by_swaps(problem, _greedy_pairing(problem, None))
-            if pairing_score(problem, other) > pairing_score(problem, best):
-                best = other
-        return best
+            firsts.append(_greedy_pairing(problem, None))
+        return _best_of(problem, [improve_by_swaps(problem, pair) for pair in firsts])
     best = improve_by_swaps(problem, _greedy_pairing(problem, None), thorough=False)
     best_v = pairing_score(problem, best)
     restarts = RESTART_BUDGET // n - 1
