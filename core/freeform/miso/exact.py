@@ -32,6 +32,7 @@ from .model import (
     canonical_form,
     changes,
     children_of,
+    pairing_score,
     step_is_legal,
     targets,
 )
@@ -116,16 +117,9 @@ def exact_pairing(problem: MisoProblem, *, time_limit: float = 60.0,
     x = np.asarray(result.x[:nx_]).reshape(n, n)
     pair = [int(b) for b in np.argmax(x, axis=1)]
     proved = result.status == 0
-    if start is not None and _value(problem, start) > _value(problem, pair):
+    if start is not None and pairing_score(problem, start) > pairing_score(problem, pair):
         pair = list(start)
     return ExactPairing(pair, proved, ms)
-
-
-def _value(problem: MisoProblem, pair: list[int]) -> int:
-    """Higher is better: fewest changes first, then most free-free pairs."""
-    goal = targets(problem, pair)
-    ff = sum(1 for p, g in zip(problem.start, goal, strict=True) if p == g == FREE)
-    return -(problem.n + 1) * changes(problem.start, goal) + 2 * ff
 
 
 def brute_force_changes(problem: MisoProblem) -> int:

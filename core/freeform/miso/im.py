@@ -2,7 +2,9 @@
 
 Not msrr's planner and not the authors' code: IM as their paper and repository
 describe it (``FreeformRobotics/MISO_connection``, ``IM/POINTER_Pairing.py``), rewritten
-from that description so the benchmark compares against it in the same run:
+from that description so the benchmark compares against it in the same run, and one
+of the candidates of :func:`~.pairing.heuristic_pairing` (which so never keeps fewer
+connections than IM):
 
 1. Each configuration becomes a rooted forest: free modules are roots; in what is
    left, the walk along connectors from the lowest unvisited module reaches a module

@@ -35,6 +35,7 @@ __all__ = [
     "is_flow",
     "kept",
     "mismatches",
+    "pairing_score",
     "pieces",
     "pointer_form",
     "random_cyclic",
@@ -350,6 +351,16 @@ def changes(parent: Sequence[int], goal: Sequence[int]) -> int:
     a = sum(1 for p in parent if p != FREE)
     b = sum(1 for g in goal if g != FREE)
     return a + b - 2 * kept(parent, goal)
+
+
+def pairing_score(problem: MisoProblem, pair: Sequence[int]) -> tuple[int, int]:
+    """How good a pairing is, higher better, compared lexicographically: the connections
+    it keeps (so the fewest connection changes first), then its free-free pairs (each
+    saves a step)."""
+    goal = targets(problem, pair)
+    held = sum(1 for p, g in zip(problem.start, goal, strict=True) if p == g != FREE)
+    free = sum(1 for p, g in zip(problem.start, goal, strict=True) if p == g == FREE)
+    return held, free
 
 
 def step_changes(steps: Iterable[Step]) -> int:
