@@ -217,6 +217,27 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
     return None
 
 
+def _swept(shape: Sequence[Cell], path: Sequence[Cell]) -> set[Cell]:
+    """Every cell the group of ``shape`` sweeps along a :func:`_search` path (unit steps
+    between placements): the turns before and after each y-run and the drives, as
+    :func:`_search` tests them, not only the cells of its placements."""
+    if len(shape) == 1 and shape[0] == (0, 0):
+        return set(path)
+    sweeps = _sweeps(tuple(shape))
+    out: set[Cell] = {(path[0][0] + s[0], path[0][1] + s[1]) for s in shape}
+    heading = 0
+    for a, b in zip(path, path[1:], strict=False):
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        if int(dy != 0) != heading:  # a y-step is driven turned, an x-step not
+            heading = 1 - heading
+            out.update((a[0] + s[0], a[1] + s[1]) for s in sweeps["turn"])
+        out.update((a[0] + s[0], a[1] + s[1]) for s in sweeps[(dx, dy, heading)])
+    if heading:
+        end = path[-1]
+        out.update((end[0] + s[0], end[1] + s[1]) for s in sweeps["turn"])
+    return out
+
+
 @lru_cache(maxsize=4096)
 def _envelope(shape: tuple[Cell, ...]) -> tuple[Cell, ...]:
     """Every cell (offset from the placement) a group of ``shape`` may sweep while it
@@ -438,7 +459,7 @@ class _Greedy:
         path = self.search(index, penalty=4 * len(self.groups))
         if path is None:
             return False
-        protect = {(s[0] + t[0], s[1] + t[1]) for t in path for s in self.shapes[index]}
+        protect = _swept(self.shapes[index], path)
         blockers = list(dict.fromkeys(self.occupied[c] for c in protect
                                       if self.occupied.get(c, index) != index))
         awaited = {*self.pending, index}
@@ -688,9 +709,8 @@ class _Peel:
                     path = _search(shapes[j], cells_of(j)[0], occupied, j,
                                    frame.outside(shapes[j]), None, inside, limit,
                                    penalty=4 * len(shapes), heuristic=to_border)
-                    near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
-                             for s in shapes[j]
-                             if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
+                    near |= {occupied[c] for c in (_swept(shapes[j], path) if path else ())
+                             if occupied.get(c, j) != j}
                 raise _Walled(near, set(left))
             failures = 0
             left.popleft()
