@@ -2,10 +2,12 @@
 
 After the undocks, every rigid group (a matched subconfiguration, a kept chain, or a
 free module) translates on the grid of docked positions from its start cells to its
-goal cells; all MMRP modules keep heading 0, so a move is a translation. Groups move
-one at a time. A group may move when its goal cells are free; its route is an A*
-search over unit grid translations in which both placements of every unit step are
-free, so the swept area of the route never touches another module. When no group
+goal cells; all MMRP modules keep heading 0 between moves, so a move ends translated.
+Groups are routed one at a time (:mod:`.schedule` drives legs that keep apart at
+once). A group may move when its goal cells are free; its route is an A* search over
+unit drives along its heading and quarter turns in place (:mod:`.motion`: a y-leg is
+driven turned) in which every cell a motion sweeps is free, so the swept area of the
+route never touches another module. When no group
 can reach its goal (two groups holding each other's goal cells, or a goal only
 reachable through a cell someone still holds), a group that blocks a goal is
 *parked*: moved to the nearest placement, by route length, that covers and touches
