@@ -7,9 +7,10 @@ folder; :func:`execute_run` places the modules on a fresh driver, recognizes the
 configuration at the first tick and plans again from it (the run recognizes and matches
 itself, FreeSN Alg. 4: the start file only placed the modules; the plan written is this
 one) unless it is the state the first plan started from
-(:meth:`~msrr.core.configuration.Configuration.same_state`), and runs it; :func:`write_outputs` writes the files. Every bad option or output
-place, an unreachable goal (different module counts, an illegal face pair) fails with
-a one-line error before anything is written. A run writes into its folder:
+(:meth:`~msrr.core.configuration.Configuration.same_state`), and runs it;
+:func:`write_outputs` writes the files. Every bad option or output place, an
+unreachable goal (different module counts, an illegal face pair) fails with a
+one-line error before anything is written. A run writes into its folder:
 
 * ``run.rrd`` -- the rerun recording (via the timeline plugin), unless ``log=False``;
 * ``plan.json`` -- the executed plan (:func:`msrr.core.plan.save_plan`);

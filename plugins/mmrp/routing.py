@@ -7,12 +7,12 @@ Groups are routed one at a time (:mod:`.schedule` drives legs that keep apart at
 once). A group may move when its goal cells are free; its route is an A* search over
 unit drives along its heading and quarter turns in place (:mod:`.motion`: a y-leg is
 driven turned) in which every cell a motion sweeps is free, so the swept area of the
-route never touches another module. When no group
-can reach its goal (two groups holding each other's goal cells, or a goal only
-reachable through a cell someone still holds), a group that blocks a goal is
-*parked*: moved to the nearest placement, by route length, that covers and touches
-no goal cell still awaited -- the intent of the potential field of section 4.3
-(nearest free place, no crossing) applied to a rigid group. Groups whose goal cells
+route never touches another module. When no group can reach its goal (two groups
+holding each other's goal cells, or a goal only reachable through a cell someone
+still holds), a group that blocks a goal is *parked*: moved to the nearest
+placement, by route length, that covers and touches no goal cell still awaited --
+the intent of the potential field of section 4.3 (nearest free place, no crossing)
+applied to a rigid group. Groups whose goal cells
 sit in pockets of the goal (cells with many goal neighbours) go first, so pockets
 are filled before they close.
 """
