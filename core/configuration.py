@@ -469,13 +469,32 @@ class Configuration:
             other.robot, other.name, other.description
         ) and self._canonical() == other._canonical()
 
-    def _canonical(self) -> tuple:
+    def same_state(self, other: Configuration) -> bool:
+        """Whether ``other`` describes the same modules in the same state: the same ids,
+        kinds and positions, and the same connections with the same vectors; only what
+        labels a connection may differ (its id, and its direction when it carries no
+        vectors). Numbers are compared exactly, so a plan made from one starts from the
+        state the other describes."""
+        def state(config: Configuration) -> tuple:
+            nodes, edges = config._canonical(edge_labels=False)
+            return config.robot, nodes, edges
+        return state(self) == state(other)
+
+    def _canonical(self, *, edge_labels: bool = True) -> tuple:
         def vec(v: np.ndarray | None) -> tuple | None:
             return None if v is None else tuple(float(c) for c in v)
 
         nodes = sorted((v, d["kind"], vec(d["position"])) for v, d in self.graph.nodes(data=True))
-        edges = sorted((e.id, e.source, e.target, e.kind or "", vec(e.z), vec(e.x), e.ports)
-                       for e in self.edges())
+        if edge_labels:
+            edges = sorted((e.id, e.source, e.target, e.kind or "", vec(e.z), vec(e.x), e.ports)
+                           for e in self.edges())
+        else:  # a vector-free connection by its two ends, whichever is the source
+            edges = sorted(
+                (tuple(sorted([(e.source, ports[0] or ""), (e.target, ports[1] or "")]))
+                 if e.z is None and e.x is None else ((e.source, ports[0] or ""),
+                                                      (e.target, ports[1] or "")),
+                 e.kind or "", vec(e.z), vec(e.x))
+                for e in self.edges() for ports in [e.ports or (None, None)])
         return (tuple(nodes), tuple(edges))
 
     __hash__ = None  # type: ignore[assignment]  # mutable

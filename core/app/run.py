@@ -3,12 +3,14 @@
 :func:`prepare_run` checks the request and the output folder, loads and checks the two
 configurations, resolves the robot's driver, controller, recognizer and planner once
 (a :class:`PreparedRun`), plans from the start file, and only then claims the output
-folder; :func:`execute_run` places the modules on a fresh driver, plans again from the
-configuration the recognizer reports at the first tick (the run recognizes and matches
+folder; :func:`execute_run` places the modules on a fresh driver, recognizes the
+configuration at the first tick and plans again from it (the run recognizes and matches
 itself, FreeSN Alg. 4: the start file only placed the modules; the plan written is this
-one) and runs it; :func:`write_outputs` writes the files. Every bad option or output
-place, an unreachable goal (different module counts, an illegal face pair) fails with
-a one-line error before anything is written. A run writes into its folder:
+one) unless it is the state the first plan started from
+(:meth:`~msrr.core.configuration.Configuration.same_state`), and runs it;
+:func:`write_outputs` writes the files. Every bad option or output place, an
+unreachable goal (different module counts, an illegal face pair) fails with a
+one-line error before anything is written. A run writes into its folder:
 
 * ``run.rrd`` -- the rerun recording (via the timeline plugin), unless ``log=False``;
 * ``plan.json`` -- the executed plan (:func:`msrr.core.plan.save_plan`);
@@ -415,7 +417,7 @@ class PreparedRun:
         planner: the planner of the goal stages; ``None`` for a saved plan (``--plan``),
             executed as it is.
         stages: the stages with their goals loaded, planned again by
-            :func:`execute_run` from the recognized start.
+            :func:`execute_run` from the recognized start (unless it is the plan's).
     """
 
     run: Run
@@ -659,7 +661,10 @@ def _goal_layout(prepared: PreparedRun, goal: Configuration) -> dict[str, Pose] 
 
 def _recognized_plan(prepared: PreparedRun, driver: Driver) -> Plan:
     """The run's plan from the configuration the recognizer reports at the first tick
-    (docs/freesn.md: a run recognizes and matches itself); a saved plan as it is.
+    (docs/freesn.md: a run recognizes and matches itself); the plan made from the file
+    when that is the state it started from (the same modules, connections, vectors and
+    positions, exactly: the planner's input, up to connection labels); a saved plan as
+    it is.
 
     Raises:
         PlanningError: the recognized start cannot reach a goal (the run stops there).
@@ -668,6 +673,8 @@ def _recognized_plan(prepared: PreparedRun, driver: Driver) -> Plan:
     if prepared.planner is None:
         return run.plan
     seen = prepared.recognizer.recognize(driver.get_observation().sensors, seed=run.seed)
+    if seen.same_state(run.plan.start):
+        return run.plan
     seen.name, seen.description = run.plan.start.name, "as recognized at the first tick"
     return plan_stages(prepared.capabilities, prepared.planner, seen, prepared.stages,
                        seed=run.seed)

@@ -2,15 +2,17 @@
 
 After the undocks, every rigid group (a matched subconfiguration, a kept chain, or a
 free module) translates on the grid of docked positions from its start cells to its
-goal cells; all MMRP modules keep heading 0, so a move is a translation. Groups move
-one at a time. A group may move when its goal cells are free; its route is an A*
-search over unit grid translations in which both placements of every unit step are
-free, so the swept area of the route never touches another module. When no group
-can reach its goal (two groups holding each other's goal cells, or a goal only
-reachable through a cell someone still holds), a group that blocks a goal is
-*parked*: moved to the nearest placement, by route length, that covers and touches
-no goal cell still awaited -- the intent of the potential field of section 4.3
-(nearest free place, no crossing) applied to a rigid group. Groups whose goal cells
+goal cells; all MMRP modules keep heading 0 between moves, so a move ends translated.
+Groups are routed one at a time (:mod:`.schedule` drives legs that keep apart at
+once). A group may move when its goal cells are free; its route is an A* search over
+unit drives along its heading and quarter turns in place (:mod:`.motion`: a y-leg is
+driven turned) in which every cell a motion sweeps is free, so the swept area of the
+route never touches another module. When no group can reach its goal (two groups
+holding each other's goal cells, or a goal only reachable through a cell someone
+still holds), a group that blocks a goal is *parked*: moved to the nearest
+placement, by route length, that covers and touches no goal cell still awaited --
+the intent of the potential field of section 4.3 (nearest free place, no crossing)
+applied to a rigid group. Groups whose goal cells
 sit in pockets of the goal (cells with many goal neighbours) go first, so pockets
 are filled before they close.
 """
@@ -215,6 +217,27 @@ def _search(shape: Sequence[Cell], start: Cell, occupied: Mapping[Cell, int], me
             parent[n] = state
             heapq.heappush(frontier, (c + h((n[0], n[1])), -c, n))
     return None
+
+
+def _swept(shape: Sequence[Cell], path: Sequence[Cell]) -> set[Cell]:
+    """Every cell the group of ``shape`` sweeps along a :func:`_search` path (unit steps
+    between placements): the turns before and after each y-run and the drives, as
+    :func:`_search` tests them, not only the cells of its placements."""
+    if len(shape) == 1 and shape[0] == (0, 0):
+        return set(path)
+    sweeps = _sweeps(tuple(shape))
+    out: set[Cell] = {(path[0][0] + s[0], path[0][1] + s[1]) for s in shape}
+    heading = 0
+    for a, b in zip(path, path[1:], strict=False):
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        if int(dy != 0) != heading:  # a y-step is driven turned, an x-step not
+            heading = 1 - heading
+            out.update((a[0] + s[0], a[1] + s[1]) for s in sweeps["turn"])
+        out.update((a[0] + s[0], a[1] + s[1]) for s in sweeps[(dx, dy, heading)])
+    if heading:
+        end = path[-1]
+        out.update((end[0] + s[0], end[1] + s[1]) for s in sweeps["turn"])
+    return out
 
 
 @lru_cache(maxsize=4096)
@@ -438,7 +461,7 @@ class _Greedy:
         path = self.search(index, penalty=4 * len(self.groups))
         if path is None:
             return False
-        protect = {(s[0] + t[0], s[1] + t[1]) for t in path for s in self.shapes[index]}
+        protect = _swept(self.shapes[index], path)
         blockers = list(dict.fromkeys(self.occupied[c] for c in protect
                                       if self.occupied.get(c, index) != index))
         awaited = {*self.pending, index}
@@ -688,9 +711,8 @@ class _Peel:
                     path = _search(shapes[j], cells_of(j)[0], occupied, j,
                                    frame.outside(shapes[j]), None, inside, limit,
                                    penalty=4 * len(shapes), heuristic=to_border)
-                    near |= {occupied[(t[0] + s[0], t[1] + s[1])] for t in path or ()
-                             for s in shapes[j]
-                             if occupied.get((t[0] + s[0], t[1] + s[1]), j) != j}
+                    near |= {occupied[c] for c in (_swept(shapes[j], path) if path else ())
+                             if occupied.get(c, j) != j}
                 raise _Walled(near, set(left))
             failures = 0
             left.popleft()

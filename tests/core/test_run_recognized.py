@@ -44,3 +44,58 @@ def test_the_plan_starts_from_what_the_modules_report(tmp_path):
     written = json.loads((tmp_path / "run" / "plan.json").read_text())
     assert written["actions"] == [] and "recognized" in written["start"]["description"]
 
+
+
+class Counting:
+    """The planner, counting its calls."""
+
+    def __init__(self, planner):
+        self.planner, self.calls = planner, 0
+        self.name, self.description = planner.name, planner.description
+
+    def plan(self, start, goal, *, seed=0):
+        self.calls += 1
+        return self.planner.plan(start, goal, seed=seed)
+
+
+def test_the_file_plan_runs_when_the_modules_are_as_it_started(tmp_path):
+    with installed():
+        prepared = prepare_run(_request(tmp_path, chain(("b", "c"), name="bc")))
+        made = prepared.run.plan
+        prepared = replace(prepared, planner=Counting(prepared.planner))
+        result = execute_run(prepared)
+    assert result.success, result.reason
+    assert prepared.planner.calls == 0 and prepared.run.plan is made  # recognized == file
+    assert len(made.actions) == 3 and result.actions_total == 3
+
+
+def test_the_run_plans_again_when_the_modules_are_not_as_the_plan_started(tmp_path):
+    with installed():
+        prepared = prepare_run(_request(tmp_path, chain(("b", "c"), name="bc")))
+        prepared = replace(prepared, driver=Misplaced, planner=Counting(prepared.planner))
+        result = execute_run(prepared)
+    assert result.success, result.reason
+    assert prepared.planner.calls == 1 and prepared.run.plan.actions == []
+
+
+def test_same_state_sets_only_connection_labels_aside():
+    a = chain(("a", "b"), ("b", "c"), name="one")
+    ids = [e.id for e in a.edges()]
+    relabelled = a.derive(reverse=ids[:1], edges={ids[0]: "x"}, name="other",
+                          description="as recognized")  # another direction and id
+    assert a.same_state(relabelled) and relabelled.same_state(a) and a != relabelled
+    ports = chain(("a", "b"), name="one")
+    ports.connect("b", "c", ports=("T", "T"))
+    assert not a.same_state(ports)                            # another face
+    assert not a.same_state(chain(("a", "b"), name="one"))    # a connection fewer
+
+    def placed(height):
+        config = Configuration(a.robot)
+        for m, d in a.graph.nodes(data=True):
+            config.add_module(m, d["kind"], position=(0.0, 0.0, height if m == "a" else 0.0))
+        return config
+    assert placed(0.0).same_state(placed(0.0)) and not placed(0.0).same_state(placed(1e-6))
+    up = a.with_vectors(z={i: (0, 0, 1) for i in ids})
+    assert up.same_state(up.copy()) and not up.same_state(a.with_vectors(
+        z={i: (0, 0, -1) for i in ids}))                      # a vector
+    assert not up.same_state(up.derive(reverse=ids[:1]))      # a vector's direction

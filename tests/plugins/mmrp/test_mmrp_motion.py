@@ -244,3 +244,27 @@ def test_long_straight_legs_are_driven_in_pieces():
             assert max(abs(new[0] - where[m][0]), abs(new[1] - where[m][1])) <= LONGEST_LEG
             where[m] = new
     assert where == {"a": (ax - far, ay), "b": (bx, by + far)}
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(1, 5), seed=st.integers(0, 10_000),
+       runs=st.lists(st.tuples(st.sampled_from([(1, 0), (-1, 0), (0, 1), (0, -1)]),
+                               st.integers(1, 3)), min_size=1, max_size=5))
+def test_the_cells_a_search_path_sweeps_are_those_of_its_legs(n, seed, runs):
+    # reference: the legs of the path (straight runs between corners), each swept with
+    # its turns as the checker models it (motion.leg_paths)
+    from msrr.plugins.mmrp.routing import _corners, _swept
+    cells = sorted(grid_cells(random_tree(n, np.random.default_rng(seed))).values())
+    shape = [(x - cells[0][0], y - cells[0][1]) for x, y in cells]
+    path, last = [(0, 0)], (0, 0)
+    for (dx, dy), k in runs:
+        if (dx, dy) == (-last[0], -last[1]):
+            continue  # a search never turns straight back
+        path += [(path[-1][0] + dx * (j + 1), path[-1][1] + dy * (j + 1)) for j in range(k)]
+        last = (dx, dy)
+    expected = set(shape)
+    corners = _corners(path)
+    for a, b in zip(corners, corners[1:], strict=False):
+        at = [(float(a[0] + x), float(a[1] + y)) for x, y in shape]
+        expected |= blocked(leg_paths(at, (b[0] - a[0], b[1] - a[1])))
+    assert _swept(shape, path) == expected

@@ -335,3 +335,25 @@ def test_a_sweep_tested_by_rows_counts_the_cells_held_by_others(cells, sweep, at
     masks = routing._masks(tuple(sorted(sweep)))
     assert routing._hits(masks, at, rows, base, True) == held
     assert routing._hits(masks, at, rows, base, False) == min(held, 1)
+
+
+def test_a_standing_module_that_blocks_only_a_turn_moves_out_instead_of_a_cut():
+    # a bar of three in a slot of standing walls can leave only by turning to go up;
+    # its turn sweeps (0, -1), where x stands (no translation of the bar upwards touches
+    # it; downwards, the bar would have to cross the walls); x can leave through a gap
+    def block(xs, ys, tag):
+        return {f"{tag}{x},{y}": (x, y) for x in xs for y in ys}
+
+    bar = {f"b{i}": (i, 0) for i in range(3)}
+    walls = [block(range(-3, 0), range(-1, 3), "l"), block(range(3, 6), range(-1, 3), "r"),
+             block(range(-3, 2), range(-4, -1), "bl"), block(range(3, 6), range(-4, -1), "br")]
+    start = bar | {"x": (0, -1)}
+    for wall in walls:
+        start |= wall
+    goal = dict(start) | {m: (c[0], c[1] + 8) for m, c in bar.items()}
+    groups = [list(bar), ["x"], *(list(w) for w in walls)]
+    routing = route_groups(groups, start, goal, links=[frozenset(p) for p in
+                                                        itertools.pairwise(bar)], direct=False)
+    assert not routing.cut
+    assert ("x",) in {r.modules for r in routing.routes}  # out of the way and back
+    _replay(groups, start, goal, routing)
