@@ -378,8 +378,9 @@ class Driver(ABC):
 
     def ground_truth(self) -> Configuration | None:
         """The configuration as the simulator knows it, for judging a run (never for
-        control; :mod:`msrr.core.witness`); ``None`` where there is none (hardware, or a
-        driver without one)."""
+        control; :mod:`msrr.core.witness`), its vectors in the world's frame (the judge
+        turns a behavior's direction onto it and measures the shift in the world);
+        ``None`` where there is none (hardware, or a driver without one)."""
         return None
 
     def faults(self) -> list[str]:

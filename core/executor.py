@@ -122,7 +122,7 @@ from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
 __all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "behavior_commands",
-           "course_loop", "heading_loop", "phases_of"]
+           "course_loop", "heading_loop", "held_heading", "phases_of", "turn_bound"]
 
 
 @dataclass(frozen=True)
@@ -335,7 +335,28 @@ def heading_loop(call: BehaviorCall | None, heading: float | None,
         return None
     return HeadingLoop(heading, float(call.parameters.get("yaw_rate", 0.0)),
                        options.heading_gain, options.heading_integral,
-                       options.max_heading_correction)
+                       min(options.max_heading_correction, turn_bound(call)))
+
+
+def held_heading(heading: float, recognized: Configuration, target: Configuration) -> float:
+    """The heading [rad] of the body a behavior holds in the shape of ``target``: the
+    estimated ``heading`` of the frame ``recognized`` is stated in plus the turn of
+    ``target`` onto ``recognized`` (eq. 8). That frame (FreeSN: the root node's, a shell
+    its connectors roll on) may turn under the body; the sum does not (issue 31: fig22's
+    rollers spun the root's shell 1.7 rad while the body held its heading)."""
+    return heading + skeletal_errors(recognized, target)[2]
+
+
+def turn_bound(call: BehaviorCall) -> float:
+    """The largest ``yaw_rate`` correction [rad/s] that asks no wheel of ``call`` more than
+    its travel does: ``min |sum of its other gains x parameters| / |yaw_rate gain|`` over
+    the commands that have both (a roller asked to turn harder than it rolls forward
+    scrubs the system round on the spot: fig22's wheeled move, issue 31). Infinite when
+    none does (a turn on the spot: the turn is all it asks)."""
+    straight = {**call.parameters, "yaw_rate": 0.0}
+    bounds = [abs(command.value(straight) / turn) for command in call.commands
+              if (turn := dict(command.gains).get("yaw_rate", 0.0)) and command.value(straight)]
+    return min(bounds, default=math.inf)
 
 
 def course_loop(call: BehaviorCall | None, estimate: Estimate, frame: float,
@@ -523,7 +544,7 @@ class Executor:
                     and phase is not Phase.BEHAVIOR:
                 self.controller.begin(action, phase, observation)
             self._phase_began = self.driver.time
-            self._loop = heading_loop(action.behavior, self.estimate.heading, self.options) \
+            self._loop = heading_loop(action.behavior, self._heading(action), self.options) \
                 if phase is Phase.BEHAVIOR else None
             self._course = None if self._loop is None else course_loop(
                 action.behavior, self.estimate, self._frame(action), self.options)
@@ -678,7 +699,7 @@ class Executor:
 
     def _steered(self, action: Action) -> dict[str, float] | None:
         """The behavior's parameters, ``yaw_rate`` corrected by its heading loop."""
-        loop, call, heading = self._loop, action.behavior, self.estimate.heading
+        loop, call, heading = self._loop, action.behavior, self._heading(action)
         if loop is None or call is None or heading is None:
             return None
         place = self.estimate.position
@@ -686,6 +707,13 @@ class Executor:
         correction = loop.correction(heading, self.driver.time - self._phase_began, self.dt,
                                      offset)
         return {**call.parameters, "yaw_rate": loop.asked + correction}
+
+    def _heading(self, action: Action) -> float | None:
+        """The estimated heading [rad] of the body ``action`` holds (:func:`held_heading`)."""
+        heading = self.estimate.heading
+        if heading is None or self._current is None:
+            return heading
+        return held_heading(heading, self._current, action.target)
 
     def _frame(self, action: Action) -> float:
         """The turn [rad] of ``action``'s target onto the configuration recognized now

@@ -766,17 +766,15 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
     def ground_truth(self, *, name: str = "") -> Configuration:
         """The configuration the bodies form (simulator state, never reports): the active
-        dock constraints and the centre-to-centre directions, in the horizontal frame of
-        the smallest module id's connector."""
+        dock constraints and the centre-to-centre directions, in the world's frame (the
+        judge measures a behavior's shift there, along its direction turned onto this)."""
         d = self.data
-        root = self.modules[0]
-        frame = rot_z(-float(self._headings()[self._index[root]]))
         config = Configuration(self.design.robot, name=name)
         for module in self.modules:
             config.add_module(module, self.design.kind)
         for a, b in sorted(map(self._joins, self.welds.active(d))):
             z = d.xpos[self._shell[self._index[b]]] - d.xpos[self._shell[self._index[a]]]
-            config.connect(a, b, z=frame @ (z / np.linalg.norm(z)))
+            config.connect(a, b, z=z / np.linalg.norm(z))
         return config
 
     def _joins(self, key: str) -> tuple[str, str]:

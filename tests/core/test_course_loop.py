@@ -10,8 +10,18 @@ import math
 import numpy as np
 import pytest
 
+from msrr.core.alignment import rot_z
+from msrr.core.configuration import Configuration
 from msrr.core.estimation import Estimate
-from msrr.core.executor import CourseLoop, ExecutorOptions, HeadingLoop, course_loop
+from msrr.core.executor import (
+    CourseLoop,
+    ExecutorOptions,
+    HeadingLoop,
+    course_loop,
+    heading_loop,
+    held_heading,
+    turn_bound,
+)
 from msrr.core.plan import BehaviorCall, CommandGain
 
 OPTIONS = ExecutorOptions()
@@ -88,3 +98,50 @@ def test_only_a_straight_behavior_with_a_direction_and_a_known_place_has_one():
     assert turned is not None
     assert np.allclose(turned.direction, [-math.sin(0.75), math.cos(0.75)])
     assert np.allclose(turned.origin, [1.0, 1.0])
+
+
+ROLLERS = (CommandGain("C2", "wheel_speed", (("speed", -62.5), ("yaw_rate", 15.027129644))),
+           CommandGain("C4", "wheel_speed", (("speed", 62.5), ("yaw_rate", 11.418690462))),
+           CommandGain("C6", "wheel_speed", (("speed", 62.5), ("yaw_rate", 11.418690462))))
+"""fig22's wheeled move (S12N6 library): three chords rolled as rollers."""
+
+
+def test_the_heading_loop_asks_no_roller_to_turn_harder_than_it_rolls_forward():
+    """At 0.05 m/s the rollers turn 3.1 rad/s; the old 0.5 rad/s bound asked 7.5 rad/s of
+    C2 to turn, and fig22's wheeled move spun on the spot (issue 31)."""
+    call = BehaviorCall("wheeled-move", "mapping", {"speed": 0.05, "yaw_rate": 0.0}, ROLLERS,
+                        duration=60.0, direction=(1.0, 0.0, 0.0))
+    bound = turn_bound(call)
+    assert bound == pytest.approx(62.5 * 0.05 / 15.027129644)          # C2 is the tightest
+    for command in ROLLERS:   # every roller: its turn within its travel, C2 at its limit
+        gains = dict(command.gains)
+        assert abs(gains["yaw_rate"] * bound) <= abs(gains["speed"] * 0.05) + 1e-12
+    loop = heading_loop(call, 0.0, OPTIONS)
+    assert loop is not None and loop.bound == pytest.approx(bound)
+    assert abs(loop.correction(-3.0, 0.0, 0.1)) == pytest.approx(bound)
+    slow = BehaviorCall("wheeled-move", "mapping", {"speed": 0.5}, ROLLERS, duration=6.0)
+    assert heading_loop(slow, 0.0, OPTIONS).bound == OPTIONS.max_heading_correction
+    turn = BehaviorCall("turn", "mapping", {"yaw_rate": 0.2}, ROLLERS, duration=6.0)
+    assert turn_bound(turn) == math.inf          # a turn on the spot: the turn is all it asks
+
+
+def _star(turn: float) -> Configuration:
+    """Three struts from a hub, as recognized in a frame turned by ``-turn`` [rad]."""
+    config = Configuration("freesn")
+    config.add_module("H", "node")
+    for k in range(3):
+        config.add_module(f"N{k}", "node")
+        z = rot_z(turn + 2.0 * k) @ np.array([1.0, 0.0, -0.1 * k])
+        config.connect("H", f"N{k}", id=f"S{k}", kind="strut", z=z / np.linalg.norm(z))
+    return config
+
+
+@pytest.mark.parametrize("spin", [0.4, -1.7, 3.0])
+def test_the_held_heading_does_not_turn_when_the_root_frame_turns_under_the_body(spin):
+    """The root's frame turns by ``spin`` under a body that keeps still: the estimated
+    heading turns by ``spin`` and the body, recognized in that frame, by ``-spin``."""
+    target = _star(0.0)
+    before = held_heading(0.25, _star(0.1), target)
+    after = held_heading(0.25 + spin, _star(0.1 - spin), target)
+    assert math.remainder(after - before, 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
+    assert before == pytest.approx(0.35, abs=1e-6)

@@ -23,8 +23,10 @@ configuration, never from a simulator:
   foot's offset from the root, turned by the heading); a foot that lands is anchored
   where the shape puts it. The estimate is the centre of the nodes.
 
-A strut's wheels on the floor (Fig. 18(d)-(i)) report no encoder, so a system rolling on
-them is estimated to stand still; those behaviors run for a duration.
+A strut on the floor (its wheels, Fig. 18(d)-(i), or its body rolled as a roller, Fig.
+22(e)) reports no encoder, and the nodes it drags slide rather than roll: while a free
+strut end reaches the floor (:func:`on_struts`) the place is not known (``None``), and
+those behaviors run for a duration, their heading held by the gyros alone.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ from ..robot import NODE, STRUT
 from .recognizer import links_of, node_headings, root_order
 from .world import NodeReport
 
-__all__ = ["CONTACT", "ImuOdometry", "node_positions"]
+__all__ = ["CONTACT", "ImuOdometry", "node_positions", "on_struts"]
 
 CONTACT = 0.015
 """A node whose centre is at most this much [m] above the lowest node's stands on the
@@ -100,6 +102,32 @@ def node_positions(config: Configuration, root: str, length: float) -> dict[str,
     return positions
 
 
+def on_struts(config: Configuration, placed: Mapping[str, np.ndarray], length: float,
+              node_radius: float, strut_radius: float) -> bool:
+    """Whether a free strut end of ``config`` reaches the floor: its tip, ``length`` [m]
+    from its node along ``z``, is lower (less ``strut_radius``) than its own node's bottom
+    (``node_radius`` below its centre; a strut lying level is not) and as low as the lowest
+    node's bottom plus :data:`CONTACT`. The first compares one strut's vector with its
+    own node (2 deg of noise: 7 mm), the second node heights along the shape (more).
+    ``placed``: node centres [m], shape (3,) each, relative to the root
+    (:func:`node_positions`)."""
+    if not placed:
+        return False
+    floor = min(float(q[2]) for q in placed.values()) - node_radius + CONTACT
+    for edge in config.edges():
+        if edge.z is None:
+            continue
+        for node, free, sign in ((edge.source, edge.target, 1.0),
+                                 (edge.target, edge.source, -1.0)):
+            if node not in placed or not config.is_virtual(free):
+                continue
+            drop = sign * length * float(edge.z[2])   # tip below its node's centre: < 0
+            if drop <= strut_radius - node_radius \
+                    and float(placed[node][2]) + drop - strut_radius <= floor:
+                return True
+    return False
+
+
 class ImuOdometry:
     """Heading and place of one FreeSN system over one run (see the module docstring).
 
@@ -107,11 +135,14 @@ class ImuOdometry:
         root: the root node the recognizer was given (``None``: :func:`root_order`'s).
         length: strut length, node centre to node centre [m].
         radius: node radius [m].
+        strut_radius: strut body radius [m].
     """
 
     def __init__(self, root: str | None = None, *, length: float = STRUT.geometry["length"],
-                 radius: float = NODE.geometry["radius"]):
+                 radius: float = NODE.geometry["radius"],
+                 strut_radius: float = STRUT.geometry["radius"]):
         self.root, self.length, self.radius = root, float(length), float(radius)
+        self.strut_radius = float(strut_radius)
         self.time: float | None = None
         self.yaw: dict[str, float] = {}          # each node's heading [rad]
         self.tilt: dict[str, np.ndarray] = {}
@@ -134,6 +165,10 @@ class ImuOdometry:
         placed = node_positions(configuration, root, self.length)
         heading = self._consensus(reports, links, root, placed)
         offsets = {n: rot_z(heading) @ p for n, p in placed.items()}
+        if on_struts(configuration, placed, self.length, self.radius, self.strut_radius):
+            self.anchors = {}  # what lands next is anchored where the shape puts it
+            self.last = Estimate(position=None, heading=heading)
+            return self.last
         if not self._step_feet(offsets, turned, dt) and self.last is not None:
             return self.last
         centre = self.origin + np.mean([q[:2] for q in offsets.values()], axis=0)

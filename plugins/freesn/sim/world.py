@@ -947,12 +947,15 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def ground_truth(self, root: str | None = None, *, name: str = "") -> Configuration:
         """The configuration the bodies form, from the simulator's state (never from reports).
 
-        Vectors in the horizontal frame of ``root`` (default: the smallest node id);
-        free strut ends are virtual vertices ``"<strut>:<end>"``.
+        Vectors in the horizontal frame of ``root``, by default the world's: the judge
+        turns a behavior's commanded direction onto it and measures the shift in the world
+        (a node's frame turns with its shell, which its connectors roll on: fig22's
+        rollers spun them by radians, issue 31); free strut ends are virtual vertices
+        ``"<strut>:<end>"``.
         """
         d = self.data
-        root = root or min(self.nodes)
-        yaw = float(heading(d.xquat[self._node_body[self._node_index[root]]]))
+        yaw = 0.0 if root is None else float(
+            heading(d.xquat[self._node_body[self._node_index[root]]]))
         frame = rot_z(-yaw)
         config = Configuration("freesn", name=name)
         for node in self.nodes:

@@ -142,3 +142,27 @@ def test_a_place_that_leaps_is_a_glitch_not_a_motion():
     leapt = {n: q + np.array([0.6, 0.0, 0.0]) for n, q in feet.items()}
     assert not odometry._step_feet(leapt, {}, 0.1)
     assert np.allclose(odometry.origin, [-0.01, 0.0]) and odometry.anchors == anchors
+
+
+@pytest.mark.parametrize(("config_id", "rolling"), [
+    ("S12N6-4.1", True),    # fig22(e): chords rolled on the floor as rollers
+    ("S4N1-1.2", True),     # Fig. 18(d): on its leaf struts' wheels
+    ("S12N6-5.1", False),   # fig22(j): on its node wheels
+    ("S4N5-1.2", False),    # Fig. 18(a): on its node wheels
+    ("S12N6-2.1", False),   # flat on the floor: free struts lie level, not below
+])
+def test_a_system_on_its_struts_has_no_place(config_id, rolling):
+    """Struts on the floor report no encoder and the nodes they drag slide: with 2 deg
+    noise the recognized shape says which stand on what, and the place is unknown then
+    (fig22's wheeled move read 0.2 m sideways off nodes spun by its rollers)."""
+    start = load_configuration(FREESN / "configs" / "library" / f"{config_id}.json")
+    world = FreeSNWorld(start, SPEC, SimOptions(noise=math.radians(2.0), seed=3))
+    recognizer = FreeSNRecognizer()
+    odometry = recognizer.estimator()
+    for tick in range(3):
+        reports = world.reports()
+        estimate = odometry.update(Observation(0.1 * tick, reports, {}),
+                                   recognizer.recognize(reports))
+        assert estimate.heading is not None
+        assert (estimate.position is None) is rolling
+
