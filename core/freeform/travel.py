@@ -27,16 +27,16 @@ proportional to the distance left, bounded).
 from __future__ import annotations
 
 import heapq
+from dataclasses import dataclass
 from collections import deque
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..alignment import rot_z
 from ..errors import ExecutionError
 
-__all__ = ["Locator", "floor_path", "pursue", "twist_velocities"]
+__all__ = ["Locator", "PieceWay", "floor_path", "piece_goal", "plan_piece_way", "piece_path", "pursue", "twist_velocities"]
 
 _CELL = 0.01          # grid of the floor path [m]
 _CLEARANCE = 0.008    # kept between shells on the way [m]
@@ -163,6 +163,11 @@ class Locator:
             self.frame[m] += delta
             self.island[m] = island
 
+    def pose(self, module: str) -> tuple[np.ndarray, float]:
+        """``module``'s map position (3,) [m] and the map heading [rad] of its horizontal
+        frame (the frame of its travel commands)."""
+        return self.position[module], self.frame[module] + float(self._odometry[module][2])
+
     def piece(self, module: str) -> set[str]:
         """The modules joined to ``module`` by docks now (itself included)."""
         return next(g for g in self._groups if module in g)
@@ -187,6 +192,127 @@ class Locator:
             raise ExecutionError(f"module {module} was never docked in a group: no report "
                                  "tells where it is")
         return out
+
+
+def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
+               piece: set[str], target: str) -> dict[str, np.ndarray]:
+    """Where the modules of ``piece`` must be (2,) [m] for ``goal``'s shape with the
+    module they dock on, ``target``, which stays: ``goal``'s centres (3,) of ``piece``
+    turned by the yaw that best brings ``goal``'s other modules onto ``here`` (their
+    centres now, one frame; least squares over those known in both, weighted alike) and
+    put so that ``target`` is where it is now."""
+    fixed = sorted(m for m in goal if m not in piece and m in here)
+    a = np.array([np.asarray(goal[m], dtype=float)[:2] for m in fixed])
+    b = np.array([np.asarray(here[m], dtype=float)[:2] for m in fixed])
+    a, b = a - a.mean(axis=0), b - b.mean(axis=0)
+    yaw = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                           np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    turn = rot_z(yaw)[:2, :2]
+    origin = np.asarray(goal[target], dtype=float)[:2]
+    return {m: np.asarray(here[target], dtype=float)[:2] + turn @ (
+        np.asarray(goal[m], dtype=float)[:2] - origin) for m in piece}
+
+
+def piece_path(others: Mapping[str, np.ndarray], offsets: Mapping[str, np.ndarray],
+               start: np.ndarray, end: np.ndarray, spacing: float) -> list[np.ndarray]:
+    """The way (points (2,) [m]) of a piece that translates from ``start`` to ``end``
+    (its reference point), its modules at ``offsets`` (2,) from that point, clear of
+    ``others`` (centres (2,) or (3,), floor level within two spacings): A* in the plane
+    of the reference point, each other module a disc of ``spacing`` plus a clearance
+    about each of ``o - d_m`` (the Minkowski sum of the piece and the discs).
+
+    Raises:
+        ExecutionError: no way is free.
+    """
+    level = [np.asarray(c, dtype=float)[:2] for c in others.values()
+             if len(c) < 3 or abs(c[2]) < 2 * spacing]
+    discs = [o - np.asarray(d, dtype=float)[:2] for o in level for d in offsets.values()]
+    path = _astar(np.asarray(start, dtype=float), np.asarray(end, dtype=float), discs,
+                  [spacing + _CLEARANCE] * len(discs))
+    if path is None:
+        raise ExecutionError(f"no free way over the floor for a piece of {len(offsets)} "
+                             "modules")
+    return path
+
+
+_BACK_OUT = 0.03      # a piece first moves this far from the modules it touches [m]
+_SHORT = 0.02         # and stops this far short of its docking spot [m]
+_TURN_FREE = np.radians(10.0)  # a smaller turn of a piece needs no room of its own
+_FARTHEST = 1.0       # farthest a piece backs out to turn [m]
+
+
+@dataclass(frozen=True)
+class PieceWay:
+    """How a piece travels to dock its free module ``root`` on ``target`` (map frame:
+    :class:`Locator`): out from what it touches to ``path[0]``, a turn in place about
+    ``pivot`` to the root's heading ``heading``, along ``path`` (the root's centre,
+    points (n, 2) [m]) to a stop short of its docking spot, then in along the line to
+    ``centre`` (the target's) until the connector latches.
+    """
+
+    root: str
+    target: str
+    piece: tuple[str, ...]
+    heading: float
+    pivot: np.ndarray
+    path: np.ndarray
+    centre: np.ndarray
+
+
+def plan_piece_way(locator: Locator, root: str, target: str,
+                   goal: Mapping[str, np.ndarray]) -> PieceWay:
+    """The :class:`PieceWay` of the piece led by ``root`` to dock on ``target`` in the
+    shape of ``goal`` (centres (3,) of the goal configuration, any frame): where it
+    must end (:func:`piece_goal`), the turn that takes it there (least squares over
+    its modules), and a way for the turned piece clear of every other module
+    (:func:`piece_path`).
+
+    Raises:
+        ExecutionError: ``target`` is on no map island with ``root`` (nothing tells where
+            it is), or no way is free.
+    """
+    piece = locator.piece(root)
+    near = locator.relative(root)              # raises if root's island is alone
+    if target not in near:
+        raise ExecutionError(f"module {target} was never joined to the piece of {root}: "
+                             "no report tells where it is")
+    here = {m: p[:2] for m, p in locator.position.items()
+            if locator.island[m] == locator.island[root]}
+    end = piece_goal(goal, here, piece, target)
+    ms = sorted(piece)
+    now = np.array([here[m] for m in ms])
+    then = np.array([end[m] for m in ms])
+    a, b = now - now.mean(axis=0), then - then.mean(axis=0)
+    turn = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    others = {m: p for m, p in here.items() if m not in piece}
+    touching = [(here[m] - o) / max(float(np.linalg.norm(here[m] - o)), 1e-9)
+                for m in ms for o in others.values()
+                if np.linalg.norm(here[m] - o) < locator.spacing + _CLEARANCE]
+    out = np.sum(touching, axis=0) if touching else np.zeros(2)
+    out = out / np.linalg.norm(out) if np.linalg.norm(out) > 1e-9 else out
+    middle = now.mean(axis=0)
+    if abs(turn) > _TURN_FREE:   # out until the disc the turn sweeps is clear
+        sweep = float(np.max(np.linalg.norm(now - middle, axis=1))) + locator.spacing \
+            + _CLEARANCE
+        rest = np.array(list(others.values())).reshape(-1, 2)
+        far = _BACK_OUT
+        while len(rest) and np.min(np.linalg.norm(rest - middle - far * out, axis=1)) < sweep \
+                and far < _FARTHEST:
+            far += _CELL
+        out = far * out
+    else:
+        out = _BACK_OUT * out
+    pivot = middle + out
+    start = pivot + rot_z(turn)[:2, :2] @ (here[root] + out - pivot)
+    centre = here[target]
+    line = (centre - end[root]) / np.linalg.norm(centre - end[root])
+    stop = end[root] - _SHORT * line
+    path = piece_path(others, {m: end[m] - end[root] for m in ms}, start, stop,
+                      locator.spacing)
+    _, heading = locator.pose(root)
+    return PieceWay(root, target, tuple(ms), heading + turn, pivot,
+                    np.array([here[root] + out, *path]), centre)
 
 
 def twist_velocities(centres: Mapping[str, np.ndarray], headings: Mapping[str, float],
@@ -257,11 +383,15 @@ def _astar(start: np.ndarray, end: np.ndarray, centres: Sequence[np.ndarray],
     ys = low[1] + _CELL * np.arange(shape[1])
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     blocked = np.zeros(shape, dtype=bool)
-    for c, r in zip(centres, radii, strict=True):
-        # a module the start already touches: the way never comes closer to it than the
-        # start is (grazing a shell while rolling pushes its group away)
-        r = min(r, float(np.linalg.norm(start - c)) + _GRAZE)
-        blocked |= np.hypot(gx - c[0], gy - c[1]) < r
+    # a module the start already touches: the way never comes closer to it than the
+    # start is (grazing a shell while rolling pushes its group away)
+    discs = np.array(centres, dtype=float).reshape(-1, 2)
+    reach = np.minimum(np.asarray(radii, dtype=float),
+                       np.linalg.norm(discs - start, axis=1) + _GRAZE)
+    cells = np.column_stack([gx.ravel(), gy.ravel()])
+    for r in np.unique(reach):      # one nearest-disc query per radius
+        near, _ = cKDTree(discs[reach == r]).query(cells, distance_upper_bound=r)
+        blocked |= (near < r).reshape(shape)
 
     def cell(p: np.ndarray) -> tuple[int, int]:
         i, j = np.rint((p - low) / _CELL).astype(int)
