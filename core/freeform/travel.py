@@ -27,9 +27,10 @@ proportional to the distance left, bounded).
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
 from collections import deque
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
