@@ -43,7 +43,15 @@ from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
-from .travel import Locator, PieceWay, floor_path, plan_piece_way, pursue, twist_velocities
+from .travel import (
+    Locator,
+    PieceWay,
+    floor_path,
+    plan_piece_way,
+    pursue,
+    straight_line,
+    twist_velocities,
+)
 from .world import ModuleReport
 
 __all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
@@ -389,19 +397,23 @@ class ContactController:
         :class:`~msrr.core.freeform.travel.PieceWay`), or of their guarded push onto the
         target with the root's connector armed (connect): a twist of each piece from its
         pose on the map (:meth:`Locator.pose`), sent to each of its modules as the
-        velocity of its own centre (:func:`~msrr.core.freeform.travel.twist_velocities`)."""
+        velocity of its own centre (:func:`~msrr.core.freeform.travel.twist_velocities`).
+        A straight piece moves as a car (it cannot roll across its line): along its line,
+        turning about its centroid, steering its line onto its way until near its end."""
         commands, errors = {}, {}
         for root, (way, stage) in list(self._pieces.items()):
             where, heading = self.locator.pose(root)
+            centres = {m: self.locator.pose(m)[0] for m in way.piece}
+            headings = {m: self.locator.pose(m)[1] for m in way.piece}
+            line = straight_line(np.array(list(centres.values())), self.locator.spacing)
             off = _wrap(way.heading - heading)
             turn = float(np.clip(_YAW_GAIN * off, -1.0, 1.0))
-            about = where[:2]
             if phase is Phase.CONNECT:
                 toward = way.centre - where[:2]
                 velocity = 0.5 * self.piece_speed * _unit(toward)
                 left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
             elif stage == 1:
-                velocity, left, about = np.zeros(2), 1.0 + abs(off), way.pivot
+                velocity, left = np.zeros(2), 1.0 + abs(off)
                 if abs(off) < _YAW_DONE:
                     self._pieces[root] = (way, 2)
             else:
@@ -412,9 +424,18 @@ class ContactController:
                     if left < 1.0 + self.arrive:
                         self._pieces[root] = (way, 1)
                 else:
+                    if line is not None and left > _CAR_END and np.linalg.norm(velocity) > 0:
+                        ahead = np.sign(float(velocity @ line) or 1.0) * line
+                        turn = float(np.clip(_YAW_GAIN * np.arctan2(
+                            ahead[0] * velocity[1] - ahead[1] * velocity[0],
+                            ahead @ velocity), -1.0, 1.0))
                     left += abs(off) * self.locator.spacing
-            centres = {m: self.locator.pose(m)[0] for m in way.piece}
-            headings = {m: self.locator.pose(m)[1] for m in way.piece}
+            about = where[:2] if line is None else np.mean([c[:2] for c in centres.values()],
+                                                           axis=0)
+            if stage == 1 and phase is Phase.APPROACH:
+                about = way.pivot
+            if line is not None:
+                velocity = float(velocity @ line) * line
             velocities, w = twist_velocities(centres, headings, velocity, turn, about,
                                              speed=self.piece_speed)
             for m, v in velocities.items():
@@ -540,6 +561,7 @@ _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
 
 
+_CAR_END = 0.15             # a straight piece steers onto its way until this close [m]
 def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:
     """Centres (3,) [m] of ``config``'s modules, each connected piece from its first
     module (:func:`~msrr.core.freeform.travel.lay_out_pieces`)."""

@@ -37,7 +37,8 @@ from scipy.spatial import cKDTree
 from ..alignment import rot_z
 from ..errors import ExecutionError
 
-__all__ = ["Locator", "PieceWay", "floor_path", "piece_goal", "plan_piece_way", "piece_path", "pursue", "twist_velocities"]
+__all__ = ["Locator", "PieceWay", "floor_path", "piece_goal", "piece_path", "plan_piece_way",
+           "pursue", "straight_line", "twist_velocities"]
 
 _CELL = 0.01          # grid of the floor path [m]
 _CLEARANCE = 0.008    # kept between shells on the way [m]
@@ -291,8 +292,14 @@ def plan_piece_way(locator: Locator, root: str, target: str,
                 for m in ms for o in others.values()
                 if np.linalg.norm(here[m] - o) < locator.spacing + _CLEARANCE]
     out = np.sum(touching, axis=0) if touching else np.zeros(2)
-    out = out / np.linalg.norm(out) if np.linalg.norm(out) > 1e-9 else out
     middle = now.mean(axis=0)
+    line = straight_line(now, locator.spacing)
+    if line is not None and touching:    # a straight piece backs out along its line,
+        ends = [float(np.min(np.linalg.norm(np.array(list(others.values())).reshape(-1, 2)
+                                            - (middle + _BACK_OUT * sign * line), axis=1)))
+                for sign in (1.0, -1.0)]          # to the side with more room
+        out = line * (1.0 if ends[0] >= ends[1] else -1.0)
+    out = out / np.linalg.norm(out) if np.linalg.norm(out) > 1e-9 else out
     if abs(turn) > _TURN_FREE:   # out until the disc the turn sweeps is clear
         sweep = float(np.max(np.linalg.norm(now - middle, axis=1))) + locator.spacing \
             + _CLEARANCE
@@ -314,6 +321,23 @@ def plan_piece_way(locator: Locator, root: str, target: str,
     _, heading = locator.pose(root)
     return PieceWay(root, target, tuple(ms), heading + turn, pivot,
                     np.array([here[root] + out, *path]), centre)
+
+
+_STRAIGHT = 0.25      # a piece is straight within this many spacings of its line
+
+
+def straight_line(points: np.ndarray, spacing: float) -> np.ndarray | None:
+    """The unit direction (2,) of the line through ``points`` (n, 2+) [m] if every point
+    is within a quarter ``spacing`` of it (a straight piece, which moves along its line
+    only: :meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`), else
+    ``None``; ``None`` for a single point."""
+    flat = np.asarray(points, dtype=float)[:, :2]
+    if len(flat) < 2:
+        return None
+    flat = flat - flat.mean(axis=0)
+    line = np.linalg.svd(flat)[2][0]
+    across = flat - np.outer(flat @ line, line)
+    return None if np.max(np.linalg.norm(across, axis=1)) > _STRAIGHT * spacing else line
 
 
 def twist_velocities(centres: Mapping[str, np.ndarray], headings: Mapping[str, float],

@@ -33,6 +33,12 @@ the flowing module is a leaf, nothing hangs on it) and the weld switches from ``
 ``Q`` in the same step. An undock of ``P`` sent meanwhile waits for that switch. Other
 docks draw the foot onto the centre (time constant ``seat``).
 
+**Travel of a piece** (FreeBOT, :meth:`FreeformWorld.command_travel`): every module of a
+connected piece rolls its shell under its arm while its drive and bearing track the goals
+of one rigid twist, so the piece moves over the floor as one body, each module driving.
+A straight piece moves along its line and turns, but does not roll across its line
+(nothing outside it gives a torque about that line).
+
 **Sucker** (SnailBot): a connect equality pins the contact point (``r`` along the
 connector axis) to the substrate; with the foot on the substrate's centre, the module
 can then only turn about the line through both -- the sucker's revolute joint.
