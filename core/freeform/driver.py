@@ -8,9 +8,9 @@ Commands (per module, :class:`~msrr.core.driver.ModuleCommand`):
   (SnailBot), ``0`` releases it; ``"twist"`` [rad] turns a module whose sucker holds
   about the sucker's axis by that angle from where it is now. ``{"roll_x", "roll_y"}``: a free
   module rolls (FreeBOT, pendulum drive) or crawls (SnailBot) on the ground at this velocity
-  [m/s] in its own horizontal frame; with ``"turn"`` [rad/s], or sent to a module that is docked
-  or carries others, the module rolls as part of a piece travelling as one rigid body that
-  turns at that rate, its centre at that velocity (FreeBOT;
+  [m/s] in its own horizontal frame (ignored once it is docked); with ``"turn"`` [rad/s], the
+  module rolls as part of a piece travelling as one rigid body that turns at that rate, its
+  centre at that velocity (FreeBOT;
   :meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`);
 * ``dock=("@Q",)`` arms the connector to latch on ``Q`` when the shells touch (while
   docked on ``P``: a flow, the switch happens at once); ``dock=(port,)`` (the module's
@@ -90,7 +90,7 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
                 world.command_twist(module, float(joints["twist"]))
             if any(n in joints for n in (*_ROLL, "turn")):
                 velocity = np.array([joints.get("roll_x", 0.0), joints.get("roll_y", 0.0), 0.0])
-                if "turn" in joints or world.in_piece(module):
+                if "turn" in joints:
                     world.command_travel(module, velocity, float(joints.get("turn", 0.0)))
                 else:
                     world.command_roll(module, velocity)

@@ -419,7 +419,9 @@ class ContactController:
             else:
                 path = way.path[:1] if stage == 0 else way.path[1:]
                 velocity, left = pursue(path, where[:2], speed=self.piece_speed)
-                if stage == 0:
+                if stage == 0:     # out; a straight piece only along its line
+                    if line is not None:
+                        left = abs(float((way.path[0] - where[:2]) @ line))
                     turn, left = 0.0, left + 1.0
                     if left < 1.0 + self.arrive:
                         self._pieces[root] = (way, 1)
@@ -561,7 +563,7 @@ _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
 
 
-_CAR_END = 0.15             # a straight piece steers onto its way until this close [m]
+_CAR_END = 0.12             # a straight piece steers onto its way until this close [m]
 def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:
     """Centres (3,) [m] of ``config``'s modules, each connected piece from its first
     module (:func:`~msrr.core.freeform.travel.lay_out_pieces`)."""

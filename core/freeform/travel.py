@@ -200,9 +200,9 @@ def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
                piece: set[str], target: str) -> dict[str, np.ndarray]:
     """Where the modules of ``piece`` must be (2,) [m] for ``goal``'s shape with the
     module they dock on, ``target``, which stays: ``goal``'s centres (3,) of ``piece``
-    turned by the yaw that best brings ``goal``'s other modules onto ``here`` (their
-    centres now, one frame; least squares over those known in both, weighted alike) and
-    put so that ``target`` is where it is now."""
+    turned by the yaw that best brings ``goal``'s other modules onto ``here`` (the
+    centres now of the modules that stay, the target's group: one frame; least squares,
+    weighted alike) and put so that ``target`` is where it is now."""
     fixed = sorted(m for m in goal if m not in piece and m in here)
     a = np.array([np.asarray(goal[m], dtype=float)[:2] for m in fixed])
     b = np.array([np.asarray(here[m], dtype=float)[:2] for m in fixed])
@@ -239,6 +239,7 @@ def piece_path(others: Mapping[str, np.ndarray], offsets: Mapping[str, np.ndarra
 
 _BACK_OUT = 0.03      # a piece first moves this far from the modules it touches [m]
 _SHORT = 0.02         # and stops this far short of its docking spot [m]
+_LAST = 0.15          # its way's last stretch, straight in along the docking line [m]
 _TURN_FREE = np.radians(10.0)  # a smaller turn of a piece needs no room of its own
 _FARTHEST = 1.0       # farthest a piece backs out to turn [m]
 
@@ -280,7 +281,8 @@ def plan_piece_way(locator: Locator, root: str, target: str,
                              "no report tells where it is")
     here = {m: p[:2] for m, p in locator.position.items()
             if locator.island[m] == locator.island[root]}
-    end = piece_goal(goal, here, piece, target)
+    staying = {m: here[m] for m in locator.piece(target)}
+    end = piece_goal(goal, staying | {m: here[m] for m in piece}, piece, target)
     ms = sorted(piece)
     now = np.array([here[m] for m in ms])
     then = np.array([end[m] for m in ms])
@@ -316,8 +318,11 @@ def plan_piece_way(locator: Locator, root: str, target: str,
     centre = here[target]
     line = (centre - end[root]) / np.linalg.norm(centre - end[root])
     stop = end[root] - _SHORT * line
-    path = piece_path(others, {m: end[m] - end[root] for m in ms}, start, stop,
-                      locator.spacing)
+    # the last stretch straight in along the docking line (a straight piece, a car,
+    # comes in along it when its line is that line)
+    last = [stop - _LAST * line + f * line for f in np.arange(0.0, _LAST, _CELL)]
+    path = piece_path(others, {m: end[m] - end[root] for m in ms}, start, last[0],
+                      locator.spacing) + last[1:] + [stop]
     _, heading = locator.pose(root)
     return PieceWay(root, target, tuple(ms), heading + turn, pivot,
                     np.array([here[root] + out, *path]), centre)

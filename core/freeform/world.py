@@ -542,11 +542,6 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self.events.append(ConstraintEvent(self.time, module, kind, target,
                                                previous if kind == "flow" else None))
 
-    def in_piece(self, module: str) -> bool:
-        """Whether ``module`` is docked or carries a module (it moves with others)."""
-        k = self._k(module)
-        return self.docked[k] is not None or self._carrying(k)
-
     def _carrying(self, k: int) -> bool:
         """Whether a module is docked on module ``k``."""
         return self.modules[k] in self.docked
@@ -667,23 +662,24 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         rows = np.flatnonzero(d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
         ids = d.efc_id[rows]
         first = rows[np.r_[True, ids[1:] != ids[:-1]]] if len(rows) else rows
-        force = {int(d.efc_id[r]): d.efc_force[r:r + 3] for r in first}
+        force = np.zeros((self.model.neq, 3))
+        force[d.efc_id[first]] = d.efc_force[first[:, None] + np.arange(3)]
         load = np.zeros(len(self.modules))
         strength = np.zeros(len(self.modules))
         factor = self.options.strength_factor
-        for k, parent in enumerate(self.docked):
-            if parent is None:
-                continue
-            key = self.modules[k]
-            on_foot = force.get(self.welds.id(key), np.zeros(3)).copy()
-            strength[k] = factor * self.design.strength
-            if self.sucker[k]:
-                on_foot += force.get(self._suckers.id(key), np.zeros(3))
-                strength[k] += factor * self.design.sucker_strength
-            out = d.xpos[self._shell[k]] - d.xpos[self._shell[self._index[parent]]]
-            out /= max(float(np.linalg.norm(out)), 1e-12)
-            held = on_foot - max(float(on_foot @ out), 0.0) * out
-            load[k] = float(np.linalg.norm(held))
+        ks = np.array([k for k, p in enumerate(self.docked) if p is not None], dtype=int)
+        if len(ks):
+            on_foot = force[[self.welds.id(self.modules[k]) for k in ks]]
+            strength[ks] = factor * self.design.strength
+            held = np.array([self.sucker[k] for k in ks], dtype=bool)
+            if np.any(held):
+                on_foot[held] += force[[self._suckers.id(self.modules[k]) for k in ks[held]]]
+                strength[ks[held]] += factor * self.design.sucker_strength
+            parents = [self._index[self.docked[k]] for k in ks]  # type: ignore[index]
+            out = d.xpos[self._shell[ks]] - d.xpos[self._shell[parents]]
+            out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+            push = np.maximum(np.einsum("ki,ki->k", on_foot, out), 0.0)[:, None]
+            load[ks] = np.linalg.norm(on_foot - push * out, axis=1)
         alpha = min(1.0, duration / self.options.break_filter)
         docked = strength > 0
         self._load = np.where(docked, self._load + alpha * (load - self._load), 0.0)

@@ -91,7 +91,7 @@ def test_a_snailbot_piece_is_refused_travel():
     driver.connect()
     driver.reset(config)
     with pytest.raises(ExecutionError, match="only alone"):
-        driver.send_action({"S1": ModuleCommand(joints={"roll_x": 0.01, "roll_y": 0.0})})
+        driver.send_action({"S1": ModuleCommand(joints={"roll_x": 0.01, "roll_y": 0.0, "turn": 0.0})})
 
 
 def _update(locator, driver) -> None:
