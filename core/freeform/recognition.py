@@ -418,7 +418,8 @@ class ContactController:
                     self._pieces[root] = (way, 2)
             else:
                 path = way.path[:1] if stage == 0 else way.path[1:]
-                velocity, left = pursue(path, where[:2], speed=self.piece_speed)
+                velocity, left = pursue(path, where[:2], speed=self.piece_speed,
+                                        lookahead=_PIECE_LOOKAHEAD)
                 if stage == 0:     # out; a straight piece only along its line
                     if line is not None:
                         left = abs(float((way.path[0] - where[:2]) @ line))
@@ -563,6 +564,7 @@ _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
 
 
+_PIECE_LOOKAHEAD = 0.1     # a piece pursues its way this far ahead [m] (it steers slowly)
 _CAR_END = 0.12             # a straight piece steers onto its way until this close [m]
 def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:
     """Centres (3,) [m] of ``config``'s modules, each connected piece from its first

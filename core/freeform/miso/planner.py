@@ -160,8 +160,8 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
              ) -> tuple[list[Action], Configuration, dict[str, int]]:
     """One action per step, typed by the core's one rule (:func:`~.model.is_flow`, its
     pointer form, tested against :func:`msrr.core.actions.classify`); the last
-    configuration; counts. A break-and-make step whose module carries others gives the
-    connections of the piece that moves with it the goal's vectors (the piece travels
+    configuration; counts. A step that docks a module carrying others (not a flow) gives
+    the connections of the piece that moves with it the goal's vectors (the piece travels
     to its place in the goal's shape, instead of being swung there by the last move)."""
     ids = problem.start_ids
     parent = list(problem.start)
@@ -174,7 +174,7 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
         made = (ConnectionChange(ids[i], ids[step.new]),) if step.new != FREE else ()
         flow = is_flow(parent, i, step.new)   # the pointer form of actions.flow_move
         parent[i] = step.new
-        if broken and made and not flow:
+        if made and not flow:      # the module goes over the floor with its piece
             for m in _carried(parent, i):
                 if (m, parent[m]) in goal_vectors:
                     vectors[(m, parent[m])] = goal_vectors[(m, parent[m])]
@@ -224,7 +224,7 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     parent) or, for any other re-targeting, a break-and-make *parallel connection*
     (disconnection first, then connection; the module carries its in-tree). A last
     *moving* action sets the goal's vectors. Kept connections keep their ids and
-    vectors, except those of a piece a break-and-make step moves, which take the goal's
+    vectors, except those of a piece a (break-and-)make step moves, which take the goal's
     then (it travels into the goal's shape); new ones take the goal's vectors. ``plan.stats`` holds both metrics,
     ``steps`` and ``changes`` (``broken`` + ``made``).
 
