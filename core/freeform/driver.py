@@ -6,8 +6,12 @@ Commands (per module, :class:`~msrr.core.driver.ModuleCommand`):
   the module it is docked on) in that module's horizontal frame; the drive turns the
   module about its parent's centre toward it. ``"sucker": 1`` engages the vacuum sucker
   (SnailBot), ``0`` releases it; ``"twist"`` [rad] turns a module whose sucker holds
-  about the sucker's axis by that angle from where it is now. ``{"roll_x", "roll_y"}``: a free FreeBOT rolls on the
-  ground at this velocity [m/s] in its own horizontal frame (pendulum drive);
+  about the sucker's axis by that angle from where it is now. ``{"roll_x", "roll_y"}``: a free
+  module rolls (FreeBOT, pendulum drive) or crawls (SnailBot) on the ground at this velocity
+  [m/s] in its own horizontal frame (ignored once it is docked); with ``"turn"`` [rad/s], the
+  module rolls as part of a piece travelling as one rigid body that turns at that rate, its
+  centre at that velocity (FreeBOT;
+  :meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`);
 * ``dock=("@Q",)`` arms the connector to latch on ``Q`` when the shells touch (while
   docked on ``P``: a flow, the switch happens at once); ``dock=(port,)`` (the module's
   port name) latches on whatever it touches first;
@@ -71,11 +75,11 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
         self._moving = set(commands)
         for module, command in commands.items():
             joints = dict(command.joints)
-            extra = set(joints) - {*_JOINTS, *_ROLL, "sucker", "twist"}
+            extra = set(joints) - {*_JOINTS, *_ROLL, "turn", "sucker", "twist"}
             if extra or command.wheels:
                 raise ExecutionError(f"module {module}: unknown joint(s) "
                                      f"{sorted(extra | set(command.wheels))} (known: "
-                                     f"{', '.join(_JOINTS + _ROLL)}, sucker, twist)")
+                                     f"{', '.join(_JOINTS + _ROLL)}, turn, sucker, twist)")
             for port in command.dock:      # first: an undock with a dock armed is a flow
                 world.command_dock(module, self._other(module, port))
             for port in command.undock:
@@ -84,9 +88,12 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
                 world.command_sucker(module, joints["sucker"] > 0.5)
             if "twist" in joints:
                 world.command_twist(module, float(joints["twist"]))
-            if any(n in joints for n in _ROLL):
-                world.command_roll(module, np.array([joints.get("roll_x", 0.0),
-                                                     joints.get("roll_y", 0.0), 0.0]))
+            if any(n in joints for n in (*_ROLL, "turn")):
+                velocity = np.array([joints.get("roll_x", 0.0), joints.get("roll_y", 0.0), 0.0])
+                if "turn" in joints:
+                    world.command_travel(module, velocity, float(joints.get("turn", 0.0)))
+                else:
+                    world.command_roll(module, velocity)
             present = [n in joints for n in _JOINTS]
             if any(present):
                 if not all(present):

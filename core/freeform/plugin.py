@@ -136,8 +136,11 @@ class FreeformPlugin:
         from .recognition import ContactController
 
         shared = self.recognizer()
+        # a piece's shells roll under their arms on their bearings (FreeBOT), its fastest
+        # centre at 80 % of a shell's rolling bound, the rest for the motors' loops
+        piece = 0.8 * self.design.max_rate * self.design.radius if self.design.bearing else 0.0
         return [ContactController(mode.controller, shared, sucker=mode.name == self.sucker,
-                                  spacing=2.0 * self.design.radius)
+                                  spacing=2.0 * self.design.radius, piece_speed=piece)
                 for mode in self.joint_modes()]
 
     # -- hooks --------------------------------------------------------------------------

@@ -43,7 +43,15 @@ from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
-from .travel import Locator, floor_path, pursue
+from .travel import (
+    Locator,
+    PieceWay,
+    floor_path,
+    plan_piece_way,
+    pursue,
+    straight_line,
+    twist_velocities,
+)
 from .world import ModuleReport
 
 __all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
@@ -273,11 +281,15 @@ class ContactController:
         spacing: centre distance of two docked modules [m] (the dead reckoning's scale).
         ground_speed: fastest travel of a free module over the floor [m/s].
         arrive: distance [m] from the docking spot under which an approach is reached.
+        piece_speed: fastest centre of a piece travelling over the floor [m/s], or 0: a
+            module that carries others does not travel (its connector is rigid with the
+            shell its tracks hold: SnailBot).
     """
 
     def __init__(self, name: str, recognizer: ContactRecognizer, *, sucker: bool = False,
                  tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0),
-                 spacing: float = 0.1, ground_speed: float = 0.04, arrive: float = 0.005):
+                 spacing: float = 0.1, ground_speed: float = 0.04, arrive: float = 0.005,
+                 piece_speed: float = 0.0):
         self.name = name
         self.description = (f"{recognizer.robot} connection vectors -> drive commands"
                              + (" (sucker engaged)" if sucker else ""))
@@ -289,8 +301,11 @@ class ContactController:
         self.arrive = arrive
         self.locator = Locator(spacing)
         self._yaw = 0.0
+        self.piece_speed = piece_speed
         self._ways: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
         """module -> (target, its way, the target's centre): odometry frame ``O``."""
+        self._pieces: dict[str, tuple[PieceWay, int]] = {}
+        """root -> (its piece's way, the stage reached: out, turn, along)."""
 
     def commands(self, target: Configuration, observation: Observation, *,
                  yaw: float | None = None, current: Configuration | None = None
@@ -328,11 +343,11 @@ class ContactController:
         self._locate(reports)
         current = self.recognizer.recognize(reports)
         if phase is Phase.APPROACH:
-            self._ways = self._plan_ways(current, action, reports)
+            self._ways, self._pieces = self._plan_ways(current, action, reports)
             return
-        if phase is Phase.CONNECT and self._ways:
+        if phase is Phase.CONNECT and (self._ways or self._pieces):
             return
-        self._ways = {}
+        self._ways, self._pieces = {}, {}
         self._yaw = skeletal_errors(current, action.target)[2]
 
     def _locate(self, reports: Reports) -> None:
@@ -341,30 +356,98 @@ class ContactController:
         self.locator.update(reports, links, module_headings(reports, links))
 
     def _plan_ways(self, current: Configuration, action: Action, reports: Reports
-                   ) -> dict[str, tuple[str, np.ndarray, np.ndarray]]:
+                   ) -> tuple[dict[str, tuple[str, np.ndarray, np.ndarray]],
+                              dict[str, tuple[PieceWay, int]]]:
         """The way over the floor (points (n, 2) in its odometry frame) of each module the
-        action docks while it is free, and its target's centre (2,) in that frame: it
-        travels alone to a spot touching its target.
+        action docks while it is free and alone, and its target's centre (2,) in that
+        frame: it travels alone to a spot touching its target; and the
+        :class:`~msrr.core.freeform.travel.PieceWay` of each such module that carries
+        others (its piece travels as one rigid body to the place the action's target
+        gives it).
 
         Raises:
-            ExecutionError: such a module carries others (a group does not travel), or no
-                way is free (:func:`~msrr.core.freeform.travel.floor_path`).
+            ExecutionError: no way is free (:func:`~msrr.core.freeform.travel.floor_path`,
+                :func:`~msrr.core.freeform.travel.plan_piece_way`), or a piece is to
+                travel but the robot's pieces do not (``piece_speed`` 0).
         """
-        ways = {}
+        ways, pieces = {}, {}
+        goal: dict[str, np.ndarray] | None = None
         for change in topology_diff(current, action.target).made:
             module, target = change.source, change.target
             if _joined(current, module, target):
                 continue
             if not self.locator.alone(module):
-                raise ExecutionError(f"module {module} is to dock on {target} but carries "
-                                     "other modules: only a module alone travels over the floor")
+                if not self.piece_speed:
+                    raise ExecutionError(f"module {module} is to dock on {target} but carries "
+                                         f"other modules: a {self.recognizer.robot} travels "
+                                         "over the floor only alone")
+                goal = goal or _layout(action.target, self.locator.spacing)
+                pieces[module] = (plan_piece_way(self.locator, module, target, goal), 0)
+                continue
             others = self.locator.relative(module)
             way = floor_path(others, target, self.locator.spacing)
             odometry = reports[module].odometry
             into = rot_z(float(odometry[2]))[:2, :2]
             ways[module] = (target, odometry[:2] + np.array(way) @ into.T,
                             odometry[:2] + into @ others[target][:2])
-        return ways
+        return ways, pieces
+
+    def _travel_pieces(self, phase: Phase) -> Control:
+        """One tick of the pieces' travel (approach: out, turn, along the way; see
+        :class:`~msrr.core.freeform.travel.PieceWay`), or of their guarded push onto the
+        target with the root's connector armed (connect): a twist of each piece from its
+        pose on the map (:meth:`Locator.pose`), sent to each of its modules as the
+        velocity of its own centre (:func:`~msrr.core.freeform.travel.twist_velocities`).
+        A straight piece moves as a car (it cannot roll across its line): along its line,
+        turning about its centroid, steering its line onto its way until near its end."""
+        commands, errors = {}, {}
+        for root, (way, stage) in list(self._pieces.items()):
+            where, heading = self.locator.pose(root)
+            centres = {m: self.locator.pose(m)[0] for m in way.piece}
+            headings = {m: self.locator.pose(m)[1] for m in way.piece}
+            line = straight_line(np.array(list(centres.values())), self.locator.spacing)
+            off = _wrap(way.heading - heading)
+            turn = float(np.clip(_YAW_GAIN * off, -1.0, 1.0))
+            if phase is Phase.CONNECT:
+                toward = way.centre - where[:2]
+                velocity = 0.5 * self.piece_speed * _unit(toward)
+                left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
+            elif stage == 1:
+                velocity, left = np.zeros(2), 1.0 + abs(off)
+                if abs(off) < _YAW_DONE:
+                    self._pieces[root] = (way, 2)
+            else:
+                path = way.path[:1] if stage == 0 else way.path[1:]
+                velocity, left = pursue(path, where[:2], speed=self.piece_speed,
+                                        lookahead=_PIECE_LOOKAHEAD)
+                if stage == 0:     # out; a straight piece only along its line
+                    if line is not None:
+                        left = abs(float((way.path[0] - where[:2]) @ line))
+                    turn, left = 0.0, left + 1.0
+                    if left < 1.0 + self.arrive:
+                        self._pieces[root] = (way, 1)
+                else:
+                    if line is not None and left > _CAR_END and np.linalg.norm(velocity) > 0:
+                        ahead = np.sign(float(velocity @ line) or 1.0) * line
+                        turn = float(np.clip(_YAW_GAIN * np.arctan2(
+                            ahead[0] * velocity[1] - ahead[1] * velocity[0],
+                            ahead @ velocity), -1.0, 1.0))
+                    left += abs(off) * self.locator.spacing
+            about = where[:2] if line is None else np.mean([c[:2] for c in centres.values()],
+                                                           axis=0)
+            if stage == 1 and phase is Phase.APPROACH:
+                about = way.pivot
+            if line is not None:
+                velocity = float(velocity @ line) * line
+            velocities, w = twist_velocities(centres, headings, velocity, turn, about,
+                                             speed=self.piece_speed)
+            for m, v in velocities.items():
+                dock = (f"@{way.target}",) if phase is Phase.CONNECT and m == root else ()
+                commands[m] = ModuleCommand(joints={"roll_x": float(v[0]), "roll_y": float(v[1]),
+                                                    "turn": w}, dock=dock)
+            errors[root] = left
+        return Control(commands=commands, errors=errors,
+                       reached=all(e < self.arrive for e in errors.values()))
 
     def _travel(self, phase: Phase, reports: Reports) -> Control:
         """One tick of the free modules' travel (approach), or of their last push onto
@@ -405,8 +488,12 @@ class ContactController:
         """
         reports = observation.sensors
         self._locate(reports)
-        if self._ways and phase in (Phase.APPROACH, Phase.CONNECT):
-            return self._travel(phase, reports)
+        if (self._ways or self._pieces) and phase in (Phase.APPROACH, Phase.CONNECT):
+            lone = self._travel(phase, reports)
+            pieces = self._travel_pieces(phase)
+            return Control(commands={**lone.commands, **pieces.commands},
+                           errors={**lone.errors, **pieces.errors},
+                           reached=lone.reached and pieces.reached)
         if action.type is ActionType.FLOW and phase in (Phase.FLOW, Phase.HANDOVER):
             flow = flow_of(action)
             if flow.broken.source != flow.leaf or flow.made.source != flow.leaf:
@@ -429,7 +516,8 @@ class ContactController:
         diff = topology_diff(current, action.target)
         commands: dict[str, ModuleCommand] = {}
         if phase is Phase.RELEASE:
-            _refuse_carried_travel(current, action)
+            if not self.piece_speed:
+                _refuse_carried_travel(current, action)
             commands = {c.source: ModuleCommand(undock=(f"@{c.target}",)) for c in diff.broken}
         elif phase is Phase.CONNECT:
             commands = {c.source: ModuleCommand(dock=(f"@{c.target}",)) for c in diff.made}
@@ -470,6 +558,32 @@ def _refuse_carried_travel(current: Configuration, action: Action) -> None:
                 f"{len(carried)} module(s) ({', '.join(carried[:3])}"
                 f"{', ...' if len(carried) > 3 else ''}): only a module alone travels over "
                 "the floor")
+
+
+_YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
+_YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
+
+
+_PIECE_LOOKAHEAD = 0.1     # a piece pursues its way this far ahead [m] (it steers slowly)
+_CAR_END = 0.12             # a straight piece steers onto its way until this close [m]
+def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:
+    """Centres (3,) [m] of ``config``'s modules, each connected piece from its first
+    module (:func:`~msrr.core.freeform.travel.lay_out_pieces`)."""
+    from .travel import lay_out_pieces
+
+    adjacent: dict[str, list[tuple[str, np.ndarray]]] = {m: [] for m in config.modules()}
+    for e in config.edges():
+        if e.z is not None:
+            z = np.asarray(e.z, dtype=float)
+            adjacent[e.source].append((e.target, z))
+            adjacent[e.target].append((e.source, -z))
+    return {m: p for piece in lay_out_pieces(adjacent, sorted(adjacent), spacing)
+            for m, p in piece.items()}
+
+
+def _wrap(angle: float) -> float:
+    """``angle`` [rad] in [-pi, pi)."""
+    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 def _unit(vector: np.ndarray) -> np.ndarray:

@@ -1,18 +1,21 @@
 """Free single-connector modules on the floor: where they are, from their reports alone,
 and the way to the module they are to dock on.
 
-**Dead reckoning** (:class:`Locator`). While a module is docked in a group, the group's
-reports place it: breadth-first from the group's root, ``p_j = p_i + s z_{i->j}`` (``s``
-the centre spacing, ``z`` the recognized connection vectors, root horizontal frame),
-with its heading ``psi_i`` in that frame. Each tick the locator keeps, for every module
-of a group of two or more, that *fix*: the group's centres, the module's heading and its
-odometry ``(x, y, yaw)`` (:class:`~msrr.core.freeform.world.ModuleReport`: the gyro's
-yaw, and the travel its drive senses while free, both in its own odometry frame ``O``).
-Once the module is free (a break, or a release), a vector ``v_R`` of the last fix (root
-frame) is, in ``O``, ``v_O = Rz(yaw_0) Rz(-psi) v_R``; the module has since travelled
-``o(t) - o_0``, so the vector from where it is now is ``v_O - (o(t) - o_0)`` and, in its
-horizontal frame now (the frame of its roll command), ``Rz(-yaw(t))`` of that. The rest
-of the group is taken to stay where it was (its modules hold while one travels).
+**Dead reckoning** (:class:`Locator`). The reports give each group's shape: breadth-first
+from the group's root, ``p_j = p_i + s z_{i->j}`` (``s`` the centre spacing, ``z`` the
+recognized connection vectors, root horizontal frame), with each module's heading
+``psi_i`` in that frame. They do not say where the groups are relative to each other;
+that comes from the modules' odometry ``(x, y, yaw)``
+(:class:`~msrr.core.freeform.world.ModuleReport`: the gyro's yaw, and the travel its
+drive senses while free or while its piece travels, in its own odometry frame ``O``).
+The locator keeps a map: every module's position and the map yaw ``f_m`` of its ``O``.
+Each tick each group is placed on it as a rigid body: its yaw the circular mean over its
+modules of what their gyros say (``f_m + yaw_m - psi_m``), its offset the mean of where
+their odometry says they went (``p_m + Rz(f_m) (o_m(t) - o_m(t - 1))``, less their place
+in the group). So a module or a piece that lets go and travels is followed by the travel
+its own shells sense, averaged over its modules, while the rest, which holds, stays; a
+dock joins the two on the map. Groups never seen joined (the pieces of a start that is a
+forest) are islands whose relative places are unknown, until a dock joins them.
 
 **The way** (:func:`floor_path`). The module goes to a *spot* touching the target (at
 the spacing from its centre, level), the free spot nearest to it; other modules at floor
@@ -29,11 +32,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..alignment import rot_z
 from ..errors import ExecutionError
 
-__all__ = ["Fix", "Locator", "floor_path", "pursue"]
+__all__ = ["Locator", "PieceWay", "floor_path", "piece_goal", "piece_path", "plan_piece_way",
+           "pursue", "straight_line", "twist_velocities"]
 
 _CELL = 0.01          # grid of the floor path [m]
 _CLEARANCE = 0.008    # kept between shells on the way [m]
@@ -41,21 +46,6 @@ _BACK_OFF = 0.015     # a module touching others first moves this far away from 
 _GRAZE = 0.003        # kept from a module the start touches, beyond where the start is [m]
 _SPOTS = 72           # directions tried for the docking spot
 _LEVEL = 0.5          # a module is on the floor level within this many spacings in z
-
-
-@dataclass(frozen=True)
-class Fix:
-    """Where a module last was in a group of two or more.
-
-    Attributes:
-        centres: every module of the group, centre (3,) in the group's root frame [m].
-        heading: the module's heading in that frame [rad].
-        odometry: its ``(x, y, yaw)`` report then.
-    """
-
-    centres: Mapping[str, np.ndarray]
-    heading: float
-    odometry: np.ndarray
 
 
 def centres_of(reports: Mapping[str, object], links: Mapping[str, str],
@@ -102,8 +92,9 @@ def lay_out_pieces(adjacent: Mapping[str, Sequence[tuple[str, np.ndarray]]],
 
 
 class Locator:
-    """Where free modules are relative to the modules of the group they left, by dead
-    reckoning from their reports (module docstring).
+    """Where every module is, on a map kept from the module reports alone (module
+    docstring): each group's pose on the map from its modules' odometry and gyros, its
+    shape from the recognized connections.
 
     Args:
         spacing: centre distance of two docked modules [m].
@@ -111,54 +102,269 @@ class Locator:
 
     def __init__(self, spacing: float):
         self.spacing = spacing
-        self.fixes: dict[str, Fix] = {}
-        self._now: tuple[dict[str, np.ndarray], dict[str, float], list[set[str]]] | None = None
+        self.position: dict[str, np.ndarray] = {}   # map position (3,) [m]
+        self.frame: dict[str, float] = {}            # map yaw of its odometry frame [rad]
+        self.island: dict[str, int] = {}             # modules whose relative place is known
         self._odometry: dict[str, np.ndarray] = {}
+        self._groups: list[set[str]] = []
+        self._islands = 0
 
     def update(self, reports: Mapping[str, object], links: Mapping[str, str],
                heading: Mapping[str, float]) -> None:
         """Read one tick's reports (with their links and headings, see
-        :func:`centres_of`): fixes of every module in a group of two or more."""
-        centres, heading, groups = self._now = centres_of(reports, links, heading,
-                                                          self.spacing)
-        self._odometry = {m: np.asarray(r.odometry, dtype=float)  # type: ignore[attr-defined]
-                          for m, r in reports.items()}
+        :func:`centres_of`) and move every group on the map (:meth:`_place`)."""
+        centres, heading, groups = centres_of(reports, links, heading, self.spacing)
+        self._groups = groups
+        odometry = {m: np.asarray(r.odometry, dtype=float)  # type: ignore[attr-defined]
+                    for m, r in reports.items()}
         for group in groups:
-            if len(group) < 2:
-                continue
-            shared = {m: centres[m] for m in group}
-            for m in group:
-                self.fixes[m] = Fix(shared, heading[m], self._odometry[m])
+            self._place(sorted(group), centres, heading, odometry)
+        self._odometry.update(odometry)
+
+    def _place(self, group: list[str], centres: Mapping[str, np.ndarray],
+               heading: Mapping[str, float], odometry: Mapping[str, np.ndarray]) -> None:
+        """Put ``group`` on the map: its yaw ``psi`` the circular mean over its placed
+        modules of ``frame_m + yaw_m - heading_m`` (each gyro's), its offset ``t`` the
+        mean of ``p_m + Rz(frame_m) (o_m(t) - o_m(t-1)) - Rz(psi) c_m`` (each
+        odometry's travel since the last tick, ``c_m`` its centre in the group's frame);
+        a group with no placed module starts an island of its own. Modules of other
+        islands joined to it (a dock) bring their islands along, moved by the same
+        rigid motion."""
+        known = [m for m in group if m in self.position]
+        if not known:
+            psi, t = 0.0, np.zeros(3)
+            self._islands += 1
+            island = self._islands
+        else:
+            island = min(self.island[m] for m in known)
+            home = [m for m in known if self.island[m] == island]
+            yaws = [self.frame[m] + odometry[m][2] - heading[m] for m in home]
+            psi = float(np.arctan2(np.mean(np.sin(yaws)), np.mean(np.cos(yaws))))
+            turn = rot_z(psi)
+            t = np.mean([self.position[m] + rot_z(self.frame[m]) @ np.append(
+                odometry[m][:2] - self._odometry[m][:2], 0.0) - turn @ centres[m]
+                for m in home], axis=0)
+            for other in sorted({self.island[m] for m in known} - {island}):
+                m = next(m for m in known if self.island[m] == other)
+                self._join(other, island, m, t + turn @ centres[m],
+                           psi + heading[m] - float(odometry[m][2]))
+        turn = rot_z(psi)
+        for m in group:
+            self.position[m] = t + turn @ centres[m]
+            self.frame[m] = psi + heading[m] - float(odometry[m][2])
+            self.island[m] = island
+
+    def _join(self, other: int, island: int, module: str, position: np.ndarray,
+              frame: float) -> None:
+        """Move island ``other`` into ``island`` so that ``module`` lands at ``position``
+        (3,) with its odometry frame at map yaw ``frame``."""
+        delta = frame - self.frame[module]
+        turn, anchor = rot_z(delta), self.position[module]
+        for m in [m for m, i in self.island.items() if i == other]:
+            self.position[m] = position + turn @ (self.position[m] - anchor)
+            self.frame[m] += delta
+            self.island[m] = island
+
+    def pose(self, module: str) -> tuple[np.ndarray, float]:
+        """``module``'s map position (3,) [m] and the map heading [rad] of its horizontal
+        frame (the frame of its travel commands)."""
+        return self.position[module], self.frame[module] + float(self._odometry[module][2])
+
+    def piece(self, module: str) -> set[str]:
+        """The modules joined to ``module`` by docks now (itself included)."""
+        return next(g for g in self._groups if module in g)
 
     def alone(self, module: str) -> bool:
         """Whether ``module`` is free and carries no module (a group of its own)."""
-        assert self._now is not None, "update first"
-        return any(g == {module} for g in self._now[2])
+        return self.piece(module) == {module}
 
     def relative(self, module: str) -> dict[str, np.ndarray]:
-        """Every module of ``module``'s last group, as a vector (3,) from ``module``'s
-        centre in its horizontal frame now [m]: from the group's reports while it is in
-        one, by dead reckoning since its last fix once it is alone.
+        """Every other module whose place relative to ``module`` is known, as a vector
+        (3,) from ``module``'s centre in its horizontal frame now [m].
 
         Raises:
-            ExecutionError: ``module`` never was in a group (no report places it).
+            ExecutionError: no module shares ``module``'s island (no report ever placed
+                another module relative to it).
         """
-        assert self._now is not None, "update first"
-        centres, heading, groups = self._now
-        group = next(g for g in groups if module in g)
-        if len(group) > 1:
-            turn = rot_z(-heading[module])
-            return {m: turn @ (centres[m] - centres[module]) for m in group if m != module}
-        fix = self.fixes.get(module)
-        if fix is None:
+        island = self.island[module]
+        turn = rot_z(-(self.frame[module] + float(self._odometry[module][2])))
+        out = {m: turn @ (p - self.position[module]) for m, p in self.position.items()
+               if m != module and self.island[m] == island}
+        if not out:
             raise ExecutionError(f"module {module} was never docked in a group: no report "
                                  "tells where it is")
-        now = self._odometry[module]
-        into_odometry = rot_z(float(fix.odometry[2]) - fix.heading)
-        travelled = np.append(now[:2] - fix.odometry[:2], 0.0)
-        back = rot_z(-float(now[2]))
-        return {m: back @ (into_odometry @ (c - fix.centres[module]) - travelled)
-                for m, c in fix.centres.items() if m != module}
+        return out
+
+
+def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
+               piece: set[str], target: str) -> dict[str, np.ndarray]:
+    """Where the modules of ``piece`` must be (2,) [m] for ``goal``'s shape with the
+    module they dock on, ``target``, which stays: ``goal``'s centres (3,) of ``piece``
+    turned by the yaw that best brings ``goal``'s other modules onto ``here`` (the
+    centres now of the modules that stay, the target's group: one frame; least squares,
+    weighted alike) and put so that ``target`` is where it is now."""
+    fixed = sorted(m for m in goal if m not in piece and m in here)
+    a = np.array([np.asarray(goal[m], dtype=float)[:2] for m in fixed])
+    b = np.array([np.asarray(here[m], dtype=float)[:2] for m in fixed])
+    a, b = a - a.mean(axis=0), b - b.mean(axis=0)
+    yaw = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                           np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    turn = rot_z(yaw)[:2, :2]
+    origin = np.asarray(goal[target], dtype=float)[:2]
+    return {m: np.asarray(here[target], dtype=float)[:2] + turn @ (
+        np.asarray(goal[m], dtype=float)[:2] - origin) for m in piece}
+
+
+def piece_path(others: Mapping[str, np.ndarray], offsets: Mapping[str, np.ndarray],
+               start: np.ndarray, end: np.ndarray, spacing: float) -> list[np.ndarray]:
+    """The way (points (2,) [m]) of a piece that translates from ``start`` to ``end``
+    (its reference point), its modules at ``offsets`` (2,) from that point, clear of
+    ``others`` (centres (2,) or (3,), floor level within two spacings): A* in the plane
+    of the reference point, each other module a disc of ``spacing`` plus a clearance
+    about each of ``o - d_m`` (the Minkowski sum of the piece and the discs).
+
+    Raises:
+        ExecutionError: no way is free.
+    """
+    level = [np.asarray(c, dtype=float)[:2] for c in others.values()
+             if len(c) < 3 or abs(c[2]) < 2 * spacing]
+    discs = [o - np.asarray(d, dtype=float)[:2] for o in level for d in offsets.values()]
+    path = _astar(np.asarray(start, dtype=float), np.asarray(end, dtype=float), discs,
+                  [spacing + _CLEARANCE] * len(discs))
+    if path is None:
+        raise ExecutionError(f"no free way over the floor for a piece of {len(offsets)} "
+                             "modules")
+    return path
+
+
+_BACK_OUT = 0.03      # a piece first moves this far from the modules it touches [m]
+_SHORT = 0.02         # and stops this far short of its docking spot [m]
+_LAST = 0.15          # its way's last stretch, straight in along the docking line [m]
+_TURN_FREE = np.radians(10.0)  # a smaller turn of a piece needs no room of its own
+_FARTHEST = 1.0       # farthest a piece backs out to turn [m]
+
+
+@dataclass(frozen=True)
+class PieceWay:
+    """How a piece travels to dock its free module ``root`` on ``target`` (map frame:
+    :class:`Locator`): out from what it touches to ``path[0]``, a turn in place about
+    ``pivot`` to the root's heading ``heading``, along ``path`` (the root's centre,
+    points (n, 2) [m]) to a stop short of its docking spot, then in along the line to
+    ``centre`` (the target's) until the connector latches.
+    """
+
+    root: str
+    target: str
+    piece: tuple[str, ...]
+    heading: float
+    pivot: np.ndarray
+    path: np.ndarray
+    centre: np.ndarray
+
+
+def plan_piece_way(locator: Locator, root: str, target: str,
+                   goal: Mapping[str, np.ndarray]) -> PieceWay:
+    """The :class:`PieceWay` of the piece led by ``root`` to dock on ``target`` in the
+    shape of ``goal`` (centres (3,) of the goal configuration, any frame): where it
+    must end (:func:`piece_goal`), the turn that takes it there (least squares over
+    its modules), and a way for the turned piece clear of every other module
+    (:func:`piece_path`).
+
+    Raises:
+        ExecutionError: ``target`` is on no map island with ``root`` (nothing tells where
+            it is), or no way is free.
+    """
+    piece = locator.piece(root)
+    near = locator.relative(root)              # raises if root's island is alone
+    if target not in near:
+        raise ExecutionError(f"module {target} was never joined to the piece of {root}: "
+                             "no report tells where it is")
+    here = {m: p[:2] for m, p in locator.position.items()
+            if locator.island[m] == locator.island[root]}
+    staying = {m: here[m] for m in locator.piece(target)}
+    end = piece_goal(goal, staying | {m: here[m] for m in piece}, piece, target)
+    ms = sorted(piece)
+    now = np.array([here[m] for m in ms])
+    then = np.array([end[m] for m in ms])
+    a, b = now - now.mean(axis=0), then - then.mean(axis=0)
+    turn = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    others = {m: p for m, p in here.items() if m not in piece}
+    touching = [(here[m] - o) / max(float(np.linalg.norm(here[m] - o)), 1e-9)
+                for m in ms for o in others.values()
+                if np.linalg.norm(here[m] - o) < locator.spacing + _CLEARANCE]
+    out = np.sum(touching, axis=0) if touching else np.zeros(2)
+    middle = now.mean(axis=0)
+    line = straight_line(now, locator.spacing)
+    if line is not None and touching:    # a straight piece backs out along its line,
+        ends = [float(np.min(np.linalg.norm(np.array(list(others.values())).reshape(-1, 2)
+                                            - (middle + _BACK_OUT * sign * line), axis=1)))
+                for sign in (1.0, -1.0)]          # to the side with more room
+        out = line * (1.0 if ends[0] >= ends[1] else -1.0)
+    out = out / np.linalg.norm(out) if np.linalg.norm(out) > 1e-9 else out
+    if abs(turn) > _TURN_FREE:   # out until the disc the turn sweeps is clear
+        sweep = float(np.max(np.linalg.norm(now - middle, axis=1))) + locator.spacing \
+            + _CLEARANCE
+        rest = np.array(list(others.values())).reshape(-1, 2)
+        far = _BACK_OUT
+        while len(rest) and np.min(np.linalg.norm(rest - middle - far * out, axis=1)) < sweep \
+                and far < _FARTHEST:
+            far += _CELL
+        out = far * out
+    else:
+        out = _BACK_OUT * out
+    pivot = middle + out
+    start = pivot + rot_z(turn)[:2, :2] @ (here[root] + out - pivot)
+    centre = here[target]
+    line = (centre - end[root]) / np.linalg.norm(centre - end[root])
+    stop = end[root] - _SHORT * line
+    # the last stretch straight in along the docking line (a straight piece, a car,
+    # comes in along it when its line is that line)
+    last = [stop - _LAST * line + f * line for f in np.arange(0.0, _LAST, _CELL)]
+    path = piece_path(others, {m: end[m] - end[root] for m in ms}, start, last[0],
+                      locator.spacing) + last[1:] + [stop]
+    _, heading = locator.pose(root)
+    return PieceWay(root, target, tuple(ms), heading + turn, pivot,
+                    np.array([here[root] + out, *path]), centre)
+
+
+_STRAIGHT = 0.25      # a piece is straight within this many spacings of its line
+
+
+def straight_line(points: np.ndarray, spacing: float) -> np.ndarray | None:
+    """The unit direction (2,) of the line through ``points`` (n, 2+) [m] if every point
+    is within a quarter ``spacing`` of it (a straight piece, which moves along its line
+    only: :meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`), else
+    ``None``; ``None`` for a single point."""
+    flat = np.asarray(points, dtype=float)[:, :2]
+    if len(flat) < 2:
+        return None
+    flat = flat - flat.mean(axis=0)
+    line = np.linalg.svd(flat)[2][0]
+    across = flat - np.outer(flat @ line, line)
+    return None if np.max(np.linalg.norm(across, axis=1)) > _STRAIGHT * spacing else line
+
+
+def twist_velocities(centres: Mapping[str, np.ndarray], headings: Mapping[str, float],
+                     velocity: np.ndarray, turn: float, about: np.ndarray, *,
+                     speed: float) -> tuple[dict[str, np.ndarray], float]:
+    """Each module's centre velocity (2,) [m/s] in its own horizontal frame when its piece
+    moves as one rigid body, ``v_k = v + w e_z x (p_k - p)``, and the turn [rad/s]; both
+    scaled down together so that no centre goes faster than ``speed`` [m/s] (a shell
+    rolls at ``|v_k| / r``: its motors' rate bounds it).
+
+    Args:
+        centres: the piece's centres (3,) [m], one frame. headings: the modules' headings
+            in it [rad]. velocity: ``v`` (2,) of the point ``about`` (2,) [m/s], same
+            frame. turn: ``w`` [rad/s].
+    """
+    ms = sorted(centres)
+    arm = np.array([np.asarray(centres[m], dtype=float)[:2] for m in ms]) - about
+    v = np.asarray(velocity, dtype=float) + turn * np.column_stack([-arm[:, 1], arm[:, 0]])
+    fastest = float(np.max(np.linalg.norm(v, axis=1)))
+    scale = min(1.0, speed / fastest) if fastest > 0 else 1.0
+    return ({m: scale * (rot_z(-float(headings[m]))[:2, :2] @ v[i]) for i, m in enumerate(ms)},
+            scale * turn)
 
 
 def floor_path(others: Mapping[str, np.ndarray], target: str, spacing: float
@@ -207,11 +413,15 @@ def _astar(start: np.ndarray, end: np.ndarray, centres: Sequence[np.ndarray],
     ys = low[1] + _CELL * np.arange(shape[1])
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     blocked = np.zeros(shape, dtype=bool)
-    for c, r in zip(centres, radii, strict=True):
-        # a module the start already touches: the way never comes closer to it than the
-        # start is (grazing a shell while rolling pushes its group away)
-        r = min(r, float(np.linalg.norm(start - c)) + _GRAZE)
-        blocked |= np.hypot(gx - c[0], gy - c[1]) < r
+    # a module the start already touches: the way never comes closer to it than the
+    # start is (grazing a shell while rolling pushes its group away)
+    discs = np.array(centres, dtype=float).reshape(-1, 2)
+    reach = np.minimum(np.asarray(radii, dtype=float),
+                       np.linalg.norm(discs - start, axis=1) + _GRAZE)
+    cells = np.column_stack([gx.ravel(), gy.ravel()])
+    for r in np.unique(reach):      # one nearest-disc query per radius
+        near, _ = cKDTree(discs[reach == r]).query(cells, distance_upper_bound=r)
+        blocked |= (near < r).reshape(shape)
 
     def cell(p: np.ndarray) -> tuple[int, int]:
         i, j = np.rint((p - low) / _CELL).astype(int)

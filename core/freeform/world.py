@@ -33,6 +33,12 @@ the flowing module is a leaf, nothing hangs on it) and the weld switches from ``
 ``Q`` in the same step. An undock of ``P`` sent meanwhile waits for that switch. Other
 docks draw the foot onto the centre (time constant ``seat``).
 
+**Travel of a piece** (FreeBOT, :meth:`FreeformWorld.command_travel`): every module of a
+connected piece rolls its shell under its arm while its drive and bearing track the goals
+of one rigid twist, so the piece moves over the floor as one body, each module driving.
+A straight piece moves along its line and turns, but does not roll across its line
+(nothing outside it gives a torque about that line).
+
 **Sucker** (SnailBot): a connect equality pins the contact point (``r`` along the
 connector axis) to the substrate; with the foot on the substrate's centre, the module
 can then only turn about the line through both -- the sucker's revolute joint.
@@ -175,9 +181,10 @@ class ModuleReport:
         events: its connector's constraint events since the previous report.
         odometry: ``(x, y, yaw)`` (3,): its dead-reckoned pose on the floor in its own
             odometry frame (its horizontal frame at reset) [m, m, rad]: the turn about the
-            vertical its gyro integrates (its frame of travel commands), and the centre's travel its drive senses while its connector is
-            free (FreeBOT: the shell's rotation, rolling without slip; SnailBot: the
-            tracks); docked, the position stays where it was.
+            vertical its gyro integrates (its frame of travel commands), and the centre's
+            travel its drive senses while its connector is free or its piece travels
+            (FreeBOT: the shell's rotation, rolling without slip; SnailBot: the tracks);
+            otherwise the position stays where it was.
     """
 
     attached: str | None
@@ -252,7 +259,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self.modules = sorted(v for v in config.vertices() if not config.is_virtual(v))
         self._index = {m: i for i, m in enumerate(self.modules)}
         centres, frames = place(config, self.length, design.radius)
-        self._conn0 = [frames[m] if design.bearing else np.eye(3) for m in self.modules]
+        self._conn0 = np.array([Rotation.from_matrix(frames[m] if design.bearing else np.eye(3))
+                                .as_quat(scalar_first=True) for m in self.modules])
         self._suckers: Switches[str] = Switches()
         self.compile(self._build(centres, frames))
         self._suckers.bind(self.model)
@@ -273,6 +281,11 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._target = np.tile(np.array([1.0, 0, 0, 0]), (n, 1))
         self._rolling = np.zeros(n, dtype=bool)   # bearing free: the shell rolls
         self._roll = np.zeros((n, 3))              # ground velocity of a free module [m/s]
+        self._travel = np.zeros(n, dtype=bool)     # rolls as part of a travelling piece
+        self._travel_v = np.zeros((n, 3))          # its centre's ground velocity [m/s]
+        self._travel_w = np.zeros(n)               # its turn about the vertical [rad/s]
+        self._shell_goal = np.tile([1.0, 0, 0, 0], (n, 1))   # where its shell should be
+        self._conn_goal = np.tile([1.0, 0, 0, 0], (n, 1))    # and its connector (world)
         self._free_adr = np.array([m.joint(f"free/{i}").dofadr[0] for i in self.modules])
         self._bearing = np.array([m.joint(f"bearing/{i}").dofadr[0] for i in self.modules]
                                  )[:, None] + np.arange(3) if design.bearing else None
@@ -406,6 +419,42 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         else:
             self._tracks(k, bool(np.any(v)))
 
+    def command_travel(self, module: str, velocity: np.ndarray, turn: float) -> None:
+        """Roll ``module`` over the floor as part of a piece travelling as one rigid body:
+        its centre at ``velocity`` (3,) [m/s], given in its own horizontal frame as its
+        gyro keeps it (vertical part ignored), while the piece turns at ``turn`` [rad/s]
+        about the vertical; the velocity turns with the piece (a constant twist in the
+        piece's frame) until the next command. The controller sends every module of the piece the velocity
+        of its own centre under one twist, ``v_k = v + w e_z x (p_k - p)``.
+
+        A connection is an arm from the module's centre to its parent's, with ball joints
+        at both ends (``drive`` on the parent's shell, ``bearing`` in its own), so a shell
+        can roll under its arm: every shell rolls without slip, ``omega_k = e_z x v_k / r
+        + w e_z``, every connector turns with the piece, ``w e_z``, and each module's two
+        joints track the relative rotations of those goals (:meth:`_travel_torques`);
+        the arms' directions, the piece's shape, stay as they were. A FreeBOT only: a
+        docked SnailBot's tracks hold its parent's shell, not the floor.
+
+        Raises:
+            ExecutionError: the module has no bearing (its shell cannot roll under it).
+        """
+        k = self._k(module)
+        if not self.design.bearing:
+            raise ExecutionError(f"module {module}: a {self.design.kind} travels over the "
+                                 "floor only alone (its connector is rigid with its shell)")
+        frame = rot_z(float(self._heading0[k] + self._turned[k]))   # as its gyro keeps it
+        v = frame @ np.asarray(velocity, dtype=np.float64)
+        v[2] = 0.0
+        if not self._travel[k]:          # the goals start where the bodies are
+            self._shell_goal[k] = self.data.xquat[self._shell[k]]
+            self._conn_goal[k] = self.data.xquat[self._conn[k]]
+            self._travel[k] = True
+            self._roll[k] = 0.0
+            self._rolling[k] = False
+            self._pendulum(k, False)
+        self._travel_v[k] = v
+        self._travel_w[k] = float(turn)
+
     def _tracks(self, k: int, on: bool) -> None:
         """A crawling SnailBot stands on its tracks, not on its shell: the shell's floor
         friction gives way to the tracks' bounded traction (:meth:`_crawl`)."""
@@ -426,6 +475,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         k = self._k(module)
         self._target[k] = self.data.qpos[self._qadr[k]:self._qadr[k] + 4]
         self._rolling[k] = False
+        self._travel[k] = False
         if np.any(self._roll[k]):
             self._roll[k] = 0.0
             if self.design.bearing:
@@ -500,8 +550,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         """Point ``k``'s connector at ``towards`` (world, (3,)) about its own centre: the
         magnet slides over the seam of a flow, or turns to a module a free module
         reached (FreeBOT: inside the shell, on the bearing; SnailBot: the body turns in
-        place). The module is a leaf, so nothing hangs on it; the foot keeps its world
-        orientation."""
+        place). Nothing turns with it: a SnailBot's is a leaf, a FreeBOT's magnet unit
+        turns inside its shell, on which the modules it carries hold; the foot keeps its
+        world orientation."""
         d, m = self.data, self.model
         r_conn = d.xmat[self._conn[k]].reshape(3, 3)
         turn = rotation_between(r_conn[:, 2], towards / np.linalg.norm(towards))
@@ -510,7 +561,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         if self.design.bearing:
             joint = m.joint(f"bearing/{self.modules[k]}")
             r_shell = d.xmat[self._shell[k]].reshape(3, 3)
-            local = self._conn0[k].T @ r_shell.T @ new_conn   # relative to the body's rest
+            rest = Rotation.from_quat(self._conn0[k], scalar_first=True).as_matrix()
+            local = rest.T @ r_shell.T @ new_conn   # relative to the body's rest
         else:
             joint = m.joint(f"free/{self.modules[k]}")
             local = turn @ d.xmat[self._shell[k]].reshape(3, 3)
@@ -552,8 +604,11 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             j = self._index[want] if want else int(np.argmin(gaps))
             if gaps[j] <= reach:
                 flow = self.docked[k] is not None
-                if flow or not self._carrying(k):
+                if flow or not self._carrying(k) or self.design.bearing:
                     self._turn_connector(k, centres[j] - centres[k])
+                if self._travel[k]:   # the latch stops the piece it leads
+                    for m in next(g for g in self.groups() if self.modules[k] in g):
+                        self.command_hold(m)
                 self._dock(k, self.modules[j], kind="flow" if flow else "dock")
 
     # -- stepping -----------------------------------------------------------------------
@@ -564,12 +619,14 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             # so are those others dock on: a shell that turned freely would swing them
             carrying = np.isin(self.modules, [p for p in self.docked if p is not None])
             free = self._rolling & ~carrying
-            self.model.dof_damping[self._bearing] = np.where(
-                free, _BEARING_FREE, _BRAKE * self._damping)[:, None]
-            newly = ~free & ~self._braked    # hold where the shell is now
+            damping = np.where(free, _BEARING_FREE, _BRAKE * self._damping)
+            self.model.dof_damping[self._bearing] = np.where(   # a travelling piece's
+                self._travel, self._damping, damping)[:, None]   # bearings are its motors
+            held = ~free & ~self._travel
+            newly = held & ~self._braked    # hold where the shell is now
             adr = self._bearing_q[newly][:, None] + np.arange(4)
             self._brake_at[newly] = self.data.qpos[adr]
-            self._braked = ~free
+            self._braked = held
 
     def _period_done(self, steps: int) -> None:
         """Free modules' odometry integrates, connections over their strength break, then
@@ -586,7 +643,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         SnailBot's tracks (the body's speed over the floor)."""
         d = self.data
         self._turned += duration * d.cvel[self._conn, 2]
-        ks = np.array([k for k, p in enumerate(self.docked) if p is None], dtype=int)
+        ks = np.array([k for k, p in enumerate(self.docked) if p is None or self._travel[k]],
+                      dtype=int)
         if not len(ks):
             return
         if self.design.bearing:
@@ -604,23 +662,24 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         rows = np.flatnonzero(d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
         ids = d.efc_id[rows]
         first = rows[np.r_[True, ids[1:] != ids[:-1]]] if len(rows) else rows
-        force = {int(d.efc_id[r]): d.efc_force[r:r + 3] for r in first}
+        force = np.zeros((self.model.neq, 3))
+        force[d.efc_id[first]] = d.efc_force[first[:, None] + np.arange(3)]
         load = np.zeros(len(self.modules))
         strength = np.zeros(len(self.modules))
         factor = self.options.strength_factor
-        for k, parent in enumerate(self.docked):
-            if parent is None:
-                continue
-            key = self.modules[k]
-            on_foot = force.get(self.welds.id(key), np.zeros(3)).copy()
-            strength[k] = factor * self.design.strength
-            if self.sucker[k]:
-                on_foot += force.get(self._suckers.id(key), np.zeros(3))
-                strength[k] += factor * self.design.sucker_strength
-            out = d.xpos[self._shell[k]] - d.xpos[self._shell[self._index[parent]]]
-            out /= max(float(np.linalg.norm(out)), 1e-12)
-            held = on_foot - max(float(on_foot @ out), 0.0) * out
-            load[k] = float(np.linalg.norm(held))
+        ks = np.array([k for k, p in enumerate(self.docked) if p is not None], dtype=int)
+        if len(ks):
+            on_foot = force[[self.welds.id(self.modules[k]) for k in ks]]
+            strength[ks] = factor * self.design.strength
+            held = np.array([self.sucker[k] for k in ks], dtype=bool)
+            if np.any(held):
+                on_foot[held] += force[[self._suckers.id(self.modules[k]) for k in ks[held]]]
+                strength[ks[held]] += factor * self.design.sucker_strength
+            parents = [self._index[self.docked[k]] for k in ks]  # type: ignore[index]
+            out = d.xpos[self._shell[ks]] - d.xpos[self._shell[parents]]
+            out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+            push = np.maximum(np.einsum("ki,ki->k", on_foot, out), 0.0)[:, None]
+            load[ks] = np.linalg.norm(on_foot - push * out, axis=1)
         alpha = min(1.0, duration / self.options.break_filter)
         docked = strength > 0
         self._load = np.where(docked, self._load + alpha * (load - self._load), 0.0)
@@ -652,11 +711,70 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             torque = self._damping * omega
             size = np.linalg.norm(torque, axis=1, keepdims=True)
             tau[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
-        self.data.qfrc_applied[self._dofs] = tau
         if self._bearing is not None:
-            self.data.qfrc_applied[self._bearing] = self._roll_torques() + self._brakes()
+            bearing = self._roll_torques() + self._brakes()
+            if np.any(self._travel):
+                self._travel_torques(tau, bearing)
+            self.data.qfrc_applied[self._bearing] = bearing
         else:
             self._crawl()
+        self.data.qfrc_applied[self._dofs] = tau
+
+    def _travel_torques(self, drive: np.ndarray, bearing: np.ndarray) -> None:
+        """Drive and bearing torques (n, 3) of the modules travelling in a piece (written
+        into ``drive`` and ``bearing``), :meth:`command_travel`.
+
+        Over each servo period ``dt`` the goals move: a shell's ``S_k`` by its rolling
+        ``omega_k``, a connector's ``C_k`` by the piece's turn. A ball joint's goal is the
+        relative rotation of its two bodies' goals -- the bearing's ``Q0^-1 S_k^-1 C_k``
+        (``Q0`` its rest), the drive's ``C_i^-1 S_j W_i`` (``W_i = S_j^-1 F_i``, the weld's
+        hold of the foot on the parent's shell) -- so the arm from ``C_j`` to ``C_i``,
+        ``C_j^-1 C_i``, is the goals' whatever the shells do once both joints are there.
+        Each joint runs the motor model of :meth:`_servo` with the goals' relative angular
+        velocity fed forward: ``tau = D (omega_ff + K_p log(q^-1 q*))``, rate and torque
+        bounded. Rotations are quaternions (n, 4).
+        """
+        d = self.data
+        dt = self._every * self.options.timestep
+        ks = np.flatnonzero(self._travel)
+        spin = self._travel_w[ks][:, None] * _EZ
+        v = self._travel_v[ks]
+        omega = np.column_stack([-v[:, 1], v[:, 0], np.zeros(len(ks))]) / self.design.radius + spin
+        self._shell_goal[ks] = quat_mul(_quat_exp(omega * dt), self._shell_goal[ks])
+        turn = _quat_exp(spin * dt)
+        self._conn_goal[ks] = quat_mul(turn, self._conn_goal[ks])
+        self._travel_v[ks] = _rotate(turn, self._travel_v[ks])   # a twist of the piece's frame
+        shell_goal, conn_goal = self._shell_goal[ks], self._conn_goal[ks]
+        goal = quat_mul(quat_conj(quat_mul(shell_goal, self._conn0[ks])), conn_goal)
+        feed = _rotate(quat_conj(conn_goal), spin - omega)          # C^-1 (w_C - w_S)
+        q = d.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
+        bearing[ks] = self._motor(q, goal, feed)
+        rows = np.array([r for r, k in enumerate(ks) if self.docked[k] is not None], dtype=int)
+        if not len(rows):
+            return
+        docked = ks[rows]
+        parents = np.array([self._index[self.docked[k]] for k in docked])  # type: ignore[index]
+        shell = d.xquat[self._shell[parents]]
+        held = quat_mul(quat_conj(shell), d.xquat[self._foot[docked]])            # W
+        moving = self._travel[parents]
+        foot_goal = quat_mul(np.where(moving[:, None], self._shell_goal[parents], shell), held)
+        rolling = np.zeros((len(self.modules), 3))
+        rolling[ks] = omega
+        feed = _rotate(quat_conj(foot_goal), rolling[parents] - spin[rows])
+        q = d.qpos[self._qadr[docked][:, None] + np.arange(4)]
+        drive[docked] = self._motor(q, quat_mul(quat_conj(conn_goal[rows]), foot_goal), feed)
+
+    def _motor(self, q: np.ndarray, goal: np.ndarray, feed: np.ndarray) -> np.ndarray:
+        """Torques (n, 3) of ball-joint motors at ``q`` (n, 4) toward the rotations
+        ``goal`` (n, 4), with the angular velocities ``feed`` (n, 3) fed forward (child
+        frames): the DC-motor model of :meth:`_servo`."""
+        error = quat_log(quat_mul(quat_conj(q), goal))
+        omega = feed + self.options.position_gain * error
+        norm = np.linalg.norm(omega, axis=1, keepdims=True)
+        omega *= np.minimum(1.0, self.design.max_rate / np.maximum(norm, 1e-12))
+        torque = self._damping * omega
+        size = np.linalg.norm(torque, axis=1, keepdims=True)
+        return torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
 
     def _crawl(self) -> None:
         """Tracks of free SnailBots on the ground (a wrench on the shell, whose own floor
@@ -787,6 +905,28 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         return connected_groups(self.modules, ((self.modules[k], target)
                                                for k, target in enumerate(self.docked)
                                                if target is not None))
+
+
+def _quat_exp(rotvec: np.ndarray) -> np.ndarray:
+    """Unit quaternions (n, 4) of the rotation vectors ``rotvec`` (n, 3) [rad]."""
+    angle = np.linalg.norm(rotvec, axis=1, keepdims=True)
+    half = 0.5 * angle
+    scale = np.where(angle > 1e-12, np.sin(half) / np.maximum(angle, 1e-12), 0.5)
+    return np.hstack([np.cos(half), scale * rotvec])
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Vectors ``v`` (n, 3) rotated by the unit quaternions ``q`` (n, 4)."""
+    w, u = q[:, :1], q[:, 1:]
+    t = 2.0 * _cross(u, v)
+    return v + w * t + _cross(u, t)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (n, 3) arrays (``np.cross`` without its axis handling)."""
+    return np.column_stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
 
 
 def _wrap(angle: float) -> float:

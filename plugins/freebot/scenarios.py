@@ -10,6 +10,11 @@ Each intermediate configuration is a goal the run is judged on (ground truth).
 of F2, rolls round the row over the floor, found again from its own reports (dead
 reckoning, :mod:`msrr.core.freeform.travel`), and docks on F4 at the other end
 (``row4-turned``): one break-and-make step of the MISO plan.
+
+``chains-to-tree``: three chains of four (``chains12``), let go of each other; two of them
+travel over the floor, each as one rigid piece whose every shell rolls, turn a right angle
+and dock across the third (``chains12-tree``): MISO steps that move a module together with
+the modules docked on it.
 """
 
 from __future__ import annotations
@@ -44,6 +49,12 @@ SCENARIOS = (
     Scenario(name="roll-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
              description="four FreeBOTs: F1 lets go of the row, rolls round it over the floor "
                          "and docks on F4 at the other end"),
+    Scenario(name="chains-to-tree", start=CONFIGS / "chains12" / "chains12.json",
+             goal=CONFIGS / "chains12" / "chains12-forest.json",
+             stages=(Stage(goal=CONFIGS / "chains12" / "chains12-tree.json"),),
+             description="twelve FreeBOTs: three chains of four let go of each other, then "
+                         "two of them each travel as one piece, turn and dock across the "
+                         "third (a tree)"),
     Scenario(name="forest-to-tree", start=CONFIGS / "comb20" / "comb20.json",
              goal=CONFIGS / "comb20" / "comb20-forest.json", stages=(Stage(goal=CONFIGS / "comb20" / "comb20-tree.json"),),
              description="twenty FreeBOTs: six let go of a row of fourteen (a forest of "

@@ -155,11 +155,14 @@ def _same_shape(a: Configuration, b: Configuration) -> bool:
 
 
 def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
-             vectors: dict[tuple[int, int], np.ndarray], edge_ids: dict[tuple[int, int], str]
+             vectors: dict[tuple[int, int], np.ndarray], edge_ids: dict[tuple[int, int], str],
+             goal_vectors: dict[tuple[int, int], np.ndarray]
              ) -> tuple[list[Action], Configuration, dict[str, int]]:
     """One action per step, typed by the core's one rule (:func:`~.model.is_flow`, its
     pointer form, tested against :func:`msrr.core.actions.classify`); the last
-    configuration; counts."""
+    configuration; counts. A step that docks a module carrying others (not a flow) gives
+    the connections of the piece that moves with it the goal's vectors (the piece travels
+    to its place in the goal's shape, instead of being swung there by the last move)."""
     ids = problem.start_ids
     parent = list(problem.start)
     current = start.copy()
@@ -171,6 +174,10 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
         made = (ConnectionChange(ids[i], ids[step.new]),) if step.new != FREE else ()
         flow = is_flow(parent, i, step.new)   # the pointer form of actions.flow_move
         parent[i] = step.new
+        if made and not flow:      # the module goes over the floor with its piece
+            for m in _carried(parent, i):
+                if (m, parent[m]) in goal_vectors:
+                    vectors[(m, parent[m])] = goal_vectors[(m, parent[m])]
         after = _configuration(start, ids, parent, vectors, edge_ids, f"step {t}")
         if flow:
             kind, verb, count = ActionType.FLOW, "flow", "flows"
@@ -190,6 +197,21 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
     return actions, current, counts
 
 
+def _carried(parent: list[int], module: int) -> list[int]:
+    """The modules whose connector path leads to ``module`` (its in-tree, without it)."""
+    on: dict[int, list[int]] = {}
+    for m, p in enumerate(parent):
+        if p != FREE:
+            on.setdefault(p, []).append(m)
+    out, todo = [], list(on.get(module, ()))
+    while todo:
+        m = todo.pop()
+        if m != module and m not in out:
+            out.append(m)
+            todo.extend(on.get(m, ()))
+    return sorted(out)
+
+
 def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
               planner: str = "miso", limits: MisoLimits = UNLIMITED,
               time_limit: float = 60.0) -> Plan:
@@ -202,7 +224,8 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     parent) or, for any other re-targeting, a break-and-make *parallel connection*
     (disconnection first, then connection; the module carries its in-tree). A last
     *moving* action sets the goal's vectors. Kept connections keep their ids and
-    vectors; new ones take the goal's vectors. ``plan.stats`` holds both metrics,
+    vectors, except those of a piece a (break-and-)make step moves, which take the goal's
+    then (it travels into the goal's shape); new ones take the goal's vectors. ``plan.stats`` holds both metrics,
     ``steps`` and ``changes`` (``broken`` + ``made``).
 
     Raises:
@@ -224,7 +247,8 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     for e in start.edges():
         key = (index[e.source], index[e.target])
         vectors[key], edge_ids[key] = e.z, e.id   # kept connections keep their vectors
-    actions, current, counts = _actions(problem, start, solution, vectors, edge_ids)
+    actions, current, counts = _actions(problem, start, solution, vectors, edge_ids,
+                                        goal_vectors)
     reached = _configuration(start, ids, final, goal_vectors, edge_ids, goal.name or "goal")
     if actions or not _same_shape(current, reached):   # a step's own motion (a flow
         # ends where the leaf touches its new parent) does not set the goal's vectors

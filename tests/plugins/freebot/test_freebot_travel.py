@@ -1,0 +1,196 @@
+"""A FreeBOT piece travels over the floor as one rigid body (every shell rolls under its
+arm, every module drives): ground truth judges the travel, the turn and the shape; the
+commands come from the module reports only."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from msrr.core.alignment import rot_z
+from msrr.core.configuration import Configuration
+from msrr.core.driver import ModuleCommand
+from msrr.core.freeform.recognition import links_of, module_headings
+from msrr.core.freeform.travel import centres_of, twist_velocities
+from msrr.core.io import load_configuration
+from msrr.core.shape import skeletal_error
+from msrr.plugins.freebot.plugin import plugin
+
+from msrr_test_support import ROOT
+
+SPEED = 0.02        # [m/s], under a shell's rolling bound r * max_speed = 0.025
+
+
+def _l8() -> Configuration:
+    """Eight in an L: F1..F5 along x, F6..F8 along y from F5 (F5 carries F4 and F6)."""
+    config = Configuration("freebot", name="l8")
+    for i in range(1, 9):
+        config.add_module(f"F{i}", "freebot")
+    for i in range(1, 5):
+        config.connect(f"F{i}", f"F{i + 1}", z=[1.0, 0.0, 0.0])
+    for i in range(6, 9):
+        config.connect(f"F{i}", f"F{i - 1}", z=[0.0, -1.0, 0.0])
+    return config
+
+
+def _pose(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centroid (2,) and yaw [rad] of ``points`` (n, 3) (the yaw of its first-to-last line)."""
+    line = points[-1, :2] - points[0, :2]
+    return points[:, :2].mean(axis=0), float(np.arctan2(line[1], line[0]))
+
+
+@pytest.mark.parametrize("start", ["chain6", "l8"])
+def test_a_piece_travels_half_a_metre_and_turns_a_right_angle_keeping_its_shape(start):
+    config = _l8() if start == "l8" else load_configuration(
+        ROOT / "plugins" / "freebot" / "configs" / "chain6.json")
+    driver = plugin.driver_factory()()
+    driver.connect()
+    driver.reset(config)
+    world = driver.world
+    before = world.ground_truth()
+    first = np.array([world.centre(m) for m in world.modules])
+    reports = driver.get_observation().sensors
+    links = links_of(reports)
+    centres, headings, _ = centres_of(reports, links, module_headings(reports, links),
+                                      world.length)
+    # a constant twist in the piece's frame: an arc of radius R through a quarter turn
+    # moves the centroid by sqrt(2) R = 0.5 m
+    radius = 0.5 / np.sqrt(2.0)
+    about = np.mean([c[:2] for c in centres.values()], axis=0)
+    velocities, turn = twist_velocities(centres, headings, np.array([radius, 0.0]), 1.0,
+                                        about, speed=SPEED)
+    driver.send_action({m: ModuleCommand(joints={"roll_x": float(v[0]), "roll_y": float(v[1]),
+                                                 "turn": turn})
+                        for m, v in velocities.items()})
+    driver.step(0.5 * np.pi / turn)
+    driver.send_action({})
+    driver.step(0.5)
+    last = np.array([world.centre(m) for m in world.modules])
+    (c0, yaw0), (c1, yaw1) = _pose(first), _pose(last)
+    assert np.linalg.norm(c1 - c0) == pytest.approx(0.5, abs=0.02)
+    turned = (yaw1 - yaw0 + np.pi) % (2 * np.pi) - np.pi
+    assert np.degrees(turned) == pytest.approx(90.0, abs=3.0)
+    assert np.all(np.abs(last[:, 2] - first[:, 2]) < 0.002)      # on the floor all along
+    assert world.docked_pairs() == {(e.source, e.target) for e in config.edges()}
+    assert np.degrees(skeletal_error(world.ground_truth(), before)) < 1.0
+    # each module's odometry (its rolling shell) saw its own centre's travel
+    odometry = {m: r.odometry[:2] for m, r in driver.get_observation().sensors.items()}
+    for k, m in enumerate(world.modules):
+        assert np.linalg.norm(odometry[m]) == pytest.approx(
+            np.linalg.norm(last[k, :2] - first[k, :2]), abs=0.02)
+
+
+def test_a_snailbot_piece_is_refused_travel():
+    from msrr.core.errors import ExecutionError
+    from msrr.plugins.snailbot.plugin import plugin as snailbot
+
+    config = Configuration("snailbot")
+    config.add_module("S1", "snailbot")
+    config.add_module("S2", "snailbot")
+    config.connect("S1", "S2", z=[1.0, 0.0, 0.0])
+    driver = snailbot.driver_factory()()
+    driver.connect()
+    driver.reset(config)
+    with pytest.raises(ExecutionError, match="only alone"):
+        driver.send_action({"S1": ModuleCommand(joints={"roll_x": 0.01, "roll_y": 0.0, "turn": 0.0})})
+
+
+def _update(locator, driver) -> None:
+    reports = driver.get_observation().sensors
+    links = links_of(reports)
+    locator.update(reports, links, module_headings(reports, links))
+
+
+def test_a_travelling_piece_is_located_from_its_modules_odometry_and_gyros(mujoco_driver):
+    from msrr.core.freeform.travel import Locator
+
+    driver = mujoco_driver("freebot", "chain6", noise=np.radians(0.5), seed=2)
+    world = driver.world
+    locator = Locator(world.length)
+    _update(locator, driver)
+    driver.send_action({"F3": ModuleCommand(undock=("@F4",))})   # F1-F3 let go of F4-F6
+    driver.step(0.1)
+    _update(locator, driver)
+    assert locator.piece("F3") == {"F1", "F2", "F3"}
+    before = {m: world.centre(m) for m in world.modules}
+    for _ in range(40):   # 4 s: away along its line while turning, commands from the map
+        centres = {m: locator.pose(m)[0] for m in ("F1", "F2", "F3")}
+        headings = {m: locator.pose(m)[1] for m in centres}
+        line = (centres["F1"] - centres["F3"])[:2]
+        velocities, turn = twist_velocities(centres, headings,
+                                            0.02 * line / np.linalg.norm(line), 0.1,
+                                            centres["F2"][:2], speed=SPEED)
+        driver.send_action({m: ModuleCommand(joints={"roll_x": float(v[0]),
+                                                     "roll_y": float(v[1]), "turn": turn})
+                            for m, v in velocities.items()})
+        driver.step(0.1)
+        _update(locator, driver)
+    assert np.linalg.norm(world.centre("F2") - before["F2"]) > 0.06, "it travelled"
+    assert np.linalg.norm(world.centre("F6") - before["F6"]) < 0.002, "the rest held"
+    for module, other in [("F3", "F4"), ("F1", "F6"), ("F2", "F5")]:
+        k = world.modules.index(module)
+        truth = rot_z(-(world._heading0[k] + world._turned[k])) @ (world.centre(other)
+                                                                   - world.centre(module))
+        assert np.linalg.norm(locator.relative(module)[other] - truth) < 0.01, (module, other)
+
+
+def test_a_straight_piece_does_not_roll_across_its_line(mujoco_driver):
+    # its shells would spin about the line through every centre, and nothing outside
+    # the piece gives a torque about it (the floor's friction is what would move it):
+    # its angular momentum about the line stays zero, so it moves along its line only
+    driver = mujoco_driver("freebot", "chain6")
+    world = driver.world
+    moved = {}
+    for name, velocity in [("along", (-SPEED, 0.0)), ("across", (0.0, -SPEED))]:
+        driver.reset(load_configuration(ROOT / "plugins" / "freebot" / "configs" / "chain6.json"))
+        world = driver.world
+        start = world.centre("F3")
+        driver.send_action({m: ModuleCommand(joints={"roll_x": velocity[0],
+                                                     "roll_y": velocity[1], "turn": 0.0})
+                            for m in world.modules})
+        driver.step(1.0)
+        moved[name] = float(np.linalg.norm(world.centre("F3") - start))
+    assert moved["along"] == pytest.approx(SPEED, abs=0.002)
+    assert moved["across"] < 0.25 * SPEED
+
+
+def test_twist_velocities_are_one_rigid_motion_under_the_speed_bound():
+    rng = np.random.default_rng(3)
+    centres = {f"F{i}": np.append(rng.uniform(-0.3, 0.3, 2), 0.05) for i in range(7)}
+    headings = {m: float(rng.uniform(-np.pi, np.pi)) for m in centres}
+    about = np.array([0.05, -0.02])
+    velocities, turn = twist_velocities(centres, headings, np.array([0.03, 0.01]), 0.2, about,
+                                        speed=SPEED)
+    world = {m: rot_z(headings[m])[:2, :2] @ v for m, v in velocities.items()}
+    scale = turn / 0.2
+    assert 0 < scale < 1 and max(np.linalg.norm(v) for v in world.values()) == \
+        pytest.approx(SPEED)
+    for m, v in world.items():   # v_m = s (v + w e_z x (p_m - about))
+        arm = centres[m][:2] - about
+        assert np.allclose(v, scale * (np.array([0.03, 0.01]) + 0.2 * np.array([-arm[1], arm[0]])))
+
+
+def test_a_piece_goal_is_the_goal_shape_where_the_target_stays():
+    from msrr.core.freeform.travel import piece_goal
+
+    goal = {"A": np.array([0.0, 0.0, 0.0]), "B": np.array([0.1, 0.0, 0.0]),
+            "P": np.array([0.1, -0.1, 0.0]), "Q": np.array([0.1, -0.2, 0.0])}
+    turn, shift = rot_z(0.7), np.array([0.4, -0.3, 0.0])
+    here = {m: turn @ p + shift for m, p in goal.items() if m in ("A", "B")}
+    here |= {"P": np.array([2.0, 2.0, 0.0]), "Q": np.array([2.1, 2.0, 0.0])}   # elsewhere
+    end = piece_goal(goal, here, {"P", "Q"}, "B")
+    for m in ("P", "Q"):
+        assert np.allclose(end[m], (turn @ goal[m] + shift)[:2])
+
+
+def test_a_piece_path_keeps_every_module_of_the_piece_clear():
+    from msrr.core.freeform.travel import piece_path
+
+    wall = {f"W{i}": np.array([0.3, 0.1 * i - 0.3]) for i in range(6)}   # x = 0.3, y < 0.3
+    offsets = {"R": np.zeros(2), "S": np.array([-0.1, 0.0]), "T": np.array([-0.2, 0.0])}
+    way = np.array(piece_path(wall, offsets, np.array([0.0, 0.0]), np.array([0.7, 0.0]), 0.1))
+    assert np.allclose(way[-1], [0.7, 0.0])
+    for p in way:
+        for d in offsets.values():
+            assert min(np.linalg.norm(p + d - w) for w in wall.values()) >= 0.1
+    assert np.all(np.linalg.norm(np.diff(way, axis=0), axis=1) < 0.025), "connected"
