@@ -552,6 +552,24 @@ def cases(count: int, seed: int, kinds: tuple[str, ...] | None = None) -> Iterat
         yield Case(base, *made_case)
 
 
+def cases_of(mutation: str, count: int, seed: int, *, attempts: int = 20_000
+             ) -> list[Case]:
+    """``count`` cases whose mutation is ``mutation`` (e.g. ``plan_drop``), drawn as
+    :func:`cases` draws, the others skipped: a rare mutation is exercised whatever the
+    seed files are, which a random campaign of a fixed size cannot promise."""
+    rng = random.Random(seed)
+    pool = seeds()
+    found: list[Case] = []
+    for _ in range(attempts):
+        base = rng.choice(pool)
+        made = rng.choice(MUTATORS)(rng, base)
+        if made is not None and made[0] == mutation:
+            found.append(Case(base, *made))
+            if len(found) == count:
+                break
+    return found
+
+
 # -- feeding them -------------------------------------------------------------------------
 
 
@@ -563,7 +581,7 @@ class Outcome:
     problem: str | None  # a traceback, a bad message, or a bad file accepted
 
 
-def _write(case: Case, folder: Path, index: int) -> Path:
+def write(case: Case, folder: Path, index: int) -> Path:
     path = folder / f"in [red] {index:05d} {case.seed.name}"
     if case.data is None:
         path.mkdir()
@@ -679,7 +697,7 @@ def campaign(count: int, seed: int, folder: Path, *, command_every: int = 1
     runner = CliRunner()
     outcomes = []
     for index, case in enumerate(cases(count, seed)):
-        path = _write(case, folder, index)
+        path = write(case, folder, index)
         outcomes.append(read(case, path))
         if index % command_every == 0:
             outcomes += [run_command(case, path, args, runner) for args in _commands(case, path)]
