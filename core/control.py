@@ -4,7 +4,9 @@ Controllers are registered through ``msrr_controllers(robot, register)``. The
 executor calls :meth:`Controller.begin` when an action (or a retry) enters a phase
 and :meth:`Controller.control` once per tick; the controller answers with the
 commands, per-module errors and whether the phase's configuration is reached
-(reaching detection, FreeSN section 4.1).
+(reaching detection, FreeSN section 4.1). ``begin`` may say how much driver time the
+phase needs (a long drive at the controller's speed); the executor then gives the
+attempt that time on top of its timeout, so the timeout bounds the slack, not the work.
 """
 
 from __future__ import annotations
@@ -46,8 +48,13 @@ class Controller(Protocol):
     name: str
     description: str
 
-    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
-        """Prepare ``phase`` of ``action`` (plan a path, pick an approach side)."""
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> float | None:
+        """Prepare ``phase`` of ``action`` (plan a path, pick an approach side).
+
+        Returns:
+            The driver time [s] the phase needs at the controller's own speeds, when it
+            knows (``None``: no more than the executor's timeout).
+        """
         ...
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:

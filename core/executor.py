@@ -74,8 +74,8 @@ threshold. During ``release`` only the undock commands are sent (everything else
 holds: the controller's undock commands, for links without ports). Other robots (MMRP)
 run through :meth:`Controller.control` as before.
 
-A phase that does not finish within ``action_timeout`` seconds of driver time is
-retried (the controller is restarted) up to ``retries`` times, then the action and
+A phase that does not finish within ``action_timeout`` seconds of driver time, on top
+of the time the controller's ``begin`` says it needs, is retried (the controller is restarted) up to ``retries`` times, then the action and
 the run fail with a one-line reason naming the action. Events go to every plugin
 to the :class:`~msrr.core.events.EventSink` the run hands in (in ``platform run``, every
 plugin's event hooks); the executor never asks the plugin host.
@@ -131,7 +131,8 @@ class ExecutorOptions:
 
     Attributes:
         rate: control rate [Hz] of driver time.
-        action_timeout: driver time one phase attempt may take [s].
+        action_timeout: driver time one phase attempt may take [s] beyond what the
+            controller says it needs.
         retries: attempts repeated after a timeout before the action fails.
         tracking: IK tracking settings (robots with joint modes).
         ik: use IK tracking where it applies (``False``: the controller's own path).
@@ -218,6 +219,17 @@ def _undocks(control: Control) -> Control:
     holds everything else during a release."""
     return Control(commands={m: ModuleCommand(undock=c.undock)
                              for m, c in control.commands.items() if c.undock})
+
+
+def _needed_time(needed: object, controller: Controller) -> float:
+    """The driver time [s] a controller's ``begin`` said its phase needs (``None``: 0)."""
+    if needed is None:
+        return 0.0
+    if isinstance(needed, (int, float)) and not isinstance(needed, bool) \
+            and math.isfinite(needed) and needed >= 0:
+        return float(needed)
+    raise ExecutionError(f"controller {getattr(controller, 'name', controller)!r}: begin "
+                         f"returned {needed!r}, not a time >= 0 [s] or None")
 
 
 class _ActionFailed(Exception):
@@ -540,15 +552,17 @@ class Executor:
                 self.retries += 1
                 self.sink.action(self.run, action, ActionStatus.RETRYING)
             observation = self.driver.get_observation()
+            needed = None
             if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0) \
                     and phase is not Phase.BEHAVIOR:
-                self.controller.begin(action, phase, observation)
+                needed = self.controller.begin(action, phase, observation)
+            budget = self.options.action_timeout + _needed_time(needed, self.controller)
             self._phase_began = self.driver.time
             self._loop = heading_loop(action.behavior, self._heading(action), self.options) \
                 if phase is Phase.BEHAVIOR else None
             self._course = None if self._loop is None else course_loop(
                 action.behavior, self.estimate, self._frame(action), self.options)
-            deadline = self.driver.time + self.options.action_timeout
+            deadline = self.driver.time + budget
             if phase is Phase.BEHAVIOR and action.behavior is not None \
                     and action.behavior.duration is not None:
                 deadline = self.driver.time + action.behavior.duration + self.dt
@@ -557,7 +571,7 @@ class Executor:
                     return
         raise _ActionFailed(
             f"action {index + 1} ({action}) failed: phase {phase.value} did not finish within "
-            f"{self.options.action_timeout:g} s of driver time after {attempts} attempt(s)"
+            f"{budget:g} s of driver time after {attempts} attempt(s)"
             + self._pending(phase, diff))
 
     def _pending(self, phase: Phase, diff: TopologyDiff) -> str:

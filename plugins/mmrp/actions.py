@@ -142,17 +142,18 @@ def _moves(routes: Sequence[Route], moved: Configuration, start_cells: Mapping[s
         first = route.modules[0]
         offsets = {m: (start_cells[m][0] - start_cells[first][0],
                        start_cells[m][1] - start_cells[first][1]) for m in route.modules}
-        what = "module" if len(route.modules) == 1 else "subconfiguration"
+        what = f"module {first}" if len(route.modules) == 1 else \
+            f"the {len(route.modules)} modules of {first}'s group"
         legs = len(route.corners) - 1
         for leg, (a, b) in enumerate(zip(route.corners, route.corners[1:], strict=False), 1):
-            goals = {m: [(b[0] + dx) * unit, (b[1] + dy) * unit, 0.0]
+            # rounded to the nanometre: the grid's places, not their float noise, in files
+            goals = {m: [round((b[0] + dx) * unit, 9), round((b[1] + dy) * unit, 9), 0.0]
                      for m, (dx, dy) in offsets.items()}
             where = "a parking place" if route.parking else "its goal pose"
             actions.append(Action(
                 ActionType.MOVING, moved, modules=route.modules, goals=goals,
-                cost=(abs(b[0] - a[0]) + abs(b[1] - a[1])) * unit,
-                note=f"move {what} {','.join(route.modules)} toward {where} "
-                     f"(leg {leg}/{legs}, cell {a} -> {b})"))
+                cost=round((abs(b[0] - a[0]) + abs(b[1] - a[1])) * unit, 9),
+                note=f"move {what} toward {where} (leg {leg}/{legs}, cell {a} -> {b})"))
     return actions
 
 

@@ -31,7 +31,7 @@ from itertools import combinations
 from msrr.core.plan import Action, ActionType, Plan
 
 from .centre import root_of
-from .motion import CLEARANCE, Arc, apart, distance, leg_paths, near, sweep_points
+from .motion import CLEARANCE, Arc, apart, distance, leg_paths, near, sweep
 from .representation import GRID_STEP, edge_set, pitch, to_tree
 from .rules import LEGAL_PAIRS
 
@@ -216,7 +216,7 @@ def _move(grid: _Replay, action: Action, where: str) -> None:
     for group, shift in legs:
         paths = leg_paths([cells[m] for m in group], shift)
         _sweeps_clear(grid, group, paths, where)
-        swept.append(sweep_points(paths))
+        swept.append(sweep(paths))
     for i, j in combinations(range(len(legs)), 2):
         if not apart(swept[i], swept[j]):
             grid.problems.append(f"{where}: groups {','.join(legs[i][0])} and "

@@ -25,17 +25,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
+from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .robot import MODULE
 
 __all__ = [
+    "CHORD_SAG",
     "CLEARANCE",
-    "SAMPLE_STEP",
     "Arc",
     "Segment",
+    "Sweep",
     "apart",
     "blocked",
     "centre",
@@ -44,7 +45,8 @@ __all__ = [
     "distance_to_segment",
     "drive_paths",
     "leg_paths",
-    "sweep_points",
+    "segments_distance",
+    "sweep",
     "turn_paths",
     "turned",
 ]
@@ -160,45 +162,97 @@ def blocked(paths: Sequence[Segment | Arc]) -> frozenset[tuple[int, int]]:
                      if any(distance(c, path) < CLEARANCE - 1e-9 for path in paths))
 
 
-SAMPLE_STEP = 0.05
-"""Largest distance between two neighbouring points of :func:`sweep_points` [cells]."""
+CHORD_SAG = 0.025
+"""Largest distance of a turn's chords from its arc in a :class:`Sweep` [cells]."""
 
 
-def sweep_points(paths: Sequence[Segment | Arc], step: float = SAMPLE_STEP) -> np.ndarray:
-    """Points along ``paths``, ends included, no two neighbours farther apart than
-    ``step`` along a path [cells], shape (k, 2): every point of a path lies within
-    ``step / 2`` of one of them."""
-    out = []
+class Sweep(NamedTuple):
+    """What a group's leg sweeps: its module centres' paths as straight pieces.
+
+    Attributes:
+        segments: drives as they are and turns as chords [cells], shape (k, 2, 2).
+        slack: the largest distance of a true path point from the pieces [cells] (0
+            without turns, at most ``CHORD_SAG``).
+    """
+
+    segments: np.ndarray
+    slack: float
+
+
+def sweep(paths: Sequence[Segment | Arc], sag: float = CHORD_SAG) -> Sweep:
+    """``paths`` as a :class:`Sweep`: each quarter turn cut into the fewest equal chords
+    that stay within ``sag`` of its arc (a chord of angle ``d`` on radius ``r`` lies
+    ``r (1 - cos(d / 2))`` from it)."""
+    pieces, slack = [np.zeros((0, 2, 2))], 0.0
     for path in paths:
         if isinstance(path, Arc):
             (px, py), (sx, sy), sign = path
             r = math.hypot(sx - px, sy - py)
-            start = math.atan2(sy - py, sx - px)
-            n = max(1, math.ceil(r * math.pi / 2 / step))  # chord <= arc length / n
-            angles = start + sign * np.linspace(0.0, math.pi / 2, n + 1)
-            out.append(np.column_stack([px + r * np.cos(angles), py + r * np.sin(angles)]))
+            n = 1 if r <= sag else math.ceil(math.pi / 4 / math.acos(1 - sag / r))
+            angles = math.atan2(sy - py, sx - px) + sign * np.linspace(0.0, math.pi / 2, n + 1)
+            points = np.column_stack([px + r * np.cos(angles), py + r * np.sin(angles)])
+            pieces.append(np.stack([points[:-1], points[1:]], axis=1))
+            slack = max(slack, r * (1 - math.cos(math.pi / 4 / n)))
         else:
-            (ax, ay), (bx, by) = path
-            n = max(1, math.ceil(math.hypot(bx - ax, by - ay) / step))
-            t = np.linspace(0.0, 1.0, n + 1)
-            out.append(np.column_stack([ax + t * (bx - ax), ay + t * (by - ay)]))
-    return np.concatenate(out) if out else np.zeros((0, 2))
+            pieces.append(np.array([path], dtype=float))
+    return Sweep(np.concatenate(pieces), slack)
 
 
-def apart(a: np.ndarray, b: np.ndarray, step: float = SAMPLE_STEP) -> bool:
+def _to_segments(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Distances [cells] from every point, shape (p, 2), to every segment, (s, 2, 2):
+    shape (p, s)."""
+    a, ab = segments[:, 0], segments[:, 1] - segments[:, 0]
+    ap = points[:, None, :] - a[None]
+    length2 = np.einsum("sk,sk->s", ab, ab)
+    t = np.clip(np.einsum("psk,sk->ps", ap, ab) / np.where(length2 > 0, length2, 1.0), 0, 1)
+    return np.linalg.norm(ap - t[..., None] * ab, axis=-1)
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def segments_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """The smallest distance [cells] between a point of a segment of ``a`` and one of
+    ``b`` (shapes (n, 2, 2) and (m, 2, 2)): 0 where two cross, else the least distance
+    of an end of one to a segment of the other."""
+    ends = min(_to_segments(a.reshape(-1, 2), b).min(), _to_segments(b.reshape(-1, 2), a).min())
+    a0, a1 = a[:, None, 0], a[:, None, 1]
+    b0, b1 = b[None, :, 0], b[None, :, 1]
+    crossing = ((_cross(a1 - a0, b0 - a0) * _cross(a1 - a0, b1 - a0) < 0)
+                & (_cross(b1 - b0, a0 - b0) * _cross(b1 - b0, a1 - b0) < 0))
+    return 0.0 if crossing.any() else float(ends)
+
+
+def _box(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    ends = segments.reshape(-1, 2)
+    return ends.min(axis=0), ends.max(axis=0)
+
+
+def _within(segments: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The segments whose bounding boxes meet the box ``lo``-``hi``."""
+    keep = np.all((segments.min(axis=1) <= hi) & (segments.max(axis=1) >= lo), axis=1)
+    return segments[keep]
+
+
+def apart(a: Sweep, b: Sweep) -> bool:
     """Whether two groups moving at the same time, in any timing, keep their bodies apart.
 
-    ``a`` and ``b`` are :func:`sweep_points` of the two groups' paths. A point of either
-    path lies within ``step / 2`` of a sample, so when every pair of samples is at
-    least ``CLEARANCE + step`` apart, every pair of path points is at least
-    ``CLEARANCE`` apart: no module of one group comes near a module of the other,
-    wherever along its path each is (a sufficient test, never optimistic).
+    ``a`` and ``b`` are the :func:`sweep` of the two groups' legs. Every point of a true
+    path lies within the sweep's ``slack`` of its pieces, so when the pieces of the two
+    are at least ``CLEARANCE`` plus both slacks apart (exact segment distances), every
+    pair of path points is at least ``CLEARANCE`` apart: no module of one group comes
+    near a module of the other, wherever along its path each is (a sufficient test,
+    never optimistic; exact for drives).
     """
-    if not len(a) or not len(b):
+    if not len(a.segments) or not len(b.segments):
         return True
-    reach = CLEARANCE + step
-    if (a.min(axis=0) > b.max(axis=0) + reach).any() or \
-            (b.min(axis=0) > a.max(axis=0) + reach).any():
+    need = CLEARANCE + a.slack + b.slack
+    (alo, ahi), (blo, bhi) = _box(a.segments), _box(b.segments)
+    near_a = _within(a.segments, blo - need, bhi + need)
+    near_b = _within(b.segments, alo - need, ahi + need)
+    if not len(near_a) or not len(near_b):
         return True
-    nearest, _ = cKDTree(b).query(a, k=1, distance_upper_bound=reach)
-    return bool(np.all(nearest >= reach - 1e-9))
+    chunk = max(1, 1_000_000 // len(near_b))
+    return all(segments_distance(near_a[i:i + chunk], near_b) >= need - 1e-9
+               for i in range(0, len(near_a), chunk))

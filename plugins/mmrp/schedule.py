@@ -14,32 +14,26 @@ commute, so the waves are a reordering of the checked sequence: each leg still s
 every other module either standing where the sequence had it or moving along a path
 that stays clear of its own. The plan checker replays the waves itself
 (:func:`~.check.check_plan`: concurrent groups against each other and the still ones).
+
+A leg stays whole however long: the controller says how long its drive takes
+(:meth:`~.sim.controller.MmrpController.begin`) and the executor allows that on top of
+its timeout. (Cutting long legs into pieces in the plan multiplied a 1,000-module plan's
+moving legs by 8 and its file by 5.)
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 
 import numpy as np
 
 from msrr.core.plan import Action, ActionType
 
-from .motion import CLEARANCE, SAMPLE_STEP, apart, leg_paths, sweep_points
+from .motion import CHORD_SAG, CLEARANCE, Sweep, apart, leg_paths, sweep
 
 __all__ = ["concurrent_moves", "leg_shift"]
 
 Cell = tuple[int, int]
-
-BUCKET = 4
-"""Side of the spatial hash of the legs' swept boxes [cells]."""
-
-LONGEST_LEG = 20
-"""Longest drive of one moving action [cells]: 6 m, 50 s at the controller's cruise
-speed, well inside the executor's default phase timeout (90 s). A longer straight leg
-is driven in pieces (stopping in between), so that a parking leg across the field
-does not time out and restart."""
-
 
 def leg_shift(action: Action, cells: Mapping[str, Cell], unit: float) -> Cell:
     """The translation [cells] of one group's leg: its first module's goal minus its cell."""
@@ -48,69 +42,41 @@ def leg_shift(action: Action, cells: Mapping[str, Cell], unit: float) -> Cell:
     return round(x / unit) - cells[m][0], round(y / unit) - cells[m][1]
 
 
-def _buckets(points: np.ndarray) -> list[Cell]:
-    reach = CLEARANCE + SAMPLE_STEP
-    lo = np.floor((points.min(axis=0) - reach) / BUCKET).astype(int)
-    hi = np.floor((points.max(axis=0) + reach) / BUCKET).astype(int)
-    return [(i, j) for i in range(lo[0], hi[0] + 1) for j in range(lo[1], hi[1] + 1)]
-
-
 def _waves(legs: Sequence[Action], cells: dict[str, Cell], unit: float) -> list[list[int]]:
-    """The wave of every leg (indices into ``legs``, in order), ``cells`` moved along."""
-    swept: list[np.ndarray] = []
-    wave_of: list[int] = []
+    """The wave of every leg (indices into ``legs``, in order), ``cells`` moved along.
+
+    A leg's wave is one after the latest wave of any earlier leg it conflicts with: the
+    earlier legs whose swept boxes come within reach are tested latest wave first, and
+    the first conflict settles it."""
+    boxes = np.empty((len(legs), 4))  # each sweep's x/y min and max, widened by its reach
+    swept: list[Sweep] = []
+    wave_of = np.empty(len(legs), dtype=int)
     last_wave: dict[str, int] = {}  # module -> the wave of its latest leg
-    index: dict[Cell, list[int]] = {}
     for k, leg in enumerate(legs):
         order = sorted(leg.modules)
         shift = leg_shift(leg, cells, unit)
-        points = sweep_points(leg_paths([cells[m] for m in order], shift))
-        swept.append(points)
-        buckets = _buckets(points)
+        path = sweep(leg_paths([cells[m] for m in order], shift))
+        ends = path.segments.reshape(-1, 2)
+        reach = CLEARANCE + 2 * CHORD_SAG
+        lo, hi = ends.min(axis=0) - reach, ends.max(axis=0) + reach
         wave = max((last_wave.get(m, -1) for m in order), default=-1) + 1
-        seen: set[int] = set()
-        for b in buckets:
-            for other in index.get(b, ()):
-                if other not in seen and wave_of[other] >= wave:
-                    seen.add(other)
-                    if not apart(points, swept[other]):
-                        wave = wave_of[other] + 1
-        wave_of.append(wave)
-        for b in buckets:
-            index.setdefault(b, []).append(k)
+        near = np.flatnonzero((wave_of[:k] >= wave) & (boxes[:k, 0] <= hi[0])
+                              & (boxes[:k, 2] >= lo[0]) & (boxes[:k, 1] <= hi[1])
+                              & (boxes[:k, 3] >= lo[1]))
+        for other in near[np.lexsort((near, -wave_of[near]))]:
+            if not apart(path, swept[other]):
+                wave = int(wave_of[other]) + 1
+                break
+        boxes[k] = (*lo, *hi)
+        swept.append(path)
+        wave_of[k] = wave
         for m in order:
             last_wave[m] = wave
             cells[m] = (cells[m][0] + shift[0], cells[m][1] + shift[1])
-    waves: list[list[int]] = [[] for _ in range(max(wave_of, default=-1) + 1)]
+    waves: list[list[int]] = [[] for _ in range(int(wave_of.max(initial=-1)) + 1)]
     for k, wave in enumerate(wave_of):
         waves[wave].append(k)
     return waves
-
-
-def _pieces(legs: Sequence[Action], cells: Mapping[str, Cell], unit: float) -> list[Action]:
-    """``legs`` with every drive longer than ``LONGEST_LEG`` split into equal pieces.
-
-    Only legs whose pieces sweep nothing the whole leg does not: drives along x, and
-    drives along y of a single module (it turns in place; a group's turn halfway along
-    a y leg would sweep a new disc, so a group's y leg stays whole).
-    """
-    cells = dict(cells)
-    out = []
-    for leg in legs:
-        dx, dy = leg_shift(leg, cells, unit)
-        count = 1 if dy and len(leg.modules) > 1 else -(-max(abs(dx), abs(dy)) // LONGEST_LEG)
-        for i in range(1, count + 1):
-            if count == 1:
-                out.append(leg)
-                break
-            step = (round(dx * i / count), round(dy * i / count))
-            goals = {m: [(cells[m][0] + step[0]) * unit, (cells[m][1] + step[1]) * unit, 0.0]
-                     for m in leg.modules}
-            out.append(replace(leg, goals=goals, cost=leg.cost / count,
-                               note=f"{leg.note}, piece {i}/{count}"))
-        for m in leg.modules:
-            cells[m] = (cells[m][0] + dx, cells[m][1] + dy)
-    return out
 
 
 def _merged(legs: Sequence[Action]) -> Action:
@@ -119,14 +85,13 @@ def _merged(legs: Sequence[Action]) -> Action:
     modules = tuple(m for leg in legs for m in leg.modules)
     goals = {m: g for leg in legs for m, g in leg.goals.items()}
     return Action(ActionType.MOVING, legs[-1].target, modules=modules, goals=goals,
-                  cost=sum(leg.cost for leg in legs),
+                  cost=round(sum(leg.cost for leg in legs), 9),
                   note=f"{len(legs)} groups at once: " + "; ".join(leg.note for leg in legs))
 
 
 def concurrent_moves(actions: Sequence[Action], start_cells: Mapping[str, Cell], unit: float
                      ) -> list[Action]:
-    """``actions`` with every run of consecutive single-group legs packed into waves
-    (legs longer than ``LONGEST_LEG`` first split into pieces).
+    """``actions`` with every run of consecutive single-group legs packed into waves.
 
     Args:
         actions: a plan's actions; each moving action is one leg of one rigid group
@@ -144,9 +109,8 @@ def concurrent_moves(actions: Sequence[Action], start_cells: Mapping[str, Cell],
 
     def flush() -> None:
         if run:
-            legs = _pieces(run, cells, unit)
-            for wave in _waves(legs, cells, unit):
-                out.append(_merged([legs[k] for k in wave]))
+            for wave in _waves(run, cells, unit):
+                out.append(_merged([run[k] for k in wave]))
             run.clear()
 
     for action in actions:

@@ -61,6 +61,44 @@ def test_unreachable_dock_times_out_retries_and_names_the_action() -> None:
     assert ("action", "move c retrying") in events and ("action", "move c failed") in events
 
 
+class TimedGoalController(GoalController):
+    """:class:`GoalController` that says how long its drive takes (1 m/s, plus ``said``)."""
+
+    def __init__(self, said: object = 0.0):
+        self.said = said
+
+    def begin(self, action, phase, observation):
+        if isinstance(self.said, float):
+            return self.said + sum(abs(g[0] - float(observation.tracked[m].position[0]))
+                                   for m, g in action.goals.items())
+        return self.said
+
+
+def run_with(controller, plan, options):
+    with PointDriver(1.05) as driver:
+        driver.reset(plan.start)
+        return Executor(make_run(plan), driver, LinkRecognizer(), controller, options,
+                        sink=plugins.emit).execute()
+
+
+def test_a_phase_gets_the_time_its_controller_says_it_needs_on_top_of_the_timeout() -> None:
+    # c drives 7 m at 1 m/s; a 2 s timeout alone cuts the move (action 2) short
+    options = ExecutorOptions(action_timeout=2.0, retries=0)
+    plain = run_with(GoalController(), swap_plan(goal_x=9.0), options)
+    assert plain.failed_action == 1 and "within 2 s" in plain.reason
+    # told 7 s, the move is done; the dock then fails (c is out of b's reach at x = 9)
+    timed = run_with(TimedGoalController(), swap_plan(goal_x=9.0), options)
+    assert timed.failed_action == 2, timed.reason
+    assert "action 3" in timed.reason and "within 2 s" in timed.reason
+
+
+@pytest.mark.parametrize("said", [-1.0, float("nan"), float("inf"), "7 s", True])
+def test_a_controller_that_says_a_nonsense_time_is_named(said) -> None:
+    controller = TimedGoalController(said)
+    with pytest.raises(ExecutionError, match="controller 'goal': begin returned"):
+        run_with(controller, swap_plan(goal_x=9.0), ExecutorOptions(action_timeout=2.0))
+
+
 def test_dock_out_of_reach_fails_with_missing_change() -> None:
     result, _ = execute(swap_plan(goal_x=2.5), ExecutorOptions(action_timeout=1.0), reach=0.2)
     assert not result.success and result.failed_action == 2

@@ -118,7 +118,9 @@ class MmrpController:
 
     # -- setting up a phase ------------------------------------------------------------
 
-    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> float | None:
+        """Plan every moving group's stops or path; the driver time the slowest group's
+        drive takes at cruise speed and turn rate [s] (``None`` in other phases)."""
         for module, goal in action.goals.items():
             self.goals[module] = (float(goal[0]), float(goal[1]), float(goal[2]))
         self.plans = []
@@ -128,12 +130,25 @@ class MmrpController:
         elif phase in (Phase.APPROACH, Phase.CONNECT):
             targets = self._connection_targets(action, phase, observation, poses)
         else:
-            return
+            return None
         # one plan per docked group: a moving action may drive several groups at once
         for component in _components(observation):
             modules = sorted(component & set(targets))
             if modules:
                 self.plans.append(self._group_plan(modules, targets, phase, poses))
+        return max((self._drive_time(plan, poses) for plan in self.plans), default=0.0)
+
+    def _drive_time(self, plan: _GroupPlan, poses: Mapping[str, Pose2]) -> float:
+        """Driver time [s] of ``plan`` at cruise speed and turn rate: its stops (or path
+        waypoints, then the turn onto the goal heading) from the group's centre."""
+        here = self._current_centre(plan, poses)
+        course = plan.stops or [(*w, here[2]) for w in plan.waypoints] + [plan.centre]
+        seconds = 0.0
+        for stop in course:
+            seconds += (math.dist(here[:2], stop[:2]) / self.speed
+                        + abs(wrap(stop[2] - here[2])) / self.turn_rate)
+            here = stop
+        return seconds
 
     def _group_plan(self, modules: list[str], targets: Mapping[str, Pose2], phase: Phase,
                     poses: Mapping[str, Pose2]) -> _GroupPlan:
