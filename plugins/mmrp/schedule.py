@@ -35,6 +35,7 @@ __all__ = ["concurrent_moves", "leg_shift"]
 
 Cell = tuple[int, int]
 
+
 def leg_shift(action: Action, cells: Mapping[str, Cell], unit: float) -> Cell:
     """The translation [cells] of one group's leg: its first module's goal minus its cell."""
     m = action.modules[0]
