@@ -77,9 +77,9 @@ run through :meth:`Controller.control` as before.
 A phase that does not finish within ``action_timeout`` seconds of driver time, on top
 of the time the controller's ``begin`` says it needs, is retried (the controller is
 restarted) up to ``retries`` times, then the action and the run fail with a one-line
-reason naming the action. Events go to every plugin
-to the :class:`~msrr.core.events.EventSink` the run hands in (in ``platform run``, every
-plugin's event hooks); the executor never asks the plugin host.
+reason naming the action. Events go to the :class:`~msrr.core.events.EventSink` the run
+hands in (in ``platform run``, every plugin's event hooks); the executor never asks the
+plugin host.
 """
 
 from __future__ import annotations
