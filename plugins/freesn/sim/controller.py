@@ -100,7 +100,7 @@ def plant_feet(commands: Mapping[str, ModuleCommand], links: Links, *, coast: bo
 
 def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
     """The connectors that drive at full effort: one spanning tree of locks, and both
-    ends of every strut that closes no loop.
+    ends of a strut that closes no loop between two well-connected nodes.
 
     A strut docked at both ends is two spherical joints; in a loop of rigid struts, if
     every connector held its own target, measurement noise alone would set them against
@@ -111,14 +111,16 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
     follows softly. A strut with one free end is driven from its docked end. This is the
     kinematic tree's choice of which connector is the joint (FreeSN paper, section 3.2).
 
-    A strut on no loop (:func:`bridges`) between two nodes that each hold another strut
-    drives at both ends: nothing can set its connectors against each other (a node's
-    shell turns freely under its connectors), and a soft end would leave the strut a
-    hinge of ``FOLLOW_EFFORT`` of the torque, across which every torque between the two
+    A strut on no loop (:func:`bridges`) between two nodes that each hold two other
+    struts drives at both ends: nothing can set its connectors against each other (a
+    node's shell turns freely under its connectors), and a soft end would leave the strut
+    a hinge of ``FOLLOW_EFFORT`` of the torque, across which every torque between the two
     nodes must pass. The S12N6 quadruped's single bar was such a hinge: its front node's
     hips pitched the front half about it and a connector broke (issue 32). A strut to a
-    leaf node keeps its soft end there: the leaf is a foot or a wheel, whose connector its
-    gait or wheel command sets (:func:`plant_feet`).
+    leaf node keeps its soft end there (the leaf is a foot or a wheel, whose connector
+    its gait or wheel command sets, :func:`plant_feet`), and so does a strut to a node
+    that holds one other strut, a link of a chain: driven at both ends the S4N5 chain's
+    squirm turned 112 deg and went backwards (measured, not explained; docs/freesn.md).
     """
     at: dict[str, list[tuple[str, str]]] = {}
     for (strut, end), node in links.items():
@@ -142,7 +144,7 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
                     queue.append(other)
                     driving.add((strut, end))
     for strut in bridges(links):
-        if all(len(at[node]) > 1 for node in ends_of[strut].values()):
+        if all(len(at[node]) > 2 for node in ends_of[strut].values()):
             driving |= {(strut, end) for end in ENDS}
     return driving
 
