@@ -100,7 +100,7 @@ def plant_feet(commands: Mapping[str, ModuleCommand], links: Links, *, coast: bo
 
 def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
     """The connectors that drive at full effort: one spanning tree of locks, and both
-    ends of a strut that closes no loop between two well-connected nodes.
+    ends of a strut that closes no loop between two hubs.
 
     A strut docked at both ends is two spherical joints; in a loop of rigid struts, if
     every connector held its own target, measurement noise alone would set them against
@@ -111,16 +111,17 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
     follows softly. A strut with one free end is driven from its docked end. This is the
     kinematic tree's choice of which connector is the joint (FreeSN paper, section 3.2).
 
-    A strut on no loop (:func:`bridges`) between two nodes that each hold two other
-    struts drives at both ends: nothing can set its connectors against each other (a
-    node's shell turns freely under its connectors), and a soft end would leave the strut
-    a hinge of ``FOLLOW_EFFORT`` of the torque, across which every torque between the two
-    nodes must pass. The S12N6 quadruped's single bar was such a hinge: its front node's
-    hips pitched the front half about it and a connector broke (issue 32). A strut to a
-    leaf node keeps its soft end there (the leaf is a foot or a wheel, whose connector
-    its gait or wheel command sets, :func:`plant_feet`), and so does a strut to a node
-    that holds one other strut, a link of a chain: driven at both ends the S4N5 chain's
-    squirm turned 112 deg and went backwards (measured, not explained; docs/freesn.md).
+    A strut on no loop (:func:`bridges`) between two hubs, nodes that each hold at least
+    three other struts, drives at both ends: nothing can set its connectors against each
+    other (a node's shell turns freely under its connectors), and a soft end would leave
+    the strut a hinge of ``FOLLOW_EFFORT`` of the torque, across which every torque
+    between the two nodes must pass. The S12N6 quadruped's single bar was such a hinge:
+    its front node's hips pitched the front half about it and a connector broke (issue
+    32). Elsewhere the soft end stays, as measured (docs/freesn.md): driven at both ends,
+    the S4N5 chain's inner struts (nodes with one other strut) made the squirm turn 112
+    deg and go backwards, and S6N3's open-triangle strut (nodes with two) let the noisy
+    connection 2.3 -> 3.1 press S5 3 mm into N1; a strut to a leaf node keeps it too (a
+    foot or a wheel, whose connector its gait or wheel command sets, :func:`plant_feet`).
     """
     at: dict[str, list[tuple[str, str]]] = {}
     for (strut, end), node in links.items():
@@ -144,7 +145,7 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
                     queue.append(other)
                     driving.add((strut, end))
     for strut in bridges(links):
-        if all(len(at[node]) > 2 for node in ends_of[strut].values()):
+        if all(len(at[node]) > 3 for node in ends_of[strut].values()):
             driving |= {(strut, end) for end in ENDS}
     return driving
 
