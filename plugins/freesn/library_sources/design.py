@@ -836,9 +836,10 @@ def s12n6_fig21_sequences(star_: dict) -> list[dict]:
     ear_aim = ear_state("ear-aim", RING_IDS - {"R6"}, "Fig. 21(b): the open ring folded, R6 "
                         "and C1 aimed at T1 and T2")
     return [
-        {"name": "fig21-star-to-tree", "description": "Fig. 21(a)-(e): open the ring",
-         "steps": [step(star_), step(hex_star("ring-open", open_ring=True)),
-                   step(tree_state("fig21e"))]},
+        # No sequence stretches the open ring into the tree fig21e or back (S12N6-3.2 <->
+        # 3.1, the group's reference): every node is dragged over the floor, the struts
+        # meeting at B1 and B2 bind, and it broke a connector or stalled at the torque
+        # limit whatever the controllers (docs/freesn.md); Fig. 21 takes the ear.
         # The ear -> ring move runs under K-root-T1: with the default root (the chain's
         # centre T2) or B2, T3, B3 it stalls 5-25 deg short (R4 17 deg off, IK residual
         # 0.1 deg); rooted at T1, where R6 docks, it finishes in 3.2 s.
@@ -859,12 +860,6 @@ def s12n6_fig21_sequences(star_: dict) -> list[dict]:
                    step(ear_state("ear-closed", RING_IDS | {"C1"})), step(ear_aim),
                    step(hex_star("c1-up", open_ring=True, c1_up=True), "K-root-T1"),
                    step(hex_star("ring-aim", open_ring=True), "K-root-T1"),
-                   step(star_, "K-root-T1")]},
-        # the tree -> ring stretch stalls with R4 ~20 deg off (IK residual 0.1 deg) under
-        # K1 and under K-root-T1 alike (library check): infeasible, fig21 takes the ear
-        {"name": "fig21-tree-to-star", "description": "Fig. 21(e)-(i): close the ring again",
-         "steps": [step(tree_state("fig21e")),
-                   step(hex_star("ring-aim", open_ring=True)),
                    step(star_, "K-root-T1")]},
     ]
 

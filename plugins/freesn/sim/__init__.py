@@ -14,6 +14,7 @@ from .controller import (
     FOLLOW_EFFORT,
     FORWARD_MODES,
     FreeSNController,
+    bridges,
     connector_commands,
     driving_ends,
 )
@@ -34,6 +35,7 @@ __all__ = [
     "Physical",
     "SimOptions",
     "StrutReport",
+    "bridges",
     "connector_commands",
     "driving_ends",
     "node_headings",

@@ -30,6 +30,7 @@ from collections import deque
 from collections.abc import Mapping
 from dataclasses import replace
 
+import networkx as nx
 import numpy as np
 
 from msrr.core.alignment import rot_z
@@ -47,7 +48,8 @@ from .recognizer import FreeSNRecognizer, Links, links_of, node_headings, root_o
 from .world import NodeReport, StrutReport
 
 __all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "PLANTED_MODE", "SWING_MODE",
-           "FreeSNController", "connector_commands", "driving_ends", "feet", "plant_feet"]
+           "FreeSNController", "bridges", "connector_commands", "driving_ends", "feet",
+           "plant_feet"]
 
 FOLLOW_EFFORT = 0.25
 """Torque fraction of a connector that closes a loop (it follows rather than fights)."""
@@ -97,16 +99,29 @@ def plant_feet(commands: Mapping[str, ModuleCommand], links: Links, *, coast: bo
 
 
 def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
-    """The connectors that drive at full effort: one spanning tree of locks.
+    """The connectors that drive at full effort: one spanning tree of locks, and both
+    ends of a strut that closes no loop between two hubs.
 
-    A strut docked at both ends is two spherical joints in a loop of rigid struts; if
-    every connector held its own target, measurement noise alone would set them
-    against each other. Breadth-first from the root node (each group's
-    :func:`~.recognizer.root_order` first, as the recognizer's), the strut that first reaches a node is driven from the node it comes
-    from; every other end of a strut docked at both ends (the child end, and both ends
-    of a strut that closes a loop) follows softly. A strut with one free end is driven
-    from its docked end. This is the kinematic tree's choice of which connector is the
-    joint (FreeSN paper, section 3.2).
+    A strut docked at both ends is two spherical joints; in a loop of rigid struts, if
+    every connector held its own target, measurement noise alone would set them against
+    each other. Breadth-first from the root node (each group's
+    :func:`~.recognizer.root_order` first, as the recognizer's), the strut that first
+    reaches a node is driven from the node it comes from; every other end of a strut
+    docked at both ends (the child end, and both ends of a strut that closes a loop)
+    follows softly. A strut with one free end is driven from its docked end. This is the
+    kinematic tree's choice of which connector is the joint (FreeSN paper, section 3.2).
+
+    A strut on no loop (:func:`bridges`) between two hubs, nodes that each hold at least
+    three other struts, drives at both ends: nothing can set its connectors against each
+    other (a node's shell turns freely under its connectors), and a soft end would leave
+    the strut a hinge of ``FOLLOW_EFFORT`` of the torque, across which every torque
+    between the two nodes must pass. The S12N6 quadruped's single bar was such a hinge:
+    its front node's hips pitched the front half about it and a connector broke (issue
+    32). Elsewhere the soft end stays, as measured (docs/freesn.md): driven at both ends,
+    the S4N5 chain's inner struts (nodes with one other strut) made the squirm turn 112
+    deg and go backwards, and S6N3's open-triangle strut (nodes with two) let the noisy
+    connection 2.3 -> 3.1 press S5 3 mm into N1; a strut to a leaf node keeps it too (a
+    foot or a wheel, whose connector its gait or wheel command sets, :func:`plant_feet`).
     """
     at: dict[str, list[tuple[str, str]]] = {}
     for (strut, end), node in links.items():
@@ -129,7 +144,22 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
                     reached.add(other)
                     queue.append(other)
                     driving.add((strut, end))
+    for strut in bridges(links):
+        if all(len(at[node]) > 3 for node in ends_of[strut].values()):
+            driving |= {(strut, end) for end in ENDS}
     return driving
+
+
+def bridges(links: Links) -> set[str]:
+    """The struts docked at both ends that lie on no loop of the docked topology (two
+    struts between the same two nodes close a loop)."""
+    graph = nx.MultiGraph()
+    for (strut, end), node in links.items():
+        if end == "a" and (strut, "b") in links:
+            graph.add_edge(node, links[(strut, "b")], key=strut)
+    cut = set(nx.bridges(nx.Graph(graph)))
+    return {strut for u, v, strut in graph.edges(keys=True)
+            if graph.number_of_edges(u, v) == 1 and ((u, v) in cut or (v, u) in cut)}
 
 
 def connector_commands(target: Configuration, reports: Mapping[str, NodeReport | StrutReport],

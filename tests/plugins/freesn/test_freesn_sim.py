@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import mujoco
+import networkx as nx
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -37,6 +38,7 @@ from msrr.plugins.freesn.sim import (
     NodeReport,
     SimOptions,
     StrutReport,
+    bridges,
     connector_commands,
     driving_ends,
 )
@@ -350,6 +352,47 @@ def test_driving_ends_form_one_spanning_tree_of_locks():
                for end in ("a", "b") if f"{end}.dir_x" in c.joints}
     assert {k for k, v in efforts.items() if v == 1.0} == driving
     assert all(v == FOLLOW_EFFORT for k, v in efforts.items() if k not in driving)
+
+
+def test_a_strut_on_no_loop_between_two_hubs_drives_at_both_ends():
+    """A bridge cannot be set against itself (no loop), so both its connectors drive when
+    each of its nodes holds at least three other struts; a soft end made the S12N6 quadruped's single
+    bar a hinge of a quarter of the torque (its front half pitched about it and a
+    connector broke, issue 32). Bridges are checked against the definition: removing the
+    strut disconnects its two nodes."""
+    for library in ("S6N3", "S12N6", "S4N5"):
+        sub = next(iter(LIBRARIES[library].sublibraries.values()))
+        for entry in sub.configurations.values():
+            config = entry.configuration
+            links = {(e.id, end): n for e in config.edges()
+                     for end, n in (("a", e.source), ("b", e.target))
+                     if not config.is_virtual(n)}
+            both = [e for e in config.edges() if not config.is_virtual(e.source)
+                    and not config.is_virtual(e.target)]
+            cut = set()
+            for edge in both:
+                graph = nx.MultiGraph()
+                graph.add_nodes_from(n for n in links.values())
+                graph.add_edges_from((e.source, e.target) for e in both if e.id != edge.id)
+                if not nx.has_path(graph, edge.source, edge.target):
+                    cut.add(edge.id)
+            assert bridges(links) == cut, entry.configuration.name
+            degree = {n: list(links.values()).count(n) for n in links.values()}
+            driving = driving_ends(links)
+            for edge in both:
+                inner = degree[edge.source] > 3 and degree[edge.target] > 3
+                assert ((edge.id, "a") in driving and (edge.id, "b") in driving) \
+                    == (edge.id in cut and inner), (entry.configuration.name, edge.id)
+    quadruped = _library_config("S12N6", "S12N6-8.1")
+    links = {(e.id, end): n for e in quadruped.edges()
+             for end, n in (("a", e.source), ("b", e.target)) if not quadruped.is_virtual(n)}
+    assert {("S1", "a"), ("S1", "b")} <= driving_ends(links)   # the bar N1-N2
+    assert ("L1", "b") not in driving_ends(links)               # a foot's connector
+    chain = _library_config("S4N5", "S4N5-2.1")   # the squirm's chain: links of degree 2
+    links = {(e.id, end): n for e in chain.edges()
+             for end, n in (("a", e.source), ("b", e.target)) if not chain.is_virtual(n)}
+    assert bridges(links) == {"S1", "S2", "S3", "S4"}
+    assert sum(end in driving_ends(links) for end in links) == 4   # one per strut
 
 
 def test_the_root_is_the_best_connected_node_never_a_wheel_or_a_foot():
