@@ -40,6 +40,9 @@ class SimOptions(MujocoOptions):
             bounded by the roll rate), which removes the static error a friction load
             leaves; 0 is a pure position loop. The firmware's is 0.2 wheel rad/s per
             rad s; 400 is this simulation's tuning.
+        integral_bound: the integral's anti-windup bound: its speed command at most this
+            fraction of the roll rate (issue 31; 1: the whole roll rate, so a connector
+            held off its target by a load pushes with the full torque at any error).
         servo_rate: rate of the connectors' motor loops and of the load check [Hz]; the
             default 250 is the strut firmware's base control period, 4 ms.
         break_filter: time constant of the connection-load low-pass before the strength
@@ -72,6 +75,8 @@ class SimOptions(MujocoOptions):
         DriverOption("torque_factor", float, "connector torque limit / the hardware's", "",
                      0.0, 10.0, low_open=True),
         DriverOption("integral_gain", float, "connector integral gain", "1/s^2", 0.0, 1e5),
+        DriverOption("integral_bound", float, "integral's command / the roll rate", "",
+                     0.0, 1.0, low_open=True),
         DriverOption("break_filter", float, "time constant of the connection-load filter", "s",
                      0.0, 10.0, low_open=True),
         DriverOption("gyro_bias", float, "std of each node gyro's constant bias", "rad/s",
@@ -88,6 +93,7 @@ class SimOptions(MujocoOptions):
     torque_factor: float = 0.6
     position_gain: float = 40.0
     integral_gain: float = 400.0
+    integral_bound: float = 1.0
     break_filter: float = 0.05
     gyro_bias: float = 5e-4
     gyro_walk: float = 1e-4
@@ -95,7 +101,8 @@ class SimOptions(MujocoOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        self._check(positive=("strength_factor", "torque_factor", "break_filter"),
+        self._check(positive=("strength_factor", "torque_factor", "break_filter",
+                              "integral_bound"),
                     non_negative=("drift", "slip", "integral_gain", "gyro_bias", "gyro_walk",
                                   "gyro_noise"))
         if self.connector_drive not in ("differential", "holonomic"):

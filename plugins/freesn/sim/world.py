@@ -674,11 +674,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             error = quat_log(relative)
             omega = self.options.position_gain * error
             if self.options.integral_gain > 0.0:
-                dt = self._every * self.options.timestep
-                integral = self._integral[ks] + error * dt
+                integral = self._integral[ks] + error * (self._every * self.options.timestep)
                 size = np.sqrt(np.einsum("ni,ni->n", integral, integral))
-                bound = p.max_roll_rate / self.options.integral_gain   # anti-windup
-                integral *= np.minimum(1.0, bound / np.maximum(size, 1e-12))[:, None]
+                integral *= np.minimum(1.0, self._integral_bound / np.maximum(size, 1e-12)
+                                       )[:, None]
                 self._integral[ks] = integral
                 omega = omega + self.options.integral_gain * integral
             spin = np.einsum("ni,ni->n", omega, axis)
@@ -701,6 +700,13 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._track_saturation(ks, np.sqrt(np.einsum("ni,ni->n", torque, torque)) / p.max_torque)
         self.data.qfrc_applied[self._dofs] = tau
         self._drive_free_wheels()
+
+    @property
+    def _integral_bound(self) -> float:
+        """The bound of an integral [rad s]: its command at most ``integral_bound`` of the
+        roll rate (anti-windup)."""
+        o = self.options
+        return o.integral_bound * self.phys.max_roll_rate / o.integral_gain
 
     def _steer(self, ks: np.ndarray) -> np.ndarray:
         """Wheel speeds (n, 2) [rad/s] (left, right) that take connectors ``ks`` to their
@@ -748,8 +754,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         omega = o.position_gain * channels
         if o.integral_gain > 0.0:
             integral = self._integral[ks, 1:] + channels * self._every * o.timestep
-            bound = p.max_roll_rate / o.integral_gain   # anti-windup
-            integral = np.clip(integral, -bound, bound)
+            integral = np.clip(integral, -self._integral_bound, self._integral_bound)
             self._integral[ks, 1:] = integral
             omega = omega + o.integral_gain * integral
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])

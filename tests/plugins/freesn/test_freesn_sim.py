@@ -489,6 +489,31 @@ def test_the_integral_action_removes_the_static_error_a_load_leaves():
     assert errors[1] < 0.5 * errors[0], [f"{np.degrees(e):.2f} deg" for e in errors]
 
 
+def test_the_integral_drives_a_connector_no_faster_than_its_bound():
+    """S6N3 crouching under its own weight winds its connectors' integrals up: what an
+    integral adds to the speed command stays within ``integral_bound`` of the roll rate
+    (the anti-windup bound; issue 31: at the whole roll rate a connector held off its
+    target -- a strut pressed on a node, a loop whose ends disagree -- pushes with the
+    full torque at any error), and it is the bound that holds it there."""
+    start = _library_config("S6N3", "S6N3-1.1")
+    goal = _lowered(start, np.radians(30.0))
+    controller = FreeSNController()
+    peaks = {}
+    for bound in (1.0, 0.25):
+        with FreeSNMujocoDriver(integral_bound=bound) as driver:
+            driver.reset(start)
+            world, peak = driver.world, 0.0
+            yaw = skeletal_errors(FreeSNRecognizer().recognize(
+                driver.get_observation().sensors), goal)[2]
+            for _ in range(30):
+                driver.send_action(controller.commands(goal, driver.get_observation(), yaw=yaw))
+                driver.step(0.1)
+                peak = max(peak, float(np.max(np.linalg.norm(world._integral, axis=1))))
+            peaks[bound] = peak * world.options.integral_gain / world.phys.max_roll_rate
+    assert peaks[1.0] > 0.5                                        # it winds up that far
+    assert peaks[0.25] == pytest.approx(0.25, rel=1e-6), peaks     # and no further
+
+
 def test_connectors_servo_on_their_own_noisy_sensors():
     """The connectors' loops read the node's IMU and their localisation with the reports'
     noise: a held aim wanders by a fraction of the noise, exactly without noise."""
