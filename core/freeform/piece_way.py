@@ -70,17 +70,34 @@ class Leg:
 class PieceWay:
     """How a piece travels to dock its free module ``root`` on ``target`` (map frame:
     :class:`~msrr.core.freeform.travel.Locator`): the ``legs`` from where it is (its
-    centroid ``origin`` (2,) [m]) to a
+    centroid ``origin`` (2,) [m], its modules at ``shape`` (m, 2) [m] from it, in the
+    order of ``piece``, at heading ``heading``) to a
     stop short of its docking spot, then the guarded push along ``push`` (unit (2,), the
     piece's line for a straight piece) toward ``centre`` (the target's) until the
-    connector latches. ``line``: a straight piece's line (unit (2,), in the root's
-    horizontal frame; it drives along it only), else ``None``.
+    connector latches. ``line``: a straight piece's line (unit (2,), at heading 0; it
+    drives along it only), else ``None``.
+
+    A heading is the piece's: the root's map heading when the way was planned, plus the
+    turn of the piece's shape since (:meth:`heading_of`), not the root's heading now (a
+    free module's magnet unit turns in its rolling shell, not with its piece's arms).
     """
+
+    def heading_of(self, centres: Mapping[str, np.ndarray]) -> float:
+        """The piece's heading [rad] with its modules at ``centres`` (map, (2,) or (3,)):
+        ``heading`` plus the least-squares turn from ``shape`` to them."""
+        now = np.array([np.asarray(centres[m], dtype=float)[:2] for m in self.piece])
+        now = now - now.mean(axis=0)
+        a = self.shape
+        return wrap(self.heading + float(np.arctan2(
+            np.sum(a[:, 0] * now[:, 1] - a[:, 1] * now[:, 0]),
+            np.sum(a[:, 0] * now[:, 0] + a[:, 1] * now[:, 1]))))
 
     root: str
     target: str
     piece: tuple[str, ...]
     origin: np.ndarray
+    shape: np.ndarray
+    heading: float
     legs: tuple[Leg, ...]
     centre: np.ndarray
     push: np.ndarray
@@ -338,4 +355,5 @@ def plan_piece_way(locator: Locator, root: str, target: str,
     legs = plan_legs(others, offsets, line0, (now.mean(axis=0), heading),
                      (finish - _LAST * push, heading + turn), locator.spacing)
     legs.append(Leg("drive", finish, wrap(heading + turn)))
-    return PieceWay(root, target, tuple(ms), now.mean(axis=0), tuple(legs), centre, push, line0)
+    return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs), centre,
+                    push, line0)

@@ -415,7 +415,7 @@ class ContactController:
             centres = {m: self.locator.pose(m)[0] for m in way.piece}
             headings = {m: self.locator.pose(m)[1] for m in way.piece}
             middle = np.mean([c[:2] for c in centres.values()], axis=0)
-            heading = headings[root]
+            heading = way.heading_of(centres)
             if phase is Phase.CONNECT:
                 toward = way.centre - self.locator.pose(root)[0][:2]
                 velocity = 0.5 * self.piece_speed * (float(toward @ way.push) > 0) * way.push

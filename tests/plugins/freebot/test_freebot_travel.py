@@ -237,3 +237,27 @@ def test_a_bent_piece_way_keeps_clear_and_a_closed_goal_is_refused():
                       for a in np.linspace(0, 2 * np.pi, 30, endpoint=False)])  # a pen
     with pytest.raises(ExecutionError, match="no free way|not free"):
         plan_legs(np.vstack([wall, boxed]), offsets, None, start, goal, 0.1)
+
+
+def test_separate_start_pieces_are_related_by_the_start_layout(mujoco_driver):
+    # three chains never docked to each other: no report relates them, the start file's
+    # layout (as the world lays it, and a lab places the modules) does
+    from msrr.core.freeform.travel import Locator
+    from msrr.core.freeform.world import place
+
+    driver = mujoco_driver("freebot", "chains12/chains12-forest", noise=np.radians(0.5), seed=1)
+    world = driver.world
+    alone = Locator(world.length)
+    _update(alone, driver)
+    assert "F3" not in alone.relative("F12"), "another island"
+    config = load_configuration(ROOT / "plugins" / "freebot" / "configs" / "chains12"
+                                / "chains12-forest.json")
+    centres, frames = place(config, world.length, world.design.radius)
+    locator = Locator(world.length)
+    locator.start({m: (centres[m], frames[m]) for m in centres})
+    _update(locator, driver)
+    for module, other in [("F12", "F3"), ("F8", "F9"), ("F1", "F12")]:
+        k = world.modules.index(module)
+        truth = rot_z(-(world._heading0[k] + world._turned[k])) @ (world.centre(other)
+                                                                   - world.centre(module))
+        assert np.linalg.norm(locator.relative(module)[other] - truth) < 0.01, (module, other)
