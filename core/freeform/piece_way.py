@@ -179,7 +179,10 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
     (c0, h0), (g, hg) = (np.asarray(start[0], float), start[1]), (np.asarray(goal[0], float),
                                                                   goal[1])
     if not space.free(g[None, :], np.array([hg])):
-        raise ExecutionError(f"the goal place of a piece of {len(offsets)} modules is not free")
+        near = np.min(np.linalg.norm(space.others[:, None, :] - _modules(offsets, g, hg)[None],
+                                     axis=2), axis=1)
+        raise ExecutionError(f"the goal place of a piece of {len(offsets)} modules is not free: "
+                             f"{int(np.sum(near < space.limit))} other modules lie there")
     weight = max(space.reach, 1e-3)
     low = np.minimum(c0, g) - 0.5
     high = np.maximum(c0, g) + 0.5
