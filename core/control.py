@@ -15,11 +15,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
+from .configuration import Configuration
 from .driver import ModuleCommand, Observation
 from .events import Phase
 from .plan import Action
 
-__all__ = ["Control", "Controller"]
+__all__ = ["Control", "Controller", "StartLayout"]
 
 
 @dataclass(frozen=True)
@@ -59,4 +60,16 @@ class Controller(Protocol):
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         """The commands for this tick of ``phase``."""
+        ...
+
+
+@runtime_checkable
+class StartLayout(Protocol):
+    """A controller that is told the start configuration before the first action, as a
+    lab lays its modules out from the start file (the executor calls :meth:`start` once):
+    where separate start pieces lie relative to each other is then known, which no
+    report says (freeform modules: :meth:`msrr.core.freeform.travel.Locator.start`)."""
+
+    def start(self, configuration: Configuration) -> None:
+        """The run starts from ``configuration``, laid out by the robot's rule."""
         ...

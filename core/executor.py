@@ -103,7 +103,7 @@ from .closed_loop import (
     tree_for,
 )
 from .configuration import Configuration
-from .control import Control, Controller
+from .control import Control, Controller, StartLayout
 from .driver import Driver, ModuleCommand, Observation
 from .errors import ExecutionError, MsrrError
 from .estimation import Estimate, estimator_for
@@ -470,6 +470,8 @@ class Executor:
         self._started = wallclock.perf_counter()
         result = self.result
         self._current = self._estimated(self.driver.get_observation())
+        if isinstance(self.controller, StartLayout):
+            self.controller.start(plan.start)
         index = -1
         try:
             for index, action in enumerate(plan.actions):

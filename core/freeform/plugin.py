@@ -133,14 +133,21 @@ class FreeformPlugin:
     def controllers(self) -> list[ContactController]:
         """One controller per joint mode, named as the mode's ``controller``; the
         ``sucker`` mode's engages the sucker."""
+        from functools import partial
+
         from .recognition import ContactController
+        from .world import FreeformOptions, place
 
         shared = self.recognizer()
+        # centre distance of a docked pair, and the start laid out as the world lays it
+        # (the lab's placement of the start file)
+        spacing = 2.0 * self.design.radius + FreeformOptions().gap
+        layout = partial(place, length=spacing, radius=self.design.radius)
         # a piece's shells roll under their arms on their bearings (FreeBOT), its fastest
         # centre at 80 % of a shell's rolling bound, the rest for the motors' loops
         piece = 0.8 * self.design.max_rate * self.design.radius if self.design.bearing else 0.0
         return [ContactController(mode.controller, shared, sucker=mode.name == self.sucker,
-                                  spacing=2.0 * self.design.radius, piece_speed=piece)
+                                  spacing=spacing, piece_speed=piece, layout=layout)
                 for mode in self.joint_modes()]
 
     # -- hooks --------------------------------------------------------------------------

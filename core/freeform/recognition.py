@@ -28,7 +28,7 @@ tells its connector to dock on ``Q`` and leave ``P``, which the world does in on
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -43,15 +43,8 @@ from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
-from .travel import (
-    Locator,
-    PieceWay,
-    floor_path,
-    plan_piece_way,
-    pursue,
-    straight_line,
-    twist_velocities,
-)
+from .piece_way import PieceWay, plan_piece_way, wrap
+from .travel import Locator, floor_path, pursue, twist_velocities
 from .world import ModuleReport
 
 __all__ = ["ContactController", "ContactRecognizer", "common_turn", "flow_direction",
@@ -284,12 +277,17 @@ class ContactController:
         piece_speed: fastest centre of a piece travelling over the floor [m/s], or 0: a
             module that carries others does not travel (its connector is rigid with the
             shell its tracks hold: SnailBot).
+        layout: how the modules of a start configuration are laid out (their centres
+            (3,) [m] and connector frames (3, 3), one frame), as a lab places them from
+            the start file (:func:`~msrr.core.freeform.world.place`); ``None``: not known.
     """
 
     def __init__(self, name: str, recognizer: ContactRecognizer, *, sucker: bool = False,
                  tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0),
                  spacing: float = 0.1, ground_speed: float = 0.04, arrive: float = 0.005,
-                 piece_speed: float = 0.0):
+                 piece_speed: float = 0.0,
+                 layout: Callable[[Configuration], tuple[Mapping[str, np.ndarray],
+                                                         Mapping[str, np.ndarray]]] | None = None):
         self.name = name
         self.description = (f"{recognizer.robot} connection vectors -> drive commands"
                              + (" (sucker engaged)" if sucker else ""))
@@ -305,7 +303,18 @@ class ContactController:
         self._ways: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
         """module -> (target, its way, the target's centre): odometry frame ``O``."""
         self._pieces: dict[str, tuple[PieceWay, int]] = {}
-        """root -> (its piece's way, the stage reached: out, turn, along)."""
+        """root -> (its piece's way, the leg it is on)."""
+        self._layout = layout
+
+    def start(self, configuration: Configuration) -> None:
+        """The run starts from ``configuration``: the locator learns where its modules
+        were laid (``layout``), so separate start pieces are related on its map
+        (:meth:`~msrr.core.freeform.travel.Locator.start`)."""
+        self.locator = Locator(self.locator.spacing)
+        self._ways, self._pieces = {}, {}
+        if self._layout is not None:
+            centres, frames = self._layout(configuration)
+            self.locator.start({m: (centres[m], frames[m]) for m in centres})
 
     def commands(self, target: Configuration, observation: Observation, *,
                  yaw: float | None = None, current: Configuration | None = None
@@ -393,53 +402,34 @@ class ContactController:
         return ways, pieces
 
     def _travel_pieces(self, phase: Phase) -> Control:
-        """One tick of the pieces' travel (approach: out, turn, along the way; see
-        :class:`~msrr.core.freeform.travel.PieceWay`), or of their guarded push onto the
-        target with the root's connector armed (connect): a twist of each piece from its
-        pose on the map (:meth:`Locator.pose`), sent to each of its modules as the
-        velocity of its own centre (:func:`~msrr.core.freeform.travel.twist_velocities`).
-        A straight piece moves as a car (it cannot roll across its line): along its line,
-        turning about its centroid, steering its line onto its way until near its end."""
+        """One tick of the pieces' travel (approach: leg by leg, see
+        :class:`~msrr.core.freeform.piece_way.PieceWay`), or of their guarded push onto
+        the target with the root's connector armed (connect): a twist of each piece from
+        its pose on the map (:meth:`Locator.pose`, the centroid of its modules), sent to
+        each module as the velocity of its own centre
+        (:func:`~msrr.core.freeform.travel.twist_velocities`). A turn holds the centroid;
+        a drive holds the leg's heading, a straight piece steering back onto the leg's
+        line as a car does (it cannot roll across its line)."""
         commands, errors = {}, {}
         for root, (way, stage) in list(self._pieces.items()):
-            where, heading = self.locator.pose(root)
             centres = {m: self.locator.pose(m)[0] for m in way.piece}
             headings = {m: self.locator.pose(m)[1] for m in way.piece}
-            line = straight_line(np.array(list(centres.values())), self.locator.spacing)
-            off = _wrap(way.heading - heading)
-            turn = float(np.clip(_YAW_GAIN * off, -1.0, 1.0))
+            middle = np.mean([c[:2] for c in centres.values()], axis=0)
+            heading = way.heading_of(centres)
             if phase is Phase.CONNECT:
-                toward = way.centre - where[:2]
-                velocity = 0.5 * self.piece_speed * _unit(toward)
+                toward = way.centre - self.locator.pose(root)[0][:2]
+                velocity = 0.5 * self.piece_speed * (float(toward @ way.push) > 0) * way.push
                 left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
-            elif stage == 1:
-                velocity, left = np.zeros(2), 1.0 + abs(off)
-                if abs(off) < _YAW_DONE:
-                    self._pieces[root] = (way, 2)
+                turn = float(np.clip(_YAW_GAIN * wrap(way.legs[-1].heading - heading), -1, 1))
             else:
-                path = way.path[:1] if stage == 0 else way.path[1:]
-                velocity, left = pursue(path, where[:2], speed=self.piece_speed,
-                                        lookahead=_PIECE_LOOKAHEAD)
-                if stage == 0:     # out; a straight piece only along its line
-                    if line is not None:
-                        left = abs(float((way.path[0] - where[:2]) @ line))
-                    turn, left = 0.0, left + 1.0
-                    if left < 1.0 + self.arrive:
-                        self._pieces[root] = (way, 1)
-                else:
-                    if line is not None and left > _CAR_END and np.linalg.norm(velocity) > 0:
-                        ahead = np.sign(float(velocity @ line) or 1.0) * line
-                        turn = float(np.clip(_YAW_GAIN * np.arctan2(
-                            ahead[0] * velocity[1] - ahead[1] * velocity[0],
-                            ahead @ velocity), -1.0, 1.0))
-                    left += abs(off) * self.locator.spacing
-            about = where[:2] if line is None else np.mean([c[:2] for c in centres.values()],
-                                                           axis=0)
-            if stage == 1 and phase is Phase.APPROACH:
-                about = way.pivot
-            if line is not None:
-                velocity = float(velocity @ line) * line
-            velocities, w = twist_velocities(centres, headings, velocity, turn, about,
+                while stage < len(way.legs) and self._leg_done(way, stage, middle, heading):
+                    stage += 1
+                self._pieces[root] = (way, stage)
+                velocity, turn, left = self._leg_twist(way, stage, middle, heading)
+            if way.line is not None:      # a straight piece moves along its line only
+                along = rot_z(heading)[:2, :2] @ way.line
+                velocity = float(velocity @ along) * along
+            velocities, w = twist_velocities(centres, headings, velocity, turn, middle,
                                              speed=self.piece_speed)
             for m, v in velocities.items():
                 dock = (f"@{way.target}",) if phase is Phase.CONNECT and m == root else ()
@@ -448,6 +438,48 @@ class ContactController:
             errors[root] = left
         return Control(commands=commands, errors=errors,
                        reached=all(e < self.arrive for e in errors.values()))
+
+    def _leg_done(self, way: PieceWay, stage: int, middle: np.ndarray, heading: float) -> bool:
+        """Whether the piece at centroid ``middle`` (2,) and root heading ``heading`` has
+        done leg ``stage`` of ``way`` (a turn within ``_YAW_DONE``, a drive within
+        ``arrive`` of its end, or past it)."""
+        leg = way.legs[stage]
+        if leg.kind == "turn":
+            return abs(wrap(leg.heading - heading)) < _YAW_DONE
+        direction = _unit(leg.to - (way.legs[stage - 1].to if stage else way.origin))
+        return float((leg.to - middle) @ direction) < self.arrive
+
+    def _leg_twist(self, way: PieceWay, stage: int, middle: np.ndarray, heading: float
+                   ) -> tuple[np.ndarray, float, float]:
+        """The twist (velocity (2,) [m/s] of the centroid, turn [rad/s]) for leg
+        ``stage`` of ``way``, and the travel left [m] (the farthest module's, to the
+        way's end; 0 when every leg is done)."""
+        reach = max(float(np.max(np.linalg.norm(
+            np.array([self.locator.pose(m)[0][:2] for m in way.piece]) - middle, axis=1))),
+            self.locator.spacing)
+        if stage >= len(way.legs):
+            return np.zeros(2), 0.0, 0.0
+        leg = way.legs[stage]
+        left = sum(float(np.linalg.norm(b.to - a.to)) + reach * abs(wrap(b.heading - a.heading))
+                   for a, b in zip(way.legs[stage:], way.legs[stage + 1:], strict=False))
+        if leg.kind == "turn":
+            off = wrap(leg.heading - heading)     # about the leg's pivot, held
+            return 0.5 * (leg.to - middle), float(np.clip(_YAW_GAIN * off, -1.0, 1.0)), \
+                left + reach * abs(off) + self.arrive
+        direction = _unit(leg.to - (way.legs[stage - 1].to if stage else way.origin))
+        ahead = float((leg.to - middle) @ direction)
+        across = float(np.cross(direction, middle - leg.to))   # left of the leg's line
+        velocity = min(self.piece_speed, max(ahead, 0.0) + 0.002) * direction
+        # hold the leg's heading and come back onto the leg's line: a straight piece
+        # steers there (turning turns its line, whichever way it drives), a bent one
+        # moves across
+        steer = float(np.clip(-_STEER_GAIN * across, -_STEER, _STEER))
+        if way.line is None:
+            velocity = velocity + steer * self.piece_speed * np.array([-direction[1],
+                                                                        direction[0]])
+            steer = 0.0
+        turn = float(np.clip(_YAW_GAIN * wrap(leg.heading + steer - heading), -1.0, 1.0))
+        return velocity, turn, left + max(ahead, 0.0) + self.arrive
 
     def _travel(self, phase: Phase, reports: Reports) -> Control:
         """One tick of the free modules' travel (approach), or of their last push onto
@@ -562,10 +594,12 @@ def _refuse_carried_travel(current: Configuration, action: Action) -> None:
 
 _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
+_STEER_GAIN = 10.0           # a straight piece's steer per metre off its leg's line [rad/m]
+_STEER = 0.2                 # its largest steer [rad]
 
 
-_PIECE_LOOKAHEAD = 0.1     # a piece pursues its way this far ahead [m] (it steers slowly)
-_CAR_END = 0.12             # a straight piece steers onto its way until this close [m]
+
+
 def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:
     """Centres (3,) [m] of ``config``'s modules, each connected piece from its first
     module (:func:`~msrr.core.freeform.travel.lay_out_pieces`)."""
@@ -579,11 +613,6 @@ def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:
             adjacent[e.target].append((e.source, -z))
     return {m: p for piece in lay_out_pieces(adjacent, sorted(adjacent), spacing)
             for m, p in piece.items()}
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` [rad] in [-pi, pi)."""
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 def _unit(vector: np.ndarray) -> np.ndarray:

@@ -29,16 +29,16 @@ from __future__ import annotations
 import heapq
 from collections import deque
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..alignment import rot_z
 from ..errors import ExecutionError
+from .mujoco import yaw_of
 
-__all__ = ["Locator", "PieceWay", "floor_path", "piece_goal", "piece_path", "plan_piece_way",
-           "pursue", "straight_line", "twist_velocities"]
+__all__ = ["Locator", "floor_path", "piece_goal", "pursue", "straight_line",
+           "twist_velocities"]
 
 _CELL = 0.01          # grid of the floor path [m]
 _CLEARANCE = 0.008    # kept between shells on the way [m]
@@ -108,6 +108,16 @@ class Locator:
         self._odometry: dict[str, np.ndarray] = {}
         self._groups: list[set[str]] = []
         self._islands = 0
+        self._start: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._start_island = 0
+
+    def start(self, layout: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> None:
+        """Where the modules were put at the start: ``layout[m]`` is ``m``'s centre (3,)
+        [m] and its connector's frame (3, 3), one frame for all (the start file's layout,
+        as a lab places its modules). A group seen first whose modules are all in it is
+        put there (:meth:`_place`), so separate start pieces share one island."""
+        self._start = {m: (np.asarray(c, dtype=float), np.asarray(r, dtype=float))
+                       for m, (c, r) in layout.items()}
 
     def update(self, reports: Mapping[str, object], links: Mapping[str, str],
                heading: Mapping[str, float]) -> None:
@@ -118,8 +128,33 @@ class Locator:
         odometry = {m: np.asarray(r.odometry, dtype=float)  # type: ignore[attr-defined]
                     for m, r in reports.items()}
         for group in groups:
+            if self._start and not any(m in self.position for m in group) \
+                    and all(m in self._start for m in group):
+                self._place_at_start(sorted(group), centres, heading, reports, odometry)
             self._place(sorted(group), centres, heading, odometry)
         self._odometry.update(odometry)
+
+    def _place_at_start(self, group: list[str], centres: Mapping[str, np.ndarray],
+                        heading: Mapping[str, float], reports: Mapping[str, object],
+                        odometry: Mapping[str, np.ndarray]) -> None:
+        """Put ``group`` where the start layout has it, on the start's island: its yaw the
+        circular mean over its modules of ``yaw(R_m T_m^T) - heading_m`` (``R_m`` the
+        layout's connector frame, ``T_m`` the reported tilt: ``R = Rz(psi) T``), its
+        offset the mean of ``c_m`` (the layout's centre) less ``Rz(psi)`` of its centre in
+        the group's frame. :meth:`_place` then sets each module's odometry frame."""
+        yaws = [yaw_of(self._start[m][1] @ reports[m].tilt.T) - heading[m]  # type: ignore[attr-defined]
+                for m in group]
+        psi = float(np.arctan2(np.mean(np.sin(yaws)), np.mean(np.cos(yaws))))
+        turn = rot_z(psi)
+        t = np.mean([self._start[m][0] - turn @ centres[m] for m in group], axis=0)
+        if not self._start_island:
+            self._islands += 1
+            self._start_island = self._islands
+        for m in group:
+            self.position[m] = t + turn @ centres[m]
+            self.frame[m] = psi + heading[m] - float(odometry[m][2])
+            self.island[m] = self._start_island
+            self._odometry[m] = odometry[m]
 
     def _place(self, group: list[str], centres: Mapping[str, np.ndarray],
                heading: Mapping[str, float], odometry: Mapping[str, np.ndarray]) -> None:
@@ -213,119 +248,6 @@ def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
     origin = np.asarray(goal[target], dtype=float)[:2]
     return {m: np.asarray(here[target], dtype=float)[:2] + turn @ (
         np.asarray(goal[m], dtype=float)[:2] - origin) for m in piece}
-
-
-def piece_path(others: Mapping[str, np.ndarray], offsets: Mapping[str, np.ndarray],
-               start: np.ndarray, end: np.ndarray, spacing: float) -> list[np.ndarray]:
-    """The way (points (2,) [m]) of a piece that translates from ``start`` to ``end``
-    (its reference point), its modules at ``offsets`` (2,) from that point, clear of
-    ``others`` (centres (2,) or (3,), floor level within two spacings): A* in the plane
-    of the reference point, each other module a disc of ``spacing`` plus a clearance
-    about each of ``o - d_m`` (the Minkowski sum of the piece and the discs).
-
-    Raises:
-        ExecutionError: no way is free.
-    """
-    level = [np.asarray(c, dtype=float)[:2] for c in others.values()
-             if len(c) < 3 or abs(c[2]) < 2 * spacing]
-    discs = [o - np.asarray(d, dtype=float)[:2] for o in level for d in offsets.values()]
-    path = _astar(np.asarray(start, dtype=float), np.asarray(end, dtype=float), discs,
-                  [spacing + _CLEARANCE] * len(discs))
-    if path is None:
-        raise ExecutionError(f"no free way over the floor for a piece of {len(offsets)} "
-                             "modules")
-    return path
-
-
-_BACK_OUT = 0.03      # a piece first moves this far from the modules it touches [m]
-_SHORT = 0.02         # and stops this far short of its docking spot [m]
-_LAST = 0.15          # its way's last stretch, straight in along the docking line [m]
-_TURN_FREE = np.radians(10.0)  # a smaller turn of a piece needs no room of its own
-_FARTHEST = 1.0       # farthest a piece backs out to turn [m]
-
-
-@dataclass(frozen=True)
-class PieceWay:
-    """How a piece travels to dock its free module ``root`` on ``target`` (map frame:
-    :class:`Locator`): out from what it touches to ``path[0]``, a turn in place about
-    ``pivot`` to the root's heading ``heading``, along ``path`` (the root's centre,
-    points (n, 2) [m]) to a stop short of its docking spot, then in along the line to
-    ``centre`` (the target's) until the connector latches.
-    """
-
-    root: str
-    target: str
-    piece: tuple[str, ...]
-    heading: float
-    pivot: np.ndarray
-    path: np.ndarray
-    centre: np.ndarray
-
-
-def plan_piece_way(locator: Locator, root: str, target: str,
-                   goal: Mapping[str, np.ndarray]) -> PieceWay:
-    """The :class:`PieceWay` of the piece led by ``root`` to dock on ``target`` in the
-    shape of ``goal`` (centres (3,) of the goal configuration, any frame): where it
-    must end (:func:`piece_goal`), the turn that takes it there (least squares over
-    its modules), and a way for the turned piece clear of every other module
-    (:func:`piece_path`).
-
-    Raises:
-        ExecutionError: ``target`` is on no map island with ``root`` (nothing tells where
-            it is), or no way is free.
-    """
-    piece = locator.piece(root)
-    near = locator.relative(root)              # raises if root's island is alone
-    if target not in near:
-        raise ExecutionError(f"module {target} was never joined to the piece of {root}: "
-                             "no report tells where it is")
-    here = {m: p[:2] for m, p in locator.position.items()
-            if locator.island[m] == locator.island[root]}
-    staying = {m: here[m] for m in locator.piece(target)}
-    end = piece_goal(goal, staying | {m: here[m] for m in piece}, piece, target)
-    ms = sorted(piece)
-    now = np.array([here[m] for m in ms])
-    then = np.array([end[m] for m in ms])
-    a, b = now - now.mean(axis=0), then - then.mean(axis=0)
-    turn = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
-                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
-    others = {m: p for m, p in here.items() if m not in piece}
-    touching = [(here[m] - o) / max(float(np.linalg.norm(here[m] - o)), 1e-9)
-                for m in ms for o in others.values()
-                if np.linalg.norm(here[m] - o) < locator.spacing + _CLEARANCE]
-    out = np.sum(touching, axis=0) if touching else np.zeros(2)
-    middle = now.mean(axis=0)
-    line = straight_line(now, locator.spacing)
-    if line is not None and touching:    # a straight piece backs out along its line,
-        ends = [float(np.min(np.linalg.norm(np.array(list(others.values())).reshape(-1, 2)
-                                            - (middle + _BACK_OUT * sign * line), axis=1)))
-                for sign in (1.0, -1.0)]          # to the side with more room
-        out = line * (1.0 if ends[0] >= ends[1] else -1.0)
-    out = out / np.linalg.norm(out) if np.linalg.norm(out) > 1e-9 else out
-    if abs(turn) > _TURN_FREE:   # out until the disc the turn sweeps is clear
-        sweep = float(np.max(np.linalg.norm(now - middle, axis=1))) + locator.spacing \
-            + _CLEARANCE
-        rest = np.array(list(others.values())).reshape(-1, 2)
-        far = _BACK_OUT
-        while len(rest) and np.min(np.linalg.norm(rest - middle - far * out, axis=1)) < sweep \
-                and far < _FARTHEST:
-            far += _CELL
-        out = far * out
-    else:
-        out = _BACK_OUT * out
-    pivot = middle + out
-    start = pivot + rot_z(turn)[:2, :2] @ (here[root] + out - pivot)
-    centre = here[target]
-    line = (centre - end[root]) / np.linalg.norm(centre - end[root])
-    stop = end[root] - _SHORT * line
-    # the last stretch straight in along the docking line (a straight piece, a car,
-    # comes in along it when its line is that line)
-    last = [stop - _LAST * line + f * line for f in np.arange(0.0, _LAST, _CELL)]
-    path = piece_path(others, {m: end[m] - end[root] for m in ms}, start, last[0],
-                      locator.spacing) + last[1:] + [stop]
-    _, heading = locator.pose(root)
-    return PieceWay(root, target, tuple(ms), heading + turn, pivot,
-                    np.array([here[root] + out, *path]), centre)
 
 
 _STRAIGHT = 0.25      # a piece is straight within this many spacings of its line

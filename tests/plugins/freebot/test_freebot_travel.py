@@ -183,14 +183,81 @@ def test_a_piece_goal_is_the_goal_shape_where_the_target_stays():
         assert np.allclose(end[m], (turn @ goal[m] + shift)[:2])
 
 
-def test_a_piece_path_keeps_every_module_of_the_piece_clear():
-    from msrr.core.freeform.travel import piece_path
+def _closest(legs, offsets, others, start) -> float:
+    """The smallest distance [m] between a module of the piece and another module over
+    every pose the legs sweep, resampled every millimetre of the farthest module's
+    travel (independently of the planner's own samples)."""
+    from msrr.core.freeform.piece_way import poses_along
 
-    wall = {f"W{i}": np.array([0.3, 0.1 * i - 0.3]) for i in range(6)}   # x = 0.3, y < 0.3
-    offsets = {"R": np.zeros(2), "S": np.array([-0.1, 0.0]), "T": np.array([-0.2, 0.0])}
-    way = np.array(piece_path(wall, offsets, np.array([0.0, 0.0]), np.array([0.7, 0.0]), 0.1))
-    assert np.allclose(way[-1], [0.7, 0.0])
-    for p in way:
-        for d in offsets.values():
-            assert min(np.linalg.norm(p + d - w) for w in wall.values()) >= 0.1
-    assert np.all(np.linalg.norm(np.diff(way, axis=0), axis=1) < 0.025), "connected"
+    reach = float(np.max(np.linalg.norm(offsets, axis=1)))
+    return min(float(np.min(np.linalg.norm(
+        (c + offsets @ rot_z(h)[:2, :2].T)[:, None, :] - others[None, :, :], axis=2)))
+        for c, h in poses_along(legs, start, 0.001, reach))
+
+
+def test_a_straight_piece_way_is_turns_in_place_and_drives_along_its_line_all_clear():
+    from msrr.core.freeform.piece_way import plan_legs
+
+    # chains-to-tree's layout: a chain beside a row of four, below it another row; the
+    # chain must end across the row's third module, standing on it
+    rows = np.array([[0.101 * i, y] for y in (0.0, 0.101) for i in range(4)])
+    chain = np.array([[0.101 * i, 0.202] for i in range(4)])
+    start = (chain.mean(axis=0), 0.0)
+    offsets = chain - start[0]
+    goal = (np.array([0.202, 0.101 + 0.121 + 0.1515 + 0.15]), -np.pi / 2)
+    legs = plan_legs(rows, offsets, np.array([1.0, 0.0]), start, goal, 0.101)
+    c, h = start
+    for leg in legs:
+        if leg.kind == "turn":
+            assert np.allclose(leg.to, c), "a turn stays in place"
+        else:    # a drive goes along the piece's line
+            assert abs(leg.heading - h) < 1e-9
+            way = leg.to - c
+            line = rot_z(h)[:2, 0]
+            assert abs(way[0] * line[1] - way[1] * line[0]) < 1e-9
+        c, h = leg.to, leg.heading
+    assert np.allclose(c, goal[0]) and abs(np.sin(h - goal[1])) < 1e-9
+    # every swept pose: clear of the rows, as close as the start at most (it lies beside)
+    assert _closest(legs, offsets, rows, start) >= 0.101 - 0.0021
+
+
+def test_a_bent_piece_way_keeps_clear_and_a_closed_goal_is_refused():
+    from msrr.core.errors import ExecutionError
+    from msrr.core.freeform.piece_way import plan_legs
+
+    wall = np.array([[0.4, 0.1 * i - 0.3] for i in range(7)])        # x = 0.4, |y| <= 0.3
+    ell = np.array([[0.0, 0.0], [0.1, 0.0], [0.2, 0.0], [0.2, 0.1]])
+    start = (ell.mean(axis=0), 0.3)
+    offsets = ell - start[0]
+    goal = (np.array([0.8, 0.0]), 2.0)
+    legs = plan_legs(wall, offsets, None, start, goal, 0.1)
+    assert np.allclose(legs[-1].to, goal[0]) and abs(np.sin(legs[-1].heading - 2.0)) < 1e-9
+    assert _closest(legs, offsets, wall, start) >= 0.108 - 1e-6
+    boxed = np.array([[start[0][0] + 0.3 * np.cos(a), start[0][1] + 0.3 * np.sin(a)]
+                      for a in np.linspace(0, 2 * np.pi, 30, endpoint=False)])  # a pen
+    with pytest.raises(ExecutionError, match="no free way|not free"):
+        plan_legs(np.vstack([wall, boxed]), offsets, None, start, goal, 0.1)
+
+
+def test_separate_start_pieces_are_related_by_the_start_layout(mujoco_driver):
+    # three chains never docked to each other: no report relates them, the start file's
+    # layout (as the world lays it, and a lab places the modules) does
+    from msrr.core.freeform.travel import Locator
+    from msrr.core.freeform.world import place
+
+    driver = mujoco_driver("freebot", "chains12/chains12-forest", noise=np.radians(0.5), seed=1)
+    world = driver.world
+    alone = Locator(world.length)
+    _update(alone, driver)
+    assert "F3" not in alone.relative("F12"), "another island"
+    config = load_configuration(ROOT / "plugins" / "freebot" / "configs" / "chains12"
+                                / "chains12-forest.json")
+    centres, frames = place(config, world.length, world.design.radius)
+    locator = Locator(world.length)
+    locator.start({m: (centres[m], frames[m]) for m in centres})
+    _update(locator, driver)
+    for module, other in [("F12", "F3"), ("F8", "F9"), ("F1", "F12")]:
+        k = world.modules.index(module)
+        truth = rot_z(-(world._heading0[k] + world._turned[k])) @ (world.centre(other)
+                                                                   - world.centre(module))
+        assert np.linalg.norm(locator.relative(module)[other] - truth) < 0.01, (module, other)

@@ -1,0 +1,362 @@
+"""The way of a piece over the floor: turns in place and straight drives, the whole
+piece's swept area kept clear of every other module.
+
+A FreeBOT piece travels as one rigid body
+(:meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`), but a *straight* piece
+(every centre on one line) moves like a car without steering lock: along its line, and
+turning about its centroid; it cannot roll across its line (nothing outside it gives a
+torque about that line). Following a grid way that runs across the line therefore
+crawls (measured in ``chains-to-tree``: a chain of four asked to go 0.02 m/s along a way
+across its line made about 1 mm/s, and the steering that turned it onto the way swung
+its end into a module of the row it had left, where it pushed for 10 s without moving).
+
+So the way is planned as the piece moves: a sequence of :class:`Leg` -- a turn in place
+about the centroid, or a straight drive (along the line for a straight piece, any
+direction for a bent one) -- found by a hybrid A* over poses ``(centroid, heading)``
+(Dolgov et al., 2010: continuous poses, visited cells of ``_CELL`` and headings of
+``pi / 8`` from the goal's), each move collision-checked over the area it sweeps:
+every module of the piece, sampled at most ``_SAMPLE`` apart along its own arc or line,
+keeps ``spacing + _CLEARANCE`` from every other module at floor level (or, from a module
+it already touches, no closer than it starts). Each expanded pose also tries the direct
+way, turn to face the goal, drive, turn to the goal heading (the analytic expansion of
+hybrid A*). The cost is the farthest any module travels (a drive's length, a turn's angle
+times the piece's radius about its centroid): the time at the speed bound.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..alignment import rot_z
+from ..errors import ExecutionError
+from .travel import Locator, piece_goal, straight_line
+
+__all__ = ["Leg", "PieceWay", "plan_piece_way", "plan_legs", "poses_along", "wrap"]
+
+_CELL = 0.02          # visited cells of the search [m]
+_STEP = 0.03          # a drive of the search [m]
+_TURN = np.pi / 8     # a turn of the search [rad]
+_SAMPLE = 0.005       # collision samples along a move, at the farthest module [m]
+_CLEARANCE = 0.008    # kept between shells [m]
+_GRAZE = 0.002        # a module touched at the start is kept this much closer [m]
+_SHORT = 0.02         # the way stops this far short of the docking spot [m]
+_LAST = 0.15          # its last stretch, straight in [m]
+_EXPANSIONS = 20000   # the search gives up after this many poses
+_DIRECT = 8           # the direct way is tried from every this many poses
+
+
+def wrap(angle: float) -> float:
+    """``angle`` [rad] in [-pi, pi)."""
+    return float((angle + np.pi) % (2 * np.pi) - np.pi)
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One move of a piece: ``turn`` in place about its centroid to ``heading``, or
+    ``drive`` straight to centroid ``to`` (2,) [m] keeping ``heading`` (the root's map
+    heading [rad] at the leg's end)."""
+
+    kind: str
+    to: np.ndarray
+    heading: float
+
+
+@dataclass(frozen=True)
+class PieceWay:
+    """How a piece travels to dock its free module ``root`` on ``target`` (map frame:
+    :class:`~msrr.core.freeform.travel.Locator`): the ``legs`` from where it is (its
+    centroid ``origin`` (2,) [m], its modules at ``shape`` (m, 2) [m] from it, in the
+    order of ``piece``, at heading ``heading``) to a
+    stop short of its docking spot, then the guarded push along ``push`` (unit (2,), the
+    piece's line for a straight piece) toward ``centre`` (the target's) until the
+    connector latches. ``line``: a straight piece's line (unit (2,), at heading 0; it
+    drives along it only), else ``None``.
+
+    A heading is the piece's: the root's map heading when the way was planned, plus the
+    turn of the piece's shape since (:meth:`heading_of`), not the root's heading now (a
+    free module's magnet unit turns in its rolling shell, not with its piece's arms).
+    """
+
+    def heading_of(self, centres: Mapping[str, np.ndarray]) -> float:
+        """The piece's heading [rad] with its modules at ``centres`` (map, (2,) or (3,)):
+        ``heading`` plus the least-squares turn from ``shape`` to them."""
+        now = np.array([np.asarray(centres[m], dtype=float)[:2] for m in self.piece])
+        now = now - now.mean(axis=0)
+        a = self.shape
+        return wrap(self.heading + float(np.arctan2(
+            np.sum(a[:, 0] * now[:, 1] - a[:, 1] * now[:, 0]),
+            np.sum(a[:, 0] * now[:, 0] + a[:, 1] * now[:, 1]))))
+
+    root: str
+    target: str
+    piece: tuple[str, ...]
+    origin: np.ndarray
+    shape: np.ndarray
+    heading: float
+    legs: tuple[Leg, ...]
+    centre: np.ndarray
+    push: np.ndarray
+    line: np.ndarray | None
+
+
+class _Space:
+    """The other modules as obstacles of a piece whose modules sit at ``offsets`` (m, 2)
+    from its centroid at heading 0 [m]; each obstacle keeps ``spacing + _CLEARANCE`` from
+    every module, less where the ``start`` pose (centroid (2,), heading) already comes
+    closer (the piece just let go of it, or lies beside it)."""
+
+    def __init__(self, others: np.ndarray, offsets: np.ndarray, spacing: float,
+                 start: tuple[np.ndarray, float]):
+        self.offsets = offsets
+        self.reach = float(np.max(np.linalg.norm(offsets, axis=1))) if len(offsets) else 0.0
+        self.others = others
+        self.tree = cKDTree(others) if len(others) else None
+        keep = np.full(len(others), spacing + _CLEARANCE)
+        if len(others):
+            now = _modules(offsets, *start)
+            near = np.min(np.linalg.norm(others[:, None, :] - now[None, :, :], axis=2), axis=1)
+            keep = np.minimum(keep, near - _GRAZE)
+        self.keep = keep
+        self.limit = spacing + _CLEARANCE
+
+    def free(self, centres: np.ndarray, headings: np.ndarray, escaping: bool = False) -> bool:
+        """Whether the piece at every pose (centroids (k, 2), headings (k,)) is clear;
+        ``escaping``: it drives straight out of its start, where it may stay as close to
+        what it touches as it starts (else it keeps the full clearance)."""
+        if self.tree is None:
+            return True
+        points = np.concatenate([_modules(self.offsets, c, h)
+                                 for c, h in zip(centres, headings, strict=True)])
+        k = min(8, len(self.others))
+        dist, idx = self.tree.query(points, k=k, distance_upper_bound=self.limit)
+        dist, idx = dist.reshape(len(points), k), idx.reshape(len(points), k)
+        hit = idx < len(self.others)
+        keep = self.keep if escaping else np.full(len(self.others), self.limit)
+        return not np.any(dist[hit] < keep[idx[hit]])
+
+    def turn_free(self, centre: np.ndarray, a: float, b: float) -> bool:
+        """The turn in place about ``centre`` from heading ``a`` to ``b`` (the short way)."""
+        sweep = wrap(b - a)
+        n = max(2, int(np.ceil(abs(sweep) * max(self.reach, 1e-3) / _SAMPLE)) + 1)
+        angles = a + np.linspace(0.0, sweep, n)
+        return self.free(np.repeat(centre[None, :], n, axis=0), angles)
+
+    def drive_free(self, a: np.ndarray, b: np.ndarray, heading: float,
+                   escaping: bool = False) -> bool:
+        """The straight drive from centroid ``a`` to ``b`` at ``heading``."""
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / _SAMPLE)) + 1)
+        t = np.linspace(0.0, 1.0, n)[:, None]
+        return self.free(a + t * (b - a), np.full(n, heading), escaping)
+
+
+def _modules(offsets: np.ndarray, centre: np.ndarray, heading: float) -> np.ndarray:
+    """The piece's module centres (m, 2) at pose ``(centre, heading)``."""
+    return centre + offsets @ rot_z(heading)[:2, :2].T
+
+
+def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
+              start: tuple[np.ndarray, float], goal: tuple[np.ndarray, float],
+              spacing: float) -> list[Leg]:
+    """The legs (turns in place, straight drives) of a piece from pose ``start`` to pose
+    ``goal`` (centroid (2,) [m], heading [rad]), clear of ``others`` (centres (n, 2)
+    [m]) all along (module docstring): a hybrid A* with the direct way tried from
+    every pose.
+
+    Args:
+        offsets: the piece's module centres (m, 2) from its centroid at heading 0 [m].
+        line: a straight piece's line (unit (2,), at heading 0): it drives along it
+            only; ``None``: it drives in any direction.
+
+    Raises:
+        ExecutionError: no way is free.
+    """
+    space = _Space(np.asarray(others, dtype=float).reshape(-1, 2), offsets, spacing, start)
+    (c0, h0), (g, hg) = (np.asarray(start[0], float), start[1]), (np.asarray(goal[0], float),
+                                                                  goal[1])
+    if not space.free(g[None, :], np.array([hg])):
+        near = np.min(np.linalg.norm(space.others[:, None, :] - _modules(offsets, g, hg)[None],
+                                     axis=2), axis=1)
+        raise ExecutionError(f"the goal place of a piece of {len(offsets)} modules is not free: "
+                             f"{int(np.sum(near < space.limit))} other modules lie there")
+    weight = max(space.reach, 1e-3)
+    low = np.minimum(c0, g) - 0.5
+    high = np.maximum(c0, g) + 0.5
+    if len(space.others):
+        low = np.minimum(low, space.others.min(axis=0) - space.reach - spacing)
+        high = np.maximum(high, space.others.max(axis=0) + space.reach + spacing)
+
+    def key(c: np.ndarray, h: float) -> tuple[int, int, int]:
+        k = int(np.rint(wrap(h - hg) / _TURN)) % 16
+        exact = abs(wrap(h - hg - k * _TURN)) < 1e-6
+        return int(np.rint(c[0] / _CELL)), int(np.rint(c[1] / _CELL)), k if exact else -1
+
+    # centre, heading, parent, and whether it only drove straight out of the start so far
+    nodes: list[tuple[np.ndarray, float, int, bool]] = [(c0, h0, -1, True)]
+    moves: list[Leg | None] = [None]
+    best = {key(c0, h0): 0.0}
+    heap = [(float(np.linalg.norm(g - c0)), 0.0, 0)]
+    for n in range(_EXPANSIONS):
+        if not heap:
+            break
+        _, cost, i = heapq.heappop(heap)
+        c, h, _parent, escaping = nodes[i]
+        direct = _direct(space, c, h, g, hg, line) if n % _DIRECT == 0 else None
+        if direct is not None:
+            return _unwind(nodes, moves, i) + direct
+        for leg, extra in _moves(space, c, h, line, weight, escaping):
+            if not np.all((leg.to >= low) & (leg.to <= high)):
+                continue
+            k, new = key(leg.to, leg.heading), cost + extra
+            if new < best.get(k, np.inf) - 1e-9:
+                best[k] = new
+                nodes.append((leg.to, leg.heading, i, escaping and leg.kind == "drive"))
+                moves.append(leg)
+                heapq.heappush(heap, (new + float(np.linalg.norm(g - leg.to)), new,
+                                      len(nodes) - 1))
+    raise ExecutionError(f"no free way over the floor for a piece of {len(offsets)} modules")
+
+
+def _moves(space: _Space, c: np.ndarray, h: float, line: np.ndarray | None,
+           weight: float, escaping: bool) -> list[tuple[Leg, float]]:
+    """The search's moves from pose ``(c, h)`` that are clear, with their costs: turns of
+    ``_TURN`` onto the goal's heading lattice, and drives of ``_STEP`` (``escaping``: the
+    pose was reached by drives straight out of the start, which may graze what the start
+    touches; a turn never does, as it would push it)."""
+    out = []
+    for sign in (1.0, -1.0):
+        to = h + sign * _TURN
+        if space.turn_free(c, h, to):
+            out.append((Leg("turn", c, wrap(to)), _TURN * weight))
+    if line is None:
+        directions = [np.array([np.cos(a), np.sin(a)]) for a in np.arange(8) * np.pi / 4]
+    else:
+        ahead = rot_z(h)[:2, :2] @ line
+        directions = [ahead, -ahead]
+    for d in directions:
+        to = c + _STEP * d
+        if space.drive_free(c, to, h, escaping):
+            out.append((Leg("drive", to, h), _STEP))
+    return out
+
+
+def _direct(space: _Space, c: np.ndarray, h: float, g: np.ndarray, hg: float,
+            line: np.ndarray | None) -> list[Leg] | None:
+    """Turn to face ``g``, drive there, turn to ``hg``, if all of it is clear (a piece
+    that drives in any direction drives first, then turns, or turns first), else ``None``."""
+    way = g - c
+    if np.linalg.norm(way) < 1e-9:
+        return [Leg("turn", g, hg)] if space.turn_free(g, h, hg) else None
+    if line is None:
+        for first in ("drive", "turn"):
+            hd = h if first == "drive" else hg
+            if space.turn_free(c if first == "turn" else g, h, hg) \
+                    and space.drive_free(c, g, hd):
+                return [Leg("drive", g, h), Leg("turn", g, hg)] if first == "drive" else \
+                    [Leg("turn", c, hg), Leg("drive", g, hg)]
+        return None
+    facing = float(np.arctan2(way[1], way[0]) - np.arctan2(line[1], line[0]))
+    options = sorted((wrap(facing), wrap(facing + np.pi)),
+                     key=lambda a: abs(wrap(a - h)) + abs(wrap(hg - a)))
+    for hd in options:
+        if space.turn_free(c, h, hd) and space.drive_free(c, g, hd) \
+                and space.turn_free(g, hd, hg):
+            return [Leg("turn", c, hd), Leg("drive", g, hd), Leg("turn", g, hg)]
+    return None
+
+
+def _unwind(nodes: list[tuple[np.ndarray, float, int, bool]], moves: list[Leg | None],
+            i: int) -> list[Leg]:
+    """The legs from the start to node ``i``; turns in one sense (less than a half turn
+    in all) and drives in one direction merged."""
+    path = []
+    while i > 0:
+        path.append((moves[i], nodes[nodes[i][2]]))
+        i = nodes[i][2]
+    merged: list[tuple[Leg, np.ndarray, float]] = []    # leg, centre and heading before
+    for move, (c, h, _, _) in reversed(path):
+        assert move is not None
+        if merged and merged[-1][0].kind == move.kind:
+            leg, c0, h0 = merged[-1]
+            if move.kind == "turn":
+                same = wrap(move.heading - h0) * wrap(leg.heading - h0) > 0 \
+                    and abs(wrap(leg.heading - h0)) + _TURN < np.pi - 1e-6
+            else:
+                u, v = leg.to - c0, move.to - leg.to
+                same = abs(float(u[0] * v[1] - u[1] * v[0])) < 1e-9 and float(u @ v) > 0
+            if same:
+                merged[-1] = (move, c0, h0)
+                continue
+        merged.append((move, c, h))
+    return [leg for leg, _, _ in merged]
+
+
+def poses_along(legs: list[Leg] | tuple[Leg, ...], start: tuple[np.ndarray, float],
+                step: float, reach: float) -> list[tuple[np.ndarray, float]]:
+    """Poses (centroid (2,), heading) every ``step`` [m] of the farthest module's travel
+    (``reach`` [m] from the centroid) along ``legs`` from ``start``: the swept poses."""
+    c, h = np.asarray(start[0], dtype=float), float(start[1])
+    out = [(c, h)]
+    for leg in legs:
+        if leg.kind == "turn":
+            sweep = wrap(leg.heading - h)
+            n = max(1, int(np.ceil(abs(sweep) * max(reach, 1e-3) / step)))
+            out += [(c, h + sweep * (k + 1) / n) for k in range(n)]
+            h = leg.heading
+        else:
+            n = max(1, int(np.ceil(np.linalg.norm(leg.to - c) / step)))
+            out += [(c + (leg.to - c) * (k + 1) / n, h) for k in range(n)]
+            c = np.asarray(leg.to, dtype=float)
+    return out
+
+
+def plan_piece_way(locator: Locator, root: str, target: str,
+                   goal: Mapping[str, np.ndarray]) -> PieceWay:
+    """The :class:`PieceWay` of the piece led by ``root`` to dock on ``target`` in the
+    shape of ``goal`` (centres (3,) of the goal configuration, any frame): where it must
+    end (:func:`~msrr.core.freeform.travel.piece_goal`), the turn that takes it there
+    (least squares over its modules), a stop ``_SHORT`` short of it with a last stretch
+    ``_LAST`` straight in (along the line of a straight piece, toward the target), and
+    the legs there (:func:`plan_legs`).
+
+    Raises:
+        ExecutionError: ``target`` is on no map island with ``root`` (nothing tells where
+            it is), or no way is free.
+    """
+    piece = locator.piece(root)
+    near = locator.relative(root)              # raises if root's island is alone
+    if target not in near:
+        raise ExecutionError(f"module {target} was never joined to the piece of {root}: "
+                             "no report tells where it is")
+    here = {m: p[:2] for m, p in locator.position.items()
+            if locator.island[m] == locator.island[root]}
+    staying = {m: here[m] for m in locator.piece(target)}
+    end = piece_goal(goal, staying | {m: here[m] for m in piece}, piece, target)
+    ms = sorted(piece)
+    now = np.array([here[m] for m in ms])
+    then = np.array([end[m] for m in ms])
+    a, b = now - now.mean(axis=0), then - then.mean(axis=0)
+    turn = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    _, heading = locator.pose(root)
+    offsets = a @ rot_z(heading)[:2, :2]          # at heading 0: Rz(-heading) a
+    line = straight_line(now, locator.spacing)
+    line0 = None if line is None else rot_z(-heading)[:2, :2] @ line
+    centre = here[target]
+    toward = (centre - end[root]) / np.linalg.norm(centre - end[root])
+    if line0 is None:
+        push = toward
+    else:
+        along = rot_z(heading + turn)[:2, :2] @ line0
+        push = along if float(along @ toward) >= 0 else -along
+    finish = then.mean(axis=0) - _SHORT * push
+    others = np.array([p for m, p in here.items() if m not in piece]).reshape(-1, 2)
+    legs = plan_legs(others, offsets, line0, (now.mean(axis=0), heading),
+                     (finish - _LAST * push, heading + turn), locator.spacing)
+    legs.append(Leg("drive", finish, wrap(heading + turn)))
+    return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs), centre,
+                    push, line0)
