@@ -34,7 +34,7 @@ from scipy.spatial import cKDTree
 
 from ..alignment import rot_z
 from ..errors import ExecutionError
-from .travel import Locator, piece_goal, straight_line
+from .travel import Locator, best_turn, piece_goal, straight_line
 
 __all__ = ["Leg", "PieceWay", "plan_piece_way", "plan_legs", "poses_along", "wrap"]
 
@@ -71,26 +71,15 @@ class PieceWay:
     """How a piece travels to dock its free module ``root`` on ``target`` (map frame:
     :class:`~msrr.core.freeform.travel.Locator`): the ``legs`` from where it is (its
     centroid ``origin`` (2,) [m], its modules at ``shape`` (m, 2) [m] from it, in the
-    order of ``piece``, at heading ``heading``) to a
-    stop short of its docking spot, then the guarded push along ``push`` (unit (2,), the
-    piece's line for a straight piece) toward ``centre`` (the target's) until the
-    connector latches. ``line``: a straight piece's line (unit (2,), at heading 0; it
+    order of ``piece``, at heading ``heading``) to a stop short of its docking spot, then
+    the guarded push along ``push`` (unit (2,), the piece's line for a straight piece)
+    toward ``centre`` (the target's) until the connector latches. ``line``: a straight piece's line (unit (2,), at heading 0; it
     drives along it only), else ``None``.
 
     A heading is the piece's: the root's map heading when the way was planned, plus the
     turn of the piece's shape since (:meth:`heading_of`), not the root's heading now (a
     free module's magnet unit turns in its rolling shell, not with its piece's arms).
     """
-
-    def heading_of(self, centres: Mapping[str, np.ndarray]) -> float:
-        """The piece's heading [rad] with its modules at ``centres`` (map, (2,) or (3,)):
-        ``heading`` plus the least-squares turn from ``shape`` to them."""
-        now = np.array([np.asarray(centres[m], dtype=float)[:2] for m in self.piece])
-        now = now - now.mean(axis=0)
-        a = self.shape
-        return wrap(self.heading + float(np.arctan2(
-            np.sum(a[:, 0] * now[:, 1] - a[:, 1] * now[:, 0]),
-            np.sum(a[:, 0] * now[:, 0] + a[:, 1] * now[:, 1]))))
 
     root: str
     target: str
@@ -102,6 +91,20 @@ class PieceWay:
     centre: np.ndarray
     push: np.ndarray
     line: np.ndarray | None
+
+    def heading_of(self, centres: Mapping[str, np.ndarray]) -> float:
+        """The piece's heading [rad] with its modules at ``centres`` (map, (2,) or (3,)):
+        ``heading`` plus the least-squares turn from ``shape`` to them."""
+        now = np.array([np.asarray(centres[m], dtype=float)[:2] for m in self.piece])
+        return wrap(self.heading + best_turn(self.shape, now))
+
+    def direction(self, stage: int) -> np.ndarray:
+        """The unit direction (2,) of drive ``stage`` (from the end of the leg before it,
+        or from ``origin``)."""
+        start = self.legs[stage - 1].to if stage else self.origin
+        step = self.legs[stage].to - start
+        norm = float(np.linalg.norm(step))
+        return step / norm if norm > 1e-12 else np.zeros(2)
 
 
 class _Space:
@@ -339,9 +342,8 @@ def plan_piece_way(locator: Locator, root: str, target: str,
     ms = sorted(piece)
     now = np.array([here[m] for m in ms])
     then = np.array([end[m] for m in ms])
-    a, b = now - now.mean(axis=0), then - then.mean(axis=0)
-    turn = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
-                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    a = now - now.mean(axis=0)
+    turn = best_turn(now, then)
     _, heading = locator.pose(root)
     offsets = a @ rot_z(heading)[:2, :2]          # at heading 0: Rz(-heading) a
     line = straight_line(now, locator.spacing)

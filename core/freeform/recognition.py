@@ -446,19 +446,18 @@ class ContactController:
         leg = way.legs[stage]
         if leg.kind == "turn":
             return abs(wrap(leg.heading - heading)) < _YAW_DONE
-        direction = _unit(leg.to - (way.legs[stage - 1].to if stage else way.origin))
-        return float((leg.to - middle) @ direction) < self.arrive
+        return float((leg.to - middle) @ way.direction(stage)) < self.arrive
 
     def _leg_twist(self, way: PieceWay, stage: int, middle: np.ndarray, heading: float
                    ) -> tuple[np.ndarray, float, float]:
         """The twist (velocity (2,) [m/s] of the centroid, turn [rad/s]) for leg
         ``stage`` of ``way``, and the travel left [m] (the farthest module's, to the
         way's end; 0 when every leg is done)."""
+        if stage >= len(way.legs):
+            return np.zeros(2), 0.0, 0.0
         reach = max(float(np.max(np.linalg.norm(
             np.array([self.locator.pose(m)[0][:2] for m in way.piece]) - middle, axis=1))),
             self.locator.spacing)
-        if stage >= len(way.legs):
-            return np.zeros(2), 0.0, 0.0
         leg = way.legs[stage]
         left = sum(float(np.linalg.norm(b.to - a.to)) + reach * abs(wrap(b.heading - a.heading))
                    for a, b in zip(way.legs[stage:], way.legs[stage + 1:], strict=False))
@@ -466,7 +465,7 @@ class ContactController:
             off = wrap(leg.heading - heading)     # about the leg's pivot, held
             return 0.5 * (leg.to - middle), float(np.clip(_YAW_GAIN * off, -1.0, 1.0)), \
                 left + reach * abs(off) + self.arrive
-        direction = _unit(leg.to - (way.legs[stage - 1].to if stage else way.origin))
+        direction = way.direction(stage)
         ahead = float((leg.to - middle) @ direction)
         across = float(np.cross(direction, middle - leg.to))   # left of the leg's line
         velocity = min(self.piece_speed, max(ahead, 0.0) + 0.002) * direction
@@ -596,8 +595,6 @@ _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
 _STEER_GAIN = 10.0           # a straight piece's steer per metre off its leg's line [rad/m]
 _STEER = 0.2                 # its largest steer [rad]
-
-
 
 
 def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:

@@ -37,7 +37,7 @@ from ..alignment import rot_z
 from ..errors import ExecutionError
 from .mujoco import yaw_of
 
-__all__ = ["Locator", "floor_path", "piece_goal", "pursue", "straight_line",
+__all__ = ["Locator", "best_turn", "floor_path", "piece_goal", "pursue", "straight_line",
            "twist_velocities"]
 
 _CELL = 0.01          # grid of the floor path [m]
@@ -231,6 +231,14 @@ class Locator:
         return out
 
 
+def best_turn(a: np.ndarray, b: np.ndarray) -> float:
+    """The yaw [rad] that best turns the points ``a`` (n, 2) onto ``b`` (n, 2), each set
+    about its own mean (least squares, weighted alike: the 2-D Kabsch rotation)."""
+    a, b = a - a.mean(axis=0), b - b.mean(axis=0)
+    return float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+
+
 def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
                piece: set[str], target: str) -> dict[str, np.ndarray]:
     """Where the modules of ``piece`` must be (2,) [m] for ``goal``'s shape with the
@@ -241,10 +249,7 @@ def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
     fixed = sorted(m for m in goal if m not in piece and m in here)
     a = np.array([np.asarray(goal[m], dtype=float)[:2] for m in fixed])
     b = np.array([np.asarray(here[m], dtype=float)[:2] for m in fixed])
-    a, b = a - a.mean(axis=0), b - b.mean(axis=0)
-    yaw = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
-                           np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
-    turn = rot_z(yaw)[:2, :2]
+    turn = rot_z(best_turn(a, b))[:2, :2]
     origin = np.asarray(goal[target], dtype=float)[:2]
     return {m: np.asarray(here[target], dtype=float)[:2] + turn @ (
         np.asarray(goal[m], dtype=float)[:2] - origin) for m in piece}

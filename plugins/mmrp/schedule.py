@@ -49,7 +49,8 @@ def _waves(legs: Sequence[Action], cells: dict[str, Cell], unit: float) -> list[
     A leg's wave is one after the latest wave of any earlier leg it conflicts with: the
     earlier legs whose swept boxes come within reach are tested latest wave first, and
     the first conflict settles it."""
-    boxes = np.empty((len(legs), 4))  # each sweep's x/y min and max, widened by its reach
+    reach = CLEARANCE + 2 * CHORD_SAG  # no two sweeps that come nearer are apart
+    boxes = np.empty((len(legs), 4))  # each sweep's x/y min and max, widened by reach
     swept: list[Sweep] = []
     wave_of = np.empty(len(legs), dtype=int)
     last_wave: dict[str, int] = {}  # module -> the wave of its latest leg
@@ -58,7 +59,6 @@ def _waves(legs: Sequence[Action], cells: dict[str, Cell], unit: float) -> list[
         shift = leg_shift(leg, cells, unit)
         path = sweep(leg_paths([cells[m] for m in order], shift))
         ends = path.segments.reshape(-1, 2)
-        reach = CLEARANCE + 2 * CHORD_SAG
         lo, hi = ends.min(axis=0) - reach, ends.max(axis=0) + reach
         wave = max((last_wave.get(m, -1) for m in order), default=-1) + 1
         near = np.flatnonzero((wave_of[:k] >= wave) & (boxes[:k, 0] <= hi[0])
