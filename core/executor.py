@@ -86,7 +86,7 @@ from __future__ import annotations
 
 import math
 import time as wallclock
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -416,12 +416,17 @@ class Executor:
         robot: the robot; its default joint mode builds kinematic trees for IK tracking.
         controllers: the robot's controllers by name: a kinematic node's ``controller``
             picks its own (else ``controller`` drives it).
+        on_grant: called with the driver time [s] each phase attempt is given on top of
+            ``action_timeout`` because its controller said it needs it (so the run can
+            move a default overall deadline by as much).
     """
 
     def __init__(self, run: Run, driver: Driver, recognizer: Recognizer, controller: Controller,
                  options: ExecutorOptions | None = None, *, sink: EventSink | None = None,
-                 robot: Robot | None = None, controllers: Mapping[str, Controller] | None = None):
+                 robot: Robot | None = None, controllers: Mapping[str, Controller] | None = None,
+                 on_grant: Callable[[float], None] | None = None):
         self.run = run
+        self.on_grant = on_grant
         self.driver = driver
         self.recognizer = recognizer
         self.controller = controller
@@ -559,7 +564,10 @@ class Executor:
             if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0) \
                     and phase is not Phase.BEHAVIOR:
                 needed = self.controller.begin(action, phase, observation)
-            budget = self.options.action_timeout + _needed_time(needed, self.controller)
+            granted = _needed_time(needed, self.controller)
+            if granted and self.on_grant is not None:
+                self.on_grant(granted)
+            budget = self.options.action_timeout + granted
             self._phase_began = self.driver.time
             self._loop = heading_loop(action.behavior, self._heading(action), self.options) \
                 if phase is Phase.BEHAVIOR else None

@@ -499,6 +499,13 @@ class GuardedDriver(_Wrapper):
         self._last: dict[tuple[str, str], Any] = {}
         self._bad: set[tuple[str, str]] = set()
 
+    def extend(self, driver_time: float, wall_time: float) -> None:
+        """Move the deadlines ``driver_time`` and ``wall_time`` seconds later (a phase
+        granted the time its controller says it needs)."""
+        self.deadline += driver_time
+        self.wall_deadline += wall_time
+        self.wall_end += wall_time
+
     def _call(self, name: str, call: Callable[..., Any], *args: Any, clean_up: bool = False
               ) -> Any:
         """``call(*args)`` with :attr:`busy` set; refused once the watchdog stopped the

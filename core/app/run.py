@@ -410,6 +410,10 @@ class PreparedRun:
         faults: the faults to inject (empty: none).
         deadline: overall driver time the run may take [s].
         wall_deadline: overall wall time the run's execution may take [s].
+        deadline_grows: ``deadline`` is the default one, moved later by the time the
+            controller says each phase needs (:func:`default_deadline` cannot know it).
+        wall_deadline_grows: ``wall_deadline`` is the default one, moved later by
+            :data:`WALL_FACTOR` times that time.
         stall: wall time one driver call may take [s].
         notes: what was found in the output folder and replaced (one line each).
         problems: what could not be written at the run's end (the recording on a full
@@ -431,6 +435,8 @@ class PreparedRun:
     faults: tuple[Fault, ...] = ()
     deadline: float = math.inf
     wall_deadline: float = math.inf
+    deadline_grows: bool = False
+    wall_deadline_grows: bool = False
     stall: float = DRIVER_STALL
     notes: tuple[str, ...] = ()
     problems: list[str] = field(default_factory=list)
@@ -530,7 +536,8 @@ def prepare_run(request: RunRequest) -> PreparedRun:
               rate=request.rate, seed=request.seed, out_dir=out,
               recording=out / "run.rrd" if request.log else None)
     return PreparedRun(run, capabilities, factory, recognizer, controller, options, request.gui,
-                       driver_options, faults, deadline, wall_deadline, request.stall,
+                       driver_options, faults, deadline, wall_deadline,
+                       request.deadline is None, request.wall_deadline is None, request.stall,
                        tuple(notes), planner=planner,
                        stages=() if saved is not None else tuple(stages))
 
@@ -620,6 +627,17 @@ def _stop(driver: Driver) -> None:
     """Tell every module to stop (an empty command set); the driver disconnects next."""
     if driver.is_connected:
         driver.send_action({})
+
+
+def _deadline_growth(prepared: PreparedRun, driver: GuardedDriver
+                     ) -> Callable[[float], None] | None:
+    """What moves the run's default deadlines when a phase is granted more time
+    (``None`` when the user set both)."""
+    driver_time = 1.0 if prepared.deadline_grows else 0.0
+    wall_time = WALL_FACTOR if prepared.wall_deadline_grows else 0.0
+    if not (driver_time or wall_time):
+        return None
+    return lambda seconds: driver.extend(driver_time * seconds, wall_time * seconds)
 
 
 @contextmanager
@@ -724,7 +742,8 @@ def execute_run(prepared: PreparedRun, *,
             executor = Executor(run, driver, prepared.recognizer, prepared.controller,
                                 prepared.options, sink=progress,
                                 robot=prepared.capabilities.robot,
-                                controllers=prepared.capabilities.controllers)
+                                controllers=prepared.capabilities.controllers,
+                                on_grant=_deadline_growth(prepared, driver))
             result = executor.result  # its counts are kept on every way out
             progress.run_start(run)
             started = True

@@ -194,9 +194,12 @@ def _asked(plan: Plan) -> str:
 @click.option("--gui", is_flag=True, help="Open the simulator's window (needs a display).")
 @click.option("--rate", default=10.0, show_default=True, help="Control rate [Hz], at most 1000.")
 @click.option("--timeout", "action_timeout", default=90.0, show_default=True,
-              help="Driver time one action phase may take before a retry [s], finite.")
+              help="Driver time one action phase may take before a retry [s], beyond "
+                   "what its controller says it needs; finite.")
 @click.option("--deadline", default=None, type=float,
-              help="Driver time the whole run may take [s]; default (actions + 1) x --timeout.")
+              help="Driver time the whole run may take [s]; default (actions + 1) x --timeout "
+                   "plus the behaviors' durations and the time the controller says its "
+                   "phases need.")
 @click.option("--wall-deadline", default=None, type=float,
               help="Wall time the run's execution may take [s]; default 600 + 20 x --deadline.")
 @click.option("--stall", default=30.0, type=float, show_default=True,
