@@ -47,6 +47,34 @@ __all__ = ["MmrpController"]
 
 Pose2 = tuple[float, float, float]
 
+DRIVE_GAIN = 0.8
+"""Forward speed asked per metre left to a stop [1/s] (bounded by the cruise speed)."""
+MIN_DRIVE_SPEED = 0.01
+"""Slowest forward speed asked while a stop is not yet reached [m/s]."""
+TURN_GAIN = 2.0
+"""Yaw rate asked per radian left of a turn in place [1/s] (bounded by the turn rate)."""
+
+
+def settling_time(distance: float, gain: float, limit: float, tolerance: float,
+                  floor: float = 0.0) -> float:
+    """Time [s] for ``x' = -min(limit, max(gain x, floor))`` to bring ``x`` from
+    ``|distance|`` to within ``tolerance``: the bounded proportional law that drives a
+    group to a stop or turns it in place (saturated, then exponential, then at
+    ``floor`` once ``gain x`` falls below it). Units of ``x``: [m] or [rad]."""
+    x = abs(distance)
+    if x <= tolerance:
+        return 0.0
+    seconds = 0.0
+    knee = limit / gain
+    if x > knee:
+        seconds += (x - knee) / limit
+        x = knee
+    slow = max(floor / gain, tolerance)
+    if x > slow:
+        seconds += math.log(x / slow) / gain
+        x = slow
+    return seconds + (x - tolerance) / floor if floor > 0 else seconds
+
 
 @dataclass
 class _GroupPlan:
@@ -139,14 +167,17 @@ class MmrpController:
         return max((self._drive_time(plan, poses) for plan in self.plans), default=0.0)
 
     def _drive_time(self, plan: _GroupPlan, poses: Mapping[str, Pose2]) -> float:
-        """Driver time [s] of ``plan`` at cruise speed and turn rate: its stops (or path
-        waypoints, then the turn onto the goal heading) from the group's centre."""
+        """Driver time [s] of ``plan`` under the stop and turn laws
+        (:func:`settling_time`): its stops (or path waypoints, then the turn onto the goal
+        heading) from the group's centre."""
         here = self._current_centre(plan, poses)
         course = plan.stops or [(*w, here[2]) for w in plan.waypoints] + [plan.centre]
         seconds = 0.0
         for stop in course:
-            seconds += (math.dist(here[:2], stop[:2]) / self.speed
-                        + abs(wrap(stop[2] - here[2])) / self.turn_rate)
+            seconds += (settling_time(math.dist(here[:2], stop[:2]), DRIVE_GAIN, self.speed,
+                                      self.tolerance, MIN_DRIVE_SPEED)
+                        + settling_time(wrap(stop[2] - here[2]), TURN_GAIN, self.turn_rate,
+                                        self.yaw_tolerance))
             here = stop
         return seconds
 
@@ -280,10 +311,10 @@ class MmrpController:
             if abs(yaw_error) < self.yaw_tolerance:
                 plan.stops.pop(0)
                 return 0.0, 0.0
-            return 0.0, float(np.clip(2.0 * yaw_error, -self.turn_rate, self.turn_rate))
-        v = float(np.clip(0.8 * along, -self.speed, self.speed))
-        if abs(v) < 0.01:
-            v = math.copysign(0.01, along)
+            return 0.0, float(np.clip(TURN_GAIN * yaw_error, -self.turn_rate, self.turn_rate))
+        v = float(np.clip(DRIVE_GAIN * along, -self.speed, self.speed))
+        if abs(v) < MIN_DRIVE_SPEED:
+            v = math.copysign(MIN_DRIVE_SPEED, along)
         omega = 2.5 * yaw_error + 6.0 * lateral * math.copysign(1.0, v)
         return v, float(np.clip(omega, -self.turn_rate, self.turn_rate))
 
@@ -305,7 +336,8 @@ class MmrpController:
             if abs(error) < self.yaw_tolerance:
                 plan.stage = "line"
             else:
-                return 0.0, float(np.clip(2.0 * error, -self.turn_rate, self.turn_rate)), False
+                return 0.0, float(np.clip(TURN_GAIN * error, -self.turn_rate, self.turn_rate)), \
+                    False
         heading = np.array([math.cos(target[2]), math.sin(target[2])])
         left = np.array([-heading[1], heading[0]])
         delta = np.subtract(target[:2], centre[:2])
@@ -324,9 +356,9 @@ class MmrpController:
         if abs(along) < self.tolerance and abs(lateral) < lateral_reach \
                 and abs(yaw_error) < self.yaw_tolerance:
             return 0.0, 0.0, True
-        v = float(np.clip(0.8 * along, -self.speed * 0.6, self.speed * 0.6))
-        if abs(along) > self.tolerance / 2 and abs(v) < 0.01:
-            v = math.copysign(0.01, along)
+        v = float(np.clip(DRIVE_GAIN * along, -self.speed * 0.6, self.speed * 0.6))
+        if abs(along) > self.tolerance / 2 and abs(v) < MIN_DRIVE_SPEED:
+            v = math.copysign(MIN_DRIVE_SPEED, along)
         if abs(along) <= self.tolerance / 2:
             v = 0.0
         omega = 2.5 * yaw_error + (12.0 * lateral * math.copysign(1.0, v) if v else 0.0)
@@ -344,7 +376,7 @@ class MmrpController:
         direction = 1.0
         if abs(error) > math.pi / 2:
             direction, error = -1.0, wrap(error + math.pi)
-        omega = float(np.clip(2.0 * error, -self.turn_rate, self.turn_rate))
+        omega = float(np.clip(TURN_GAIN * error, -self.turn_rate, self.turn_rate))
         if abs(error) > 0.35:
             return 0.0, omega
         distance = float(np.linalg.norm(points[-1] - here))

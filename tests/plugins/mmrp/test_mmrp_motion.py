@@ -29,6 +29,12 @@ from msrr.plugins.mmrp.random_trees import random_tree
 from msrr.plugins.mmrp.representation import from_links, grid_cells
 from msrr.plugins.mmrp.robot import MODULE
 from msrr.plugins.mmrp.routing import route_groups
+from msrr.plugins.mmrp.sim.controller import (
+    DRIVE_GAIN,
+    MIN_DRIVE_SPEED,
+    TURN_GAIN,
+    settling_time,
+)
 
 HALF = MODULE.geometry["length"] / 2 / MODULE.geometry["pitch"]  # half a body side [cells]
 
@@ -280,5 +286,22 @@ def test_a_long_leg_stays_one_action_and_its_controller_asks_for_its_drive_time(
     here = Observation(0.0, {"a": {}, "b": {}},
                        {m: Pose.planar(x * p, y * p, 0.0) for m, (x, y) in cells.items()})
     needed = controller.begin(legs[1], Phase.MOVE, here)
-    drive = far * p / controller.speed  # b also turns a quarter there and back
-    assert needed == pytest.approx(drive + math.pi / controller.turn_rate, rel=1e-6)
+    # b turns a quarter, drives, turns back: each under its bounded proportional law
+    turn = settling_time(math.pi / 2, TURN_GAIN, controller.turn_rate, controller.yaw_tolerance)
+    drive = settling_time(far * p, DRIVE_GAIN, controller.speed, controller.tolerance,
+                          MIN_DRIVE_SPEED)
+    assert needed == pytest.approx(drive + 2 * turn, rel=1e-6)
+    assert far * p / controller.speed < drive < far * p / controller.speed + 5.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(distance=st.floats(0.0, 3.0), gain=st.floats(0.5, 3.0), limit=st.floats(0.05, 1.0),
+       tolerance=st.floats(0.002, 0.02), floor=st.sampled_from([0.0, 0.01, 0.03]))
+def test_settling_time_is_the_time_its_law_takes_integrated(distance, gain, limit, tolerance,
+                                                           floor):
+    x, t, dt = distance, 0.0, 1e-3
+    while x > tolerance:
+        x -= min(limit, max(gain * x, floor)) * dt
+        t += dt
+    assert settling_time(distance, gain, limit, tolerance, floor) == pytest.approx(
+        t, abs=3 * dt + 2e-3 * t)

@@ -114,20 +114,20 @@ def test_platform_run_records_the_run(tmp_path: Path) -> None:
 
 def test_the_default_run_deadline_grows_by_the_drive_time_the_controller_says_it_needs(
         tmp_path: Path) -> None:
-    # series -> t at a 3 s phase timeout: the default deadline, (6 actions + 1) x 3 s =
-    # 21 s, is shorter than the run (about 24 s: a 15 s drive the controller says it
-    # needs); it grows by what each phase is given, a deadline the user sets does not
+    # series -> t at a 1 s phase timeout: the default deadline, (6 actions + 1) x 1 s, is
+    # far shorter than the run (about 21 s, two drives of 12 and 8 s that the controller
+    # says it needs); it grows by what each phase is given, a deadline the user sets does not
     def run(*extra: str) -> tuple[int, str]:
         out = tmp_path / f"run{len(extra)}"
         result = CliRunner().invoke(get_cli(), ["run", "--robot", "mmrp", "--scenario",
-                                                "series-t", "--timeout", "3", "--no-log",
+                                                "series-t", "--timeout", "1", "--no-log",
                                                 "--out", str(out), *extra])
         return result.exit_code, result.output
 
     code, output = run()
     assert code == 0, output
-    code, output = run("--deadline", "21")
-    assert code == 1 and "run deadline of 21 s of driver time reached" in output
+    code, output = run("--deadline", "15")
+    assert code == 1 and "run deadline of 15 s of driver time reached" in output
 
 
 @pytest.mark.parametrize("goal", ["probe.json", "bad-face.json"])
