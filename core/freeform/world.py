@@ -96,6 +96,8 @@ _BRAKE = 10.0         # braked bearing damping, in units of the drive's
 _PENDULUM = 0.5       # centre of mass of a FreeBOT's magnet unit along its axis [radii]
 _ROLL_SPEED_GAIN = 5.0  # pendulum drive: lead angle per speed error [rad / (m/s)]
 _ROLL_TILT = 0.5        # largest lead angle of the hanging magnet unit [rad]
+# an int: numpy compares an array to the binding's enum object element by element in Python
+_EQUALITY = int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
 _ROLL_KP = 0.1          # its angle loop [N m / rad]
 _ROLL_KD = 0.005        # [N m s / rad]
 _CRAWL_GAIN = 60.0      # SnailBot tracks: acceleration per speed error [1/s]
@@ -659,7 +661,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         foot (a compression presses the shells together and is carried by contact),
         with an engaged sucker's force and strength added."""
         d = self.data
-        rows = np.flatnonzero(d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        rows = np.flatnonzero(d.efc_type[:d.nefc] == _EQUALITY)
         ids = d.efc_id[rows]
         first = rows[np.r_[True, ids[1:] != ids[:-1]]] if len(rows) else rows
         force = np.zeros((self.model.neq, 3))
