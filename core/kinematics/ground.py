@@ -25,7 +25,7 @@ from ..robot import RobotSpec
 from .rotations import cross, rotation_between, rotation_between_omega
 from .tree import KinematicTree
 
-__all__ = ["GroundContact", "GroundModel", "GroundOp"]
+__all__ = ["GroundContact", "GroundModel", "GroundOp", "ground_op"]
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -200,14 +200,14 @@ class GroundOp:
             normals = hull.equations[:, :3]
         except (QhullError, ValueError):
             return self._planar_support(points, com)
-        a, b, c = faces.T.astype(np.intp)
-        flip = np.einsum("ij,ij->i", cross(points[b] - points[a], points[c] - points[a]),
-                         normals) < 0
-        b, c = np.where(flip, c, b), np.where(flip, b, c)
-        stable = _inside_all(points[a], points[b], points[c], com, normals)
-        # stable first, then the most downward normal; ties: the first face (stable sort)
-        best = int(np.lexsort((normals[:, 2], ~stable))[0])
-        return (int(a[best]), int(b[best]), int(c[best])), bool(stable[best])
+        # the most downward normal first (ties: the first face); the first stable one wins
+        order = np.argsort(normals[:, 2], kind="stable").tolist()
+        pts, ns, tri, centre = points.tolist(), normals.tolist(), faces.tolist(), com.tolist()
+        for i in order:
+            face = _outward(pts, tri[i], ns[i])
+            if _inside_face(pts, face, centre, ns[i]):
+                return face, True
+        return _outward(pts, tri[order[0]], ns[order[0]]), False
 
     def _planar_support(self, points: np.ndarray, com: np.ndarray
                         ) -> tuple[tuple[int, int, int], bool] | None:
@@ -234,14 +234,42 @@ class GroundOp:
         return (fans[0], False) if fans else None
 
 
-def _inside_all(a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray,
-                normal: np.ndarray) -> np.ndarray:
-    """:func:`_inside` for many triangles at once: rows of ``a``, ``b``, ``c``, ``normal``
-    (m, 3) and one point ``p`` (3,); shape (m,)."""
-    inside = np.ones(len(a), dtype=bool)
-    for u, v in ((a, b), (b, c), (c, a)):
-        inside &= np.einsum("ij,ij->i", cross(v - u, p - u), normal) >= -1e-12
-    return inside
+def ground_op(tree: KinematicTree, model: GroundModel) -> GroundOp:
+    """The :class:`GroundOp` of ``tree`` and ``model``, built once per tree and model and
+    kept on the tree (like its forward-kinematics layout): a tracking IK builds a new
+    problem every control tick on the same tree."""
+    cached = getattr(tree, "_ground", None)
+    if cached is None or cached[0] != model:
+        cached = tree._ground = (model, GroundOp(tree, model))
+    return cached[1]
+
+
+def _sub(u: list[float], v: list[float]) -> tuple[float, float, float]:
+    return u[0] - v[0], u[1] - v[1], u[2] - v[2]
+
+
+def _cross_dot(u: tuple[float, float, float], v: tuple[float, float, float],
+               n: list[float]) -> float:
+    """``(u x v) . n`` in plain floats (the same operations as ``cross`` and a dot)."""
+    return ((u[1] * v[2] - u[2] * v[1]) * n[0] + (u[2] * v[0] - u[0] * v[2]) * n[1]) \
+        + (u[0] * v[1] - u[1] * v[0]) * n[2]
+
+
+def _outward(pts: list[list[float]], face: list[int], normal: list[float]
+             ) -> tuple[int, int, int]:
+    """``face``'s vertex indices ordered so that ``(b - a) x (c - a)`` is along ``normal``."""
+    a, b, c = face
+    if _cross_dot(_sub(pts[b], pts[a]), _sub(pts[c], pts[a]), normal) < 0:
+        b, c = c, b
+    return a, b, c
+
+
+def _inside_face(pts: list[list[float]], face: tuple[int, int, int], p: list[float],
+                 normal: list[float]) -> bool:
+    """:func:`_inside` on point lists: ``p`` projected along ``normal`` falls in ``face``."""
+    a, b, c = face
+    return all(_cross_dot(_sub(pts[v], pts[u]), _sub(p, pts[u]), normal) >= -1e-12
+               for u, v in ((a, b), (b, c), (c, a)))
 
 
 def _inside(a: np.ndarray, b: np.ndarray, c: np.ndarray, p: np.ndarray,

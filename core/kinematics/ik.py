@@ -48,7 +48,7 @@ from ..alignment import align_yaw
 from ..configuration import Configuration
 from ..errors import ConfigurationError
 from .fk import Evaluator, FKState, transformed_configuration, tree_vectors
-from .ground import GroundContact, GroundModel, GroundOp
+from .ground import GroundContact, GroundModel, ground_op
 from .rotations import cross
 from .tree import KinematicTree
 
@@ -71,6 +71,7 @@ _TINY = 1e-12
 StopReason = Literal["tolerance", "max_restarts", "no_joints", "time_budget"]
 """Why :func:`solve_ik` stopped (see :attr:`IKSolution.reason`)."""
 _THREADPOOLS: ThreadpoolController | None = None
+_RECENT = 4   # FK evaluations an IKProblem keeps (IKProblem._forward)
 
 
 def _single_threaded_blas():
@@ -358,13 +359,14 @@ class IKProblem:
         self.x_target = np.ascontiguousarray(xt.T)
         self.weights = self._weights(options.weights)
         self.use_x = self.has_x & has_xt if options.gamma > 0 else np.zeros(self.n, dtype=bool)
-        self.ground = None if options.ground is None else GroundOp(tree, options.ground)
+        self.ground = None if options.ground is None else ground_op(tree, options.ground)
         lo, hi = tree.bounds
         self.lower, self.upper = lo, hi
         self.bounds = [(None, None)] + [(float(a), float(b)) for a, b in zip(lo, hi, strict=True)]
         self.terms: list[IKTerm] = self.default_terms()
         self.evaluations = 0
         self._last: tuple[np.ndarray, float] | None = None
+        self._recent: dict[bytes, tuple] = {}
 
     def default_terms(self) -> list[IKTerm]:
         """The terms of eq. 6: ``z`` angles, ``x`` angles (``gamma > 0`` and both sides
@@ -399,8 +401,7 @@ class IKProblem:
         ``derivatives`` (reverse mode: terms -> ground model -> tree)."""
         params = np.asarray(params, dtype=np.float64)
         yaw = float(params[0])
-        state = self.evaluator.evaluate(params[1:], derivatives)
-        z, x, contact, cache = self._grounded(state)
+        state, z, x, contact, cache = self._forward(params[1:], derivatives)
         c, s = math.cos(yaw), math.sin(yaw)
         rz = np.array(((c, s, 0.0), (-s, c, 0.0), (0.0, 0.0, 1.0)))
         pose = IKPose(yaw, rz, z, x, state.cost)
@@ -433,14 +434,31 @@ class IKProblem:
             out.grad = grad
         return out
 
-    def _grounded(self, state: FKState
-                  ) -> tuple[np.ndarray, np.ndarray, GroundContact | None, Any]:
-        """The FK's vectors (rows), put on the ground if the ground model is on, with
-        the contact and what :meth:`GroundOp.backward` needs."""
+    def _forward(self, sigma: np.ndarray, derivatives: bool = False
+                 ) -> tuple[FKState, np.ndarray, np.ndarray, GroundContact | None, Any]:
+        """The FK at ``sigma`` and its vectors (rows), put on the ground if the ground
+        model is on, with the contact and what :meth:`GroundOp.backward` needs.
+
+        The last evaluations with derivatives are kept by ``sigma``'s bytes: the point
+        L-BFGS-B returns is one of them, and :meth:`evaluate` and :meth:`configuration`
+        read it again (a value only depends on ``sigma``, so it is the same to the bit).
+        """
+        key = sigma.tobytes()
+        kept = self._recent.get(key)
+        if kept is not None:
+            return kept
+        state = self.evaluator.evaluate(sigma, derivatives)
         if self.ground is None:
-            return state.z, state.x, None, None
-        contact, cache = self.ground.contact(state.z)
-        return state.z @ contact.rotation.T, state.x @ contact.rotation.T, contact, cache
+            out = (state, state.z, state.x, None, None)
+        else:
+            contact, cache = self.ground.contact(state.z)
+            out = (state, state.z @ contact.rotation.T, state.x @ contact.rotation.T, contact,
+                   cache)
+        if derivatives:
+            if len(self._recent) >= _RECENT:
+                del self._recent[next(iter(self._recent))]
+            self._recent[key] = out
+        return out
 
     def value(self, params: np.ndarray) -> float:
         """Eq. 6 at ``params = [theta, *sigma]``."""
@@ -465,8 +483,7 @@ class IKProblem:
 
     def yaw_estimate(self, sigma: np.ndarray) -> float:
         """Eq. 8: the yaw aligning the target with the forward kinematics at ``sigma``."""
-        state = self.evaluator.evaluate(sigma)
-        z, x, _, _ = self._grounded(state)
+        _, z, x, _, _ = self._forward(np.asarray(sigma, dtype=np.float64))
         use_x = bool(self.use_x.any())
         return align_yaw(z.T, self.z_target.T, weights=self.weights,
                          x=x.T if use_x else None,
@@ -475,8 +492,7 @@ class IKProblem:
 
     def configuration(self, sigma: np.ndarray) -> Configuration:
         """The current configuration moved by ``sigma`` (and grounded if asked for)."""
-        state = self.evaluator.evaluate(np.asarray(sigma, dtype=np.float64))
-        z, x, _, _ = self._grounded(state)
+        _, z, x, _, _ = self._forward(np.asarray(sigma, dtype=np.float64))
         return transformed_configuration(self.current, self.tree, z.T, x.T, self.has_x)
 
     # -- one local solve -----------------------------------------------------------------

@@ -121,6 +121,7 @@ class KinematicTree:
         self._column = {e: j for j, e in enumerate(self.edges)}
         self._node_of_vertex = {v: index[owner_vertex[v]] for v in owner_vertex}
         self._engine: Any = None
+        self._ground: Any = None   # (GroundModel, GroundOp), see ground.ground_op
 
     # -- validation -----------------------------------------------------------------------
 

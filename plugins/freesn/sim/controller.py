@@ -29,6 +29,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import replace
+from functools import lru_cache
 
 import networkx as nx
 import numpy as np
@@ -98,7 +99,7 @@ def plant_feet(commands: Mapping[str, ModuleCommand], links: Links, *, coast: bo
     return out
 
 
-def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
+def driving_ends(links: Links, root: str | None = None) -> frozenset[tuple[str, str]]:
     """The connectors that drive at full effort: one spanning tree of locks, and both
     ends of a strut that closes no loop between two hubs.
 
@@ -122,7 +123,18 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
     deg and go backwards, and S6N3's open-triangle strut (nodes with two) let the noisy
     connection 2.3 -> 3.1 press S5 3 mm into N1; a strut to a leaf node keeps it too (a
     foot or a wheel, whose connector its gait or wheel command sets, :func:`plant_feet`).
+
+    A function of the docked topology alone, kept for the last topologies seen: the
+    control loop asks every tick and the topology changes only at a dock or undock.
     """
+    return _driving_ends(tuple(sorted(links.items())), root)
+
+
+@lru_cache(maxsize=32)
+def _driving_ends(items: tuple[tuple[tuple[str, str], str], ...], root: str | None
+                  ) -> frozenset[tuple[str, str]]:
+    """:func:`driving_ends` of the links ``items`` (sorted, hashable)."""
+    links = dict(items)
     at: dict[str, list[tuple[str, str]]] = {}
     for (strut, end), node in links.items():
         at.setdefault(node, []).append((strut, end))
@@ -147,7 +159,7 @@ def driving_ends(links: Links, root: str | None = None) -> set[tuple[str, str]]:
     for strut in bridges(links):
         if all(len(at[node]) > 3 for node in ends_of[strut].values()):
             driving |= {(strut, end) for end in ENDS}
-    return driving
+    return frozenset(driving)
 
 
 def bridges(links: Links) -> set[str]:
