@@ -28,6 +28,7 @@ from .tree import KinematicTree
 __all__ = ["GroundContact", "GroundModel", "GroundOp", "ground_op"]
 
 _DOWN = np.array([0.0, 0.0, -1.0])
+_EYE = np.eye(3)
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,9 @@ class _Cache:
     rotation: np.ndarray
     points: np.ndarray | None = None   # positions (n_vertices, 3)
     face: tuple[int, int, int] | None = None
-    normal_raw: np.ndarray | None = None
+    edges: tuple[np.ndarray, np.ndarray] | None = None   # b - a, c - a
+    norm: float = 1.0   # |(b - a) x (c - a)|
+    normal: np.ndarray | None = None   # (b - a) x (c - a) / norm
 
 
 class GroundOp:
@@ -143,12 +146,14 @@ class GroundOp:
             eye = np.eye(3)
             return GroundContact(eye, (), _DOWN.copy(), com, False), _Cache(eye)
         (a, b, c), stable = face
-        raw = cross(points[b] - points[a], points[c] - points[a])
-        normal = raw / np.linalg.norm(raw)
+        u, v = points[b] - points[a], points[c] - points[a]
+        raw = cross(u, v)
+        norm = np.linalg.norm(raw)
+        normal = raw / norm
         rot = rotation_between(normal, _DOWN)
         contact = GroundContact(rot, tuple(self.vertices[i] for i in (a, b, c)), normal, com,
                                 stable)
-        return contact, _Cache(rot, points, (a, b, c), raw)
+        return contact, _Cache(rot, points, (a, b, c), (u, v), norm, normal)
 
     def backward(self, cache: _Cache, z: np.ndarray, grad_z: np.ndarray,
                  x: np.ndarray | None = None, grad_x: np.ndarray | None = None
@@ -166,21 +171,20 @@ class GroundOp:
         gx = None if grad_x is None else grad_x @ rot
         if cache.face is None:
             return gz, gx
-        assert cache.points is not None and cache.normal_raw is not None
+        assert cache.points is not None and cache.edges is not None \
+            and cache.normal is not None
         # torque of the gradients on the grounded vectors
         tau = np.sum(cross(z @ rot.T, grad_z), axis=0)
         if x is not None and grad_x is not None:
             tau += np.sum(cross(x @ rot.T, grad_x), axis=0)
-        raw = cache.normal_raw
-        norm = np.linalg.norm(raw)
-        normal = raw / norm
+        norm, normal = cache.norm, cache.normal
         # R = Q^T with Q = rotation_between(down, n); dR = hat(-R omega_Q) R
-        dn = (np.eye(3) - np.outer(normal, normal)) / norm
+        dn = (_EYE - normal[:, None] * normal) / norm
         omega_q = rotation_between_omega(_DOWN, normal, dn)      # (3, 3): d omega_Q / d raw
         g_raw = -(omega_q.T @ (rot.T @ tau))
         a, b, c = cache.face
         pts = cache.points
-        u, v = pts[b] - pts[a], pts[c] - pts[a]
+        u, v = cache.edges
         g_u = cross(v, g_raw)
         g_v = cross(g_raw, u)
         g_points = np.zeros_like(pts)

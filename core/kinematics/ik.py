@@ -454,7 +454,7 @@ class IKProblem:
             contact, cache = self.ground.contact(state.z)
             out = (state, state.z @ contact.rotation.T, state.x @ contact.rotation.T, contact,
                    cache)
-        if derivatives:
+        if derivatives and _RECENT:
             if len(self._recent) >= _RECENT:
                 del self._recent[next(iter(self._recent))]
             self._recent[key] = out
