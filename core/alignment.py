@@ -56,7 +56,7 @@ def _costs(thetas: np.ndarray, p: np.ndarray, q: np.ndarray, r: np.ndarray, w: n
            ) -> np.ndarray:
     """The eq. 8 objective at each yaw of ``thetas``, shape (k,)."""
     dots = np.cos(thetas)[:, None] * p + np.sin(thetas)[:, None] * q + r
-    # np.clip's value without its Python layers: the bounded search calls this ~50 times
+    # np.clip's value without its Python layers: the bounded search calls this ~20 times
     return (np.arccos(np.minimum(np.maximum(dots, -1.0), 1.0)) ** 2) @ w
 
 
