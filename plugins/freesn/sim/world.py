@@ -102,7 +102,7 @@ from .geometry import END_SIGN, Placement, place
 from .options import Physical, SimOptions
 
 __all__ = ["INTERPENETRATION", "DockEvent", "FreeSNWorld", "Interpenetration", "NodeReport",
-           "StrutReport"]
+           "StrutReport", "magnet_pull"]
 
 _GAP = 0.003          # strut capsule tip to node surface when docked [m]
 _ROLLER_MASS = 0.02   # rolling frame of a connector (wheels, magnet carrier) [kg]
@@ -118,7 +118,8 @@ _WHEEL_ARMATURE = 1e-5  # wheel-motor rotor through its gearbox [kg m^2]
 _CONTACT = 0.001      # magnet face within this of its seated stand-off: touching [m]
 _ALIGNMENT = np.radians(10.0)  # strut axis to the node centre: a magnet that docks lies flat
 _ATTRACTION_CONE = np.radians(45.0)  # a magnet pulls on a node in front of it
-_MAGNET_FALLOFF = 0.005  # distance over which a magnet's pull falls to a quarter [m]
+_MAGNET_FALLOFF = 0.005  # g0 = l_m / mu_r: air gap at which a face-on pull falls to 1/4 [m]
+_MAGNET_HALF_WIDTH = 0.01  # half the magnet array's face (it sits between wheels 30 mm apart) [m]
 _FUSION = 0.2  # weight of a fresh fix (localisation, attitude) in an estimate (10 Hz: 0.45 s)
 _GRIP_LEVER = 0.05    # a grip tendon's length: contact point to its anchor along the axle [m]
 _GRIP_SOLIMP = [0.999, 0.9999, 0.001, 0.5, 2.0]  # a stiff grip (MuJoCo's default creeps)
@@ -879,18 +880,16 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         return out
 
     def _attract(self) -> None:
-        """Extended free magnets pull on the nodes within ``dock_tolerance`` of their face:
-        a bounded force ``S (g0 / (g0 + gap))^2`` (the connection strength ``S`` at the
-        seat, ``g0`` = ``_MAGNET_FALLOFF``), at the strut tip toward the node centre and
-        back on the node."""
+        """Extended free magnets pull on the nodes within ``dock_tolerance`` of their face
+        and in front of it (``_ATTRACTION_CONE``), with :func:`magnet_pull` at the strut
+        tip toward the node centre, and back on the node."""
         d = self.data
         d.xfrc_applied[self._strut_body] = 0.0
         d.xfrc_applied[self._node_body] = 0.0
         for k, i, tip, toward, gap, angle in self._magnets():
             if angle > _ATTRACTION_CONE:
                 continue
-            force = self.phys.strength * (_MAGNET_FALLOFF / (_MAGNET_FALLOFF + max(gap, 0.0)))**2 \
-                * toward
+            force = magnet_pull(gap, angle, self.phys.strength) * toward
             body = self._strut_body[k // 2]
             d.xfrc_applied[body, :3] += force
             d.xfrc_applied[body, 3:] += np.cross(tip - d.xipos[body], force)
@@ -1027,6 +1026,41 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         return connected_groups([*self.nodes, *self.struts],
                                 ((self.ends[k][0], node) for k, node in enumerate(self.docked)
                                  if node is not None))
+
+
+def magnet_pull(gap: float, tilt: float, strength: float, *, falloff: float = _MAGNET_FALLOFF,
+                half_width: float = _MAGNET_HALF_WIDTH) -> float:
+    """A magnet array's pull on a steel shell [N]: bounded by ``strength``, falling with
+    the air gap; an askew face pressed on the shell pulls less than a square one.
+
+    Maxwell's pull ``dF = B^2 / (2 mu0) dA`` with the flux density of a magnet of length
+    ``l_m`` across an air gap ``g`` in series, ``B = B_r l_m / (l_m + mu_r g)`` (a
+    magnetic circuit without leakage), is a pressure ``p(g) = p0 (g0 / (g0 + g))^2``,
+    ``g0 = l_m / mu_r`` (``falloff``). A flat face of width ``2 w`` (``half_width``)
+    tilted by ``tilt`` to the shell has a gap growing linearly across it, from ``g1`` at
+    its near edge to ``g2 = g1 + 2 w sin(tilt)``; the face never goes nearer than
+    touching (``g1 >= 0``). Averaged over the face::
+
+        F = S g0^2 / ((g0 + g1) (g0 + g2)),   g1 = max(gap - w sin(tilt), 0)
+
+    which is ``S (g0 / (g0 + gap))^2`` face-on, ``S`` (the connection strength) only
+    when seated face-on, and ``S g0 / (g0 + 2 w sin(tilt))`` pressed on the shell askew
+    (0.59 ``S`` at 10 deg). Farther out a tilt brings the near edge closer, so it pulls
+    a little more than face-on (at most the face-on pull at the near edge's gap). The
+    magnitudes (``S``, ``g0``, ``w``) are assumptions: no FreeSN source gives the
+    magnet's size or its pull against the gap.
+
+    Args:
+        gap: the face centre's gap beyond the docked stand-off [m] (0 when seated;
+            negative, pressed on the shell, counts as touching).
+        tilt: angle between the face's normal (the strut axis) and the line to the node
+            centre [rad].
+        strength: the pull when seated face-on [N].
+        falloff: ``g0`` [m]. half_width: ``w`` [m].
+    """
+    spread = half_width * np.sin(abs(tilt))
+    near = max(gap - spread, 0.0)
+    return float(strength * falloff**2 / ((falloff + near) * (falloff + near + 2.0 * spread)))
 
 
 def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
