@@ -61,9 +61,10 @@ pose on the node is its encoders fused with a magnetic-localisation fix per comm
 Docking (Fig. 11c-d): a dock command extends the magnet array; an extended free end
 docks when its magnet touches a node (the face within ``_CONTACT`` of the docked
 stand-off) squarely (the strut axis within ``_ALIGNMENT`` of the node centre). Nearer
-than ``dock_tolerance`` the magnet pulls on the node, a force bounded by the
-connection strength and falling with the gap, applied at the strut tip and back on
-the node; what docks is only what touches. The weld then starts at the current offset
+than ``dock_tolerance`` the magnet pulls on the node (:func:`magnet_pull`), a force
+bounded by the connection strength, falling with the gap and, for a face pressed on
+the shell askew, with its tilt, applied at the strut tip and back on the node; what
+docks is only what touches. The weld then starts at the current offset
 (a few millimetres at most) and seats. An undock command retracts the array and
 releases the weld. A connection breaks (weld released, ``break`` event) when its
 low-passed constraint force exceeds the connection strength; a compressive force (the
