@@ -64,8 +64,9 @@ stand-off) squarely (the strut axis within ``_ALIGNMENT`` of the node centre). N
 than ``dock_tolerance`` the magnet pulls on the node (:func:`magnet_pull`), a force
 bounded by the connection strength, falling with the gap and, for a face pressed on
 the shell askew, with its tilt, applied at the strut tip and back on the node; what
-docks is only what touches. The weld then starts at the current offset
-(a few millimetres at most) and seats. An undock command retracts the array and
+docks is only what touches. The weld then starts at the current offset of the
+connector from the node centre (up to about 9 mm sideways for a face 10 deg askew) and
+seats. An undock command retracts the array and
 releases the weld. A connection breaks (weld released, ``break`` event) when its
 low-passed constraint force exceeds the connection strength; a compressive force (the
 connector pressed onto its node) is carried by contact, not by the magnet, so only the
