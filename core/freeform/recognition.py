@@ -408,8 +408,8 @@ class ContactController:
         its pose on the map (:meth:`Locator.pose`, the centroid of its modules), sent to
         each module as the velocity of its own centre
         (:func:`~msrr.core.freeform.travel.twist_velocities`). A turn holds the centroid;
-        a drive holds the leg's heading, a straight piece steering back onto the leg's
-        line as a car does (it cannot roll across its line)."""
+        a bent piece's drive holds the leg's heading and its line, a straight piece's
+        drives straight on (it cannot roll across its line, so it cannot steer)."""
         commands, errors = {}, {}
         for root, (way, stage) in list(self._pieces.items()):
             centres = {m: self.locator.pose(m)[0] for m in way.piece}
@@ -469,15 +469,17 @@ class ContactController:
         ahead = float((leg.to - middle) @ direction)
         across = float(np.cross(direction, middle - leg.to))   # left of the leg's line
         velocity = min(self.piece_speed, max(ahead, 0.0) + 0.002) * direction
-        # hold the leg's heading and come back onto the leg's line: a straight piece
-        # steers there (turning turns its line, whichever way it drives), a bent one
-        # moves across
+        # a bent piece holds the leg's heading and moves back onto the leg's line across it
+        if way.line is not None:
+            # a straight piece does not steer while it drives: nothing grips the floor
+            # across its line, so turning it as it moves leaves its velocity behind and
+            # it rolls sideways (about its own line) -- 1 mm/s per second at 0.018 m/s
+            # and 0.06 rad/s, measured -- and keeps rolling once stopped; its turns are
+            # in place
+            return velocity, 0.0, left + max(ahead, 0.0) + self.arrive
         steer = float(np.clip(-_STEER_GAIN * across, -_STEER, _STEER))
-        if way.line is None:
-            velocity = velocity + steer * self.piece_speed * np.array([-direction[1],
-                                                                        direction[0]])
-            steer = 0.0
-        turn = float(np.clip(_YAW_GAIN * wrap(leg.heading + steer - heading), -1.0, 1.0))
+        velocity = velocity + steer * self.piece_speed * np.array([-direction[1], direction[0]])
+        turn = float(np.clip(_YAW_GAIN * wrap(leg.heading - heading), -1.0, 1.0))
         return velocity, turn, left + max(ahead, 0.0) + self.arrive
 
     def _travel(self, phase: Phase, reports: Reports) -> Control:

@@ -342,9 +342,13 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
                           fromto=[0, 0, 0.55 * d.radius, 0, 0, 0.95 * d.radius],
                           size=[0.35 * d.radius, 0, 0], mass=0, contype=0, conaffinity=0,
                           rgba=[0.15, 0.15, 0.2, 1.0])
+            # the foot stands for the weld at the parent's centre: it weighs nothing
+            # (:meth:`_pendulum`) but under a lone rolling module, whose hanging drive was
+            # tuned with it; a free module's foot 0.1 m out to the side where its magnet
+            # let go swung a straight piece about its line (up to 1.6 rad/s measured)
             foot = conn.add_body(name=f"foot/{name}", pos=[0, 0, self.length], mass=_FOOT_MASS,
                                  inertia=[_TINY] * 3, explicitinertial=True, ipos=[0, 0, 0],
-                                 iquat=[1, 0, 0, 0])
+                                 iquat=[1, 0, 0, 0], gravcomp=1.0)
             foot.add_joint(name=f"drive/{name}", type=mujoco.mjtJoint.mjJNT_BALL,
                            damping=d.max_torque / d.max_rate, armature=_ARMATURE)
         # one weld (and sucker) slot per module: a module has one connector, so it holds
@@ -466,8 +470,10 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
     def _pendulum(self, k: int, on: bool) -> None:
         """Put the magnet unit's weight on its magnet's end (the drive climbs the inside
         of the shell, as in a hamster ball) while a free module rolls; centred otherwise,
-        where a hanging weight under a braked bearing would rock the shell."""
+        where a hanging weight under a braked bearing would rock the shell. The foot
+        weighs only under such a rolling module (its drive was tuned with it)."""
         offset = _PENDULUM * self.design.radius if on else 0.0
+        self.model.body_gravcomp[self._foot[k]] = 0.0 if on else 1.0
         if self.model.body_ipos[self._conn[k], 2] != offset:
             self.model.body_ipos[self._conn[k]] = [0.0, 0.0, offset]
             mujoco.mj_forward(self.model, self.data)
@@ -739,6 +745,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         d = self.data
         dt = self._every * self.options.timestep
         ks = np.flatnonzero(self._travel)
+        self._anchor_goals(ks)
         spin = self._travel_w[ks][:, None] * _EZ
         v = self._travel_v[ks]
         omega = np.column_stack([-v[:, 1], v[:, 0], np.zeros(len(ks))]) / self.design.radius + spin
@@ -765,6 +772,37 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         feed = _rotate(quat_conj(foot_goal), rolling[parents] - spin[rows])
         q = d.qpos[self._qadr[docked][:, None] + np.arange(4)]
         drive[docked] = self._motor(q, quat_mul(quat_conj(conn_goal[rows]), foot_goal), feed)
+
+    def _anchor_goals(self, ks: np.ndarray) -> None:
+        """Turn the travel goals of each travelling piece (modules ``ks``) by the rotation
+        ``A`` that best takes its connectors' goals onto the connectors as they are (the
+        normalised mean of ``C_k G_k^-1``, signs aligned): every goal ``G <- A G``.
+
+        The joints track only relative goals, so ``A`` changes no joint's goal; it puts
+        the goals' frame where the piece is. Without it, a rotation of the whole piece
+        that no joint sees (a straight piece rolling about its own line, or turning less
+        than asked) accumulates between goals and bodies, and every later rolling
+        ``omega_k`` and turn ``w e_z`` is applied about axes turned by it: measured in
+        ``chains-to-tree``, a chain 1.3-1.9 rad off about its line spun its shells about
+        the vertical and crawled at 1-2 mm/s when told 20 mm/s."""
+        d = self.data
+        done = np.zeros(len(self.modules), dtype=bool)
+        for k in ks:
+            if done[k]:
+                continue
+            piece = [self._index[m] for m in self._group_of(self.modules[k])]
+            g = np.array([j for j in piece if self._travel[j]], dtype=int)
+            done[g] = True
+            off = quat_mul(d.xquat[self._conn[g]], quat_conj(self._conn_goal[g]))
+            off *= np.where(off @ off[0] < 0, -1.0, 1.0)[:, None]
+            mean = off.sum(axis=0)
+            mean /= np.linalg.norm(mean)
+            self._conn_goal[g] = quat_mul(np.tile(mean, (len(g), 1)), self._conn_goal[g])
+            self._shell_goal[g] = quat_mul(np.tile(mean, (len(g), 1)), self._shell_goal[g])
+
+    def _group_of(self, module: str) -> frozenset[str]:
+        """The modules joined to ``module`` through docks (itself included)."""
+        return next(g for g in self.groups() if module in g)
 
     def _motor(self, q: np.ndarray, goal: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Torques (n, 3) of ball-joint motors at ``q`` (n, 4) toward the rotations
