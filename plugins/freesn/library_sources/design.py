@@ -508,12 +508,15 @@ RING_NODES = ["T1", "B1", "T2", "B2", "T3", "B3"]
 
 
 def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int] = frozenset(),
-                *, outward: bool = False) -> list[tuple]:
+                *, up: bool = False) -> list[tuple]:
     """The ring struts; those in ``free`` undocked at their target end, aimed at it (or,
-    with ``outward``, along the floor 60 deg clockwise of the radial direction, where the
-    node's free chord lies: two struts cannot sit on one spot of a node. Counter-clockwise
-    the strut came down from its aim at the top node through the plane the freed chord
-    swings through on its way out, and the two met: Fig. 22(f)-(j) stalled)."""
+    with ``up``, straight up: a vertical strut puts no weight moment on its floor node,
+    35 deg from its aim, which it leaves without crossing the freed chord's way out).
+
+    Laid level, 60 deg clockwise of the radial direction (stop 36), R6's weight moment on
+    B3 (0.3 N m) was the one the other free struts did not cancel, and the structure crept
+    4.7 mm/s toward it with every wheel stopped (issue 31); level counter-clockwise it met
+    the freed chord on its way down (Fig. 22(f)-(j) stalled)."""
     out: list[tuple] = []
     for i in range(6):
         sid, s, t = f"R{i + 1}", RING_NODES[i], RING_NODES[(i + 1) % 6]
@@ -521,9 +524,7 @@ def ring_struts(nodes: dict[str, np.ndarray] | None = None, free: frozenset[int]
             out.append((sid, s, t))
         else:
             assert nodes is not None
-            out.append((sid, s, None,
-                        horizontal(math.atan2(nodes[s][1], nodes[s][0]) - math.radians(60.0))
-                        if outward else nodes[t] - nodes[s]))
+            out.append((sid, s, None, UP if up else nodes[t] - nodes[s]))
     return out
 
 
@@ -564,9 +565,9 @@ def octa_legs_down(name: str, docked: set[int], description: str = "", *,
     floor (Fig. 22(e): the bottom face's struts freed as wheels; the top face stays
     docked, so each bottom node and its two ring struts form a rigid flap hinged on a
     top edge and the structure stands by friction, not by connector torque). Ring struts
-    in ``free_ring`` point outward along the floor too (Fig. 22(j))."""
+    in ``free_ring`` point straight up (Fig. 22(j), :func:`ring_struts`)."""
     nodes = octahedron_nodes()
-    struts = ring_struts(nodes, free_ring, outward=True)
+    struts = ring_struts(nodes, free_ring, up=True)
     for i in range(6):
         cid, s, t = chord(i)
         if i in docked:

@@ -39,6 +39,16 @@ contact pair); a velocity-controlled hinge with bounded torque (back-EMF damping
 the hinge, drive ``D_w * omega_cmd`` bounded by the wheel torque) drives the strut end
 through friction. Locomotion therefore comes from contact forces alone.
 
+A docked wheel pair holds its speed: its encoders measure the spin of the node against
+the strut, and a speed loop adds the integrated lag (``_SPIN_GAIN``) to the drive's
+command, so a load no longer makes the spin droop (``D (omega_cmd - omega)`` alone ran a
+node of fig22(j) at a quarter of the spin asked, issue 31) until the torque limit.
+The other connectors on a node its wheels spin follow that spin at the servo rate: each
+period their targets turn, in the node frame, against the node's rotation (its gyro)
+about the spinning struts' axes. Re-aimed only at each command (10 Hz), they held the
+shell in between and braked the wheel; a rotation about any other axis (the node
+rolling under a load) is not followed, so they resist it.
+
 Slip and drift: each docked connector keeps an odometry heading error ``eps`` (a
 rotation about the strut axis that its encoders do not see); it grows by ``slip``
 per radian rolled and by ``drift`` per square-root second. The connector servos its
@@ -129,6 +139,7 @@ _TURN_ON = np.radians(5.0)     # a connector this far from its target turns towa
 _TURN_OFF = np.radians(2.0)   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
+_SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
 
 
 @dataclass(frozen=True)
@@ -278,6 +289,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._axle = np.array([m.joint(f"axle/{s}/{e}").dofadr[0] for s, e in self.ends],
                               dtype=int)
         self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
+        self._spin_lag = np.zeros(k)                       # wheel spin asked - measured [rad]
+        self._node_rate = np.array([m.joint(f"free/{n}").dofadr[0] + 3 for n in self.nodes],
+                                   dtype=int)              # a node's angular rate (node frame)
         drives = self.ends if self._differential else []
         self._motor = np.array([[m.actuator(f"wheel/{s}/{e}/{side}").id
                                  for side in ("left", "right")] for s, e in drives],
@@ -454,6 +468,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         idle = np.ones(len(self._integral), dtype=bool)
         idle[self._driven] = False
         self._integral[idle] = 0.0
+        self._spin_lag[idle] = 0.0
 
     def command_stop(self, strut: str) -> None:
         """Stop ``strut``'s connectors where they are now (motors braked)."""
@@ -596,8 +611,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         fix = Rotation.from_rotvec(self._fix[ks]).as_matrix()
         return fix @ true @ Rotation.from_rotvec(self._eps[ks, None] * _EZ).as_matrix()
 
-    def _update_ball_targets(self) -> None:
-        ks = np.flatnonzero(self._has_target)
+    def _update_ball_targets(self, ks: np.ndarray | None = None) -> None:
+        """The ball-joint targets of connectors ``ks`` (default: all with a target)."""
+        ks = np.flatnonzero(self._has_target) if ks is None else ks
         if not len(ks):
             return
         fix = Rotation.from_rotvec(-self._fix[ks]).as_matrix()
@@ -645,6 +661,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         steer (:meth:`_steer`), every wheel motor gets its command (:meth:`_drive`), the
         grips follow their contact points."""
         self._attract()
+        self._follow_spins()
         ks = self._driven
         if not self._differential:
             self._servo_torques(ks)
@@ -656,6 +673,47 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._track_saturation(ks, np.max(np.abs(self._torque[ks]), axis=1)
                                / (0.5 * self.phys.wheel_torque))
         self._place_grips()
+
+    def _follow_spins(self) -> None:
+        """The targets of the connectors on a node that docked wheels spin (not wheeling
+        themselves) turn with the node about the wheels' strut axes: by the node's rotation
+        over the servo period (its gyro: the body rate plus its bias, node frame)
+        projected onto those axes' span, so only the commanded spin is followed."""
+        wheeling = np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0))
+        if not len(wheeling):
+            return
+        d = self.data
+        followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0)
+        strut_axes = d.xmat[self._strut_body].reshape(-1, 3, 3)[:, :, 2]
+        moved = []
+        for node in sorted({self.docked[k] for k in wheeling}):
+            mine = np.flatnonzero(followers & np.array([n == node for n in self.docked]))
+            if not len(mine):
+                continue
+            i = self._node_index[node]
+            ks = wheeling[[self.docked[k] == node for k in wheeling]]
+            to_node = d.xmat[self._node_body[i]].reshape(3, 3).T
+            axes = to_node @ (self._sign[ks, None] * strut_axes[ks // 2]).T   # (3, m)
+            rate = d.qvel[self._node_rate[i]:self._node_rate[i] + 3] + self._gyro_bias[i]
+            spin = axes @ np.linalg.lstsq(axes, rate, rcond=None)[0]
+            turn = Rotation.from_rotvec(-spin * self._every * self.options.timestep).as_matrix()
+            self._target[mine] = turn @ self._target[mine]
+            moved.extend(mine)
+        if moved:
+            self._update_ball_targets(np.array(moved))
+
+    def _spin_speed(self, ks: np.ndarray, asked: np.ndarray, axis: np.ndarray,
+                    wheeling: np.ndarray) -> np.ndarray:
+        """Spin commands (n,) [rad/s] of connectors ``ks`` with the wheel speed loop: the
+        spin ``asked`` plus ``_SPIN_GAIN`` times its integrated lag behind the measured
+        spin (the ball joint's rate about the strut ``axis``, (n, 3), connector frame),
+        the integral bounded to the spin rate; for the ``wheeling`` ones only."""
+        rate = np.einsum("ni,ni->n", self.data.qvel[self._dofs[ks]], axis)
+        bound = self.phys.max_spin_rate / _SPIN_GAIN
+        lag = np.clip(self._spin_lag[ks] + (asked - rate) * self._every * self.options.timestep,
+                      -bound, bound)
+        self._spin_lag[ks] = np.where(wheeling, lag, 0.0)
+        return np.where(wheeling, asked + _SPIN_GAIN * self._spin_lag[ks], asked)
 
     def _servo_torques(self, ks: np.ndarray) -> None:
         """Holonomic connectors (``connector_drive="holonomic"``): three motor torques on
@@ -694,6 +752,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             scale = np.minimum(1.0, p.max_roll_rate / np.maximum(norm, 1e-12))
             scale *= np.minimum(1.0, limit / np.maximum(p.damping * norm * scale, 1e-12))
             spin = np.minimum(np.maximum(spin, -p.max_spin_rate), p.max_spin_rate)
+            if wheeling.any():
+                spin = self._spin_speed(ks, spin, axis, wheeling)
             # a reduced effort softens the position loop of a loop-closing connector; its
             # wheels, when commanded, still run at the full torque
             spin_limit = np.where(wheeling, p.max_torque, limit)
