@@ -290,8 +290,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                               dtype=int)
         self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
         self._spin_lag = np.zeros(k)                       # wheel spin asked - measured [rad]
-        self._node_rate = np.array([m.joint(f"free/{n}").dofadr[0] + 3 for n in self.nodes],
-                                   dtype=int)              # a node's angular rate (node frame)
+        self._node_rate = 3 + np.array([m.joint(f"free/{n}").dofadr[0] for n in self.nodes])
         drives = self.ends if self._differential else []
         self._motor = np.array([[m.actuator(f"wheel/{s}/{e}/{side}").id
                                  for side in ("left", "right")] for s, e in drives],
