@@ -677,7 +677,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """The targets of the connectors on a node that docked wheels spin (not wheeling
         themselves) turn with the node about the wheels' strut axes: by the node's rotation
         over the servo period (its gyro: the body rate plus its bias, node frame)
-        projected onto those axes' span, so only the commanded spin is followed."""
+        projected onto those axes' span, so only the commanded spin is followed.
+
+        Known gap (issue 32, item 2): the projection reads the simulator's node and strut
+        attitudes and the gyro without its white noise; the connectors' believed poses
+        (:meth:`_believed`) and the noisy gyro are what the hardware would use."""
         wheeling = np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0))
         if not len(wheeling):
             return
