@@ -308,7 +308,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._geom_module[[m.geom(f"capsule/{s}").id for s in self.struts]] = \
             len(self.nodes) + np.arange(len(self.struts))
         self.interpenetrations: dict[tuple[str, str], Interpenetration] = {}
-        self._init_gyros(options)
+        self._gyro_rng = np.random.default_rng([options.seed, 0x6779])  # "gy"
+        self._gyro_bias = self._gyro_rng.normal(0.0, options.gyro_bias, (len(self.nodes), 3))
+        self._gyro = np.zeros((len(self.nodes), 3))        # last reported rates [rad/s]
         self._node_rot = np.tile(np.eye(3), (len(self.nodes), 1, 1))
         mujoco.mj_forward(self.model, self.data)
         for s, (a, b) in self.placement.ends.items():
@@ -317,14 +319,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                     self._dock(self._end_index[(s, end)], node, event=False)
         mujoco.mj_forward(self.model, self.data)
         self._record_interpenetrations()
-
-    def _init_gyros(self, options: SimOptions) -> None:
-        """The node gyros: a seeded bias each; the reports' draws (``"gy"``) and the
-        servo's samples (``"sg"``) from generators of their own."""
-        self._gyro_rng, self._servo_gyro_rng = (np.random.default_rng([options.seed, tag])
-                                                for tag in (0x6779, 0x7367))
-        self._gyro_bias = self._gyro_rng.normal(0.0, options.gyro_bias, (len(self.nodes), 3))
-        self._gyro = np.zeros((len(self.nodes), 3))        # last reported rates [rad/s]
 
     # -- building ---------------------------------------------------------------------
 
@@ -682,16 +676,18 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _follow_spins(self) -> None:
         """The targets of the connectors on a node that docked wheels spin (not wheeling
         themselves) turn with the node about the wheels' strut axes: by the node's rotation
-        over the servo period as its gyro samples it (the body rate, its bias and its
-        white noise, node frame) projected onto the span of those axes as the wheeling
-        connectors believe them (:meth:`_believed`: their localisation and odometry
-        errors), so only the commanded spin is followed."""
+        over the servo period (its gyro: the body rate plus its bias, node frame)
+        projected onto those axes' span, so only the commanded spin is followed.
+
+        Known gap (issue 32, item 2): the projection reads the simulator's node and strut
+        attitudes and the gyro without its white noise; the connectors' believed poses
+        (:meth:`_believed`) and the noisy gyro are what the hardware would use."""
         wheeling = np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0))
         if not len(wheeling):
             return
-        d, o = self.data, self.options
-        period = self._every * o.timestep
+        d = self.data
         followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0)
+        strut_axes = d.xmat[self._strut_body].reshape(-1, 3, 3)[:, :, 2]
         moved = []
         for node in sorted({self.docked[k] for k in wheeling}):
             mine = np.flatnonzero(followers & np.array([n == node for n in self.docked]))
@@ -699,11 +695,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                 continue
             i = self._node_index[node]
             ks = wheeling[[self.docked[k] == node for k in wheeling]]
-            axes = self._believed(ks)[:, :, 2].T   # (3, m): strut axes, node frame
-            rate = (d.qvel[self._node_rate[i]:self._node_rate[i] + 3] + self._gyro_bias[i]
-                    + self._servo_gyro_rng.normal(0.0, o.gyro_noise / np.sqrt(period), 3))
+            to_node = d.xmat[self._node_body[i]].reshape(3, 3).T
+            axes = to_node @ (self._sign[ks, None] * strut_axes[ks // 2]).T   # (3, m)
+            rate = d.qvel[self._node_rate[i]:self._node_rate[i] + 3] + self._gyro_bias[i]
             spin = axes @ np.linalg.lstsq(axes, rate, rcond=None)[0]
-            turn = Rotation.from_rotvec(-spin * period).as_matrix()
+            turn = Rotation.from_rotvec(-spin * self._every * self.options.timestep).as_matrix()
             self._target[mine] = turn @ self._target[mine]
             moved.extend(mine)
         if moved:
