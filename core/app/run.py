@@ -631,13 +631,18 @@ def _stop(driver: Driver) -> None:
 
 def _deadline_growth(prepared: PreparedRun, driver: GuardedDriver
                      ) -> Callable[[float], None] | None:
-    """What moves the run's default deadlines when a phase is granted more time
-    (``None`` when the user set both)."""
+    """What moves the run's default deadlines when a phase is granted more time, never
+    past :data:`~msrr.core.scenario.MAX_TIME` (a controller that says it needs a year
+    does not make a run endless); ``None`` when the user set both."""
     driver_time = 1.0 if prepared.deadline_grows else 0.0
     wall_time = WALL_FACTOR if prepared.wall_deadline_grows else 0.0
     if not (driver_time or wall_time):
         return None
-    return lambda seconds: driver.extend(driver_time * seconds, wall_time * seconds)
+
+    def grow(seconds: float) -> None:
+        driver.extend(min(driver_time * seconds, max(MAX_TIME - driver.deadline, 0.0)),
+                      min(wall_time * seconds, max(MAX_TIME - driver.wall_deadline, 0.0)))
+    return grow
 
 
 @contextmanager

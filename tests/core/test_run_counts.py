@@ -93,3 +93,28 @@ def test_counts_are_what_the_driver_reported_on_every_way_out(
         assert summary["reason"] and summary["actions_done"] < summary["actions_total"]
     if path in ("SIGINT", "SIGTERM"):
         assert summary["interrupted"] == path
+
+
+def test_default_deadlines_grow_by_what_a_phase_is_granted_up_to_a_week() -> None:
+    from types import SimpleNamespace
+
+    from msrr.core.app.run import WALL_FACTOR, _deadline_growth
+    from msrr.core.faults import GuardedDriver
+    from msrr.core.scenario import MAX_TIME
+
+    guard = GuardedDriver(tiny_robot.PointDriver(), deadline=10.0, wall_deadline=100.0)
+    grow = _deadline_growth(SimpleNamespace(deadline_grows=True, wall_deadline_grows=True),
+                            guard)
+    assert grow is not None
+    grow(5.0)
+    assert (guard.deadline, guard.wall_deadline) == (15.0, 100.0 + WALL_FACTOR * 5.0)
+    grow(1e12)   # a controller that says it needs forever
+    assert guard.deadline == MAX_TIME and guard.wall_deadline == MAX_TIME
+    user_set = GuardedDriver(tiny_robot.PointDriver(), deadline=10.0, wall_deadline=100.0)
+    only_wall = _deadline_growth(SimpleNamespace(deadline_grows=False,
+                                                 wall_deadline_grows=True), user_set)
+    assert only_wall is not None
+    only_wall(5.0)
+    assert user_set.deadline == 10.0 and user_set.wall_deadline == 200.0
+    assert _deadline_growth(SimpleNamespace(deadline_grows=False, wall_deadline_grows=False),
+                            user_set) is None
