@@ -4,7 +4,7 @@
   module kind, a vertex with one neutral connector, the geometry the MuJoCo world needs;
   :func:`read_freeform_robot` reads its arguments from a robot's ``robot.json``;
 * :func:`read_miso_rules` -- the robot's MISO connection rules from the same file
-  (``miso``: ``max_in``, ``no_docking_onto``), which its planners obey;
+  (``miso``: ``max_in``, ``no_docking_onto``, ``carries``), which its planners obey;
 * :class:`ModuleDesign` -- the simulated module: that geometry, and whether the connector
   turns in a bearing inside the shell (FreeBOT) and whether there is a sucker (SnailBot).
 
@@ -96,7 +96,10 @@ def read_freeform_robot(text: str, where: str) -> RobotSpec:
 MISO_RULES = {"max_in": "the most connections one module carries (an integer >= 1, or null: "
                         "no limit)",
               "no_docking_onto": "'child' (never onto a module sitting on it) or "
-                                 "'descendant' (never onto its own in-tree: no cycle)"}
+                                 "'descendant' (never onto its own in-tree: no cycle)",
+              "carries": "what a moving module takes along: 'in-tree' (every module "
+                         "docked on it: pieces travel) or 'nothing' (only a module nothing "
+                         "is docked on moves)"}
 """The fields of ``robot.json``'s ``miso`` object and what each holds."""
 
 
@@ -125,9 +128,12 @@ def read_miso_rules(text: str, where: str) -> dict[str, int | str | None]:
     if "no_docking_onto" in rules and rule not in ("child", "descendant"):
         problems.append(f"miso.no_docking_onto must be {MISO_RULES['no_docking_onto']}, "
                         f"got {rule!r}")
+    carries = rules.get("carries")
+    if "carries" in rules and carries not in ("in-tree", "nothing"):
+        problems.append(f"miso.carries must be {MISO_RULES['carries']}, got {carries!r}")
     if problems:
         raise PluginError(f"{where}: {'; '.join(problems)}")
-    return {"max_in": cap, "no_docking_onto": rule}
+    return {"max_in": cap, "no_docking_onto": rule, "carries": carries}
 
 
 _FIELDS = ("name", "title", "symbol", "port", "joint_mode", "geometry", "module",

@@ -51,6 +51,7 @@ FREE = -1
 """``parent[i]`` of a module whose connector is free."""
 
 Docking = Literal["child", "descendant"]
+Carrying = Literal["in-tree", "nothing"]
 
 
 @dataclass(frozen=True)
@@ -66,10 +67,19 @@ class MisoLimits:
             generator forbids it too); ``"descendant"`` -- never onto any module of
             its own in-tree, so no cycle is ever made (a robot whose modules cannot
             close a ring).
+        carries: what a module takes along when it docks somewhere new: ``"in-tree"``
+            -- every module docked on it, directly or not (a piece travels as one
+            body; FreeBOT); ``"nothing"`` -- only a module nothing is docked on may
+            dock (SnailBot: its connector is rigid with its shell, so a docked
+            module's tracks hold its parent, not the floor, and a piece cannot
+            travel). Letting go (a step to free) moves nothing and is always allowed.
+            Under ``"nothing"`` no ring can be closed (its last module would carry
+            its predecessor), so such a robot cannot build a goal with a cycle.
     """
 
     max_in: int | None = None
     no_docking_onto: Docking = "child"
+    carries: Carrying = "in-tree"
 
     def __post_init__(self) -> None:
         if self.max_in is not None and (isinstance(self.max_in, bool)
@@ -79,6 +89,9 @@ class MisoLimits:
         if self.no_docking_onto not in ("child", "descendant"):
             raise PlanningError("MISO rules: no_docking_onto must be 'child' or 'descendant', "
                                 f"got {self.no_docking_onto!r}")
+        if self.carries not in ("in-tree", "nothing"):
+            raise PlanningError("MISO rules: carries must be 'in-tree' or 'nothing', got "
+                                f"{self.carries!r}")
 
     def violations(self, parent: Sequence[int]) -> list[str]:
         """Why ``parent`` is no configuration of a robot with these rules (empty: it is)."""
@@ -96,6 +109,13 @@ class MisoLimits:
         if self.no_docking_onto == "descendant" and cycles(parent):
             found.append("it holds a cycle (this robot never docks onto its own in-tree)")
         return found
+
+    def unbuildable(self, parent: Sequence[int]) -> list[str]:
+        """Why no plan under these rules can end in ``parent`` (empty: one can)."""
+        if self.carries == "nothing" and cycles(parent):
+            return ["it holds a cycle, and the last module to close a ring would carry its "
+                    "predecessor (a docking module of this robot carries nothing)"]
+        return []
 
 
 UNLIMITED = MisoLimits()
@@ -148,6 +168,9 @@ class MisoProblem:
             raise PlanningError(f"start has {len(start)} modules, goal {len(goal)}")
         for name, parent in (("start", start), ("goal", goal)):
             _check(parent, limits, name)
+        unbuildable = limits.unbuildable(goal)
+        if unbuildable:
+            raise PlanningError(f"goal: {unbuildable[0]}")
         ids = tuple(str(i) for i in range(len(start)))
         return cls(ids, tuple(int(p) for p in start), ids, tuple(int(p) for p in goal), limits)
 
@@ -175,6 +198,10 @@ class MisoProblem:
                 raise PlanningError(f"{name} {config.name or ''}: not a configuration of "
                                     f"robot {config.robot!r}: "
                                     + _named(problems[0], ids))
+        unbuildable = limits.unbuildable(g_parent)
+        if unbuildable:
+            raise PlanningError(f"goal {goal.name or ''}: robot {goal.robot!r} cannot build "
+                                f"it: {unbuildable[0]}")
         return cls(s_ids, s_parent, g_ids, g_parent, limits)
 
     @property
@@ -376,11 +403,14 @@ def step_is_legal(parent: Sequence[int], module: int, new: int,
     """Whether ``module`` may re-target its connector to ``new`` (-1: free itself) under
     the robot's rules: not onto itself or where it already is, not onto a module that
     carries ``limits.max_in`` connections, not onto its child (or, for
-    ``"descendant"``, any module of its in-tree). Pieces may split and merge."""
+    ``"descendant"``, any module of its in-tree); under ``limits.carries == "nothing"``
+    only a module nothing is docked on docks. Pieces may split and merge."""
     if new == module or parent[module] == new:
         return False
     if new == FREE:
         return True
+    if limits.carries == "nothing" and module in parent:
+        return False
     if limits.max_in is not None and sum(1 for p in parent if p == new) >= limits.max_in:
         return False
     if limits.no_docking_onto == "child":

@@ -8,9 +8,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from ...errors import PlanningError
-from .model import FREE, UNLIMITED, MisoLimits, Step, count_flows, depths
+from .model import FREE, UNLIMITED, MisoLimits, Step, count_flows, cycles, depths
 
-__all__ = ["greedy_order", "order_steps"]
+__all__ = ["greedy_order", "leaf_order", "order_steps"]
 
 
 class _State:
@@ -79,11 +79,15 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
     whenever one is legal; that order is kept unless it needs more steps or holds
     fewer flows.
 
+    Under ``limits.carries == "nothing"`` the order is :func:`leaf_order`.
+
     Raises:
         PlanningError: no progress (a bug: every release frees a module that was held).
     """
     if goal_depth is None:
         goal_depth = depths(goal)
+    if limits.carries == "nothing":
+        return leaf_order(start, goal, goal_depth, limits)
     plain = greedy_order(start, goal, goal_depth, limits, flows_first=False)
     flowing = greedy_order(start, goal, goal_depth, limits, flows_first=True)
     if len(flowing) > len(plain) or (len(flowing) == len(plain) and count_flows(
@@ -148,3 +152,100 @@ def _release(state: _State, pending: list[int], goal: Sequence[int]) -> Step:
         if j is not None and j != FREE and parent[j] != FREE:
             return state.apply(j, FREE)
     raise PlanningError("MISO step ordering found no module to release")  # pragma: no cover
+
+
+
+def leaf_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence[int],
+               limits: MisoLimits) -> list[Step]:
+    """Legal steps from ``start`` to an acyclic ``goal`` (pointer arrays) for a robot whose
+    docking module carries nothing (``limits.carries == "nothing"``): a piece that must
+    move is taken apart into modules that each move alone, and built again.
+
+    Letting go moves nothing, so a pending module whose goal is free lets go at once.
+    Each ring of the start is opened by letting go one of its pending modules (the goal
+    has no ring, so every ring holds one), one to be free in the goal if there is. Then pending modules are taken in increasing
+    goal depth, so the goal is built from its roots out: one docks straight onto its
+    target once nothing is docked on it, the target carries fewer than
+    ``limits.max_in`` and is *settled* (no pending module on the target's way to its
+    root: that one would have to shed all it carries, this module too). When none can,
+    the first pending module held up by a module that carries others (itself, one on its
+    target's way, or a leaving module of its full target) sheds: the first pending
+    module of that module's in-tree lets go (the break its own move needs anyway), else
+    a kept leaf does (a temporary step; it docks back later, two steps and two changes
+    more).
+
+    Raises:
+        PlanningError: no progress (a bug).
+    """
+    n = len(start)
+    state = _State(start, limits)
+    parent, indeg = state.parent, state.indeg
+    on: list[set[int]] = [set() for _ in range(n)]
+    for i, p in enumerate(parent):
+        if p != FREE:
+            on[p].add(i)
+    pending = {i for i in range(n) if start[i] != goal[i]}
+    steps: list[Step] = []
+
+    def settled(k: int) -> bool:
+        while k != FREE:
+            if k in pending:
+                return False
+            k = parent[k]
+        return True
+
+    def movable(i: int) -> bool:
+        k = goal[i]
+        return k == FREE or (indeg[i] == 0 and settled(k) and (
+            limits.max_in is None or indeg[k] < limits.max_in))
+
+    def move(i: int, new: int) -> None:
+        if parent[i] != FREE:
+            on[parent[i]].discard(i)
+        if new != FREE:
+            on[new].add(i)
+        steps.append(state.apply(i, new))
+        (pending.discard if new == goal[i] else pending.add)(i)
+
+    for ring in cycles(start):
+        move(min((m for m in ring if m in pending), key=lambda m: goal[m] != FREE), FREE)
+    while pending:
+        if len(steps) > 4 * n:
+            raise PlanningError("MISO step ordering (docking modules carry nothing) made no "
+                                "progress")
+        order = sorted(pending, key=lambda i: (goal_depth[i], i))
+        i = next((i for i in order if movable(i)), None)
+        if i is None:
+            i = _shed(order, goal, parent, on, indeg, pending, limits)
+        move(i, goal[i] if movable(i) else FREE)
+    return steps
+
+
+def _shed(order: list[int], goal: Sequence[int], parent: list[int], on: list[set[int]],
+          indeg: list[int], pending: set[int], limits: MisoLimits) -> int:
+    """The module to let go when no pending module can dock (:func:`leaf_order`)."""
+    for i in order:
+        k = goal[i]
+        if indeg[i] > 0:
+            holder = i
+        elif limits.max_in is not None and indeg[k] >= limits.max_in:
+            holder = min(c for c in on[k] if goal[c] != k)   # one must leave it anyway
+        else:
+            holder = k
+            while holder not in pending:   # the first pending module on the way
+                holder = parent[holder]
+            if holder == k and indeg[k] == 0:
+                continue   # a pending target that carries nothing: it docks in its turn
+        if indeg[holder] == 0:
+            return holder   # a leaving module of a full target
+        layer, kept_leaf = sorted(on[holder]), None
+        while layer:
+            found = next((m for m in layer if m in pending), None)
+            if found is not None:
+                return found
+            kept_leaf = next((m for m in layer if not on[m]), kept_leaf)
+            layer = sorted(c for m in layer for c in on[m])
+        if kept_leaf is not None:
+            return kept_leaf
+    raise PlanningError("MISO step ordering (docking modules carry nothing) found no "
+                        "module to move")  # pragma: no cover
