@@ -59,5 +59,11 @@ SCENARIOS = (
              goal=CONFIGS / "comb20" / "comb20-forest.json", stages=(Stage(goal=CONFIGS / "comb20" / "comb20-tree.json"),),
              description="twenty FreeBOTs: six let go of a row of fourteen (a forest of "
                          "seven pieces), then each rolls one module along and docks (a tree)"),
+    Scenario(name="pieces-to-tree", start=CONFIGS / "forest20" / "forest20.json",
+             goal=CONFIGS / "forest20" / "forest20-forest.json",
+             stages=(Stage(goal=CONFIGS / "forest20" / "forest20-tree.json"),),
+             description="twenty FreeBOTs: a row of twelve and two rows of four let go of "
+                         "each other (a forest of three pieces), then the two rows of four "
+                         "each travel as one piece, turn and dock across the row (a tree)"),
 )
 """The default first."""
