@@ -44,5 +44,12 @@ SCENARIOS = (
              goal=CONFIGS / "comb20" / "comb20-forest.json", stages=(Stage(goal=CONFIGS / "comb20" / "comb20-tree.json"),),
              description="twenty SnailBots: six let go of a row of fourteen (a forest of "
                          "seven pieces), then each crawls one module along and docks (a tree)"),
+    Scenario(name="pieces-to-tree", start=CONFIGS / "forest20" / "forest20.json",
+             goal=CONFIGS / "forest20" / "forest20-forest.json",
+             stages=(Stage(goal=CONFIGS / "forest20" / "forest20-tree.json"),),
+             description="twenty SnailBots: a row of twelve and two rows of four let go of "
+                         "each other (a forest of three pieces); each row of four is taken "
+                         "apart and its modules crawl one by one to build it again across "
+                         "the row (a tree)"),
 )
 """The default first."""
