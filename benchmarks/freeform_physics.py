@@ -3,7 +3,10 @@
 Runs the scenarios that free a module and dock it again (FreeBOT ``roll-to-dock``,
 SnailBot ``crawl-to-dock``), the one that uses SnailBot's sucker (``sucker-turn``) and
 the 20-module forest -> tree of each robot (``forest-to-tree``: six modules let go of a
-row of fourteen, then each travels over the floor to its next place and docks) with
+row of fourteen, then each travels over the floor to its next place and docks;
+``pieces-to-tree``: a row of twelve and two rows of four let go, then each row of four
+travels as one piece (FreeBOT) or is taken apart and rebuilt module by module (SnailBot,
+whose docking module carries nothing) across the row) with
 ``platform run``'s own functions, each at the given noise on every reported angle, and
 prints per run: the judge's verdict on the simulator's ground truth (topology and the
 final shape), the simulator's constraint switches, simulated and wall time.
@@ -43,7 +46,8 @@ IM_CHANGES = 91
 """Connection changes of the published IM heuristic on the human example."""
 RUNS = (("freebot", "roll-to-dock"), ("snailbot", "crawl-to-dock"),
         ("snailbot", "sucker-turn"), ("freebot", "forest-to-tree"),
-        ("snailbot", "forest-to-tree"))
+        ("snailbot", "forest-to-tree"), ("freebot", "pieces-to-tree"),
+        ("snailbot", "pieces-to-tree"))
 
 
 def _run(robot: str, seed: int, noise: float, *, scenario: str | None = None,
