@@ -97,9 +97,9 @@ MISO_RULES = {"max_in": "the most connections one module carries (an integer >= 
                         "no limit)",
               "no_docking_onto": "'child' (never onto a module sitting on it) or "
                                  "'descendant' (never onto its own in-tree: no cycle)",
-              "carries": "what a moving module takes along: 'in-tree' (every module "
+              "carries": "what a docking module takes along: 'in-tree' (every module "
                          "docked on it: pieces travel) or 'nothing' (only a module nothing "
-                         "is docked on moves)"}
+                         "is docked on docks)"}
 """The fields of ``robot.json``'s ``miso`` object and what each holds."""
 
 

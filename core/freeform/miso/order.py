@@ -154,7 +154,6 @@ def _release(state: _State, pending: list[int], goal: Sequence[int]) -> Step:
     raise PlanningError("MISO step ordering found no module to release")  # pragma: no cover
 
 
-
 def leaf_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence[int],
                limits: MisoLimits) -> list[Step]:
     """Legal steps from ``start`` to an acyclic ``goal`` (pointer arrays) for a robot whose
@@ -163,11 +162,12 @@ def leaf_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence[i
 
     Letting go moves nothing, so a pending module whose goal is free lets go at once.
     Each ring of the start is opened by letting go one of its pending modules (the goal
-    has no ring, so every ring holds one), one to be free in the goal if there is. Then pending modules are taken in increasing
-    goal depth, so the goal is built from its roots out: one docks straight onto its
-    target once nothing is docked on it, the target carries fewer than
-    ``limits.max_in`` and is *settled* (no pending module on the target's way to its
-    root: that one would have to shed all it carries, this module too). When none can,
+    has no ring, so every ring holds one), one that is free in the goal if there is.
+    Then pending modules are taken in increasing goal depth, so the goal is built from
+    its roots out: one docks straight onto its target once nothing is docked on it, the
+    target carries fewer than ``limits.max_in`` and is *settled* (no pending module on
+    the target's way to its root: that one would have to shed all it carries, this
+    module too). When none can,
     the first pending module held up by a module that carries others (itself, one on its
     target's way, or a leaving module of its full target) sheds: the first pending
     module of that module's in-tree lets go (the break its own move needs anyway), else
