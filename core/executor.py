@@ -419,13 +419,19 @@ class Executor:
         on_grant: called with the driver time [s] each phase attempt is given on top of
             ``action_timeout`` because its controller said it needs it (so the run can
             move a default overall deadline by as much).
+        placed: the configuration the driver was reset to, as the modules were laid
+            out (a :class:`~msrr.core.control.StartLayout` controller is told it);
+            ``None``: the plan's start. They differ when the run planned again from the
+            recognized start, whose vectors carry the sensors' noise.
     """
 
     def __init__(self, run: Run, driver: Driver, recognizer: Recognizer, controller: Controller,
                  options: ExecutorOptions | None = None, *, sink: EventSink | None = None,
                  robot: Robot | None = None, controllers: Mapping[str, Controller] | None = None,
-                 on_grant: Callable[[float], None] | None = None):
+                 on_grant: Callable[[float], None] | None = None,
+                 placed: Configuration | None = None):
         self.run = run
+        self.placed = placed
         self.on_grant = on_grant
         self.driver = driver
         self.recognizer = recognizer
@@ -476,7 +482,7 @@ class Executor:
         result = self.result
         self._current = self._estimated(self.driver.get_observation())
         if isinstance(self.controller, StartLayout):
-            self.controller.start(plan.start)
+            self.controller.start(self.placed or plan.start)
         index = -1
         try:
             for index, action in enumerate(plan.actions):

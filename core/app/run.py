@@ -738,6 +738,7 @@ def execute_run(prepared: PreparedRun, *,
     try:
         with _driver_for(prepared, progress, stuck if last_resort else None) as driver:
             driver.reset(run.plan.start)
+            placed = run.plan.start   # as the lab lays the modules out from the file
             run.plan = _recognized_plan(prepared, driver)
             result.actions_total = len(run.plan.actions)
             judge = Judge(run, driver, layout=lambda goal: _goal_layout(prepared, goal),
@@ -748,7 +749,7 @@ def execute_run(prepared: PreparedRun, *,
                                 prepared.options, sink=progress,
                                 robot=prepared.capabilities.robot,
                                 controllers=prepared.capabilities.controllers,
-                                on_grant=_deadline_growth(prepared, driver))
+                                on_grant=_deadline_growth(prepared, driver), placed=placed)
             result = executor.result  # its counts are kept on every way out
             progress.run_start(run)
             started = True

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from msrr.core.actions import topology_diff
+from msrr.core.app.run import RunRequest, execute_run, prepare_run
 from msrr.core.driver import ModuleCommand
 from msrr.core.io import load_configuration
 from msrr.core.shape import skeletal_error
@@ -55,3 +56,16 @@ def test_the_sucker_locks_the_crawl_but_not_the_undock(mujoco_driver):
     driver.send_action({"B1": ModuleCommand(undock=("foot",))})   # the port: whatever it holds
     driver.step(0.1)
     assert ("B1", "B2") not in world.docked_pairs()
+
+
+def test_the_start_layout_is_the_files_not_the_noisy_recognized_start(tmp_path):
+    # Under sensor noise the run plans again from the recognized start, whose vectors
+    # carry the noise; laid out, rows lying side by side touching then overlap (B1 and
+    # B13 at seed 1, 1 deg). The locator is told the file's layout, as the lab placed
+    # the modules: the run gets past its start (here to its 1 s deadline).
+    prepared = prepare_run(RunRequest("snailbot", scenario="pieces-to-tree", seed=1,
+                                      driver="mujoco", out=tmp_path / "run", log=False,
+                                      deadline=1.0, driver_options=(("noise", "0.0175"),)))
+    result = execute_run(prepared)
+    assert not result.success and "deadline" in result.reason, result.reason
+    assert "overlap" not in result.reason
