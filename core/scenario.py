@@ -111,6 +111,13 @@ class Scenario:
         if self.goal is None and not self.stages:
             raise ConfigurationError(f"scenario {self.name!r} has neither a goal nor stages")
 
+    @classmethod
+    def through(cls, name: str, description: str, start: Path, *goals: Path) -> Scenario:
+        """A scenario from ``start`` through goal configuration files, one stage each,
+        in order (at least one)."""
+        return cls(name=name, description=description, start=start, goal=goals[0],
+                   stages=tuple(Stage(goal=g) for g in goals[1:]))
+
     def all_stages(self) -> tuple[Stage, ...]:
         """The goal (as a stage, when there is one) then :attr:`stages`."""
         first = () if self.goal is None else (Stage(goal=self.goal),)

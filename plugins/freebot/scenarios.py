@@ -27,6 +27,13 @@ __all__ = ["CONFIGS", "SCENARIOS"]
 
 CONFIGS = Path(__file__).resolve().parent / "configs"
 
+
+def _let_go_then_tree(name: str, folder: str, description: str) -> Scenario:
+    """From ``folder/folder.json`` its pieces let go (``-forest``), then a tree (``-tree``)."""
+    return Scenario.through(name, description, *(CONFIGS / folder / f"{folder}{stage}.json"
+                                                 for stage in ("", "-forest", "-tree")))
+
+
 _TO_STAR = ("line6-a", "line6-b", "line6-c", "star6-flat")
 _BACK = ("line6-c", "line6-b", "line6-a", "line6")
 
@@ -49,21 +56,16 @@ SCENARIOS = (
     Scenario(name="roll-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
              description="four FreeBOTs: F1 lets go of the row, rolls round it over the floor "
                          "and docks on F4 at the other end"),
-    Scenario(name="chains-to-tree", start=CONFIGS / "chains12" / "chains12.json",
-             goal=CONFIGS / "chains12" / "chains12-forest.json",
-             stages=(Stage(goal=CONFIGS / "chains12" / "chains12-tree.json"),),
-             description="twelve FreeBOTs: three chains of four let go of each other, then "
-                         "two of them each travel as one piece, turn and dock across the "
-                         "third (a tree)"),
-    Scenario(name="forest-to-tree", start=CONFIGS / "comb20" / "comb20.json",
-             goal=CONFIGS / "comb20" / "comb20-forest.json", stages=(Stage(goal=CONFIGS / "comb20" / "comb20-tree.json"),),
-             description="twenty FreeBOTs: six let go of a row of fourteen (a forest of "
-                         "seven pieces), then each rolls one module along and docks (a tree)"),
-    Scenario(name="pieces-to-tree", start=CONFIGS / "forest20" / "forest20.json",
-             goal=CONFIGS / "forest20" / "forest20-forest.json",
-             stages=(Stage(goal=CONFIGS / "forest20" / "forest20-tree.json"),),
-             description="twenty FreeBOTs: a row of twelve and two rows of four let go of "
-                         "each other (a forest of three pieces), then the two rows of four "
-                         "each travel as one piece, turn and dock across the row (a tree)"),
+    _let_go_then_tree("chains-to-tree", "chains12",
+                      "twelve FreeBOTs: three chains of four let go of each other, then "
+                      "two of them each travel as one piece, turn and dock across the "
+                      "third (a tree)"),
+    _let_go_then_tree("forest-to-tree", "comb20",
+                      "twenty FreeBOTs: six let go of a row of fourteen (a forest of "
+                      "seven pieces), then each rolls one module along and docks (a tree)"),
+    _let_go_then_tree("pieces-to-tree", "forest20",
+                      "twenty FreeBOTs: a row of twelve and two rows of four let go of "
+                      "each other (a forest of three pieces), then the two rows of four "
+                      "each travel as one piece, turn and dock across the row (a tree)"),
 )
 """The default first."""

@@ -18,6 +18,12 @@ __all__ = ["CONFIGS", "SCENARIOS"]
 CONFIGS = Path(__file__).resolve().parent / "configs"
 
 
+def _let_go_then_tree(name: str, folder: str, description: str) -> Scenario:
+    """From ``folder/folder.json`` its pieces let go (``-forest``), then a tree (``-tree``)."""
+    return Scenario.through(name, description, *(CONFIGS / folder / f"{folder}{stage}.json"
+                                                 for stage in ("", "-forest", "-tree")))
+
+
 def _stages(*names: str) -> tuple[Stage, ...]:
     return tuple(Stage(goal=CONFIGS / f"{name}.json") for name in names)
 
@@ -40,16 +46,13 @@ SCENARIOS = (
     Scenario(name="crawl-to-dock", start=CONFIGS / "row4.json", goal=CONFIGS / "row4-turned.json",
              description="four SnailBots: B1 lets go of the row, crawls round it over the floor "
                          "and docks on B4 at the other end"),
-    Scenario(name="forest-to-tree", start=CONFIGS / "comb20" / "comb20.json",
-             goal=CONFIGS / "comb20" / "comb20-forest.json", stages=(Stage(goal=CONFIGS / "comb20" / "comb20-tree.json"),),
-             description="twenty SnailBots: six let go of a row of fourteen (a forest of "
-                         "seven pieces), then each crawls one module along and docks (a tree)"),
-    Scenario(name="pieces-to-tree", start=CONFIGS / "forest20" / "forest20.json",
-             goal=CONFIGS / "forest20" / "forest20-forest.json",
-             stages=(Stage(goal=CONFIGS / "forest20" / "forest20-tree.json"),),
-             description="twenty SnailBots: a row of twelve and two rows of four let go of "
-                         "each other (a forest of three pieces); each row of four is taken "
-                         "apart and its modules crawl one by one to build it again across "
-                         "the row (a tree)"),
+    _let_go_then_tree("forest-to-tree", "comb20",
+                      "twenty SnailBots: six let go of a row of fourteen (a forest of "
+                      "seven pieces), then each crawls one module along and docks (a tree)"),
+    _let_go_then_tree("pieces-to-tree", "forest20",
+                      "twenty SnailBots: a row of twelve and two rows of four let go of "
+                      "each other (a forest of three pieces); each row of four is taken "
+                      "apart and its modules crawl one by one to build it again across "
+                      "the row (a tree)"),
 )
 """The default first."""
