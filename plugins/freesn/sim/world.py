@@ -135,6 +135,13 @@ _MAGNET_HALF_WIDTH = 0.01  # half the magnet array's face (it sits between wheel
 _FUSION = 0.2  # weight of a fresh fix (localisation, attitude) in an estimate (10 Hz: 0.45 s)
 _GRIP_LEVER = 0.05    # a grip tendon's length: contact point to its anchor along the axle [m]
 _GRIP_SOLIMP = [0.999, 0.9999, 0.001, 0.5, 2.0]  # a stiff grip (MuJoCo's default creeps)
+_GRIPS = ("grip", "roll", "turn")  # a connector's friction tendons: sideways, wheels braked
+_ANCHORS = ((0.0, _GRIP_LEVER), (_GRIP_LEVER, 0.0), (_GRIP_LEVER, _GRIP_LEVER))
+"""Each tendon's node-side anchor, (x, y) in the strut's axes on the contact's tangent
+plane: one lever along the axle (sideways slip), ahead (rolling), ahead and sideways from
+a point one lever ahead (turning about the contact normal)."""
+_STILL_ON = np.radians(0.3)   # a connector this near its target stops, its wheels braked
+_STILL_OFF = np.radians(0.6)  # ... until pushed this far off it
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
 _TURN_OFF = np.radians(2.0)   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
@@ -295,11 +302,15 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._motor = np.array([[m.actuator(f"wheel/{s}/{e}/{side}").id
                                  for side in ("left", "right")] for s, e in drives],
                                dtype=int).reshape(-1, 2)
-        self._grip_site = np.array([m.site(f"grip/{s}/{e}").id for s, e in drives], dtype=int)
+        self._grip_site = np.array([[m.site(f"{t}/{s}/{e}").id for t in _GRIPS]
+                                    for s, e in drives], dtype=int).reshape(-1, 3)
+        self._brake = np.array([[m.tendon(f"{t}/{s}/{e}").id for t in _GRIPS[1:]]
+                                for s, e in drives], dtype=int).reshape(-1, 2)
+        self._still = np.zeros(k, dtype=bool)              # at its target: wheels braked
         self._dofs = self._dadr[:, None] + np.arange(3)
         self._tau = np.zeros((k, 3))                       # holonomic connectors' torques
-        self._grip_at = np.column_stack([np.zeros(k), np.full(k, _GRIP_LEVER),
-                                         self._sign * phys.node_radius])  # strut frame
+        self._grip_at = np.array([[[x, y, sign * phys.node_radius] for x, y in _ANCHORS]
+                                  for sign in self._sign])   # (k, 3, 3), strut axes
         self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
         self._modules = [*self.nodes, *self.struts]
         self._geom_module = np.full(m.ngeom, -1, dtype=int)   # geom -> module index, or -1
@@ -406,13 +417,17 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """
         p = self.phys
         sign = END_SIGN[end]
-        contact = [0.0, 0.0, -sign * (0.5 * p.strut_length - p.node_radius)]
-        strut_body.add_site(name=f"contact/{strut}/{end}", pos=contact)
-        roller.add_site(name=f"grip/{strut}/{end}", pos=[0.0, _GRIP_LEVER, sign * p.node_radius])
-        tendon = spec.add_tendon(name=f"grip/{strut}/{end}", frictionloss=p.grip,
-                                 solimp_friction=_GRIP_SOLIMP)
-        tendon.wrap_site(f"contact/{strut}/{end}")
-        tendon.wrap_site(f"grip/{strut}/{end}")
+        contact = -sign * (0.5 * p.strut_length - p.node_radius)
+        strut_body.add_site(name=f"contact/{strut}/{end}", pos=[0.0, 0.0, contact])
+        strut_body.add_site(name=f"ahead/{strut}/{end}", pos=[_GRIP_LEVER, 0.0, contact])
+        for name, start, at in zip(_GRIPS, ("contact", "contact", "ahead"), _ANCHORS,
+                                   strict=True):   # the anchors move: _place_grips
+            roller.add_site(name=f"{name}/{strut}/{end}", pos=[*at, sign * p.node_radius])
+            friction = p.grip if name == "grip" else 0.0   # the brakes: _hold_wheels
+            tendon = spec.add_tendon(name=f"{name}/{strut}/{end}", frictionloss=friction,
+                                     solimp_friction=_GRIP_SOLIMP)
+            tendon.wrap_site(f"{start}/{strut}/{end}")
+            tendon.wrap_site(f"{name}/{strut}/{end}")
         for side, turn in (("left", -1.0), ("right", 1.0)):
             motor = spec.add_actuator(name=f"wheel/{strut}/{end}/{side}",
                                       target=f"ball/{strut}/{end}",
@@ -666,8 +681,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             self._servo_torques(ks)
             return
         speed = np.zeros((len(self.ends), 2))
+        held = np.zeros((len(self.ends), 2), dtype=bool)
         if len(ks):
-            speed[ks] = self._steer(ks)
+            speed[ks], held[ks] = self._steer(ks)
+        self._hold_wheels(held)
         self._drive(speed)
         self._track_saturation(ks, np.max(np.abs(self._torque[ks]), axis=1)
                                / (0.5 * self.phys.wheel_torque))
@@ -815,18 +832,44 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         twist = np.where(self._twist_free[ks], 0.0, error[:, 2])
         turn = np.where(turning, heading, twist)
         wheeling = self._wheel[ks] != 0.0
-        turn = self._common_turn(ks, turn, np.abs(swing) * turning * self._effort[ks])
+        still = self._stop(ks, np.linalg.norm(error, axis=1), wheeling)
+        roll = np.where(still, 0.0, roll)
+        turn = self._common_turn(ks, np.where(still, 0.0, turn),
+                                 np.abs(swing) * turning * self._effort[ks])
         channels = np.column_stack([roll, np.where(wheeling, 0.0, turn)])
+        # a channel asked for nothing (a stopped connector, a turn in place, a straight roll
+        # whose twist is free) brakes its wheels: it holds instead of being servoed
+        held = (channels == 0.0) & ~np.column_stack([wheeling, wheeling])
         omega = o.position_gain * channels
         if o.integral_gain > 0.0:
             integral = self._integral[ks, 1:] + channels * self._every * o.timestep
             integral = np.clip(integral, -self._integral_bound, self._integral_bound)
             self._integral[ks, 1:] = integral
-            omega = omega + o.integral_gain * integral
+            omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
         speed = p.roll_ratio * omega[:, :1] + np.array([-1.0, 1.0]) * p.turn_ratio * omega[:, 1:]
         fastest = np.max(np.abs(speed), axis=1, keepdims=True)
-        return speed * np.minimum(1.0, p.max_wheel_speed / np.maximum(fastest, 1e-12))
+        return speed * np.minimum(1.0, p.max_wheel_speed / np.maximum(fastest, 1e-12)), held
+
+    def _stop(self, ks: np.ndarray, error: np.ndarray, wheeling: np.ndarray) -> np.ndarray:
+        """Which connectors ``ks`` stand at their targets (n,): within ``_STILL_ON`` of it
+        (``error`` [rad]), until pushed ``_STILL_OFF`` off it (the firmware's connector
+        stops at its target, there within 2 deg); never one whose wheels are commanded."""
+        still = ~wheeling & (error < np.where(self._still[ks], _STILL_OFF, _STILL_ON))
+        self._still[ks] = still
+        return still
+
+    def _hold_wheels(self, held: np.ndarray) -> None:
+        """Brake the wheels of the channels ``held`` (k, 2) (rolling, turning): a stopped
+        wheel neither turns nor is turned (a gear train the load does not back-drive), so
+        its contact grips the shell as it grips sideways, up to the wheels' friction: the
+        roll tendon's ``frictionloss`` the grip, the turn tendon's the two wheels' friction
+        couple ``grip b / 2`` through its lever. Coasting connectors and free ends hold
+        nothing."""
+        p = self.phys
+        held = held & (self._effort > 0.0)[:, None] & (self._eq >= 0)[:, None]
+        force = np.array([p.grip, p.grip * p.wheel_base / (2.0 * _GRIP_LEVER)])
+        self.model.tendon_frictionloss[self._brake] = np.where(held, force, 0.0)
 
     def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray) -> np.ndarray:
         """One turn for both ends of a strut docked and driven at both (FreeSN paper,
@@ -873,9 +916,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """Each grip tendon's node end one lever along its wheels' axle from their
         contact point (the connector frame of the strut-frame point ``_grip_at``), so the
         tendon's rate is the contact's sideways slip."""
-        inverse = quat_conj(self._ball(np.arange(len(self.ends))))
-        self.model.site_pos[self._grip_site] = Rotation.from_quat(
-            inverse, scalar_first=True).apply(self._grip_at)
+        inverse = Rotation.from_quat(quat_conj(self._ball(np.arange(len(self.ends)))),
+                                     scalar_first=True)
+        for j in range(3):
+            self.model.site_pos[self._grip_site[:, j]] = inverse.apply(self._grip_at[:, j])
 
     def _track_saturation(self, ks: np.ndarray, load: np.ndarray) -> None:
         """Start or end each connector's saturation streak: a driven connector ``ks`` at
