@@ -11,8 +11,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from msrr.core import Configuration
+from msrr.core.io import load_configuration
+from msrr.core.shape import skeletal_errors
 from msrr.core.errors import ExecutionError
+from msrr.plugins.freesn.plugin import CONFIGS
 from msrr.plugins.freesn.robot import SPEC
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver
+from msrr.plugins.freesn.sim.controller import FreeSNController
 from msrr.plugins.freesn.sim.options import SimOptions
 from msrr.plugins.freesn.sim.world import FreeSNWorld
 
@@ -89,6 +94,78 @@ def test_the_wheels_grip_sideways_until_the_load_beats_friction(load, slides):
         assert moved < 0.5
 
 
+def _push(world: FreeSNWorld, axis: np.ndarray, torque: float, seconds: float) -> float:
+    """Apply ``torque`` [N m] about strut-frame ``axis`` on the connector for ``seconds``:
+    how far the strut moved on its node [deg] (axis and heading, the larger)."""
+    start, heading0 = _on_node(world)
+    dofs = world._dadr[0] + np.arange(3)
+    for _ in range(round(seconds / 0.01)):
+        ball = world._ball(np.array([0]))[0]
+        world.data.qfrc_applied[dofs] = torque * Rotation.from_quat(
+            ball, scalar_first=True).inv().apply(axis)   # on the connector, child frame
+        world.step(0.01)
+    axis_now, heading = _on_node(world)
+    return max(_angle(axis_now, start), _angle(heading, heading0))
+
+
+@pytest.mark.parametrize("load, slides", [(0.5, False), (2.0, True)])
+def test_a_stopped_connector_holds_rolling_and_turning_until_its_wheels_skid(load, slides):
+    """A stopped connector's wheels are braked (a gear train the load does not back-drive):
+    a torque about the wheels' axle (rolling, strut y) of half the wheels' friction at the
+    node radius, or about the strut axis (turning) of half their friction couple, moves it
+    < 0.5 deg in 0.5 s; twice over, the wheels skid. Before the brakes only the position
+    loop held it: rolling up to the motors' torque, turning with the turn's weak torque
+    (0.8 deg under the half load)."""
+    p = _one_strut().phys
+    for axis, hold in (([0.0, 1.0, 0.0], p.grip * p.node_radius),
+                       ([0.0, 0.0, 1.0], p.grip * 0.5 * p.wheel_base)):
+        world = _one_strut()
+        world.command_brake("S1", "a")
+        world.step(0.05)
+        moved = _push(world, np.array(axis), load * hold, 0.5)
+        assert (moved > 5.0) if slides else (moved < 0.5), (axis, moved)
+
+
+def test_a_connector_turning_in_place_still_grips_in_its_rolling_direction():
+    """Turning toward a target 90 deg to the side, the connector's rolling channel is
+    stopped: a rolling torque of half the wheels' friction does not roll it (< 1 deg off
+    the start while the strut turns; 3.3 deg before the brakes)."""
+    world = _one_strut()
+    start, _ = _on_node(world)
+    target = Rotation.from_rotvec(np.radians(30.0) * np.array([0.0, 0.0, 1.0])).apply(start)
+    world.command_target("S1", "a", (target, None, 1.0))
+    world.step(0.02)
+    assert world._turning[0]
+    p = world.phys
+    _push(world, np.array([0.0, 1.0, 0.0]), 0.5 * p.grip * p.node_radius, 0.1)
+    assert world._turning[0]
+    assert _angle(_on_node(world)[0], start) < 1.0
+
+
 def test_an_unknown_connector_drive_is_refused():
     with pytest.raises(ExecutionError, match="connector_drive"):
         SimOptions(connector_drive="tracked")
+
+
+def test_a_triangle_on_the_floor_held_in_shape_stands_still():
+    """S6N3-2.1 (its three nodes on the floor) held in shape by the controller every 0.1 s:
+    its nodes creep < 3 mm/s from 1 s to 3 s (issue 32: 60 mm/s before the stopped
+    connectors braked their wheels, every connector chasing a node that rolled under it;
+    the holonomic model 7 mm/s)."""
+    start = load_configuration(CONFIGS / "S6N3-2.1.json")
+    controller = FreeSNController()
+    centres = []
+    with FreeSNMujocoDriver(connector_drive="differential") as driver:
+        driver.reset(start)
+        world = driver.world
+        yaw = None
+        for _ in range(30):
+            observation = driver.get_observation()
+            if yaw is None:
+                yaw = skeletal_errors(controller._recognizer.recognize(observation.sensors),
+                                      start)[2]
+            driver.send_action(controller.commands(start, observation, yaw=yaw))
+            driver.step(0.1)
+            centres.append(world.data.xpos[world._node_body].copy())
+    creep = np.linalg.norm(centres[-1] - centres[9], axis=1) / 2.0
+    assert creep.max() < 0.003, creep
