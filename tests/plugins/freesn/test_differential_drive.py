@@ -11,9 +11,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from msrr.core import Configuration
+from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
 from msrr.core.shape import skeletal_errors
-from msrr.core.errors import ExecutionError
 from msrr.plugins.freesn.plugin import CONFIGS
 from msrr.plugins.freesn.robot import SPEC
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
