@@ -829,7 +829,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         error = quat_log(e_q)
         gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
         roll = np.where(turning, swing * np.cos(heading) * gate, error[:, 1])
-        twist = np.where(self._twist_free[ks], 0.0, error[:, 2])
+        # a strut whose other end's magnet is out to dock keeps its twist: spun, that end
+        # would scrub the node it meets and turn it askew
+        docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
+        twist = np.where(self._twist_free[ks] | docking, 0.0, error[:, 2])
         turn = np.where(turning, heading, twist)
         wheeling = self._wheel[ks] != 0.0
         still = self._stop(ks, np.linalg.norm(error, axis=1), wheeling)
@@ -847,9 +850,17 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             self._integral[ks, 1:] = integral
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
-        speed = p.roll_ratio * omega[:, :1] + np.array([-1.0, 1.0]) * p.turn_ratio * omega[:, 1:]
+        top = p.max_wheel_speed
+        # near its target a connector rolls first and turns (its twist) with what speed is
+        # left, so a long twist correction does not hold the strut off its aim
+        rolling = np.clip(p.roll_ratio * omega[:, 0], -top, top)
+        near = ~turning & ~wheeling
+        turn = p.turn_ratio * omega[:, 1]
+        left = top - np.abs(rolling)
+        turn = np.where(near, np.clip(turn, -left, left), turn)
+        speed = np.column_stack([rolling - turn, rolling + turn])
         fastest = np.max(np.abs(speed), axis=1, keepdims=True)
-        return speed * np.minimum(1.0, p.max_wheel_speed / np.maximum(fastest, 1e-12)), held
+        return speed * np.minimum(1.0, top / np.maximum(fastest, 1e-12)), held
 
     def _stop(self, ks: np.ndarray, error: np.ndarray, wheeling: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` stand at their targets (n,): within ``_STILL_ON`` of it
