@@ -143,7 +143,7 @@ a point one lever ahead (turning about the contact normal)."""
 _STILL_ON = np.radians(0.3)   # a connector this near its target stops, its wheels braked
 _STILL_OFF = np.radians(0.6)  # ... until pushed this far off it
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
-_TURN_OFF = np.radians(2.0)   # ... and rolls straight (no turning) once this near
+_TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
@@ -824,18 +824,23 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._backwards[ks] = back
         heading = np.where(back, behind, ahead)
         swing = np.where(back, -swing, swing)
-        self._turning[ks] = np.abs(swing) > np.where(self._turning[ks], _TURN_OFF, _TURN_ON)
-        turning = self._turning[ks]
         error = quat_log(e_q)
-        gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
-        roll = np.where(turning, swing * np.cos(heading) * gate, error[:, 1])
         # a strut whose other end's magnet is out to dock keeps its twist: spun, that end
         # would scrub the node it meets and turn it askew
         docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
         twist = np.where(self._twist_free[ks] | docking, 0.0, error[:, 2])
+        # a connector left with a sideways error alone, which rolling cannot remove, turns
+        # toward it again
+        aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON)
+        self._turning[ks] = np.where(self._turning[ks], np.abs(swing) > _TURN_OFF,
+                                     (np.abs(swing) > _TURN_ON)
+                                     | (aside & (np.abs(swing) > _STILL_OFF)))
+        turning = self._turning[ks]
+        gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
+        roll = np.where(turning, swing * np.cos(heading) * gate, error[:, 1])
         turn = np.where(turning, heading, twist)
         wheeling = self._wheel[ks] != 0.0
-        still = self._stop(ks, np.linalg.norm(error, axis=1), wheeling)
+        still = self._stop(ks, np.hypot(swing, twist), wheeling)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
                                  np.abs(swing) * turning * self._effort[ks])
