@@ -298,14 +298,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
         self._spin_lag = np.zeros(k)                       # wheel spin asked - measured [rad]
         self._node_rate = 3 + np.array([m.joint(f"free/{n}").dofadr[0] for n in self.nodes])
-        drives = self.ends if self._differential else []
-        self._motor = np.array([[m.actuator(f"wheel/{s}/{e}/{side}").id
-                                 for side in ("left", "right")] for s, e in drives],
-                               dtype=int).reshape(-1, 2)
-        self._grip_site = np.array([[m.site(f"{t}/{s}/{e}").id for t in _GRIPS]
-                                    for s, e in drives], dtype=int).reshape(-1, 3)
-        self._brake = np.array([[m.tendon(f"{t}/{s}/{e}").id for t in _GRIPS[1:]]
-                                for s, e in drives], dtype=int).reshape(-1, 2)
+        self._index_drives(self.ends if self._differential else [])
         self._still = np.zeros(k, dtype=bool)              # at its target: wheels braked
         self._dofs = self._dadr[:, None] + np.arange(3)
         self._tau = np.zeros((k, 3))                       # holonomic connectors' torques
@@ -330,6 +323,18 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                     self._dock(self._end_index[(s, end)], node, event=False)
         mujoco.mj_forward(self.model, self.data)
         self._record_interpenetrations()
+
+    def _index_drives(self, drives: list[tuple[str, str]]) -> None:
+        """The ids of the differential drives' wheel motors (k, 2), tendon anchors (k, 3:
+        ``_GRIPS``) and brake tendons (k, 2: rolling, turning)."""
+        m = self.model
+        self._motor = np.array([[m.actuator(f"wheel/{s}/{e}/{side}").id
+                                 for side in ("left", "right")] for s, e in drives],
+                               dtype=int).reshape(-1, 2)
+        self._grip_site = np.array([[m.site(f"{t}/{s}/{e}").id for t in _GRIPS]
+                                    for s, e in drives], dtype=int).reshape(-1, 3)
+        self._brake = np.array([[m.tendon(f"{t}/{s}/{e}").id for t in _GRIPS[1:]]
+                                for s, e in drives], dtype=int).reshape(-1, 2)
 
     # -- building ---------------------------------------------------------------------
 
