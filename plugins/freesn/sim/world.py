@@ -21,7 +21,10 @@ Actuation (section 4.2, Fig. 11b), two models (``SimOptions.connector_drive``):
   is a velocity actuator on the ball joint in the strut's frame (its back-EMF implicit,
   its torque bounded, :meth:`FreeSNWorld._drive`), the grip Coulomb friction on a tendon
   through the contact point (:meth:`FreeSNWorld._add_drive`), and the connector turns,
-  then rolls toward its target (:meth:`FreeSNWorld._steer`);
+  then rolls toward its target (:meth:`FreeSNWorld._steer`). A stopped wheel pair (a
+  connector at its target, or the rolling of one turning in place) is braked: its gear
+  train is not back-driven, so the wheels grip the shell in rolling and turning as they
+  grip sideways, up to their friction (:meth:`FreeSNWorld._hold_wheels`);
 * ``"holonomic"`` (the default): three torques on the ball joint. The motors are DC
   motors: a passive damping ``D = torque / roll rate`` on the ball joint (their
   back-EMF, integrated implicitly) and a drive torque ``D * omega_cmd`` bounded by the
@@ -796,9 +799,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         o = self.options
         return o.integral_bound * self.phys.max_roll_rate / o.integral_gain
 
-    def _steer(self, ks: np.ndarray) -> np.ndarray:
+    def _steer(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Wheel speeds (n, 2) [rad/s] (left, right) that take connectors ``ks`` to their
-        targets: turn, then roll (the firmware's turn-then-roll, a unicycle on the sphere).
+        targets, turn, then roll (the firmware's turn-then-roll, a unicycle on the
+        sphere), and which of their channels (n, 2) (rolling, turning) stop, their wheels
+        braked (:meth:`_hold_wheels`).
 
         In the strut frame the wheels roll the connector about ``y`` (``omega_y``) and
         turn it about ``z`` (``omega_z``); about ``x`` they grip. The error ``E = q_t
@@ -809,10 +814,15 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         heading comes within ``_HEADING_GO`` (fully within ``_HEADING_OK``); nearer than
         ``_TURN_OFF`` it only rolls out the error along its heading and corrects its twist
         (the error's ``y`` and ``z`` components; ``x`` is left to the grip), unless the
-        twist is free (a strut whose aim alone was commanded). Each channel is the
-        position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); wheels
-        commanded in opposition set ``omega_z`` themselves. The wheel speeds ``rho
-        omega_y -+ tau omega_z`` are scaled together into the wheels' top speed.
+        twist is free (a strut whose aim alone was commanded, or one whose other end's
+        magnet is out to dock); left with a sideways error alone, past ``_STILL_OFF``, it
+        turns toward it again. Within ``_STILL_ON`` of its target (swing and the twist
+        asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`). Each channel is
+        the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
+        channel asked for nothing stops, its wheels braked (a turn in place holds its
+        rolling); wheels commanded in opposition set ``omega_z`` themselves. The wheel
+        speeds are ``rho omega_y -+ tau omega_z`` within the wheels' top speed; near its
+        target a connector rolls first and turns with the speed left.
         """
         p, o = self.phys, self.options
         e_q = quat_mul(self._ball_target[ks], quat_conj(self._ball(ks)))
