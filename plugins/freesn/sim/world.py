@@ -944,9 +944,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self.data.qfrc_applied[self._axle] = np.where(free, drive, 0.0)
 
     def _place_grips(self) -> None:
-        """Each grip tendon's node end one lever along its wheels' axle from their
-        contact point (the connector frame of the strut-frame point ``_grip_at``), so the
-        tendon's rate is the contact's sideways slip."""
+        """Each friction tendon's node end at its anchor (``_ANCHORS``: the connector frame
+        of the strut-axes point ``_grip_at``), so the grip tendon's rate is the contact's
+        sideways slip, the roll tendon's its rolling slip, the turn tendon's the turn about
+        the contact normal times the lever."""
         inverse = Rotation.from_quat(quat_conj(self._ball(np.arange(len(self.ends)))),
                                      scalar_first=True)
         for j in range(3):
