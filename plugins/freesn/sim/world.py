@@ -821,8 +821,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
         channel asked for nothing stops, its wheels braked (a turn in place holds its
         rolling); wheels commanded in opposition set ``omega_z`` themselves. The wheel
-        speeds are ``rho omega_y -+ tau omega_z`` within the wheels' top speed; near its
-        target a connector rolls first and turns with the speed left.
+        speeds: :meth:`_wheel_speeds`.
         """
         p, o = self.phys, self.options
         e_q = quat_mul(self._ball_target[ks], quat_conj(self._ball(ks)))
@@ -870,17 +869,22 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             self._integral[ks, 1:] = integral
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
+        return self._wheel_speeds(omega, ~turning & ~wheeling), held
+
+    def _wheel_speeds(self, omega: np.ndarray, near: np.ndarray) -> np.ndarray:
+        """Wheel speeds (n, 2) [rad/s] for the rolling and turning rates ``omega`` (n, 2)
+        [rad/s], ``rho omega_y -+ tau omega_z`` within the wheels' top speed; a connector
+        ``near`` its target rolls first and turns (its twist) with the speed left, so a long
+        twist correction does not hold the strut off its aim."""
+        p = self.phys
         top = p.max_wheel_speed
-        # near its target a connector rolls first and turns (its twist) with what speed is
-        # left, so a long twist correction does not hold the strut off its aim
         rolling = np.clip(p.roll_ratio * omega[:, 0], -top, top)
-        near = ~turning & ~wheeling
         turn = p.turn_ratio * omega[:, 1]
         left = top - np.abs(rolling)
         turn = np.where(near, np.clip(turn, -left, left), turn)
         speed = np.column_stack([rolling - turn, rolling + turn])
         fastest = np.max(np.abs(speed), axis=1, keepdims=True)
-        return speed * np.minimum(1.0, top / np.maximum(fastest, 1e-12)), held
+        return speed * np.minimum(1.0, top / np.maximum(fastest, 1e-12))
 
     def _stop(self, ks: np.ndarray, error: np.ndarray, wheeling: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` stand at their targets (n,): within ``_STILL_ON`` of it
@@ -895,11 +899,17 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         wheel neither turns nor is turned (a gear train the load does not back-drive), so
         its contact grips the shell as it grips sideways, up to the wheels' friction: the
         roll tendon's ``frictionloss`` the grip, the turn tendon's the two wheels' friction
-        couple ``grip b / 2`` through its lever. Coasting connectors and free ends hold
-        nothing."""
+        couple ``grip b / 2`` through its lever. A connector at a reduced effort (one that
+        closes a loop and follows softly) holds its rolling with that fraction of the
+        friction, as its motors push: braked in full, the loops of fig22 strained until a
+        connection broke (s4:a at n0, 20.1 N at 2.3 s); its turning stays braked in full,
+        since a strut's turn about its own axis moves no connection vector and strains no
+        loop, while a node free to turn under it let the S6N3-2.1 triangle on the floor
+        creep 47 mm/s. Coasting connectors and free ends hold nothing."""
         p = self.phys
-        held = held & (self._effort > 0.0)[:, None] & (self._eq >= 0)[:, None]
-        force = np.array([p.grip, p.grip * p.wheel_base / (2.0 * _GRIP_LEVER)])
+        held = held & (self._eq >= 0)[:, None] & (self._effort > 0.0)[:, None]
+        force = np.column_stack([p.grip * self._effort,
+                                 np.full(len(held), p.grip * p.wheel_base / (2.0 * _GRIP_LEVER))])
         self.model.tendon_frictionloss[self._brake] = np.where(held, force, 0.0)
 
     def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray) -> np.ndarray:
