@@ -315,9 +315,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._geom_module[[m.geom(f"capsule/{s}").id for s in self.struts]] = \
             len(self.nodes) + np.arange(len(self.struts))
         self.interpenetrations: dict[tuple[str, str], Interpenetration] = {}
-        self._gyro_rng = np.random.default_rng([options.seed, 0x6779])  # "gy"
-        self._gyro_bias = self._gyro_rng.normal(0.0, options.gyro_bias, (len(self.nodes), 3))
-        self._gyro = np.zeros((len(self.nodes), 3))        # last reported rates [rad/s]
+        self._init_gyros(options)
         self._node_rot = np.tile(np.eye(3), (len(self.nodes), 1, 1))
         mujoco.mj_forward(self.model, self.data)
         for s, (a, b) in self.placement.ends.items():
@@ -338,6 +336,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                     for s, e in drives], dtype=int).reshape(-1, 3)
         self._brake = np.array([[m.tendon(f"{t}/{s}/{e}").id for t in _GRIPS[1:]]
                                 for s, e in drives], dtype=int).reshape(-1, 2)
+
+    def _init_gyros(self, options: SimOptions) -> None:
+        """The node gyros: a seeded bias each; the reports' draws (``"gy"``) and the
+        servo's samples (``"sg"``) from generators of their own."""
+        self._gyro_rng, self._servo_gyro_rng = (np.random.default_rng([options.seed, tag])
+                                                for tag in (0x6779, 0x7367))
+        self._gyro_bias = self._gyro_rng.normal(0.0, options.gyro_bias, (len(self.nodes), 3))
+        self._gyro = np.zeros((len(self.nodes), 3))        # last reported rates [rad/s]
 
     # -- building ---------------------------------------------------------------------
 
@@ -678,6 +684,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._gyro = rate + self._gyro_bias + rng.normal(0.0, o.gyro_noise / np.sqrt(duration),
                                                           self._gyro.shape)
 
+    def _gyro_sample(self, i: int, period: float) -> np.ndarray:
+        """Node ``i``'s gyro (3,) [rad/s, node frame] as a servo loop samples it once per
+        ``period`` [s]: the body rate, its bias and the white noise of a ``period``-long
+        average (a generator of its own, so the reports' draws stay as they were)."""
+        rate = self.data.qvel[self._node_rate[i]:self._node_rate[i] + 3]
+        return rate + self._gyro_bias[i] + self._servo_gyro_rng.normal(
+            0.0, self.options.gyro_noise / np.sqrt(period), 3)
+
     def _servo(self) -> None:
         """The connectors' motor loops (``servo_rate``): magnets pull, driven connectors
         steer (:meth:`_steer`), every wheel motor gets its command (:meth:`_drive`), the
@@ -701,30 +715,33 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _follow_spins(self) -> None:
         """The targets of the connectors on a node that docked wheels spin (not wheeling
         themselves) turn with the node about the wheels' strut axes: by the node's rotation
-        over the servo period (its gyro: the body rate plus its bias, node frame)
-        projected onto those axes' span, so only the commanded spin is followed.
+        over the servo period as its gyro samples it (:meth:`_gyro_sample`) projected onto
+        the span of those axes as the wheeling connectors believe them (:meth:`_believed`:
+        their localisation and odometry errors), so only the commanded spin is followed.
 
-        Known gap (issue 32, item 2): the projection reads the simulator's node and strut
-        attitudes and the gyro without its white noise; the connectors' believed poses
-        (:meth:`_believed`) and the noisy gyro are what the hardware would use."""
-        wheeling = np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0))
+        Only wheels on a strut docked at its other end spin their node (the node wheels of
+        fig22(j)): the strut is held there, so the wheels' turn goes into the node. A strut
+        free at its other end is itself the wheel (a roller, fig22(e)): its wheels turn
+        the strut and the node's other connectors hold the node, as they did before the
+        following (followed, the floor nodes rolled with the chords and the structure
+        drifted sideways 9-11 % of its speed, with the sideways part the same sign both
+        ways; held, 3 %)."""
+        wheeling = np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0) & (self._eq[
+            np.arange(len(self.ends)) ^ 1] >= 0))
         if not len(wheeling):
             return
-        d = self.data
+        period = self._every * self.options.timestep
         followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0)
-        strut_axes = d.xmat[self._strut_body].reshape(-1, 3, 3)[:, :, 2]
         moved = []
         for node in sorted({self.docked[k] for k in wheeling}):
             mine = np.flatnonzero(followers & np.array([n == node for n in self.docked]))
             if not len(mine):
                 continue
-            i = self._node_index[node]
             ks = wheeling[[self.docked[k] == node for k in wheeling]]
-            to_node = d.xmat[self._node_body[i]].reshape(3, 3).T
-            axes = to_node @ (self._sign[ks, None] * strut_axes[ks // 2]).T   # (3, m)
-            rate = d.qvel[self._node_rate[i]:self._node_rate[i] + 3] + self._gyro_bias[i]
+            axes = self._believed(ks)[:, :, 2].T   # (3, m): strut axes, node frame
+            rate = self._gyro_sample(self._node_index[node], period)
             spin = axes @ np.linalg.lstsq(axes, rate, rcond=None)[0]
-            turn = Rotation.from_rotvec(-spin * self._every * self.options.timestep).as_matrix()
+            turn = Rotation.from_rotvec(-spin * period).as_matrix()
             self._target[mine] = turn @ self._target[mine]
             moved.extend(mine)
         if moved:
