@@ -19,9 +19,10 @@ configuration, never from a simulator:
   :data:`CONTACT` of the lowest) stand on the floor. A node on the floor rolls without
   slipping: its centre moves at ``w x (r e_z)`` (``w`` its world rate from the gyro, ``r``
   the node radius), so a foot at rest stays put and a wheel node rolls. The root's place
-  is the mean over the feet that stayed on the floor of ``anchor_i - q_i`` (``q_i`` the
-  foot's offset from the root, turned by the heading); a foot that lands is anchored
-  where the shape puts it. The estimate is the centre of the nodes.
+  moves by the mean motion of the feet that stayed on the floor over the step, ``anchor_i
+  + rolled_i - q_i`` (``q_i`` the foot's offset from the root, turned by the heading,
+  ``anchor_i`` where the last step put it); every foot is then anchored where the shape
+  puts it. The estimate is the centre of the nodes.
 
 A strut on the floor (its wheels, Fig. 18(d)-(i), or its body rolled as a roller, Fig.
 22(e)) reports no encoder, and the nodes it drags slide rather than roll: while a free
@@ -225,26 +226,35 @@ class ImuOdometry:
 
     def _step_feet(self, offsets: Mapping[str, np.ndarray], rates: Mapping[str, np.ndarray],
                    dt: float) -> bool:
-        """The feet on the floor roll by their rates; the root's place from those that
-        stayed; new feet anchored where the shape puts them. ``False`` (and nothing
-        changed) when that place would move faster than :data:`LEAP` allows: a glitch of
-        the recognized shape, not a motion."""
+        """The feet on the floor roll by their rates; the root's place moves by their mean
+        motion this step; every foot is then anchored where the shape puts it. ``False``
+        (and nothing changed) when that place would move faster than :data:`LEAP` allows:
+        a glitch of the recognized shape, not a motion.
+
+        Anchors last one step, not from a foot's landing: node wheels scrub (each rolls
+        25-50 deg off the body's travel, 2 m of rolling for 1.45 m of travel over
+        fig18-node-wheels), so anchors kept per foot drift metres apart, and each change
+        of the set of feet (a shape's noise lifting one past :data:`CONTACT`: a quarter
+        of the ticks at 2 deg) jumped the place toward the subset left: the estimated
+        travel turned 24 deg off the true one (issue 31, seed 13). The mean of the feet's
+        motions is the least-squares rigid motion; with a constant set of feet the two
+        agree exactly."""
         if not offsets:
             return True
         lowest = min(float(q[2]) for q in offsets.values())
         feet = {n for n, q in offsets.items() if float(q[2]) <= lowest + CONTACT}
         stayed = [n for n in feet if n in self.anchors]
-        anchors = dict(self.anchors)
-        for node in stayed:
-            rate = rates.get(node)
-            if rate is not None:  # w x (r e_z), horizontal
-                anchors[node] = anchors[node] + dt * self.radius * np.array([rate[1], -rate[0]])
         origin = self.origin
         if stayed:
-            origin = np.mean([anchors[n] - offsets[n][:2] for n in stayed], axis=0)
+            moved = []
+            for node in stayed:
+                rate = rates.get(node)
+                rolled = np.zeros(2) if rate is None else \
+                    dt * self.radius * np.array([rate[1], -rate[0]])   # w x (r e_z)
+                moved.append(self.anchors[node] + rolled - offsets[node][:2])
+            origin = np.mean(moved, axis=0)
             if float(np.linalg.norm(origin - self.origin)) > LEAP[0] + LEAP[1] * dt:
                 return False
         self.origin = origin
-        self.anchors = {n: anchors[n] if n in stayed else origin + offsets[n][:2]
-                        for n in feet}
+        self.anchors = {n: origin + offsets[n][:2] for n in feet}
         return True
