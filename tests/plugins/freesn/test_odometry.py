@@ -144,6 +144,28 @@ def test_a_place_that_leaps_is_a_glitch_not_a_motion():
     assert np.allclose(odometry.origin, [-0.01, 0.0]) and odometry.anchors == anchors
 
 
+def test_a_foot_that_lifts_for_a_tick_does_not_move_the_place():
+    """Two scrubbing wheel feet roll 1 and 3 cm per tick along x (a rigid body between
+    them: the place moves by their mean, 2 cm); one tick the shape's noise lifts one past
+    CONTACT. The place moves by what the feet on the floor rolled that tick, never back
+    toward an anchor that foot's scrub left behind (kept from landing, N1's anchor lay 10
+    cm behind N2's after five ticks and the place jumped 4 cm back; LEAP did not catch
+    it)."""
+    odometry = FreeSNRecognizer().estimator()
+    radius = NODE.geometry["radius"]
+    feet = {"N1": np.array([0.0, 0.2, 0.0]), "N2": np.array([0.0, -0.2, 0.0])}
+    rates = {"N1": np.array([0.0, 0.1 / radius, 0.0]), "N2": np.array([0.0, 0.3 / radius, 0.0])}
+    assert odometry._step_feet(feet, rates, 0.1)                     # landed: anchored
+    places = [odometry.origin.copy()]
+    for tick in range(10):
+        lifted = {**feet, "N2": feet["N2"] + [0.0, 0.0, 0.03]} if tick == 5 else feet
+        assert odometry._step_feet(lifted, rates, 0.1)
+        places.append(odometry.origin.copy())
+    steps = np.diff(np.array(places)[:, 0])
+    assert np.allclose(steps, [0.02] * 5 + [0.01, 0.01] + [0.02] * 3)  # N1 alone, N2 lands
+    assert np.allclose(np.array(places)[:, 1], 0.0)
+
+
 @pytest.mark.parametrize(("config_id", "rolling"), [
     ("S12N6-4.1", True),    # fig22(e): chords rolled on the floor as rollers
     ("S4N1-1.2", True),     # Fig. 18(d): on its leaf struts' wheels
