@@ -81,6 +81,17 @@ def _turned(rotvec: np.ndarray) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
+def _levelled(up: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+    """The least rotation (3, 3), in the node frame, that turns the gyro-propagated
+    attitude's vertical ``predicted`` (3,) onto the accelerometer's ``up`` (3,) (both the
+    world's vertical in node coordinates): ``R <- R Q`` with ``Q up = predicted``."""
+    axis = np.cross(up, predicted)
+    size = float(np.linalg.norm(axis))
+    if size < 1e-12:
+        return np.eye(3)
+    return _turned(axis / size * math.atan2(size, float(up @ predicted)))
+
+
 def node_positions(config: Configuration, root: str, length: float) -> dict[str, np.ndarray]:
     """Node centres [m], shape (3,) each, relative to ``root`` in ``config``'s frame: a
     breadth-first spanning tree of the struts between nodes, ``p_t = p_s + length z``.
@@ -205,12 +216,16 @@ class ImuOdometry:
         rates: dict[str, np.ndarray] = {}
         for node, report in nodes.items():
             gyro = np.asarray(report.gyro, dtype=float)
-            if node in self.yaw:
-                before = rot_z(self.yaw[node]) @ self.tilt[node]
-                rates[node] = before @ gyro
-                self.yaw[node] = yaw_of(before @ _turned(gyro * dt))
             tilt = np.asarray(report.tilt, dtype=float)
-            self.tilt[node] = rot_z(-yaw_of(tilt)) @ tilt  # a tilt has no heading: noise
+            if node not in self.yaw:
+                self.tilt[node] = rot_z(-yaw_of(tilt)) @ tilt  # a tilt has no heading: noise
+                continue
+            before = rot_z(self.yaw[node]) @ self.tilt[node]
+            rates[node] = before @ gyro
+            after = before @ _turned(gyro * dt)
+            after = after @ _levelled(tilt[2], after[2])
+            self.yaw[node] = yaw_of(after)
+            self.tilt[node] = rot_z(-self.yaw[node]) @ after
         return rates
 
     def _first_seen(self, reports: Mapping[str, Any], links: dict, root: str,
