@@ -6,12 +6,16 @@ node an IMU (sections 2.1, 4.2); nothing on the robot measures where it stands o
 floor. :class:`ImuOdometry` estimates both from the module reports and the recognized
 configuration, never from a simulator:
 
-* **heading**: each node's rotation is propagated by its gyro,
-  ``R <- Rz(psi) T_prev exp([w dt])`` (``T`` the reported tilt, ``w`` the gyro's mean body
-  rate over the step), and its heading is the twist of the result about the vertical
-  (:func:`~msrr.core.freeform.mujoco.yaw_of`), the tilt being the accelerometer's at
-  every report (its own twist about the vertical is noise and is taken out, or each
-  report's noise would add to the heading). A node seen for the first time takes the heading the recognizer gives
+* **heading**: each node's rotation is propagated by its gyro and levelled by its
+  accelerometer, ``R <- R exp([w dt]) Q`` (``w`` the gyro's mean body rate over the step,
+  ``Q`` the least rotation that turns the result's vertical onto the reported tilt's:
+  an accelerometer measures the vertical only), and its heading is the twist of ``R``
+  about the vertical (:func:`~msrr.core.freeform.mujoco.yaw_of`). Until stop 39 the
+  heading was re-attached to each reported tilt with its twist taken out (``R <- Rz(psi)
+  T``), a split that turns a tilt's noise into heading error without bound as the node
+  nears upside down: node wheels spinning about a leg pass there, and under 2 deg of
+  noise fig18's wheel nodes lost 60-120 deg of heading for 10-25 s at a time (seed 15).
+  A node seen for the first time takes the heading the recognizer gives
   it relative to the root (:func:`.recognizer.node_headings`). The system's heading is
   its root node's (:func:`.recognizer.root_order`), the frame its commands are in.
 * **position**: the recognized configuration places the nodes relative to the root
@@ -212,7 +216,8 @@ class ImuOdometry:
         return heading
 
     def _turn(self, nodes: Mapping[str, NodeReport], dt: float) -> dict[str, np.ndarray]:
-        """Each known node's heading propagated by its gyro; its world rate (3,) [rad/s]."""
+        """Each known node's attitude propagated by its gyro and levelled by its reported
+        tilt (the module docstring); its world rate (3,) [rad/s] at the step's start."""
         rates: dict[str, np.ndarray] = {}
         for node, report in nodes.items():
             gyro = np.asarray(report.gyro, dtype=float)
