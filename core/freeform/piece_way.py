@@ -100,6 +100,16 @@ class PieceWay:
         now = np.array([np.asarray(centres[m], dtype=float)[:2] for m in self.piece])
         return wrap(self.heading + best_turn(self.shape, now))
 
+    def travel(self) -> float:
+        """The farthest any module goes along the legs [m]: each drive's length, each
+        turn's angle times the piece's reach from its centroid (the way's cost)."""
+        reach = float(np.max(np.linalg.norm(self.shape, axis=1)))
+        total, c, h = 0.0, self.origin, self.heading
+        for leg in self.legs:
+            total += float(np.linalg.norm(leg.to - c)) + reach * abs(wrap(leg.heading - h))
+            c, h = leg.to, leg.heading
+        return total
+
     def direction(self, stage: int) -> np.ndarray:
         """The unit direction (2,) of drive ``stage`` (from the end of the leg before it,
         or from ``origin``)."""

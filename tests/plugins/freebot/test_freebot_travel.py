@@ -343,6 +343,12 @@ def test_a_piece_whose_goal_place_is_taken_docks_where_the_target_is_free_now():
     gaps[way.piece.index("P1"), list(here).index("T0")] = np.inf
     assert gaps.min() >= spacing - 0.01, "docked, no shell overlaps another"
     assert _closest(way.legs, offsets, others, (way.origin, 0.3)) >= spacing
+    # the time the approach asks for: the farthest module's travel, against the path
+    # each module sweeps, resampled every millimetre
+    paths = np.sum([np.linalg.norm(
+        (b[0] + offsets @ rot_z(b[1])[:2, :2].T) - (a[0] + offsets @ rot_z(a[1])[:2, :2].T),
+        axis=1) for a, b in zip(poses, poses[1:])], axis=0)
+    assert way.travel() == pytest.approx(float(np.max(paths)), rel=0.05)
     # the same goal with B gone: the piece ends 2 cm short of its goal place, as before
     del here["B"], goal["B"]
     way = piece_way(here, piece, set(row), "P1", 0.3, "T0", goal, spacing)
