@@ -347,7 +347,7 @@ def test_a_piece_whose_goal_place_is_taken_docks_where_the_target_is_free_now():
     # each module sweeps, resampled every millimetre
     paths = np.sum([np.linalg.norm(
         (b[0] + offsets @ rot_z(b[1])[:2, :2].T) - (a[0] + offsets @ rot_z(a[1])[:2, :2].T),
-        axis=1) for a, b in zip(poses, poses[1:])], axis=0)
+        axis=1) for a, b in zip(poses, poses[1:], strict=False)], axis=0)
     assert way.travel() == pytest.approx(float(np.max(paths)), rel=0.05)
     # the same goal with B gone: the piece ends 2 cm short of its goal place, as before
     del here["B"], goal["B"]
