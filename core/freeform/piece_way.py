@@ -36,10 +36,12 @@ from ..alignment import rot_z
 from ..errors import ExecutionError
 from .travel import Locator, best_turn, piece_goal, straight_line
 
-__all__ = ["Leg", "PieceWay", "plan_piece_way", "plan_legs", "poses_along", "wrap"]
+__all__ = ["Leg", "PieceWay", "piece_way", "plan_piece_way", "plan_legs", "poses_along",
+           "wrap"]
 
-_CELL = 0.02          # visited cells of the search [m]
-_STEP = 0.03          # a drive of the search [m]
+_CELL = 0.02          # visited cells of the search [m], for a piece of reach _REACH
+_STEP = 0.03          # a drive of the search [m], for a piece of reach _REACH
+_REACH = 0.16         # a longer piece's cells and drives grow with its reach [m]
 _TURN = np.pi / 8     # a turn of the search [rad]
 _SAMPLE = 0.005       # collision samples along a move, at the farthest module [m]
 _CLEARANCE = 0.008    # kept between shells [m]
@@ -97,6 +99,16 @@ class PieceWay:
         ``heading`` plus the least-squares turn from ``shape`` to them."""
         now = np.array([np.asarray(centres[m], dtype=float)[:2] for m in self.piece])
         return wrap(self.heading + best_turn(self.shape, now))
+
+    def travel(self) -> float:
+        """The farthest any module goes along the legs [m]: each drive's length, each
+        turn's angle times the piece's reach from its centroid (the way's cost)."""
+        reach = float(np.max(np.linalg.norm(self.shape, axis=1)))
+        total, c, h = 0.0, self.origin, self.heading
+        for leg in self.legs:
+            total += float(np.linalg.norm(leg.to - c)) + reach * abs(wrap(leg.heading - h))
+            c, h = leg.to, leg.heading
+        return total
 
     def direction(self, stage: int) -> np.ndarray:
         """The unit direction (2,) of drive ``stage`` (from the end of the leg before it,
@@ -187,6 +199,8 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
         raise ExecutionError(f"the goal place of a piece of {len(offsets)} modules is not free: "
                              f"{int(np.sum(near < space.limit))} other modules lie there")
     weight = max(space.reach, 1e-3)
+    grow = max(1.0, space.reach / _REACH)     # a long piece's search is as coarse
+    cell, step = _CELL * grow, _STEP * grow
     low = np.minimum(c0, g) - 0.5
     high = np.maximum(c0, g) + 0.5
     if len(space.others):
@@ -196,7 +210,7 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
     def key(c: np.ndarray, h: float) -> tuple[int, int, int]:
         k = int(np.rint(wrap(h - hg) / _TURN)) % 16
         exact = abs(wrap(h - hg - k * _TURN)) < 1e-6
-        return int(np.rint(c[0] / _CELL)), int(np.rint(c[1] / _CELL)), k if exact else -1
+        return int(np.rint(c[0] / cell)), int(np.rint(c[1] / cell)), k if exact else -1
 
     # centre, heading, parent, and whether it only drove straight out of the start so far
     nodes: list[tuple[np.ndarray, float, int, bool]] = [(c0, h0, -1, True)]
@@ -211,7 +225,7 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
         direct = _direct(space, c, h, g, hg, line) if n % _DIRECT == 0 else None
         if direct is not None:
             return _unwind(nodes, moves, i) + direct
-        for leg, extra in _moves(space, c, h, line, weight, escaping):
+        for leg, extra in _moves(space, c, h, line, weight, escaping, step):
             if not np.all((leg.to >= low) & (leg.to <= high)):
                 continue
             k, new = key(leg.to, leg.heading), cost + extra
@@ -225,9 +239,9 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
 
 
 def _moves(space: _Space, c: np.ndarray, h: float, line: np.ndarray | None,
-           weight: float, escaping: bool) -> list[tuple[Leg, float]]:
+           weight: float, escaping: bool, step: float) -> list[tuple[Leg, float]]:
     """The search's moves from pose ``(c, h)`` that are clear, with their costs: turns of
-    ``_TURN`` onto the goal's heading lattice, and drives of ``_STEP`` (``escaping``: the
+    ``_TURN`` onto the goal's heading lattice, and drives of ``step`` (``escaping``: the
     pose was reached by drives straight out of the start, which may graze what the start
     touches; a turn never does, as it would push it)."""
     out = []
@@ -241,9 +255,9 @@ def _moves(space: _Space, c: np.ndarray, h: float, line: np.ndarray | None,
         ahead = rot_z(h)[:2, :2] @ line
         directions = [ahead, -ahead]
     for d in directions:
-        to = c + _STEP * d
+        to = c + step * d
         if space.drive_free(c, to, h, escaping):
-            out.append((Leg("drive", to, h), _STEP))
+            out.append((Leg("drive", to, h), step))
     return out
 
 
@@ -320,45 +334,148 @@ def poses_along(legs: list[Leg] | tuple[Leg, ...], start: tuple[np.ndarray, floa
 def plan_piece_way(locator: Locator, root: str, target: str,
                    goal: Mapping[str, np.ndarray]) -> PieceWay:
     """The :class:`PieceWay` of the piece led by ``root`` to dock on ``target`` in the
-    shape of ``goal`` (centres (3,) of the goal configuration, any frame): where it must
-    end (:func:`~msrr.core.freeform.travel.piece_goal`), the turn that takes it there
-    (least squares over its modules), a stop ``_SHORT`` short of it with a last stretch
-    ``_LAST`` straight in (along the line of a straight piece, toward the target), and
-    the legs there (:func:`plan_legs`).
+    shape of ``goal`` (centres (3,) of the goal configuration, any frame), from the map of
+    ``locator`` (:func:`piece_way`).
 
     Raises:
         ExecutionError: ``target`` is on no map island with ``root`` (nothing tells where
             it is), or no way is free.
     """
-    piece = locator.piece(root)
-    near = locator.relative(root)              # raises if root's island is alone
-    if target not in near:
-        raise ExecutionError(f"module {target} was never joined to the piece of {root}: "
-                             "no report tells where it is")
+    locator.relative(root)                     # raises if root's island is alone
     here = {m: p[:2] for m, p in locator.position.items()
             if locator.island[m] == locator.island[root]}
-    staying = {m: here[m] for m in locator.piece(target)}
-    end = piece_goal(goal, staying | {m: here[m] for m in piece}, piece, target)
+    if target not in here:
+        raise ExecutionError(f"module {target} was never joined to the piece of {root}: "
+                             "no report tells where it is")
+    return piece_way(here, locator.piece(root), locator.piece(target), root,
+                     locator.pose(root)[1], target, goal, locator.spacing)
+
+
+def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], root: str,
+              heading: float, target: str, goal: Mapping[str, np.ndarray],
+              spacing: float) -> PieceWay:
+    """The :class:`PieceWay` of ``piece`` (led by ``root``, at map heading ``heading``
+    [rad]) to dock on ``target`` (of ``group``, which stays), the modules at ``here``
+    (centres (2,) [m], one map): where it must end in the shape of ``goal`` (centres (3,),
+    any frame; :func:`~msrr.core.freeform.travel.piece_goal`), the turn that takes it
+    there (least squares over its modules), a stop ``_SHORT`` short of it with a last
+    stretch ``_LAST`` straight in (along the line of a straight piece, toward the
+    target), and the legs there (:func:`plan_legs`).
+
+    Where the goal's place is not free now (modules lie there that a later step moves
+    away), the piece docks, in the shape it has, at the free place touching the target
+    nearest to the goal's (:func:`_free_docks`); the plan's last move takes the goal's
+    shape, as it does for a lone module docked on the free spot nearest to it.
+
+    Raises:
+        ExecutionError: no place touching the target is free, or no way is free.
+    """
     ms = sorted(piece)
     now = np.array([here[m] for m in ms])
-    then = np.array([end[m] for m in ms])
     a = now - now.mean(axis=0)
-    turn = best_turn(now, then)
-    _, heading = locator.pose(root)
     offsets = a @ rot_z(heading)[:2, :2]          # at heading 0: Rz(-heading) a
-    line = straight_line(now, locator.spacing)
+    line = straight_line(now, spacing)
     line0 = None if line is None else rot_z(-heading)[:2, :2] @ line
-    centre = here[target]
-    toward = (centre - end[root]) / np.linalg.norm(centre - end[root])
+    centre = np.asarray(here[target], dtype=float)[:2]
+    end = piece_goal(goal, {m: here[m] for m in group | piece}, piece, target)
+    then = np.array([end[m] for m in ms])
+    turn = best_turn(now, then)
+    toward = _unit(centre - end[root])
     if line0 is None:
         push = toward
     else:
         along = rot_z(heading + turn)[:2, :2] @ line0
         push = along if float(along @ toward) >= 0 else -along
-    finish = then.mean(axis=0) - _SHORT * push
-    others = np.array([p for m, p in here.items() if m not in piece]).reshape(-1, 2)
-    legs = plan_legs(others, offsets, line0, (now.mean(axis=0), heading),
-                     (finish - _LAST * push, heading + turn), locator.spacing)
-    legs.append(Leg("drive", finish, wrap(heading + turn)))
-    return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs), centre,
-                    push, line0)
+    names = sorted(m for m in here if m not in piece)
+    others = np.array([here[m] for m in names], dtype=float).reshape(-1, 2)
+    start = (now.mean(axis=0), heading)
+    space = _Space(others, offsets, spacing, start)
+    docks = [(then.mean(axis=0), wrap(heading + turn), push)]
+    index = (ms.index(root), others, names.index(target))
+    if not _dock_free(space, offsets, *index, *docks[0], clear_in=False):
+        docks = _free_docks(space, offsets, *index, line0, docks[0])[:_TRIES]
+        if not docks:
+            raise ExecutionError(f"no place touching module {target} is free for the piece "
+                                 f"of {len(ms)} modules led by {root}")
+    for k, (middle, hd, push) in enumerate(docks):
+        finish = middle - _SHORT * push
+        try:
+            legs = plan_legs(others, offsets, line0, start, (finish - _LAST * push, hd),
+                             spacing)
+        except ExecutionError:
+            if k + 1 == len(docks):
+                raise
+            continue
+        legs.append(Leg("drive", finish, hd))
+        return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs),
+                        centre, push, line0)
+    raise AssertionError("unreachable")
+
+
+_TRIES = 4            # free docking places tried (nearest the goal's first)
+_OVERLAP = 0.01       # shells closer than the spacing less this overlap [m]
+_DIRECTIONS = 72      # directions of the root about the target tried
+
+
+def _unit(vector: np.ndarray) -> np.ndarray:
+    norm = float(np.linalg.norm(vector))
+    return vector / norm if norm > 1e-12 else np.zeros_like(vector)
+
+
+def _dock_free(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray,
+               target: int, middle: np.ndarray, heading: float, push: np.ndarray, *,
+               clear_in: bool = True) -> bool:
+    """Whether the piece can end docked with its centroid at ``middle`` (2,) and heading
+    ``heading``: it stands ``_SHORT + _LAST`` back along ``push`` with the way's
+    clearance, and over its last stretch in, docked at the end, no shell overlaps
+    another (the root touches the target, ``others[target]``; nothing else does);
+    ``clear_in``: the stretch in keeps the way's clearance too."""
+    pre = middle - (_SHORT + _LAST) * push
+    if not space.free(pre[None, :], np.array([heading])):
+        return False
+    if clear_in and not space.drive_free(pre, middle - _SHORT * push, heading):
+        return False
+    if not len(others):
+        return True
+    n = int(np.ceil((_SHORT + _LAST) / _SAMPLE)) + 1
+    for t in np.linspace(0.0, 1.0, n):
+        docked = _modules(offsets, pre + t * (middle - pre), heading)
+        gap = np.linalg.norm(docked[:, None, :] - others[None, :, :], axis=2)
+        gap[root, target] = np.inf
+        if np.any(gap < space.limit - _CLEARANCE - _OVERLAP):
+            return False
+    return True
+
+
+def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray,
+                target: int, line: np.ndarray | None,
+                wanted: tuple[np.ndarray, float, np.ndarray]
+                ) -> list[tuple[np.ndarray, float, np.ndarray]]:
+    """The free places (centroid (2,), heading, push (2,)) where the piece, in its shape
+    now (``offsets`` at heading 0, its root the row ``root``), docks on the target at
+    ``others[target]``: the root touching it from one of ``_DIRECTIONS`` directions, the piece
+    turned so that its centroid lies straight away from the target beyond the root (a
+    bent piece also turned ``pi / 8`` and ``pi / 4`` either side), pushing toward the
+    target (a straight piece along its line); nearest to ``wanted`` first (centroid
+    distance plus heading difference times the piece's reach)."""
+    arm = -offsets[root]                           # root -> centroid at heading 0
+    centre = others[target]
+    spacing = space.limit - _CLEARANCE
+    found = []
+    for phi in np.arange(_DIRECTIONS) * 2 * np.pi / _DIRECTIONS:
+        out = np.array([np.cos(phi), np.sin(phi)])
+        base = phi - float(np.arctan2(arm[1], arm[0])) if np.linalg.norm(arm) > 1e-9 \
+            else phi
+        for extra in ((0.0,) if line is not None else (0.0, _TURN, -_TURN, 2 * _TURN,
+                                                       -2 * _TURN)):
+            heading = wrap(base + extra)
+            turn = rot_z(heading)[:2, :2]
+            middle = centre + spacing * out + turn @ arm
+            push = -out if line is None else turn @ line * (1.0 if float(
+                (turn @ line) @ out) <= 0 else -1.0)
+            if _dock_free(space, offsets, root, others, target, middle, heading, push):
+                cost = float(np.linalg.norm(middle - wanted[0])) \
+                    + space.reach * abs(wrap(heading - wanted[1]))
+                found.append((cost, middle, heading, push))
+    found.sort(key=lambda f: f[0])
+    return [(m, h, p) for _, m, h, p in found]

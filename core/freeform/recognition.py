@@ -345,19 +345,26 @@ class ContactController:
             out[e.source] = ModuleCommand(joints=joints)
         return out
 
-    def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
+    def begin(self, action: Action, phase: Phase, observation: Observation) -> float | None:
         """Fix the yaw of the action's target for this phase (eq. 8 alignment); for an
-        approach, find the way of each free module to the module it docks on."""
+        approach, find the way of each free module to the module it docks on, and return
+        the driver time [s] the longest way takes at its speed (a lone module's at
+        ``ground_speed``, a piece's farthest module's at ``piece_speed``,
+        :meth:`~msrr.core.freeform.piece_way.PieceWay.travel`)."""
         reports = observation.sensors
         self._locate(reports)
         current = self.recognizer.recognize(reports)
         if phase is Phase.APPROACH:
             self._ways, self._pieces = self._plan_ways(current, action, reports)
-            return
+            lone = [float(np.sum(np.linalg.norm(np.diff(way, axis=0), axis=1)))
+                    / self.ground_speed for _, way, _ in self._ways.values()]
+            pieces = [way.travel() / self.piece_speed for way, _ in self._pieces.values()]
+            return max(lone + pieces, default=0.0)
         if phase is Phase.CONNECT and (self._ways or self._pieces):
-            return
+            return None
         self._ways, self._pieces = {}, {}
         self._yaw = skeletal_errors(current, action.target)[2]
+        return None
 
     def _locate(self, reports: Reports) -> None:
         """Give the locator this tick's reports."""

@@ -105,6 +105,7 @@ _TRACTION = 0.3         # their largest force, in units of the module's weight
 _FOOT_KP = 2.0          # the footprint holding the foot down [N m / rad]
 _FOOT_KD = 0.1          # [N m s / rad]
 _GRAVITY = 9.81         # [m/s^2]
+_REST_TORQUE = 1e-3     # a module at rest whose motors hold it with less stops them [N m]
 _TRACK_SLIDE = 0.01     # floor friction of a crawling SnailBot's shell (its tracks carry it)
 
 
@@ -122,6 +123,9 @@ class FreeformOptions(MujocoOptions):
             ``connection_strength`` (and ``sucker_strength``).
         break_filter: time constant of the connection-load low-pass before the strength
             check [s] (a magnet does not let go on a one-step impulse).
+        sleep_tolerance: speed [m/s] under which MuJoCo puts an island of modules at rest
+            to sleep (its island sleeping, ``mjENBL_SLEEP``; velocities scaled by each
+            DOF's length) until a command, a dock or a contact wakes it; 0: never.
     """
 
     OPTIONS: ClassVar[tuple[DriverOption, ...]] = MujocoOptions.OPTIONS + (
@@ -135,6 +139,8 @@ class FreeformOptions(MujocoOptions):
                      0.0, 10.0, low_open=True),
         DriverOption("break_filter", float, "time constant of the connection-load filter", "s",
                      0.0, 10.0, low_open=True),
+        DriverOption("sleep_tolerance", float, "speed under which modules at rest sleep "
+                     "(0: never)", "m/s", 0.0, 0.1),
     )
 
     gap: float = 0.001
@@ -142,11 +148,12 @@ class FreeformOptions(MujocoOptions):
     seat: float = 0.15
     strength_factor: float = 1.0
     break_filter: float = 0.05
+    sleep_tolerance: float = 0.001
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self._check(positive=("gap", "dock_tolerance", "seat", "strength_factor",
-                              "break_filter"))
+                              "break_filter"), non_negative=("sleep_tolerance",))
 
 
 @dataclass(frozen=True)
@@ -302,6 +309,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._odometry = np.zeros((n, 2))          # travel sensed while free, world [m]
         self._turned = np.zeros(n)                 # yaw the gyros integrated [rad]
         self._gyro = np.random.default_rng([options.seed, 1])  # the yaw's own noise
+        self._tree = m.body_treeid[self._shell]    # each module is one kinematic tree
+        self._wake = np.zeros(n, dtype=bool)       # commanded to move since the last servo
         mujoco.mj_forward(self.model, self.data)
         self._upright = np.array([_upright(r) for r in self.data.xmat[self._conn].reshape(-1, 3, 3)])
         self._heading0 = self._headings()
@@ -315,6 +324,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
                ) -> mujoco.MjSpec:
         d = self.design
         spec = self.new_spec(f"freeform-{d.kind}")
+        if self.options.sleep_tolerance > 0:     # islands at rest sleep (:meth:`_servo`)
+            spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+            spec.option.sleep_tolerance = self.options.sleep_tolerance
         shell_mass = d.mass - d.connector_mass - _FOOT_MASS
         if shell_mass <= 0:
             raise ExecutionError(f"module kind {d.kind!r}: mass must exceed the connector's")
@@ -389,7 +401,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         turn = rotation_between(r_conn[:, 2], want)   # about the parent's centre
         r_foot = d.xmat[self._foot[k]].reshape(3, 3)
         joint = (turn @ r_conn).T @ r_foot               # foot in the turned connector frame
-        self._target[k] = Rotation.from_matrix(joint).as_quat(scalar_first=True)
+        self._aim(k, Rotation.from_matrix(joint).as_quat(scalar_first=True))
         self._rolling[k] = float(np.arccos(np.clip(want @ r_conn[:, 2], -1, 1))) > _ROLLING
 
     def command_twist(self, module: str, angle: float) -> None:
@@ -403,7 +415,12 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         joint = Rotation.from_quat(q, scalar_first=True).as_matrix()   # foot in connector
         # the connector turns by ``angle`` about its own z (towards the parent): the foot,
         # seen from it, turns back
-        self._target[k] = Rotation.from_matrix(rot_z(-angle) @ joint).as_quat(scalar_first=True)
+        self._aim(k, Rotation.from_matrix(rot_z(-angle) @ joint).as_quat(scalar_first=True))
+
+    def _aim(self, k: int, target: np.ndarray) -> None:
+        """Set module ``k``'s drive goal (a quaternion (4,)); a new goal wakes it."""
+        self._wake[k] |= not np.array_equal(target, self._target[k])
+        self._target[k] = target
 
     def command_roll(self, module: str, velocity: np.ndarray) -> None:
         """Move a free module on the ground at ``velocity`` (3,) [m/s], given in its own
@@ -419,6 +436,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         v = frame @ np.asarray(velocity, dtype=np.float64)
         v[2] = 0.0
         self._roll[k] = v
+        self._wake[k] |= bool(np.any(v))
         if self.design.bearing:
             self._rolling[k] = bool(np.any(v))
             self._pendulum(k, self._rolling[k])
@@ -458,6 +476,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._roll[k] = 0.0
             self._rolling[k] = False
             self._pendulum(k, False)
+        self._wake[k] |= bool(np.any(v)) or bool(turn) or not np.array_equal(
+            v, self._travel_v[k])
         self._travel_v[k] = v
         self._travel_w[k] = float(turn)
 
@@ -498,6 +518,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._k(target)
         if self.docked[k] != target or not target:
             self.armed[k] = target
+            self._wake[k] = True
 
     def command_undock(self, module: str, target: str = "") -> None:
         """Release ``module``'s connector (from ``target`` if given); while it is armed to
@@ -723,10 +744,38 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             bearing = self._roll_torques() + self._brakes()
             if np.any(self._travel):
                 self._travel_torques(tau, bearing)
+        quiet = self._quiet(tau, bearing if self._bearing is not None else None)
+        if self._bearing is not None:
+            bearing[quiet] = 0.0
             self.data.qfrc_applied[self._bearing] = bearing
         else:
             self._crawl()
+        tau[quiet] = 0.0
         self.data.qfrc_applied[self._dofs] = tau
+        self._wake[:] = False
+
+    def _quiet(self, drive: np.ndarray, bearing: np.ndarray | None) -> np.ndarray:
+        """The modules (n,) whose motors apply nothing this servo period (MuJoCo's island
+        sleeping, :class:`FreeformOptions` ``sleep_tolerance``): those given nothing new
+        to do (no new goal, roll, travel or dock since the last period) that are asleep,
+        or at rest -- every DOF of the module slower than the tolerance (scaled by its
+        length) and its motors' torques (``drive``, ``bearing`` (n, 3) [N m]) under
+        ``_REST_TORQUE``. MuJoCo puts a tree to sleep only when no force is applied to
+        it, and a sleeping island does not move, so the holding torques would change
+        nothing; a new goal, a dock, a roll, a contact with a moving module or a weld to
+        one wakes it."""
+        n = len(self.modules)
+        if self.options.sleep_tolerance <= 0:
+            return np.zeros(n, dtype=bool)
+        m, d = self.model, self.data
+        busy = self._wake | self._travel | self._rolling | np.any(self._roll, axis=1) \
+            | np.array([a is not None for a in self.armed])
+        speed = np.maximum.reduceat(np.abs(d.qvel * m.dof_length), m.tree_dofadr)[self._tree]
+        torque = np.linalg.norm(drive, axis=1)
+        if bearing is not None:
+            torque = np.maximum(torque, np.linalg.norm(bearing, axis=1))
+        rest = (speed < self.options.sleep_tolerance) & (torque < _REST_TORQUE)
+        return ~busy & ((d.tree_asleep[self._tree] >= 0) | rest)
 
     def _travel_torques(self, drive: np.ndarray, bearing: np.ndarray) -> None:
         """Drive and bearing torques (n, 3) of the modules travelling in a piece (written

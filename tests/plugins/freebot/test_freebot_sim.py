@@ -134,3 +134,24 @@ def test_common_turn_is_the_median_turn_not_dragged_by_one_far_module():
     z["F1-F2"] = rot_z(np.radians(90.0)) @ goal.edge("F1-F2").z   # one module far behind
     current = goal.with_vectors(z=z)
     assert np.degrees(common_turn(current, goal)) == pytest.approx(10.0, abs=1e-6)
+
+
+def test_a_row_at_rest_sleeps_and_a_new_goal_wakes_it_and_is_reached(mujoco_driver):
+    # MuJoCo's island sleeping: the row at rest costs no constraint rows; a roll of F1
+    # about F2 commanded while it sleeps wakes the row and is done as awake
+    driver = mujoco_driver("freebot", "line6")
+    world = driver.world
+    driver.step(0.5)
+    assert world.data.ntree_awake == 0 and world.data.nefc == 0, "the row at rest sleeps"
+    before = world.centre("F1") - world.centre("F2")
+    angle = np.radians(40.0)
+    world.command_direction("F1", np.array([-np.cos(angle), -np.sin(angle), 0.0]))
+    driver.step(0.1)
+    assert world.data.ntree_awake == 6, "a new goal wakes the island"
+    driver.step(2.9)
+    after = world.centre("F1") - world.centre("F2")
+    assert np.arctan2(np.cross(before, after)[2], before @ after) == pytest.approx(
+        angle, abs=np.radians(2.0))
+    awake = mujoco_driver("freebot", "line6", sleep_tolerance=0.0)
+    awake.step(0.5)
+    assert awake.world.data.ntree_awake == 6, "sleep_tolerance 0: never sleeps"

@@ -314,3 +314,43 @@ def test_a_piece_that_let_go_sideways_turns_then_drives_along_its_line():
     assert float(moved @ line) >= 0.8 * SPEED * 3.0
     across = abs(float(line[0] * moved[1] - line[1] * moved[0]))
     assert across < float(moved @ line)                  # mostly along its line
+
+
+def test_a_piece_whose_goal_place_is_taken_docks_where_the_target_is_free_now():
+    # the goal has the chain P1-P3 hanging from T along -y, where B lies now (a later
+    # step moves B away): the piece docks on T at a free place, in the shape it has
+    from msrr.core.freeform.piece_way import piece_way, poses_along
+
+    spacing = 0.1
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(4)}
+    here = row | {"B": np.array([0.0, -0.1]),
+                  **{f"P{i}": np.array([0.8 + 0.1 * i, 0.6]) for i in range(1, 4)}}
+    goal = {m: np.append(p, 0.0) for m, p in row.items()} | {
+        "B": np.array([0.1, 0.1, 0.0]), **{f"P{i}": np.array([0.0, -0.1 * i, 0.0])
+                                          for i in range(1, 4)}}
+    group, piece = set(row) | {"B"}, {"P1", "P2", "P3"}
+    way = piece_way(here, piece, group, "P1", 0.3, "T0", goal, spacing)
+    shape = np.array([here[m] for m in way.piece]) - np.mean([here[m] for m in way.piece],
+                                                              axis=0)
+    offsets = shape @ rot_z(0.3)[:2, :2]
+    poses = poses_along(way.legs, (way.origin, 0.3), 0.001, 0.1)
+    docked = poses[-1][0] + offsets @ rot_z(poses[-1][1])[:2, :2].T + 0.02 * way.push
+    root = docked[way.piece.index("P1")]
+    assert abs(np.linalg.norm(root - here["T0"]) - spacing) < 0.005, "P1 touches T0"
+    assert np.allclose(way.centre, here["T0"])
+    others = np.array([p for m, p in here.items() if m not in piece])
+    gaps = np.linalg.norm(docked[:, None, :] - others[None, :, :], axis=2)
+    gaps[way.piece.index("P1"), list(here).index("T0")] = np.inf
+    assert gaps.min() >= spacing - 0.01, "docked, no shell overlaps another"
+    assert _closest(way.legs, offsets, others, (way.origin, 0.3)) >= spacing
+    # the time the approach asks for: the farthest module's travel, against the path
+    # each module sweeps, resampled every millimetre
+    paths = np.sum([np.linalg.norm(
+        (b[0] + offsets @ rot_z(b[1])[:2, :2].T) - (a[0] + offsets @ rot_z(a[1])[:2, :2].T),
+        axis=1) for a, b in zip(poses, poses[1:], strict=False)], axis=0)
+    assert way.travel() == pytest.approx(float(np.max(paths)), rel=0.05)
+    # the same goal with B gone: the piece ends 2 cm short of its goal place, as before
+    del here["B"], goal["B"]
+    way = piece_way(here, piece, set(row), "P1", 0.3, "T0", goal, spacing)
+    end = way.legs[-1].to + 0.02 * way.push
+    assert np.allclose(end, [0.0, -0.2], atol=1e-6)

@@ -1,0 +1,134 @@
+"""The human example's floor steps planned kinematically, step after step (issue 28).
+
+Luo and Lam's human example (six chains of 568 FreeBOTs into a human figure) is planned
+with ``miso``; then every step that docks a module over the floor is planned as the
+controller would plan it -- a lone module's way (``travel.floor_path``), a piece's way
+(``piece_way.piece_way``: its goal place, or the free place nearest to it) -- on the
+centres the previous steps left, each piece put where its way ends, docked (no physics:
+what the ways need, not what the MuJoCo run does). Prints the seed and, per step, the
+piece's size, where it docks (goal place or not), its legs, the travel of its centroid
+and the time the way takes at the piece speed; stops at the first step whose way cannot
+be planned and says why.
+
+Usage: ``python benchmarks/human_floor.py [--seed 0] [--steps 47]``.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+import networkx as nx
+import numpy as np
+
+from msrr.core.alignment import rot_z
+from msrr.core.console import console, table
+from msrr.core.errors import ExecutionError
+from msrr.core.io import load_configuration
+
+ROOT = Path(__file__).resolve().parents[1]
+HUMAN = ROOT / "plugins" / "freebot" / "configs" / "human"
+SPEED = 0.02   # a piece's fastest centre [m/s] (0.8 x max_speed x radius)
+
+
+def _groups(config) -> dict[str, set[str]]:
+    graph = nx.Graph()
+    graph.add_nodes_from(config.modules())
+    graph.add_edges_from((e.source, e.target) for e in config.edges())
+    return {m: c for c in nx.connected_components(graph) for m in c}
+
+
+def _goal_centres(config, spacing: float) -> dict[str, np.ndarray]:
+    from msrr.core.freeform.travel import lay_out_pieces
+
+    adjacent: dict[str, list] = {m: [] for m in config.modules()}
+    for e in config.edges():
+        z = np.asarray(e.z, dtype=float)
+        adjacent[e.source].append((e.target, z))
+        adjacent[e.target].append((e.source, -z))
+    return {m: p for piece in lay_out_pieces(adjacent, sorted(adjacent), spacing)
+            for m, p in piece.items()}
+
+
+def _step(k, action, current, pos, spacing) -> list[str] | None:
+    """Plan step ``k``'s floor docks on ``pos`` (moved in place); a table row, or
+    ``None`` when the action docks nothing over the floor."""
+    from msrr.core.freeform.piece_way import piece_way
+    from msrr.core.freeform.travel import floor_path
+
+    after = current.copy()
+    for c in action.changes:
+        for e in list(after.edges()):
+            if (e.source, e.target) == (c.source, c.target):
+                after.disconnect(e.id)
+    groups = _groups(after)
+    made = [c for c in action.changes if any((e.source, e.target) == (c.source, c.target)
+                                             for e in action.target.edges())]
+    for c in made:
+        if groups[c.source] == groups[c.target]:
+            continue
+        piece, t0 = groups[c.source], time.perf_counter()
+        if len(piece) == 1:
+            others = {m: np.append(p - pos[c.source], 0.0) for m, p in pos.items()
+                      if m != c.source}
+            way = floor_path(others, c.target, spacing)
+            pos[c.source] = pos[c.source] + way[-1]
+            length = float(np.sum(np.linalg.norm(np.diff([np.zeros(2), *way], axis=0),
+                                                 axis=1)))
+            return [str(k), f"{c.source} -> {c.target}", "1", "nearest free spot", "-",
+                    f"{length:.2f}", f"{length / 0.04:.0f}",
+                    f"{time.perf_counter() - t0:.1f}"]
+        goal = _goal_centres(action.target, spacing)
+        way = piece_way(pos, piece, groups[c.target], c.source, 0.0, c.target, goal, spacing)
+        end = way.legs[-1].to + 0.02 * way.push
+        for m, p in zip(way.piece, end + way.shape @ rot_z(way.legs[-1].heading)[:2, :2].T,
+                        strict=True):
+            pos[m] = p
+        at_goal = np.linalg.norm(pos[c.source] - (pos[c.target] + (
+            goal[c.source] - goal[c.target])[:2])) < 0.02
+        reach = float(np.max(np.linalg.norm(way.shape, axis=1)))
+        travel = sum(float(np.linalg.norm(b.to - a)) + reach * abs(float(np.angle(np.exp(
+            1j * (b.heading - h))))) for (a, h), b in zip(
+            [(way.origin, way.heading)] + [(x.to, x.heading) for x in way.legs[:-1]],
+            way.legs, strict=True))
+        return [str(k), f"{c.source} -> {c.target}", str(len(piece)),
+                "goal place" if at_goal else "free place, not the goal's",
+                str(len(way.legs)), f"{travel:.2f}", f"{travel / SPEED:.0f}",
+                f"{time.perf_counter() - t0:.1f}"]
+    return None
+
+
+@click.command()
+@click.option("--seed", default=0, show_default=True)
+@click.option("--steps", default=47, show_default=True, help="plan this many actions")
+def main(seed: int, steps: int) -> None:
+    from msrr.core import plugins
+    from msrr.core.freeform.world import place
+
+    start = load_configuration(HUMAN / "human-chains.json")
+    goal = load_configuration(HUMAN / "human.json")
+    plan = plugins.planners.get("freebot", "miso").plan(start, goal, seed=seed)
+    spacing = 0.101
+    centres, _ = place(start, spacing, 0.05)
+    pos = {m: c[:2].copy() for m, c in centres.items()}
+    console.print(f"seed {seed}; {len(plan.actions)} actions, "
+                  f"{plan.stats['changes']:.0f} changes (IM, published: 91)")
+    rows, current, why = [], start, ""
+    for k, action in enumerate(plan.actions[:steps], 1):
+        try:
+            row = _step(k, action, current, pos, spacing)
+        except ExecutionError as error:
+            why = f"action {k}: {error}"
+            break
+        if row:
+            rows.append(row)
+        current = action.target
+    console.print(table("the human example's floor steps, planned kinematically",
+                        ["action", "dock", "modules", "where", "legs", "travel [m]",
+                         "at 0.02 m/s [s]", "planning [s]"], rows))
+    console.print(why or f"all {min(steps, len(plan.actions))} actions planned")
+
+
+if __name__ == "__main__":
+    main()
