@@ -61,6 +61,10 @@ class _ProgressListener:
         self.done = 0
         self.current = "starting"
         self.sim_time = 0.0
+        self.finished = 0.0        # wall time [s] from the start to the last action done
+        self.action_wall = 0.0     # wall time [s] from the start when this action began
+        self.action_sim = 0.0      # simulated time [s] when this action began
+        self.duration: float | None = None   # this action's behavior duration [s]
 
     def _say(self, text: str) -> None:
         if self.progress is not None:
@@ -70,8 +74,13 @@ class _ProgressListener:
 
     def _status(self) -> str:
         elapsed = time.monotonic() - self.started
-        left = (f", about {elapsed / self.done * (self.total - self.done):.0f} s left"
-                if self.done else "")
+        behind = None if self.duration is None else \
+            self.duration - (self.sim_time - self.action_sim)
+        wall_per_sim = elapsed / self.sim_time if self.sim_time > 0 else None
+        left = time_left(done=self.done, total=self.total, finished=self.finished,
+                         in_action=elapsed - self.action_wall, behavior_left=behind,
+                         wall_per_sim=wall_per_sim)
+        left = "" if left is None else f", about {left:.0f} s left"
         return (f"action {min(self.done + 1, self.total)}/{self.total}: {self.current} "
                 f"(simulated {self.sim_time:.1f} s, wall {elapsed:.0f} s{left})")
 
@@ -80,6 +89,10 @@ class _ProgressListener:
         self.current = str(action)
         if status == "succeeded":  # ActionStatus.SUCCEEDED, a str enum
             self.done += 1
+            self.finished = time.monotonic() - self.started
+        elif status == "started":
+            self.action_wall, self.action_sim = time.monotonic() - self.started, self.sim_time
+            self.duration = None if action.behavior is None else action.behavior.duration
         if self.progress is not None:
             self.progress.update(self.task, description=f"{action} ({status})")
             if status == "succeeded":
@@ -106,6 +119,29 @@ class _ProgressListener:
 
 PROGRESS_EVERY = 10.0
 """Without a terminal, a progress line at least this often [s of wall time]."""
+
+
+def time_left(*, done: int, total: int, finished: float, in_action: float,
+              behavior_left: float | None, wall_per_sim: float | None) -> float | None:
+    """Wall time [s] the run likely still takes: the action running now, then each one
+    after it at the mean wall time of those done (``finished`` [s] over ``done``).
+
+    The running action's share is what its behavior has left of its duration
+    (``behavior_left``, simulated [s]) at the run's wall time per simulated second, when
+    it has a duration; otherwise the mean action's time less what it ran already
+    (``in_action`` [s]), never below nothing. ``None`` when nothing is known yet.
+    """
+    mean = finished / done if done else None
+    if behavior_left is not None and wall_per_sim is not None:
+        current = max(behavior_left, 0.0) * wall_per_sim
+    elif mean is not None:
+        current = max(mean - in_action, 0.0)
+    else:
+        return None
+    after = max(total - done - 1, 0)
+    if after and mean is None:
+        return None
+    return current + (mean or 0.0) * after
 
 
 def _verdict(ok: bool) -> str:
