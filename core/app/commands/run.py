@@ -80,7 +80,6 @@ class _ProgressListener:
         left = time_left(done=self.done, total=self.total, finished=self.finished,
                          in_action=elapsed - self.action_wall, behavior_left=behind,
                          wall_per_sim=wall_per_sim)
-        left = "" if left is None else f", about {left:.0f} s left"
         return (f"action {min(self.done + 1, self.total)}/{self.total}: {self.current} "
                 f"(simulated {self.sim_time:.1f} s, wall {elapsed:.0f} s{left})")
 
@@ -122,26 +121,32 @@ PROGRESS_EVERY = 10.0
 
 
 def time_left(*, done: int, total: int, finished: float, in_action: float,
-              behavior_left: float | None, wall_per_sim: float | None) -> float | None:
-    """Wall time [s] the run likely still takes: the action running now, then each one
-    after it at the mean wall time of those done (``finished`` [s] over ``done``).
+              behavior_left: float | None, wall_per_sim: float | None) -> str:
+    """How much wall time the run likely still takes, as the progress line says it: the
+    action running now, then each one after it at the mean wall time of those done
+    (``finished`` [s] over ``done``); empty when nothing is known yet.
 
     The running action's share is what its behavior has left of its duration
     (``behavior_left``, simulated [s]) at the run's wall time per simulated second, when
     it has a duration; otherwise the mean action's time less what it ran already
-    (``in_action`` [s]), never below nothing. ``None`` when nothing is known yet.
+    (``in_action`` [s]). An action that has run longer than the mean has no estimate:
+    then only the time after it is said.
     """
     mean = finished / done if done else None
-    if behavior_left is not None and wall_per_sim is not None:
-        current = max(behavior_left, 0.0) * wall_per_sim
-    elif mean is not None:
-        current = max(mean - in_action, 0.0)
-    else:
-        return None
     after = max(total - done - 1, 0)
-    if after and mean is None:
-        return None
-    return current + (mean or 0.0) * after
+    later = None if after and mean is None else (mean or 0.0) * after
+    if behavior_left is not None and wall_per_sim is not None:
+        current: float | None = max(behavior_left, 0.0) * wall_per_sim
+    elif mean is not None and in_action <= mean:
+        current = mean - in_action
+    else:
+        current = None
+    if later is None:
+        return ""
+    if current is None:
+        return f", this action longer than the mean, about {later:.0f} s after it" \
+            if mean is not None else ""
+    return f", about {current + later:.0f} s left"
 
 
 def _verdict(ok: bool) -> str:
