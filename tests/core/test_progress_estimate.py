@@ -39,6 +39,8 @@ def test_an_action_longer_than_the_mean_says_only_what_follows_it():
     assert time_left(done=2, total=5, finished=20.0, in_action=35.0, behavior_left=None,
                      wall_per_sim=None) == \
         ", this action longer than the mean, about 20 s after it"
+    assert time_left(done=4, total=5, finished=20.0, in_action=35.0, behavior_left=None,
+                     wall_per_sim=None) == ", this action longer than the mean, the last"
 
 
 def test_nothing_known_says_nothing():

@@ -144,8 +144,10 @@ def time_left(*, done: int, total: int, finished: float, in_action: float,
     if later is None:
         return ""
     if current is None:
-        return f", this action longer than the mean, about {later:.0f} s after it" \
-            if mean is not None else ""
+        if mean is None:
+            return ""
+        return ", this action longer than the mean" + (
+            f", about {later:.0f} s after it" if after else ", the last")
     return f", about {current + later:.0f} s left"
 
 
