@@ -36,8 +36,8 @@ from ..alignment import rot_z
 from ..errors import ExecutionError
 from .travel import Locator, best_turn, piece_goal, straight_line
 
-__all__ = ["Leg", "PieceWay", "piece_way", "plan_piece_way", "plan_legs", "poses_along",
-           "wrap"]
+__all__ = ["Leg", "PieceWay", "normalized", "piece_way", "plan_piece_way", "plan_legs",
+           "poses_along", "wrap"]
 
 _CELL = 0.02          # visited cells of the search [m], for a piece of reach _REACH
 _STEP = 0.03          # a drive of the search [m], for a piece of reach _REACH
@@ -380,7 +380,7 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     end = piece_goal(goal, {m: here[m] for m in group | piece}, piece, target)
     then = np.array([end[m] for m in ms])
     turn = best_turn(now, then)
-    toward = _unit(centre - end[root])
+    toward = normalized(centre - end[root])
     if line0 is None:
         push = toward
     else:
@@ -417,7 +417,8 @@ _OVERLAP = 0.01       # shells closer than the spacing less this overlap [m]
 _DIRECTIONS = 72      # directions of the root about the target tried
 
 
-def _unit(vector: np.ndarray) -> np.ndarray:
+def normalized(vector: np.ndarray) -> np.ndarray:
+    """``vector`` scaled to unit length; zeros for a vector of no length."""
     norm = float(np.linalg.norm(vector))
     return vector / norm if norm > 1e-12 else np.zeros_like(vector)
 

@@ -43,7 +43,7 @@ from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
-from .piece_way import PieceWay, plan_piece_way, wrap
+from .piece_way import PieceWay, normalized, plan_piece_way, wrap
 from .travel import Locator, floor_path, pursue, twist_velocities
 from .world import ModuleReport
 
@@ -500,7 +500,7 @@ class ContactController:
             odometry = reports[module].odometry
             if phase is Phase.CONNECT:
                 toward = centre - odometry[:2]
-                velocity = 0.5 * self.ground_speed * _unit(toward)
+                velocity = 0.5 * self.ground_speed * normalized(toward)
                 left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
             else:
                 velocity, left = pursue(way, odometry[:2], speed=self.ground_speed)
@@ -619,11 +619,6 @@ def _layout(config: Configuration, spacing: float) -> dict[str, np.ndarray]:
             adjacent[e.target].append((e.source, -z))
     return {m: p for piece in lay_out_pieces(adjacent, sorted(adjacent), spacing)
             for m, p in piece.items()}
-
-
-def _unit(vector: np.ndarray) -> np.ndarray:
-    norm = float(np.linalg.norm(vector))
-    return vector / norm if norm > 1e-12 else np.zeros_like(vector)
 
 
 def _joined(config: Configuration, a: str, b: str) -> bool:
