@@ -76,7 +76,9 @@ class _ProgressListener:
         elapsed = time.monotonic() - self.started
         behind = None if self.duration is None else \
             self.duration - (self.sim_time - self.action_sim)
-        wall_per_sim = elapsed / self.sim_time if self.sim_time > 0 else None
+        ran = self.sim_time - self.action_sim   # this action's rate (no planning in it),
+        wall_per_sim = (elapsed - self.action_wall) / ran if ran > 0 else \
+            elapsed / self.sim_time if self.sim_time > 0 else None   # else the run's
         left = time_left(done=self.done, total=self.total, finished=self.finished,
                          in_action=elapsed - self.action_wall, behavior_left=behind,
                          wall_per_sim=wall_per_sim)
