@@ -171,8 +171,17 @@ class DockEvent:
 
 
 INTERPENETRATION = 0.003
-"""Depth [m] past which two module bodies interpenetrate: a self-collision. MuJoCo's
-soft contacts let bodies pressed together sink in by a fraction of that."""
+"""Depth [m] past which two module bodies interpenetrate: a self-collision. Their
+contacts (:data:`_BODY_SOLREF`) let bodies pressed together sink in by a fraction of
+that."""
+
+_BODY_SOLREF = (0.005, 1.0)
+"""MuJoCo ``solref`` (time constant [s], damping ratio) of contacts between module
+bodies: a quarter of MuJoCo's default 20 ms (2.5 physics steps; MuJoCo asks for at
+least 2), so a strut end pushed on a shell by its magnet and the connection strength
+sinks about 1 mm, not the 4 mm that read as interpenetration. A soft contact's depth
+under a load goes with the time constant squared. Contacts with the floor keep the
+default (the ground's ``priority`` makes its parameters the contact's)."""
 
 
 @dataclass(frozen=True)
@@ -350,6 +359,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _build(self, placement: Placement) -> mujoco.MjSpec:
         p = self.phys
         spec = self.new_spec("freesn")
+        spec.geom("ground").priority = 1   # the floor's contact parameters are its own
         shell = 2.0 / 3.0 * p.node_mass * p.node_radius**2  # thin steel shell
         for node in self.nodes:
             body = spec.worldbody.add_body(name=f"node/{node}", pos=placement.nodes[node],
@@ -359,7 +369,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             body.add_freejoint(name=f"free/{node}")
             body.add_geom(name=f"sphere/{node}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
                           size=[p.node_radius, 0, 0], friction=GROUND_FRICTION, mass=0,
-                          rgba=[0.6, 0.6, 0.65, 1.0])
+                          solref=list(_BODY_SOLREF), rgba=[0.6, 0.6, 0.65, 1.0])
         tip = 0.5 * p.strut_length - p.node_radius - _GAP
         segment = max(tip - p.strut_radius, 1e-4)
         rod = p.strut_mass - 2.0 * p.connector_mass
@@ -379,7 +389,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             body.add_freejoint(name=f"free/{strut}")
             body.add_geom(name=f"capsule/{strut}", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
                           fromto=[0, 0, -segment, 0, 0, segment], size=[p.strut_radius, 0, 0],
-                          friction=GROUND_FRICTION, mass=0, rgba=[0.9, 0.55, 0.1, 1.0])
+                          friction=GROUND_FRICTION, mass=0, solref=list(_BODY_SOLREF),
+                          rgba=[0.9, 0.55, 0.1, 1.0])
             for end in ENDS:
                 roller = body.add_body(name=f"connector/{strut}/{end}",
                                        pos=[0, 0, -END_SIGN[end] * 0.5 * p.strut_length],

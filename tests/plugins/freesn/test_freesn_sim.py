@@ -630,6 +630,32 @@ def test_an_askew_magnet_pressed_on_its_node_pulls_less_than_a_square_one():
     assert 0.0 < depth < 0.5 * INTERPENETRATION
 
 
+def test_a_strut_pushed_onto_a_node_with_the_connection_strength_barely_sinks():
+    """Module bodies are hard (``_BODY_SOLREF``). Under noise, fig21 (seed 10) pressed
+    S5's free end 17 deg askew on N1 with its magnet and the extruded configuration's
+    push (section 4.2), and MuJoCo's default 20 ms contact let it sink 3.0 mm, read as
+    interpenetration. The askew end above, pushed along the strut with the full
+    connection strength besides its magnet, sinks 1.0 mm, under half the limit (4.2 mm
+    with the default); the floor's contacts keep MuJoCo's default."""
+    aimed = _library_config("S6N3", "S6N3-2.3")
+    turn = rot_z(np.radians(6.0))
+    world = FreeSNWorld(aimed.with_vectors(z={e.id: turn @ e.z if e.id == "S5" else e.z
+                                              for e in aimed.edges()}), SPEC, SimOptions())
+    world.command_dock("S5", "b")
+    dofs = world.model.joint("free/S5").dofadr[0] + np.arange(3)
+    depth = 0.0
+    for _ in range(60):
+        toward = world.data.xpos[world.bodies["N1"]] - world.data.xpos[world.bodies["S5"]]
+        world.data.qfrc_applied[dofs] = world.phys.strength * toward / np.linalg.norm(toward)
+        world.step(0.01)
+        depth = max([depth, *(d for a, b, d in world.penetrations(0.0) if {a, b} == {"S5", "N1"})])
+    assert world.docked[world.ends.index(("S5", "b"))] is None
+    assert 0.0 < depth < INTERPENETRATION / 2
+    ground = world.model.geom("ground").id
+    floor = [c.solref for c in world.data.contact[:world.data.ncon] if ground in c.geom]
+    assert floor and np.allclose(floor, [0.02, 1.0])   # MuJoCo's default
+
+
 @pytest.mark.parametrize("angle_deg", [10.0, 20.0, 40.0])
 def test_interpenetration_matches_the_capsules_geometry(angle_deg):
     """Two leaf struts on one node, ``angle`` apart, collide (no exclusion): their
