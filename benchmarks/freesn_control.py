@@ -7,7 +7,9 @@ tracking (:class:`msrr.core.closed_loop.PhaseTracker`), recognizer noise 2 deg a
 commands** (``obs -> commands``; the driver's report assembly and physics excluded) and
 reports its median and 95th percentile, in wall time and in the process's CPU time (on a
 shared machine the CPU time is what the tick costs one core; the wall time also counts
-the other jobs' share of it); the **real-time factor** is simulated time over wall time,
+the other jobs' share of it), and the mean number of evaluations of eq. 6 with its
+gradient in a tick's tracking solve (the tick's work, which the machine's load does not
+change: the CPU time of the same work varies about 2x with the load); the **real-time factor** is simulated time over wall time,
 for the physics alone and for the whole loop (reports, tick, physics).
 Targets at 18 modules (issue 12): tick median <= 20 ms and the simulation's real-time
 factor (physics) >= 5; the loop RTF (reports + tick + physics, one core) is shown too.
@@ -16,8 +18,8 @@ Usage: ``python benchmarks/freesn_control.py [--seed N] [--ticks N] [--workers N
 [--cluster ADDRESS] [--drive holonomic|differential]`` (one batch task per library,
 :mod:`msrr.core.app.batch`; the default
 one worker keeps the timings those of one core alone). The last line is
-``tick_median_ms_18=... tick_p95_ms_18=... tick_cpu_median_ms_18=... rtf_loop_18=...
-rtf_physics_18=...``.
+``tick_median_ms_18=... tick_p95_ms_18=... tick_cpu_median_ms_18=...
+evaluations_per_tick_18=... rtf_loop_18=... rtf_physics_18=...``.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0, drive: str = "
                 if c.key == EDGES[name])
     recognizer = plugins.recognizers.get("freesn")
     controller = plugins.controllers.get("freesn")
-    tick_s, cpu_s, physics_s = [], [], 0.0
+    tick_s, cpu_s, evaluations, physics_s = [], [], [], 0.0
     with FreeSNMujocoDriver(noise=math.radians(2.0), slip=0.05, seed=seed,
                             connector_drive=drive) as driver:
         driver.reset(case.start)
@@ -71,6 +73,8 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0, drive: str = "
             commands = controller.commands(joint, observation, yaw=0.0)
             tick_s.append(time.perf_counter() - t0)
             cpu_s.append(time.process_time() - c0)
+            evaluations.append(tracker.last.problem.evaluations
+                               if tracker.last is not None and tracker.last.problem else 0)
             driver.send_action(commands)
             t1 = time.perf_counter()
             driver.step(1.0 / rate)
@@ -82,7 +86,8 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0, drive: str = "
     cpu = np.array(cpu_s[1:]) * 1e3
     return {"modules": modules, "first_ms": tick_s[0] * 1e3, "median_ms": float(np.median(ms)),
             "p95_ms": float(np.percentile(ms, 95)), "cpu_median_ms": float(np.median(cpu)),
-            "cpu_p95_ms": float(np.percentile(cpu, 95)), "rtf_physics": sim / physics_s,
+            "cpu_p95_ms": float(np.percentile(cpu, 95)),
+            "evaluations": float(np.mean(evaluations[1:])), "rtf_physics": sim / physics_s,
             "rtf_loop": sim / loop_s, "sim_s": sim}
 
 
@@ -108,15 +113,18 @@ def main(seed: int, ticks: int, workers: int, cluster: str | None, drive: str) -
         results[name] = r
         rows.append([name, EDGES[name].split(":", 1)[1], r["modules"], f"{r['first_ms']:.1f}",
                      f"{r['median_ms']:.2f}", f"{r['p95_ms']:.2f}", f"{r['cpu_median_ms']:.2f}",
-                     f"{r['cpu_p95_ms']:.2f}", f"{r['rtf_physics']:.1f}",
+                     f"{r['cpu_p95_ms']:.2f}", f"{r['evaluations']:.1f}",
+                     f"{r['rtf_physics']:.1f}",
                      f"{r['rtf_loop']:.1f}"])
     console.print(table("FreeSN control tick (recognize + IK tracking + commands)",
                         ["library", "edge", "modules", "first tick [ms]", "median [ms]",
-                         "p95 [ms]", "CPU median [ms]", "CPU p95 [ms]", "RTF physics",
+                         "p95 [ms]", "CPU median [ms]", "CPU p95 [ms]", "evals / tick",
+                         "RTF physics",
                          "RTF loop"], rows))
     big = results["S12N6"]
     console.print(f"tick_median_ms_18={big['median_ms']:.2f} tick_p95_ms_18={big['p95_ms']:.2f} "
                   f"tick_cpu_median_ms_18={big['cpu_median_ms']:.2f} "
+                  f"evaluations_per_tick_18={big['evaluations']:.1f} "
                   f"rtf_loop_18={big['rtf_loop']:.1f} rtf_physics_18={big['rtf_physics']:.1f}")
 
 
