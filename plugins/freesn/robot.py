@@ -27,9 +27,10 @@ STRUT = ModuleKind(
         "radius": 0.02,          # body radius [m]; assumed
         "mass": 0.30,            # [kg]; assumed
         # assumed; per wheel radian [F] rolls 0.1715 rad about the node centre and turns
-        # 0.3673 rad about the strut axis, these 0.24 and 0.80 (kept, see the doc)
+        # 0.3673 rad about the strut axis, these 0.24 and 0.51: the base is the firmware's
+        # b / 2R = 0.17151 / 0.36727 on our node (the radius is kept, see the doc)
         "wheel_radius": 0.012,   # connector wheel radius [m]
-        "wheel_base": 0.03,      # distance between a connector's two wheels [m]
+        "wheel_base": 0.0467,  # distance between a connector's two wheels [m]
         "max_wheel_speed": 6.0,  # [rad/s]; [F] bounds its wheels at 2.25 (kept, see the doc)
         # assumed: the hardware's (the simulation takes less: torque_factor, strength_factor)
         "max_torque": 2.0,       # connector drive torque about the node centre, hardware [N m]
