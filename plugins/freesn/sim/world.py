@@ -844,7 +844,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         (the error's ``y`` and ``z`` components; ``x`` is left to the grip), unless the
         twist is free (a strut whose aim alone was commanded, or one whose other end's
         magnet is out to dock); left with a sideways error alone, past ``_STILL_OFF``, it
-        turns toward it again. Within ``_STILL_ON`` of its target (swing and the twist
+        turns toward it again (past ``_TURN_ON`` if its strut's free end drives its wheels,
+        which the turn would steer). Within ``_STILL_ON`` of its target (swing and the twist
         asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`). Each channel is
         the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
         channel asked for nothing stops, its wheels braked (a turn in place holds its
@@ -872,8 +873,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
         twist = np.where(self._twist_free[ks] | docking, 0.0, error[:, 2])
         # a connector left with a sideways error alone, which rolling cannot remove, turns
-        # toward it again
-        aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON)
+        # toward it again; not one whose strut's free end drives its wheels (strut wheels):
+        # that turn would steer them across their course, so it waits for _TURN_ON
+        steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
+        aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON) & ~steers
         self._turning[ks] = np.where(self._turning[ks], np.abs(swing) > _TURN_OFF,
                                      (np.abs(swing) > _TURN_ON)
                                      | (aside & (np.abs(swing) > _STILL_OFF)))

@@ -11,8 +11,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from msrr.core import Configuration
+from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
+from msrr.core.library import load_library
 from msrr.core.shape import skeletal_errors
 from msrr.plugins.freesn.plugin import CONFIGS
 from msrr.plugins.freesn.robot import SPEC
@@ -184,3 +186,30 @@ def test_a_triangle_on_the_floor_held_in_shape_stands_still():
             centres.append(world.data.xpos[world._node_body].copy())
     creep = np.linalg.norm(centres[-1] - centres[9], axis=1) / 2.0
     assert creep.max() < 0.003, creep
+
+
+def test_strut_wheels_legs_do_not_turn_their_wheels_off_course_for_a_sideways_creep():
+    """Fig. 18(d)-(f) with differential connectors: the legs' free-end wheels drive the
+    spider while the node's load creeps the legs sideways on it (~0.1 deg/s, which
+    rolling cannot remove). A leg turned toward that creep (past 0.6 deg) would steer its
+    wheels across their course: before, every leg turned 25-100 deg at 5 s and the body
+    stopped. Now no leg turns for it, and the body drives on at one speed."""
+    library = load_library(CONFIGS.parents[1] / "libraries" / "S4N1.json")
+    chosen = library.sublibraries["S4N1"].behaviors["strut-wheels"]
+    wheels: dict[str, dict[str, float]] = {}
+    for command in chosen.commands:
+        wheels.setdefault(command.module, {})[command.connector] = command.value({"speed": 0.03})
+    with FreeSNMujocoDriver(connector_drive="differential") as driver:
+        driver.reset(load_configuration(CONFIGS / f"{chosen.start}.json"))
+        driver.step(0.5)
+        world = driver.world
+        centre = [world.data.xpos[world._node_body].mean(axis=0).copy()]
+        driver.send_action({m: ModuleCommand(wheels=w) for m, w in wheels.items()})
+        turned = False
+        for _ in range(14):
+            driver.step(0.5)
+            turned |= bool(world._turning.any())
+            centre.append(world.data.xpos[world._node_body].mean(axis=0).copy())
+    first, last = centre[7][0] - centre[0][0], centre[14][0] - centre[7][0]
+    assert not turned
+    assert first > 0.03 and last == pytest.approx(first, rel=0.2)
