@@ -849,7 +849,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`). Each channel is
         the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
         channel asked for nothing stops, its wheels braked (a turn in place holds its
-        rolling); wheels commanded in opposition set ``omega_z`` themselves. The wheel
+        rolling); wheels commanded in opposition set ``omega_z`` themselves, and that
+        connector rolls ``b cos d`` whatever its heading (it cannot turn toward it). The wheel
         speeds: :meth:`_wheel_speeds`.
         """
         p, o = self.phys, self.options
@@ -882,9 +883,12 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                      | (aside & (np.abs(swing) > _STILL_OFF)))
         turning = self._turning[ks]
         gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
-        roll = np.where(turning, swing * np.cos(heading) * gate, error[:, 1])
-        turn = np.where(turning, heading, twist)
+        # a wheeling connector cannot turn (its wheels' difference is its commanded spin):
+        # it rolls out the part of its swing along its heading, which the spin sweeps round
         wheeling = self._wheel[ks] != 0.0
+        roll = np.where(turning | wheeling, swing * np.cos(heading) * (gate + wheeling * (1.0 - gate)),
+                        error[:, 1])
+        turn = np.where(turning, heading, twist)
         still = self._stop(ks, np.hypot(swing, twist), wheeling)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),

@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 from msrr.core import Configuration
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
+from msrr.core.freeform.mujoco import quat_conj, quat_mul
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
 from msrr.core.shape import skeletal_errors
@@ -188,14 +189,12 @@ def test_a_triangle_on_the_floor_held_in_shape_stands_still():
     assert creep.max() < 0.003, creep
 
 
-def test_strut_wheels_legs_do_not_turn_their_wheels_off_course_for_a_sideways_creep():
-    """Fig. 18(d)-(f) with differential connectors: the legs' free-end wheels drive the
-    spider while the node's load creeps the legs sideways on it (~0.1 deg/s, which
-    rolling cannot remove). A leg turned toward that creep (past 0.6 deg) would steer its
-    wheels across their course: before, every leg turned 25-100 deg at 5 s and the body
-    stopped. Now no leg turns for it, and the body drives on at one speed."""
+def _spider(behavior: str) -> tuple[list[float], bool, float]:
+    """S4N1 on its library ``behavior`` at 0.03 m/s with differential connectors for 7 s:
+    its centre's x every 0.5 s [m], whether a leg's connector turned, and the largest
+    swing of a leg off its target on the node [deg] (the simulator's state)."""
     library = load_library(CONFIGS.parents[1] / "libraries" / "S4N1.json")
-    chosen = library.sublibraries["S4N1"].behaviors["strut-wheels"]
+    chosen = library.sublibraries["S4N1"].behaviors[behavior]
     wheels: dict[str, dict[str, float]] = {}
     for command in chosen.commands:
         wheels.setdefault(command.module, {})[command.connector] = command.value({"speed": 0.03})
@@ -203,13 +202,38 @@ def test_strut_wheels_legs_do_not_turn_their_wheels_off_course_for_a_sideways_cr
         driver.reset(load_configuration(CONFIGS / f"{chosen.start}.json"))
         driver.step(0.5)
         world = driver.world
-        centre = [world.data.xpos[world._node_body].mean(axis=0).copy()]
+        legs = np.flatnonzero(world._eq >= 0)
+        centre = [float(world.data.xpos[world._node_body].mean(axis=0)[0])]
         driver.send_action({m: ModuleCommand(wheels=w) for m, w in wheels.items()})
-        turned = False
+        turned, swing = False, 0.0
         for _ in range(14):
             driver.step(0.5)
-            turned |= bool(world._turning.any())
-            centre.append(world.data.xpos[world._node_body].mean(axis=0).copy())
-    first, last = centre[7][0] - centre[0][0], centre[14][0] - centre[7][0]
+            turned |= bool(world._turning[legs].any())
+            centre.append(float(world.data.xpos[world._node_body].mean(axis=0)[0]))
+            error = quat_mul(world._ball_target[legs], quat_conj(world._ball(legs)))
+            tilt = 1.0 - 2.0 * (error[:, 1] ** 2 + error[:, 2] ** 2)
+            swing = max(swing, float(np.degrees(np.arccos(np.clip(tilt, -1.0, 1.0))).max()))
+    return centre, turned, swing
+
+
+def test_strut_wheels_legs_do_not_turn_their_wheels_off_course_for_a_sideways_creep():
+    """Fig. 18(d)-(f) with differential connectors: the legs' free-end wheels drive the
+    spider while the node's load creeps the legs sideways on it (~0.1 deg/s, which
+    rolling cannot remove). A leg turned toward that creep (past 0.6 deg) would steer its
+    wheels across their course: before, every leg turned 25-100 deg at 5 s and the body
+    stopped. Now no leg turns for it, and the body drives on at one speed."""
+    centre, turned, _ = _spider("strut-wheels")
+    first, last = centre[7] - centre[0], centre[14] - centre[7]
     assert not turned
     assert first > 0.03 and last == pytest.approx(first, rel=0.2)
+
+
+def test_struts_as_wheels_legs_hold_their_aim_while_their_wheels_spin_them():
+    """Fig. 18(g)-(i) with differential connectors: a leg's docked wheels spin it about its
+    axis, so they cannot turn it toward an error; it rolls out the part of its swing along
+    its heading as the spin sweeps the heading round. Before it rolled only while heading
+    within 15 deg of the error, and the legs drifted 8 deg off their aim in 5 s (a
+    connection broke at 56 s in the scenario); now they stay within 2 deg."""
+    centre, _, swing = _spider("struts-as-wheels")
+    assert swing < 2.0
+    assert centre[14] - centre[0] > 0.07
