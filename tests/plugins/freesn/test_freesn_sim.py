@@ -477,7 +477,9 @@ def test_saturation_is_reported_while_motors_stall_against_a_load():
 def test_the_integral_action_removes_the_static_error_a_load_leaves():
     """S6N3 standing on three legs crouches under its own weight: the pure position loop
     stops short where its torque balances the load; the integral action (the default)
-    goes on to the goal."""
+    goes on to the goal. Over 9 s: since the wheel base is the firmware's (46.7 mm, stop
+    40) the legs' wider free wheels scrub the floor harder and the integral takes longer
+    (1.61, 1.38, 0.52 deg at 3, 6, 9 s; the pure loop 1.97, 2.06, 2.27 deg)."""
     start = _library_config("S6N3", "S6N3-1.1")
     goal = _lowered(start, np.radians(30.0))
     controller = FreeSNController()
@@ -485,7 +487,7 @@ def test_the_integral_action_removes_the_static_error_a_load_leaves():
     for integral_gain in (0.0, SimOptions().integral_gain):
         with FreeSNMujocoDriver(integral_gain=integral_gain) as driver:
             driver.reset(start)
-            _drive(driver, controller, goal, 30)
+            _drive(driver, controller, goal, 90)
             errors.append(skeletal_errors(driver.world.ground_truth(), goal)[0])
     assert SimOptions().integral_gain > 0.0
     assert errors[1] < 0.5 * errors[0], [f"{np.degrees(e):.2f} deg" for e in errors]
