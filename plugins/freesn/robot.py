@@ -26,9 +26,9 @@ STRUT = ModuleKind(
         "length": 0.20,          # node centre to node centre when both ends dock [m]; assumed
         "radius": 0.02,          # body radius [m]; assumed
         "mass": 0.30,            # [kg]; assumed
-        # assumed; per wheel radian [F] rolls 0.1715 rad about the node centre and turns
-        # 0.3673 rad about the strut axis, these 0.24 and 0.51: the base is the firmware's
-        # b / 2R = 0.17151 / 0.36727 on our node (the radius is kept, see the doc)
+        # per wheel radian [F] rolls 0.1715 rad about the node centre and turns 0.3673 rad
+        # about the strut axis, these 0.24 and 0.51: the radius assumed, the base from the
+        # firmware's ratio b / 2R = 0.17151 / 0.36727 on our node (see the doc)
         "wheel_radius": 0.012,   # connector wheel radius [m]
         "wheel_base": 0.0467,  # distance between a connector's two wheels [m]
         "max_wheel_speed": 6.0,  # [rad/s]; [F] bounds its wheels at 2.25 (kept, see the doc)

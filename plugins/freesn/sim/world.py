@@ -886,8 +886,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # a wheeling connector cannot turn (its wheels' difference is its commanded spin):
         # it rolls out the part of its swing along its heading, which the spin sweeps round
         wheeling = self._wheel[ks] != 0.0
-        roll = np.where(turning | wheeling, swing * np.cos(heading) * (gate + wheeling * (1.0 - gate)),
-                        error[:, 1])
+        roll = np.where(turning | wheeling,
+                        swing * np.cos(heading) * np.where(wheeling, 1.0, gate), error[:, 1])
         turn = np.where(turning, heading, twist)
         still = self._stop(ks, np.hypot(swing, twist), wheeling)
         roll = np.where(still, 0.0, roll)

@@ -135,13 +135,12 @@ def test_a_braked_turn_holds_the_firmwares_share_of_the_rolling_grip():
     (docs/freesn.md, Hardware parameters): a braked connector holds 0.85 of that share of
     its rolling grip about the strut axis (< 0.5 deg in 0.5 s). With the assumed 0.03 m
     wheel base (a share of 0.30) it skidded."""
-    p = _one_strut().phys
     world = _one_strut()
     world.command_brake("S1", "a")
     world.step(0.05)
     share = 0.17151 / 0.36727
-    assert _push(world, np.array([0.0, 0.0, 1.0]), 0.85 * share * p.grip * p.node_radius,
-                 0.5) < 0.5
+    rolling_grip = world.phys.grip * world.phys.node_radius
+    assert _push(world, np.array([0.0, 0.0, 1.0]), 0.85 * share * rolling_grip, 0.5) < 0.5
 
 
 def test_a_connector_turning_in_place_still_grips_in_its_rolling_direction():
