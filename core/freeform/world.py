@@ -209,12 +209,16 @@ def place(config: Configuration, length: float, radius: float
     """Centres (3,) and connector frames (3, 3) of ``config``'s modules in the world.
 
     Breadth-first from each group's smallest id, a connection ``i -> j`` puts ``j`` at
-    ``p_i + length z``; groups are set side by side along ``y``, each lifted so its lowest
-    shell rests on the ground. A connector's axis points along its connection's ``z``;
-    a module without one points its connector down.
+    ``p_i + length z``; each group is lifted so its lowest shell rests on the ground. A
+    group with a module whose ``position`` the file gives is laid where the lab put it:
+    shifted so that that module (its smallest id) is at its ``x, y``, the other given
+    positions agreeing with the vectors within 1 mm; the others are set side by side
+    along ``y``, ``4 radius`` apart. A connector's axis points along its connection's
+    ``z``; a module without one points its connector down.
 
     Raises:
-        ExecutionError: a connection without ``z``, or two shells overlapping.
+        ExecutionError: a connection without ``z``, a given position that disagrees with
+            its piece's vectors, or two shells overlapping.
     """
     modules = [v for v in config.vertices() if not config.is_virtual(v)]
     adjacent: dict[str, list[tuple[str, np.ndarray]]] = {m: [] for m in modules}
@@ -230,10 +234,21 @@ def place(config: Configuration, length: float, radius: float
     offset = 0.0
     for group in lay_out_pieces(adjacent, sorted(modules), length):
         points = np.array(list(group.values()))
-        shift = np.array([0.0, offset - points[:, 1].min(), radius - points[:, 2].min()])
+        given = {m: config.position(m) for m in sorted(group)
+                 if config.position(m) is not None}
+        if given:
+            first = next(iter(given))
+            shift = np.append(given[first][:2] - group[first][:2], radius - points[:, 2].min())
+            for m, at in given.items():
+                off = float(np.linalg.norm(group[m][:2] + shift[:2] - at[:2]))
+                if off > 1e-3:
+                    raise ExecutionError(f"module {m}: its position is {off:.3f} m from "
+                                         f"where its piece's vectors put it (from {first})")
+        else:
+            shift = np.array([0.0, offset - points[:, 1].min(), radius - points[:, 2].min()])
+            offset += points[:, 1].max() - points[:, 1].min() + 4 * radius
         for m, p in group.items():
             centres[m] = p + shift
-        offset += points[:, 1].max() - points[:, 1].min() + 4 * radius
     names = sorted(centres)
     close = cKDTree(np.array([centres[m] for m in names])).query_pairs(2 * radius - 1e-3)
     if close:

@@ -354,3 +354,58 @@ def test_a_piece_whose_goal_place_is_taken_docks_where_the_target_is_free_now():
     way = piece_way(here, piece, set(row), "P1", 0.3, "T0", goal, spacing)
     end = way.legs[-1].to + 0.02 * way.push
     assert np.allclose(end, [0.0, -0.2], atol=1e-6)
+
+
+def _three_chains(apart: float | None) -> Configuration:
+    """Chains A, B, C of five along x (each module on the one before); their first
+    modules at ``y = 0, apart, 2 apart`` when ``apart`` is given, else no positions."""
+    config = Configuration("freebot", name="three-chains")
+    for k, c in enumerate("ABC"):
+        for i in range(1, 6):
+            at = [0.3, k * apart, 0.05] if apart is not None and i == 1 else None
+            config.add_module(f"{c}{i}", "freebot", position=at)
+        for i in range(2, 6):
+            config.connect(f"{c}{i}", f"{c}{i - 1}", z=[-1.0, 0.0, 0.0])
+    return config
+
+
+def test_a_start_laid_out_by_its_positions_leaves_room_to_dock_mid_chain():
+    # the piece A4-A5 lets go of A3 and docks on B3, the middle of the middle chain. Laid
+    # side by side by the world's rule (10 cm between shells) no place touching B3 is
+    # free; laid where the file's positions put the chains (0.6 m apart, as a lab lays
+    # them), the piece finds its way and docks touching B3, clear of every shell
+    from msrr.core.errors import ExecutionError
+    from msrr.core.freeform.piece_way import piece_way
+    from msrr.core.freeform.world import place
+
+    spacing = 0.101
+    goal = {f"B{i}": np.array([0.1 * i, 0.0, 0.0]) for i in range(1, 6)} | {
+        "A4": np.array([0.3, -0.1, 0.0]), "A5": np.array([0.3, -0.2, 0.0])}
+    piece, group = {"A4", "A5"}, {f"B{i}" for i in range(1, 6)}
+    packed, _ = place(_three_chains(None), spacing, 0.05)
+    here = {m: c[:2] for m, c in packed.items()}
+    with pytest.raises(ExecutionError, match="no place touching module B3 is free"):
+        piece_way(here, piece, group, "A4", 0.0, "B3", goal, spacing)
+    laid, _ = place(_three_chains(0.6), spacing, 0.05)
+    assert np.allclose(laid["C1"], [0.3, 1.2, 0.05]) and np.allclose(laid["C5"], [0.704, 1.2, 0.05])
+    here = {m: c[:2] for m, c in laid.items()}
+    way = piece_way(here, piece, group, "A4", 0.0, "B3", goal, spacing)
+    end = way.legs[-1].to + 0.02 * way.push
+    shape = np.array([here[m] for m in way.piece])
+    docked = end + (shape - shape.mean(axis=0)) @ rot_z(way.legs[-1].heading)[:2, :2].T
+    root = docked[way.piece.index("A4")]
+    assert abs(np.linalg.norm(root - here["B3"]) - spacing) < 0.005, "A4 touches B3"
+    others = np.array([p for m, p in here.items() if m not in piece])
+    gaps = np.linalg.norm(docked[:, None, :] - others[None, :, :], axis=2)
+    gaps[way.piece.index("A4"), list(m for m in here if m not in piece).index("B3")] = np.inf
+    assert gaps.min() >= spacing - 0.01
+
+
+def test_a_position_that_disagrees_with_its_piece_is_named():
+    from msrr.core.errors import ExecutionError
+    from msrr.core.freeform.world import place
+
+    config = _three_chains(0.6)
+    config.graph.nodes["A3"]["position"] = np.array([0.0, 5.0, 0.05])
+    with pytest.raises(ExecutionError, match=r"^module A3: its position is 5\.\d+ m from"):
+        place(config, 0.101, 0.05)
