@@ -6,11 +6,14 @@ controller would plan it -- a lone module's way (``travel.floor_path``), a piece
 (``piece_way.piece_way``: its goal place, or the free place nearest to it) -- on the
 centres the previous steps left, each piece put where its way ends, docked (no physics:
 what the ways need, not what the MuJoCo run does). Prints the seed and, per step, the
-piece's size, where it docks (goal place or not), its legs, the travel of its centroid
-and the time the way takes at the piece speed; stops at the first step whose way cannot
-be planned and says why.
+piece's size, where it docks (goal place or not), its legs, the travel of its farthest
+module beside the straight distance its centroid covers, and the time the way takes at
+the piece speed; stops at the first step whose way cannot be planned and says why.
 
-Usage: ``python benchmarks/human_floor.py [--seed 0] [--steps 47]``.
+``--start`` takes another start file of the same modules (one whose module positions lay
+the chains elsewhere, as a lab would).
+
+Usage: ``python benchmarks/human_floor.py [--seed 0] [--steps 47] [--start FILE]``.
 """
 
 from __future__ import annotations
@@ -69,6 +72,7 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
         if groups[c.source] == groups[c.target]:
             continue
         piece, t0 = groups[c.source], time.perf_counter()
+        before = np.mean([pos[m] for m in piece], axis=0)
         if len(piece) == 1:
             others = {m: np.append(p - pos[c.source], 0.0) for m, p in pos.items()
                       if m != c.source}
@@ -77,7 +81,7 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
             length = float(np.sum(np.linalg.norm(np.diff([np.zeros(2), *way], axis=0),
                                                  axis=1)))
             return [str(k), f"{c.source} -> {c.target}", "1", "nearest free spot", "-",
-                    f"{length:.2f}", f"{length / 0.04:.0f}",
+                    f"{length:.2f}", f"{np.linalg.norm(way[-1]):.2f}", f"{length / 0.04:.0f}",
                     f"{time.perf_counter() - t0:.1f}"]
         goal = _goal_centres(action.target, spacing)
         way = piece_way(pos, piece, groups[c.target], c.source, 0.0, c.target, goal, spacing)
@@ -94,7 +98,9 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
             way.legs, strict=True))
         return [str(k), f"{c.source} -> {c.target}", str(len(piece)),
                 "goal place" if at_goal else "free place, not the goal's",
-                str(len(way.legs)), f"{travel:.2f}", f"{travel / SPEED:.0f}",
+                str(len(way.legs)), f"{travel:.2f}",
+                f"{np.linalg.norm(np.mean([pos[m] for m in piece], axis=0) - before):.2f}",
+                f"{travel / SPEED:.0f}",
                 f"{time.perf_counter() - t0:.1f}"]
     return None
 
@@ -102,11 +108,15 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
 @click.command()
 @click.option("--seed", default=0, show_default=True)
 @click.option("--steps", default=47, show_default=True, help="plan this many actions")
-def main(seed: int, steps: int) -> None:
+@click.option("--start", "start_file", type=click.Path(exists=True, dir_okay=False,
+                                                       path_type=Path),
+              default=HUMAN / "human-chains.json", show_default=True,
+              help="the start file (the same modules, any layout)")
+def main(seed: int, steps: int, start_file: Path) -> None:
     from msrr.core import plugins
     from msrr.core.freeform.world import place
 
-    start = load_configuration(HUMAN / "human-chains.json")
+    start = load_configuration(start_file)
     goal = load_configuration(HUMAN / "human.json")
     plan = plugins.planners.get("freebot", "miso").plan(start, goal, seed=seed)
     spacing = 0.101
@@ -126,7 +136,7 @@ def main(seed: int, steps: int) -> None:
         current = action.target
     console.print(table("the human example's floor steps, planned kinematically",
                         ["action", "dock", "modules", "where", "legs", "travel [m]",
-                         "at 0.02 m/s [s]", "planning [s]"], rows))
+                         "straight [m]", "at 0.02 m/s [s]", "planning [s]"], rows))
     console.print(why or f"all {min(steps, len(plan.actions))} actions planned")
 
 

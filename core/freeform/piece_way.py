@@ -390,31 +390,38 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     others = np.array([here[m] for m in names], dtype=float).reshape(-1, 2)
     start = (now.mean(axis=0), heading)
     space = _Space(others, offsets, spacing, start)
-    docks = [(then.mean(axis=0), wrap(heading + turn), push)]
+    wanted = (then.mean(axis=0), wrap(heading + turn), push)
     index = (ms.index(root), others, names.index(target))
-    if not _dock_free(space, offsets, *index, *docks[0], clear_in=False):
-        docks = _free_docks(space, offsets, *index, line0, docks[0])[:_TRIES]
-        if not docks:
-            raise ExecutionError(f"no place touching module {target} is free for the piece "
-                                 f"of {len(ms)} modules led by {root}")
-    for k, (middle, hd, push) in enumerate(docks):
+    docks = [wanted] if _dock_free(space, offsets, *index, *wanted, clear_in=False) else []
+    k, more = 0, True
+    while k < len(docks) or more:
+        if k == len(docks):           # no way to the goal place: the free places next
+            docks += _free_docks(space, offsets, *index, line0, wanted)
+            more = False
+            if k == len(docks):
+                break
+        middle, hd, push = docks[k]
+        k += 1
         finish = middle - _SHORT * push
         try:
             legs = plan_legs(others, offsets, line0, start, (finish - _LAST * push, hd),
                              spacing)
         except ExecutionError:
-            if k + 1 == len(docks):
-                raise
             continue
         legs.append(Leg("drive", finish, hd))
         return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs),
                         centre, push, line0)
-    raise AssertionError("unreachable")
+    if not docks:
+        raise ExecutionError(f"no place touching module {target} is free for the piece "
+                             f"of {len(ms)} modules led by {root}")
+    raise ExecutionError(f"no free way over the floor for the piece of {len(ms)} modules "
+                         f"led by {root} to any of {len(docks)} places touching {target}")
 
 
 _TRIES = 4            # free docking places tried (nearest the goal's first)
 _OVERLAP = 0.01       # shells closer than the spacing less this overlap [m]
 _DIRECTIONS = 72      # directions of the root about the target tried
+_APART = np.pi / 3    # free places tried first lie this far apart about the target [rad]
 
 
 def normalized(vector: np.ndarray) -> np.ndarray:
@@ -457,8 +464,11 @@ def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarra
     ``others[target]``: the root touching it from one of ``_DIRECTIONS`` directions, the piece
     turned so that its centroid lies straight away from the target beyond the root (a
     bent piece also turned ``pi / 8`` and ``pi / 4`` either side), pushing toward the
-    target (a straight piece along its line); nearest to ``wanted`` first (centroid
-    distance plus heading difference times the piece's reach)."""
+    target (a straight piece along its line): the ``_TRIES`` nearest to ``wanted``
+    (centroid distance plus heading difference times the piece's reach), then up to as
+    many more, each the nearest of another side of the target (its direction ``_APART``
+    from those before: a way that cannot reach one place seldom reaches its
+    neighbours)."""
     arm = -offsets[root]                           # root -> centroid at heading 0
     centre = others[target]
     spacing = space.limit - _CLEARANCE
@@ -477,6 +487,10 @@ def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarra
             if _dock_free(space, offsets, root, others, target, middle, heading, push):
                 cost = float(np.linalg.norm(middle - wanted[0])) \
                     + space.reach * abs(wrap(heading - wanted[1]))
-                found.append((cost, middle, heading, push))
+                found.append((cost, phi, middle, heading, push))
     found.sort(key=lambda f: f[0])
-    return [(m, h, p) for _, m, h, p in found]
+    apart = found[:_TRIES]                # the nearest, then the nearest of other sides
+    for f in found[_TRIES:]:
+        if len(apart) < 2 * _TRIES and all(abs(wrap(f[1] - g[1])) >= _APART for g in apart):
+            apart.append(f)
+    return [(m, h, p) for _, _, m, h, p in apart]

@@ -409,3 +409,31 @@ def test_a_position_that_disagrees_with_its_piece_is_named():
     config.graph.nodes["A3"]["position"] = np.array([0.0, 5.0, 0.05])
     with pytest.raises(ExecutionError, match=r"^module A3: its position is 5\.\d+ m from"):
         place(config, 0.101, 0.05)
+
+
+def test_a_goal_place_no_way_reaches_gives_way_to_a_free_place(monkeypatch):
+    # the goal hangs the piece P1-P2 from T inside a pen closed by T's own row: the place
+    # is free but no way leads in, nor to the free places beside it, so the piece docks
+    # at a free place on another side of T, outside (before, the search for the goal
+    # place's way failed the step: "no free way"). The search is bounded to keep the
+    # failing ones short
+    from msrr.core.freeform import piece_way as ways
+    from msrr.core.freeform.piece_way import piece_way
+
+    monkeypatch.setattr(ways, "_EXPANSIONS", 300)
+
+    spacing = 0.1
+    row = {f"R{i}": np.array([0.1 * i - 0.4, 0.0]) for i in range(9)}       # T is R4
+    pen = {f"W{k}": p for k, p in enumerate(
+        [np.array([x, -0.8]) for x in np.arange(-0.4, 0.41, 0.1)]
+        + [np.array([s * 0.4, -0.1 * j]) for s in (-1, 1) for j in range(1, 8)])}
+    piece = {"P1": np.array([0.0, 0.6]), "P2": np.array([0.1, 0.6])}
+    here = row | pen | piece
+    goal = {m: np.append(p, 0.0) for m, p in (row | pen).items()} | {
+        "P1": np.array([0.0, -0.1, 0.0]), "P2": np.array([0.0, -0.2, 0.0])}
+    way = piece_way(here, set(piece), set(row) | set(pen), "P1", 0.0, "R4", goal, spacing)
+    end = way.legs[-1].to + 0.02 * way.push
+    assert end[1] > 0.1, "docked outside the pen, on the row's open side"
+    offsets = np.array([piece[m] for m in way.piece]) - np.mean(list(piece.values()), axis=0)
+    others = np.array([p for m, p in here.items() if m not in piece])
+    assert _closest(way.legs, offsets, others, (way.origin, 0.0)) >= spacing
