@@ -66,6 +66,8 @@ class FreeformDriver(MujocoDriver[FreeformWorld]):
         return FreeformWorld(start, self.design, self.sim_options)
 
     def send_action(self, commands: Mapping[str, ModuleCommand]) -> None:
+        if self.world is None and not commands:
+            return   # nothing to stop: no world was built (its reset failed, and says why)
         world = self._world()
         unknown = set(commands) - set(world.modules)
         if unknown:

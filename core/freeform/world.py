@@ -242,8 +242,9 @@ def place(config: Configuration, length: float, radius: float
             for m, at in given.items():
                 off = float(np.linalg.norm(group[m][:2] + shift[:2] - at[:2]))
                 if off > 1e-3:
-                    raise ExecutionError(f"module {m}: its position is {off:.3f} m from "
-                                         f"where its piece's vectors put it (from {first})")
+                    raise ExecutionError(f"configuration {config.name!r}: module {m}: its "
+                                         f"position is {off:.3f} m from where its piece's "
+                                         f"vectors put it (from {first})")
         else:
             shift = np.array([0.0, offset - points[:, 1].min(), radius - points[:, 2].min()])
             offset += points[:, 1].max() - points[:, 1].min() + 4 * radius

@@ -407,8 +407,27 @@ def test_a_position_that_disagrees_with_its_piece_is_named():
 
     config = _three_chains(0.6)
     config.graph.nodes["A3"]["position"] = np.array([0.0, 5.0, 0.05])
-    with pytest.raises(ExecutionError, match=r"^module A3: its position is 5\.\d+ m from"):
+    with pytest.raises(ExecutionError, match=r"^configuration 'three-chains': module A3: "
+                                             r"its position is 5\.\d+ m from"):
         place(config, 0.101, 0.05)
+
+
+def test_a_start_the_world_cannot_lay_out_stops_the_run_saying_why(tmp_path, monkeypatch):
+    # the error of the failed reset reaches the user, not the stop sent after it
+    from click.testing import CliRunner
+
+    from msrr.core.app.cli import get_cli
+    from msrr.core.io import save_configuration
+
+    config = _three_chains(0.6)
+    config.graph.nodes["A3"]["position"] = np.array([0.0, 5.0, 0.05])
+    save_configuration(config, tmp_path / "bad.json")
+    save_configuration(_three_chains(None), tmp_path / "good.json")
+    monkeypatch.chdir(tmp_path)
+    out = CliRunner().invoke(get_cli(), ["run", "--robot", "freebot", "--from", "bad.json",
+                                         "--to", "good.json", "--no-log"])
+    assert out.exit_code != 0
+    assert "module A3: its position is 5." in out.output.splitlines()[-1]
 
 
 def test_a_goal_place_no_way_reaches_gives_way_to_a_free_place(monkeypatch):
