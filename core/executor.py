@@ -122,8 +122,9 @@ from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_r
 from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
-__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "behavior_commands",
-           "course_loop", "heading_loop", "held_heading", "phases_of", "turn_bound"]
+__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "ShapeYield",
+           "behavior_commands", "course_loop", "deformation", "heading_loop", "held_heading",
+           "phases_of", "turn_bound"]
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,9 @@ class ExecutorOptions:
         course_integral: its integral gain [1/m^2], per metre of travel (a crab the
             wheels make unasked).
         max_course_offset: bound of the heading offset it sets [rad].
+        yield_from: held-shape deformation [rad] above which a mapping behavior's wheels
+            slow down (:class:`ShapeYield`); yield_to: where they stop [rad] (0: no
+            yield); yield_time: the deformation's low-pass time constant [s].
     """
 
     rate: float = 10.0
@@ -159,6 +163,9 @@ class ExecutorOptions:
     course_gain: float = 6.0
     course_integral: float = 9.0
     max_course_offset: float = math.radians(60.0)
+    yield_from: float = math.radians(3.0)
+    yield_to: float = math.radians(6.0)
+    yield_time: float = 0.5
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -171,6 +178,11 @@ class ExecutorOptions:
                  self.course_gain, self.course_integral, self.max_course_offset)
         if min(loops) < 0:
             raise ExecutionError(f"heading and course gains and bounds must be >= 0, got {loops}")
+        if self.yield_to and not (0 <= self.yield_from < self.yield_to
+                                  and self.yield_time > 0):
+            raise ExecutionError("shape yield needs 0 <= yield_from < yield_to and "
+                                 f"yield_time > 0, got {self.yield_from}, {self.yield_to}, "
+                                 f"{self.yield_time}")
 
 
 def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> list[Phase]:
@@ -339,6 +351,54 @@ class CourseLoop:
                              -self.bound, self.bound))
 
 
+def deformation(current: Configuration, goal: Configuration) -> np.ndarray:
+    """What is left of ``current``'s shape against ``goal``'s once its yaw is aligned
+    (eq. 8): per shared edge, ``Rz(-yaw) z - z_goal`` in the goal's frame, shape (3, n)
+    (its norm is the edge's angle for small errors); empty without vectors."""
+    have = {e.id for e in current.edges() if e.z is not None}
+    ids = [e.id for e in goal.edges() if e.id in have and e.z is not None]
+    if not ids:
+        return np.zeros((3, 0))
+    yaw = skeletal_errors(current, goal)[2]
+    return rot_z(-yaw) @ current.vectors(ids) - goal.vectors(ids)
+
+
+@dataclass
+class ShapeYield:
+    """A mapping behavior's wheels yield to the shape it holds (issue 31): wheels that
+    push a held shape harder than its connectors hold it (fig18's node wheels turning
+    under a noisy heading) scissor its legs, the scissor reads as a turn, the heading
+    loop turns harder and the shape runs away (16.7 deg in 2.5 s, seed 15). So every
+    wheel speed is scaled by ``clip((to - e) / (to - from), 0, 1)``, ``e`` the RMS of
+    the per-edge :func:`deformation` low-passed over ``time`` [s] (a report's noise is
+    white per tick, a deformation is not: 2 deg of noise leaves about 0.9 deg at 0.5 s):
+    full speed while the shape holds, stopped while its connectors restore it.
+
+    Attributes:
+        goal: the shape held; start, stop: ``from`` and ``to`` [rad]; time: [s].
+        residual: the low-passed deformation, shape (3, n), ``None`` before the first.
+    """
+
+    goal: Configuration
+    start: float
+    stop: float
+    time: float
+    residual: np.ndarray | None = None
+
+    def scale(self, current: Configuration, dt: float) -> float:
+        """The wheels' scale in [0, 1] with ``current`` recognized ``dt`` [s] after the
+        last call."""
+        now = deformation(current, self.goal)
+        if self.residual is None or self.residual.shape != now.shape:
+            self.residual = now
+        else:
+            self.residual = self.residual + min(1.0, dt / self.time) * (now - self.residual)
+        if not self.residual.size:
+            return 1.0
+        error = float(np.sqrt(np.mean(np.einsum("in,in->n", self.residual, self.residual))))
+        return float(np.clip((self.stop - error) / (self.stop - self.start), 0.0, 1.0))
+
+
 def heading_loop(call: BehaviorCall | None, heading: float | None,
                  options: ExecutorOptions) -> HeadingLoop | None:
     """The heading loop of a mapping behavior that has a ``yaw_rate`` gain, starting at
@@ -458,6 +518,7 @@ class Executor:
         self.estimate = Estimate()
         self._loop: HeadingLoop | None = None  # the running mapping behavior's
         self._course: CourseLoop | None = None  # and its course loop, if straight
+        self._yield: ShapeYield | None = None  # and its wheels' yield to the shape held
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -579,6 +640,10 @@ class Executor:
                 if phase is Phase.BEHAVIOR else None
             self._course = None if self._loop is None else course_loop(
                 action.behavior, self.estimate, self._frame(action), self.options)
+            o = self.options
+            self._yield = ShapeYield(action.target, o.yield_from, o.yield_to, o.yield_time) \
+                if phase is Phase.BEHAVIOR and self._tracker is not None and o.yield_to \
+                else None
             deadline = self.driver.time + budget
             if phase is Phase.BEHAVIOR and action.behavior is not None \
                     and action.behavior.duration is not None:
@@ -698,7 +763,9 @@ class Executor:
             extra = _merge(Control(commands=extra), _port_commands(diff.made, "dock"))
         commands = _merge(control, extra)
         if phase is Phase.BEHAVIOR:
-            commands = _with_wheels(commands, behavior_commands(action, self._steered(action)))
+            scale = 1.0 if self._yield is None else self._yield.scale(configuration, self.dt)
+            commands = _with_wheels(commands, behavior_commands(action,
+                                                                self._steered(action, scale)))
         self.driver.send_action(commands)
         self.driver.step(self.dt)
         self.tick_index += 1  # executed: counted even if a listener is interrupted below
@@ -728,16 +795,17 @@ class Executor:
         call = action.behavior
         return call is not None and call.distance is not None and self._moved() >= call.distance
 
-    def _steered(self, action: Action) -> dict[str, float] | None:
-        """The behavior's parameters, ``yaw_rate`` corrected by its heading loop."""
+    def _steered(self, action: Action, scale: float = 1.0) -> dict[str, float] | None:
+        """The behavior's parameters, ``yaw_rate`` corrected by its heading loop, the
+        correction times ``scale`` (:class:`ShapeYield`)."""
         loop, call, heading = self._loop, action.behavior, self._heading(action)
         if loop is None or call is None or heading is None:
             return None
         place = self.estimate.position
         offset = 0.0 if self._course is None or place is None else self._course.offset(place)
-        correction = loop.correction(heading, self.driver.time - self._phase_began, self.dt,
-                                     offset)
-        return {**call.parameters, "yaw_rate": loop.asked + correction}
+        correction = loop.correction(heading, self.driver.time - self._phase_began,
+                                     self.dt * scale, offset)   # no wind-up while muted
+        return {**call.parameters, "yaw_rate": loop.asked + scale * correction}
 
     def _heading(self, action: Action) -> float | None:
         """The estimated heading [rad] of the body ``action`` holds (:func:`held_heading`)."""
