@@ -172,7 +172,7 @@ class ExecutorOptions:
     stall_time: float = 1.0
     yield_from: float = math.radians(3.0)
     yield_to: float = math.radians(6.0)
-    yield_time: float = 0.5
+    yield_time: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -381,7 +381,7 @@ class ShapeYield:
     loop turns harder and the shape runs away (16.7 deg in 2.5 s, seed 15). So every
     wheel speed is scaled by ``clip((to - e) / (to - from), 0, 1)``, ``e`` the RMS of
     the per-edge :func:`deformation` low-passed over ``time`` [s] (a report's noise is
-    white per tick, a deformation is not: 2 deg of noise leaves about 0.9 deg at 0.5 s):
+    white per tick, a deformation is not: 2 and 4 deg of report noise leave at most about 1.2 and 2.4 deg at 1 s):
     full speed while the shape holds, stopped while its connectors restore it.
 
     Attributes:
@@ -400,9 +400,8 @@ class ShapeYield:
         last call."""
         now = deformation(current, self.goal)
         if self.residual is None or self.residual.shape != now.shape:
-            self.residual = now
-        else:
-            self.residual = self.residual + min(1.0, dt / self.time) * (now - self.residual)
+            self.residual = np.zeros_like(now)   # the behavior starts from its shape reached
+        self.residual = self.residual + min(1.0, dt / self.time) * (now - self.residual)
         if not self.residual.size:
             return 1.0
         error = float(np.sqrt(np.mean(np.einsum("in,in->n", self.residual, self.residual))))
