@@ -151,9 +151,9 @@ class ExecutorOptions:
             improved by less than ``stall_gain`` [rad] over this long [s of driver time]
             ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
             error's low-pass time constant [s].
-        yield_from: held-shape deformation [rad] above which a mapping behavior's wheels
-            slow down (:class:`ShapeYield`); yield_to: where they stop [rad] (0: no
-            yield); yield_time: the deformation's low-pass time constant [s].
+        yield_from: held-shape deformation [rad] above which a mapping behavior's
+            heading loop yields (:class:`ShapeYield`); yield_to: where it has no say
+            [rad] (0: no yield); yield_time: the deformation's low-pass time constant [s].
     """
 
     rate: float = 10.0
@@ -375,17 +375,21 @@ def deformation(current: Configuration, goal: Configuration) -> np.ndarray:
 
 @dataclass
 class ShapeYield:
-    """A mapping behavior's wheels yield to the shape it holds (issue 31): wheels that
-    push a held shape harder than its connectors hold it (fig18's node wheels turning
-    under a noisy heading) scissor its legs, the scissor reads as a turn, the heading
-    loop turns harder and the shape runs away (16.7 deg in 2.5 s, seed 15). So every
-    wheel speed is scaled by ``clip((to - e) / (to - from), 0, 1)``, ``e`` the RMS of
-    the per-edge :func:`deformation` low-passed over ``time`` [s] (a report's noise is
-    white per tick, a deformation is not: 2 and 4 deg of report noise leave at most about 1.2 and 2.4 deg at 1 s):
-    full speed while the shape holds, stopped while its connectors restore it.
+    """A mapping behavior's heading loop yields to the shape it holds (issue 31): wheels
+    that turn a held shape harder than its connectors hold it (fig18's node wheels under
+    a noisy heading) scissor its legs, the scissor moves the eq. 8 fit the held heading
+    is read from, the loop turns harder and the shape runs away (16.7 deg in 2.5 s,
+    seed 15 at 2 deg + 5 %). So the loop's correction is scaled by ``clip((stop - e) /
+    (stop - start), 0, 1)``, ``e`` the RMS of the per-edge :func:`deformation`
+    low-passed over ``time`` [s] (report noise is white per tick, a deformation is not:
+    2 and 4 deg of noise leave at most about 1.2 and 2.4 deg at 1 s): full authority
+    while the shape holds, none (the wheels rolling straight) while its connectors
+    restore it. Not the wheels themselves: stopped, they brake the legs' feet and the
+    scissor cannot unwind.
 
     Attributes:
-        goal: the shape held; start, stop: ``from`` and ``to`` [rad]; time: [s].
+        goal: the shape held; start, stop: where the yield starts and is full [rad];
+            time: [s].
         residual: the low-passed deformation, shape (3, n), ``None`` before the first.
     """
 
@@ -396,8 +400,8 @@ class ShapeYield:
     residual: np.ndarray | None = None
 
     def scale(self, current: Configuration, dt: float) -> float:
-        """The wheels' scale in [0, 1] with ``current`` recognized ``dt`` [s] after the
-        last call."""
+        """The correction's scale in [0, 1] with ``current`` recognized ``dt`` [s] after
+        the last call."""
         now = deformation(current, self.goal)
         if self.residual is None or self.residual.shape != now.shape:
             self.residual = np.zeros_like(now)   # the behavior starts from its shape reached
@@ -573,7 +577,7 @@ class Executor:
         self.estimate = Estimate()
         self._loop: HeadingLoop | None = None  # the running mapping behavior's
         self._course: CourseLoop | None = None  # and its course loop, if straight
-        self._yield: ShapeYield | None = None  # and its wheels' yield to the shape held
+        self._yield: ShapeYield | None = None  # and the loop's yield to the shape held
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -697,7 +701,7 @@ class Executor:
                 action.behavior, self.estimate, self._frame(action), self.options)
             o = self.options
             self._yield = ShapeYield(action.target, o.yield_from, o.yield_to, o.yield_time) \
-                if phase is Phase.BEHAVIOR and self._tracker is not None and o.yield_to \
+                if self._loop is not None and self._tracker is not None and o.yield_to \
                 else None
             deadline = self.driver.time + budget
             if phase is Phase.BEHAVIOR and action.behavior is not None \
