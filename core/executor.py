@@ -122,9 +122,9 @@ from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_r
 from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
-__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "ShapeYield", "StallWatch",
-           "behavior_commands", "course_loop", "deformation", "heading_loop", "held_heading",
-           "phases_of", "turn_bound"]
+__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "StallWatch",
+           "behavior_commands", "course_loop", "heading_loop", "held_heading", "phases_of",
+           "turn_bound"]
 
 
 @dataclass(frozen=True)
@@ -151,9 +151,6 @@ class ExecutorOptions:
             improved by less than ``stall_gain`` [rad] over this long [s of driver time]
             ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
             error's low-pass time constant [s].
-        yield_from: held-shape deformation [rad] above which a mapping behavior's
-            heading loop yields (:class:`ShapeYield`); yield_to: where it has no say
-            [rad] (0: no yield); yield_time: the deformation's low-pass time constant [s].
     """
 
     rate: float = 10.0
@@ -170,9 +167,6 @@ class ExecutorOptions:
     stall_window: float = 15.0
     stall_gain: float = math.radians(0.5)
     stall_time: float = 1.0
-    yield_from: float = math.radians(3.0)
-    yield_to: float = math.radians(6.0)
-    yield_time: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -188,11 +182,6 @@ class ExecutorOptions:
         if min(self.stall_window, self.stall_gain) < 0 or not self.stall_time > 0:
             raise ExecutionError("stall window and gain must be >= 0 and its time > 0, got "
                                  f"{self.stall_window}, {self.stall_gain}, {self.stall_time}")
-        if self.yield_to and not (0 <= self.yield_from < self.yield_to
-                                  and self.yield_time > 0):
-            raise ExecutionError("shape yield needs 0 <= yield_from < yield_to and "
-                                 f"yield_time > 0, got {self.yield_from}, {self.yield_to}, "
-                                 f"{self.yield_time}")
 
 
 def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> list[Phase]:
@@ -361,57 +350,6 @@ class CourseLoop:
                              -self.bound, self.bound))
 
 
-def deformation(current: Configuration, goal: Configuration) -> np.ndarray:
-    """What is left of ``current``'s shape against ``goal``'s once its yaw is aligned
-    (eq. 8): per shared edge, ``Rz(-yaw) z - z_goal`` in the goal's frame, shape (3, n)
-    (its norm is the edge's angle for small errors); empty without vectors."""
-    have = {e.id for e in current.edges() if e.z is not None}
-    ids = [e.id for e in goal.edges() if e.id in have and e.z is not None]
-    if not ids:
-        return np.zeros((3, 0))
-    yaw = skeletal_errors(current, goal)[2]
-    return rot_z(-yaw) @ current.vectors(ids) - goal.vectors(ids)
-
-
-@dataclass
-class ShapeYield:
-    """A mapping behavior's heading loop yields to the shape it holds (issue 31): wheels
-    that turn a held shape harder than its connectors hold it (fig18's node wheels under
-    a noisy heading) scissor its legs, the scissor moves the eq. 8 fit the held heading
-    is read from, the loop turns harder and the shape runs away (16.7 deg in 2.5 s,
-    seed 15 at 2 deg + 5 %). So the loop's correction is scaled by ``clip((stop - e) /
-    (stop - start), 0, 1)``, ``e`` the RMS of the per-edge :func:`deformation`
-    low-passed over ``time`` [s] (report noise is white per tick, a deformation is not:
-    2 and 4 deg of noise leave at most about 1.2 and 2.4 deg at 1 s): full authority
-    while the shape holds, none (the wheels rolling straight) while its connectors
-    restore it. Not the wheels themselves: stopped, they brake the legs' feet and the
-    scissor cannot unwind.
-
-    Attributes:
-        goal: the shape held; start, stop: where the yield starts and is full [rad];
-            time: [s].
-        residual: the low-passed deformation, shape (3, n), ``None`` before the first.
-    """
-
-    goal: Configuration
-    start: float
-    stop: float
-    time: float
-    residual: np.ndarray | None = None
-
-    def scale(self, current: Configuration, dt: float) -> float:
-        """The correction's scale in [0, 1] with ``current`` recognized ``dt`` [s] after
-        the last call."""
-        now = deformation(current, self.goal)
-        if self.residual is None or self.residual.shape != now.shape:
-            self.residual = np.zeros_like(now)   # the behavior starts from its shape reached
-        self.residual = self.residual + min(1.0, dt / self.time) * (now - self.residual)
-        if not self.residual.size:
-            return 1.0
-        error = float(np.sqrt(np.mean(np.einsum("in,in->n", self.residual, self.residual))))
-        return float(np.clip((self.stop - error) / (self.stop - self.start), 0.0, 1.0))
-
-
 @dataclass
 class StallWatch:
     """Ends a phase that makes no progress (issue 31): a collapsed noisy S12N6 crawl ran
@@ -577,7 +515,6 @@ class Executor:
         self.estimate = Estimate()
         self._loop: HeadingLoop | None = None  # the running mapping behavior's
         self._course: CourseLoop | None = None  # and its course loop, if straight
-        self._yield: ShapeYield | None = None  # and the loop's yield to the shape held
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -699,10 +636,6 @@ class Executor:
                 if phase is Phase.BEHAVIOR else None
             self._course = None if self._loop is None else course_loop(
                 action.behavior, self.estimate, self._frame(action), self.options)
-            o = self.options
-            self._yield = ShapeYield(action.target, o.yield_from, o.yield_to, o.yield_time) \
-                if self._loop is not None and self._tracker is not None and o.yield_to \
-                else None
             deadline = self.driver.time + budget
             if phase is Phase.BEHAVIOR and action.behavior is not None \
                     and action.behavior.duration is not None:
@@ -844,9 +777,7 @@ class Executor:
             extra = _merge(Control(commands=extra), _port_commands(diff.made, "dock"))
         commands = _merge(control, extra)
         if phase is Phase.BEHAVIOR:
-            scale = 1.0 if self._yield is None else self._yield.scale(configuration, self.dt)
-            commands = _with_wheels(commands, behavior_commands(action,
-                                                                self._steered(action, scale)))
+            commands = _with_wheels(commands, behavior_commands(action, self._steered(action)))
         self.driver.send_action(commands)
         self.driver.step(self.dt)
         self.tick_index += 1  # executed: counted even if a listener is interrupted below
@@ -876,17 +807,16 @@ class Executor:
         call = action.behavior
         return call is not None and call.distance is not None and self._moved() >= call.distance
 
-    def _steered(self, action: Action, scale: float = 1.0) -> dict[str, float] | None:
-        """The behavior's parameters, ``yaw_rate`` corrected by its heading loop, the
-        correction times ``scale`` (:class:`ShapeYield`)."""
+    def _steered(self, action: Action) -> dict[str, float] | None:
+        """The behavior's parameters, ``yaw_rate`` corrected by its heading loop."""
         loop, call, heading = self._loop, action.behavior, self._heading(action)
         if loop is None or call is None or heading is None:
             return None
         place = self.estimate.position
         offset = 0.0 if self._course is None or place is None else self._course.offset(place)
-        correction = loop.correction(heading, self.driver.time - self._phase_began,
-                                     self.dt * scale, offset)   # no wind-up while muted
-        return {**call.parameters, "yaw_rate": loop.asked + scale * correction}
+        correction = loop.correction(heading, self.driver.time - self._phase_began, self.dt,
+                                     offset)
+        return {**call.parameters, "yaw_rate": loop.asked + correction}
 
     def _heading(self, action: Action) -> float | None:
         """The estimated heading [rad] of the body ``action`` holds (:func:`held_heading`)."""
