@@ -292,6 +292,12 @@ class PhaseTracker:
         return current.with_vectors(z=z)
 
     @property
+    def error(self) -> float:
+        """RMS angle [rad] of the low-passed recognized configuration from the goal after
+        yaw alignment, as of the last :meth:`step` (``inf`` before it)."""
+        return float(self._error)
+
+    @property
     def reached(self) -> bool:
         """The recognized configuration is within ``reach_tolerance`` RMS of the goal after
         yaw alignment (checked on the configuration of the last :meth:`step`)."""

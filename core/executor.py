@@ -122,8 +122,9 @@ from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_r
 from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
-__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "behavior_commands",
-           "course_loop", "heading_loop", "held_heading", "phases_of", "turn_bound"]
+__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "StallWatch",
+           "behavior_commands", "course_loop", "heading_loop", "held_heading", "phases_of",
+           "turn_bound"]
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,10 @@ class ExecutorOptions:
         course_integral: its integral gain [1/m^2], per metre of travel (a crab the
             wheels make unasked).
         max_course_offset: bound of the heading offset it sets [rad].
+        stall_window: a tracked ``approach`` or ``move`` phase whose estimated shape error
+            improved by less than ``stall_gain`` [rad] over this long [s of driver time]
+            ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
+            error's low-pass time constant [s].
     """
 
     rate: float = 10.0
@@ -159,6 +164,9 @@ class ExecutorOptions:
     course_gain: float = 6.0
     course_integral: float = 9.0
     max_course_offset: float = math.radians(60.0)
+    stall_window: float = 15.0
+    stall_gain: float = math.radians(0.5)
+    stall_time: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
@@ -171,6 +179,9 @@ class ExecutorOptions:
                  self.course_gain, self.course_integral, self.max_course_offset)
         if min(loops) < 0:
             raise ExecutionError(f"heading and course gains and bounds must be >= 0, got {loops}")
+        if min(self.stall_window, self.stall_gain) < 0 or not self.stall_time > 0:
+            raise ExecutionError("stall window and gain must be >= 0 and its time > 0, got "
+                                 f"{self.stall_window}, {self.stall_gain}, {self.stall_time}")
 
 
 def phases_of(action: Action, diff: TopologyDiff, *, tracking: bool = False) -> list[Phase]:
@@ -337,6 +348,52 @@ class CourseLoop:
             self.integral = float(np.clip(self.integral + left * step, -held, held))
         return float(np.clip(-self.gain * left - self.integral_gain * self.integral,
                              -self.bound, self.bound))
+
+
+@dataclass
+class StallWatch:
+    """Ends a phase that makes no progress (issue 31): a collapsed noisy S12N6 crawl ran
+    its 90 s phase timeout twice, 15 min of wall time, for nothing. Progress is the
+    phase's estimated error (from reports only, never the simulator's state: the IK
+    tracker's, :attr:`~msrr.core.closed_loop.PhaseTracker.error`), low-passed again over
+    ``time`` [s] so a report's white noise is not taken for progress; the phase has
+    stalled when that error has not come ``gain`` [rad] under its best mark for
+    ``window`` [s]. A slowly converging phase sets a new mark at least every
+    ``window``, so it is never cut: the slowest progress kept is ``gain / window``
+    (0.033 deg/s by default) plus about ``3 j / window`` for a jitter ``j`` left in the
+    low-passed error (0.05 deg/s for the tracker's error under 2 deg of report noise).
+
+    Attributes:
+        window: [s]; gain: [rad]; time: [s].
+        error: the low-passed error [rad], ``None`` before the first; began: when the
+            first came [s].
+        mark: the best error the last progress reached [rad]; since: when [s].
+    """
+
+    window: float
+    gain: float
+    time: float
+    error: float | None = None
+    began: float = 0.0
+    mark: float = math.inf
+    since: float = 0.0
+
+    def stalled(self, error: float, now: float, dt: float) -> str:
+        """Why the phase has stalled (``""``: it has not), with the estimated ``error``
+        [rad] at driver time ``now`` [s], ``dt`` [s] after the last call."""
+        if not math.isfinite(error):
+            return ""
+        if self.error is None:
+            self.error, self.began = error, now
+        self.error += min(1.0, dt / self.time) * (error - self.error)
+        warming = now - self.began < self.time   # the first mark is a low-passed one
+        if warming or self.error <= self.mark - self.gain:
+            self.mark, self.since = math.inf if warming else self.error, now
+            return ""
+        if now - self.since < self.window - 1e-9:
+            return ""
+        return (f"shape error {math.degrees(self.error):.1f} deg for "
+                f"{now - self.since:.0f} s (not {math.degrees(self.gain):g} deg better)")
 
 
 def heading_loop(call: BehaviorCall | None, heading: float | None,
@@ -583,13 +640,35 @@ class Executor:
             if phase is Phase.BEHAVIOR and action.behavior is not None \
                     and action.behavior.duration is not None:
                 deadline = self.driver.time + action.behavior.duration + self.dt
-            while self.driver.time < deadline - 1e-9:
+            watch = self._stall_watch(phase)
+            stalled = ""
+            while self.driver.time < deadline - 1e-9 and not stalled:
                 if self._tick(index, action, phase, diff):
                     return
+                if watch is not None:
+                    stalled = watch.stalled(self._progress(), self.driver.time, self.dt)
+        if stalled:
+            raise _ActionFailed(f"action {index + 1} ({action}) failed: phase {phase.value} "
+                                f"stalled: {stalled}, after {attempts} attempt(s)")
         raise _ActionFailed(
             f"action {index + 1} ({action}) failed: phase {phase.value} did not finish within "
             f"{budget:g} s of driver time after {attempts} attempt(s)"
             + self._pending(phase, diff))
+
+    def _stall_watch(self, phase: Phase) -> StallWatch | None:
+        """The watch of a tracked ``approach`` or ``move`` phase (a connection presses
+        into its node and a behavior runs its course: neither converges on a shape)."""
+        o = self.options
+        if self._tracker is None or phase not in (Phase.APPROACH, Phase.MOVE) \
+                or not o.stall_window:
+            return None
+        return StallWatch(o.stall_window, o.stall_gain, o.stall_time)
+
+    def _progress(self) -> float:
+        """The tracked phase's error as estimated now [rad] (:attr:`PhaseTracker.error`:
+        the recognized configuration, low-passed, against the phase goal; reports only)."""
+        assert self._tracker is not None
+        return self._tracker.error
 
     def _pending(self, phase: Phase, diff: TopologyDiff) -> str:
         assert self._current is not None

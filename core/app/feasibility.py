@@ -85,7 +85,8 @@ class EdgeRunner:
         controller: the robot's controller.
         controllers: every controller of the robot, by name (a kinematic node's own
             drives it, as in ``platform run``).
-        options: executor options (rate, timeout per phase, retries).
+        options: executor options (rate, timeout per phase, retries; no stall watch: an
+            edge is judged on the time it is given).
         driver_options: keyword options of the driver (noise, slip, ...).
         seed: the run's seed.
         tolerance: largest final RMS strut angle to the target [rad] (ground truth).
@@ -99,7 +100,7 @@ class EdgeRunner:
     recognizer: Recognizer
     controller: Controller
     controllers: Mapping[str, Controller] = field(default_factory=dict)
-    options: ExecutorOptions = ExecutorOptions(action_timeout=30.0, retries=0)
+    options: ExecutorOptions = ExecutorOptions(action_timeout=30.0, retries=0, stall_window=0.0)
     driver_options: tuple[tuple[str, float | int | bool], ...] = ()
     seed: int = 0
     tolerance: float = math.radians(5.0)

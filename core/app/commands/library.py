@@ -187,8 +187,8 @@ class _CheckRun:
             driver_options += (("noise", math.radians(noise)),)
         if slip:
             driver_options += (("slip", slip),)
-        runner = default_runner(lib.robot, options=ExecutorOptions(
-            action_timeout=action_timeout, retries=0), seed=seed)
+        runner = default_runner(lib.robot, options=ExecutorOptions(   # as EdgeRunner's
+            action_timeout=action_timeout, retries=0, stall_window=0.0), seed=seed)
         runner = replace(runner, driver_options=driver_options + check_driver_options(
             runner.driver, parse_driver_options(extra)))
         cases = [c for c in edge_cases(lib, runner.robot)
