@@ -26,7 +26,7 @@ times the piece's radius about its centroid): the time at the speed bound.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -392,16 +392,16 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     space = _Space(others, offsets, spacing, start)
     wanted = (then.mean(axis=0), wrap(heading + turn), push)
     index = (ms.index(root), others, names.index(target))
-    docks = [wanted] if _dock_free(space, offsets, *index, *wanted, clear_in=False) else []
-    k, more = 0, True
-    while k < len(docks) or more:
-        if k == len(docks):           # no way to the goal place: the free places next
-            docks += _free_docks(space, offsets, *index, line0, wanted)
-            more = False
-            if k == len(docks):
-                break
-        middle, hd, push = docks[k]
-        k += 1
+    def places() -> Iterator[tuple[np.ndarray, float, np.ndarray]]:
+        """The goal place if free, then the free places touching the target, searched
+        only when no way reaches the goal place (their search is the dear part)."""
+        if _dock_free(space, offsets, *index, *wanted, clear_in=False):
+            yield wanted
+        yield from _free_docks(space, offsets, *index, line0, wanted)
+
+    tried = 0
+    for middle, hd, push in places():
+        tried += 1
         finish = middle - _SHORT * push
         try:
             legs = plan_legs(others, offsets, line0, start, (finish - _LAST * push, hd),
@@ -411,11 +411,11 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
         legs.append(Leg("drive", finish, hd))
         return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs),
                         centre, push, line0)
-    if not docks:
+    if not tried:
         raise ExecutionError(f"no place touching module {target} is free for the piece "
                              f"of {len(ms)} modules led by {root}")
     raise ExecutionError(f"no free way over the floor for the piece of {len(ms)} modules "
-                         f"led by {root} to any of {len(docks)} places touching {target}")
+                         f"led by {root} to any of {tried} places touching {target}")
 
 
 _TRIES = 4            # free docking places tried (nearest the goal's first)
