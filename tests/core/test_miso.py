@@ -157,6 +157,46 @@ def test_a_full_module_is_unblocked_by_one_release_and_no_extra_change():
     assert sum((s.old != FREE) + (s.new != FREE) for s in steps) == 4
 
 
+def test_a_piece_is_split_off_where_it_lies_before_its_parent_piece_travels():
+    # spine 0 <- 1 <- 2; chain 3 <- 4 <- 5 <- 6 <- 7 (3 free). Goal: 4 docks on 0 (its
+    # piece 4-7 travels), 6 on 1. Moving 4 first carries 6 along and docks it, then 6
+    # must leave from beside the spine; 6 moves first, from the chain's far end.
+    problem = MisoProblem.from_parents([FREE, 0, 1, FREE, 3, 4, 5, 6],
+                                       [FREE, 0, 1, FREE, 0, 4, 1, 6], FREEBOT_RULES)
+    steps = order_steps(problem.start, problem.goal, limits=problem.limits)
+    replay(problem, steps)
+    assert [(s.module, s.new) for s in steps] == [(6, 1), (4, 0)]
+
+
+def settled(parent, module: int, later: set[int]) -> bool:
+    seen = set()
+    while module != FREE and module not in seen:
+        if module in later:
+            return False
+        seen.add(module)
+        module = parent[module]
+    return True
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_no_step_carries_a_module_that_could_have_left_onto_a_settled_target(kind):
+    # whenever a step carries a piece onto a module, no module of its in-tree that moves
+    # later could have gone already: legal straight onto its goal target, which nothing
+    # moves again (nor this step)
+    for problem in instances(seed=12, count=20, low=5, high=40, kinds=(kind,)):
+        steps = solve_heuristic(problem).steps
+        states = replay(problem, steps)
+        final = {s.module: s.new for s in steps}
+        for t, (step, parent) in enumerate(zip(steps, states, strict=False)):
+            if step.new == FREE:
+                continue
+            later = {s.module for s in steps[t:]}
+            for j in in_tree(parent, step.module) - {step.module}:
+                if j in later and final[j] != FREE:
+                    assert not (step_is_legal(parent, j, final[j], problem.limits)
+                                and settled(parent, final[j], later)), (t, step, j)
+
+
 def test_the_descendant_rule_never_closes_a_cycle():
     limits = MisoLimits(None, "descendant")
     for problem in instances(seed=6, count=30, low=3, high=15, limits=limits,

@@ -20,9 +20,11 @@ class _State:
         self.parent = list(parent)
         self.limits = limits
         self.indeg = [0] * len(self.parent)
-        for p in self.parent:
+        self.on: list[set[int]] = [set() for _ in self.parent]   # who sits on each
+        for i, p in enumerate(self.parent):
             if p != FREE:
                 self.indeg[p] += 1
+                self.on[p].add(i)
 
     def flows(self, module: int, new: int) -> bool:
         """Whether re-targeting ``module`` to ``new`` is a flow (:func:`~.model.is_flow`)."""
@@ -50,12 +52,49 @@ class _State:
             j = parent[j]
         return None
 
+    def settled(self, module: int, pending: set[int], known: dict[int, bool]) -> bool:
+        """Whether no pending module lies on ``module``'s way to its root (or round its
+        ring): nothing there moves any more, so what docks on it stays put. ``known``:
+        answers so far for this state, extended with every module of the way walked."""
+        way: dict[int, None] = {}     # ordered, with fast membership
+        answer = True
+        while module != FREE:
+            if module in known:
+                answer = known[module]
+                break
+            if module in pending:
+                answer = False
+                break
+            if module in way:      # round a ring that holds no pending module
+                break
+            way[module] = None
+            module = self.parent[module]
+        known.update(dict.fromkeys(way, answer))
+        return answer
+
+    def split_first(self, module: int, goal: Sequence[int], pending: set[int]) -> int:
+        """The module to move before ``module``: the pending module of ``module``'s
+        in-tree farthest from it whose step is legal onto a settled target, else
+        ``module``. Moving it first splits its piece off where it lies, so ``module``
+        carries less and no piece ever leaves from inside a piece that has travelled
+        and docked (the human example's chains are cut from their far ends)."""
+        best, seen, layer = module, {module}, list(self.on[module])
+        known: dict[int, bool] = {}
+        while layer:
+            seen.update(layer)
+            best = min((j for j in layer if j in pending and self.blocker(j, goal[j]) is None
+                        and self.settled(goal[j], pending, known)), default=best)
+            layer = [c for j in layer for c in self.on[j] if c not in seen]
+        return best
+
     def apply(self, module: int, new: int) -> Step:
         step = Step(module, self.parent[module], new)
         if step.old != FREE:
             self.indeg[step.old] -= 1
+            self.on[step.old].discard(module)
         if new != FREE:
             self.indeg[new] += 1
+            self.on[new].add(module)
         self.parent[module] = new
         return step
 
@@ -105,6 +144,7 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
     steps: list[Step] = []
     pending = sorted((i for i in range(n) if start[i] != goal[i]),
                      key=lambda i: (goal_depth[i], i))
+    waiting = set(pending)
     # the flow test of every pending module at once (index n stands for free)
     par = np.array([n if p == FREE else p for p in start] + [n], dtype=np.int64)
     deg = np.array(state.indeg + [0], dtype=np.int64)
@@ -124,7 +164,9 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
             chosen = next((k for k, i in enumerate(pending)
                            if state.blocker(i, goal[i]) is None), None)
         if chosen is not None:
-            i = pending.pop(chosen)
+            i = state.split_first(pending[chosen], goal, waiting)
+            pending.remove(i)
+            waiting.discard(i)
             step = state.apply(i, goal[i])
         else:
             step = _release(state, pending, goal)
