@@ -207,10 +207,12 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
         low = np.minimum(low, space.others.min(axis=0) - space.reach - spacing)
         high = np.maximum(high, space.others.max(axis=0) + space.reach + spacing)
 
-    def key(c: np.ndarray, h: float) -> tuple[int, int, int]:
+    def key(c: np.ndarray, h: float) -> tuple[int, int, int, bool]:
+        # headings off the goal's lattice (a start a little off it) keep their own
+        # sixteenths: one key for all of them would leave each cell one heading
         k = int(np.rint(wrap(h - hg) / _TURN)) % 16
         exact = abs(wrap(h - hg - k * _TURN)) < 1e-6
-        return int(np.rint(c[0] / cell)), int(np.rint(c[1] / cell)), k if exact else -1
+        return int(np.rint(c[0] / cell)), int(np.rint(c[1] / cell)), k, exact
 
     # centre, heading, parent, and whether it only drove straight out of the start so far
     nodes: list[tuple[np.ndarray, float, int, bool]] = [(c0, h0, -1, True)]
@@ -357,10 +359,11 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     """The :class:`PieceWay` of ``piece`` (led by ``root``, at map heading ``heading``
     [rad]) to dock on ``target`` (of ``group``, which stays), the modules at ``here``
     (centres (2,) [m], one map): where it must end in the shape of ``goal`` (centres (3,),
-    any frame; :func:`~msrr.core.freeform.travel.piece_goal`), the turn that takes it
-    there (least squares over its modules), a stop ``_SHORT`` short of it with a last
-    stretch ``_LAST`` straight in (along the line of a straight piece, toward the
-    target), and the legs there (:func:`plan_legs`).
+    any frame; :func:`~msrr.core.freeform.travel.piece_goal`) in the shape it has
+    (:func:`_goal_pose`: its root at the root's goal place), a stop ``_SHORT`` short of
+    it with a last stretch straight in (along the line of a straight piece, toward the
+    target; ``_LAST`` long, or longer to start clear of modules it docks beside:
+    :func:`_dock_free`), and the legs there (:func:`plan_legs`).
 
     Where the goal's place is not free now (modules lie there that a later step moves
     away), the piece docks, in the shape it has, at the free place touching the target
@@ -379,7 +382,7 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     centre = np.asarray(here[target], dtype=float)[:2]
     end = piece_goal(goal, {m: here[m] for m in group | piece}, piece, target)
     then = np.array([end[m] for m in ms])
-    turn = best_turn(now, then)
+    middle, turn = _goal_pose(a, then, ms.index(root), centre, line, spacing)
     toward = normalized(centre - end[root])
     if line0 is None:
         push = toward
@@ -390,21 +393,23 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     others = np.array([here[m] for m in names], dtype=float).reshape(-1, 2)
     start = (now.mean(axis=0), heading)
     space = _Space(others, offsets, spacing, start)
-    wanted = (then.mean(axis=0), wrap(heading + turn), push)
+    wanted = (middle, wrap(heading + turn), push)
     index = (ms.index(root), others, names.index(target))
-    def places() -> Iterator[tuple[np.ndarray, float, np.ndarray]]:
+    def places() -> Iterator[tuple[np.ndarray, float, np.ndarray, float]]:
         """The goal place if free, then the free places touching the target, searched
-        only when no way reaches the goal place (their search is the dear part)."""
-        if _dock_free(space, offsets, *index, *wanted, clear_in=False):
-            yield wanted
+        only when no way reaches the goal place (their search is the dear part); each
+        with the length of its last stretch in."""
+        back = _dock_free(space, offsets, *index, *wanted, clear_in=False)
+        if back is not None:
+            yield (*wanted, back)
         yield from _free_docks(space, offsets, *index, line0, wanted)
 
     tried = 0
-    for middle, hd, push in places():
+    for middle, hd, push, back in places():
         tried += 1
         finish = middle - _SHORT * push
         try:
-            legs = plan_legs(others, offsets, line0, start, (finish - _LAST * push, hd),
+            legs = plan_legs(others, offsets, line0, start, (finish - back * push, hd),
                              spacing)
         except ExecutionError:
             continue
@@ -418,6 +423,30 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
                          f"led by {root} to any of {tried} places touching {target}")
 
 
+def _goal_pose(shape: np.ndarray, then: np.ndarray, root: int, centre: np.ndarray,
+               line: np.ndarray | None, spacing: float) -> tuple[np.ndarray, float]:
+    """Where a piece docks at its goal place in the shape it has: its centroid (2,) [m]
+    and the turn [rad] from now, for its modules at ``shape`` (m, 2) [m] from their
+    centroid (map frame) and wanted at ``then`` (m, 2) [m], its row ``root`` docking on
+    the target at ``centre`` (2,) [m].
+
+    The root goes to its own goal place (where it latches: a piece fitted by its centroid
+    alone docks its root off the target's side when its shape is not the goal's). The
+    turn is the least-squares one over the modules, except for a straight piece whose
+    goal is bent: it lies straight out from the target through the root's goal place
+    (the plan's last move bends it), rather than across the target's other sides.
+    """
+    turn = best_turn(shape, then - then.mean(axis=0))
+    arm = -shape[root]                                   # root -> centroid
+    if line is not None and straight_line(then, spacing) is None \
+            and float(np.linalg.norm(arm)) > 1e-9:
+        out = then[root] - centre
+        turn = wrap(float(np.arctan2(out[1], out[0]) - np.arctan2(arm[1], arm[0])))
+    return then[root] + rot_z(turn)[:2, :2] @ arm, turn
+
+
+_BACK = 1.5           # a stretch in grows at most this much past _LAST [m]
+_BACK_STEP = 0.05     # ... in steps of this [m]
 _TRIES = 4            # free docking places tried (nearest the goal's first)
 _OVERLAP = 0.01       # shells closer than the spacing less this overlap [m]
 _DIRECTIONS = 72      # directions of the root about the target tried
@@ -432,34 +461,48 @@ def normalized(vector: np.ndarray) -> np.ndarray:
 
 def _dock_free(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray,
                target: int, middle: np.ndarray, heading: float, push: np.ndarray, *,
-               clear_in: bool = True) -> bool:
-    """Whether the piece can end docked with its centroid at ``middle`` (2,) and heading
-    ``heading``: it stands ``_SHORT + _LAST`` back along ``push`` with the way's
-    clearance, and over its last stretch in, docked at the end, no shell overlaps
-    another (the root touches the target, ``others[target]``; nothing else does);
-    ``clear_in``: the stretch in keeps the way's clearance too."""
-    pre = middle - (_SHORT + _LAST) * push
-    if not space.free(pre[None, :], np.array([heading])):
-        return False
+               clear_in: bool = True) -> float | None:
+    """The length [m] of the last stretch in if the piece can end docked with its
+    centroid at ``middle`` (2,) and heading ``heading``, else ``None``: it stands
+    ``_SHORT`` + the stretch back along ``push`` with the way's clearance, and over the
+    stretch in, docked at the end, no shell overlaps another (the root touches the
+    target, ``others[target]``; nothing else does). ``clear_in``: the stretch, ``_LAST``
+    long, keeps the way's clearance too; else it is the shortest from ``_LAST`` up (by
+    ``_BACK_STEP``, at most ``_BACK`` more) that starts clear, where the piece can turn
+    round in place if there is such a stand (a way reaches it from any side): a piece
+    docking beside others, one spacing from them as the goal packs its chains, slides in
+    along them from where it is clear of them."""
+    backs = [_LAST] if clear_in else _LAST + np.arange(0.0, _BACK + 1e-9, _BACK_STEP)
+    clear = [float(b) for b in backs if space.free(
+        (middle - (_SHORT + b) * push)[None, :], np.array([heading]))]
+    if not clear:
+        return None
+    back = clear[0]
+    if not clear_in:      # a stand where it turns round, if there is one
+        back = next((b for b in clear if all(space.turn_free(
+            middle - (_SHORT + b) * push, heading, heading + s * (np.pi - 1e-6))
+            for s in (1, -1))), back)
+    pre = middle - (_SHORT + back) * push
     if clear_in and not space.drive_free(pre, middle - _SHORT * push, heading):
-        return False
-    if not len(others):
-        return True
-    n = int(np.ceil((_SHORT + _LAST) / _SAMPLE)) + 1
-    for t in np.linspace(0.0, 1.0, n):
-        docked = _modules(offsets, pre + t * (middle - pre), heading)
-        gap = np.linalg.norm(docked[:, None, :] - others[None, :, :], axis=2)
-        gap[root, target] = np.inf
-        if np.any(gap < space.limit - _CLEARANCE - _OVERLAP):
-            return False
-    return True
+        return None
+    if space.tree is None:
+        return back
+    n = int(np.ceil((_SHORT + back) / _SAMPLE)) + 1
+    poses = pre + np.linspace(0.0, 1.0, n)[:, None] * (middle - pre)
+    points = np.concatenate([_modules(offsets, c, heading) for c in poses])
+    k = min(3, len(others))
+    gap = space.limit - _CLEARANCE - _OVERLAP
+    dist, idx = space.tree.query(points, k=k, distance_upper_bound=gap)
+    dist, idx = dist.reshape(len(points), k), idx.reshape(len(points), k)
+    touching = (np.arange(len(points)) % len(offsets) == root)[:, None] & (idx == target)
+    return None if np.any((idx < len(others)) & ~touching) else back
 
 
 def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray,
                 target: int, line: np.ndarray | None,
                 wanted: tuple[np.ndarray, float, np.ndarray]
-                ) -> list[tuple[np.ndarray, float, np.ndarray]]:
-    """The free places (centroid (2,), heading, push (2,)) where the piece, in its shape
+                ) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
+    """The free places (centroid (2,), heading, push (2,), the stretch in [m]) where the piece, in its shape
     now (``offsets`` at heading 0, its root the row ``root``), docks on the target at
     ``others[target]``: the root touching it from one of ``_DIRECTIONS`` directions, the piece
     turned so that its centroid lies straight away from the target beyond the root (a
@@ -484,7 +527,8 @@ def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarra
             middle = centre + spacing * out + turn @ arm
             push = -out if line is None else turn @ line * (1.0 if float(
                 (turn @ line) @ out) <= 0 else -1.0)
-            if _dock_free(space, offsets, root, others, target, middle, heading, push):
+            if _dock_free(space, offsets, root, others, target, middle, heading,
+                          push) is not None:
                 cost = float(np.linalg.norm(middle - wanted[0])) \
                     + space.reach * abs(wrap(heading - wanted[1]))
                 found.append((cost, phi, middle, heading, push))
@@ -493,4 +537,4 @@ def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarra
     for f in found[_TRIES:]:
         if len(apart) < 2 * _TRIES and all(abs(wrap(f[1] - g[1])) >= _APART for g in apart):
             apart.append(f)
-    return [(m, h, p) for _, _, m, h, p in apart]
+    return [(m, h, p, _LAST) for _, _, m, h, p in apart]
