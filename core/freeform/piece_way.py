@@ -417,8 +417,12 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
         return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs),
                         centre, push, line0)
     if not tried:
+        rise = float(np.asarray(goal[root], dtype=float)[2] - np.asarray(goal[target],
+                                                                         dtype=float)[2])
+        above = f" (its goal place lies {rise:+.2f} m above {target}, where a piece on the " \
+                "floor does not reach)" if abs(rise) > spacing / 2 else ""
         raise ExecutionError(f"no place touching module {target} is free for the piece "
-                             f"of {len(ms)} modules led by {root}")
+                             f"of {len(ms)} modules led by {root}{above}")
     raise ExecutionError(f"no free way over the floor for the piece of {len(ms)} modules "
                          f"led by {root} to any of {tried} places touching {target}")
 

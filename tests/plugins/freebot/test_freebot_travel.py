@@ -456,3 +456,62 @@ def test_a_goal_place_no_way_reaches_gives_way_to_a_free_place(monkeypatch):
     offsets = np.array([piece[m] for m in way.piece]) - np.mean(list(piece.values()), axis=0)
     others = np.array([p for m, p in here.items() if m not in piece])
     assert _closest(way.legs, offsets, others, (way.origin, 0.0)) >= spacing
+
+
+def _docked(way, here: dict, heading: float) -> dict[str, np.ndarray]:
+    """Where the way leaves every module of the piece, latched (its push's 2 cm)."""
+    shape = np.array([here[m] for m in way.piece])
+    offsets = (shape - shape.mean(axis=0)) @ rot_z(heading)[:2, :2]
+    end = way.legs[-1].to + 0.02 * way.push
+    return dict(zip(way.piece, end + offsets @ rot_z(way.legs[-1].heading)[:2, :2].T,
+                    strict=True))
+
+
+def test_a_straight_piece_with_a_bent_goal_docks_its_root_at_its_goal_place():
+    # the goal hangs P1-P2 below T1 and bends P3-P4 along x; the straight piece docks in
+    # the shape it has with P1 where the goal wants it, lying straight out from T1 (before,
+    # fitted by its centroid, P1 docked 4 cm off T1's side, across T2's)
+    from msrr.core.freeform.piece_way import piece_way
+
+    spacing = 0.1
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(4)}
+    piece = {f"P{i}": np.array([0.1 * i - 0.5, 0.8]) for i in range(1, 5)}
+    here = row | piece
+    goal = {m: np.append(p, 0.0) for m, p in row.items()} | {
+        "P1": np.array([0.1, -0.1, 0.0]), "P2": np.array([0.1, -0.2, 0.0]),
+        "P3": np.array([0.2, -0.2, 0.0]), "P4": np.array([0.3, -0.2, 0.0])}
+    way = piece_way(here, set(piece), set(row), "P1", 0.0, "T1", goal, spacing)
+    docked = _docked(way, here, 0.0)
+    assert np.allclose(docked["P1"], [0.1, -0.1], atol=0.003)
+    assert np.allclose(docked["P4"], [0.1, -0.4], atol=0.003)
+    others = np.array(list(row.values()))
+    offsets = np.array([piece[m] for m in way.piece]) - np.mean(list(piece.values()), axis=0)
+    assert _closest(way.legs, offsets, others, (way.origin, 0.0)) >= spacing - 0.01
+
+
+def test_a_piece_slides_in_between_two_chains_one_spacing_apart_from_a_tilted_start():
+    # a comb: chains of five hang from T2 and T4; the goal hangs P1..P5 from T3 between
+    # them, one spacing from each, as the human example packs its chains. The piece lies
+    # 0.6 deg off the goal's lattice of headings. It stands clear below the comb and
+    # slides in along the chains (before: no stand with the way's clearance, and a search
+    # that merged every off-lattice heading of a cell into one: no way to the goal place)
+    from msrr.core.freeform.piece_way import piece_way
+
+    spacing = 0.1
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(7)}
+    comb = {f"{c}{j}": np.array([x, -0.1 * j]) for c, x in (("A", 0.2), ("B", 0.4))
+            for j in range(1, 6)}
+    tilt = rot_z(0.01)[:2, :2]
+    piece = {f"P{i}": tilt @ np.array([0.1 * i - 0.3, 0.0]) + np.array([0.3, -1.5])
+             for i in range(1, 6)}
+    here = row | comb | piece
+    goal = {m: np.append(p, 0.0) for m, p in (row | comb).items()} | {
+        f"P{i}": np.array([0.3, -0.1 * i, 0.0]) for i in range(1, 6)}
+    way = piece_way(here, set(piece), set(row) | set(comb), "P1", 0.01, "T3", goal, spacing)
+    docked = _docked(way, here, 0.01)
+    for i in range(1, 6):
+        assert np.allclose(docked[f"P{i}"], [0.3, -0.1 * i], atol=0.003)
+    others = np.array([p for m, p in here.items() if m not in piece])
+    offsets = (np.array([piece[m] for m in way.piece])
+               - np.mean(list(piece.values()), axis=0)) @ tilt
+    assert _closest(way.legs, offsets, others, (way.origin, 0.01)) >= spacing - 0.01
