@@ -45,7 +45,9 @@ _REACH = 0.16         # a longer piece's cells and drives grow with its reach [m
 _TURN = np.pi / 8     # a turn of the search [rad]
 _SAMPLE = 0.005       # collision samples along a move, at the farthest module [m]
 _CLEARANCE = 0.008    # kept between shells [m]
-_GRAZE = 0.002        # a module touched at the start is kept this much closer [m]
+_GRAZE = 0.010        # a module touched at the start is kept this much closer [m]: the
+#                       map's own bend (2 deg of angle noise over a row puts its modules
+#                       millimetres off its line, and the piece's too)
 _SHORT = 0.02         # the way stops this far short of the docking spot [m]
 _LAST = 0.15          # its last stretch, straight in [m]
 _EXPANSIONS = 20000   # the search gives up after this many poses

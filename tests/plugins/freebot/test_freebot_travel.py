@@ -515,3 +515,24 @@ def test_a_piece_slides_in_between_two_chains_one_spacing_apart_from_a_tilted_st
     offsets = (np.array([piece[m] for m in way.piece])
                - np.mean(list(piece.values()), axis=0)) @ tilt
     assert _closest(way.legs, offsets, others, (way.origin, 0.01)) >= spacing - 0.01
+
+
+def test_a_piece_beside_a_row_its_map_bends_drives_out_along_its_line():
+    # under 2 deg of angle noise the map bends a row by millimetres: here the row of four
+    # lying beside a row of twelve, one spacing away, zigzags 4 mm, so driving out along
+    # its line each module passes the row's modules a little closer than the one that
+    # lay beside them (before: it could come only 2 mm closer than it starts, "no free
+    # way"; pieces-to-tree at 2 deg stopped so at its first dock)
+    from msrr.core.freeform.piece_way import piece_way
+
+    spacing = 0.101
+    row = {f"T{i}": np.array([spacing * i, 0.0]) for i in range(12)}
+    piece = {f"P{i}": np.array([spacing * i, -spacing - 0.004 * (-1) ** i]) for i in range(4)}
+    here = row | piece
+    goal = {m: np.append(p, 0.0) for m, p in row.items()} | {
+        f"P{i}": np.array([spacing * 8, spacing * (i + 1), 0.0]) for i in range(4)}
+    way = piece_way(here, set(piece), set(row), "P0", 0.0, "T8", goal, spacing)
+    assert way.legs[0].kind == "drive"                 # straight out along its line
+    end = way.legs[-1].to + 0.02 * way.push
+    wanted = np.mean([goal[m][:2] for m in piece], axis=0)
+    assert np.allclose(end, wanted, atol=0.01)
