@@ -20,7 +20,8 @@ import numpy as np
 from .configuration import Configuration
 from .driver import Observation, horizontal_centre
 
-__all__ = ["Estimate", "Estimator", "Localizing", "TrackedEstimator", "estimator_for"]
+__all__ = ["Estimate", "Estimator", "Filtering", "Localizing", "ReportFilter",
+           "TrackedEstimator", "estimator_for", "report_filter_for"]
 
 
 @dataclass(frozen=True)
@@ -70,3 +71,30 @@ def estimator_for(recognizer: Any) -> Estimator:
     if isinstance(recognizer, Localizing):
         return recognizer.estimator()
     return TrackedEstimator()
+
+
+class ReportFilter(Protocol):
+    """Fed every control tick's observation of a run in order, returns it with its
+    reports as the filter estimates them (the same shape: the recognizer and the
+    controllers read either)."""
+
+    def update(self, observation: Observation) -> Observation:
+        """The filtered ``observation``; the same ``time`` again returns the last answer."""
+        ...
+
+
+@runtime_checkable
+class Filtering(Protocol):
+    """A recognizer whose robot senses its own motion, so its reports can be filtered
+    over a run (FreeSN: node gyros and connector encoders, :mod:`msrr.plugins.freesn.sim.filtering`)."""
+
+    def report_filter(self) -> ReportFilter:
+        """A fresh filter for one run."""
+        ...
+
+
+def report_filter_for(recognizer: Any) -> ReportFilter | None:
+    """The recognizer's report filter where it has one, else ``None`` (raw reports)."""
+    if isinstance(recognizer, Filtering):
+        return recognizer.report_filter()
+    return None

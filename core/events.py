@@ -108,7 +108,8 @@ class Tick:
         action: the action being executed.
         phase: its stage.
         observation: what the driver reported at the start of the tick.
-        configuration: the recognized configuration.
+        configuration: the recognized configuration (from the filtered reports, where the
+            recognizer filters them: :func:`~msrr.core.estimation.report_filter_for`).
         commands: the module commands sent.
         errors: per-module distance to its goal [m] as the controller measures it.
         witness: the simulator's own state after the tick, for the recording (``None``

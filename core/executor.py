@@ -106,7 +106,7 @@ from .configuration import Configuration
 from .control import Control, Controller, StartLayout
 from .driver import Driver, ModuleCommand, Observation
 from .errors import ExecutionError, MsrrError
-from .estimation import Estimate, estimator_for
+from .estimation import Estimate, estimator_for, report_filter_for
 from .events import (
     ActionStatus,
     EventSink,
@@ -512,6 +512,7 @@ class Executor:
         self._spans = {span.start: span for span in behavior_runs(run.plan.actions)}
         self._moving_from: np.ndarray | None = None
         self._estimator = estimator_for(recognizer)
+        self._filter = report_filter_for(recognizer)
         self.estimate = Estimate()
         self._loop: HeadingLoop | None = None  # the running mapping behavior's
         self._course: CourseLoop | None = None  # and its course loop, if straight
@@ -537,7 +538,7 @@ class Executor:
         plan = self.run.plan
         self._started = wallclock.perf_counter()
         result = self.result
-        self._current = self._estimated(self.driver.get_observation())
+        self._current = self._estimated(self._observe())
         if isinstance(self.controller, StartLayout):
             self.controller.start(self.placed or plan.start)
         index = -1
@@ -622,7 +623,7 @@ class Executor:
             if attempt:
                 self.retries += 1
                 self.sink.action(self.run, action, ActionStatus.RETRYING)
-            observation = self.driver.get_observation()
+            observation = self._observe()
             needed = None
             if not self._begin_tracking(action, phase, diff, observation, retry=attempt > 0) \
                     and phase is not Phase.BEHAVIOR:
@@ -757,7 +758,8 @@ class Executor:
 
     def _tick(self, index: int, action: Action, phase: Phase, diff: TopologyDiff) -> bool:
         """Run one control tick; whether the phase is finished."""
-        observation = self.driver.get_observation()
+        raw = self.driver.get_observation()
+        observation = self._filtered(raw)
         configuration = self._estimated(observation)
         self._detect_changes(index, configuration)
         if phase is Phase.BEHAVIOR and self._covered(action):
@@ -782,7 +784,7 @@ class Executor:
         self.driver.step(self.dt)
         self.tick_index += 1  # executed: counted even if a listener is interrupted below
         self.sink.tick(self.run, Tick(self.tick_index - 1, self.driver.time, index, action,
-                                      phase, observation, configuration, commands,
+                                      phase, raw, configuration, commands,
                                       control.errors))
         if control.stalled:
             raise _ActionFailed(f"action {index + 1} ({action}) failed: phase {phase.value} "
@@ -859,9 +861,18 @@ class Executor:
         before = self.run.plan.actions[index - 1].behavior
         if call.kind == "sequence" and call.distance is not None and before is not None \
                 and before.loop != call.loop:
-            self._estimated(self.driver.get_observation())  # where the last loop ended
+            self._estimated(self._observe())  # where the last loop ended
             self._skipping = self._covered(action)
         return self._skipping
+
+    def _observe(self) -> Observation:
+        """The driver's observation, filtered (:meth:`_filtered`)."""
+        return self._filtered(self.driver.get_observation())
+
+    def _filtered(self, observation: Observation) -> Observation:
+        """``observation`` with its reports filtered over the run where the recognizer
+        offers a filter (:func:`~msrr.core.estimation.report_filter_for`)."""
+        return observation if self._filter is None else self._filter.update(observation)
 
     def _recognize(self, observation: Observation) -> Configuration:
         """The configuration the reports show (separate groups are the recognizer's)."""

@@ -40,6 +40,7 @@ from .geometry import END_SIGN
 from .world import NodeReport, StrutReport
 
 if TYPE_CHECKING:
+    from .filtering import ReportFilter
     from .odometry import ImuOdometry
 
 __all__ = ["FreeSNRecognizer", "Links", "links_of", "node_headings", "root_order"]
@@ -146,6 +147,13 @@ class FreeSNRecognizer:
         from .odometry import ImuOdometry  # it reads this module's links and headings
 
         return ImuOdometry(self.root)
+
+    def report_filter(self) -> ReportFilter:
+        """A fresh filter of one run's reports: node gyros and connector encoders
+        predict, the noisy readings correct (:mod:`.filtering`)."""
+        from .filtering import ReportFilter  # it reads this module's links and headings
+
+        return ReportFilter(self.root)
 
     def recognize(self, observation: Reports, *, seed: int = 0) -> Configuration:
         """The configuration the reports show, in the modules' own ids.

@@ -116,7 +116,7 @@ from .commands import ENDS, ConnectorTarget
 from .geometry import END_SIGN, Placement, place
 from .options import Physical, SimOptions
 
-__all__ = ["INTERPENETRATION", "DockEvent", "FreeSNWorld", "Interpenetration", "NodeReport",
+__all__ = ["INTERPENETRATION", "Accuracy", "DockEvent", "FreeSNWorld", "Interpenetration", "NodeReport",
            "StrutReport", "magnet_pull"]
 
 _GAP = 0.003          # strut capsule tip to node surface when docked [m]
@@ -205,6 +205,30 @@ class Interpenetration:
 
 
 @dataclass(frozen=True)
+class Accuracy:
+    """What a module's sensors are stated to measure to (their data sheets; a report
+    carries it as a ROS sensor message carries its covariance): the report filter
+    (:mod:`.filtering`) takes its gains from these, never from the readings' truth.
+
+    Attributes:
+        angle: standard deviation of every reported angle (IMU tilt, magnetic
+            localisation, strut attitude) per axis [rad], white per report.
+        slip: standard deviation of a connector's encoded rolling per radian rolled
+            [rad / rad]. drift: its random walk [rad / sqrt(s)].
+        gyro_noise: the node gyro's angle random walk [rad / sqrt(s)].
+        gyro_bias: standard deviation of its bias left after calibration [rad/s].
+        gyro_walk: the random walk of that bias [rad/s / sqrt(s)].
+    """
+
+    angle: float = 0.0
+    slip: float = 0.0
+    drift: float = 0.0
+    gyro_noise: float = 0.0
+    gyro_bias: float = 0.0
+    gyro_walk: float = 0.0
+
+
+@dataclass(frozen=True)
 class NodeReport:
     """What a node module reports (section 2.1).
 
@@ -214,11 +238,13 @@ class NodeReport:
             connector sits (magnetic localisation).
         gyro: the node's angular rate (3,) in its own frame [rad/s], averaged over the
             last step, with the gyro's bias, drift and noise.
+        accuracy: what its sensors are stated to measure to.
     """
 
     tilt: np.ndarray
     connectors: dict[str, np.ndarray]
     gyro: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    accuracy: Accuracy = Accuracy()
 
 
 @dataclass(frozen=True)
@@ -232,6 +258,11 @@ class StrutReport:
         tilt: the strut's rotation in its own horizontal frame (IMU alone).
         magnet: per end, ``"neutral"``, ``"extended"`` or ``"retracted"``.
         events: docking events of its connectors since the previous report.
+        rolled: per docked end, the strut's rotation (3, 3) on its node since the end
+            docked, in the node frame, as the connector's wheel encoders count it
+            (``E(t) E(t_dock)^T``, ``E`` the strut's rotation in the node frame): relative
+            only, with the connector's slip and drift, no localisation noise.
+        accuracy: what its sensors are stated to measure to.
     """
 
     docked: dict[str, str | None]
@@ -239,6 +270,8 @@ class StrutReport:
     tilt: np.ndarray
     magnet: dict[str, str]
     events: tuple[DockEvent, ...] = ()
+    rolled: dict[str, np.ndarray] = field(default_factory=dict)
+    accuracy: Accuracy = Accuracy()
 
 
 def _inertia_rod(mass: float, radius: float, length: float) -> list[float]:
@@ -325,6 +358,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             len(self.nodes) + np.arange(len(self.struts))
         self.interpenetrations: dict[tuple[str, str], Interpenetration] = {}
         self._init_gyros(options)
+        self._accuracy = Accuracy(options.noise, options.slip, options.drift,
+                                  options.gyro_noise, options.gyro_bias, options.gyro_walk)
+        self._encoded: dict[int, tuple[str, np.ndarray]] = {}  # end -> (node, E at dock)
         self._node_rot = np.tile(np.eye(3), (len(self.nodes), 1, 1))
         mujoco.mj_forward(self.model, self.data)
         for s, (a, b) in self.placement.ends.items():
@@ -486,6 +522,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._eq[k] = -1
         self._set_effort(k, 1.0)
         self.docked[k] = None
+        self._encoded.pop(k, None)   # a new dock starts a new count
         self._has_target[k] = False
         self._braked[k] = False
         self._refresh_driven()
@@ -1114,7 +1151,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         out: dict[str, NodeReport | StrutReport] = {}
         new = self.new_events()
         for j, strut in enumerate(self.struts):
-            docked, attitude, magnet = {}, {}, {}
+            docked, attitude, magnet, rolled = {}, {}, {}, {}
             for end in ENDS:
                 k = self._end_index[(strut, end)]
                 node = self.docked[k]
@@ -1126,13 +1163,25 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                 located[node][f"{strut}:{end}"] = self.noise.vector(node_rot[i].T @ axis)
                 attitude[end] = self.noise.rotation(
                     rot_z(-node_yaw[i]) @ strut_rot[j] @ eps_rot[k])
+                rolled[end] = self._encoders(k, node, node_rot[i].T @ strut_rot[j] @ eps_rot[k])
             tilt = rot_z(-float(heading(d.xquat[self._strut_body[j]]))) @ strut_rot[j]
             out[strut] = StrutReport(docked, attitude, self.noise.rotation(tilt), magnet,
-                                     tuple(e for e in new if e.strut == strut))
+                                     tuple(e for e in new if e.strut == strut), rolled,
+                                     self._accuracy)
         for i, node in enumerate(self.nodes):
             out[node] = NodeReport(self.noise.rotation(rot_z(-node_yaw[i]) @ node_rot[i]),
-                                   located[node], self._gyro[i].copy())
+                                   located[node], self._gyro[i].copy(), self._accuracy)
         return out
+
+    def _encoders(self, k: int, node: str, encoded: np.ndarray) -> np.ndarray:
+        """Connector ``k``'s encoded rolling on ``node`` since it docked there, node frame
+        (:attr:`StrutReport.rolled`): ``encoded`` (3, 3) is the strut's rotation in the
+        node frame with the connector's odometry error; the first report after a dock
+        fixes where its count starts."""
+        start = self._encoded.get(k)
+        if start is None or start[0] != node:
+            start = self._encoded[k] = (node, encoded)
+        return encoded @ start[1].T
 
     def ground_truth(self, root: str | None = None, *, name: str = "") -> Configuration:
         """The configuration the bodies form, from the simulator's state (never from reports).
