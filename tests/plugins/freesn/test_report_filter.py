@@ -24,7 +24,6 @@ from msrr.plugins.freesn.sim.filtering import (
 from msrr.plugins.freesn.sim.recognizer import FreeSNRecognizer, links_of, root_order
 from msrr.plugins.freesn.sim.world import Accuracy, NodeReport
 
-
 NOISE = np.radians(4.0)
 S6N3 = Path(__file__).resolve().parents[3] / "plugins" / "freesn" / "libraries" / "S6N3.json"
 
