@@ -200,6 +200,10 @@ class ReportFilter:
 
     def __init__(self, root: str | None = None):
         self.root = root
+        self._reset()
+
+    def _reset(self) -> None:
+        """Forget the run: no state, no time."""
         self.time: float | None = None
         self.nodes: dict[str, NodeState] = {}
         self.connectors: dict[tuple[str, str], _Connector] = {}
@@ -212,7 +216,7 @@ class ReportFilter:
             if observation.time == self.time:
                 return self.last
             if observation.time < self.time:   # a new run on the same driver
-                self.__init__(self.root)  # type: ignore[misc]
+                self._reset()
         reports: Reports = observation.sensors
         acc = next((r.accuracy for r in reports.values()
                     if isinstance(r, NodeReport | StrutReport)), Accuracy())
