@@ -300,6 +300,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._dofs = np.array([j.dofadr[0] for j in drives])[:, None] + np.arange(3)
         n = len(self.modules)
         self.docked: list[str | None] = [None] * n
+        self._parent = np.full(n, -1)   # index of ``docked`` (-1: free), kept with it
         self.armed: list[str | None] = [None] * n    # dock target ("" = any touching module)
         self.release: list[bool] = [False] * n        # undock waiting for a flow's switch
         self.sucker = [False] * n
@@ -327,6 +328,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._gyro = np.random.default_rng([options.seed, 1])  # the yaw's own noise
         self._tree = m.body_treeid[self._shell]    # each module is one kinematic tree
         self._wake = np.zeros(n, dtype=bool)       # commanded to move since the last servo
+        self._weld_id = np.array([self.welds.id(i) for i in self.modules] if n > 1 else [0])
         mujoco.mj_forward(self.model, self.data)
         self._upright = np.array([_upright(r) for r in self.data.xmat[self._conn].reshape(-1, 3, 3)])
         self._heading0 = self._headings()
@@ -580,6 +582,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._unlatch(k)
         self.weld(module, self._foot[k], self._shell[self._index[target]])
         self.docked[k] = target
+        self._parent[k] = self._index[target]
         self.armed[k] = None
         self.release[k] = False
         self.command_hold(module)
@@ -589,7 +592,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
     def _carrying(self, k: int) -> bool:
         """Whether a module is docked on module ``k``."""
-        return self.modules[k] in self.docked
+        return bool(np.any(self._parent == k))
 
     def _turn_connector(self, k: int, towards: np.ndarray) -> None:
         """Point ``k``'s connector at ``towards`` (world, (3,)) about its own centre: the
@@ -627,6 +630,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._suckers.off(self.data, module)
             self.sucker[k] = False
         self.docked[k] = None
+        self._parent[k] = -1
 
     def _release(self, k: int) -> None:
         parent = self.docked[k]
@@ -662,7 +666,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         """Brake the bearings of the shells that do not roll, where they are now."""
         if self._bearing is not None:   # the shells of modules at rest are braked
             # so are those others dock on: a shell that turned freely would swing them
-            carrying = np.isin(self.modules, [p for p in self.docked if p is not None])
+            carrying = np.zeros(len(self.modules), dtype=bool)
+            carrying[self._parent[self._parent >= 0]] = True
             free = self._rolling & ~carrying
             damping = np.where(free, _BEARING_FREE, _BRAKE * self._damping)
             self.model.dof_damping[self._bearing] = np.where(   # a travelling piece's
@@ -688,8 +693,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         SnailBot's tracks (the body's speed over the floor)."""
         d = self.data
         self._turned += duration * d.cvel[self._conn, 2]
-        ks = np.array([k for k, p in enumerate(self.docked) if p is None or self._travel[k]],
-                      dtype=int)
+        ks = np.flatnonzero((self._parent < 0) | self._travel)
         if not len(ks):
             return
         if self.design.bearing:
@@ -712,15 +716,15 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         load = np.zeros(len(self.modules))
         strength = np.zeros(len(self.modules))
         factor = self.options.strength_factor
-        ks = np.array([k for k, p in enumerate(self.docked) if p is not None], dtype=int)
+        ks = np.flatnonzero(self._parent >= 0)
         if len(ks):
-            on_foot = force[[self.welds.id(self.modules[k]) for k in ks]]
+            on_foot = force[self._weld_id[ks]]
             strength[ks] = factor * self.design.strength
-            held = np.array([self.sucker[k] for k in ks], dtype=bool)
+            held = np.array(self.sucker, dtype=bool)[ks]
             if np.any(held):
                 on_foot[held] += force[[self._suckers.id(self.modules[k]) for k in ks[held]]]
                 strength[ks[held]] += factor * self.design.sucker_strength
-            parents = [self._index[self.docked[k]] for k in ks]  # type: ignore[index]
+            parents = self._parent[ks]
             out = d.xpos[self._shell[ks]] - d.xpos[self._shell[parents]]
             out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
             push = np.maximum(np.einsum("ki,ki->k", on_foot, out), 0.0)[:, None]
@@ -740,13 +744,13 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
     def _docking(self) -> bool:
         """Whether a connector is armed (a dock or a flow waits for the shells to touch)."""
-        return any(a is not None for a in self.armed)
+        return self.armed.count(None) < len(self.armed)
 
     def _servo(self) -> None:
         """Drive motors: position loop on the drive joints of docked modules, bounded
         rate and torque (a DC motor's damping is the joint's own)."""
         tau = np.zeros((len(self.modules), 3))
-        ks = np.array([k for k, p in enumerate(self.docked) if p is not None], dtype=int)
+        ks = np.flatnonzero(self._parent >= 0)
         if len(ks):
             q = self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
             error = quat_log(quat_mul(quat_conj(q), self._target[ks]))
