@@ -12,17 +12,28 @@ initialisation) and the isomorphism tree search (``vectorMatch``, Alg. 3).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-__all__ = ["YawAlignment", "align_yaw", "angles_between", "rot_z"]
+__all__ = ["YawAlignment", "align_yaw", "angles_between", "rot_z", "wrap_angle"]
 
 
 def rot_z(theta: float) -> np.ndarray:
     """Rotation matrix about z by ``theta`` [rad], shape (3, 3)."""
     c, s = np.cos(theta), np.sin(theta)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@overload
+def wrap_angle(angle: float) -> float: ...
+@overload
+def wrap_angle(angle: np.ndarray) -> np.ndarray: ...
+def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
+    """``angle`` [rad] wrapped into [-pi, pi): a float for a float, an array for an array."""
+    wrapped = (np.asarray(angle, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi
+    return float(wrapped) if wrapped.ndim == 0 else wrapped
 
 
 def angles_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -32,7 +32,7 @@ from typing import Literal
 
 import numpy as np
 
-from .alignment import align_yaw, angles_between, rot_z
+from .alignment import align_yaw, angles_between, rot_z, wrap_angle
 from .configuration import Configuration
 from .driver import Pose
 from .errors import ConfigurationError
@@ -91,10 +91,6 @@ class ShapeVerdict:
                 "position_tolerance_m": self.tolerance,
                 "max_heading_error_rad": round(self.heading or 0.0, 4),
                 "heading_tolerance_rad": self.heading_tolerance, "within": self.within}
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
 def fit_planar(points: np.ndarray, goal: np.ndarray, headings: np.ndarray | None = None,
@@ -156,7 +152,7 @@ def pose_errors(final: Mapping[str, Pose], goal: Mapping[str, Pose],
     c, s = math.cos(theta), math.sin(theta)
     moved = p @ np.array([[c, -s], [s, c]]).T + t
     distance = np.linalg.norm(moved - q, axis=1)
-    heading = np.abs(_wrap(yaw + theta - goal_yaw))
+    heading = np.abs(wrap_angle(yaw + theta - goal_yaw))
     return ShapeVerdict("poses", float(distance.max(initial=0.0)), tolerance.position,
                         float(heading.max(initial=0.0)), tolerance.heading,
                         float(np.sqrt(np.mean(distance ** 2))) if ids else 0.0)

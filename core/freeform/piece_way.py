@@ -32,12 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..alignment import rot_z
+from ..alignment import rot_z, wrap_angle
 from ..errors import ExecutionError
 from .travel import Locator, best_turn, piece_goal, straight_line
 
 __all__ = ["Leg", "PieceWay", "normalized", "piece_way", "plan_piece_way", "plan_legs",
-           "poses_along", "wrap"]
+           "poses_along"]
 
 _CELL = 0.02          # visited cells of the search [m], for a piece of reach _REACH
 _STEP = 0.03          # a drive of the search [m], for a piece of reach _REACH
@@ -52,11 +52,6 @@ _SHORT = 0.02         # the way stops this far short of the docking spot [m]
 _LAST = 0.15          # its last stretch, straight in [m]
 _EXPANSIONS = 20000   # the search gives up after this many poses
 _DIRECT = 8           # the direct way is tried from every this many poses
-
-
-def wrap(angle: float) -> float:
-    """``angle`` [rad] in [-pi, pi)."""
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 @dataclass(frozen=True)
@@ -100,7 +95,7 @@ class PieceWay:
         """The piece's heading [rad] with its modules at ``centres`` (map, (2,) or (3,)):
         ``heading`` plus the least-squares turn from ``shape`` to them."""
         now = np.array([np.asarray(centres[m], dtype=float)[:2] for m in self.piece])
-        return wrap(self.heading + best_turn(self.shape, now))
+        return wrap_angle(self.heading + best_turn(self.shape, now))
 
     def travel(self) -> float:
         """The farthest any module goes along the legs [m]: each drive's length, each
@@ -108,7 +103,7 @@ class PieceWay:
         reach = float(np.max(np.linalg.norm(self.shape, axis=1)))
         total, c, h = 0.0, self.origin, self.heading
         for leg in self.legs:
-            total += float(np.linalg.norm(leg.to - c)) + reach * abs(wrap(leg.heading - h))
+            total += float(np.linalg.norm(leg.to - c)) + reach * abs(wrap_angle(leg.heading - h))
             c, h = leg.to, leg.heading
         return total
 
@@ -158,7 +153,7 @@ class _Space:
 
     def turn_free(self, centre: np.ndarray, a: float, b: float) -> bool:
         """The turn in place about ``centre`` from heading ``a`` to ``b`` (the short way)."""
-        sweep = wrap(b - a)
+        sweep = wrap_angle(b - a)
         n = max(2, int(np.ceil(abs(sweep) * max(self.reach, 1e-3) / _SAMPLE)) + 1)
         angles = a + np.linspace(0.0, sweep, n)
         return self.free(np.repeat(centre[None, :], n, axis=0), angles)
@@ -212,8 +207,8 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
     def key(c: np.ndarray, h: float) -> tuple[int, int, int, bool]:
         # headings off the goal's lattice (a start a little off it) keep their own
         # sixteenths: one key for all of them would leave each cell one heading
-        k = int(np.rint(wrap(h - hg) / _TURN)) % 16
-        exact = abs(wrap(h - hg - k * _TURN)) < 1e-6
+        k = int(np.rint(wrap_angle(h - hg) / _TURN)) % 16
+        exact = abs(wrap_angle(h - hg - k * _TURN)) < 1e-6
         return int(np.rint(c[0] / cell)), int(np.rint(c[1] / cell)), k, exact
 
     # centre, heading, parent, and whether it only drove straight out of the start so far
@@ -252,7 +247,7 @@ def _moves(space: _Space, c: np.ndarray, h: float, line: np.ndarray | None,
     for sign in (1.0, -1.0):
         to = h + sign * _TURN
         if space.turn_free(c, h, to):
-            out.append((Leg("turn", c, wrap(to)), _TURN * weight))
+            out.append((Leg("turn", c, wrap_angle(to)), _TURN * weight))
     if line is None:
         directions = [np.array([np.cos(a), np.sin(a)]) for a in np.arange(8) * np.pi / 4]
     else:
@@ -281,8 +276,8 @@ def _direct(space: _Space, c: np.ndarray, h: float, g: np.ndarray, hg: float,
                     [Leg("turn", c, hg), Leg("drive", g, hg)]
         return None
     facing = float(np.arctan2(way[1], way[0]) - np.arctan2(line[1], line[0]))
-    options = sorted((wrap(facing), wrap(facing + np.pi)),
-                     key=lambda a: abs(wrap(a - h)) + abs(wrap(hg - a)))
+    options = sorted((wrap_angle(facing), wrap_angle(facing + np.pi)),
+                     key=lambda a: abs(wrap_angle(a - h)) + abs(wrap_angle(hg - a)))
     for hd in options:
         if space.turn_free(c, h, hd) and space.drive_free(c, g, hd) \
                 and space.turn_free(g, hd, hg):
@@ -304,8 +299,8 @@ def _unwind(nodes: list[tuple[np.ndarray, float, int, bool]], moves: list[Leg | 
         if merged and merged[-1][0].kind == move.kind:
             leg, c0, h0 = merged[-1]
             if move.kind == "turn":
-                same = wrap(move.heading - h0) * wrap(leg.heading - h0) > 0 \
-                    and abs(wrap(leg.heading - h0)) + _TURN < np.pi - 1e-6
+                same = wrap_angle(move.heading - h0) * wrap_angle(leg.heading - h0) > 0 \
+                    and abs(wrap_angle(leg.heading - h0)) + _TURN < np.pi - 1e-6
             else:
                 u, v = leg.to - c0, move.to - leg.to
                 same = abs(float(u[0] * v[1] - u[1] * v[0])) < 1e-9 and float(u @ v) > 0
@@ -324,7 +319,7 @@ def poses_along(legs: list[Leg] | tuple[Leg, ...], start: tuple[np.ndarray, floa
     out = [(c, h)]
     for leg in legs:
         if leg.kind == "turn":
-            sweep = wrap(leg.heading - h)
+            sweep = wrap_angle(leg.heading - h)
             n = max(1, int(np.ceil(abs(sweep) * max(reach, 1e-3) / step)))
             out += [(c, h + sweep * (k + 1) / n) for k in range(n)]
             h = leg.heading
@@ -395,7 +390,7 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     others = np.array([here[m] for m in names], dtype=float).reshape(-1, 2)
     start = (now.mean(axis=0), heading)
     space = _Space(others, offsets, spacing, start)
-    wanted = (middle, wrap(heading + turn), push)
+    wanted = (middle, wrap_angle(heading + turn), push)
     index = (ms.index(root), others, names.index(target))
     def places() -> Iterator[tuple[np.ndarray, float, np.ndarray, float]]:
         """The goal place if free, then the free places touching the target, searched
@@ -447,7 +442,7 @@ def _goal_pose(shape: np.ndarray, then: np.ndarray, root: int, centre: np.ndarra
     if line is not None and straight_line(then, spacing) is None \
             and float(np.linalg.norm(arm)) > 1e-9:
         out = then[root] - centre
-        turn = wrap(float(np.arctan2(out[1], out[0]) - np.arctan2(arm[1], arm[0])))
+        turn = wrap_angle(float(np.arctan2(out[1], out[0]) - np.arctan2(arm[1], arm[0])))
     return then[root] + rot_z(turn)[:2, :2] @ arm, turn
 
 
@@ -528,7 +523,7 @@ def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarra
             else phi
         for extra in ((0.0,) if line is not None else (0.0, _TURN, -_TURN, 2 * _TURN,
                                                        -2 * _TURN)):
-            heading = wrap(base + extra)
+            heading = wrap_angle(base + extra)
             turn = rot_z(heading)[:2, :2]
             middle = centre + spacing * out + turn @ arm
             push = -out if line is None else turn @ line * (1.0 if float(
@@ -536,11 +531,11 @@ def _free_docks(space: _Space, offsets: np.ndarray, root: int, others: np.ndarra
             if _dock_free(space, offsets, root, others, target, middle, heading,
                           push) is not None:
                 cost = float(np.linalg.norm(middle - wanted[0])) \
-                    + space.reach * abs(wrap(heading - wanted[1]))
+                    + space.reach * abs(wrap_angle(heading - wanted[1]))
                 found.append((cost, phi, middle, heading, push))
     found.sort(key=lambda f: f[0])
     apart = found[:_TRIES]                # the nearest, then the nearest of other sides
     for f in found[_TRIES:]:
-        if len(apart) < 2 * _TRIES and all(abs(wrap(f[1] - g[1])) >= _APART for g in apart):
+        if len(apart) < 2 * _TRIES and all(abs(wrap_angle(f[1] - g[1])) >= _APART for g in apart):
             apart.append(f)
     return [(m, h, p, _LAST) for _, _, m, h, p in apart]

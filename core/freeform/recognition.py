@@ -33,7 +33,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from ..actions import flow_of, topology_diff
-from ..alignment import rot_z
+from ..alignment import rot_z, wrap_angle
 from ..configuration import Configuration
 from ..control import Control
 from ..driver import ModuleCommand, Observation
@@ -43,7 +43,7 @@ from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
-from .piece_way import PieceWay, normalized, plan_piece_way, wrap
+from .piece_way import PieceWay, normalized, plan_piece_way
 from .travel import Locator, floor_path, pursue, twist_velocities
 from .world import ModuleReport
 
@@ -435,7 +435,7 @@ class ContactController:
                 toward = way.centre - self.locator.pose(root)[0][:2]
                 velocity = 0.5 * self.piece_speed * (float(toward @ way.push) > 0) * way.push
                 left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
-                turn = float(np.clip(_YAW_GAIN * wrap(way.legs[-1].heading - heading), -1, 1))
+                turn = float(np.clip(_YAW_GAIN * wrap_angle(way.legs[-1].heading - heading), -1, 1))
             else:
                 while stage < len(way.legs) and self._leg_done(way, stage, middle, heading):
                     stage += 1
@@ -460,7 +460,7 @@ class ContactController:
         ``arrive`` of its end, or past it)."""
         leg = way.legs[stage]
         if leg.kind == "turn":
-            return abs(wrap(leg.heading - heading)) < _YAW_DONE
+            return abs(wrap_angle(leg.heading - heading)) < _YAW_DONE
         return float((leg.to - middle) @ way.direction(stage)) < self.arrive
 
     def _leg_twist(self, way: PieceWay, stage: int, middle: np.ndarray, heading: float
@@ -474,10 +474,10 @@ class ContactController:
             np.array([self.locator.pose(m)[0][:2] for m in way.piece]) - middle, axis=1))),
             self.locator.spacing)
         leg = way.legs[stage]
-        left = sum(float(np.linalg.norm(b.to - a.to)) + reach * abs(wrap(b.heading - a.heading))
+        left = sum(float(np.linalg.norm(b.to - a.to)) + reach * abs(wrap_angle(b.heading - a.heading))
                    for a, b in zip(way.legs[stage:], way.legs[stage + 1:], strict=False))
         if leg.kind == "turn":
-            off = wrap(leg.heading - heading)     # about the leg's pivot, held
+            off = wrap_angle(leg.heading - heading)     # about the leg's pivot, held
             return 0.5 * (leg.to - middle), float(np.clip(_YAW_GAIN * off, -1.0, 1.0)), \
                 left + reach * abs(off) + self.arrive
         direction = way.direction(stage)
@@ -494,7 +494,7 @@ class ContactController:
             return velocity, 0.0, left + max(ahead, 0.0) + self.arrive
         steer = float(np.clip(-_STEER_GAIN * across, -_STEER, _STEER))
         velocity = velocity + steer * self.piece_speed * np.array([-direction[1], direction[0]])
-        turn = float(np.clip(_YAW_GAIN * wrap(leg.heading - heading), -1.0, 1.0))
+        turn = float(np.clip(_YAW_GAIN * wrap_angle(leg.heading - heading), -1.0, 1.0))
         return velocity, turn, left + max(ahead, 0.0) + self.arrive
 
     def _travel(self, phase: Phase, reports: Reports) -> Control:

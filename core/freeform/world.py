@@ -63,7 +63,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from ..alignment import rot_z
+from ..alignment import rot_z, wrap_angle
 from ..configuration import Configuration
 from ..driver import DriverOption
 from ..errors import ExecutionError
@@ -985,7 +985,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             turned = self._turned[k] + (self._gyro.normal(0.0, self.noise.std)
                                         if self.noise.std else 0.0)
             odometry = np.append(rot_z(-self._heading0[k])[:2, :2] @ self._odometry[k],
-                                 _wrap(turned))
+                                 wrap_angle(turned))
             out[module] = ModuleReport(parent, self.noise.rotation(rot_z(-yaw[k]) @ rot[k]),
                                        relative, self.sucker[k],
                                        tuple(e for e in new if e.module == module), odometry)
@@ -1040,11 +1040,6 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.column_stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
                             a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
                             a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` [rad] in [-pi, pi)."""
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 def _upright(rotation: np.ndarray) -> np.ndarray:

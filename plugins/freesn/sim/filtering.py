@@ -41,9 +41,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from msrr.core.alignment import rot_z
+from msrr.core.alignment import rot_z, wrap_angle
 from msrr.core.driver import Observation
 from msrr.core.freeform.mujoco import yaw_of
+from msrr.core.kinematics.rotations import rodrigues, skew
 
 from .commands import ENDS
 from .geometry import END_SIGN
@@ -59,25 +60,16 @@ Reports = Mapping[str, "NodeReport | StrutReport"]
 _UP = np.array([0.0, 0.0, 1.0])
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
 def _exp(rotvec: np.ndarray) -> np.ndarray:
-    """The rotation matrix (3, 3) of a rotation vector (3,) [rad] (Rodrigues)."""
+    """The rotation (3, 3) of a rotation vector (3,) [rad]; to first order near zero."""
     angle = float(np.linalg.norm(rotvec))
     if angle < 1e-12:
-        return np.eye(3) + _skew(rotvec)
-    k = _skew(rotvec / angle)
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+        return np.eye(3) + skew(rotvec)
+    return rodrigues(rotvec / angle, angle)
 
 
 def _angle(u: np.ndarray, v: np.ndarray) -> float:
     return math.atan2(float(np.linalg.norm(np.cross(u, v))), float(u @ v))
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 # -- a direction on the sphere ------------------------------------------------------------
@@ -251,7 +243,7 @@ class ReportFilter:
             base = self.nodes.get(root) if node != root else None
             if base is not None and base.rotation[2, 2] >= UPRIGHT \
                     and state.rotation[2, 2] >= UPRIGHT:
-                seen = _wrap(relative[node] + yaw_of(base.rotation) - yaw_of(state.rotation))
+                seen = float(wrap_angle(relative[node] + yaw_of(base.rotation) - yaw_of(state.rotation)))
                 state = attitude_update(state, np.array([seen]), _HEADING_ROWS, r_heading)
             self.nodes[node] = state
         for gone in set(self.nodes) - set(nodes):

@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from msrr.core.alignment import rot_z
+from msrr.core.alignment import rot_z, wrap_angle
 from msrr.core.configuration import Configuration
 from msrr.core.driver import Observation
 from msrr.core.estimation import Estimate
@@ -69,10 +69,6 @@ foot set that changes moves the place by the shape's noise (2 deg over 0.4 m: 1.
 UPRIGHT = -0.5
 """A node whose vertical axis points above this (its ``z`` component) is upright enough
 for its twist about the vertical to be its heading (within 120 deg of upright)."""
-
-
-def _wrap(angle: float) -> float:
-    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)
 
 
 def _turned(rotvec: np.ndarray) -> np.ndarray:
@@ -207,12 +203,12 @@ class ImuOdometry:
         upright = [n for n in members if self.tilt[n][2, 2] >= UPRIGHT]
         if not upright:
             return self.yaw[root]
-        votes = np.array([_wrap(self.yaw[n] - relative[n]) for n in upright])
+        votes = np.array([wrap_angle(self.yaw[n] - relative[n]) for n in upright])
         spread = np.abs((votes[:, None] - votes[None, :] + np.pi) % (2 * np.pi) - np.pi)
         heading = float(votes[int(np.argmin(spread.sum(axis=1)))])
         for n in members:
             if n not in upright:
-                self.yaw[n] = _wrap(heading + relative[n])
+                self.yaw[n] = wrap_angle(heading + relative[n])
         return heading
 
     def _turn(self, nodes: Mapping[str, NodeReport], dt: float) -> dict[str, np.ndarray]:
@@ -242,7 +238,7 @@ class ImuOdometry:
         known = [n for n in relative if n in self.yaw and n not in new]
         base = self.yaw[known[0]] - relative[known[0]] if known else 0.0
         for node in new:
-            self.yaw[node] = _wrap(base + relative.get(node, 0.0))
+            self.yaw[node] = wrap_angle(base + relative.get(node, 0.0))
 
     def _step_feet(self, offsets: Mapping[str, np.ndarray], rates: Mapping[str, np.ndarray],
                    dt: float) -> bool:

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from msrr.core.alignment import rot_z
+from msrr.core.alignment import rot_z, wrap_angle
 from msrr.core.configuration import Configuration
 from msrr.core.errors import ConfigurationError
 from msrr.core.freeform.mujoco import yaw_of
@@ -81,10 +81,6 @@ def root_order(nodes: list[str] | set[str], links: Links) -> list[str]:
     return sorted(degree, key=lambda n: (-degree[n], n))
 
 
-def _wrap(angle: np.ndarray | float) -> np.ndarray | float:
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
-
-
 def node_headings(reports: Reports, links: Links | None = None,
                   root: str | None = None) -> dict[str, float]:
     """Heading [rad] of every node's horizontal frame in its group's root frame.
@@ -116,14 +112,14 @@ def node_headings(reports: Reports, links: Links | None = None,
         jac = np.zeros((len(measured), len(free)))
         res = np.empty(len(measured))
         for row, (i, j, delta) in enumerate(measured):
-            res[row] = _wrap(heading[j] - heading[i] - delta)
+            res[row] = wrap_angle(heading[j] - heading[i] - delta)
             if j in column:
                 jac[row, column[j]] += 1.0
             if i in column:
                 jac[row, column[i]] -= 1.0
         step = np.linalg.lstsq(jac, -res, rcond=None)[0]
         for n, c in column.items():
-            heading[n] = float(_wrap(heading[n] + step[c]))
+            heading[n] = float(wrap_angle(heading[n] + step[c]))
     return heading
 
 

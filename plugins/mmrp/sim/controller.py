@@ -34,13 +34,14 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
+from msrr.core.alignment import wrap_angle
 from msrr.core.control import Control
 from msrr.core.driver import ModuleCommand, Observation
 from msrr.core.events import Phase
 from msrr.core.plan import Action
 
 from ..robot import MODULE, SPEC
-from .geometry import neighbour_pose, track_speeds, wrap
+from .geometry import neighbour_pose, track_speeds
 from .paths import plan_path, segment_clearance
 
 __all__ = ["MmrpController"]
@@ -176,7 +177,7 @@ class MmrpController:
         for stop in course:
             seconds += (settling_time(math.dist(here[:2], stop[:2]), DRIVE_GAIN, self.speed,
                                       self.tolerance, MIN_DRIVE_SPEED)
-                        + settling_time(wrap(stop[2] - here[2]), TURN_GAIN, self.turn_rate,
+                        + settling_time(wrap_angle(stop[2] - here[2]), TURN_GAIN, self.turn_rate,
                                         self.yaw_tolerance))
             here = stop
         return seconds
@@ -191,7 +192,7 @@ class MmrpController:
         if phase is Phase.MOVE:
             plan.stops, plan.stage = self._leg_stops(centre, target), "stops"
             plan.legged = True
-        elif math.dist(centre[:2], target[:2]) < 0.05 and abs(wrap(centre[2] - target[2])) < 0.1:
+        elif math.dist(centre[:2], target[:2]) < 0.05 and abs(wrap_angle(centre[2] - target[2])) < 0.1:
             plan.stage = "line"
         else:
             self._plan_path(plan, poses)
@@ -204,7 +205,7 @@ class MmrpController:
         turned, and the turn back."""
         if abs(target[1] - centre[1]) <= abs(target[0] - centre[0]):
             return [target]
-        turned = wrap(target[2] + math.pi / 2)
+        turned = wrap_angle(target[2] + math.pi / 2)
         return [(centre[0], centre[1], turned), (target[0], target[1], turned), target]
 
     def _connection_targets(self, action: Action, phase: Phase, observation: Observation,
@@ -226,7 +227,7 @@ class MmrpController:
             reach = self.pitch - (self.extrusion if phase is Phase.CONNECT else 0.0)
             goal = neighbour_pose(poses[partner], partner_face, reach)
             now = poses[mover]
-            turn = wrap(goal[2] - now[2])
+            turn = wrap_angle(goal[2] - now[2])
             c, s = math.cos(turn), math.sin(turn)
             for member in group:
                 dx, dy = poses[member][0] - now[0], poses[member][1] - now[1]
@@ -306,7 +307,7 @@ class MmrpController:
         delta = np.subtract(stop[:2], centre[:2])
         along = float(delta @ heading)
         lateral = float(delta @ np.array([-heading[1], heading[0]]))
-        yaw_error = wrap(stop[2] - centre[2])
+        yaw_error = wrap_angle(stop[2] - centre[2])
         if abs(along) < self.tolerance:
             if abs(yaw_error) < self.yaw_tolerance:
                 plan.stops.pop(0)
@@ -332,7 +333,7 @@ class MmrpController:
             else:
                 return (*self._pursue(plan, centre), False)
         if plan.stage == "align":
-            error = wrap(target[2] - centre[2])
+            error = wrap_angle(target[2] - centre[2])
             if abs(error) < self.yaw_tolerance:
                 plan.stage = "line"
             else:
@@ -342,7 +343,7 @@ class MmrpController:
         left = np.array([-heading[1], heading[0]])
         delta = np.subtract(target[:2], centre[:2])
         along, lateral = float(delta @ heading), float(delta @ left)
-        yaw_error = wrap(target[2] - centre[2])
+        yaw_error = wrap_angle(target[2] - centre[2])
         lateral_reach = self.tolerance * 2
         if plan.legged:  # a plan's leg: its sweep, no detours; the next leg or dock corrects
             lateral_reach = self.leg_tolerance
@@ -372,10 +373,10 @@ class MmrpController:
         points = points[nearest:]
         aim = next((p for p in points if np.linalg.norm(p - here) > 0.12), points[-1])
         bearing = math.atan2(aim[1] - here[1], aim[0] - here[0])
-        error = wrap(bearing - centre[2])
+        error = wrap_angle(bearing - centre[2])
         direction = 1.0
         if abs(error) > math.pi / 2:
-            direction, error = -1.0, wrap(error + math.pi)
+            direction, error = -1.0, wrap_angle(error + math.pi)
         omega = float(np.clip(TURN_GAIN * error, -self.turn_rate, self.turn_rate))
         if abs(error) > 0.35:
             return 0.0, omega

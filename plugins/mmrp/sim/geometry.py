@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from msrr.core.alignment import wrap_angle
+
 from ..robot import FACES
 
 __all__ = [
@@ -18,7 +20,6 @@ __all__ = [
     "group_twist",
     "neighbour_pose",
     "track_speeds",
-    "wrap",
 ]
 
 FACE_NORMALS: dict[str, tuple[float, float]] = {f.name: (f.normal[0], f.normal[1]) for f in FACES}
@@ -29,11 +30,6 @@ OPPOSITE = {"T": "B", "B": "T", "L": "R", "R": "L"}
 """The face a face docks with (T-B and L-R only)."""
 
 Pose2 = tuple[float, float, float]
-
-
-def wrap(angle: float) -> float:
-    """``angle`` wrapped to [-pi, pi) [rad]."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def neighbour_pose(pose: Pose2, face: str, pitch: float) -> Pose2:
@@ -72,7 +68,7 @@ def alignment(pose_a: Pose2, face_a: str, pose_b: Pose2, pitch: float) -> Alignm
     normal = np.array([c * nx - s * ny, s * nx + c * ny])
     across = np.array([-normal[1], normal[0]])
     d = np.array([pose_b[0] - xa, pose_b[1] - ya])
-    return Alignment(float(d @ normal) - pitch, float(d @ across), wrap(pose_b[2] - yaw_a))
+    return Alignment(float(d @ normal) - pitch, float(d @ across), wrap_angle(pose_b[2] - yaw_a))
 
 
 def track_speeds(v: float, omega: float, offset_left: float, width: float) -> tuple[float, float]:
