@@ -43,6 +43,7 @@ import numpy as np
 
 from msrr.core.alignment import rot_z, wrap_angle
 from msrr.core.driver import Observation
+from msrr.core.errors import ExecutionError
 from msrr.core.freeform.mujoco import yaw_of
 from msrr.core.kinematics.rotations import rodrigues, skew
 
@@ -210,8 +211,12 @@ class ReportFilter:
             if observation.time < self.time:   # a new run on the same driver
                 self._reset()
         reports: Reports = observation.sensors
-        acc = next((r.accuracy for r in reports.values()
-                    if isinstance(r, NodeReport | StrutReport)), Accuracy())
+        stated = {r.accuracy for r in reports.values() if isinstance(r, NodeReport | StrutReport)}
+        if len(stated) > 1:   # the gains below are one model's; never guess between two
+            raise ExecutionError(f"the FreeSN report filter models one accuracy for every "
+                                 f"module; the reports at t={observation.time:.2f} s state "
+                                 f"{len(stated)} different ones")
+        acc = stated.pop() if stated else Accuracy()
         dt = 0.0 if self.time is None else observation.time - self.time
         self.time = observation.time
         if acc.angle <= 0.0:

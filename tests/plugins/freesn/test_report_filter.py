@@ -4,6 +4,7 @@ read here only): falling toward ``sigma / sqrt(n)`` at rest, and no lag in a swi
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,11 +12,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from msrr.core.configuration import Configuration
+from msrr.core.driver import Observation
+from msrr.core.errors import ExecutionError
 from msrr.core.library import load_library
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim.controller import FreeSNController
 from msrr.plugins.freesn.sim.filtering import (
     NodeState,
+    ReportFilter,
     attitude_predict,
     attitude_update,
     direction_update,
@@ -141,3 +145,12 @@ def test_exact_reports_pass_unchanged():
         driver.reset(_library_config("S6N3-2.2"))
         observation = driver.get_observation()
         assert recognizer.report_filter().update(observation) is observation
+
+
+def test_reports_stating_different_accuracies_are_refused_not_averaged():
+    """The gains are one noise model's: reports that disagree on it stop the run with a
+    reason instead of being filtered with the first report's figures."""
+    node = NodeReport(np.eye(3), {}, np.zeros(3), Accuracy(angle=0.03))
+    reports = {"n0": node, "n1": replace(node, accuracy=Accuracy(angle=0.06))}
+    with pytest.raises(ExecutionError, match="2 different ones"):
+        ReportFilter().update(Observation(time=0.0, sensors=reports))
