@@ -328,6 +328,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._gyro = np.random.default_rng([options.seed, 1])  # the yaw's own noise
         self._tree = m.body_treeid[self._shell]    # each module is one kinematic tree
         self._wake = np.zeros(n, dtype=bool)       # commanded to move since the last servo
+        # each module's weld to a parent (a lone module has none: its entry is never read)
         self._weld_id = np.array([self.welds.id(i) for i in self.modules] if n > 1 else [0])
         mujoco.mj_forward(self.model, self.data)
         self._upright = np.array([_upright(r) for r in self.data.xmat[self._conn].reshape(-1, 3, 3)])
