@@ -14,9 +14,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 from scipy.spatial.transform import Rotation
 
 from msrr.core import plugins
+from msrr.core.app.cli import get_cli
 from msrr.core.app.run import RunRequest, execute_run, prepare_run
 from msrr.core.driver import Observation
 from msrr.core.link import Emulator, KeyRef, write_key, write_system
@@ -125,3 +127,15 @@ def test_a_noisy_freesn_emulated_over_the_link_is_filtered(tmp_path, emulated_fr
     assert result.success, result.reason
     assert len(seen) > 10 and all(filtered for _, filtered in seen)
     assert {a.angle for a, _ in seen} == {float(np.float32(NOISE))}
+
+
+def test_platform_emulate_takes_the_simulators_options(tmp_path):
+    """``--driver-option noise=...`` reaches the simulator behind the modules (checked
+    against its declaration like ``platform run``'s)."""
+    args = ["emulate", "--robot", "freesn", str(CONFIGS / "S6N3-2.3.json"), "--system-out",
+            str(tmp_path / "system.json"), "--duration", "0.3", "--speed", "3"]
+    result = CliRunner().invoke(get_cli(), [*args, "--driver-option", "noise=0.0698"])
+    assert result.exit_code == 0, result.output
+    assert "9 emulated freesn modules" in result.output
+    bad = CliRunner().invoke(get_cli(), [*args, "--driver-option", "loudness=3"])
+    assert bad.exit_code == 1 and "unknown option 'loudness'" in bad.output
