@@ -74,6 +74,14 @@ def _norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt(_dot(v, v))
 
 
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Cross products along the last axis (``np.cross``'s arithmetic, without its
+    overhead on small stacks)."""
+    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
+
+
 def _apply(rotation: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``rotation @ v`` for stacks: (..., 3, 3) and (..., 3) -> (..., 3)."""
     return (rotation @ v[..., None])[..., 0]
@@ -135,7 +143,7 @@ def direction_update(u: np.ndarray, var: float | np.ndarray, fix: np.ndarray, r:
     fix = fix / _norm(fix)[..., None]
     total = var + r
     k = np.where(total > 0.0, var / np.where(total > 0.0, total, 1.0), 1.0)
-    axis = np.cross(u, fix)
+    axis = _cross(u, fix)
     size = _norm(axis)
     turns = size > 1e-12
     angle = np.arctan2(size, _dot(u, fix))
@@ -321,15 +329,15 @@ class ReportFilter:
         if np.any(known):
             gyro = np.array([reports[ids[i]].gyro for i in np.flatnonzero(known)],  # type: ignore[union-attr]
                             dtype=float)
-            state[known] = attitude_predict(self._state[prev[known]], gyro, dt, acc)
+            state = _put(state, known, attitude_predict(_take(self._state, prev[known]), gyro,
+                                                        dt, acc))
         fresh = ~known & is_root   # the root of a new group: heading 0
         if np.any(fresh):
             state[fresh] = _first(tilt[fresh], np.zeros(int(fresh.sum())), 0.0, acc)
         r_tilt = acc.angle**2 * np.eye(2)
         ready = known | is_root
-        state[ready] = attitude_update(state[ready], tilt_residual(state.rotation[ready],
-                                                                   tilt[ready]),
-                                       _TILT_ROWS, r_tilt)
+        state = _put(state, ready, attitude_update(_at(state, ready), tilt_residual(
+            _at(state, ready).rotation, _at(tilt, ready)), _TILT_ROWS, r_tilt))
         late = ~ready   # new in a known group: its heading from the struts, after its root's
         if np.any(late):
             psi = _yaw(state.rotation[base[late]]) + np.array(
@@ -396,8 +404,8 @@ class ReportFilter:
             return out
         row = {m: i for i, m in enumerate(self._ids)}
         at = np.array([row[n] for n in c.nodes], dtype=int)
-        struts = list(dict.fromkeys(s for s, _ in c.keys))
-        slot = np.array([struts.index(s) for s, _ in c.keys], dtype=int)
+        struts = {s: i for i, s in enumerate(dict.fromkeys(s for s, _ in c.keys))}
+        slot = np.array([struts[s] for s, _ in c.keys], dtype=int)
         side = np.array([0 if e == "a" else 1 for _, e in c.keys], dtype=int)
         sign = np.array([END_SIGN[e] for _, e in c.keys])
         ends = np.zeros((2, len(struts), 2, 3))   # z and x terms per strut and end
@@ -408,7 +416,7 @@ class ReportFilter:
         z /= _norm(z)[:, None]
         x -= _dot(x, z)[:, None] * z
         x /= _norm(x)[:, None]
-        frames = np.stack([x, np.cross(z, x), z], axis=-1)
+        frames = np.stack([x, _cross(z, x), z], axis=-1)
         attitudes = _rot_z(-yaw[at]) @ frames[slot]
         by_strut: dict[str, dict[str, np.ndarray]] = {}
         for (strut, end), attitude in zip(c.keys, attitudes, strict=True):
@@ -417,6 +425,25 @@ class ReportFilter:
             report: StrutReport = reports[strut]  # type: ignore[assignment,no-redef]
             out[strut] = replace(report, attitude={**report.attitude, **attitude})
         return out
+
+
+def _at(array: NodeState | np.ndarray, mask: np.ndarray) -> NodeState | np.ndarray:
+    """The rows of ``mask`` (all of them without a copy)."""
+    return array if bool(mask.all()) else array[mask]
+
+
+def _take(state: NodeState, index: np.ndarray) -> NodeState:
+    """The rows ``index`` of ``state`` (in order: ``state`` itself)."""
+    same = len(index) == len(state.rotation) and bool((index == np.arange(len(index))).all())
+    return state if same else state[index]
+
+
+def _put(state: NodeState, mask: np.ndarray, rows: NodeState) -> NodeState:
+    """``state`` with the rows of ``mask`` replaced by ``rows`` (all: ``rows``)."""
+    if bool(mask.all()):
+        return rows
+    state[mask] = rows
+    return state
 
 
 def _first(tilt: np.ndarray, psi: np.ndarray, heading_var: float, acc: Accuracy
