@@ -10,7 +10,10 @@ shared machine the CPU time is what the tick costs one core; the wall time also 
 the other jobs' share of it), and the mean number of evaluations of eq. 6 with its
 gradient in a tick's tracking solve (the tick's work, which the machine's load does not
 change: the CPU time of the same work varies about 2x with the load); the **real-time factor** is simulated time over wall time,
-for the physics alone and for the whole loop (reports, tick, physics).
+for the physics alone and for the whole loop (reports, tick, physics). As in the
+executor, the reports go through the recognizer's report filter first
+(:mod:`msrr.plugins.freesn.sim.filtering`, issues 31-32); its CPU time per tick is a
+column of its own beside the tick's (median and 95th percentile).
 Targets at 18 modules (issue 12): tick median <= 20 ms and the simulation's real-time
 factor (physics) >= 5; the loop RTF (reports + tick + physics, one core) is shown too.
 
@@ -19,7 +22,7 @@ Usage: ``python benchmarks/freesn_control.py [--seed N] [--ticks N] [--workers N
 :mod:`msrr.core.app.batch`; the default
 one worker keeps the timings those of one core alone). The last line is
 ``tick_median_ms_18=... tick_p95_ms_18=... tick_cpu_median_ms_18=...
-evaluations_per_tick_18=... rtf_loop_18=... rtf_physics_18=...``.
+filter_cpu_median_ms_18=... evaluations_per_tick_18=... rtf_loop_18=... rtf_physics_18=...``.
 """
 
 from __future__ import annotations
@@ -55,11 +58,12 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0, drive: str = "
                 if c.key == EDGES[name])
     recognizer = plugins.recognizers.get("freesn")
     controller = plugins.controllers.get("freesn")
-    tick_s, cpu_s, evaluations, physics_s = [], [], [], 0.0
+    tick_s, cpu_s, filter_s, evaluations, physics_s = [], [], [], [], 0.0
     with FreeSNMujocoDriver(noise=math.radians(2.0), slip=0.05, seed=seed,
                             connector_drive=drive) as driver:
         driver.reset(case.start)
-        current = recognizer.recognize(driver.get_observation().sensors)
+        report_filter = recognizer.report_filter()
+        current = recognizer.recognize(report_filter.update(driver.get_observation()).sensors)
         tree = tree_for(current, case.action.kinematic_tree, robot.default_joint_mode())
         tracker = PhaseTracker(tree, connection_goal(current, case.target), TrackingOptions(),
                                seed=seed, ground=GroundModel.for_configuration(current,
@@ -67,6 +71,9 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0, drive: str = "
         began = time.perf_counter()
         for _ in range(ticks):
             observation = driver.get_observation()
+            c0 = time.process_time()
+            observation = report_filter.update(observation)
+            filter_s.append(time.process_time() - c0)
             t0, c0 = time.perf_counter(), time.process_time()
             current = recognizer.recognize(observation.sensors)
             joint = tracker.step(current)
@@ -87,6 +94,8 @@ def measure(name: str, seed: int, ticks: int, rate: float = 10.0, drive: str = "
     return {"modules": modules, "first_ms": tick_s[0] * 1e3, "median_ms": float(np.median(ms)),
             "p95_ms": float(np.percentile(ms, 95)), "cpu_median_ms": float(np.median(cpu)),
             "cpu_p95_ms": float(np.percentile(cpu, 95)),
+            "filter_cpu_median_ms": float(np.median(filter_s[1:]) * 1e3),
+            "filter_cpu_p95_ms": float(np.percentile(filter_s[1:], 95) * 1e3),
             "evaluations": float(np.mean(evaluations[1:])), "rtf_physics": sim / physics_s,
             "rtf_loop": sim / loop_s, "sim_s": sim}
 
@@ -113,17 +122,21 @@ def main(seed: int, ticks: int, workers: int, cluster: str | None, drive: str) -
         results[name] = r
         rows.append([name, EDGES[name].split(":", 1)[1], r["modules"], f"{r['first_ms']:.1f}",
                      f"{r['median_ms']:.2f}", f"{r['p95_ms']:.2f}", f"{r['cpu_median_ms']:.2f}",
-                     f"{r['cpu_p95_ms']:.2f}", f"{r['evaluations']:.1f}",
+                     f"{r['cpu_p95_ms']:.2f}", f"{r['filter_cpu_median_ms']:.2f}",
+                     f"{r['filter_cpu_p95_ms']:.2f}", f"{r['evaluations']:.1f}",
                      f"{r['rtf_physics']:.1f}",
                      f"{r['rtf_loop']:.1f}"])
-    console.print(table("FreeSN control tick (recognize + IK tracking + commands)",
+    console.print(table("FreeSN control tick (report filter; recognize + IK tracking + "
+                        "commands)",
                         ["library", "edge", "modules", "first tick [ms]", "median [ms]",
-                         "p95 [ms]", "CPU median [ms]", "CPU p95 [ms]", "evals / tick",
+                         "p95 [ms]", "CPU median [ms]", "CPU p95 [ms]",
+                         "filter CPU median [ms]", "filter CPU p95 [ms]", "evals / tick",
                          "RTF physics",
                          "RTF loop"], rows))
     big = results["S12N6"]
     console.print(f"tick_median_ms_18={big['median_ms']:.2f} tick_p95_ms_18={big['p95_ms']:.2f} "
                   f"tick_cpu_median_ms_18={big['cpu_median_ms']:.2f} "
+                  f"filter_cpu_median_ms_18={big['filter_cpu_median_ms']:.2f} "
                   f"evaluations_per_tick_18={big['evaluations']:.1f} "
                   f"rtf_loop_18={big['rtf_loop']:.1f} rtf_physics_18={big['rtf_physics']:.1f}")
 

@@ -66,7 +66,7 @@ import numpy as np
 
 from ..capabilities import Recognizer
 from ..configuration import Configuration
-from ..driver import Driver, DriverFactory, ModuleCommand, Observation, Pose
+from ..driver import Driver, DriverFactory, ModuleCommand, Observation, Pose, check_driver_options
 from ..errors import ConfigurationError, ExecutionError
 from ..faults import Fault, parse_faults
 from .codec import Codec, CodecError, RecordTable, infer_records
@@ -125,13 +125,17 @@ class Emulator:
         timeout: the silence timeout written to the systems file [s].
         budget: the link budget written to the systems file [kbit/s] (``None``: none).
         address: loopback address the modules listen on (one port each).
+        driver_options: keyword options of the driver, checked
+            (:func:`~msrr.core.driver.check_driver_options`; FreeSN: ``noise``, ``slip``:
+            modules whose reports are as noisy, and state so in their ``accuracy``).
     """
 
     def __init__(self, factory: DriverFactory, start: Configuration, *,
                  recognizer: Recognizer | None = None, rate: float = 10.0, speed: float = 1.0,
                  faults: tuple[Fault, ...] = (), seed: int = 0, key: bytes | None = None,
                  system: int = 1, timeout: float = 1.0, budget: float | None = None,
-                 address: str = "127.0.0.1"):
+                 address: str = "127.0.0.1",
+                 driver_options: tuple[tuple[str, object], ...] = ()):
         if not (math.isfinite(rate) and rate > 0):
             raise ConfigurationError(f"must be a finite number > 0, got {rate!r}", field="--rate")
         if not (math.isfinite(speed) and 0 < speed <= 100):
@@ -143,6 +147,7 @@ class Emulator:
                 raise ConfigurationError(f"fault {fault}: no module {module!r} in the "
                                          "configuration", field="--faults")
         self.factory, self.start, self.recognizer = factory, start, recognizer
+        self.driver_options = dict(check_driver_options(factory, driver_options))
         self.period = 1.0 / rate
         self.speed = speed
         self.faults = faults
@@ -174,7 +179,7 @@ class Emulator:
         table off its first observation."""
         wrong = {str(f.params["module"]) for f in self.faults if f.kind == "wrong-key"}
         try:
-            self.driver = self.factory(gui=False, seed=self.seed)
+            self.driver = self.factory(gui=False, seed=self.seed, **self.driver_options)
             self.driver.connect()
             self.driver.reset(self.start)
             first = self.driver.get_observation()

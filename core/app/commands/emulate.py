@@ -41,10 +41,14 @@ __all__ = ["command"]
 @click.option("--duration", type=FiniteFloat(0, open_low=True), default=None,
               help="Stop after this much module time [s]; default: until Ctrl-C.")
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of the faults and simulator.")
+@click.option("--driver-option", "driver_options", multiple=True, metavar="KEY=VALUE",
+              help="Keyword option of the simulator behind the modules, repeatable (FreeSN: "
+                   "noise=0.035 [rad], slip=0.05: noisy reports that state their accuracy); "
+                   "`platform robots --options`.")
 def command(robot: str, config: Path, faults: str, system_out: Path, key_env: str | None,
             rate: float, speed: float, timeout: float, budget: float | None,
             duration: float | None,
-            seed: int) -> None:
+            seed: int, driver_options: tuple[str, ...]) -> None:
     """Emulate the modules of CONFIG: one UDP endpoint per module on 127.0.0.1, each
     speaking the link protocol, backed by the robot's simulator (its first driver).
 
@@ -53,6 +57,7 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
     from ...files import check_output_place  # pydantic: loads when the command runs
     from ...link.emulator import Emulator, parse_link_faults  # the link loads when it starts
     from ...link.system import KeyRef, new_key, parse_key, write_key, write_system
+    from ..run import parse_driver_options
 
     with handled():
         start = plugins.load_configuration(config)
@@ -74,7 +79,8 @@ def command(robot: str, config: Path, faults: str, system_out: Path, key_env: st
             key_path = system_out.with_suffix(".key")
             ref = KeyRef(file=key_path.name)
         emulator = Emulator(factory, start, recognizer=recognizer, rate=rate, speed=speed,
-                            faults=spec, seed=seed, key=key, timeout=timeout, budget=budget)
+                            faults=spec, seed=seed, key=key, timeout=timeout, budget=budget,
+                            driver_options=parse_driver_options(driver_options))
         with emulator:
             if key_env is None:
                 write_key(key_path, key)

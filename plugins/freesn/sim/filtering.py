@@ -30,79 +30,133 @@ The output is a report set of the same shape built from the filtered state -- no
 strut's rotation, its axis the mean of its ends' ``R u``) -- so the recognizer and the
 controllers read it as they read raw reports, and the node headings the controllers
 turn commands with are the filter's. Exact readings (``angle`` 0) pass unchanged.
+
+The filter is batched (issue 32): every node's attitude and every connector's direction
+are rows of one array, and each step above is a handful of numpy operations on stacked
+3x3 (and 6x6) matrices, whatever the number of modules; the functions below take one
+item or a stack of them alike (leading dimensions).
 """
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from msrr.core.alignment import rot_z, wrap_angle
+from msrr.core.alignment import wrap_angle
 from msrr.core.driver import Observation
 from msrr.core.errors import ExecutionError
-from msrr.core.freeform.mujoco import yaw_of
 from msrr.core.kinematics.rotations import rodrigues, skew
 
-from .commands import ENDS
 from .geometry import END_SIGN
 from .odometry import UPRIGHT
 from .recognizer import Links, links_of, node_headings, root_order
 from .world import Accuracy, NodeReport, StrutReport
 
 __all__ = ["NodeState", "ReportFilter", "attitude_predict", "attitude_update",
-           "direction_predict", "direction_update"]
+           "direction_predict", "direction_update", "tilt_residual"]
 
 Reports = Mapping[str, "NodeReport | StrutReport"]
 
-_UP = np.array([0.0, 0.0, 1.0])
+_EYE3 = np.eye(3)
+_EYE6 = np.eye(6)
+
+
+def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Dot products along the last axis, shape (...) (summed in order, as ``u @ v``)."""
+    return (u * v).sum(axis=-1)
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norms along the last axis, shape (...)."""
+    return np.sqrt(_dot(v, v))
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Cross products along the last axis (``np.cross``'s arithmetic, without its
+    overhead on small stacks)."""
+    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
+
+
+def _apply(rotation: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``rotation @ v`` for stacks: (..., 3, 3) and (..., 3) -> (..., 3)."""
+    return (rotation @ v[..., None])[..., 0]
+
+
+def _t(m: np.ndarray) -> np.ndarray:
+    """The transposes of a stack of matrices."""
+    return np.swapaxes(m, -1, -2)
 
 
 def _exp(rotvec: np.ndarray) -> np.ndarray:
-    """The rotation (3, 3) of a rotation vector (3,) [rad]; to first order near zero."""
-    angle = float(np.linalg.norm(rotvec))
-    if angle < 1e-12:
-        return np.eye(3) + skew(rotvec)
-    return rodrigues(rotvec / angle, angle)
+    """The rotations (..., 3, 3) of rotation vectors (..., 3) [rad]; to first order near
+    zero."""
+    rotvec = np.asarray(rotvec, dtype=float)
+    angle = _norm(rotvec)
+    small = angle < 1e-12
+    out = rodrigues(rotvec / np.where(small, 1.0, angle)[..., None], angle)
+    if np.any(small):
+        out[small] = _EYE3 + skew(rotvec[small])
+    return out
 
 
-def _angle(u: np.ndarray, v: np.ndarray) -> float:
-    return math.atan2(float(np.linalg.norm(np.cross(u, v))), float(u @ v))
+def _yaw(rotation: np.ndarray) -> np.ndarray:
+    """The yaws [rad] (...) of the rotations about ``z`` nearest to ``rotation``
+    (..., 3, 3) (Frobenius; :func:`msrr.core.freeform.mujoco.yaw_of`)."""
+    return np.arctan2(rotation[..., 1, 0] - rotation[..., 0, 1],
+                      rotation[..., 0, 0] + rotation[..., 1, 1])
+
+
+def _rot_z(theta: np.ndarray) -> np.ndarray:
+    """Rotations (..., 3, 3) about ``z`` by ``theta`` (...) [rad]."""
+    c, s = np.cos(theta), np.sin(theta)
+    out = np.zeros((*np.shape(theta), 3, 3))
+    out[..., 0, 0], out[..., 0, 1], out[..., 1, 0], out[..., 1, 1] = c, -s, s, c
+    out[..., 2, 2] = 1.0
+    return out
 
 
 # -- a direction on the sphere ------------------------------------------------------------
 
-def direction_predict(u: np.ndarray, var: float, rolled: np.ndarray, q: float
-                      ) -> tuple[np.ndarray, float]:
-    """Move unit vector ``u`` (3,) by the rotation ``rolled`` (3, 3) the encoders counted;
-    its variance per axis ``var`` [rad^2] grows by the rolling's ``q`` [rad^2]."""
-    return rolled @ u, var + q
+def direction_predict(u: np.ndarray, var: float | np.ndarray, rolled: np.ndarray,
+                      q: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Move unit vectors ``u`` (..., 3) by the rotations ``rolled`` (..., 3, 3) the encoders
+    counted; their variance per axis ``var`` (...) [rad^2] grows by the rolling's ``q``
+    [rad^2]."""
+    return _apply(rolled, np.asarray(u, dtype=float)), np.asarray(var + q, dtype=float)
 
 
-def direction_update(u: np.ndarray, var: float, fix: np.ndarray, r: float
-                     ) -> tuple[np.ndarray, float]:
-    """Kalman update of unit vector ``u`` (3,) (variance ``var`` [rad^2] per tangent axis)
-    by a reading ``fix`` (3,) of variance ``r``: ``u`` turns toward ``fix`` along their
-    great circle by ``k = var / (var + r)`` of their angle, ``var <- (1 - k) var``. From
-    ``var = r`` and no motion, the ``n``-th reading gets ``k = 1/n``: the running mean,
-    ``var = r / n``."""
-    fix = fix / np.linalg.norm(fix)
-    k = var / (var + r) if var + r > 0.0 else 1.0
-    axis = np.cross(u, fix)
-    size = float(np.linalg.norm(axis))
-    if size > 1e-12:
-        u = _exp(axis / size * (k * _angle(u, fix))) @ u
-    return u / np.linalg.norm(u), (1.0 - k) * var
+def direction_update(u: np.ndarray, var: float | np.ndarray, fix: np.ndarray, r: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update of unit vectors ``u`` (..., 3) (variance ``var`` (...) [rad^2] per
+    tangent axis) by readings ``fix`` (..., 3) of variance ``r``: ``u`` turns toward
+    ``fix`` along their great circle by ``k = var / (var + r)`` of their angle,
+    ``var <- (1 - k) var``. From ``var = r`` and no motion, the ``n``-th reading gets
+    ``k = 1/n``: the running mean, ``var = r / n``."""
+    u = np.asarray(u, dtype=float)
+    var = np.asarray(var, dtype=float)
+    fix = np.asarray(fix, dtype=float)
+    fix = fix / _norm(fix)[..., None]
+    total = var + r
+    k = np.where(total > 0.0, var / np.where(total > 0.0, total, 1.0), 1.0)
+    axis = _cross(u, fix)
+    size = _norm(axis)
+    turns = size > 1e-12
+    angle = np.arctan2(size, _dot(u, fix))
+    rotvec = axis / np.where(turns, size, 1.0)[..., None] * (k * angle)[..., None]
+    u = np.where(turns[..., None], _apply(_exp(rotvec), u), u)
+    return u / _norm(u)[..., None], (1.0 - k) * var
 
 
 # -- a node's attitude and gyro bias ------------------------------------------------------
 
 @dataclass
 class NodeState:
-    """One node's filtered attitude.
+    """One node's filtered attitude (or, with leading dimensions, a stack of them).
 
     Attributes:
         rotation: node -> gyro frame ``W`` (3, 3). bias: gyro bias estimate (3,) [rad/s].
@@ -114,38 +168,46 @@ class NodeState:
     bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
     cov: np.ndarray = field(default_factory=lambda: np.zeros((6, 6)))
 
+    def __getitem__(self, index: np.ndarray | slice) -> NodeState:
+        return NodeState(self.rotation[index], self.bias[index], self.cov[index])
+
+    def __setitem__(self, index: np.ndarray | slice, value: NodeState) -> None:
+        self.rotation[index], self.bias[index], self.cov[index] = \
+            value.rotation, value.bias, value.cov
+
 
 def attitude_predict(state: NodeState, gyro: np.ndarray, dt: float, acc: Accuracy
                      ) -> NodeState:
-    """Propagate by the gyro's mean body rate ``gyro`` (3,) [rad/s] over ``dt`` [s]:
+    """Propagate by the gyros' mean body rates ``gyro`` (..., 3) [rad/s] over ``dt`` [s]:
     ``R <- R exp([(w - b) dt])``; ``P <- F P F^T + Q`` with ``F = [[I, -R dt], [0, I]]``
     and ``Q = diag(gyro_noise^2 dt I, gyro_walk^2 dt I)``."""
-    f = np.eye(6)
-    f[:3, 3:] = -state.rotation * dt
+    f = np.broadcast_to(_EYE6, state.cov.shape).copy()
+    f[..., :3, 3:] = -state.rotation * dt
     q = np.diag([acc.gyro_noise**2 * dt] * 3 + [acc.gyro_walk**2 * dt] * 3)
     return NodeState(state.rotation @ _exp((gyro - state.bias) * dt), state.bias.copy(),
-                     f @ state.cov @ f.T + q)
+                     f @ state.cov @ _t(f) + q)
 
 
 def attitude_update(state: NodeState, residual: np.ndarray, rows: np.ndarray,
                     r: np.ndarray) -> NodeState:
-    """Kalman update by measurements ``residual`` (m,) = ``rows`` (m, 6) times the error
-    state plus noise of covariance ``r`` (m, m): ``K = P H^T (H P H^T + r)^-1``, the error
-    ``K y`` applied (``R <- exp([dtheta]) R``, ``b <- b + db``), ``P <- (I - K H) P``."""
+    """Kalman update by measurements ``residual`` (..., m) = ``rows`` (m, 6) times the
+    error state plus noise of covariance ``r`` (m, m): ``K = P H^T (H P H^T + r)^-1``,
+    the error ``K y`` applied (``R <- exp([dtheta]) R``, ``b <- b + db``),
+    ``P <- (I - K H) P``."""
     s = rows @ state.cov @ rows.T + r
-    gain = np.linalg.solve(s, rows @ state.cov).T
-    step = gain @ residual
-    cov = (np.eye(6) - gain @ rows) @ state.cov
-    return NodeState(_exp(step[:3]) @ state.rotation, state.bias + step[3:],
-                     0.5 * (cov + cov.T))
+    gain = _t(np.linalg.solve(s, rows @ state.cov))
+    step = (gain @ residual[..., None])[..., 0]
+    cov = (_EYE6 - gain @ rows) @ state.cov
+    return NodeState(_exp(step[..., :3]) @ state.rotation, state.bias + step[..., 3:],
+                     0.5 * (cov + _t(cov)))
 
 
 def tilt_residual(rotation: np.ndarray, tilt: np.ndarray) -> np.ndarray:
-    """The attitude error about ``W``'s x and y (2,) [rad] that the reported tilt (3, 3)
-    shows: its vertical in the node frame (row 2), turned into ``W`` by ``rotation``, is
-    ``e_z + e_z x dtheta`` to first order."""
-    up = rotation @ tilt[2]
-    return np.array([up[1], -up[0]])
+    """The attitude errors about ``W``'s x and y (..., 2) [rad] that the reported tilts
+    (..., 3, 3) show: their vertical in the node frame (row 2), turned into ``W`` by
+    ``rotation``, is ``e_z + e_z x dtheta`` to first order."""
+    up = _apply(rotation, tilt[..., 2, :])
+    return np.stack([up[..., 1], -up[..., 0]], axis=-1)
 
 
 _TILT_ROWS = np.eye(6)[:2]
@@ -177,11 +239,25 @@ def _group_roots(nodes: list[str], links: Links, root: str | None) -> dict[str, 
 
 
 @dataclass
-class _Connector:
-    node: str
+class _Connectors:
+    """The docked connectors' directions, one row each."""
+
+    keys: list[tuple[str, str]]
+    """``(strut, end)`` per row."""
+    nodes: list[str]
     u: np.ndarray
-    var: float
-    rolled: np.ndarray | None
+    """(m, 3) unit vectors in the node frames."""
+    var: np.ndarray
+    """(m,) variances per axis [rad^2]."""
+    rolled: np.ndarray
+    """(m, 3, 3) the encoders' count at the last report (identity where none)."""
+    encoded: np.ndarray
+    """(m,) whether the report had an encoder count."""
+
+
+def _no_connectors() -> _Connectors:
+    return _Connectors([], [], np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3, 3)),
+                       np.zeros(0, dtype=bool))
 
 
 class ReportFilter:
@@ -198,9 +274,16 @@ class ReportFilter:
     def _reset(self) -> None:
         """Forget the run: no state, no time."""
         self.time: float | None = None
-        self.nodes: dict[str, NodeState] = {}
-        self.connectors: dict[tuple[str, str], _Connector] = {}
+        self._ids: list[str] = []
+        self._state = NodeState(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 6, 6)))
+        self._connectors = _no_connectors()
         self.last: Observation | None = None
+
+    @property
+    def nodes(self) -> dict[str, NodeState]:
+        """Every node's filtered state, by id (a copy)."""
+        return {n: NodeState(self._state.rotation[i].copy(), self._state.bias[i].copy(),
+                             self._state.cov[i].copy()) for i, n in enumerate(self._ids)}
 
     def update(self, observation: Observation) -> Observation:
         """``observation`` with its reports replaced by the filtered ones; the same
@@ -224,97 +307,151 @@ class ReportFilter:
             return observation
         links = links_of(reports)
         self._nodes(reports, links, acc, dt)
-        self._connectors(reports, links, acc, dt)
-        self.last = replace(observation, sensors=self._reports(reports, links))
+        self._update_connectors(reports, links, acc, dt)
+        self.last = replace(observation, sensors=self._reports(reports))
         return self.last
 
     def _nodes(self, reports: Reports, links: Links, acc: Accuracy, dt: float) -> None:
-        """Predict every node by its gyro, correct by its tilt and relative heading."""
-        nodes = sorted(m for m, r in reports.items() if isinstance(r, NodeReport))
-        roots = _group_roots(nodes, links, self.root)
+        """Predict every node by its gyro, correct by its tilt and (all but the roots of
+        their groups, after the roots) by their heading relative to their root."""
+        ids = sorted(m for m, r in reports.items() if isinstance(r, NodeReport))
+        n = len(ids)
+        row = {m: i for i, m in enumerate(ids)}
+        roots = _group_roots(ids, links, self.root)
         relative = node_headings(reports, links, self.root)
+        base = np.array([row[roots[m]] for m in ids], dtype=int)
+        is_root = base == np.arange(n)
+        tilt = np.array([reports[m].tilt for m in ids], dtype=float).reshape(n, 3, 3)  # type: ignore[union-attr]
+        was = {m: i for i, m in enumerate(self._ids)}
+        prev = np.array([was.get(m, -1) for m in ids], dtype=int)
+        known = prev >= 0
+        state = NodeState(np.empty((n, 3, 3)), np.zeros((n, 3)), np.empty((n, 6, 6)))
+        if np.any(known):
+            gyro = np.array([reports[ids[i]].gyro for i in np.flatnonzero(known)],  # type: ignore[union-attr]
+                            dtype=float)
+            state = _put(state, known, attitude_predict(_take(self._state, prev[known]), gyro,
+                                                        dt, acc))
+        fresh = ~known & is_root   # the root of a new group: heading 0
+        if np.any(fresh):
+            state[fresh] = _first(tilt[fresh], np.zeros(int(fresh.sum())), 0.0, acc)
         r_tilt = acc.angle**2 * np.eye(2)
-        r_heading = 2.0 * acc.angle**2 * np.eye(1)   # two attitudes per relative yaw
-        for node in sorted(nodes, key=lambda n: n != roots[n]):   # roots first
-            report: NodeReport = reports[node]  # type: ignore[assignment]
-            root = roots[node]
-            state = self.nodes.get(node)
-            if state is None:
-                state = self._first(node, root, report, relative, acc)
-            else:
-                state = attitude_predict(state, np.asarray(report.gyro, float), dt, acc)
-            state = attitude_update(state, tilt_residual(state.rotation, report.tilt),
-                                    _TILT_ROWS, r_tilt)
-            base = self.nodes.get(root) if node != root else None
-            if base is not None and base.rotation[2, 2] >= UPRIGHT \
-                    and state.rotation[2, 2] >= UPRIGHT:
-                seen = float(wrap_angle(relative[node] + yaw_of(base.rotation) - yaw_of(state.rotation)))
-                state = attitude_update(state, np.array([seen]), _HEADING_ROWS, r_heading)
-            self.nodes[node] = state
-        for gone in set(self.nodes) - set(nodes):
-            del self.nodes[gone]
+        ready = known | is_root
+        state = _put(state, ready, attitude_update(_at(state, ready), tilt_residual(
+            _at(state, ready).rotation, _at(tilt, ready)), _TILT_ROWS, r_tilt))
+        late = ~ready   # new in a known group: its heading from the struts, after its root's
+        if np.any(late):
+            psi = _yaw(state.rotation[base[late]]) + np.array(
+                [relative.get(ids[i], 0.0) for i in np.flatnonzero(late)])
+            state[late] = _first(tilt[late], psi, 2.0 * acc.angle**2, acc)
+            state[late] = attitude_update(state[late], tilt_residual(state.rotation[late],
+                                                                     tilt[late]),
+                                          _TILT_ROWS, r_tilt)
+        upright = state.rotation[:, 2, 2] >= UPRIGHT
+        seen = np.flatnonzero(~is_root & upright & upright[base])
+        if seen.size:
+            yaw = _yaw(state.rotation)
+            heading = wrap_angle(np.array([relative[ids[i]] for i in seen])
+                                 + yaw[base[seen]] - yaw[seen])
+            state[seen] = attitude_update(state[seen], heading[:, None], _HEADING_ROWS,
+                                          2.0 * acc.angle**2 * np.eye(1))   # two attitudes
+        self._ids, self._state = ids, state
 
-    def _first(self, node: str, root: str, report: NodeReport,
-               relative: Mapping[str, float], acc: Accuracy) -> NodeState:
-        """A node seen for the first time: its tilt, and its heading from the struts
-        relative to its root (the root of a new group: heading 0)."""
-        tilt = np.asarray(report.tilt, dtype=float)
-        base = self.nodes.get(root) if node != root else None
-        psi = 0.0 if base is None else yaw_of(base.rotation) + relative.get(node, 0.0)
-        heading_var = 0.0 if base is None else 2.0 * acc.angle**2
-        cov = np.diag([acc.angle**2, acc.angle**2, heading_var] + [acc.gyro_bias**2] * 3)
-        return NodeState(rot_z(psi) @ rot_z(-yaw_of(tilt)) @ tilt, np.zeros(3), cov)
-
-    def _connectors(self, reports: Reports, links: Links, acc: Accuracy, dt: float) -> None:
+    def _update_connectors(self, reports: Reports, links: Links, acc: Accuracy, dt: float
+                           ) -> None:
         """Predict every docked connector by its encoders, correct by its localisation."""
         r = acc.angle**2
-        kept: dict[tuple[str, str], _Connector] = {}
-        for (strut, end), node in links.items():
-            fix = np.asarray(reports[node].connectors[f"{strut}:{end}"], dtype=float)  # type: ignore[union-attr]
-            rolled = reports[strut].rolled.get(end)  # type: ignore[union-attr]
-            old = self.connectors.get((strut, end))
-            if old is None or old.node != node or old.rolled is None or rolled is None:
-                c = _Connector(node, fix / np.linalg.norm(fix), r, rolled)
-            else:
-                step = rolled @ old.rolled.T
-                turned = math.acos(max(-1.0, min(1.0, 0.5 * (np.trace(step) - 1.0))))
-                u, var = direction_predict(old.u, old.var, step,
-                                           (acc.slip * turned)**2 + acc.drift**2 * dt)
-                u, var = direction_update(u, var, fix, r)
-                c = _Connector(node, u, var, rolled)
-            kept[(strut, end)] = c
-        self.connectors = kept
+        keys = list(links)
+        nodes = [links[k] for k in keys]
+        m = len(keys)
+        fix = np.array([reports[node].connectors[f"{s}:{e}"]  # type: ignore[union-attr]
+                        for (s, e), node in zip(keys, nodes, strict=True)],
+                       dtype=float).reshape(m, 3)
+        counts = [reports[s].rolled.get(e) for s, e in keys]  # type: ignore[union-attr]
+        encoded = np.array([c is not None for c in counts], dtype=bool)
+        rolled = np.array([_EYE3 if c is None else c for c in counts], dtype=float).reshape(m, 3, 3)
+        old = self._connectors
+        was = {k: i for i, k in enumerate(old.keys)}
+        prev = np.array([was.get(k, -1) for k in keys], dtype=int)
+        go_on = encoded & np.array([p >= 0 and old.nodes[p] == node
+                                    for p, node in zip(prev, nodes, strict=True)], dtype=bool)
+        go_on[go_on] &= old.encoded[prev[go_on]]
+        u = fix / _norm(fix)[:, None]
+        var = np.full(m, r)
+        if np.any(go_on):
+            j = prev[go_on]
+            step = rolled[go_on] @ _t(old.rolled[j])
+            turned = np.arccos(np.clip(0.5 * (np.trace(step, axis1=-2, axis2=-1) - 1.0),
+                                       -1.0, 1.0))
+            moved, grown = direction_predict(old.u[j], old.var[j], step,
+                                             (acc.slip * turned)**2 + acc.drift**2 * dt)
+            u[go_on], var[go_on] = direction_update(moved, grown, fix[go_on], r)
+        self._connectors = _Connectors(keys, nodes, u, var, rolled, encoded)
 
-    def _reports(self, reports: Reports, links: Links) -> dict[str, NodeReport | StrutReport]:
+    def _reports(self, reports: Reports) -> dict[str, NodeReport | StrutReport]:
         """The reports the filtered state gives (the module docstring)."""
         out: dict[str, NodeReport | StrutReport] = dict(reports)
+        state, c = self._state, self._connectors
+        yaw = _yaw(state.rotation)
+        tilts = _rot_z(-yaw) @ state.rotation
         located: dict[str, dict[str, np.ndarray]] = {}
-        for (strut, end), c in self.connectors.items():
-            located.setdefault(c.node, {})[f"{strut}:{end}"] = c.u
-        for node, state in self.nodes.items():
+        for (strut, end), node, u in zip(c.keys, c.nodes, c.u, strict=True):
+            located.setdefault(node, {})[f"{strut}:{end}"] = u
+        for i, node in enumerate(self._ids):
             report: NodeReport = reports[node]  # type: ignore[assignment]
-            psi = yaw_of(state.rotation)
-            out[node] = replace(report, tilt=rot_z(-psi) @ state.rotation,
+            out[node] = replace(report, tilt=tilts[i],
                                 connectors={**report.connectors, **located.get(node, {})})
-        for strut, report in reports.items():
-            if not isinstance(report, StrutReport):
-                continue
-            ends = [e for e in ENDS if (strut, e) in self.connectors]
-            if not ends:
-                continue
-            z = np.zeros(3)
-            x = np.zeros(3)
-            for end in ends:
-                c = self.connectors[(strut, end)]
-                rotation = self.nodes[c.node].rotation
-                z += END_SIGN[end] * rotation @ c.u
-                x += rot_z(yaw_of(rotation)) @ report.attitude[end][:, 0]
-            z /= np.linalg.norm(z)
-            x -= (x @ z) * z
-            x /= np.linalg.norm(x)
-            frame = np.column_stack([x, np.cross(z, x), z])
-            attitude = {**report.attitude, **{
-                e: rot_z(-yaw_of(self.nodes[self.connectors[(strut, e)].node].rotation))
-                @ frame for e in ends}}
-            out[strut] = replace(report, attitude=attitude)
+        if not c.keys:
+            return out
+        row = {m: i for i, m in enumerate(self._ids)}
+        at = np.array([row[n] for n in c.nodes], dtype=int)
+        struts = {s: i for i, s in enumerate(dict.fromkeys(s for s, _ in c.keys))}
+        slot = np.array([struts[s] for s, _ in c.keys], dtype=int)
+        side = np.array([0 if e == "a" else 1 for _, e in c.keys], dtype=int)
+        sign = np.array([END_SIGN[e] for _, e in c.keys])
+        ends = np.zeros((2, len(struts), 2, 3))   # z and x terms per strut and end
+        ends[0, slot, side] = sign[:, None] * _apply(state.rotation[at], c.u)
+        columns = np.array([reports[s].attitude[e][:, 0] for s, e in c.keys], dtype=float)  # type: ignore[union-attr]
+        ends[1, slot, side] = _apply(_rot_z(yaw[at]), columns)
+        z, x = ends[0, :, 0] + ends[0, :, 1], ends[1, :, 0] + ends[1, :, 1]
+        z /= _norm(z)[:, None]
+        x -= _dot(x, z)[:, None] * z
+        x /= _norm(x)[:, None]
+        frames = np.stack([x, _cross(z, x), z], axis=-1)
+        attitudes = _rot_z(-yaw[at]) @ frames[slot]
+        by_strut: dict[str, dict[str, np.ndarray]] = {}
+        for (strut, end), attitude in zip(c.keys, attitudes, strict=True):
+            by_strut.setdefault(strut, {})[end] = attitude
+        for strut, attitude in by_strut.items():
+            report: StrutReport = reports[strut]  # type: ignore[assignment,no-redef]
+            out[strut] = replace(report, attitude={**report.attitude, **attitude})
         return out
+
+
+def _at(array: NodeState | np.ndarray, mask: np.ndarray) -> NodeState | np.ndarray:
+    """The rows of ``mask`` (all of them without a copy)."""
+    return array if bool(mask.all()) else array[mask]
+
+
+def _take(state: NodeState, index: np.ndarray) -> NodeState:
+    """The rows ``index`` of ``state`` (in order: ``state`` itself)."""
+    same = len(index) == len(state.rotation) and bool((index == np.arange(len(index))).all())
+    return state if same else state[index]
+
+
+def _put(state: NodeState, mask: np.ndarray, rows: NodeState) -> NodeState:
+    """``state`` with the rows of ``mask`` replaced by ``rows`` (all: ``rows``)."""
+    if bool(mask.all()):
+        return rows
+    state[mask] = rows
+    return state
+
+
+def _first(tilt: np.ndarray, psi: np.ndarray, heading_var: float, acc: Accuracy
+           ) -> NodeState:
+    """Nodes seen for the first time: their tilts (k, 3, 3) turned to headings ``psi``
+    (k,) (from the struts relative to their roots; 0 for the root of a new group, whose
+    heading variance is then 0)."""
+    k = len(tilt)
+    cov = np.zeros((k, 6, 6))
+    cov[:] = np.diag([acc.angle**2, acc.angle**2, heading_var] + [acc.gyro_bias**2] * 3)
+    return NodeState(_rot_z(psi) @ _rot_z(-_yaw(tilt)) @ tilt, np.zeros((k, 3)), cov)
