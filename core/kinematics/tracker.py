@@ -5,12 +5,29 @@ optimal solution is not needed at each tick. :class:`IKTracker` follows the pape
 
 * the first :meth:`~IKTracker.step` is the initial phase: :func:`~.ik.solve_ik` with
   sampled restarts until a solution under the tolerance is found (or they run out);
-* later steps *track*: one L-BFGS-B run warm-started from the previous solution, within
-  ``tick_budget``;
+* later steps *track*: one L-BFGS-B run within ``tick_budget``, started at zero motion
+  (``sigma = 0``: the configuration now) with the previous solution's yaw moved to the
+  nearest minimum of eq. 8 on that configuration (see below);
 * meanwhile an *exploration* thread keeps optimising starts sampled globally from the
   joint space on the latest configuration; when one of its solutions is better than
   the tracked one (compared on the current configuration), the next tracking step
   starts from it instead.
+
+Why a tracking step starts at zero motion and not at the previous ``sigma``: the joint
+values are relative to the configuration they start from (eq. 7: ``Z^init`` is the
+configuration now), and between two ticks the robot has carried out part of the last
+motion. The last ``sigma`` applied to the new configuration repeats that part. Along
+stiff directions eq. 6 takes it back, but along a nearly free one -- turning every joint
+about the vertical while the yaw ``theta`` turns the target with it, free wherever the
+root holds no strut (or only a steep one) -- only the small motion cost (eqs. 3-5)
+opposes it and a step stopped at the tolerance does not, so the turn is repeated tick
+after tick and the robot carries it out (the S4N5 squirm's heading, issue 31). From
+``sigma = 0`` with the yaw that best aligns the target with the configuration now,
+such a direction has no gradient and the step does not move along it: every motion it
+commands is one the goal asks for. (The same test of a spinning frame, ``tests/core/
+kinematics/test_kin_tracker.py``, turned the command by up to 19 deg from a warm
+``sigma``.) The yaw is the local minimum of eq. 8 nearest the previous one, so it
+follows the configuration continuously.
 
 The tracker holds state; the solver functions it calls stay pure.
 """
@@ -105,6 +122,8 @@ class IKTracker:
         return solution
 
     def _track(self, current: Configuration, target: Configuration) -> IKSolution:
+        """One L-BFGS-B run from zero motion and the nearest eq. 8 yaw (module docstring),
+        or from the exploration's offer when it beats the last solution."""
         assert self.last is not None
         options = replace(self.options, time_budget=self.tick_budget, max_restarts=0)
         sigma, yaw = self.last.sigma, self.last.yaw
@@ -114,9 +133,11 @@ class IKTracker:
             problem = IKProblem(self.tree, current, target, options)
             if problem.evaluate(*offer)[0] < problem.evaluate(sigma, yaw)[0]:
                 self.handovers += 1
-                sigma, yaw = offer
+                return solve_ik(self.tree, current, target,
+                                replace(options, initial_sigma=offer[0], initial_yaw=offer[1]))
         return solve_ik(self.tree, current, target,
-                        replace(options, initial_sigma=sigma, initial_yaw=yaw))
+                        replace(options, initial_sigma=np.zeros(self.tree.dim),
+                                initial_yaw=yaw, align_initial_yaw=True))
 
     # -- exploration --------------------------------------------------------------------
 
