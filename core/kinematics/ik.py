@@ -63,6 +63,7 @@ __all__ = [
     "StopReason",
     "TermValue",
     "VectorAngleTerm",
+    "module_weights",
     "solve_ik",
 ]
 
@@ -103,10 +104,6 @@ class IKOptions:
         max_iterations: L-BFGS-B iterations per start.
         initial_sigma: first start (warm start), tree layout; zeros by default.
         initial_yaw: yaw of the first start [rad]; eq. 8 by default.
-        align_initial_yaw: with ``initial_yaw``, start from the eq. 8 minimum nearest to
-            it (at ``initial_sigma``) instead of at it: a tracking step's yaw follows the
-            configuration without turning the joints along with it (see
-            :class:`~.tracker.IKTracker`).
         solve_yaw: optimise the yaw; ``False`` keeps ``initial_yaw`` (or eq. 8's).
         ground: put the floating base on the ground (three-point contact) after the
             forward kinematics with this :class:`~.ground.GroundModel`
@@ -132,7 +129,6 @@ class IKOptions:
     max_iterations: int = 400
     initial_sigma: np.ndarray | None = None
     initial_yaw: float | None = None
-    align_initial_yaw: bool = False
     solve_yaw: bool = True
     ground: GroundModel | None = None
     gradient: Literal["analytic", "finite_difference"] = "analytic"
@@ -387,17 +383,7 @@ class IKProblem:
 
     def _weights(self, weights: Mapping[str, float] | Sequence[float] | np.ndarray | None
                  ) -> np.ndarray:
-        if weights is None:
-            return np.ones(self.n)
-        if isinstance(weights, Mapping):
-            unknown = sorted(set(weights) - set(self.tree.edges))
-            if unknown:
-                raise ConfigurationError(f"IK weights for unknown modules {', '.join(unknown)}")
-            return np.array([float(weights.get(e, 1.0)) for e in self.tree.edges])
-        w = np.asarray(weights, dtype=np.float64)
-        if w.shape != (self.n,):
-            raise ConfigurationError(f"IK weights must have shape ({self.n},), got {w.shape}")
-        return w
+        return module_weights(self.tree, weights)
 
     # -- the objective ---------------------------------------------------------------------
 
@@ -486,15 +472,14 @@ class IKProblem:
         out = self.objective(np.concatenate([[yaw], sigma]))
         return out.value, out.motion_cost, out.rms_angle, out.ground
 
-    def yaw_estimate(self, sigma: np.ndarray, near: float | None = None) -> float:
-        """Eq. 8: the yaw aligning the target with the forward kinematics at ``sigma``
-        (the global minimum, or with ``near`` [rad] the local one whose basin holds it)."""
+    def yaw_estimate(self, sigma: np.ndarray) -> float:
+        """Eq. 8: the yaw aligning the target with the forward kinematics at ``sigma``."""
         _, z, x, _, _ = self._forward(np.asarray(sigma, dtype=np.float64))
         use_x = bool(self.use_x.any())
         return align_yaw(z.T, self.z_target.T, weights=self.weights,
                          x=x.T if use_x else None,
                          x_target=self.x_target.T if use_x else None,
-                         gamma=self.options.gamma if use_x else 0.0, near=near).theta
+                         gamma=self.options.gamma if use_x else 0.0).theta
 
     def configuration(self, sigma: np.ndarray) -> Configuration:
         """The current configuration moved by ``sigma`` (and grounded if asked for)."""
@@ -545,6 +530,28 @@ class IKProblem:
         return np.asarray(result.x[1:], dtype=np.float64), yaw, int(result.nit)
 
 
+def module_weights(tree: KinematicTree,
+                   weights: Mapping[str, float] | Sequence[float] | np.ndarray | None
+                   ) -> np.ndarray:
+    """Eq. 6's ``w`` in tree layout from :attr:`IKOptions.weights`, shape (n,).
+
+    Raises:
+        ConfigurationError: a module that is not in the tree, or an array of another shape.
+    """
+    n = len(tree.edges)
+    if weights is None:
+        return np.ones(n)
+    if isinstance(weights, Mapping):
+        unknown = sorted(set(weights) - set(tree.edges))
+        if unknown:
+            raise ConfigurationError(f"IK weights for unknown modules {', '.join(unknown)}")
+        return np.array([float(weights.get(e, 1.0)) for e in tree.edges])
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (n,):
+        raise ConfigurationError(f"IK weights must have shape ({n},), got {w.shape}")
+    return w
+
+
 def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,
              options: IKOptions | None = None) -> IKSolution:
     """Full-body skeletal IK (eq. 6): joint values and yaw that move ``current`` onto ``target``.
@@ -588,8 +595,6 @@ def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,
     while starts <= options.max_restarts:
         if starts == 0:
             start, yaw0 = sigma0, options.initial_yaw
-            if yaw0 is not None and options.align_initial_yaw:
-                yaw0 = problem.yaw_estimate(start, near=yaw0)
         else:
             start = _sample(rng, starts, problem, best[1] if best else sigma0, span, finite)
             yaw0 = None

@@ -98,7 +98,7 @@ def test_the_exploration_thread_starts_with_a_step_and_stops_on_close():
     assert tracker._thread is None
 
 
-def test_a_new_target_keeps_the_yaw():
+def test_a_new_target_keeps_the_warm_start():
     config = random_stick(5, 8)
     tree = stick_tree(config)
     first = forward(tree, config, np.full(tree.dim, 0.1)).configuration
