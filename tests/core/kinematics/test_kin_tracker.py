@@ -5,11 +5,13 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from kin_helpers import random_stick, stick_tree, yawed
+import pytest
+from kin_helpers import GimbalJoint, random_stick, stick_tree, yawed
 
 from msrr.core import Configuration
 from msrr.core.alignment import align_yaw
-from msrr.core.kinematics import IKOptions, IKTracker, forward
+from msrr.core.kinematics import FixedNode, IKOptions, IKTracker, KinematicTree, forward
+from msrr.core.kinematics.tracker import held_yaw
 
 
 def test_tracking_follows_a_robot_that_moves_towards_the_target():
@@ -46,8 +48,9 @@ def test_tracking_does_not_turn_the_body_along_the_free_yaw():
     """The root holds no rod, so turning every joint about the vertical with the yaw is
     free in eq. 6 but for the motion cost. The robot carries out part of each command
     while its frame turns (a root node's shell spinning, a slip): the commands must not
-    turn the body back and forth after that frame. From the last ``sigma`` (the motion
-    already carried out, repeated) they turned it by up to 19 deg per tick."""
+    turn the body after that frame. With the yaw free (the last ``sigma`` repeating the
+    motion already carried out) they turned it by 1 deg at the first step, 19 deg after
+    30."""
     config = _star([0.0, 120.0, 240.0])
     target = yawed(_star([0.0, 100.0, 260.0]), 0.7)     # the shape changes by 20 deg
     tree = stick_tree(config)
@@ -66,6 +69,20 @@ def test_tracking_does_not_turn_the_body_along_the_free_yaw():
                 current = yawed(forward(tree, current, share * solution.sigma).configuration,
                                 np.radians(spin))
         assert solution.rms_angle < np.deg2rad(0.5)
+
+
+def test_the_held_yaw_is_the_roots_where_its_edges_pin_it():
+    """A root rod cannot move, so a solution has its yaw: the held yaw is that rod's,
+    whatever the others ask; without a root rod it is eq. 8 over every rod."""
+    config = _star([0.0, 120.0, 240.0])
+    target = yawed(_star([0.0, 100.0, 240.0]), 0.7)   # only R2 moves
+    rooted = KinematicTree(config, [FixedNode(["R1"], ["H0", "H1"]),
+                                    GimbalJoint(["R2"], ["H2"]), GimbalJoint(["R3"], ["H3"])])
+    assert held_yaw(rooted, config, target, IKOptions(), near=0.0) == pytest.approx(-0.7, abs=1e-3)
+    free = stick_tree(config)
+    everything = align_yaw(config.vectors(free.edges), target.vectors(free.edges)).theta
+    assert held_yaw(free, config, target, IKOptions(), near=0.0) == pytest.approx(everything)
+    assert abs(everything + 0.7) > 0.05      # the two differ: the root's rod decides
 
 
 def test_exploration_hands_over_a_better_start():
