@@ -7,8 +7,8 @@ one), every control tick of a moving phase is
 
 :class:`PhaseTracker` holds the tracking state of one phase: the phase goal (the target,
 ``S_conn`` or ``S_extr``), the tree bound to the phase's topology and an
-:class:`~msrr.core.kinematics.IKTracker` (each tick from zero motion and the last
-tick's yaw moved to the nearest eq. 8 minimum, so it never drifts along a free yaw).
+:class:`~msrr.core.kinematics.IKTracker` warm-started from the last tick's solution,
+its yaw held (:func:`~msrr.core.kinematics.tracker.held_yaw`: no drift along a free yaw).
 Exploration runs when tracking is *stuck* (the residual has not improved for
 ``stuck_ticks`` ticks): one sampled start every ``stuck_ticks`` ticks, optimised on the latest
 configuration, handed over when it beats the tracked solution (section 3.4). It runs
@@ -305,7 +305,7 @@ class PhaseTracker:
         return self._error < self.options.reach_tolerance
 
     def set_goal(self, goal: Configuration) -> None:
-        """Switch the goal (``S_conn`` -> ``S_extr``); the yaw is kept."""
+        """Switch the goal (``S_conn`` -> ``S_extr``); the warm start is kept."""
         self.goal = goal
         self._tracker.set_target(goal)
         self._best, self._since = np.inf, 0

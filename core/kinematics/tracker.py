@@ -25,9 +25,10 @@ heading, issue 31). With ``theta`` held where the root's own edges put it (they 
 move: eq. 7), or, where they do not pin it, where the target best aligns with the
 configuration now (eq. 8: no net turn), the free direction is no longer free: the step
 takes the repeated turn back like any other error, and every turn it commands is one
-the goal asks for. The last ``sigma`` stays the start: the S12N6 crawl needs it (from
-``sigma = 0`` the step stops short of the goal on the near side, by up to the tolerance,
-and its feet broke).
+the goal asks for. The last ``sigma`` stays the start: started at ``sigma = 0`` instead
+(nothing repeated), the FreeSN S12N6 crawl's stances were no longer reached at their
+first tick and a foot's connection broke (docs/freesn.md, "The tracking step and the
+free yaw").
 
 The tracker holds state; the solver functions it calls stay pure.
 """
