@@ -63,6 +63,17 @@ def _dot_terms(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     return p, q, a[2] * b[2]
 
 
+def _downhill(grid_costs: np.ndarray, near: float) -> int:
+    """The grid cell of the local minimum reached downhill from the cell nearest ``near``."""
+    k = len(grid_costs)
+    i = int(round((wrap_angle(float(near)) - GRID[0]) / (GRID[1] - GRID[0]))) % k
+    while True:
+        left, right = grid_costs[(i - 1) % k], grid_costs[(i + 1) % k]
+        if min(left, right) >= grid_costs[i]:
+            return i
+        i = (i - 1) % k if left < right else (i + 1) % k
+
+
 def _costs(thetas: np.ndarray, p: np.ndarray, q: np.ndarray, r: np.ndarray, w: np.ndarray
            ) -> np.ndarray:
     """The eq. 8 objective at each yaw of ``thetas``, shape (k,)."""
@@ -77,7 +88,7 @@ GRID = np.linspace(-np.pi, np.pi, 72, endpoint=False)
 
 def align_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None = None,
               x: np.ndarray | None = None, x_target: np.ndarray | None = None,
-              gamma: float = 0.0) -> YawAlignment:
+              gamma: float = 0.0, near: float | None = None) -> YawAlignment:
     """Yaw that best aligns ``z_target`` (and ``x_target``) with ``z`` (and ``x``), eq. 8.
 
     The objective is a sum of squared arc lengths, each a function of
@@ -92,6 +103,10 @@ def align_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None
         x: current forward vectors, shape (3, n), optional.
         x_target: target forward vectors, shape (3, n), optional.
         gamma: weight of the forward-vector term.
+        near: if given [rad], the local minimum whose basin holds this yaw (downhill on
+            the grid from it, then refined) instead of the global one: a yaw that
+            follows a moving configuration continuously, never jumping to another
+            minimum that has become slightly lower.
 
     Returns:
         The yaw ``theta`` such that ``rot_z(theta) @ z_target`` matches ``z``.
@@ -109,7 +124,8 @@ def align_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None
     grid_costs = _costs(GRID, p, q, r, wa)
     step = GRID[1] - GRID[0]
     best_theta, best_cost = 0.0, np.inf
-    for i in np.argsort(grid_costs)[:2]:
+    cells = np.argsort(grid_costs)[:2] if near is None else [_downhill(grid_costs, near)]
+    for i in cells:
         result = minimize_scalar(lambda t: float(_costs(np.array([t]), p, q, r, wa)[0]),
                                  bounds=(GRID[i] - step, GRID[i] + step), method="bounded",
                                  options={"xatol": 1e-10})

@@ -7,7 +7,8 @@ one), every control tick of a moving phase is
 
 :class:`PhaseTracker` holds the tracking state of one phase: the phase goal (the target,
 ``S_conn`` or ``S_extr``), the tree bound to the phase's topology and an
-:class:`~msrr.core.kinematics.IKTracker` warm-started from the last tick's solution.
+:class:`~msrr.core.kinematics.IKTracker` warm-started from the last tick's solution,
+its yaw held (:func:`~msrr.core.kinematics.tracker.held_yaw`: no drift along a free yaw).
 Exploration runs when tracking is *stuck* (the residual has not improved for
 ``stuck_ticks`` ticks): one sampled start every ``stuck_ticks`` ticks, optimised on the latest
 configuration, handed over when it beats the tracked solution (section 3.4). It runs

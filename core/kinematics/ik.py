@@ -63,6 +63,7 @@ __all__ = [
     "StopReason",
     "TermValue",
     "VectorAngleTerm",
+    "module_weights",
     "solve_ik",
 ]
 
@@ -382,17 +383,7 @@ class IKProblem:
 
     def _weights(self, weights: Mapping[str, float] | Sequence[float] | np.ndarray | None
                  ) -> np.ndarray:
-        if weights is None:
-            return np.ones(self.n)
-        if isinstance(weights, Mapping):
-            unknown = sorted(set(weights) - set(self.tree.edges))
-            if unknown:
-                raise ConfigurationError(f"IK weights for unknown modules {', '.join(unknown)}")
-            return np.array([float(weights.get(e, 1.0)) for e in self.tree.edges])
-        w = np.asarray(weights, dtype=np.float64)
-        if w.shape != (self.n,):
-            raise ConfigurationError(f"IK weights must have shape ({self.n},), got {w.shape}")
-        return w
+        return module_weights(self.tree, weights)
 
     # -- the objective ---------------------------------------------------------------------
 
@@ -537,6 +528,28 @@ class IKProblem:
                                   bounds=bounds, options=opts, callback=callback)
         yaw = float(np.arctan2(np.sin(result.x[0]), np.cos(result.x[0])))
         return np.asarray(result.x[1:], dtype=np.float64), yaw, int(result.nit)
+
+
+def module_weights(tree: KinematicTree,
+                   weights: Mapping[str, float] | Sequence[float] | np.ndarray | None
+                   ) -> np.ndarray:
+    """Eq. 6's ``w`` in tree layout from :attr:`IKOptions.weights`, shape (n,).
+
+    Raises:
+        ConfigurationError: a module that is not in the tree, or an array of another shape.
+    """
+    n = len(tree.edges)
+    if weights is None:
+        return np.ones(n)
+    if isinstance(weights, Mapping):
+        unknown = sorted(set(weights) - set(tree.edges))
+        if unknown:
+            raise ConfigurationError(f"IK weights for unknown modules {', '.join(unknown)}")
+        return np.array([float(weights.get(e, 1.0)) for e in tree.edges])
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (n,):
+        raise ConfigurationError(f"IK weights must have shape ({n},), got {w.shape}")
+    return w
 
 
 def solve_ik(tree: KinematicTree, current: Configuration, target: Configuration,

@@ -5,12 +5,30 @@ optimal solution is not needed at each tick. :class:`IKTracker` follows the pape
 
 * the first :meth:`~IKTracker.step` is the initial phase: :func:`~.ik.solve_ik` with
   sampled restarts until a solution under the tolerance is found (or they run out);
-* later steps *track*: one L-BFGS-B run warm-started from the previous solution, within
-  ``tick_budget``;
+* later steps *track*: one L-BFGS-B run warm-started from the previous ``sigma``,
+  within ``tick_budget``, with the yaw *held* at :func:`held_yaw` (see below);
 * meanwhile an *exploration* thread keeps optimising starts sampled globally from the
   joint space on the latest configuration; when one of its solutions is better than
   the tracked one (compared on the current configuration), the next tracking step
   starts from it instead.
+
+Why the yaw is held: turning every joint about the vertical while the yaw ``theta``
+turns the target with it leaves eq. 6's angle terms unchanged wherever the root holds
+no strut (or only a steep one): only the small motion cost (eqs. 3-5, ``zeta``) opposes
+it, and a step stopped at the tolerance never resolves that. The warm start is the
+last ``sigma``, relative to last tick's configuration (eq. 7's ``Z^init``), so it repeats
+the part of the last motion the robot has already carried out; along stiff directions
+eq. 6 takes it back, along that free one nothing did, and a frame that turned between
+ticks (a root node's shell spinning) was split between ``theta`` and the joints. The
+turn was repeated tick after tick and the robot carried it out (the S4N5 squirm's
+heading, issue 31). With ``theta`` held where the root's own edges put it (they cannot
+move: eq. 7), or, where they do not pin it, where the target best aligns with the
+configuration now (eq. 8: no net turn), the free direction is no longer free: the step
+takes the repeated turn back like any other error, and every turn it commands is one
+the goal asks for. The last ``sigma`` stays the start: started at ``sigma = 0`` instead
+(nothing repeated), the FreeSN S12N6 crawl's stances were no longer reached at their
+first tick and a foot's connection broke (docs/freesn.md, "The tracking step and the
+free yaw").
 
 The tracker holds state; the solver functions it calls stay pure.
 """
@@ -23,12 +41,34 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..alignment import align_yaw
 from ..configuration import Configuration
-from .fk import _layout
-from .ik import IKOptions, IKProblem, IKSolution, solve_ik
+from .fk import _layout, tree_vectors
+from .ik import IKOptions, IKProblem, IKSolution, module_weights, solve_ik
 from .tree import KinematicTree
 
-__all__ = ["IKTracker"]
+__all__ = ["IKTracker", "held_yaw"]
+
+ROOT_WEIGHT = 1e3
+"""Weight of the root's edges in :func:`held_yaw` against 1 for the others."""
+
+
+def held_yaw(tree: KinematicTree, current: Configuration, target: Configuration,
+             options: IKOptions, near: float) -> float:
+    """The yaw [rad] a tracking step holds: eq. 8 between ``target`` and ``current`` (the
+    zero point of the joint space), the root's edges weighted :data:`ROOT_WEIGHT` times
+    the rest, the local minimum nearest ``near`` (the last step's yaw).
+
+    The root's edges cannot move (eq. 7), so where their horizontal parts pin the yaw any
+    solution under the tolerance has theirs; where they do not (no edge, or vertical
+    ones) the yaw is gauge freedom and the others choose it: the target turned onto the
+    configuration as it is, so the step commands no net turn about the vertical.
+    """
+    z, _, _ = tree_vectors(tree, current)
+    z_target, _, _ = tree_vectors(tree, target)
+    weights = module_weights(tree, options.weights)
+    weights = weights * np.where(np.isin(tree.edges, tree.root.edges), ROOT_WEIGHT, 1.0)
+    return align_yaw(z, z_target, weights=weights, near=near).theta
 
 
 class IKTracker:
@@ -105,6 +145,9 @@ class IKTracker:
         return solution
 
     def _track(self, current: Configuration, target: Configuration) -> IKSolution:
+        """One L-BFGS-B run from the last ``sigma`` with the yaw held at :func:`held_yaw`
+        (module docstring), or from the exploration's offer when it beats the last
+        solution."""
         assert self.last is not None
         options = replace(self.options, time_budget=self.tick_budget, max_restarts=0)
         sigma, yaw = self.last.sigma, self.last.yaw
@@ -114,9 +157,11 @@ class IKTracker:
             problem = IKProblem(self.tree, current, target, options)
             if problem.evaluate(*offer)[0] < problem.evaluate(sigma, yaw)[0]:
                 self.handovers += 1
-                sigma, yaw = offer
+                return solve_ik(self.tree, current, target,
+                                replace(options, initial_sigma=offer[0], initial_yaw=offer[1]))
+        yaw = held_yaw(self.tree, current, target, options, near=yaw)
         return solve_ik(self.tree, current, target,
-                        replace(options, initial_sigma=sigma, initial_yaw=yaw))
+                        replace(options, initial_sigma=sigma, initial_yaw=yaw, solve_yaw=False))
 
     # -- exploration --------------------------------------------------------------------
 

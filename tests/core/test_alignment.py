@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -49,3 +50,25 @@ def test_a_yaw_rotated_copy_is_aligned_with_the_right_yaw(seed: int, n: int, yaw
     found = align_yaw(z, rot_z(-yaw) @ z)
     assert abs(np.angle(np.exp(1j * (found.theta - yaw)))) < 1e-6
     assert found.rms_angle < 1e-6
+
+
+
+def test_near_keeps_the_local_minimum_it_starts_in() -> None:
+    """Two minima (one rod each way, a third tilting the balance): ``near`` stays in the
+    basin it is given, so a tracked yaw never jumps to the other, slightly lower one."""
+    def level(*degrees: float) -> np.ndarray:
+        a = np.radians(degrees)
+        return np.stack([np.cos(a), np.sin(a), np.zeros_like(a)])
+
+    z, zt, w = level(0.0, 180.0, 80.0), level(0.0, 0.0, 90.0), np.array([1.0, 1.1, 0.1])
+
+    def cost(theta: float) -> float:
+        dots = np.einsum("in,in->n", z, rot_z(theta) @ zt)
+        return float((np.arccos(np.clip(dots, -1.0, 1.0)) ** 2) @ w)
+
+    best = align_yaw(z, zt, weights=w)
+    kept = align_yaw(z, zt, weights=w, near=1.5)
+    assert best.theta < 0 < kept.theta and kept.cost > best.cost + 0.01
+    assert kept.cost == pytest.approx(cost(kept.theta))
+    assert kept.cost < min(cost(kept.theta - 1e-3), cost(kept.theta + 1e-3))  # refined
+    assert align_yaw(z, zt, weights=w, near=-1.5).theta == pytest.approx(best.theta)

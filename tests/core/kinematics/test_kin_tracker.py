@@ -5,9 +5,13 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from kin_helpers import random_stick, stick_tree, yawed
+import pytest
+from kin_helpers import GimbalJoint, random_stick, stick_tree, yawed
 
-from msrr.core.kinematics import IKOptions, IKTracker, forward
+from msrr.core import Configuration
+from msrr.core.alignment import align_yaw
+from msrr.core.kinematics import FixedNode, IKOptions, IKTracker, KinematicTree, forward
+from msrr.core.kinematics.tracker import held_yaw
 
 
 def test_tracking_follows_a_robot_that_moves_towards_the_target():
@@ -27,6 +31,58 @@ def test_tracking_follows_a_robot_that_moves_towards_the_target():
             current = forward(tree, current, solution.sigma / 3).configuration
     assert costs[-1] < 0.05 * costs[0]              # less and less left to do
     assert solution.rms_angle < np.deg2rad(0.5)
+
+
+def _star(azimuths: list[float]) -> Configuration:
+    """A hub H0 with level rods R1.. to hubs H1.. at ``azimuths`` [deg]; x up."""
+    config = Configuration("stick", name="star")
+    config.add_module("H0", "hub")
+    for i, a in enumerate(np.radians(azimuths)):
+        config.add_module(f"H{i + 1}", "hub")
+        config.connect("H0", f"H{i + 1}", id=f"R{i + 1}", kind="rod",
+                       z=[np.cos(a), np.sin(a), 0.0], x=[0.0, 0.0, 1.0])
+    return config
+
+
+def test_tracking_does_not_turn_the_body_along_the_free_yaw():
+    """The root holds no rod, so turning every joint about the vertical with the yaw is
+    free in eq. 6 but for the motion cost. The robot carries out part of each command
+    while its frame turns (a root node's shell spinning, a slip): the commands must not
+    turn the body after that frame. With the yaw free (the last ``sigma`` repeating the
+    motion already carried out) they turned it by 1 deg at the first step, 19 deg after
+    30."""
+    config = _star([0.0, 120.0, 240.0])
+    target = yawed(_star([0.0, 100.0, 260.0]), 0.7)     # the shape changes by 20 deg
+    tree = stick_tree(config)
+    assert not tree.nodes[0].edges                      # the root holds no rod
+    ids = list(tree.edges)
+    for share, spin in ((1 / 3, 2.0), (0.2, 5.0), (0.5, -3.0)):
+        current = config
+        with IKTracker(tree, target, IKOptions(seed=1), tick_budget=None,
+                       explore=False) as tracker:
+            for _ in range(30):
+                solution = tracker.step(current)
+                assert solution.success
+                # the net turn about the vertical the command asks of the body
+                turn = align_yaw(solution.configuration.vectors(ids), current.vectors(ids))
+                assert abs(np.degrees(turn.theta)) < 0.5, (share, spin)
+                current = yawed(forward(tree, current, share * solution.sigma).configuration,
+                                np.radians(spin))
+        assert solution.rms_angle < np.deg2rad(0.5)
+
+
+def test_the_held_yaw_is_the_roots_where_its_edges_pin_it():
+    """A root rod cannot move, so a solution has its yaw: the held yaw is that rod's,
+    whatever the others ask; without a root rod it is eq. 8 over every rod."""
+    config = _star([0.0, 120.0, 240.0])
+    target = yawed(_star([0.0, 100.0, 240.0]), 0.7)   # only R2 moves
+    rooted = KinematicTree(config, [FixedNode(["R1"], ["H0", "H1"]),
+                                    GimbalJoint(["R2"], ["H2"]), GimbalJoint(["R3"], ["H3"])])
+    assert held_yaw(rooted, config, target, IKOptions(), near=0.0) == pytest.approx(-0.7, abs=1e-3)
+    free = stick_tree(config)
+    everything = align_yaw(config.vectors(free.edges), target.vectors(free.edges)).theta
+    assert held_yaw(free, config, target, IKOptions(), near=0.0) == pytest.approx(everything)
+    assert abs(everything + 0.7) > 0.05      # the two differ: the root's rod decides
 
 
 def test_exploration_hands_over_a_better_start():
