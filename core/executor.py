@@ -49,7 +49,9 @@ and the ``broken``/``made`` links with their ports.
   a heading loop on the estimated heading (:class:`HeadingLoop`: the commanded direction
   stays fixed in the world frame the behavior started in) whose reference, for a straight
   behavior that states its direction, a course loop sets so that the estimated place
-  follows the commanded line (:class:`CourseLoop`), for the call's duration
+  follows the commanded line (:class:`CourseLoop`; a behavior with a ``sideways``
+  parameter has its travel turned instead, the heading held: :func:`steered`), for the
+  call's duration
   or until the system moved its distance *as its own sensors estimate it*
   (:mod:`msrr.core.estimation`: odometry and IMU with their drift, or a pose sensor the
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
@@ -92,7 +94,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .actions import TopologyDiff, flow_move, topology_diff
-from .alignment import rot_z
+from .alignment import rot_z, wrap_angle
 from .capabilities import Recognizer
 from .closed_loop import (
     JointController,
@@ -122,9 +124,9 @@ from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_r
 from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
-__all__ = ["CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop", "StallWatch",
-           "behavior_commands", "course_loop", "heading_loop", "held_heading", "phases_of",
-           "turn_bound"]
+__all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop",
+           "StallWatch", "behavior_commands", "course_loop", "heading_loop", "held_heading",
+           "phases_of", "slid", "slides", "steered", "turn_bound"]
 
 
 @dataclass(frozen=True)
@@ -447,6 +449,41 @@ def course_loop(call: BehaviorCall | None, estimate: Estimate, frame: float,
     sense = -1.0 if call.parameters.get("speed", 1.0) < 0 else 1.0
     return CourseLoop(np.asarray(estimate.position, dtype=float).copy(), sense * turned / norm,
                       options.course_gain, options.course_integral, options.max_course_offset)
+
+
+SIDEWAYS = "sideways"
+"""The parameter of a mapping behavior's travel to the left of its heading [m/s] (a
+holonomic base: fig22(j)'s node wheels roll along 60, 180 and -60 deg, a kiwi drive)."""
+
+
+def slides(call: BehaviorCall) -> bool:
+    """Whether ``call`` can travel sideways: a command has a :data:`SIDEWAYS` gain."""
+    return any(p == SIDEWAYS and g for c in call.commands for p, g in c.gains)
+
+
+def slid(parameters: Mapping[str, float], angle: float) -> dict[str, float]:
+    """``parameters`` with the travel they ask (``speed`` ahead, :data:`SIDEWAYS` to the
+    left, [m/s]) turned by ``angle`` [rad] counter-clockwise."""
+    ahead, left = float(parameters.get("speed", 0.0)), float(parameters.get(SIDEWAYS, 0.0))
+    c, s = math.cos(angle), math.sin(angle)
+    return {**parameters, "speed": c * ahead - s * left, SIDEWAYS: s * ahead + c * left}
+
+
+def steered(call: BehaviorCall, loop: HeadingLoop, course: CourseLoop | None, heading: float,
+            place: np.ndarray | None, elapsed: float, dt: float) -> dict[str, float]:
+    """The parameters of mapping behavior ``call`` at ``elapsed`` [s], the body's heading
+    estimated at ``heading`` [rad] and its place at ``place`` [m] (shape (2,)): ``yaw_rate``
+    corrected by ``loop``; the offset ``course`` sets turns the heading's reference, or,
+    for a call that :func:`slides`, its travel itself, the heading held (issue 31: the
+    node wheels turn the body at a thirtieth of the rate asked, every wheel scrubbing,
+    while a creep crosses the line; sliding, the travel turns at once)."""
+    offset = 0.0 if course is None or place is None else course.offset(place)
+    if course is None or not slides(call):
+        return {**call.parameters,
+                "yaw_rate": loop.asked + loop.correction(heading, elapsed, dt, offset)}
+    correction = loop.correction(heading, elapsed, dt)
+    turned = wrap_angle(heading - loop.start - loop.asked * elapsed)
+    return {**slid(call.parameters, offset - turned), "yaw_rate": loop.asked + correction}
 
 
 def _with_wheels(commands: dict[str, ModuleCommand], wheels: dict[str, dict[str, float]]
@@ -810,15 +847,13 @@ class Executor:
         return call is not None and call.distance is not None and self._moved() >= call.distance
 
     def _steered(self, action: Action) -> dict[str, float] | None:
-        """The behavior's parameters, ``yaw_rate`` corrected by its heading loop."""
+        """The behavior's parameters, ``yaw_rate`` corrected by its heading loop (and the
+        travel turned by its course loop: :func:`steered`)."""
         loop, call, heading = self._loop, action.behavior, self._heading(action)
         if loop is None or call is None or heading is None:
             return None
-        place = self.estimate.position
-        offset = 0.0 if self._course is None or place is None else self._course.offset(place)
-        correction = loop.correction(heading, self.driver.time - self._phase_began, self.dt,
-                                     offset)
-        return {**call.parameters, "yaw_rate": loop.asked + correction}
+        return steered(call, loop, self._course, heading, self.estimate.position,
+                       self.driver.time - self._phase_began, self.dt)
 
     def _heading(self, action: Action) -> float | None:
         """The estimated heading [rad] of the body ``action`` holds (:func:`held_heading`)."""

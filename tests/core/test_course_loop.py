@@ -20,6 +20,9 @@ from msrr.core.executor import (
     course_loop,
     heading_loop,
     held_heading,
+    slid,
+    slides,
+    steered,
     turn_bound,
 )
 from msrr.core.plan import BehaviorCall, CommandGain
@@ -145,3 +148,61 @@ def test_the_held_heading_does_not_turn_when_the_root_frame_turns_under_the_body
     after = held_heading(0.25 + spin, _star(0.1 - spin), target)
     assert math.remainder(after - before, 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
     assert before == pytest.approx(0.35, abs=1e-6)
+
+
+KIWI = (CommandGain("R1", "wheel_speed", (("speed", 1.0), ("yaw_rate", -0.1),
+                                          ("sideways", 1.7))),
+        CommandGain("R3", "wheel_speed", (("speed", -2.0), ("yaw_rate", -0.1))),
+        CommandGain("R5", "wheel_speed", (("speed", 1.0), ("yaw_rate", -0.1),
+                                          ("sideways", -1.7))))
+"""A kiwi drive (fig22(j)'s node wheels, S12N6 library): three wheels rolling 120 deg
+apart, every one asked the same small share of a turn."""
+
+
+def creep(call: BehaviorCall, *, turns: float = 1.0 / 30.0, duration: float = 60.0,
+          dt: float = 0.1) -> tuple[np.ndarray, float]:
+    """Where a holonomic body ends [m], shape (2,), and its heading [rad]: it starts at the
+    origin facing +x, asked ``call``; it travels as its ``speed`` and ``sideways`` ask (body
+    frame) plus a creep of half its speed toward -y (world frame), and turns at
+    ``turns`` of the ``yaw_rate`` asked (every wheel scrubs a turn; fig22(j) under noise)."""
+    speed = call.parameters["speed"]
+    loop = heading_loop(call, 0.0, OPTIONS)
+    outer = course_loop(call, Estimate(position=np.zeros(2), heading=0.0), 0.0, OPTIONS)
+    assert loop is not None and outer is not None
+    place, psi = np.zeros(2), 0.0
+    for step in range(round(duration / dt)):
+        asked = steered(call, loop, outer, psi, place, step * dt, dt)
+        ahead, left = asked["speed"], asked.get("sideways", 0.0)
+        place = place + dt * (rot_z(psi)[:2, :2] @ np.array([ahead, left])
+                              + np.array([0.0, -speed / 2.0]))
+        psi += dt * turns * asked["yaw_rate"]
+    return place, psi
+
+
+def test_a_body_that_slides_follows_the_line_through_a_creep_it_cannot_turn_against():
+    """fig22(j)'s node wheels at 2 deg of noise (issue 31): a creep sideways; the body
+    turns at a thirtieth of what the loop asks. Steered by its heading, it goes 13 deg off
+    the line; slid, it stays on the line and keeps its heading."""
+    call = BehaviorCall("node-wheels", "mapping", {"speed": 0.03}, KIWI, duration=60.0,
+                        direction=(1.0, 0.0, 0.0))
+    assert slides(call)
+    turned = BehaviorCall("node-wheels", "mapping", {"speed": 0.03},
+                          tuple(CommandGain(c.module, c.command,
+                                            tuple((p, g) for p, g in c.gains if p != "sideways"))
+                                for c in KIWI), duration=60.0, direction=(1.0, 0.0, 0.0))
+    assert not slides(turned)
+    off, _ = creep(turned)
+    assert abs(math.degrees(math.atan2(off[1], off[0]))) > 10.0
+    ended, heading = creep(call)
+    assert ended[0] > 0.8 * 1.8                     # some of its speed goes against the creep
+    assert abs(math.degrees(math.atan2(ended[1], ended[0]))) < 1.0
+    assert abs(math.degrees(heading)) < 1.0
+
+
+def test_sliding_turns_the_travel_asked_and_nothing_else():
+    asked = slid({"speed": 0.03, "yaw_rate": 0.1}, math.radians(90.0))
+    assert asked["speed"] == pytest.approx(0.0, abs=1e-12)
+    assert asked["sideways"] == pytest.approx(0.03)
+    assert asked["yaw_rate"] == 0.1
+    back = slid({"speed": -0.03, "sideways": 0.01}, math.pi)
+    assert (back["speed"], back["sideways"]) == pytest.approx((0.03, -0.01))

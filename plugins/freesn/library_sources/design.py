@@ -679,8 +679,11 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
     rolling without slip about ``u`` moves its centre at ``R w r / (b/2) (u x e_z)``,
     along the floor at right angles to the strut's plan direction, at speed
     ``R w r / (b/2) |u_h|``. Each node takes the part of the body's velocity along its
-    rolling direction ``d``: ``v_x d_x`` for ``speed`` (along +x) and ``yaw_rate`` times
-    the node's tangential velocity ``(e_z x p) . d``; the rest slips.
+    rolling direction ``d``: ``v_x d_x`` for ``speed`` (along +x), ``v_y d_y`` for
+    ``sideways`` (along +y) and ``yaw_rate`` times the node's tangential velocity
+    ``(e_z x p) . d``; the rest slips. Rolling directions 120 deg apart (fig22(j)) make
+    the three a kiwi drive: the course loop slides the travel onto the line instead of
+    turning the body, which every wheel scrubs (issue 31).
     """
     rate = R_NODE * R_WHEEL / HALF_BASE   # centre speed [m/s] per rad/s of w, per |u_h|
     out = []
@@ -693,7 +696,8 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
         tangential = np.cross(UP, nodes[target])
         out.append({"module": sid, "command": "wheel_speed", "connector": "target",
                     "gains": {"speed": round(float(d[0]) / scale, 9),
-                              "yaw_rate": round(float(tangential @ d) / scale, 9)}})
+                              "yaw_rate": round(float(tangential @ d) / scale, 9),
+                              "sideways": round(float(d[1]) / scale, 9) + 0.0}})
     return out
 
 
@@ -900,7 +904,8 @@ def s12n6_behaviors() -> list[dict]:
          "description": "Fig. 22(e): the freed bottom chords rolled about their axes on "
          "the floor",
          "commands": roller_commands(nodes, roller_legs())},
-        {"name": "node-wheels", "start": "fig22j", "parameters": ["speed", "yaw_rate"],
+        {"name": "node-wheels", "start": "fig22j",
+         "parameters": ["speed", "yaw_rate", "sideways"],
          "description": "Fig. 22(j): nodes driven as wheels by their ring struts",
          "commands": node_wheel_commands(nodes, ("R1", "R3", "R5"))},
     ]

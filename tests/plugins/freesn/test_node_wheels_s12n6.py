@@ -22,15 +22,17 @@ WHEELS = (("B1", "R1"), ("B2", "R3"), ("B3", "R5"))
 """Floor node -> the ring strut whose target connector spins it (the library's gait)."""
 
 
-def _run(speed: float, seconds: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+def _run(speed: float, seconds: float, sideways: float = 0.0
+         ) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
     """fig22(j) held in shape by the controller every 0.1 s, its wheels at the library's
-    gains for ``speed`` from 1 s on: the centre (t, 2) [m] and each floor node's spin
+    gains for ``speed`` (and ``sideways``) from 1 s on: the centre (t, 2) [m] and each floor node's spin
     about its wheel strut's axis relative to the strut (t, 3) [rad/s], and the spins
     asked [rad/s]."""
     library = load_library(FREESN / "libraries" / "S12N6.json").sublibraries["S12N6"]
     behavior = library.behaviors["node-wheels"]
     start = load_configuration(FREESN / "configs" / "library" / "S12N6-5.1.json")
-    wheels = {c.module: {c.connector: c.value({"speed": speed})} for c in behavior.commands}
+    wheels = {c.module: {c.connector: c.value({"speed": speed, "sideways": sideways})}
+              for c in behavior.commands}
     half_base = 0.5 * STRUT.geometry["wheel_base"]
     asked = {s: w["target"] * STRUT.geometry["wheel_radius"] / half_base
              for s, w in wheels.items()}
@@ -84,3 +86,13 @@ def test_fig22j_floor_nodes_spin_as_their_wheels_are_asked():
         assert (0.9 < ratio < 1.1) if strut != "R3" else (0.6 < ratio < 1.1), (strut, ratio)
     moved = centres[-1] - centres[25]
     assert np.linalg.norm(moved) > 0.01 and abs(np.arctan2(moved[1], moved[0])) < np.radians(15)
+
+
+def test_fig22j_slides_sideways_as_its_wheels_are_asked():
+    """The three floor nodes roll 120 deg apart, a kiwi drive: asked ``sideways`` alone the
+    body goes along +y (the course loop slides the travel back onto the line instead of
+    turning the body, which every wheel scrubs; issue 31). Before, nothing moved."""
+    centres, _, _ = _run(0.0, 5.0, sideways=0.03)
+    moved = centres[-1] - centres[25]
+    assert np.linalg.norm(moved) > 0.01
+    assert abs(np.degrees(np.arctan2(moved[1], moved[0])) - 90.0) < 20.0
