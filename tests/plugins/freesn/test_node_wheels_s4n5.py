@@ -7,12 +7,16 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
 
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
 from msrr.core.shape import skeletal_errors
-from msrr.plugins.freesn.sim import FreeSNMujocoDriver
+from msrr.plugins.freesn.robot import SPEC
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver, FreeSNWorld, SimOptions
 from msrr.plugins.freesn.sim.controller import FreeSNController
+from msrr.plugins.freesn.sim.world import _LEVEL_STEP
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 
@@ -56,3 +60,24 @@ def test_the_hub_shell_does_not_roll_over_under_noise():
     ``_LEVEL_FROM`` (the world's ``_node_tilt``) it stays near that tilt."""
     tilts = _hub_tilts(12.0, seed=13, noise=np.radians(4.0), slip=0.10)
     assert tilts.max() < 75.0
+
+
+def test_only_a_held_shell_tilted_past_the_bound_is_levelled():
+    """The hub (four connectors) tilted 120 deg is turned ``_LEVEL_STEP`` toward upright;
+    tilted 50 deg it is not (exact runs keep their physics), nor is a wheel node (one
+    connector: rolling its shell would move it), nor the hub while a wheel on it spins."""
+    start = load_configuration(FREESN / "configs" / "library" / "S4N5-1.2.json")
+    world = FreeSNWorld(start, SPEC, SimOptions())
+    degree = {n: world.docked.count(n) for n in world.nodes}
+    hub = world._node_index[max(degree, key=degree.get)]
+    wheel = world._node_index[min(degree, key=degree.get)]
+    tilted = Rotation.from_rotvec([np.radians(120.0), 0.0, 0.0]).as_matrix()
+    turn = world._levelled(hub, tilted)
+    up = (turn @ tilted)[:, 2]
+    assert np.degrees(np.arccos(up[2])) == pytest.approx(120.0 - np.degrees(_LEVEL_STEP))
+    slight = Rotation.from_rotvec([np.radians(50.0), 0.0, 0.0]).as_matrix()
+    assert np.allclose(world._levelled(hub, slight), np.eye(3))
+    assert np.allclose(world._levelled(wheel, tilted), np.eye(3))
+    spun = world.docked.index(world.nodes[hub])
+    world._wheel[spun] = 1.0
+    assert np.allclose(world._levelled(hub, tilted), np.eye(3))
