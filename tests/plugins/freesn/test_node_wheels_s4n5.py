@@ -21,10 +21,11 @@ from msrr.plugins.freesn.sim.world import _LEVEL_STEP
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 
 
-def _hub_tilts(seconds: float, **options: float) -> np.ndarray:
+def _hub_tilts(seconds: float, bias: float = 0.0, **options: float) -> np.ndarray:
     """The S4N5 standup held in shape by the controller every 0.1 s, its node wheels at
-    the library's gains for 0.03 m/s from 1 s on: the hub n4's shell tilt [deg] (the angle
-    of its z axis from the vertical) after every tick."""
+    the library's gains for 0.03 m/s from 1 s on: the hub's shell tilt [deg] (the angle of
+    its z axis from the vertical) after every tick. ``bias`` [rad]: an error about x set
+    in the hub's attitude estimate before every command (its fusion keeps 0.8 of it)."""
     library = load_library(FREESN / "libraries" / "S4N5.json").sublibraries["S4N5"]
     behavior = library.behaviors["node-wheels"]
     start = load_configuration(FREESN / "configs" / "library" / "S4N5-1.2.json")
@@ -35,8 +36,8 @@ def _hub_tilts(seconds: float, **options: float) -> np.ndarray:
     with FreeSNMujocoDriver(**options) as driver:
         driver.reset(start)
         world = driver.world
-        hub = world._node_body[world._node_index[max(
-            world.nodes, key=lambda n: world.docked.count(n))]]
+        centre = world._node_index[max(world.nodes, key=world.docked.count)]
+        hub = world._node_body[centre]
         yaw = None
         for tick in range(round(seconds / 0.1)):
             observation = driver.get_observation()
@@ -46,25 +47,27 @@ def _hub_tilts(seconds: float, **options: float) -> np.ndarray:
             commands = controller.commands(start, observation, yaw=yaw)
             if tick >= 10:
                 commands.update({m: replace(commands[m], wheels=w) for m, w in wheels.items()})
+            world._attitude[centre] = [bias, 0.0, 0.0]
             driver.send_action(commands)
             driver.step(0.1)
             tilts.append(np.degrees(np.arccos(np.clip(world.data.xmat[hub][8], -1.0, 1.0))))
     return np.array(tilts)
 
 
-def test_the_hub_shell_does_not_roll_over_under_noise():
+def test_the_hub_shell_does_not_roll_over_on_its_estimates_errors():
     """The hub's connectors aim by its IMU's attitude estimate, so its shell, free under
     them, takes each estimate's error for good (and the wheels' reaction torque): it rolled
-    over, 80 deg in 8 s at 4 deg of noise (seed 13), and near upside down its horizontal
-    frame, the frame every command is in, spun and a hub connection broke. Levelled past
-    ``_LEVEL_FROM`` (the world's ``_node_tilt``) it stays near that tilt."""
-    tilts = _hub_tilts(12.0, seed=13, noise=np.radians(4.0), slip=0.10)
-    assert tilts.max() < 75.0
+    over, 80 deg in 8 s at 4 deg of noise (fig18 seed 13), and near upside down its
+    horizontal frame, the frame every command is in, spun and a hub connection broke. Here
+    an estimate 2.3 deg off at every command (noise itself negligible) rolls it over in
+    8 s unless levelled past ``_LEVEL_FROM`` (the world's ``_node_tilt``, 100 deg)."""
+    tilts = _hub_tilts(10.0, bias=np.radians(2.9), noise=1e-6)
+    assert tilts.max() < 115.0
 
 
 def test_only_a_held_shell_tilted_past_the_bound_is_levelled():
     """The hub (four connectors) tilted 150 deg is turned ``_LEVEL_STEP`` toward upright;
-    tilted 100 deg it is not (exact runs keep their physics: fig20's nodes tilt up to 91
+    tilted 95 deg it is not (exact runs keep their physics: fig20's nodes tilt up to 91
     deg), nor is a wheel node (one connector: rolling its shell would move it), nor the
     hub while a wheel on it spins."""
     start = load_configuration(FREESN / "configs" / "library" / "S4N5-1.2.json")
@@ -76,7 +79,7 @@ def test_only_a_held_shell_tilted_past_the_bound_is_levelled():
     turn = world._levelled(hub, tilted)
     up = (turn @ tilted)[:, 2]
     assert np.degrees(np.arccos(up[2])) == pytest.approx(150.0 - np.degrees(_LEVEL_STEP))
-    slight = Rotation.from_rotvec([np.radians(100.0), 0.0, 0.0]).as_matrix()
+    slight = Rotation.from_rotvec([np.radians(95.0), 0.0, 0.0]).as_matrix()
     assert np.allclose(world._levelled(hub, slight), np.eye(3))
     assert np.allclose(world._levelled(wheel, tilted), np.eye(3))
     spun = world.docked.index(world.nodes[hub])
