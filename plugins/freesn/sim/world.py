@@ -150,6 +150,9 @@ _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
+_LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
+_LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
+_LEVEL_STEP = np.radians(5.0)   # ... and at most this much (issue 31, fig18's hub)
 
 
 @dataclass(frozen=True)
@@ -659,7 +662,24 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         attitude as the connectors fuse their fixes: the estimate's error is the readings'
         error low-passed, ``a <- (1 - b) a + b n`` (``_FUSION``). A raw reading per tick
         would make every connector chase a fresh 2 deg jitter and the loop a chain closes
-        would never settle (fig21's last dock, issue 31)."""
+        would never settle (fig21's last dock, issue 31).
+
+        The shell of a node its connectors hold is free under them, so it ends where each
+        estimate puts it: it takes every estimate's error for good, and any torque its
+        connectors pass on (node wheels' reaction), and rolls away. Near upside down its
+        horizontal frame, the frame every command is in, is singular (the twist about the
+        vertical, :func:`~msrr.core.freeform.mujoco.heading`): fig18's hub rolled over in
+        16-60 s at 4 deg of noise, its frame spun under the commands and a hub connection
+        broke. A non-root node's frame cancels out of its commands (they turn by its
+        measured heading relative to the root's). So the connectors of a root that holds
+        two or more of them and spins on none (not a foot, not a wheel: rolling its
+        shell would move it) aim as if its
+        shell were ``_LEVEL_GAIN`` of its tilt past ``_LEVEL_FROM`` nearer upright (at
+        most ``_LEVEL_STEP`` a command): the shell turns back, the struts stay where the
+        rest of the structure holds them. Past 100 deg only: fig20's and fig21's nodes
+        tilt up to 91 and 76 deg in exact runs, which this leaves to the bit; levelling
+        every held node moved fig22's exact node wheels (0.560 -> 0.526 m, 0.4 -> 6.1
+        deg)."""
         if i not in self._imu:
             body = self._node_body[i]
             tilt = rot_z(-float(heading(self.data.xquat[body])))
@@ -667,8 +687,31 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                 sample = self.noise.rng.normal(0.0, self.noise.std, 3)
                 self._attitude[i] += _FUSION * (sample - self._attitude[i])
                 tilt = Rotation.from_rotvec(self._attitude[i]).as_matrix() @ tilt
-            self._imu[i] = self.data.xmat[body].reshape(3, 3).T @ tilt.T
+            attitude = tilt @ self.data.xmat[body].reshape(3, 3)   # node in horizontal frame
+            self._imu[i] = (self._levelled(i, attitude) @ attitude).T
         return self._imu[i]
+
+    def _levelled(self, i: int, attitude: np.ndarray) -> np.ndarray:
+        """The turn (3, 3) toward upright that node ``i``'s connectors take its estimated
+        ``attitude`` (3, 3) through (:meth:`_node_tilt`): the identity unless it is held by
+        two or more connectors, none spinning it, is its group's root (most connectors
+        docked, then the first id: :func:`.recognizer.root_order`) and is tilted past
+        ``_LEVEL_FROM``."""
+        up = attitude[:, 2]
+        excess = float(np.arccos(np.clip(up[2], -1.0, 1.0))) - _LEVEL_FROM
+        if excess <= 0.0:
+            return np.eye(3)
+        node = self.nodes[i]
+        ks = [k for k, n in enumerate(self.docked) if n == node]
+        if len(ks) < 2 or any(self._wheel[k] for k in ks):
+            return np.eye(3)
+        group = next(g for g in self.groups() if node in g)
+        degree = {n: self.docked.count(n) for n in self.nodes if n in group}
+        if node != min(degree, key=lambda n: (-degree[n], n)):   # not its group's root
+            return np.eye(3)
+        rotvec = Rotation.from_matrix(_minimal(up, _EZ)).as_rotvec()
+        step = min(_LEVEL_GAIN * excess, _LEVEL_STEP)
+        return Rotation.from_rotvec(rotvec * step / np.linalg.norm(rotvec)).as_matrix()
 
     def _localise(self, k: int) -> None:
         """Connector ``k`` takes a magnetic-localisation fix (the reports' noise, node
