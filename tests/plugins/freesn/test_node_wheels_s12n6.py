@@ -4,15 +4,14 @@ simulator's bodies."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from freesn_held import held_commands
 from scipy.spatial.transform import Rotation
 
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
-from msrr.core.shape import skeletal_errors
 from msrr.plugins.freesn.robot import STRUT
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim.controller import FreeSNController
@@ -49,13 +48,8 @@ def _run(speed: float, seconds: float, sideways: float = 0.0
 
         yaw = None
         for tick in range(round(seconds / 0.1)):
-            observation = driver.get_observation()
-            if yaw is None:
-                current = controller._recognizer.recognize(observation.sensors)
-                yaw = skeletal_errors(current, start)[2]
-            commands = controller.commands(start, observation, yaw=yaw)
-            if tick >= 10:
-                commands.update({m: replace(commands[m], wheels=w) for m, w in wheels.items()})
+            commands, yaw = held_commands(controller, start, driver.get_observation(),
+                                          wheels, tick, yaw)
             before = frames()
             driver.send_action(commands)
             driver.step(0.1)

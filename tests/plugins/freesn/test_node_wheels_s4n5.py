@@ -3,16 +3,15 @@ under 4 deg of noise, judged on the simulator's bodies."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from freesn_held import held_commands
 from scipy.spatial.transform import Rotation
 
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
-from msrr.core.shape import skeletal_errors
 from msrr.plugins.freesn.robot import SPEC
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver, FreeSNWorld, SimOptions
 from msrr.plugins.freesn.sim.controller import FreeSNController
@@ -40,13 +39,8 @@ def _hub_tilts(seconds: float, bias: float = 0.0, **options: float) -> np.ndarra
         hub = world._node_body[centre]
         yaw = None
         for tick in range(round(seconds / 0.1)):
-            observation = driver.get_observation()
-            if yaw is None:
-                current = controller._recognizer.recognize(observation.sensors)
-                yaw = skeletal_errors(current, start)[2]
-            commands = controller.commands(start, observation, yaw=yaw)
-            if tick >= 10:
-                commands.update({m: replace(commands[m], wheels=w) for m, w in wheels.items()})
+            commands, yaw = held_commands(controller, start, driver.get_observation(),
+                                          wheels, tick, yaw)
             world._attitude[centre] = [bias, 0.0, 0.0]
             driver.send_action(commands)
             driver.step(0.1)
