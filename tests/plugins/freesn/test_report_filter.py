@@ -274,3 +274,26 @@ def test_the_simulated_node_gyro_counts_its_rates_with_the_module_clock():
             before = after
     assert any(np.abs(r.gyro).max() > 0.05 for r in after.sensors.values()
                if isinstance(r, NodeReport))   # the nodes did turn
+
+
+def test_a_held_observation_moves_no_connector():
+    """The whole observation delivered again at the next tick (the host heard no module):
+    no node report is new, so no localisation is read again and every filtered report --
+    tilts, connector directions, strut attitudes -- is what it was (to the rounding of
+    the encoders' unchanged count turned by itself)."""
+    with FreeSNMujocoDriver(noise=NOISE, slip=0.10, seed=11) as driver:
+        driver.reset(_library_config("S6N3-2.2"))
+        first = driver.get_observation()
+        driver.step(0.1)
+        second = driver.get_observation()
+    report_filter = ReportFilter()
+    report_filter.update(first)
+    fresh = report_filter.update(second)
+    held = report_filter.update(replace(second, time=second.time + 0.1))
+    for module, report in fresh.sensors.items():
+        again = held.sensors[module]
+        arrays = [("tilt", report.tilt, again.tilt)] + [
+            (f"{name} {k}", v, getattr(again, name)[k]) for name in ("connectors", "attitude")
+            for k, v in getattr(report, name, {}).items()]
+        for what, a, b in arrays:
+            np.testing.assert_allclose(b, a, atol=1e-12, err_msg=f"{module} {what}")
