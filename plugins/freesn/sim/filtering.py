@@ -14,7 +14,10 @@ connector's wheel encoders its rolling on the node (:attr:`~.world.StrutReport.r
   :func:`attitude_update`) predicted by the gyro, ``R <- R exp([(w - b) dt])``, and
   corrected by the accelerometer's vertical (the reported tilt) and, except for the
   root of its group, by its heading relative to the root that the struts' attitudes give
-  (:func:`.recognizer.node_headings`, the recognizer's least squares);
+  (:func:`.recognizer.node_headings`, the recognizer's least squares); ``dt`` and ``w dt``
+  come from the report's stamp and delta-angle counter (:meth:`ReportFilter._gyros`), so
+  a report the host holds is not used again and one after reports missed is predicted
+  over the whole gap (issue 32: over the module link);
 * per docked connector, its direction on the node ``u`` (node frame): predicted by the
   encoders' rolling ``u <- D u`` and corrected by the magnetic localisation, a Kalman
   filter on the sphere with one variance per axis (:func:`direction_predict`,
