@@ -367,12 +367,13 @@ class CourseLoop:
 class GaitLoop:
     """A sequence behavior's heading loop (issue 31): a gait has no ``yaw_rate`` to
     correct, and one of its loops may turn the body unasked (the FreeSN squirm turned
-    7.4 deg a loop, exact, every loop the same way). Before each step this asks the step
-    to turn the body about its planted feet by ``gain e + integral_gain sum(e)``, ``e``
-    the error of the estimated heading from ``start + offset`` (``offset``: what a
-    :class:`CourseLoop` asks on top, per metre off the commanded line), bounded; the
-    executor bends the step's goal by it (:func:`~msrr.core.closed_loop.turned_goal`).
-    A discrete PI loop over the steps: a gait turns only as fast as its steps go.
+    7.4 deg a loop, exact, every loop the same way). Before each step but a loop's last
+    (:func:`ends_loop`) this asks the step to turn the body about its planted feet by
+    ``gain e + integral_gain sum(e)``, ``e`` the error of the estimated heading from
+    ``start + offset`` (``offset``: what a :class:`CourseLoop` asks on top, per metre off
+    the commanded line), bounded; the executor bends the step's goal by it
+    (:func:`~msrr.core.closed_loop.turned_goal`). A discrete PI loop over the steps: a
+    gait turns only as fast as its steps go.
 
     Attributes:
         start: the body's estimated heading when the behavior began [rad].
