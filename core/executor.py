@@ -56,7 +56,10 @@ and the ``broken``/``made`` links with their ports.
   (:mod:`msrr.core.estimation`: odometry and IMU with their drift, or a pose sensor the
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
   the loops left once it is covered (by the same estimate) are skipped
-  (``RunResult.actions_skipped``).
+  (``RunResult.actions_skipped``). A sequence that states its direction has a heading
+  loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
+  step but a loop's last has its goal turned about the planted feet
+  (:func:`~msrr.core.closed_loop.turned_goal`).
 
 The executor judges nothing and reads only :class:`~msrr.core.driver.Observation`:
 module reports, never a simulator's poses or dock state (:mod:`msrr.core.witness`). It
