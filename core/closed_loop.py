@@ -138,9 +138,11 @@ def turned_goal(goal: Configuration, tree: KinematicTree, turn: float) -> Config
     that grips the ground. Bending the part the step moves instead (the squirm's free half
     about its middle node) steers little and slips: in the squirm the held half, whose
     raised middle node has no grip, turned back against it. A tree whose root holds no
-    edge leaves the yaw to the others, and one without a planted node has nothing to
-    turn about: ``goal`` is returned as it is."""
-    if not turn or not tree.root.edges:
+    edge leaves the yaw to the others, one without a planted node has nothing to turn
+    about, and one with two or more cannot pivot on them (each leg turned about its own
+    hip moves its foot off a rigid turn of the body: the S12N6 trot's diagonal pairs
+    stalled): ``goal`` is returned as it is."""
+    if not turn or not tree.root.edges or sum(node.planted for node in tree.nodes) != 1:
         return goal
     feet: set[int] = set()
     for i, node in enumerate(tree.nodes[1:], start=1):

@@ -63,7 +63,7 @@ def wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
-def test_turned_goal_changes_nothing_without_a_planted_foot_a_root_edge_or_a_turn():
+def test_turned_goal_changes_nothing_without_one_planted_foot_a_root_edge_or_a_turn():
     goal = chain(4)
     assert turned_goal(goal, squirm_tree(goal, planted=False), 0.1) is goal
     assert turned_goal(goal, squirm_tree(goal), 0.0) is goal
@@ -71,6 +71,9 @@ def test_turned_goal_changes_nothing_without_a_planted_foot_a_root_edge_or_a_tur
                                     Foot(["R4"], ["H5"]), GimbalJoint(["R2"], ["H2"]),
                                     GimbalJoint(["R1"], ["H1"])])
     assert turned_goal(goal, rootless, 0.1) is goal   # the turn would be a gauge
+    two_feet = KinematicTree(goal, [FixedNode(["R3"], ["H3", "H4"]), Foot(["R4"], ["H5"]),
+                                    GimbalJoint(["R2"], ["H2"]), Foot(["R1"], ["H1"])])
+    assert turned_goal(goal, two_feet, 0.1) is goal   # no rigid pivot on two feet
 
 
 def walk(drift: float, crab: float, *, loop: bool, steps: int = 24, heading: float = 0.4,
