@@ -253,6 +253,18 @@ def _outgoing(config: Configuration, module: str) -> np.ndarray | None:
     return None if e is None else np.asarray(e.z, dtype=float)
 
 
+def _swinging(links: Mapping[str, str], latched: set[str]) -> set[str]:
+    """The modules whose own connection, turned, swings a module of ``latched``: those
+    modules and every module ``links`` (module -> the module its connector holds) shows
+    carrying one of them, down the chain of connectors toward the sink."""
+    out: set[str] = set()
+    for m in latched:
+        while m in links and m not in out:
+            out.add(m)
+            m = links[m]
+    return out
+
+
 def _angle(a: np.ndarray | None, b: np.ndarray | None) -> float:
     """The angle [rad] between two vectors (3,), ``inf`` when either is ``None``."""
     if a is None or b is None:
@@ -349,12 +361,14 @@ class ContactController:
         yaw would only spin the whole robot on the ground, and the reaction on the free
         root would make the IK's yaw-aligned goal chase it round.
 
-        A connection owned by a module of a piece that travelled and latched is held
-        (no command: the driver brakes it) while the target's vector is within
+        A connection that would swing a piece that travelled and latched -- owned by one
+        of its modules, or by a module that carries it (:func:`_swinging`) -- is held (no
+        command: the driver brakes it) while the target's vector is within
         ``_LATCH_HOLD`` of where it is: the piece travelled into the goal's shape, and
         what is left is the map's error at the latch and the recognition's noise. Moving
         it would swing the piece over the floor on braked shells, dragging it: under
-        2 deg of noise pieces-to-tree's final move so broke F2-F3."""
+        2 deg of noise pieces-to-tree's final move so broke F2-F3 (F2 carries F1 and the
+        latched F13-F16; 7 N on F2-F3 within the move's first 0.1 s)."""
         reports = observation.sensors
         current = current or self.recognizer.recognize(reports)
         yaw = (yaw or 0.0)
@@ -364,10 +378,11 @@ class ContactController:
         turn = rot_z(yaw)
         turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
+        swings = _swinging(links, self._latched)
         for e in target.edges():
             if e.z is None or links.get(e.source) != e.target:
                 continue
-            if e.source in self._latched and _angle(
+            if e.source in swings and _angle(
                     _vector(current, e.source, e.target), _vector(turned, e.source, e.target)
             ) < _LATCH_HOLD:
                 continue
