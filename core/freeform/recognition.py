@@ -253,6 +253,33 @@ def _outgoing(config: Configuration, module: str) -> np.ndarray | None:
     return None if e is None else np.asarray(e.z, dtype=float)
 
 
+def _swinging(links: Mapping[str, str], latched: set[str]) -> set[str]:
+    """The modules whose own connection, turned, swings a module of ``latched``: those
+    modules and every module ``links`` (module -> the module its connector holds) shows
+    carrying one of them, down the chain of connectors toward the sink."""
+    out: set[str] = set()
+    for m in latched:
+        while m in links and m not in out:
+            out.add(m)
+            m = links[m]
+    return out
+
+
+def _angle(a: np.ndarray | None, b: np.ndarray | None) -> float:
+    """The angle [rad] between two vectors (3,), ``inf`` when either is ``None``."""
+    if a is None or b is None:
+        return float("inf")
+    cos = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return float(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+_LATCH_HOLD = np.radians(20.0)
+"""A latched piece's connection within this of its target is held
+(:meth:`ContactController.commands`): under 2 deg of angle noise the recognition reads a
+latched connection up to 10 deg off from tick to tick (pieces-to-tree, seed 12, the final
+move's first ticks: 1.0-10.0 deg), so a smaller band chased the noise."""
+
+
 def _direction(vector: np.ndarray) -> dict[str, float]:
     return {f"dir_{a}": float(c) for a, c in zip("xyz", vector, strict=True)}
 
@@ -308,6 +335,8 @@ class ContactController:
         self._planned: Configuration | None = None
         """The plan's configuration before the action being run (``None``: not known)."""
         self._acting: Action | None = None
+        self._latched: set[str] = set()
+        """The modules of the pieces that travelled and latched (:meth:`commands`)."""
 
     def start(self, configuration: Configuration) -> None:
         """The run starts from ``configuration``: the locator learns where its modules
@@ -316,6 +345,7 @@ class ContactController:
         self.locator = Locator(self.locator.spacing)
         self._ways, self._pieces = {}, {}
         self._planned, self._acting = None, None   # the plan may start from a recognition
+        self._latched = set()
         if self._layout is not None:
             centres, frames = self._layout(configuration)
             self.locator.start({m: (centres[m], frames[m]) for m in centres})
@@ -329,7 +359,16 @@ class ContactController:
         about the vertical that is left between them and the recognized configuration is
         removed (:func:`common_turn`): turning every module about its parent by the same
         yaw would only spin the whole robot on the ground, and the reaction on the free
-        root would make the IK's yaw-aligned goal chase it round."""
+        root would make the IK's yaw-aligned goal chase it round.
+
+        A connection that would swing a piece that travelled and latched -- owned by one
+        of its modules, or by a module that carries it (:func:`_swinging`) -- is held (no
+        command: the driver brakes it) while the target's vector is within
+        ``_LATCH_HOLD`` of where it is: the piece travelled into the goal's shape, and
+        what is left is the map's error at the latch and the recognition's noise. Moving
+        it would swing the piece over the floor on braked shells, dragging it: under
+        2 deg of noise pieces-to-tree's final move so broke F2-F3 (F2 carries F1 and the
+        latched F13-F16; 7 N on F2-F3 within the move's first 0.1 s)."""
         reports = observation.sensors
         current = current or self.recognizer.recognize(reports)
         yaw = (yaw or 0.0)
@@ -339,8 +378,13 @@ class ContactController:
         turn = rot_z(yaw)
         turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
+        swings = _swinging(links, self._latched)
         for e in target.edges():
             if e.z is None or links.get(e.source) != e.target:
+                continue
+            if e.source in swings and _angle(
+                    _vector(current, e.source, e.target), _vector(turned, e.source, e.target)
+            ) < _LATCH_HOLD:
                 continue
             if self.sucker:   # anchored: only a turn about the sucker's axis
                 joints = {"sucker": 1.0, "twist": sucker_twist(current, turned, e.source)}
@@ -416,7 +460,7 @@ class ContactController:
                             odometry[:2] + into @ others[target][:2])
         return ways, pieces
 
-    def _travel_pieces(self, phase: Phase) -> Control:
+    def _travel_pieces(self, phase: Phase, reports: Reports) -> Control:
         """One tick of the pieces' travel (approach: leg by leg, see
         :class:`~msrr.core.freeform.piece_way.PieceWay`), or of their guarded push onto
         the target with the root's connector armed (connect): a twist of each piece from
@@ -424,9 +468,20 @@ class ContactController:
         each module as the velocity of its own centre
         (:func:`~msrr.core.freeform.travel.twist_velocities`). A turn holds the centroid;
         a bent piece's drive holds the leg's heading and its line, a straight piece's
-        drives straight on (it cannot roll across its line, so it cannot steer)."""
+        drives straight on (it cannot roll across its line, so it cannot steer).
+
+        A piece whose root reports the latch on its target travels no more: it is dropped
+        from the ways and given no command (the driver holds a module dropped from the
+        commands). Before, it was told to travel again on the tick that saw the latch,
+        and that travel outlived the dock: the world's hold at the latch was undone, and
+        under 2 deg of noise the piece kept rolling into the tree through the plan's final
+        move until a connection broke (pieces-to-tree, seed 12, F11-F12 at 10.2 N)."""
         commands, errors = {}, {}
         for root, (way, stage) in list(self._pieces.items()):
+            if phase is Phase.CONNECT and reports[root].attached == way.target:
+                del self._pieces[root]
+                self._latched.update(way.piece)
+                continue
             centres = {m: self.locator.pose(m)[0] for m in way.piece}
             headings = {m: self.locator.pose(m)[1] for m in way.piece}
             middle = np.mean([c[:2] for c in centres.values()], axis=0)
@@ -538,7 +593,7 @@ class ContactController:
         self._locate(reports)
         if (self._ways or self._pieces) and phase in (Phase.APPROACH, Phase.CONNECT):
             lone = self._travel(phase, reports)
-            pieces = self._travel_pieces(phase)
+            pieces = self._travel_pieces(phase, reports)
             return Control(commands={**lone.commands, **pieces.commands},
                            errors={**lone.errors, **pieces.errors},
                            reached=lone.reached and pieces.reached)
