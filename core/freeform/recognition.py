@@ -533,7 +533,8 @@ class ContactController:
         ``place`` (2,) [m] has moved less than :data:`_STALL_MOVE` for :data:`_STALL_TIME`
         of driver ``time`` [s] while the way ``left`` [m] is under :data:`_STALL_NEAR`
         spacings. Its spot was laid from the map, whose estimate of the target's place
-        is centimetres off under noise (1-4 cm at 2 degrees in ``forest-to-tree``), so
+        is centimetres off under noise (1-7 cm at 2 degrees in ``forest-to-tree`` and
+        ``pieces-to-tree``), so
         the spot may lie inside the target's shell or the neighbour's beside it, which
         stops the module short of it, next to its target: the push that follows goes
         straight for the target's centre and latches on touching it. Once blocked, it
