@@ -267,6 +267,52 @@ def test_separate_start_pieces_are_related_by_the_start_layout(mujoco_driver):
         assert np.linalg.norm(locator.relative(module)[other] - truth) < 0.01, (module, other)
 
 
+def _let_go(config: Configuration, module: str, holder: str):
+    """A MuJoCo FreeBOT driver reset to ``config``, 0.3 s after ``module`` let go of
+    ``holder``."""
+    driver = plugin.driver_factory()()
+    driver.connect()
+    driver.reset(config)
+    driver.send_action({module: ModuleCommand(undock=(f"@{holder}",))})
+    driver.step(0.3)
+    return driver
+
+
+def _turn_then_drive(driver, piece: tuple[str, ...], ticks: int, settle: float = 0.0
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Turn ``piece`` in place at 0.2 rad/s for ``ticks`` of 0.1 s, hold still ``settle``
+    [s], then drive it along its line at ``SPEED`` for 3 s: its modules' centres (n, 2) on
+    ground truth before and after the drive."""
+    for _ in range(ticks):
+        _twist(driver, piece, 0.0, 0.2)
+        driver.step(0.1)
+    if settle:
+        _twist(driver, piece, 0.0, 0.0)
+        driver.step(settle)
+    before = np.array([driver.world.centre(m)[:2] for m in piece])
+    for _ in range(30):
+        _twist(driver, piece, SPEED, 0.0)
+        driver.step(0.1)
+    return before, np.array([driver.world.centre(m)[:2] for m in piece])
+
+
+def _twist(driver, piece: tuple[str, ...], speed: float, turn: float) -> None:
+    """Command ``piece`` from its reports: ``speed`` [m/s] along its line (first module to
+    last) and ``turn`` [rad/s] about its centroid."""
+    reports = driver.get_observation().sensors
+    links = links_of(reports)
+    centres, headings, _ = centres_of(reports, links, module_headings(reports, links),
+                                      driver.world.length)
+    centres = {m: centres[m] for m in piece}
+    line = (centres[piece[-1]] - centres[piece[0]])[:2]
+    velocities, w = twist_velocities(
+        centres, {m: headings[m] for m in piece}, speed * line / np.linalg.norm(line),
+        turn, np.mean([c[:2] for c in centres.values()], axis=0), speed=SPEED)
+    driver.send_action({m: ModuleCommand(joints={"roll_x": float(u[0]),
+                                                 "roll_y": float(u[1]), "turn": w})
+                        for m, u in velocities.items()})
+
+
 def test_a_piece_that_let_go_sideways_turns_then_drives_along_its_line():
     # F1-F2 held on F3 across its line, then let go: F2, the piece's free module, has its
     # magnet (and the weld's foot) pointing sideways. Turned in place a quarter turn about
@@ -279,37 +325,9 @@ def test_a_piece_that_let_go_sideways_turns_then_drives_along_its_line():
         config.add_module(m, "freebot")
     config.connect("F1", "F2", z=[1.0, 0.0, 0.0])
     config.connect("F2", "F3", z=[0.0, 1.0, 0.0])
-    driver = plugin.driver_factory()()
-    driver.connect()
-    driver.reset(config)
-    world = driver.world
-    driver.send_action({"F2": ModuleCommand(undock=("@F3",))})
-    driver.step(0.3)
+    driver = _let_go(config, "F2", "F3")
     piece = ("F1", "F2")
-
-    def twist(velocity, turn: float) -> None:
-        reports = driver.get_observation().sensors
-        links = links_of(reports)
-        centres, headings, _ = centres_of(reports, links, module_headings(reports, links),
-                                          world.length)
-        centres = {m: centres[m] for m in piece}
-        about = np.mean([c[:2] for c in centres.values()], axis=0)
-        line = (centres["F2"] - centres["F1"])[:2]
-        v = velocity * line / np.linalg.norm(line)
-        velocities, w = twist_velocities(centres, {m: headings[m] for m in piece}, v, turn,
-                                         about, speed=SPEED)
-        driver.send_action({m: ModuleCommand(joints={"roll_x": float(u[0]),
-                                                     "roll_y": float(u[1]), "turn": w})
-                            for m, u in velocities.items()})
-
-    for _ in range(80):                       # a quarter turn at up to 0.2 rad/s
-        twist(0.0, 0.2)
-        driver.step(0.1)
-    before = np.array([world.centre(m)[:2] for m in piece])
-    for _ in range(30):
-        twist(SPEED, 0.0)
-        driver.step(0.1)
-    after = np.array([world.centre(m)[:2] for m in piece])
+    before, after = _turn_then_drive(driver, piece, 80)   # a quarter turn at 0.2 rad/s
     line = before[1] - before[0]
     line /= np.linalg.norm(line)
     moved = after.mean(axis=0) - before.mean(axis=0)
@@ -331,38 +349,10 @@ def test_a_straight_piece_keeps_its_line_after_a_turn_in_place():
     for i in range(1, 4):
         config.connect(f"F{i}", f"F{i + 1}", z=[1.0, 0.0, 0.0])
     config.connect("F4", "F5", z=[0.0, 1.0, 0.0])
-    driver = plugin.driver_factory()()
-    driver.connect()
-    driver.reset(config)
-    world = driver.world
-    driver.send_action({"F4": ModuleCommand(undock=("@F5",))})
-    driver.step(0.3)
+    driver = _let_go(config, "F4", "F5")
     piece = ("F1", "F2", "F3", "F4")
-
-    def twist(speed: float, turn: float) -> None:
-        reports = driver.get_observation().sensors
-        links = links_of(reports)
-        centres, headings, _ = centres_of(reports, links, module_headings(reports, links),
-                                          world.length)
-        centres = {m: centres[m] for m in piece}
-        line = (centres["F4"] - centres["F1"])[:2]
-        velocities, w = twist_velocities(
-            centres, {m: headings[m] for m in piece}, speed * line / np.linalg.norm(line),
-            turn, np.mean([c[:2] for c in centres.values()], axis=0), speed=SPEED)
-        driver.send_action({m: ModuleCommand(joints={"roll_x": float(u[0]),
-                                                     "roll_y": float(u[1]), "turn": w})
-                            for m, u in velocities.items()})
-
-    for _ in range(78):
-        twist(0.0, 0.2)
-        driver.step(0.1)
-    twist(0.0, 0.0)
-    driver.step(1.0)
-    before = np.array([world.centre(m)[:2] for m in piece])
-    for _ in range(30):
-        twist(SPEED, 0.0)
-        driver.step(0.1)
-    moved = np.array([world.centre(m)[:2] for m in piece]).mean(axis=0) - before.mean(axis=0)
+    before, after = _turn_then_drive(driver, piece, 78, settle=1.0)
+    moved = after.mean(axis=0) - before.mean(axis=0)
     line = (before[-1] - before[0]) / np.linalg.norm(before[-1] - before[0])
     assert float(moved @ line) >= 0.8 * SPEED * 3.0
     assert abs(float(line[0] * moved[1] - line[1] * moved[0])) < 0.005
