@@ -22,7 +22,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from ..configuration import Configuration
 from ..robot import RobotSpec
-from .rotations import cross, rotation_between, rotation_between_omega
+from .rotations import ANTIPARALLEL_TOLERANCE, cross, rotation_between
 from .tree import KinematicTree
 
 __all__ = ["GroundContact", "GroundModel", "GroundOp", "ground_op"]
@@ -150,7 +150,7 @@ class GroundOp:
         raw = cross(u, v)
         norm = np.linalg.norm(raw)
         normal = raw / norm
-        rot = rotation_between(normal, _DOWN)
+        rot = turn_down(normal)
         contact = GroundContact(rot, tuple(self.vertices[i] for i in (a, b, c)), normal, com,
                                 stable)
         return contact, _Cache(rot, points, (a, b, c), (u, v), norm, normal)
@@ -179,8 +179,7 @@ class GroundOp:
             tau += np.sum(cross(x @ rot.T, grad_x), axis=0)
         norm, normal = cache.norm, cache.normal
         # R = Q^T with Q = rotation_between(down, n); dR = hat(-R omega_Q) R
-        dn = (_EYE - normal[:, None] * normal) / norm
-        omega_q = rotation_between_omega(_DOWN, normal, dn)      # (3, 3): d omega_Q / d raw
+        omega_q = turn_down_omega(normal, norm)      # (3, 3): d omega_Q / d raw
         g_raw = -(omega_q.T @ (rot.T @ tau))
         a, b, c = cache.face
         pts = cache.points
@@ -246,6 +245,54 @@ def ground_op(tree: KinematicTree, model: GroundModel) -> GroundOp:
     if cached is None or cached[0] != model:
         cached = tree._ground = (model, GroundOp(tree, model))
     return cached[1]
+
+
+def turn_down(n: np.ndarray) -> np.ndarray:
+    """``rotation_between(n, (0, 0, -1))`` for one unit vector ``n`` (3,): the minimal rotation
+    that turns a support face's normal straight down (eq. 2), shape (3, 3).
+
+    The same IEEE operations as :func:`~.rotations.rotation_between`, in the same order, on
+    plain floats (its ~20 numpy calls on 3-vectors cost more than the arithmetic), so the
+    result is the same to the bit; an antiparallel ``n`` (straight up) takes the general path.
+    """
+    n0, n1, n2 = n.tolist()
+    # w = n x down, c = n . down (rotations.cross and the einsum's products)
+    w0, w1, w2 = n1 * -1.0 - n2 * 0.0, n2 * 0.0 - n0 * -1.0, n0 * 0.0 - n1 * 0.0
+    c = (n0 * 0.0 + n1 * 0.0) + n2 * -1.0
+    d = 1.0 + c
+    if d < ANTIPARALLEL_TOLERANCE:
+        return rotation_between(n, _DOWN)
+    z = c * 0.0   # c I off the diagonal
+    # c I + hat(w) + w w^T / (1 + c)
+    return np.array(((c + w0 * w0 / d, (z - w2) + w0 * w1 / d, (z + w1) + w0 * w2 / d),
+                     ((z + w2) + w1 * w0 / d, c + w1 * w1 / d, (z - w0) + w1 * w2 / d),
+                     ((z - w1) + w2 * w0 / d, (z + w0) + w2 * w1 / d, c + w2 * w2 / d)))
+
+
+def turn_down_omega(n: np.ndarray, norm: float) -> np.ndarray:
+    """``rotation_between_omega(down, n, (I - n n^T) / norm)``: how the rotation from straight
+    down onto the unit normal ``n`` (3,) turns when the unnormalised normal (length ``norm``)
+    moves, shape (3, 3), column ``d`` per component of the unnormalised normal.
+
+    Plain-float form of :func:`~.rotations.rotation_between_omega` with the same operations
+    in the same order (the same floats); zero for antiparallel vectors as there.
+    """
+    n0, n1, n2 = n.tolist()
+    d = 1.0 + ((0.0 * n0 + 0.0 * n1) + -1.0 * n2)
+    if d < ANTIPARALLEL_TOLERANCE:
+        return np.zeros((3, 3))
+    # dv2 = (I - n n^T) / norm, column k
+    nn = (n0, n1, n2)
+    dv = [[((1.0 if i == k else 0.0) - nn[i] * nn[k]) / norm for k in range(3)] for i in range(3)]
+    a0, a1, a2 = 0.0 * n2 - -1.0 * n1, -1.0 * n0 - 0.0 * n2, 0.0 * n1 - 0.0 * n0   # down x n
+    rows: list[list[float]] = [[], [], []]
+    for k in range(3):
+        u0, u1, u2 = dv[0][k], dv[1][k], dv[2][k]
+        twist = ((a0 * u0 + a1 * u1) + a2 * u2) / d
+        rows[0].append((n1 * u2 - n2 * u1) - twist * n0)
+        rows[1].append((n2 * u0 - n0 * u2) - twist * n1)
+        rows[2].append((n0 * u1 - n1 * u0) - twist * n2)
+    return np.array(rows)
 
 
 def _sub(u: list[float], v: list[float]) -> tuple[float, float, float]:
