@@ -13,6 +13,7 @@ inverse kinematics keeps an analytic gradient.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -99,6 +100,8 @@ class _Cache:
     edges: tuple[np.ndarray, np.ndarray] | None = None   # b - a, c - a
     norm: float = 1.0   # |(b - a) x (c - a)|
     normal: np.ndarray | None = None   # (b - a) x (c - a) / norm
+    source: np.ndarray | None = None   # the vectors given to contact()
+    grounded: np.ndarray | None = None   # source @ rotation.T
 
 
 class GroundOp:
@@ -141,22 +144,23 @@ class GroundOp:
         self.com_weights = com / total if total > 0 else np.full(n, 0.0)
 
     def contact(self, z: np.ndarray) -> tuple[GroundContact, _Cache]:
-        """The resting pose for world-frame vectors ``z`` (rows, (n, 3))."""
+        """The resting pose for world-frame vectors ``z`` (rows, (n, 3)); the cache holds
+        the grounded vectors ``z R^T`` (``cache.grounded``) and what :meth:`backward` needs."""
         points = self.paths @ z
         com = self.com_weights @ z
         face = self._support(points, com)
         if face is None:
             eye = np.eye(3)
-            return GroundContact(eye, (), _DOWN.copy(), com, False), _Cache(eye)
+            return GroundContact(eye, (), _DOWN.copy(), com, False), _Cache(eye, source=z)
         (a, b, c), stable = face
         u, v = points[b] - points[a], points[c] - points[a]
-        raw = cross(u, v)
-        norm = np.linalg.norm(raw)
+        raw = _cross3(u, v)
+        norm = math.sqrt(raw.dot(raw))   # np.linalg.norm's own arithmetic for a vector
         normal = raw / norm
         rot = turn_down(normal)
         contact = GroundContact(rot, tuple(self.vertices[i] for i in (a, b, c)), normal, com,
                                 stable)
-        return contact, _Cache(rot, points, (a, b, c), (u, v), norm, normal)
+        return contact, _Cache(rot, points, (a, b, c), (u, v), norm, normal, z, z @ rot.T)
 
     def backward(self, cache: _Cache, z: np.ndarray, grad_z: np.ndarray,
                  x: np.ndarray | None = None, grad_x: np.ndarray | None = None
@@ -176,10 +180,11 @@ class GroundOp:
             return gz, gx
         assert cache.points is not None and cache.edges is not None \
             and cache.normal is not None
-        # torque of the gradients on the grounded vectors
-        tau = np.sum(cross(z @ rot.T, grad_z), axis=0)
+        # torque of the gradients on the grounded vectors (those contact() made, if of z)
+        grounded = cache.grounded if z is cache.source else z @ rot.T
+        tau = np.add.reduce(cross(grounded, grad_z), axis=0)
         if x is not None and grad_x is not None:
-            tau += np.sum(cross(x @ rot.T, grad_x), axis=0)
+            tau += np.add.reduce(cross(x @ rot.T, grad_x), axis=0)
         norm, normal = cache.norm, cache.normal
         # R = Q^T with Q = rotation_between(down, n); dR = hat(-R omega_Q) R
         omega_q = turn_down_omega(normal, norm)      # (3, 3): d omega_Q / d raw
@@ -187,8 +192,8 @@ class GroundOp:
         a, b, c = cache.face
         pts = cache.points
         u, v = cache.edges
-        g_u = cross(v, g_raw)
-        g_v = cross(g_raw, u)
+        g_u = _cross3(v, g_raw)
+        g_v = _cross3(g_raw, u)
         g_points = np.zeros_like(pts)
         g_points[b] += g_u
         g_points[c] += g_v
@@ -317,6 +322,14 @@ def turn_down_omega(n: np.ndarray, norm: float) -> np.ndarray:
         rows[1].append((n2 * u0 - n0 * u2) - twist * n1)
         rows[2].append((n0 * u1 - n1 * u0) - twist * n2)
     return np.array(rows)
+
+
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`~.rotations.cross` of two 3-vectors in plain floats: the same products and
+    differences, so the same floats, without six numpy calls on 3 elements."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
 
 
 def _sub(u: list[float], v: list[float]) -> tuple[float, float, float]:

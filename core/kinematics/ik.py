@@ -443,8 +443,9 @@ class IKProblem:
             out = (state, state.z, state.x, None, None)
         else:
             contact, cache = self.ground.contact(state.z)
-            out = (state, state.z @ contact.rotation.T, state.x @ contact.rotation.T, contact,
-                   cache)
+            grounded = state.z @ contact.rotation.T if cache.grounded is None \
+                else cache.grounded
+            out = (state, grounded, state.x @ contact.rotation.T, contact, cache)
         if derivatives and _RECENT:
             if len(self._recent) >= _RECENT:
                 del self._recent[next(iter(self._recent))]
