@@ -280,22 +280,26 @@ def turn_down(n: np.ndarray) -> np.ndarray:
     """``rotation_between(n, (0, 0, -1))`` for one unit vector ``n`` (3,): the minimal rotation
     that turns a support face's normal straight down (eq. 2), shape (3, 3).
 
-    The same IEEE operations as :func:`~.rotations.rotation_between`, in the same order, on
-    plain floats (its ~20 numpy calls on 3-vectors cost more than the arithmetic), so the
-    result is the same to the bit; an antiparallel ``n`` (straight up) takes the general path.
+    The same IEEE operations as :func:`~.rotations.rotation_between` on plain floats (its ~20
+    numpy calls on 3-vectors cost more than the arithmetic), its einsum's sums with their +0
+    start, so the result is the same to the bit, zeros' signs included (exact runs have exact
+    zeros); an antiparallel ``n`` (straight up) takes the general path.
     """
     n0, n1, n2 = n.tolist()
-    # w = n x down, c = n . down (rotations.cross and the einsum's products)
+    # w = n x down (rotations.cross); c = n . down and hat(w) as einsum sums them, from +0
+    # (so a zero is +0, whatever the signs of the zeros summed)
     w0, w1, w2 = n1 * -1.0 - n2 * 0.0, n2 * 0.0 - n0 * -1.0, n0 * 0.0 - n1 * 0.0
-    c = (n0 * 0.0 + n1 * 0.0) + n2 * -1.0
+    c = (n0 * 0.0 + n1 * 0.0 + n2 * -1.0) + 0.0
     d = 1.0 + c
     if d < ANTIPARALLEL_TOLERANCE:
         return rotation_between(n, _DOWN)
-    z = c * 0.0   # c I off the diagonal
+    e, z = c * 1.0 + 0.0, c * 0.0   # c I + hat(w) on and off the diagonal
+    p0, p1, p2 = w0 + 0.0, w1 + 0.0, w2 + 0.0
+    m0, m1, m2 = 0.0 - w0, 0.0 - w1, 0.0 - w2
     # c I + hat(w) + w w^T / (1 + c)
-    return np.array(((c + w0 * w0 / d, (z - w2) + w0 * w1 / d, (z + w1) + w0 * w2 / d),
-                     ((z + w2) + w1 * w0 / d, c + w1 * w1 / d, (z - w0) + w1 * w2 / d),
-                     ((z - w1) + w2 * w0 / d, (z + w0) + w2 * w1 / d, c + w2 * w2 / d)))
+    return np.array(((e + w0 * w0 / d, (z + m2) + w0 * w1 / d, (z + p1) + w0 * w2 / d),
+                     ((z + p2) + w1 * w0 / d, e + w1 * w1 / d, (z + m0) + w1 * w2 / d),
+                     ((z + m1) + w2 * w0 / d, (z + p0) + w2 * w1 / d, e + w2 * w2 / d)))
 
 
 def turn_down_omega(n: np.ndarray, norm: float) -> np.ndarray:
@@ -307,7 +311,7 @@ def turn_down_omega(n: np.ndarray, norm: float) -> np.ndarray:
     in the same order (the same floats); zero for antiparallel vectors as there.
     """
     n0, n1, n2 = n.tolist()
-    d = 1.0 + ((0.0 * n0 + 0.0 * n1) + -1.0 * n2)
+    d = 1.0 + ((0.0 * n0 + 0.0 * n1 + -1.0 * n2) + 0.0)   # einsum's sum, from +0
     if d < ANTIPARALLEL_TOLERANCE:
         return np.zeros((3, 3))
     # dv2 = (I - n n^T) / norm, column k
@@ -317,7 +321,7 @@ def turn_down_omega(n: np.ndarray, norm: float) -> np.ndarray:
     rows: list[list[float]] = [[], [], []]
     for k in range(3):
         u0, u1, u2 = dv[0][k], dv[1][k], dv[2][k]
-        twist = ((a0 * u0 + a1 * u1) + a2 * u2) / d
+        twist = ((a0 * u0 + a1 * u1 + a2 * u2) + 0.0) / d   # einsum's sum, from +0
         rows[0].append((n1 * u2 - n2 * u1) - twist * n0)
         rows[1].append((n2 * u0 - n0 * u2) - twist * n1)
         rows[2].append((n0 * u1 - n1 * u0) - twist * n2)

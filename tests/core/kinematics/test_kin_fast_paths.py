@@ -7,6 +7,8 @@ integers of the float64 bits (so a zero's sign counts too), on seeded random inp
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from kin_helpers import SPEC, random_stick, stick_tree
@@ -46,6 +48,25 @@ def test_turn_down_omega_is_rotation_between_omega_to_the_bit():
         dn = (np.eye(3) - n[:, None] * n) / norm
         assert np.array_equal(bits(turn_down_omega(n, norm)),
                               bits(rotations.rotation_between_omega(DOWN, n, dn)))
+
+
+def test_turn_down_keeps_the_signs_of_exact_zeros():
+    """Exact runs (no noise) have axis-aligned normals: every zero's sign as the general path
+    gives it (an arctan2 downstream turns -0 and +0 into -pi and pi)."""
+    values = [0.0, -0.0, 0.6, -0.6, 0.8, -0.8, 1.0, -1.0]
+    checked = 0
+    for a, b, c in itertools.product(values, repeat=3):
+        raw = np.array([a, b, c])
+        norm = float(np.linalg.norm(raw))
+        if norm == 0.0 or raw[2] / norm > 0.999:
+            continue
+        n = raw / norm
+        dn = (np.eye(3) - n[:, None] * n) / norm
+        assert np.array_equal(bits(turn_down(n)), bits(rotations.rotation_between(n, DOWN)))
+        assert np.array_equal(bits(turn_down_omega(n, norm)),
+                              bits(rotations.rotation_between_omega(DOWN, n, dn)))
+        checked += 1
+    assert checked > 300
 
 
 def test_straight_up_takes_the_general_half_turn_and_has_no_derivative():
