@@ -41,6 +41,7 @@ the shape is within 1 deg, so no fixed threshold on it separates reached from no
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
@@ -320,7 +321,8 @@ class PhaseTracker:
                 continue
             old = self._z.get(e.id)
             v = e.z if old is None else (1 - a) * old + a * e.z
-            z[e.id] = v / np.linalg.norm(v)
+            flat = v.ravel(order="K")   # np.linalg.norm's own arithmetic, its layers aside
+            z[e.id] = v / math.sqrt(flat.dot(flat))
         self._z = z
         return current.with_vectors(z=z)
 

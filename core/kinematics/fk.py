@@ -29,7 +29,7 @@ import numpy as np
 from ..configuration import Configuration
 from ..errors import ConfigurationError
 from .node import NodeBatch
-from .rotations import canonical_perpendicular, cross
+from .rotations import canonical_perpendicular, cross, einsum
 from .tree import KinematicTree
 
 __all__ = ["Evaluator", "FKResult", "FKState", "forward", "tree_vectors"]
@@ -234,8 +234,8 @@ class Evaluator:
         for qs, slots in layout.levels:
             rot[qs] = rot[slots] @ rel[qs]
         carried = rot[layout.col_slot]
-        z = np.einsum("nab,nb->na", carried, z_joint)
-        x = np.einsum("nab,nb->na", carried, x_joint)
+        z = einsum("nab,nb->na", carried, z_joint)
+        x = einsum("nab,nb->na", carried, x_joint)
         return FKState(z_joint, x_joint, z, x, cost, rot, sigma, batches)
 
     def gradient(self, state: FKState, grad_z: np.ndarray, grad_x: np.ndarray | None,
@@ -253,19 +253,19 @@ class Evaluator:
             torque += cross(state.x, grad_x)
         tau = layout.chain @ torque                       # (n_ports, 3), root frame
         carried = state.port_rotations[layout.col_slot]
-        gz_local = np.einsum("nba,nb->na", carried, grad_z)
-        gx_local = None if grad_x is None else np.einsum("nba,nb->na", carried, grad_x)
-        tau_local = np.einsum("qba,qb->qa", state.port_rotations[layout.port_slot], tau)
+        gz_local = einsum("nba,nb->na", carried, grad_z)
+        gx_local = None if grad_x is None else einsum("nba,nb->na", carried, grad_x)
+        tau_local = einsum("qba,qb->qa", state.port_rotations[layout.port_slot], tau)
         for (g, _, _, _), out in zip(self._inputs, state.batches, strict=True):
             assert out.dz is not None and out.dcost is not None and out.omega is not None
-            part = np.einsum("nmad,nma->nd", out.dz, gz_local[g.cols])
+            part = einsum("nmad,nma->nd", out.dz, gz_local[g.cols])
             if gx_local is not None:
                 assert out.dx is not None
-                part += np.einsum("nmad,nma->nd", out.dx, gx_local[g.cols])
+                part += einsum("nmad,nma->nd", out.dx, gx_local[g.cols])
             if grad_cost is not None:
-                part += np.einsum("nmd,nm->nd", out.dcost, grad_cost[g.cols])
+                part += einsum("nmd,nm->nd", out.dcost, grad_cost[g.cols])
             if g.n_ports:
-                part += np.einsum("npad,npa->nd", out.omega, tau_local[g.ports])
+                part += einsum("npad,npa->nd", out.omega, tau_local[g.ports])
             grad[g.sig] = part
         return grad
 

@@ -13,6 +13,7 @@ inverse kinematics keeps an analytic gradient.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -22,13 +23,16 @@ from scipy.spatial import ConvexHull, QhullError
 
 from ..configuration import Configuration
 from ..robot import RobotSpec
-from .rotations import cross, rotation_between, rotation_between_omega
+from .rotations import ANTIPARALLEL_TOLERANCE, cross, rotation_between
 from .tree import KinematicTree
 
 __all__ = ["GroundContact", "GroundModel", "GroundOp", "ground_op"]
 
 _DOWN = np.array([0.0, 0.0, -1.0])
-_EYE = np.eye(3)
+try:   # scipy's qhull wrapper, which ConvexHull drives (see hull_facets)
+    from scipy.spatial._qhull import _Qhull as _QHULL
+except ImportError:  # pragma: no cover - another scipy layout
+    _QHULL = None
 
 
 @dataclass(frozen=True)
@@ -96,6 +100,8 @@ class _Cache:
     edges: tuple[np.ndarray, np.ndarray] | None = None   # b - a, c - a
     norm: float = 1.0   # |(b - a) x (c - a)|
     normal: np.ndarray | None = None   # (b - a) x (c - a) / norm
+    source: np.ndarray | None = None   # the vectors given to contact()
+    grounded: np.ndarray | None = None   # source @ rotation.T
 
 
 class GroundOp:
@@ -138,22 +144,23 @@ class GroundOp:
         self.com_weights = com / total if total > 0 else np.full(n, 0.0)
 
     def contact(self, z: np.ndarray) -> tuple[GroundContact, _Cache]:
-        """The resting pose for world-frame vectors ``z`` (rows, (n, 3))."""
+        """The resting pose for world-frame vectors ``z`` (rows, (n, 3)); the cache holds
+        the grounded vectors ``z R^T`` (``cache.grounded``) and what :meth:`backward` needs."""
         points = self.paths @ z
         com = self.com_weights @ z
         face = self._support(points, com)
         if face is None:
             eye = np.eye(3)
-            return GroundContact(eye, (), _DOWN.copy(), com, False), _Cache(eye)
+            return GroundContact(eye, (), _DOWN.copy(), com, False), _Cache(eye, source=z)
         (a, b, c), stable = face
         u, v = points[b] - points[a], points[c] - points[a]
-        raw = cross(u, v)
-        norm = np.linalg.norm(raw)
+        raw = _cross3(u, v)
+        norm = math.sqrt(raw.dot(raw))   # np.linalg.norm's own arithmetic for a vector
         normal = raw / norm
-        rot = rotation_between(normal, _DOWN)
+        rot = turn_down(normal)
         contact = GroundContact(rot, tuple(self.vertices[i] for i in (a, b, c)), normal, com,
                                 stable)
-        return contact, _Cache(rot, points, (a, b, c), (u, v), norm, normal)
+        return contact, _Cache(rot, points, (a, b, c), (u, v), norm, normal, z, z @ rot.T)
 
     def backward(self, cache: _Cache, z: np.ndarray, grad_z: np.ndarray,
                  x: np.ndarray | None = None, grad_x: np.ndarray | None = None
@@ -173,20 +180,20 @@ class GroundOp:
             return gz, gx
         assert cache.points is not None and cache.edges is not None \
             and cache.normal is not None
-        # torque of the gradients on the grounded vectors
-        tau = np.sum(cross(z @ rot.T, grad_z), axis=0)
+        # torque of the gradients on the grounded vectors (those contact() made, if of z)
+        grounded = cache.grounded if z is cache.source else z @ rot.T
+        tau = np.add.reduce(cross(grounded, grad_z), axis=0)
         if x is not None and grad_x is not None:
-            tau += np.sum(cross(x @ rot.T, grad_x), axis=0)
+            tau += np.add.reduce(cross(x @ rot.T, grad_x), axis=0)
         norm, normal = cache.norm, cache.normal
         # R = Q^T with Q = rotation_between(down, n); dR = hat(-R omega_Q) R
-        dn = (_EYE - normal[:, None] * normal) / norm
-        omega_q = rotation_between_omega(_DOWN, normal, dn)      # (3, 3): d omega_Q / d raw
+        omega_q = turn_down_omega(normal, norm)      # (3, 3): d omega_Q / d raw
         g_raw = -(omega_q.T @ (rot.T @ tau))
         a, b, c = cache.face
         pts = cache.points
         u, v = cache.edges
-        g_u = cross(v, g_raw)
-        g_v = cross(g_raw, u)
+        g_u = _cross3(v, g_raw)
+        g_v = _cross3(g_raw, u)
         g_points = np.zeros_like(pts)
         g_points[b] += g_u
         g_points[c] += g_v
@@ -199,9 +206,8 @@ class GroundOp:
         if len(points) < 3:
             return None
         try:
-            hull = ConvexHull(points)
-            faces = hull.simplices
-            normals = hull.equations[:, :3]
+            faces, equations = hull_facets(points)
+            normals = equations[:, :3]
         except (QhullError, ValueError):
             return self._planar_support(points, com)
         # the most downward normal first (ties: the first face); the first stable one wins
@@ -246,6 +252,88 @@ def ground_op(tree: KinematicTree, model: GroundModel) -> GroundOp:
     if cached is None or cached[0] != model:
         cached = tree._ground = (model, GroundOp(tree, model))
     return cached[1]
+
+
+def hull_facets(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``ConvexHull(points)``'s ``simplices`` and ``equations``: the same qhull run (options
+    ``Qt``), without the volume, area and bounds ``ConvexHull`` also computes (40 % of its
+    time on a support face's ~20 points). Falls back to ``ConvexHull`` where scipy's qhull
+    wrapper is not the one this was written for.
+
+    Raises:
+        QhullError, ValueError: as ``ConvexHull`` (degenerate or invalid points).
+    """
+    if _QHULL is None:
+        hull = ConvexHull(points)
+        return hull.simplices, hull.equations
+    qhull = _QHULL(b"i", np.ascontiguousarray(points, dtype=np.float64), b"",
+                   required_options=b"Qt")
+    try:
+        qhull.triangulate()
+        simplices, _, equations, _, _ = qhull.get_simplex_facet_array()
+    finally:
+        qhull.close()
+    return simplices, equations
+
+
+def turn_down(n: np.ndarray) -> np.ndarray:
+    """``rotation_between(n, (0, 0, -1))`` for one unit vector ``n`` (3,): the minimal rotation
+    that turns a support face's normal straight down (eq. 2), shape (3, 3).
+
+    The same IEEE operations as :func:`~.rotations.rotation_between` on plain floats (its ~20
+    numpy calls on 3-vectors cost more than the arithmetic), its einsum's sums with their +0
+    start, so the result is the same to the bit, zeros' signs included (exact runs have exact
+    zeros); an antiparallel ``n`` (straight up) takes the general path.
+    """
+    n0, n1, n2 = n.tolist()
+    # w = n x down (rotations.cross); c = n . down and hat(w) as einsum sums them, from +0
+    # (so a zero is +0, whatever the signs of the zeros summed)
+    w0, w1, w2 = n1 * -1.0 - n2 * 0.0, n2 * 0.0 - n0 * -1.0, n0 * 0.0 - n1 * 0.0
+    c = (n0 * 0.0 + n1 * 0.0 + n2 * -1.0) + 0.0
+    d = 1.0 + c
+    if d < ANTIPARALLEL_TOLERANCE:
+        return rotation_between(n, _DOWN)
+    e, z = c * 1.0 + 0.0, c * 0.0   # c I + hat(w) on and off the diagonal
+    p0, p1, p2 = w0 + 0.0, w1 + 0.0, w2 + 0.0
+    m0, m1, m2 = 0.0 - w0, 0.0 - w1, 0.0 - w2
+    # c I + hat(w) + w w^T / (1 + c)
+    return np.array(((e + w0 * w0 / d, (z + m2) + w0 * w1 / d, (z + p1) + w0 * w2 / d),
+                     ((z + p2) + w1 * w0 / d, e + w1 * w1 / d, (z + m0) + w1 * w2 / d),
+                     ((z + m1) + w2 * w0 / d, (z + p0) + w2 * w1 / d, e + w2 * w2 / d)))
+
+
+def turn_down_omega(n: np.ndarray, norm: float) -> np.ndarray:
+    """``rotation_between_omega(down, n, (I - n n^T) / norm)``: how the rotation from straight
+    down onto the unit normal ``n`` (3,) turns when the unnormalised normal (length ``norm``)
+    moves, shape (3, 3), column ``d`` per component of the unnormalised normal.
+
+    Plain-float form of :func:`~.rotations.rotation_between_omega` with the same operations
+    in the same order (the same floats); zero for antiparallel vectors as there.
+    """
+    n0, n1, n2 = n.tolist()
+    d = 1.0 + ((0.0 * n0 + 0.0 * n1 + -1.0 * n2) + 0.0)   # einsum's sum, from +0
+    if d < ANTIPARALLEL_TOLERANCE:
+        return np.zeros((3, 3))
+    # dv2 = (I - n n^T) / norm, column k
+    nn = (n0, n1, n2)
+    dv = [[((1.0 if i == k else 0.0) - nn[i] * nn[k]) / norm for k in range(3)] for i in range(3)]
+    a0, a1, a2 = 0.0 * n2 - -1.0 * n1, -1.0 * n0 - 0.0 * n2, 0.0 * n1 - 0.0 * n0   # down x n
+    rows: list[list[float]] = [[], [], []]
+    for k in range(3):
+        u0, u1, u2 = dv[0][k], dv[1][k], dv[2][k]
+        twist = ((a0 * u0 + a1 * u1 + a2 * u2) + 0.0) / d   # einsum's sum, from +0
+        rows[0].append((n1 * u2 - n2 * u1) - twist * n0)
+        rows[1].append((n2 * u0 - n0 * u2) - twist * n1)
+        rows[2].append((n0 * u1 - n1 * u0) - twist * n2)
+    return np.array(rows)
+
+
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`~.rotations.cross` of two 3-vectors in plain floats: the same products and
+    differences, so the same floats, without six numpy calls on 3 elements."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
 
 
 def _sub(u: list[float], v: list[float]) -> tuple[float, float, float]:

@@ -49,7 +49,7 @@ from ..configuration import Configuration
 from ..errors import ConfigurationError
 from .fk import Evaluator, FKState, transformed_configuration, tree_vectors
 from .ground import GroundContact, GroundModel, ground_op
-from .rotations import cross
+from .rotations import cross, einsum
 from .tree import KinematicTree
 
 __all__ = [
@@ -277,8 +277,8 @@ class VectorAngleTerm(IKTerm):
         a = pose.z if self.vector == "z" else pose.x
         b = self.target @ pose.rz
         axb = cross(a, b)
-        sin = np.sqrt(np.einsum("ni,ni->n", axb, axb))
-        angle = np.arctan2(sin, np.einsum("ni,ni->n", a, b))
+        sin = np.sqrt(einsum("ni,ni->n", axb, axb))
+        angle = np.arctan2(sin, einsum("ni,ni->n", a, b))
         out = TermValue(float(self.weights @ (angle * angle)),
                         angle if self.counted is None else angle[self.counted])
         if derivatives:
@@ -443,8 +443,9 @@ class IKProblem:
             out = (state, state.z, state.x, None, None)
         else:
             contact, cache = self.ground.contact(state.z)
-            out = (state, state.z @ contact.rotation.T, state.x @ contact.rotation.T, contact,
-                   cache)
+            grounded = state.z @ contact.rotation.T if cache.grounded is None \
+                else cache.grounded
+            out = (state, grounded, state.x @ contact.rotation.T, contact, cache)
         if derivatives and _RECENT:
             if len(self._recent) >= _RECENT:
                 del self._recent[next(iter(self._recent))]

@@ -20,6 +20,7 @@ __all__ = [
     "ANTIPARALLEL_TOLERANCE",
     "canonical_perpendicular",
     "cross",
+    "einsum",
     "exp_so3",
     "left_jacobian",
     "normalize",
@@ -42,6 +43,17 @@ _LEVI_CIVITA = np.zeros((3, 3, 3))
 _LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
 _LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
 _HAT = -_LEVI_CIVITA  # hat(v)[i, j] = -eps[i, j, k] v[k]
+# hat(v) row by row: the component of v in each entry and its sign (0 on the diagonal)
+_HAT_INDEX = np.array([0, 2, 1, 2, 0, 0, 1, 0, 0])
+_HAT_SIGN = np.array([0.0, -1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 1.0, 0.0])
+
+# einsum: numpy's C einsum, what np.einsum(..., optimize=False) calls behind its Python
+# layers (dispatch, argument checks; half the time of a call on 3-12 rows), so the same
+# products and sums in the same order. The IK's inner loop makes ~20 such calls.
+try:
+    from numpy._core.multiarray import c_einsum as einsum
+except ImportError:  # pragma: no cover - another numpy layout
+    einsum = np.einsum
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -51,7 +63,10 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def skew(v: np.ndarray) -> np.ndarray:
     """The hat operation: ``skew(v) @ u == cross(v, u)``; shape (..., 3) -> (..., 3, 3)."""
-    return np.einsum("ijk,...k->...ij", _HAT, np.asarray(v, dtype=np.float64))
+    v = np.asarray(v, dtype=np.float64)
+    # each entry is +-v[k] or 0: what einsum("ijk,...k->...ij", _HAT, v) sums to, to the bit
+    # (its sums start at +0, hence + 0.0: a zero entry is +0 there too)
+    return (v[..., _HAT_INDEX] * _HAT_SIGN + 0.0).reshape(*v.shape[:-1], 3, 3)
 
 
 def vee(m: np.ndarray) -> np.ndarray:
@@ -97,7 +112,7 @@ def rotation_between(v: np.ndarray, v2: np.ndarray) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64)
     v2 = np.asarray(v2, dtype=np.float64)
     w = cross(v, v2)
-    c = np.einsum("...i,...i->...", v, v2)
+    c = einsum("...i,...i->...", v, v2)
     one_plus_c = 1.0 + c
     flip = one_plus_c < ANTIPARALLEL_TOLERANCE
     # I + W + W^2 / (1 + c) == c I + W + w w^T / (1 + c) for unit v, v2
@@ -126,10 +141,10 @@ def rotation_between_omega(v: np.ndarray, v2: np.ndarray, dv2: np.ndarray) -> np
     Returns:
         omega, shape (..., 3, d); zero where the vectors are antiparallel.
     """
-    one_plus_c = 1.0 + np.einsum("...i,...i->...", v, v2)
+    one_plus_c = 1.0 + einsum("...i,...i->...", v, v2)
     flip = one_plus_c < ANTIPARALLEL_TOLERANCE
     axis = cross(v, v2)
-    twist = np.einsum("...i,...id->...d", axis, dv2) / np.where(flip, 1.0, one_plus_c)[..., None]
+    twist = einsum("...i,...id->...d", axis, dv2) / np.where(flip, 1.0, one_plus_c)[..., None]
     omega = (cross(v2[..., None, :], np.swapaxes(dv2, -1, -2)).swapaxes(-1, -2)
              - twist[..., None, :] * v2[..., :, None])
     return np.where(flip[..., None, None], 0.0, omega)

@@ -40,6 +40,7 @@ from msrr.core.kinematics.rotations import (
     ANTIPARALLEL_TOLERANCE,
     canonical_perpendicular,
     cross,
+    einsum,
     normalize,
     rodrigues,
     rotation_between,
@@ -62,7 +63,7 @@ _TINY = 1e-12
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ni,ni->n", a, b)
+    return einsum("ni,ni->n", a, b)
 
 
 class _Spherical:
@@ -172,7 +173,7 @@ class _SphericalJoint(ModuleJointNode):
         alpha = params["alpha"] * cls.steer_factor
         cost = cls.cost_factor * (sph.angle + alpha * steer)
         rot, omega = cls._port(sph, derivatives)
-        xj = np.einsum("nab,nb->na", cls._vector_rotation(sph), x1)
+        xj = einsum("nab,nb->na", cls._vector_rotation(sph), x1)
         out = NodeBatch(sph.zj[:, None], xj[:, None], cost[:, None], rot[:, None])
         if derivatives:
             assert dsteer is not None
@@ -302,9 +303,9 @@ class ParallelStrutNode(ParallelNode):
         s1, s2 = sigma[:, 0], sigma[:, 1]
         r1 = rodrigues(axis, s1)
         rot = rodrigues(axis, s1 + s2)
-        zj = np.einsum("nab,nmb->nma", r1, z)
-        xj = np.einsum("nab,nmb->nma", r1, x)
-        turn = np.arccos(np.clip(np.einsum("nmi,ni->nm", x, steer), -1.0, 1.0))
+        zj = einsum("nab,nmb->nma", r1, z)
+        xj = einsum("nab,nmb->nma", r1, x)
+        turn = np.arccos(np.clip(einsum("nmi,ni->nm", x, steer), -1.0, 1.0))
         f, dfade = fade(s1 * s1 + s2 * s2, params["steer_epsilon"])
         alpha, beta = params["alpha"], params["beta"]
         cost = 2.0 * alpha * turn * f[:, None] + (np.abs(s1) + beta * np.abs(s2))[:, None]

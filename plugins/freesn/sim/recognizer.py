@@ -24,6 +24,7 @@ commands given in it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
@@ -123,6 +124,13 @@ def node_headings(reports: Reports, links: Links | None = None,
     return heading
 
 
+def _length(v: np.ndarray) -> float:
+    """``np.linalg.norm(v)`` of a vector by its own arithmetic (the square root of
+    ``v.dot(v)`` of the raveled vector), without its Python layers: ~40 a tick here."""
+    v = v.ravel(order="K")
+    return math.sqrt(v.dot(v))
+
+
 class FreeSNRecognizer:
     """Configuration identification of FreeSN (registered as ``freesn``).
 
@@ -181,15 +189,16 @@ class FreeSNRecognizer:
                 frame = rot_z(heading[node])
                 loc = observation[node].connectors[f"{strut}:{end}"]
                 direction = observation[node].tilt @ loc
-                zs.append(END_SIGN[end] * frame @ (direction / np.linalg.norm(direction)))
+                zs.append(END_SIGN[end] * frame @ (direction / _length(direction)))
                 if x is None:
                     x = frame @ report.attitude[end][:, 0]
             if zs:
-                z = np.sum(zs, axis=0)
-                z = z / np.linalg.norm(z)
+                # np.sum(zs, axis=0) to the bit: its sum starts at +0
+                z = (zs[0] + zs[1] if len(zs) == 2 else zs[0]) + 0.0
+                z = z / _length(z)
             else:  # a strut on its own: its IMU, in its own horizontal frame
                 z, x = report.tilt[:, 2], report.tilt[:, 0]
             x = x - (x @ z) * z
-            x = x / np.linalg.norm(x)
+            x = x / _length(x)
             config.connect(ends[0], ends[1], id=strut, kind="strut", z=z, x=x)
         return config

@@ -26,6 +26,7 @@ from msrr.core.library import load_library
 from msrr.core.library.check import edge_cases
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim import controller as controller_module
+from msrr.plugins.freesn.sim import recognizer as recognizer_module
 
 LIBRARY = Path(__file__).resolve().parents[3] / "plugins" / "freesn" / "libraries" / "S12N6.json"
 EDGE = "S12N6:S12N6-4.3->S12N6-4.1"
@@ -109,3 +110,10 @@ def test_the_fast_tick_commands_what_the_reference_path_commands(monkeypatch):
     assert any(c.joints for c in fast[-1].values())
     for tick, (got, want) in enumerate(zip(fast, reference, strict=True)):
         assert got == want, f"tick {tick}: the commands differ from the reference path"
+
+
+def test_the_recognizers_vector_length_is_numpys_to_the_bit():
+    rng = np.random.default_rng(0)
+    block = rng.normal(size=(50, 3))
+    for v in [*block, *block.T[:, :3].T, block[:, 0]]:   # rows, and strided columns
+        assert recognizer_module._length(v) == np.linalg.norm(v)
