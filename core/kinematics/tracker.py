@@ -21,8 +21,9 @@ the part of the last motion the robot has already carried out; along stiff direc
 eq. 6 takes it back, along that free one nothing did, and a frame that turned between
 ticks (a root node's shell spinning) was split between ``theta`` and the joints. The
 turn was repeated tick after tick and the robot carried it out (the S4N5 squirm's
-heading, issue 31). With ``theta`` held where the root's own edges put it (they cannot
-move: eq. 7), or, where they do not pin it, where the target best aligns with the
+heading, issue 31). With ``theta`` held where the edges no joint moves put it (the
+root's own, eq. 7, and any a joint only turns about itself: :func:`pinned_edges`), or,
+where they do not pin it, where the target best aligns with the
 configuration now (eq. 8: no net turn), the free direction is no longer free: the step
 takes the repeated turn back like any other error, and every turn it commands is one
 the goal asks for. The last ``sigma`` stays the start: started at ``sigma = 0`` instead
@@ -43,31 +44,58 @@ import numpy as np
 
 from ..alignment import align_yaw
 from ..configuration import Configuration
-from .fk import _layout, tree_vectors
+from .fk import Evaluator, _layout, tree_vectors
 from .ik import IKOptions, IKProblem, IKSolution, module_weights, solve_ik
 from .tree import KinematicTree
 
-__all__ = ["IKTracker", "held_yaw"]
+__all__ = ["IKTracker", "held_yaw", "pinned_edges"]
 
-ROOT_WEIGHT = 1e3
-"""Weight of the root's edges in :func:`held_yaw` against 1 for the others."""
+PINNED_WEIGHT = 1e3
+"""Weight of the pinned edges (:func:`pinned_edges`) in :func:`held_yaw` against 1 for
+the others."""
+
+
+def pinned_edges(tree: KinematicTree, current: Configuration) -> tuple[str, ...]:
+    """The edges whose vectors no joint of ``tree`` moves in the root's frame: the root's
+    own (eq. 7) and those of a joint that turns only what hangs beyond its edge (a
+    revolute joint about its own strut; a SnailBot crawling on a substrate the tree
+    reaches through it), each found unmoved by the forward kinematics (Alg. 1) from
+    ``current`` at two sampled ``sigma`` (fixed seed, within the joint bounds)."""
+    z0, x0, _ = tree_vectors(tree, current)
+    if not tree.dim:
+        return tuple(tree.edges)
+    evaluator = Evaluator(tree, z0, x0)
+    lo, hi = tree.bounds
+    rng = np.random.default_rng(0)
+    still = np.ones(len(tree.edges), dtype=bool)
+    for _ in range(2):
+        sigma = np.clip(rng.uniform(-0.5, 0.5, tree.dim), lo, hi)
+        still &= np.linalg.norm(evaluator.evaluate(sigma).z - z0.T, axis=1) < 1e-9
+    return tuple(e for e, s in zip(tree.edges, still, strict=True) if s)
 
 
 def held_yaw(tree: KinematicTree, current: Configuration, target: Configuration,
-             options: IKOptions, near: float) -> float:
+             options: IKOptions, near: float, pinned: tuple[str, ...] | None = None) -> float:
     """The yaw [rad] a tracking step holds: eq. 8 between ``target`` and ``current`` (the
-    zero point of the joint space), the root's edges weighted :data:`ROOT_WEIGHT` times
-    the rest, the local minimum nearest ``near`` (the last step's yaw).
+    zero point of the joint space), the pinned edges (``pinned``, default
+    :func:`pinned_edges`) weighted :data:`PINNED_WEIGHT` times the rest, the local
+    minimum nearest ``near`` (the last step's yaw).
 
-    The root's edges cannot move (eq. 7), so where their horizontal parts pin the yaw any
+    No joint moves a pinned edge, so where their horizontal parts pin the yaw any
     solution under the tolerance has theirs; where they do not (no edge, or vertical
     ones) the yaw is gauge freedom and the others choose it: the target turned onto the
     configuration as it is, so the step commands no net turn about the vertical.
+    Weighting the root's edges alone missed a pinned edge the root does not hold: the
+    step could then not reach the target, and its residual all fell on that edge
+    (SnailBot pieces-to-tree's final move under noise: B6 crawls on B7 and roots the
+    tree, the held yaw put B6-B7 up to 18 deg off, the rows were swung about it and
+    B6-B7 broke; docs/snailbot.md).
     """
+    pinned = pinned_edges(tree, current) if pinned is None else pinned
     z, _, _ = tree_vectors(tree, current)
     z_target, _, _ = tree_vectors(tree, target)
     weights = module_weights(tree, options.weights)
-    weights = weights * np.where(np.isin(tree.edges, tree.root.edges), ROOT_WEIGHT, 1.0)
+    weights = weights * np.where(np.isin(tree.edges, pinned), PINNED_WEIGHT, 1.0)
     return align_yaw(z, z_target, weights=weights, near=near).theta
 
 
@@ -99,6 +127,7 @@ class IKTracker:
         self.explore_pause = explore_pause
         self.last: IKSolution | None = None
         self.handovers = 0
+        self._pinned: tuple[str, ...] | None = None
         self._target = target
         self._lock = threading.Lock()
         self._snapshot: tuple[Configuration, Configuration] | None = None
@@ -159,7 +188,9 @@ class IKTracker:
                 self.handovers += 1
                 return solve_ik(self.tree, current, target,
                                 replace(options, initial_sigma=offer[0], initial_yaw=offer[1]))
-        yaw = held_yaw(self.tree, current, target, options, near=yaw)
+        if self._pinned is None:   # structural: found once for the tree
+            self._pinned = pinned_edges(self.tree, current)
+        yaw = held_yaw(self.tree, current, target, options, near=yaw, pinned=self._pinned)
         return solve_ik(self.tree, current, target,
                         replace(options, initial_sigma=sigma, initial_yaw=yaw, solve_yaw=False))
 

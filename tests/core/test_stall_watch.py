@@ -72,3 +72,5 @@ def test_stall_options_are_checked() -> None:
         ExecutorOptions(stall_window=-1.0)
     with pytest.raises(ExecutionError, match="stall"):
         ExecutorOptions(stall_time=0.0)
+    with pytest.raises(ExecutionError, match="settle tolerance"):
+        ExecutorOptions(settle_tolerance=-0.1)

@@ -6,12 +6,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from kin_helpers import GimbalJoint, random_stick, stick_tree, yawed
+from kin_helpers import GimbalJoint, TwistJoint, random_stick, stick_tree, yawed
 
 from msrr.core import Configuration
 from msrr.core.alignment import align_yaw
 from msrr.core.kinematics import FixedNode, IKOptions, IKTracker, KinematicTree, forward
-from msrr.core.kinematics.tracker import held_yaw
+from msrr.core.kinematics.tracker import held_yaw, pinned_edges
 
 
 def test_tracking_follows_a_robot_that_moves_towards_the_target():
@@ -83,6 +83,31 @@ def test_the_held_yaw_is_the_roots_where_its_edges_pin_it():
     everything = align_yaw(config.vectors(free.edges), target.vectors(free.edges)).theta
     assert held_yaw(free, config, target, IKOptions(), near=0.0) == pytest.approx(everything)
     assert abs(everything + 0.7) > 0.05      # the two differ: the root's rod decides
+
+
+def _twist_rooted(config: Configuration) -> KinematicTree:
+    """The star with a root that holds no rod, R1 on a twist joint (its rod never moves)."""
+    return KinematicTree(config, [FixedNode([], ["H0"]), TwistJoint(["R1"], ["H1"]),
+                                  GimbalJoint(["R2"], ["H2"]), GimbalJoint(["R3"], ["H3"])])
+
+
+def test_the_held_yaw_is_that_of_the_rods_no_joint_moves():
+    """A rod whose joint only turns what hangs beyond it (a twist about the rod; a
+    SnailBot crawling on a substrate the tree reaches through it) cannot move in the
+    root's frame either, though the root does not hold it: the held yaw is its own. With
+    eq. 8 over every rod instead, R1 stayed 7 deg from its target and the step's residual
+    all fell on it (SnailBot pieces-to-tree's final move, B6-B7, broke under noise)."""
+    config = _star([0.0, 120.0, 240.0])
+    target = yawed(_star([0.0, 100.0, 240.0]), 0.7)   # only R2 moves
+    tree = _twist_rooted(config)
+    assert pinned_edges(tree, config) == ("R1",)
+    assert pinned_edges(stick_tree(config), config) == ()
+    assert held_yaw(tree, config, target, IKOptions(), near=0.0) == pytest.approx(-0.7, abs=1e-3)
+    with IKTracker(tree, target, IKOptions(seed=1), tick_budget=None, explore=False) as tracker:
+        tracker.step(config)
+        solution = tracker.step(config)      # a tracking step: the yaw held
+    assert solution.rms_angle < np.deg2rad(0.5)
+    assert solution.yaw == pytest.approx(-0.7, abs=1e-3)
 
 
 def test_exploration_hands_over_a_better_start():

@@ -7,12 +7,14 @@ import pytest
 from click.testing import CliRunner
 
 from msrr.core import plugins
+from msrr.core.alignment import rot_z
 from msrr.core.app.cli import get_cli
 from msrr.core.app.testing import node_jacobian_errors
 from msrr.core.configuration import Configuration
 from msrr.core.io import load_configuration
-from msrr.core.kinematics import default_tree, forward
+from msrr.core.kinematics import IKOptions, IKTracker, default_tree, forward
 from msrr.core.kinematics.rotations import rodrigues
+from msrr.core.kinematics.tracker import held_yaw, pinned_edges
 from msrr.plugins.snailbot.joints import SphericalJoint, SuckerRevoluteJoint
 
 from msrr_test_support import ROOT
@@ -128,3 +130,26 @@ def test_platform_match_uses_the_spherical_joint():
     assert result.exit_code == 0, result.output
     assert f"best match of {system}: {system}" in result.output
     assert "(ik)" in result.output
+
+
+def test_a_snailbot_that_roots_the_tree_pins_the_connection_it_crawls_on():
+    """pieces-to-tree's final tree is rooted at B6, which crawls on B7: the tree reaches
+    B7 through that joint, which turns B7 about its own centre and leaves B6-B7 where it
+    is, so a tracking step holds B6-B7's yaw. Held over every connection instead, with the
+    rows docked askew under 2 deg of noise, the yaw put B6-B7 up to 18 deg off its
+    target, the step's residual all on it; the rows were swung about B6 and B6-B7 broke."""
+    goal = load_configuration(ROOT / "plugins" / "snailbot" / "configs" / "forest20"
+                              / "forest20-tree.json")
+    tree = default_tree(goal, SphericalJoint)
+    assert tree.root.vertices == ("B6",) and not tree.root.edges
+    assert pinned_edges(tree, goal) == ("B6-B7",)
+    rows = {e.id for e in goal.edges() if e.source in {f"B{i}" for i in range(13, 21)}}
+    turn = {e.id: rot_z(0.3 + (0.35 if e.id in rows else 0.0) + (0.1 if e.id == "B6-B7"
+                                                                  else 0.0)) @ e.z
+            for e in goal.edges()}
+    current = goal.with_vectors(z=turn)   # turned 0.3 rad; the rows 20 deg off, B6-B7 6 deg
+    assert held_yaw(tree, current, goal, IKOptions(), near=0.0) == pytest.approx(0.4, abs=1e-3)
+    with IKTracker(tree, goal, IKOptions(seed=1), tick_budget=None, explore=False) as tracker:
+        tracker.step(current)
+        solution = tracker.step(current)     # a tracking step: the yaw held
+    assert solution.rms_angle < np.deg2rad(0.5)
