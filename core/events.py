@@ -289,6 +289,9 @@ class RunResult:
         interrupted: the signal that stopped the run (``"SIGINT"``), or ``""``.
         targets: every goal reached on the way (a scenario's stages), judged there.
         locomotion: every behavior run, judged against what it was asked.
+        settled: moves that stalled on their last attempt within the executor's settle
+            tolerance and were taken as reached, one line each ("action 18 (...) settled
+            at 4.2 deg estimated"): the judge, not the move, decides whether they were.
     """
 
     success: bool
@@ -311,6 +314,7 @@ class RunResult:
     interrupted: str = ""
     targets: list[GoalVerdict] = field(default_factory=list)
     locomotion: list[BehaviorVerdict] = field(default_factory=list)
+    settled: list[str] = field(default_factory=list)
 
     def summary(self) -> dict[str, object]:
         """JSON-ready numbers (for ``summary.json``)."""
@@ -327,7 +331,8 @@ class RunResult:
                             "recovered": f.recovered} for f in self.faults],
                 "interrupted": self.interrupted or None,
                 "targets": [t.summary() for t in self.targets],
-                "locomotion": [m.summary() for m in self.locomotion]}
+                "locomotion": [m.summary() for m in self.locomotion],
+                "settled": list(self.settled)}
 
 
 class EventSink(Protocol):

@@ -776,6 +776,10 @@ class Executor:
                 if watch is not None:
                     stalled = watch.stalled(self._progress(), self.driver.time, self.dt)
         if stalled and self._settled(phase, watch):
+            assert watch is not None and watch.error is not None
+            self.result.settled.append(
+                f"action {index + 1} ({action}) settled at {math.degrees(watch.error):.1f} deg "
+                f"estimated after {attempts} attempt(s)")
             return
         if stalled:
             raise _ActionFailed(f"action {index + 1} ({action}) failed: phase {phase.value} "

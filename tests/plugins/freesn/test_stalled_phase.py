@@ -65,6 +65,9 @@ def test_a_move_stalled_on_its_last_attempt_within_the_settle_tolerance_is_reach
     result = _stand_up("S1", "S2", settle=np.radians(90.0))
     assert result.success, result.reason
     assert result.retries == 1 and result.sim_time < 20.0
+    [line] = result.settled                      # the verdict says it settled, not reached
+    assert "settled at" in line and "after 2 attempt(s)" in line, line
+    assert result.summary()["settled"] == [line]
 
 
 def test_the_same_move_with_every_strut_answering_is_not_cut():
