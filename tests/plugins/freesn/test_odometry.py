@@ -150,7 +150,7 @@ def test_a_node_turning_past_upright_moves_a_turned_over_roots_heading_by_little
     odometry.tilt[root] = np.diag([1.0, -1.0, -1.0])                      # turned over
 
     def root_heading(z: float) -> float:
-        for node, vote in zip(("N1", "N2", "N3", "N4"), (0.0, 0.0, 8.0, 8.0)):
+        for node, vote in zip(("N1", "N2", "N3", "N4"), (0.0, 0.0, 8.0, 8.0), strict=True):
             odometry.yaw[node] = math.radians(vote) + relative[node]
             odometry.tilt[node] = np.eye(3)
         tilt = math.acos(z)                                                # N4 tilted
