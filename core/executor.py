@@ -178,7 +178,7 @@ class ExecutorOptions:
     max_course_offset: float = math.radians(60.0)
     gait_gain: float = 0.5
     gait_integral: float = 0.2
-    max_gait_turn: float = math.radians(14.0)
+    max_gait_turn: float = math.radians(8.0)
     stall_window: float = 15.0
     stall_gain: float = math.radians(0.5)
     stall_time: float = 1.0
