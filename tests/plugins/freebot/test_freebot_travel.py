@@ -641,3 +641,44 @@ def test_a_latched_piece_is_not_swung_to_take_out_a_few_degrees(mujoco_driver):
     assert "F4" in near and not {"F1", "F2"} & set(near)
     far = controller.commands(turned(30.0), observation)
     assert {"F2", "F4"} <= set(far)
+
+
+def test_a_piece_pushes_on_toward_its_target_where_the_map_has_it_now(mujoco_driver):
+    # the guarded push aimed at the target's centre as the way planned it: a row at rest
+    # rolls on once pushed (nothing brakes a sphere on the floor), and in chains-to-tree
+    # the row F1-F4 rolled 9 cm across while F9-F12 travelled; the push stopped at the
+    # planned place, 9 cm short of F3, and the dock never latched (2 x 90 s). Here the
+    # way was planned with F3 15 cm further on than the map has it now: the push goes on.
+    from dataclasses import replace
+
+    from msrr.core.events import Phase
+    from msrr.core.freeform.piece_way import Leg, PieceWay
+    from msrr.core.plan import Action, ActionType
+
+    name = "chains12/chains12-forest"
+    driver = mujoco_driver("freebot", name)
+    start = load_configuration(ROOT / "plugins" / "freebot" / "configs" / f"{name}.json")
+    controller = plugin.controllers()[0]
+    controller.start(start)
+    observation = driver.get_observation()
+    controller._locate(observation.sensors)
+    piece = ("F9", "F10", "F11", "F12")
+    target = controller.locator.pose("F3")[0][:2]
+    root = controller.locator.pose("F12")[0][:2]
+    push = (target - root) / np.linalg.norm(target - root)
+    shape = 0.1 * np.arange(4, dtype=float)[:, None] * np.array([1.0, 0.0])
+    way = PieceWay(root="F12", target="F3", piece=piece, origin=np.zeros(2),
+                   shape=shape - shape.mean(axis=0), heading=0.0,
+                   legs=(Leg("drive", np.zeros(2), 0.0),), centre=root - 0.05 * push,
+                   push=push, line=None)
+    heading = way.heading_of({m: controller.locator.pose(m)[0] for m in piece})
+    way = replace(way, legs=(Leg("drive", np.zeros(2), heading),))   # no turn left
+    controller._pieces = {"F12": (way, 1)}
+    control = controller.control(Action(ActionType.CONNECTION, start), Phase.CONNECT,
+                                 observation)
+    assert control.commands["F12"].dock == ("@F3",)
+    frame = rot_z(controller.locator.pose("F12")[1])[:2, :2]
+    joints = control.commands["F12"].joints
+    velocity = frame @ np.array([joints["roll_x"], joints["roll_y"]])
+    assert float(velocity @ push) > 0.4 * controller.piece_speed, velocity
+    assert control.errors["F12"] > 0.0 and not control.reached
