@@ -380,6 +380,7 @@ class RobotDefaults:
                               f"position=m, heading=rad) or None, got {self.shape_tolerance!r}")
         _flag("RobotDefaults", "planar", self.planar)
         _flag("RobotDefaults", "stay_connected", self.stay_connected)
+        _flag("RobotDefaults", "median_yaw", self.median_yaw)
 
 
 @dataclass(frozen=True)
