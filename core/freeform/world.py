@@ -483,8 +483,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
         The piece's root (its magnet free, modules docked on it) is its *keel*: its
         magnet unit, on which no arm holds, hangs as a free module's does and its
-        bearing drives the root's centre toward its velocity (:meth:`_hang`, the lead
-        gain times the piece's size: one unit's weight tips the whole piece). That is
+        bearing drives the root's centre toward the piece's twist at it (:meth:`_hang`,
+        :meth:`_keel_velocity`; the lead gain times the piece's size: one unit's weight
+        tips the whole piece). That is
         the one torque about a straight piece's line: the joints only hold the piece's
         shape, and a rotation of the whole piece about its line (rolling sideways), which
         a turn in place leaves behind, went on unchecked (a chain of four, after a

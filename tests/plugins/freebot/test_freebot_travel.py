@@ -718,4 +718,4 @@ def test_a_keel_whose_frame_turned_drives_with_its_piece():
     # beside it and pushed it 9 cm aside (the dock then missed). The keel now hangs toward
     # its piece's twist, taken from an arm of the piece
     turn, across = _drive_with_keel_off(np.radians(6.0))
-    assert abs(turn) < 0.5 and abs(across) < 0.002, (turn, across)
+    assert abs(turn) < 0.5 and abs(across) < 0.005, (turn, across)   # main: 1.49 deg
