@@ -17,7 +17,7 @@ from typing import overload
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-__all__ = ["YawAlignment", "align_yaw", "angles_between", "rot_z", "wrap_angle"]
+__all__ = ["YawAlignment", "align_yaw", "angles_between", "median_yaw", "rot_z", "wrap_angle"]
 
 
 def rot_z(theta: float) -> np.ndarray:
@@ -137,3 +137,31 @@ def align_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None
     theta = float(np.arctan2(np.sin(best_theta), np.cos(best_theta)))
     angles = np.arccos(np.clip(p * np.cos(theta) + q * np.sin(theta) + r, -1.0, 1.0))
     return YawAlignment(theta, best_cost, float(np.sqrt(np.mean(angles ** 2))))
+
+
+FLAT = 0.2
+"""Horizontal length under which a unit vector has no yaw of its own (:func:`median_yaw`)."""
+
+
+def median_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | None = None,
+               near: float = 0.0) -> float | None:
+    """The weighted median of the yaws [rad] that turn each column of ``z_target`` onto
+    the same column of ``z`` about the vertical (shapes (3, n)), wrapped about ``near``;
+    ``None`` when no column has a horizontal part of at least :data:`FLAT` in both.
+
+    Robust where eq. 8's least squares (:func:`align_yaw`) is not: while part of the
+    vectors is far from its target, eq. 8's yaw turns the whole target part of the way
+    towards it, and the rest is told to turn; the median stays with the majority.
+    """
+    z = np.asarray(z, dtype=np.float64).reshape(3, -1)
+    zt = np.asarray(z_target, dtype=np.float64).reshape(3, -1)
+    w = np.ones(z.shape[1]) if weights is None else np.asarray(weights, dtype=np.float64)
+    flat = (np.hypot(z[0], z[1]) >= FLAT) & (np.hypot(zt[0], zt[1]) >= FLAT) & (w > 0)
+    if not np.any(flat):
+        return None
+    turns = wrap_angle(np.arctan2(z[1, flat], z[0, flat]) - np.arctan2(zt[1, flat], zt[0, flat])
+                       - near) + near
+    order = np.argsort(turns, kind="stable")
+    cumulative = np.cumsum(w[flat][order])
+    i = int(np.searchsorted(cumulative, 0.5 * cumulative[-1]))
+    return float(wrap_angle(float(turns[order][i])))

@@ -252,17 +252,20 @@ class PhaseTracker:
         seed: seed of the first solve and of exploration.
         ground: the ground model of the robot (``GroundModel.for_configuration``); used
             when ``options.ground``.
+        median_yaw: hold the yaw at the edges' median turn
+            (:attr:`~msrr.core.robot.RobotDefaults.median_yaw`).
     """
 
     def __init__(self, tree: KinematicTree, goal: Configuration, options: TrackingOptions,
-                 seed: int = 0, ground: GroundModel | None = None):
+                 seed: int = 0, ground: GroundModel | None = None, median_yaw: bool = False):
         self.tree = tree
         self.goal = goal
         self.options = options
         ik = IKOptions(max_iterations=options.max_iterations, ftol=options.ftol,
                        max_restarts=options.initial_restarts, seed=seed,
                        ground=ground if options.ground else None)
-        self._tracker = IKTracker(tree, goal, ik, tick_budget=None, explore=False)
+        self._tracker = IKTracker(tree, goal, ik, tick_budget=None, explore=False,
+                                  median_yaw=median_yaw)
         self._held = [e for node in tree.nodes if isinstance(node, FixedNode)
                       for e in node.edges]
         self._best = np.inf

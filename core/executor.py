@@ -865,7 +865,7 @@ class Executor:
         goal = turned_goal(goal, tree, self._turn)
         ground = GroundModel.for_configuration(current, self.run.spec)
         self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
-                                     ground=ground)
+                                     ground=ground, median_yaw=self.run.spec.defaults.median_yaw)
         return True
 
     def _controller_for(self, name: str) -> JointController:

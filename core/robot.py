@@ -349,6 +349,11 @@ class RobotDefaults:
             connected system (:class:`msrr.core.generic.planner.GenericPlanner`).
         dock_tolerance: the alignment a latch needs in a physics driver and the
             generic controller reaches (:class:`DockTolerance`).
+        median_yaw: the executor's tracking steps hold their yaw at the edges' median
+            turn instead of eq. 8's least squares
+            (:func:`~msrr.core.kinematics.tracker.held_yaw`): the freeform robots, whose
+            every module lies on the floor and whose commands already take the median
+            turn out (:func:`~msrr.core.freeform.recognition.common_turn`).
 
     Raises:
         PluginError: a field has the wrong type (the message names it).
@@ -359,6 +364,7 @@ class RobotDefaults:
     planar: bool = False
     stay_connected: bool = False
     dock_tolerance: DockTolerance = field(default_factory=DockTolerance)
+    median_yaw: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.dock_tolerance, DockTolerance):
@@ -374,6 +380,7 @@ class RobotDefaults:
                               f"position=m, heading=rad) or None, got {self.shape_tolerance!r}")
         _flag("RobotDefaults", "planar", self.planar)
         _flag("RobotDefaults", "stay_connected", self.stay_connected)
+        _flag("RobotDefaults", "median_yaw", self.median_yaw)
 
 
 @dataclass(frozen=True)

@@ -60,8 +60,9 @@ def freeform_robot(*, name: str, title: str, symbol: str, port: str, joint_mode:
                               f"{value!r} (the MuJoCo world needs {', '.join(DESIGN_GEOMETRY)})")
     kind = ModuleKind(name=name, symbol=symbol, role="vertex", ports=(PortSpec(port),),
                       geometry=dict(geometry), description=module)
+    defaults = RobotDefaults(joint_mode=joint_mode, median_yaw=True)
     return RobotSpec(name=name, title=title, module_kinds=(kind,), description=description,
-                     reference=reference, defaults=RobotDefaults(joint_mode=joint_mode))
+                     reference=reference, defaults=defaults)
 
 
 def read_freeform_robot(text: str, where: str) -> RobotSpec:

@@ -480,7 +480,13 @@ class ContactController:
         commands). Before, it was told to travel again on the tick that saw the latch,
         and that travel outlived the dock: the world's hold at the latch was undone, and
         under 2 deg of noise the piece kept rolling into the tree through the plan's final
-        move until a connection broke (pieces-to-tree, seed 12, F11-F12 at 10.2 N)."""
+        move until a connection broke (pieces-to-tree, seed 12, F11-F12 at 10.2 N).
+
+        The push aims at the target where the map has it on this tick, not where the way
+        was planned: a piece at rest rolls on once pushed (nothing brakes a sphere rolling
+        on the floor), and in ``chains-to-tree`` the row F1-F4, pressed by the piece that
+        drove out beside it, rolled 9 cm across while that piece travelled; the push
+        stopped at the planned place, 9 cm short, and the dock never latched."""
         commands, errors = {}, {}
         for root, (way, stage) in list(self._pieces.items()):
             if phase is Phase.CONNECT and reports[root].attached == way.target:
@@ -491,8 +497,8 @@ class ContactController:
             headings = {m: self.locator.pose(m)[1] for m in way.piece}
             middle = np.mean([c[:2] for c in centres.values()], axis=0)
             heading = way.heading_of(centres)
-            if phase is Phase.CONNECT:
-                toward = way.centre - self.locator.pose(root)[0][:2]
+            if phase is Phase.CONNECT:   # toward the target where the map has it now
+                toward = self.locator.pose(way.target)[0][:2] - self.locator.pose(root)[0][:2]
                 velocity = 0.5 * self.piece_speed * (float(toward @ way.push) > 0) * way.push
                 left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
                 turn = float(np.clip(_YAW_GAIN * wrap_angle(way.legs[-1].heading - heading), -1, 1))

@@ -483,8 +483,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
         The piece's root (its magnet free, modules docked on it) is its *keel*: its
         magnet unit, on which no arm holds, hangs as a free module's does and its
-        bearing drives the root's centre toward its velocity (:meth:`_hang`, the lead
-        gain times the piece's size: one unit's weight tips the whole piece). That is
+        bearing drives the root's centre toward the piece's twist at it (:meth:`_hang`,
+        :meth:`_keel_velocity`; the lead gain times the piece's size: one unit's weight
+        tips the whole piece). That is
         the one torque about a straight piece's line: the joints only hold the piece's
         shape, and a rotation of the whole piece about its line (rolling sideways), which
         a turn in place leaves behind, went on unchecked (a chain of four, after a
@@ -834,6 +835,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         dt = self._every * self.options.timestep
         ks = np.flatnonzero(self._travel)
         self._anchor_goals(ks)
+        for k in ks[self._keel[ks]]:
+            self._travel_v[k] = self._keel_velocity(k)
         spin = self._travel_w[ks][:, None] * _EZ
         v = self._travel_v[ks]
         omega = np.column_stack([-v[:, 1], v[:, 0], np.zeros(len(ks))]) / self.design.radius + spin
@@ -863,6 +866,24 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         feed = _rotate(quat_conj(foot_goal), rolling[parents] - spin[rows])
         q = d.qpos[self._qadr[docked][:, None] + np.arange(4)]
         drive[docked] = self._motor(q, quat_mul(quat_conj(conn_goal[rows]), foot_goal), feed)
+
+    def _keel_velocity(self, k: int) -> np.ndarray:
+        """The ground velocity (3,) [m/s] the keel ``k`` hangs toward: its piece's twist at
+        its centre, taken from an arm of the piece (a travelling module that is not the
+        keel), ``v_j + w e_z x (p_k - p_j)``, not its own command. Its magnet unit hangs on
+        a free bearing, so it turns about the vertical with nothing holding it (4.7 deg in
+        its swing down in chains-to-tree), and the gyro frame its own command is given in
+        turns with it: the keel, the one module that holds the piece's velocity across its
+        line, drove 2 deg off the piece's line, and the piece turned 2 deg in 13 s into the
+        row it drove out beside, which it pushed 9 cm aside. ``_travel_v[k]`` when the piece
+        has no other travelling module."""
+        arms = [j for j in (self._index[m] for m in self._group_of(self.modules[k]))
+                if self._travel[j] and not self._keel[j]]
+        if not arms:
+            return self._travel_v[k]
+        j = min(arms)
+        arm = self.data.xpos[self._shell[k]] - self.data.xpos[self._shell[j]]
+        return self._travel_v[j] + self._travel_w[j] * np.cross(_EZ, arm)
 
     def _anchor_goals(self, ks: np.ndarray) -> None:
         """Turn the travel goals of each travelling piece (modules ``ks``) by the rotation

@@ -42,7 +42,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..alignment import align_yaw
+from ..alignment import align_yaw, median_yaw
 from ..configuration import Configuration
 from .fk import Evaluator, _layout, tree_vectors
 from .ik import IKOptions, IKProblem, IKSolution, module_weights, solve_ik
@@ -75,11 +75,22 @@ def pinned_edges(tree: KinematicTree, current: Configuration) -> tuple[str, ...]
 
 
 def held_yaw(tree: KinematicTree, current: Configuration, target: Configuration,
-             options: IKOptions, near: float, pinned: tuple[str, ...] | None = None) -> float:
+             options: IKOptions, near: float, pinned: tuple[str, ...] | None = None, *,
+             median: bool = False) -> float:
     """The yaw [rad] a tracking step holds: eq. 8 between ``target`` and ``current`` (the
     zero point of the joint space), the pinned edges (``pinned``, default
     :func:`pinned_edges`) weighted :data:`PINNED_WEIGHT` times the rest, the local
-    minimum nearest ``near`` (the last step's yaw).
+    minimum nearest ``near`` (the last step's yaw); with ``median``, the weighted median
+    of the edges' turns instead (:func:`~msrr.core.alignment.median_yaw`, eq. 8 where no
+    edge has a horizontal part).
+
+    Eq. 8 is solved again on every tick's configuration, so a part that lags its goal
+    (a chain still to be swung over the floor) pulls the least-squares yaw toward it on
+    every tick, and the parts already in place are told to turn by that pull every tick:
+    a turn that never ends (FreeBOT ``chains-to-tree``'s final move: a chain 9 deg short
+    of its goal held the yaw 3.5 deg off the rest, and the tree turned -85 deg in 2 s until
+    F3-F4 broke). The median stays with the parts in place; robots that ask for it
+    (:attr:`~msrr.core.robot.RobotDefaults.median_yaw`) hold it.
 
     No joint moves a pinned edge, so where their horizontal parts pin the yaw any
     solution under the tolerance has theirs; where they do not (no edge, or vertical
@@ -96,6 +107,9 @@ def held_yaw(tree: KinematicTree, current: Configuration, target: Configuration,
     z_target, _, _ = tree_vectors(tree, target)
     weights = module_weights(tree, options.weights)
     weights = weights * np.where(np.isin(tree.edges, pinned), PINNED_WEIGHT, 1.0)
+    robust = median_yaw(z, z_target, weights=weights, near=near) if median else None
+    if robust is not None:
+        return robust
     return align_yaw(z, z_target, weights=weights, near=near).theta
 
 
@@ -113,14 +127,17 @@ class IKTracker:
         explore: run the exploration thread (``False``: deterministic tracking only).
         explore_pause: pause between two exploration runs [s], to leave the cores to
             the control loop.
+        median_yaw: hold the tracking steps' yaw at the edges' median turn, not eq. 8's
+            (:func:`held_yaw`).
 
     Use as a context manager, or call :meth:`close`, to stop the exploration thread.
     """
 
     def __init__(self, tree: KinematicTree, target: Configuration,
                  options: IKOptions | None = None, *, tick_budget: float | None = 0.05,
-                 explore: bool = True, explore_pause: float = 0.0):
+                 explore: bool = True, explore_pause: float = 0.0, median_yaw: bool = False):
         self.tree = tree
+        self.median_yaw = median_yaw
         self.options = options or IKOptions()
         self.tick_budget = tick_budget
         self.explore = explore and tree.dim > 0
@@ -190,7 +207,8 @@ class IKTracker:
                                 replace(options, initial_sigma=offer[0], initial_yaw=offer[1]))
         if self._pinned is None:   # structural: found once for the tree
             self._pinned = pinned_edges(self.tree, current)
-        yaw = held_yaw(self.tree, current, target, options, near=yaw, pinned=self._pinned)
+        yaw = held_yaw(self.tree, current, target, options, near=yaw, pinned=self._pinned,
+                       median=self.median_yaw)
         return solve_ik(self.tree, current, target,
                         replace(options, initial_sigma=sigma, initial_yaw=yaw, solve_yaw=False))
 

@@ -35,7 +35,7 @@ def test_joint_mode_must_be_a_name(value: object) -> None:
     _refused("RobotDefaults.joint_mode", lambda: RobotDefaults(joint_mode=value))
 
 
-@pytest.mark.parametrize("field", ["planar", "stay_connected"])
+@pytest.mark.parametrize("field", ["planar", "stay_connected", "median_yaw"])
 @pytest.mark.parametrize("value", [1, "yes", None, 0.0])
 def test_flags_must_be_booleans(field: str, value: object) -> None:
     message = _refused(f"RobotDefaults.{field}", lambda: RobotDefaults(**{field: value}))

@@ -9,9 +9,10 @@ import pytest
 from kin_helpers import GimbalJoint, TwistJoint, random_stick, stick_tree, yawed
 
 from msrr.core import Configuration
-from msrr.core.alignment import align_yaw
+from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.kinematics import FixedNode, IKOptions, IKTracker, KinematicTree, forward
 from msrr.core.kinematics.tracker import held_yaw, pinned_edges
+from msrr.core.plugins import robot
 
 
 def test_tracking_follows_a_robot_that_moves_towards_the_target():
@@ -108,6 +109,48 @@ def test_the_held_yaw_is_that_of_the_rods_no_joint_moves():
         solution = tracker.step(config)      # a tracking step: the yaw held
     assert solution.rms_angle < np.deg2rad(0.5)
     assert solution.yaw == pytest.approx(-0.7, abs=1e-3)
+
+
+def _azimuth(config: Configuration, rod: str) -> float:
+    z = config.edge(rod).z
+    return float(np.degrees(np.arctan2(z[1], z[0])))
+
+
+def _lagging_tracking(median: bool, ticks: int = 10) -> float:
+    """How far [deg] the star's R1 turns over ``ticks`` tracking steps (after the first
+    solve) toward a goal in which R2 swings 20 deg, the robot carrying out every command
+    but R2's swing: R2 keeps its angle to R1 (a chain dragged over the floor lags)."""
+    config = _star([0.0, 120.0, 240.0])
+    target = yawed(_star([0.0, 100.0, 240.0]), 0.7)    # only R2 moves
+    tree = stick_tree(config)
+    current, turned = config, []
+    with IKTracker(tree, target, IKOptions(seed=1), tick_budget=None, explore=False,
+                   median_yaw=median) as tracker:
+        for _ in range(ticks + 1):
+            moved = forward(tree, current, tracker.step(current).sigma).configuration
+            lag = np.radians(_azimuth(current, "R2") - _azimuth(current, "R1"))
+            r2 = rot_z(lag) @ moved.edge("R1").z
+            current = moved.with_vectors(z={e.id: e.z for e in moved.edges()} | {"R2": r2},
+                                         x={e.id: e.x for e in moved.edges()})
+            turned.append(_azimuth(current, "R1"))
+    return turned[-1] - turned[0]
+
+
+def test_a_median_held_yaw_stays_with_the_rods_in_place_while_one_lags():
+    """Eq. 8 again on every tick's configuration: a rod that lags its goal pulls the held
+    yaw toward it each tick, and the rods in place are told to turn by that pull each tick,
+    without end (FreeBOT chains-to-tree's final move turned its tree -85 deg in 2 s, one
+    chain 9 deg short of its goal, until F3-F4 broke). The median of the rods' turns stays
+    with the rods in place; the freeform robots hold it (FreeSN keeps eq. 8)."""
+    config = _star([0.0, 120.0, 240.0])
+    target = yawed(_star([0.0, 100.0, 240.0]), 0.7)
+    free = stick_tree(config)
+    assert held_yaw(free, config, target, IKOptions(), near=0.0,
+                    median=True) == pytest.approx(-0.7)
+    assert abs(_lagging_tracking(median=False)) > 30.0     # eq. 8: R1 turns on and on
+    assert abs(_lagging_tracking(median=True)) < 0.5
+    assert robot("freebot").defaults.median_yaw and robot("snailbot").defaults.median_yaw
+    assert not robot("freesn").defaults.median_yaw
 
 
 def test_exploration_hands_over_a_better_start():
