@@ -621,7 +621,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             leaf = other is None or self.docked.count(other) == 1
             keep = leaf and self._has_target[k] and not self._wheel[k]
             if keep:   # turned about the vertical first, its twist is kept to the world's
-                current = _about(to_node @ _EZ, current @ u, want) @ self._target[k]
+                kept = self._target[k]
+                current = _about(to_node @ _EZ, kept @ u, want) @ kept
             have = current @ u
             self._target[k] = _minimal(have, want) @ current
             self._twist_free[k] = not keep   # else the turns on the way set its twist
