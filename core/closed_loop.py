@@ -65,7 +65,7 @@ from .plan import ConnectionChange
 from .shape import skeletal_error
 
 __all__ = ["JointController", "PhaseTracker", "TrackingOptions", "connection_goal",
-           "extruded", "tree_for"]
+           "extruded", "tree_for", "turned_goal"]
 
 
 @runtime_checkable
@@ -123,6 +123,38 @@ def connection_goal(topology: Configuration, target: Configuration) -> Configura
     z = {e.id: e.z for e in target.edges() if e.id in ids and e.z is not None}
     x = {e.id: e.x for e in target.edges() if e.id in ids and e.x is not None}
     return topology.with_vectors(z=z, x=x or None)
+
+
+def turned_goal(goal: Configuration, tree: KinematicTree, turn: float) -> Configuration:
+    """``goal`` with the body turned by ``turn`` [rad] about the vertical relative to its
+    planted feet: the vectors of every planted node
+    (:attr:`~msrr.core.kinematics.KinematicNode.planted`), and of the nodes hanging from
+    one, turned by ``-turn``; the rest kept (a sequence gait's heading loop, issue 31:
+    :class:`~msrr.core.executor.GaitLoop`).
+
+    The yaw of a tracking step is held where the root's edges are (eq. 7: they cannot
+    move; :func:`~msrr.core.kinematics.tracker.held_yaw`), so a turn of the whole goal
+    changes nothing; a planted leg turned against the rest pivots the body on the foot
+    that grips the ground. Bending the part the step moves instead (the squirm's free half
+    about its middle node) steers little and slips: in the squirm the held half, whose
+    raised middle node has no grip, turned back against it. A tree whose root holds no
+    edge leaves the yaw to the others, one without a planted node has nothing to turn
+    about, and one with two or more cannot pivot on them (each leg turned about its own
+    hip moves its foot off a rigid turn of the body: the S12N6 trot's diagonal pairs
+    stalled): ``goal`` is returned as it is."""
+    if not turn or not tree.root.edges or sum(node.planted for node in tree.nodes) != 1:
+        return goal
+    feet: set[int] = set()
+    for i, node in enumerate(tree.nodes[1:], start=1):
+        if node.planted or tree.parents[i] in feet:
+            feet.add(i)
+    turned = {e for i in feet for e in tree.nodes[i].edges}
+    if not turned:
+        return goal
+    back = rot_z(-turn)
+    z = {e.id: back @ e.z if e.id in turned else e.z for e in goal.edges() if e.z is not None}
+    x = {e.id: back @ e.x if e.id in turned else e.x for e in goal.edges() if e.x is not None}
+    return goal.with_vectors(z=z, x=x or None)
 
 
 def _chain(config: Configuration, strut: str, end: str, node: str

@@ -56,7 +56,10 @@ and the ``broken``/``made`` links with their ports.
   (:mod:`msrr.core.estimation`: odometry and IMU with their drift, or a pose sensor the
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
   the loops left once it is covered (by the same estimate) are skipped
-  (``RunResult.actions_skipped``).
+  (``RunResult.actions_skipped``). A sequence that states its direction has a heading
+  loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
+  step but a loop's last has its goal turned about the planted feet
+  (:func:`~msrr.core.closed_loop.turned_goal`).
 
 The executor judges nothing and reads only :class:`~msrr.core.driver.Observation`:
 module reports, never a simulator's poses or dock state (:mod:`msrr.core.witness`). It
@@ -88,7 +91,7 @@ from __future__ import annotations
 
 import math
 import time as wallclock
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -103,6 +106,7 @@ from .closed_loop import (
     connection_goal,
     extruded,
     tree_for,
+    turned_goal,
 )
 from .configuration import Configuration
 from .control import Control, Controller, StartLayout
@@ -124,8 +128,9 @@ from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_r
 from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
-__all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "HeadingLoop",
-           "StallWatch", "behavior_commands", "course_loop", "heading_loop", "held_heading",
+__all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "GaitLoop", "HeadingLoop",
+           "StallWatch", "behavior_commands", "course_loop", "gait_loop", "heading_loop",
+           "ends_loop", "held_heading",
            "phases_of", "slid", "slides", "steered", "turn_bound"]
 
 
@@ -149,6 +154,11 @@ class ExecutorOptions:
         course_integral: its integral gain [1/m^2], per metre of travel (a crab the
             wheels make unasked).
         max_course_offset: bound of the heading offset it sets [rad].
+        gait_gain: gain of a sequence behavior's heading loop: the body's turn about its
+            planted feet asked of a step per radian of heading error (0 with
+            ``gait_integral`` 0: no loop; :class:`GaitLoop`).
+        gait_integral: its integral gain, per step (a turn the gait makes unasked).
+        max_gait_turn: bound of the turn one step is asked [rad].
         stall_window: a tracked ``approach`` or ``move`` phase whose estimated shape error
             improved by less than ``stall_gain`` [rad] over this long [s of driver time]
             ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
@@ -166,6 +176,9 @@ class ExecutorOptions:
     course_gain: float = 6.0
     course_integral: float = 9.0
     max_course_offset: float = math.radians(60.0)
+    gait_gain: float = 0.5
+    gait_integral: float = 0.2
+    max_gait_turn: float = math.radians(8.0)
     stall_window: float = 15.0
     stall_gain: float = math.radians(0.5)
     stall_time: float = 1.0
@@ -178,7 +191,8 @@ class ExecutorOptions:
         if self.retries < 0:
             raise ExecutionError(f"retries must be >= 0, got {self.retries}")
         loops = (self.heading_gain, self.heading_integral, self.max_heading_correction,
-                 self.course_gain, self.course_integral, self.max_course_offset)
+                 self.course_gain, self.course_integral, self.max_course_offset,
+                 self.gait_gain, self.gait_integral, self.max_gait_turn)
         if min(loops) < 0:
             raise ExecutionError(f"heading and course gains and bounds must be >= 0, got {loops}")
         if min(self.stall_window, self.stall_gain) < 0 or not self.stall_time > 0:
@@ -353,6 +367,42 @@ class CourseLoop:
 
 
 @dataclass
+class GaitLoop:
+    """A sequence behavior's heading loop (issue 31): a gait has no ``yaw_rate`` to
+    correct, and one of its loops may turn the body unasked (the FreeSN squirm turned
+    7.4 deg a loop, exact, every loop the same way). Before each step but a loop's last
+    (:func:`ends_loop`) this asks the step to turn the body about its planted feet by
+    ``gain e + integral_gain sum(e)``, ``e`` the error of the estimated heading from
+    ``start + offset`` (``offset``: what a :class:`CourseLoop` asks on top, per metre off
+    the commanded line), bounded; the executor bends the step's goal by it
+    (:func:`~msrr.core.closed_loop.turned_goal`). A discrete PI loop over the steps: a
+    gait turns only as fast as its steps go.
+
+    Attributes:
+        start: the body's estimated heading when the behavior began [rad].
+        gain, integral_gain: per step; bound: bound of one step's turn [rad] (the integral
+            is held within it: no wind-up).
+        integral: the heading errors summed over the steps so far [rad].
+    """
+
+    start: float
+    gain: float
+    integral_gain: float
+    bound: float
+    integral: float = 0.0
+
+    def turn(self, heading: float, offset: float = 0.0) -> float:
+        """The turn [rad] to ask of the next step, the body's heading estimated at
+        ``heading`` [rad] and the reference turned by ``offset`` [rad]."""
+        error = wrap_angle(self.start + offset - heading)
+        if self.integral_gain > 0:
+            held = self.bound / self.integral_gain
+            self.integral = float(np.clip(self.integral + error, -held, held))
+        return float(np.clip(self.gain * error + self.integral_gain * self.integral,
+                             -self.bound, self.bound))
+
+
+@dataclass
 class StallWatch:
     """Ends a phase that makes no progress (issue 31): a collapsed noisy S12N6 crawl ran
     its 90 s phase timeout twice, 15 min of wall time, for nothing. Progress is the
@@ -412,6 +462,30 @@ def heading_loop(call: BehaviorCall | None, heading: float | None,
     return HeadingLoop(heading, float(call.parameters.get("yaw_rate", 0.0)),
                        options.heading_gain, options.heading_integral,
                        min(options.max_heading_correction, turn_bound(call)) if turns else 0.0)
+
+
+def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions
+              ) -> GaitLoop | None:
+    """The heading loop of a sequence behavior that states its direction, starting at
+    ``heading`` [rad]; ``None`` when there is none or the heading is not known."""
+    if call is None or call.kind != "sequence" or call.direction is None or heading is None \
+            or options.gait_gain == options.gait_integral == 0:
+        return None
+    return GaitLoop(heading, options.gait_gain, options.gait_integral, options.max_gait_turn)
+
+
+def ends_loop(actions: Sequence[Action], index: int) -> bool:
+    """Whether ``actions[index]`` is the last step of its loop of a sequence behavior (the
+    plan's last action, or the next one is not in the same loop). A gait stops only at the
+    end of a loop, so its :class:`GaitLoop` asks no turn of these steps and the gait always
+    stands in its designed stance when it stops, which the judge measures (the squirm's
+    planted leg turned 8 deg left its last stance 5.2-5.6 deg RMS off under noise, over
+    the 5 deg tolerance)."""
+    call = actions[index].behavior
+    if call is None or index + 1 >= len(actions):
+        return True
+    following = actions[index + 1].behavior
+    return following is None or following.name != call.name or following.loop != call.loop
 
 
 def held_heading(heading: float, recognized: Configuration, target: Configuration) -> float:
@@ -559,6 +633,10 @@ class Executor:
         self.estimate = Estimate()
         self._loop: HeadingLoop | None = None  # the running mapping behavior's
         self._course: CourseLoop | None = None  # and its course loop, if straight
+        self._gait: GaitLoop | None = None  # the running sequence behavior's
+        self._gait_course: CourseLoop | None = None  # and its course loop
+        self._turn = 0.0  # the turn the gait loop asks of the running action [rad]
+        self._seen: Configuration | None = None  # recognized with the last estimate
         self._skipping = False
         self._phase_began = 0.0
         if self._ik and robot is not None:
@@ -584,7 +662,7 @@ class Executor:
         self._current = self._estimated(self._observe())
         if isinstance(self.controller, StartLayout):
             self.controller.start(self.placed or plan.start)
-        index = -1
+        index, last = -1, None
         try:
             for index, action in enumerate(plan.actions):
                 if self._skips(index, action):
@@ -592,7 +670,9 @@ class Executor:
                     continue
                 if index in self._spans:
                     self._moving_from = self._centre()
+                self._turn = self._gait_turn(index, action, last)
                 self._execute_action(index, action)
+                last = action
                 result.actions_done += 1
             index = len(plan.actions)
             remaining = topology_diff(self._current, plan.goal)
@@ -755,7 +835,9 @@ class Executor:
         current = self._recognize(observation)
         conn = connection_goal(current, action.target)
         if phase is Phase.CONNECT and self._tracker is not None and not retry:
-            self._tracker.set_goal(extruded(conn, diff.made, self.options.tracking.shrink))
+            self._tracker.set_goal(turned_goal(
+                extruded(conn, diff.made, self.options.tracking.shrink), self._tracker.tree,
+                self._turn))
             return True
         goal = conn
         if phase is Phase.CONNECT:
@@ -764,6 +846,7 @@ class Executor:
         if tree is None:
             self._tracker = None
             return False
+        goal = turned_goal(goal, tree, self._turn)
         ground = GroundModel.for_configuration(current, self.run.spec)
         self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
                                      ground=ground)
@@ -868,6 +951,31 @@ class Executor:
             return heading
         return held_heading(heading, self._current, action.target)
 
+    def _gait_turn(self, index: int, action: Action, last: Action | None) -> float:
+        """The turn [rad] the gait loop asks of ``action``, a step of a sequence behavior
+        (:class:`GaitLoop`); 0 for any other action and for a behavior's first step. The
+        loop starts where that step ends: the body's heading is read on the shape the
+        last step reached, in the frame the behavior's targets (and its ``direction``)
+        share, and the shape before the first step need not be in it."""
+        call = action.behavior
+        if call is None or call.kind != "sequence" or index in self._spans or last is None \
+                or last.behavior is None:
+            self._gait = None
+            return 0.0
+        heading, frame = self.estimate.heading, 0.0
+        if heading is not None and self._seen is not None:
+            frame = skeletal_errors(self._seen, last.target)[2]
+            heading += frame
+        if self._gait is None:
+            self._gait = gait_loop(call, heading, self.options)
+            self._gait_course = None if self._gait is None else course_loop(
+                call, self.estimate, frame, self.options)
+        if self._gait is None or heading is None or ends_loop(self.run.plan.actions, index):
+            return 0.0
+        place, course = self.estimate.position, self._gait_course
+        offset = 0.0 if course is None or place is None else course.offset(place)
+        return self._gait.turn(heading, offset)
+
     def _frame(self, action: Action) -> float:
         """The turn [rad] of ``action``'s target onto the configuration recognized now
         (eq. 8), the frame a behavior's ``direction`` is stated in."""
@@ -877,6 +985,7 @@ class Executor:
         """The configuration ``observation`` shows; the estimate updated with both."""
         configuration = self._recognize(observation)
         self.estimate = self._estimator.update(observation, configuration)
+        self._seen = configuration
         return configuration
 
     def _centre(self) -> np.ndarray | None:

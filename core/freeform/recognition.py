@@ -253,6 +253,33 @@ def _outgoing(config: Configuration, module: str) -> np.ndarray | None:
     return None if e is None else np.asarray(e.z, dtype=float)
 
 
+def _swinging(links: Mapping[str, str], latched: set[str]) -> set[str]:
+    """The modules whose own connection, turned, swings a module of ``latched``: those
+    modules and every module ``links`` (module -> the module its connector holds) shows
+    carrying one of them, down the chain of connectors toward the sink."""
+    out: set[str] = set()
+    for m in latched:
+        while m in links and m not in out:
+            out.add(m)
+            m = links[m]
+    return out
+
+
+def _angle(a: np.ndarray | None, b: np.ndarray | None) -> float:
+    """The angle [rad] between two vectors (3,), ``inf`` when either is ``None``."""
+    if a is None or b is None:
+        return float("inf")
+    cos = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return float(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+_LATCH_HOLD = np.radians(20.0)
+"""A latched piece's connection within this of its target is held
+(:meth:`ContactController.commands`): under 2 deg of angle noise the recognition reads a
+latched connection up to 10 deg off from tick to tick (pieces-to-tree, seed 12, the final
+move's first ticks: 1.0-10.0 deg), so a smaller band chased the noise."""
+
+
 def _direction(vector: np.ndarray) -> dict[str, float]:
     return {f"dir_{a}": float(c) for a, c in zip("xyz", vector, strict=True)}
 
@@ -304,10 +331,16 @@ class ContactController:
         """module -> (target, its way, the target's centre): odometry frame ``O``."""
         self._pieces: dict[str, tuple[PieceWay, int]] = {}
         """root -> (its piece's way, the leg it is on)."""
+        self._still: dict[str, tuple[float, np.ndarray]] = {}
+        """module -> (driver time [s], odometry (2,)) since which it has not moved."""
+        self._stopped: set[str] = set()
+        """Modules whose approach was blocked near its end (:meth:`_blocked`)."""
         self._layout = layout
         self._planned: Configuration | None = None
         """The plan's configuration before the action being run (``None``: not known)."""
         self._acting: Action | None = None
+        self._latched: set[str] = set()
+        """The modules of the pieces that travelled and latched (:meth:`commands`)."""
 
     def start(self, configuration: Configuration) -> None:
         """The run starts from ``configuration``: the locator learns where its modules
@@ -316,6 +349,7 @@ class ContactController:
         self.locator = Locator(self.locator.spacing)
         self._ways, self._pieces = {}, {}
         self._planned, self._acting = None, None   # the plan may start from a recognition
+        self._latched = set()
         if self._layout is not None:
             centres, frames = self._layout(configuration)
             self.locator.start({m: (centres[m], frames[m]) for m in centres})
@@ -329,7 +363,16 @@ class ContactController:
         about the vertical that is left between them and the recognized configuration is
         removed (:func:`common_turn`): turning every module about its parent by the same
         yaw would only spin the whole robot on the ground, and the reaction on the free
-        root would make the IK's yaw-aligned goal chase it round."""
+        root would make the IK's yaw-aligned goal chase it round.
+
+        A connection that would swing a piece that travelled and latched -- owned by one
+        of its modules, or by a module that carries it (:func:`_swinging`) -- is held (no
+        command: the driver brakes it) while the target's vector is within
+        ``_LATCH_HOLD`` of where it is: the piece travelled into the goal's shape, and
+        what is left is the map's error at the latch and the recognition's noise. Moving
+        it would swing the piece over the floor on braked shells, dragging it: under
+        2 deg of noise pieces-to-tree's final move so broke F2-F3 (F2 carries F1 and the
+        latched F13-F16; 7 N on F2-F3 within the move's first 0.1 s)."""
         reports = observation.sensors
         current = current or self.recognizer.recognize(reports)
         yaw = (yaw or 0.0)
@@ -339,8 +382,13 @@ class ContactController:
         turn = rot_z(yaw)
         turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
+        swings = _swinging(links, self._latched)
         for e in target.edges():
             if e.z is None or links.get(e.source) != e.target:
+                continue
+            if e.source in swings and _angle(
+                    _vector(current, e.source, e.target), _vector(turned, e.source, e.target)
+            ) < _LATCH_HOLD:
                 continue
             if self.sucker:   # anchored: only a turn about the sucker's axis
                 joints = {"sucker": 1.0, "twist": sucker_twist(current, turned, e.source)}
@@ -364,6 +412,7 @@ class ContactController:
         current = self.recognizer.recognize(reports)
         if phase is Phase.APPROACH:
             self._ways, self._pieces = self._plan_ways(current, action, reports)
+            self._still, self._stopped = {}, set()
             lone = [float(np.sum(np.linalg.norm(np.diff(way, axis=0), axis=1)))
                     / self.ground_speed for _, way, _ in self._ways.values()]
             pieces = [way.travel() / self.piece_speed for way, _ in self._pieces.values()]
@@ -416,7 +465,7 @@ class ContactController:
                             odometry[:2] + into @ others[target][:2])
         return ways, pieces
 
-    def _travel_pieces(self, phase: Phase) -> Control:
+    def _travel_pieces(self, phase: Phase, reports: Reports) -> Control:
         """One tick of the pieces' travel (approach: leg by leg, see
         :class:`~msrr.core.freeform.piece_way.PieceWay`), or of their guarded push onto
         the target with the root's connector armed (connect): a twist of each piece from
@@ -424,9 +473,20 @@ class ContactController:
         each module as the velocity of its own centre
         (:func:`~msrr.core.freeform.travel.twist_velocities`). A turn holds the centroid;
         a bent piece's drive holds the leg's heading and its line, a straight piece's
-        drives straight on (it cannot roll across its line, so it cannot steer)."""
+        drives straight on (it cannot roll across its line, so it cannot steer).
+
+        A piece whose root reports the latch on its target travels no more: it is dropped
+        from the ways and given no command (the driver holds a module dropped from the
+        commands). Before, it was told to travel again on the tick that saw the latch,
+        and that travel outlived the dock: the world's hold at the latch was undone, and
+        under 2 deg of noise the piece kept rolling into the tree through the plan's final
+        move until a connection broke (pieces-to-tree, seed 12, F11-F12 at 10.2 N)."""
         commands, errors = {}, {}
         for root, (way, stage) in list(self._pieces.items()):
+            if phase is Phase.CONNECT and reports[root].attached == way.target:
+                del self._pieces[root]
+                self._latched.update(way.piece)
+                continue
             centres = {m: self.locator.pose(m)[0] for m in way.piece}
             headings = {m: self.locator.pose(m)[1] for m in way.piece}
             middle = np.mean([c[:2] for c in centres.values()], axis=0)
@@ -497,12 +557,13 @@ class ContactController:
         turn = float(np.clip(_YAW_GAIN * wrap_angle(leg.heading - heading), -1.0, 1.0))
         return velocity, turn, left + max(ahead, 0.0) + self.arrive
 
-    def _travel(self, phase: Phase, reports: Reports) -> Control:
+    def _travel(self, phase: Phase, reports: Reports, time: float) -> Control:
         """One tick of the free modules' travel (approach), or of their last push onto
         the target with the connector armed (connect): a guarded move toward the
         target's estimated centre at half the travel speed until the connector reports
         the latch (dead reckoning is centimetres off after a long way; the shells
-        touching stop the push)."""
+        touching stop the push). A module whose approach is blocked near its way's end
+        (:meth:`_blocked`) has done its approach and waits, still, for the push."""
         commands, errors = {}, {}
         for module, (target, way, centre) in self._ways.items():
             odometry = reports[module].odometry
@@ -512,6 +573,8 @@ class ContactController:
                 left = max(0.0, float(np.linalg.norm(toward)) - self.locator.spacing)
             else:
                 velocity, left = pursue(way, odometry[:2], speed=self.ground_speed)
+                if module in self._stopped or self._blocked(module, odometry[:2], time, left):
+                    velocity, left = np.zeros(2), 0.0
             v = rot_z(-float(odometry[2]))[:2, :2] @ velocity
             dock = (f"@{target}",) if phase is Phase.CONNECT else ()
             commands[module] = ModuleCommand(joints={"roll_x": float(v[0]),
@@ -519,6 +582,26 @@ class ContactController:
             errors[module] = left
         return Control(commands=commands, errors=errors,
                        reached=all(e < self.arrive for e in errors.values()))
+
+    def _blocked(self, module: str, place: np.ndarray, time: float, left: float) -> bool:
+        """Whether ``module``'s approach is blocked near its end: its tracks' odometry
+        ``place`` (2,) [m] has moved less than :data:`_STALL_MOVE` for :data:`_STALL_TIME`
+        of driver ``time`` [s] while the way ``left`` [m] is under :data:`_STALL_NEAR`
+        spacings. Its spot was laid from the map, whose estimate of the target's place
+        is centimetres off under noise (1-7 cm at 2 degrees in ``forest-to-tree`` and
+        ``pieces-to-tree``), so
+        the spot may lie inside the target's shell or the neighbour's beside it, which
+        stops the module short of it, next to its target: the push that follows goes
+        straight for the target's centre and latches on touching it. Once blocked, it
+        stays stopped for the rest of the approach."""
+        since, where = self._still.get(module, (time, place))
+        if float(np.linalg.norm(place - where)) > _STALL_MOVE:
+            since, where = time, place
+        self._still[module] = (since, where)
+        if time - since >= _STALL_TIME and left < _STALL_NEAR * self.locator.spacing:
+            self._stopped.add(module)
+            return True
+        return False
 
     def control(self, action: Action, phase: Phase, observation: Observation) -> Control:
         """One tick of ``phase`` without IK (the executor's flow contract for flows).
@@ -537,8 +620,8 @@ class ContactController:
         reports = observation.sensors
         self._locate(reports)
         if (self._ways or self._pieces) and phase in (Phase.APPROACH, Phase.CONNECT):
-            lone = self._travel(phase, reports)
-            pieces = self._travel_pieces(phase)
+            lone = self._travel(phase, reports, observation.time)
+            pieces = self._travel_pieces(phase, reports)
             return Control(commands={**lone.commands, **pieces.commands},
                            errors={**lone.errors, **pieces.errors},
                            reached=lone.reached and pieces.reached)
@@ -635,6 +718,9 @@ def _refuse_carried_travel(current: Configuration, action: Action) -> None:
                 "the floor")
 
 
+_STALL_TIME = 1.0            # a lone module still this long [s] ...
+_STALL_MOVE = 0.002          # ... moving less than this [m] ...
+_STALL_NEAR = 1.0            # ... within this many spacings of its way's end is blocked
 _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
 _STEER_GAIN = 10.0           # a straight piece's steer per metre off its leg's line [rad/m]

@@ -36,8 +36,10 @@ docks draw the foot onto the centre (time constant ``seat``).
 **Travel of a piece** (FreeBOT, :meth:`FreeformWorld.command_travel`): every module of a
 connected piece rolls its shell under its arm while its drive and bearing track the goals
 of one rigid twist, so the piece moves over the floor as one body, each module driving.
-A straight piece moves along its line and turns, but does not roll across its line
-(nothing outside it gives a torque about that line).
+A straight piece moves along its line and turns; nothing outside it gives a torque about
+that line but the weight of its root's magnet unit, which hangs as a pendulum while the
+piece travels (the *keel*, as a free module rolls) and holds the root's velocity across
+the line to the twist's: without it a turn in place left the piece rolling sideways.
 
 **Sucker** (SnailBot): a connect equality pins the contact point (``r`` along the
 connector axis) to the substrate; with the foot on the substrate's centre, the module
@@ -308,6 +310,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._rolling = np.zeros(n, dtype=bool)   # bearing free: the shell rolls
         self._roll = np.zeros((n, 3))              # ground velocity of a free module [m/s]
         self._travel = np.zeros(n, dtype=bool)     # rolls as part of a travelling piece
+        self._keel = np.zeros(n, dtype=bool)       # its root, whose magnet unit hangs
         self._travel_v = np.zeros((n, 3))          # its centre's ground velocity [m/s]
         self._travel_w = np.zeros(n)               # its turn about the vertical [rad/s]
         self._shell_goal = np.tile([1.0, 0, 0, 0], (n, 1))   # where its shell should be
@@ -478,6 +481,15 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         the arms' directions, the piece's shape, stay as they were. A FreeBOT only: a
         docked SnailBot's tracks hold its parent's shell, not the floor.
 
+        The piece's root (its magnet free, modules docked on it) is its *keel*: its
+        magnet unit, on which no arm holds, hangs as a free module's does and its
+        bearing drives the root's centre toward its velocity (:meth:`_hang`, the lead
+        gain times the piece's size: one unit's weight tips the whole piece). That is
+        the one torque about a straight piece's line: the joints only hold the piece's
+        shape, and a rotation of the whole piece about its line (rolling sideways), which
+        a turn in place leaves behind, went on unchecked (a chain of four, after a
+        quarter turn, drove 42 deg off its line).
+
         Raises:
             ExecutionError: the module has no bearing (its shell cannot roll under it).
         """
@@ -494,7 +506,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._travel[k] = True
             self._roll[k] = 0.0
             self._rolling[k] = False
-            self._pendulum(k, False)
+            self._keel[k] = self.docked[k] is None and self._carrying(k)
+            self._pendulum(k, bool(self._keel[k]))
         self._wake[k] |= bool(np.any(v)) or bool(turn) or not np.array_equal(
             v, self._travel_v[k])
         self._travel_v[k] = v
@@ -523,6 +536,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._target[k] = self.data.qpos[self._qadr[k]:self._qadr[k] + 4]
         self._rolling[k] = False
         self._travel[k] = False
+        if self._keel[k]:
+            self._keel[k] = False
+            self._pendulum(k, False)
         if np.any(self._roll[k]):
             self._roll[k] = 0.0
             if self.design.bearing:
@@ -671,8 +687,10 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             carrying[self._parent[self._parent >= 0]] = True
             free = self._rolling & ~carrying
             damping = np.where(free, _BEARING_FREE, _BRAKE * self._damping)
-            self.model.dof_damping[self._bearing] = np.where(   # a travelling piece's
-                self._travel, self._damping, damping)[:, None]   # bearings are its motors
+            damping = np.where(     # a travelling piece's bearings are its motors
+                self._travel, self._damping, damping)
+            damping[self._keel] = _BEARING_FREE       # but its keel hangs
+            self.model.dof_damping[self._bearing] = damping[:, None]
             held = ~free & ~self._travel
             newly = held & ~self._braked    # hold where the shell is now
             adr = self._bearing_q[newly][:, None] + np.arange(4)
@@ -828,6 +846,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         feed = _rotate(quat_conj(conn_goal), spin - omega)          # C^-1 (w_C - w_S)
         q = d.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
         bearing[ks] = self._motor(q, goal, feed)
+        for k in ks[self._keel[ks]]:    # one unit hangs for the whole piece's weight
+            size = len(self._group_of(self.modules[k]))
+            bearing[k] = self._hang(k, self._travel_v[k], gain=size * _ROLL_SPEED_GAIN)
         rows = np.array([r for r, k in enumerate(ks) if self.docked[k] is not None], dtype=int)
         if not len(rows):
             return
@@ -867,7 +888,10 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             piece = [self._index[m] for m in self._group_of(self.modules[k])]
             g = np.array([j for j in piece if self._travel[j]], dtype=int)
             done[g] = True
-            off = quat_mul(d.xquat[self._conn[g]], quat_conj(self._conn_goal[g]))
+            arms = g[~self._keel[g]]    # a keel's unit hangs, it does not turn with the piece
+            if not len(arms):
+                continue
+            off = quat_mul(d.xquat[self._conn[arms]], quat_conj(self._conn_goal[arms]))
             off *= np.where(off @ off[0] < 0, -1.0, 1.0)[:, None]
             mean = off.sum(axis=0)
             mean /= np.linalg.norm(mean)
@@ -927,38 +951,41 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         return out
 
     def _roll_torques(self) -> np.ndarray:
-        """Bearing torques (n, 3), connector frames, of free FreeBOTs rolling on the ground.
+        """Bearing torques (n, 3), connector frames, of free FreeBOTs rolling on the ground
+        (:meth:`_hang`)."""
+        out = np.zeros((len(self.modules), 3))
+        for k in np.flatnonzero(np.any(self._roll, axis=1)):
+            if self.docked[k] is None:
+                out[k] = self._hang(k, self._roll[k])
+        return out
+
+    def _hang(self, k: int, v: np.ndarray, gain: float = _ROLL_SPEED_GAIN) -> np.ndarray:
+        """Bearing torque (3,), connector frame, of module ``k``'s magnet unit (heavier at
+        its magnet's end) driving its shell toward the ground velocity ``v`` (3,) [m/s].
 
         A pendulum drive in two loops: the centre's horizontal speed error sets how far
-        ahead of the vertical the magnet unit (heavier at its magnet's end) should hang,
-        ``phi = clip(K_v (v - v_now), +-phi_max)``; a PD loop turns the unit there
-        against the shell, whose reaction rolls the shell.
+        ahead of the vertical the unit should hang, ``phi = clip(K_v (v - v_now),
+        +-phi_max)``; a PD loop turns the unit there against the shell, whose reaction
+        rolls the shell.
         """
-        out = np.zeros((len(self.modules), 3))
         d = self.data
-        for k in np.flatnonzero(np.any(self._roll, axis=1)):
-            if self.docked[k] is not None:
-                continue
-            v = self._roll[k]
-            speed = d.qvel[self._free_adr[k]:self._free_adr[k] + 3].copy()
-            speed[2] = 0.0
-            lead = _ROLL_SPEED_GAIN * (v - speed)
-            size = np.linalg.norm(lead)
-            if size > _ROLL_TILT:
-                lead *= _ROLL_TILT / size
-            # the unit's axis should point down, turned by |lead| towards ``lead``
-            tilt = float(np.linalg.norm(lead))
-            want = -_EZ * np.cos(tilt) + (lead / tilt * np.sin(tilt) if tilt > 1e-12 else 0.0)
-            r_conn = d.xmat[self._conn[k]].reshape(3, 3)
-            axis = r_conn[:, 2]
-            error = np.cross(axis, want)
-            omega = d.cvel[self._conn[k], :3]       # world angular velocity of the unit
-            torque = _ROLL_KP * error - _ROLL_KD * omega
-            size = np.linalg.norm(torque)
-            if size > self.design.max_torque:
-                torque *= self.design.max_torque / size
-            out[k] = r_conn.T @ torque       # on the magnet unit; the shell gets the reaction
-        return out
+        speed = d.qvel[self._free_adr[k]:self._free_adr[k] + 3].copy()
+        speed[2] = 0.0
+        lead = gain * (v - speed)
+        size = np.linalg.norm(lead)
+        if size > _ROLL_TILT:
+            lead *= _ROLL_TILT / size
+        # the unit's axis should point down, turned by |lead| towards ``lead``
+        tilt = float(np.linalg.norm(lead))
+        want = -_EZ * np.cos(tilt) + (lead / tilt * np.sin(tilt) if tilt > 1e-12 else 0.0)
+        r_conn = d.xmat[self._conn[k]].reshape(3, 3)
+        error = np.cross(r_conn[:, 2], want)
+        omega = d.cvel[self._conn[k], :3]       # world angular velocity of the unit
+        torque = _ROLL_KP * error - _ROLL_KD * omega
+        size = np.linalg.norm(torque)
+        if size > self.design.max_torque:
+            torque *= self.design.max_torque / size
+        return r_conn.T @ torque       # on the magnet unit; the shell gets the reaction
 
     # -- reading ------------------------------------------------------------------------
 

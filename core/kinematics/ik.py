@@ -527,7 +527,9 @@ class IKProblem:
                 result = minimize(self.value, x0, jac="2-point", method="L-BFGS-B",
                                   bounds=bounds, options=opts, callback=callback)
         yaw = float(np.arctan2(np.sin(result.x[0]), np.cos(result.x[0])))
-        return np.asarray(result.x[1:], dtype=np.float64), yaw, int(result.nit)
+        # every variable fixed by its bounds (no joints, the yaw held): scipy returns at
+        # once, with no iteration count
+        return np.asarray(result.x[1:], dtype=np.float64), yaw, int(result.get("nit", 0))
 
 
 def module_weights(tree: KinematicTree,

@@ -137,6 +137,9 @@ class KinematicNode:
         controller: id of the controller that executes this node.
         defaults: parameter names and default values.
         description: one line for tables.
+        planted: the node's far end grips the ground (a planted foot): it holds its
+            place while the rest moves, so a sequence gait's heading loop turns the body
+            about it (:func:`~msrr.core.closed_loop.turned_goal`).
     """
 
     name: ClassVar[str] = ""
@@ -145,6 +148,7 @@ class KinematicNode:
     controller: ClassVar[str] = ""
     defaults: ClassVar[Mapping[str, float]] = {}
     description: ClassVar[str] = ""
+    planted: ClassVar[bool] = False
 
     def __init__(self, edges: Iterable[str] = (), vertices: Iterable[str] = (), **params: float):
         self.edges: tuple[str, ...] = tuple(str(e) for e in edges)

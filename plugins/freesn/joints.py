@@ -337,6 +337,7 @@ class PlantedJoint(OppositeSteeringJoint):
     name = "planted"
     controller = "freesn.planted"
     description = "opposite steering with the foot's connector braked (the foot grips)"
+    planted = True
 
 
 class SwingJoint(OppositeSteeringJoint):

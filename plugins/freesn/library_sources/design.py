@@ -564,14 +564,16 @@ def roller_legs() -> dict[str, tuple[str, np.ndarray]]:
 
 
 def octa_legs_down(name: str, docked: set[int], description: str = "", *,
-                   free_ring: frozenset[int] = frozenset(), rollers: bool = False) -> dict:
+                   free_ring: frozenset[int] = frozenset(), rollers: bool = False,
+                   up: bool = True) -> dict:
     """Octahedron layout with the chords not in ``docked`` free, pointing outward along the
     floor (Fig. 22(e): the bottom face's struts freed as wheels; the top face stays
     docked, so each bottom node and its two ring struts form a rigid flap hinged on a
     top edge and the structure stands by friction, not by connector torque). Ring struts
-    in ``free_ring`` point straight up (Fig. 22(j), :func:`ring_struts`)."""
+    in ``free_ring`` point straight up (Fig. 22(j), :func:`ring_struts`), or without
+    ``up`` still at the node they left (the pose of their undocking)."""
     nodes = octahedron_nodes()
-    struts = ring_struts(nodes, free_ring, up=True)
+    struts = ring_struts(nodes, free_ring, up=up)
     for i in range(6):
         cid, s, t = chord(i)
         if i in docked:
@@ -889,14 +891,21 @@ def s12n6_fig22_sequences(octa: dict, star_: dict) -> list[dict]:
          "legs down",
          "steps": [step(octa), step(octa_state("face-free", {0, 2, 4})),
                    step(octa_legs_down("fig22e", {0, 2, 4}, rollers=True))]},
-        {"name": "fig22-e-to-j", "description": "Fig. 22(f)-(j): free one more strut",
-         "steps": [step(octa_legs_down("fig22e", {0, 2, 4}, rollers=True)),
-                   step(octa_state("aim-j", {0, 2, 4}, free_ring=frozenset({5}))),
-                   step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5})))]},
         {"name": "fig22-j-to-a", "description": "Fig. 22(k)-(p): back to the octahedron",
          "steps": [step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5}))),
                    step(octa_state("aim-j", {0, 2, 4}, free_ring=frozenset({5}))),
                    step(octa_state("three-docked-j", {0, 2, 4})), step(octa)]},
+        # After j-to-a so that aim-j keeps its id (S12N6-5.2). R6 lets go where fig22(e)
+        # holds it, then the rollers turn 60 deg outward to fig22(j)'s wheels. Through
+        # aim-j (the closed face's chord directions) C4 and C6 turned 90 and 150 deg
+        # toward each other along the floor onto the same segment B2-B3 and jammed
+        # (issue 31: seeds 12, 17, 19 at 2 deg + 5 % stalled there).
+        {"name": "fig22-e-to-j", "description": "Fig. 22(f)-(j): free one more strut, "
+         "then turn the rollers outward",
+         "steps": [step(octa_legs_down("fig22e", {0, 2, 4}, rollers=True)),
+                   step(octa_legs_down("release-j", {0, 2, 4}, free_ring=frozenset({5}),
+                                       rollers=True, up=False)),
+                   step(octa_legs_down("fig22j", {0, 2, 4}, free_ring=frozenset({5})))]},
     ]
 
 

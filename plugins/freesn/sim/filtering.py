@@ -14,7 +14,10 @@ connector's wheel encoders its rolling on the node (:attr:`~.world.StrutReport.r
   :func:`attitude_update`) predicted by the gyro, ``R <- R exp([(w - b) dt])``, and
   corrected by the accelerometer's vertical (the reported tilt) and, except for the
   root of its group, by its heading relative to the root that the struts' attitudes give
-  (:func:`.recognizer.node_headings`, the recognizer's least squares);
+  (:func:`.recognizer.node_headings`, the recognizer's least squares); ``dt`` and ``w dt``
+  come from the report's stamp and delta-angle counter (:meth:`ReportFilter._gyros`), so
+  a report the host holds is not used again and one after reports missed is predicted
+  over the whole gap (issue 32: over the module link);
 * per docked connector, its direction on the node ``u`` (node frame): predicted by the
   encoders' rolling ``u <- D u`` and corrected by the magnetic localisation, a Kalman
   filter on the sphere with one variance per axis (:func:`direction_predict`,
@@ -44,6 +47,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from msrr.core.alignment import wrap_angle
 from msrr.core.driver import Observation
@@ -176,16 +180,18 @@ class NodeState:
             value.rotation, value.bias, value.cov
 
 
-def attitude_predict(state: NodeState, gyro: np.ndarray, dt: float, acc: Accuracy
-                     ) -> NodeState:
-    """Propagate by the gyros' mean body rates ``gyro`` (..., 3) [rad/s] over ``dt`` [s]:
-    ``R <- R exp([(w - b) dt])``; ``P <- F P F^T + Q`` with ``F = [[I, -R dt], [0, I]]``
-    and ``Q = diag(gyro_noise^2 dt I, gyro_walk^2 dt I)``."""
+def attitude_predict(state: NodeState, gyro: np.ndarray, dt: float | np.ndarray,
+                     acc: Accuracy) -> NodeState:
+    """Propagate by the gyros' mean body rates ``gyro`` (..., 3) [rad/s] over ``dt`` [s]
+    (a scalar or one per node, (...)): ``R <- R exp([(w - b) dt])``; ``P <- F P F^T + Q``
+    with ``F = [[I, -R dt], [0, I]]`` and ``Q = diag(gyro_noise^2 dt I, gyro_walk^2 dt I)``."""
+    dt = np.asarray(dt, dtype=float)
     f = np.broadcast_to(_EYE6, state.cov.shape).copy()
-    f[..., :3, 3:] = -state.rotation * dt
-    q = np.diag([acc.gyro_noise**2 * dt] * 3 + [acc.gyro_walk**2 * dt] * 3)
-    return NodeState(state.rotation @ _exp((gyro - state.bias) * dt), state.bias.copy(),
-                     f @ state.cov @ _t(f) + q)
+    f[..., :3, 3:] = -state.rotation * dt[..., None, None]
+    q = _EYE6 * (np.array([acc.gyro_noise**2] * 3 + [acc.gyro_walk**2] * 3)
+                 * dt[..., None])[..., None, :]
+    return NodeState(state.rotation @ _exp((gyro - state.bias) * dt[..., None]),
+                     state.bias.copy(), f @ state.cov @ _t(f) + q)
 
 
 def attitude_update(state: NodeState, residual: np.ndarray, rows: np.ndarray,
@@ -276,6 +282,9 @@ class ReportFilter:
         self.time: float | None = None
         self._ids: list[str] = []
         self._state = NodeState(np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 6, 6)))
+        self._stamps = np.zeros(0)               # per node, the stamp of the reading used last
+        self._turned = np.zeros((0, 3, 3))       # ... and its delta-angle counter
+        self._new: dict[str, bool] = {}          # per node, whether this update's reading is new
         self._connectors = _no_connectors()
         self.last: Observation | None = None
 
@@ -325,20 +334,23 @@ class ReportFilter:
         was = {m: i for i, m in enumerate(self._ids)}
         prev = np.array([was.get(m, -1) for m in ids], dtype=int)
         known = prev >= 0
+        rates, gaps, new = self._gyros(reports, ids, prev, dt)
+        moved, held = known & new, known & ~new   # held: a reading already used, no news
         state = NodeState(np.empty((n, 3, 3)), np.zeros((n, 3)), np.empty((n, 6, 6)))
-        if np.any(known):
-            gyro = np.array([reports[ids[i]].gyro for i in np.flatnonzero(known)],  # type: ignore[union-attr]
-                            dtype=float)
-            state = _put(state, known, attitude_predict(_take(self._state, prev[known]), gyro,
-                                                        dt, acc))
+        if np.any(held):
+            state[held] = self._state[prev[held]]
+        if np.any(moved):
+            state = _put(state, moved, attitude_predict(_take(self._state, prev[moved]),
+                                                        rates[moved], gaps[moved], acc))
         fresh = ~known & is_root   # the root of a new group: heading 0
         if np.any(fresh):
             state[fresh] = _first(tilt[fresh], np.zeros(int(fresh.sum())), 0.0, acc)
         r_tilt = acc.angle**2 * np.eye(2)
-        ready = known | is_root
-        state = _put(state, ready, attitude_update(_at(state, ready), tilt_residual(
-            _at(state, ready).rotation, _at(tilt, ready)), _TILT_ROWS, r_tilt))
-        late = ~ready   # new in a known group: its heading from the struts, after its root's
+        ready = moved | fresh
+        if np.any(ready):
+            state = _put(state, ready, attitude_update(_at(state, ready), tilt_residual(
+                _at(state, ready).rotation, _at(tilt, ready)), _TILT_ROWS, r_tilt))
+        late = ~known & ~is_root   # new in a known group: its heading from the struts, after its root's
         if np.any(late):
             psi = _yaw(state.rotation[base[late]]) + np.array(
                 [relative.get(ids[i], 0.0) for i in np.flatnonzero(late)])
@@ -347,7 +359,7 @@ class ReportFilter:
                                                                      tilt[late]),
                                           _TILT_ROWS, r_tilt)
         upright = state.rotation[:, 2, 2] >= UPRIGHT
-        seen = np.flatnonzero(~is_root & upright & upright[base])
+        seen = np.flatnonzero(~is_root & new & upright & upright[base])
         if seen.size:
             yaw = _yaw(state.rotation)
             heading = wrap_angle(np.array([relative[ids[i]] for i in seen])
@@ -355,6 +367,39 @@ class ReportFilter:
             state[seen] = attitude_update(state[seen], heading[:, None], _HEADING_ROWS,
                                           2.0 * acc.angle**2 * np.eye(1))   # two attitudes
         self._ids, self._state = ids, state
+        self._new = dict(zip(ids, new.tolist(), strict=True))
+
+    def _gyros(self, reports: Reports, ids: list[str], prev: np.ndarray, dt: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per node of ``ids`` (``prev`` its row before, -1 if none): the mean rate (n, 3)
+        [rad/s] it turned at since the reading used last, over how long (n,) [s], and
+        whether its reading is new (n,). A stamped report (:attr:`.world.NodeReport.stamp`)
+        whose stamp is not past the last one used is not new (a report the host holds or
+        an older one); one step past it, its ``gyro`` is that step's rate; further, the
+        counter's difference over the stamps' (``log(Q_0^T Q_1) / (t_1 - t_0)``: the steps
+        in between included, however many reports were missed). Unstamped: ``gyro`` over
+        the observations' ``dt``, every report new. Keeps the stamps and counters used."""
+        n = len(ids)
+        nodes: list[NodeReport] = [reports[m] for m in ids]  # type: ignore[misc]
+        stamps = np.array([np.nan if r.stamp is None else r.stamp for r in nodes], dtype=float)
+        turned = np.array([r.turned for r in nodes], dtype=float).reshape(n, 3, 3)
+        steps = np.array([r.step for r in nodes], dtype=float)
+        rates = np.array([r.gyro for r in nodes], dtype=float).reshape(n, 3)
+        known = prev >= 0
+        last = np.full(n, np.nan)
+        last[known] = self._stamps[prev[known]]
+        stamped = ~np.isnan(stamps) & ~np.isnan(last)
+        gaps = np.where(stamped, stamps - np.where(stamped, last, 0.0), dt)
+        new = ~stamped | (gaps > 0.0)
+        counted = stamped & new & (gaps >= 1.5 * steps)
+        if np.any(counted):
+            j = prev[counted]
+            turn = Rotation.from_matrix(_t(self._turned[j]) @ turned[counted]).as_rotvec()
+            rates[counted] = turn / gaps[counted][:, None]
+        keep = known & ~new
+        stamps[keep], turned[keep] = self._stamps[prev[keep]], self._turned[prev[keep]]
+        self._stamps, self._turned = stamps, turned
+        return rates, gaps, new
 
     def _update_connectors(self, reports: Reports, links: Links, acc: Accuracy, dt: float
                            ) -> None:
@@ -384,7 +429,14 @@ class ReportFilter:
                                        -1.0, 1.0))
             moved, grown = direction_predict(old.u[j], old.var[j], step,
                                              (acc.slip * turned)**2 + acc.drift**2 * dt)
-            u[go_on], var[go_on] = direction_update(moved, grown, fix[go_on], r)
+            read = np.array([self._new.get(nodes[i], True) for i in np.flatnonzero(go_on)],
+                            dtype=bool)   # a node report already used: no new localisation
+            if not read.all():
+                moved[read], grown[read] = direction_update(moved[read], grown[read],
+                                                            fix[go_on][read], r)
+                u[go_on], var[go_on] = moved, grown
+            else:
+                u[go_on], var[go_on] = direction_update(moved, grown, fix[go_on], r)
         self._connectors = _Connectors(keys, nodes, u, var, rolled, encoded)
 
     def _reports(self, reports: Reports) -> dict[str, NodeReport | StrutReport]:

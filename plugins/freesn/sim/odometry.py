@@ -15,7 +15,10 @@ configuration, never from a simulator:
   T``), a split that turns a tilt's noise into heading error without bound as the node
   nears upside down: node wheels spinning about a leg pass there, and under 2 deg of
   noise fig18's wheel nodes lost 60-120 deg of heading for 10-25 s at a time (seed 15).
-  A node seen for the first time takes the heading the recognizer gives
+  Over the module link, where the host holds a report until the next arrives, a
+  report is integrated once, from the reading used last (:func:`gyro_since`: the stamp
+  and the delta-angle counter, issue 32). A node seen for the first time takes the
+  heading the recognizer gives
   it relative to the root (:func:`.recognizer.node_headings`). The system's heading is
   its root node's (:func:`.recognizer.root_order`), the frame its commands are in.
 * **position**: the recognized configuration places the nodes relative to the root
@@ -42,6 +45,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from msrr.core.alignment import rot_z, wrap_angle
 from msrr.core.configuration import Configuration
@@ -53,7 +57,7 @@ from ..robot import NODE, STRUT
 from .recognizer import links_of, node_headings, root_order
 from .world import NodeReport
 
-__all__ = ["CONTACT", "ImuOdometry", "node_positions", "on_struts"]
+__all__ = ["CONTACT", "ImuOdometry", "gyro_since", "node_positions", "on_struts"]
 
 CONTACT = 0.015
 """A node whose centre is at most this much [m] above the lowest node's stands on the
@@ -69,6 +73,32 @@ foot set that changes moves the place by the shape's noise (2 deg over 0.4 m: 1.
 UPRIGHT = -0.5
 """A node whose vertical axis points above this (its ``z`` component) is upright enough
 for its twist about the vertical to be its heading (within 120 deg of upright)."""
+
+
+def gyro_since(report: NodeReport, last: tuple[float, np.ndarray] | None, dt: float
+               ) -> tuple[np.ndarray, float] | None:
+    """A node's mean body rate (3,) [rad/s] since the reading used last and over how long
+    [s]; ``None`` when its report is no new reading (issue 32: over the module link the
+    host holds a report until the next arrives).
+
+    Args:
+        report: the node's report; without a ``stamp``, its ``gyro`` over ``dt``.
+        last: the ``(stamp, turned)`` of the node's report used last, if any.
+        dt: the observations' time step [s].
+
+    A stamp not past ``last``'s is no new reading; one ``step`` past it, the report's
+    ``gyro`` over the stamps' difference; further, the delta-angle counter's difference
+    ``log(Q_0^T Q_1)`` over it (the steps of the reports missed between included). The
+    same instant observed again (``dt`` 0) turns nothing, as before stamps.
+    """
+    if report.stamp is None or last is None or dt <= 0.0:
+        return np.asarray(report.gyro, dtype=float), dt
+    gap = report.stamp - last[0]
+    if not gap > 0.0:
+        return None
+    if gap < 1.5 * report.step:
+        return np.asarray(report.gyro, dtype=float), gap
+    return Rotation.from_matrix(last[1].T @ report.turned).as_rotvec() / gap, gap
 
 
 def _turned(rotvec: np.ndarray) -> np.ndarray:
@@ -161,6 +191,8 @@ class ImuOdometry:
         self.anchors: dict[str, np.ndarray] = {}  # feet on the floor, horizontal [m]
         self.origin = np.zeros(2)                 # the root's horizontal place [m]
         self.last: Estimate | None = None         # the last estimate accepted
+        self.counted: dict[str, tuple[float, np.ndarray]] = {}  # stamp, counter used last
+        self.spans: dict[str, float] = {}         # per node, the time its last turn covered
 
     def update(self, observation: Observation, configuration: Configuration) -> Estimate:
         """The estimate after ``observation`` and the configuration recognized from it."""
@@ -181,7 +213,7 @@ class ImuOdometry:
             self.anchors = {}  # what lands next is anchored where the shape puts it
             self.last = Estimate(position=None, heading=heading)
             return self.last
-        if not self._step_feet(offsets, turned, dt) and self.last is not None:
+        if not self._step_feet(offsets, turned, dt, self.spans) and self.last is not None:
             return self.last
         centre = self.origin + np.mean([q[:2] for q in offsets.values()], axis=0)
         self.last = Estimate(position=centre, heading=heading)
@@ -212,18 +244,26 @@ class ImuOdometry:
         return heading
 
     def _turn(self, nodes: Mapping[str, NodeReport], dt: float) -> dict[str, np.ndarray]:
-        """Each known node's attitude propagated by its gyro and levelled by its reported
-        tilt (the module docstring); its world rate (3,) [rad/s] at the step's start."""
+        """Each known node with a new reading: its attitude propagated by its gyro since
+        the reading used last (:func:`gyro_since`) and levelled by its reported tilt (the
+        module docstring); its world rate (3,) [rad/s] at the step's start (over how long
+        [s]: :attr:`spans`)."""
         rates: dict[str, np.ndarray] = {}
+        self.spans: dict[str, float] = {}
         for node, report in nodes.items():
-            gyro = np.asarray(report.gyro, dtype=float)
             tilt = np.asarray(report.tilt, dtype=float)
+            since = gyro_since(report, self.counted.get(node), dt)
+            if since is None:
+                continue
+            if report.stamp is not None:
+                self.counted[node] = (report.stamp, np.asarray(report.turned, dtype=float))
             if node not in self.yaw:
                 self.tilt[node] = rot_z(-yaw_of(tilt)) @ tilt  # a tilt has no heading: noise
                 continue
+            gyro, span = since
             before = rot_z(self.yaw[node]) @ self.tilt[node]
-            rates[node] = before @ gyro
-            after = before @ _turned(gyro * dt)
+            rates[node], self.spans[node] = before @ gyro, span
+            after = before @ _turned(gyro * span)
             after = after @ _levelled(tilt[2], after[2])
             self.yaw[node] = yaw_of(after)
             self.tilt[node] = rot_z(-self.yaw[node]) @ after
@@ -241,9 +281,10 @@ class ImuOdometry:
             self.yaw[node] = wrap_angle(base + relative.get(node, 0.0))
 
     def _step_feet(self, offsets: Mapping[str, np.ndarray], rates: Mapping[str, np.ndarray],
-                   dt: float) -> bool:
-        """The feet on the floor roll by their rates; the root's place moves by their mean
-        motion this step; every foot is then anchored where the shape puts it. ``False``
+                   dt: float, spans: Mapping[str, float] | None = None) -> bool:
+        """The feet on the floor roll by their rates (each over its ``spans`` entry, the
+        time since its reading used last; default ``dt``); the root's place moves by
+        their mean motion this step; every foot is then anchored where the shape puts it. ``False``
         (and nothing changed) when that place would move faster than :data:`LEAP` allows:
         a glitch of the recognized shape, not a motion.
 
@@ -264,9 +305,9 @@ class ImuOdometry:
         if stayed:
             moved = []
             for node in stayed:
-                rate = rates.get(node)
+                rate, span = rates.get(node), dt if spans is None else spans.get(node, dt)
                 rolled = np.zeros(2) if rate is None else \
-                    dt * self.radius * np.array([rate[1], -rate[0]])   # w x (r e_z)
+                    span * self.radius * np.array([rate[1], -rate[0]])   # w x (r e_z)
                 moved.append(self.anchors[node] + rolled - offsets[node][:2])
             origin = np.mean(moved, axis=0)
             if float(np.linalg.norm(origin - self.origin)) > LEAP[0] + LEAP[1] * dt:

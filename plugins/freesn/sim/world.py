@@ -61,7 +61,10 @@ IMU (sections 2.1, 4.2): a node reports its tilt (the accelerometer's, with the 
 ``noise``) and its gyro: the mean body-frame angular rate over the last :meth:`step`
 (what the IMU's samples average to), plus a constant bias per node (``gyro_bias``),
 its random walk (``gyro_walk``) and white rate noise (``gyro_noise``), from a generator
-of its own so the other noise draws stay as they were. No heading is reported: the
+of its own so the other noise draws stay as they were; and, as a real IMU's
+delta-angle output, those rates integrated since it started (``turned``) with its clock
+(``stamp``), so a host that missed or repeated reports still integrates exactly what
+the gyro measured between two it used (issue 32). No heading is reported: the
 recognizer's estimator integrates the gyros (:mod:`.recognizer`).
 
 Sensing in the loop: a connector servos on its own sensors with the reports' noise
@@ -243,12 +246,24 @@ class NodeReport:
         gyro: the node's angular rate (3,) in its own frame [rad/s], averaged over the
             last step, with the gyro's bias, drift and noise.
         accuracy: what its sensors are stated to measure to.
+        turned: the gyro's delta-angle counter: the rotation (3, 3) its rates integrated
+            since the module started, node frame then -> now (``Q <- Q exp([w dt])`` per
+            step, the reported ``w``), so ``Q_0^T Q_1`` is what it measured between two
+            readings however many reports lay between (as
+            :attr:`StrutReport.rolled` is for the encoders).
+        stamp: the module's clock [s] when ``turned`` and ``gyro`` were read (``None``:
+            a report without one; the report filter then assumes every report is new).
+        step: the length [s] of the last step, the one ``gyro`` averages, ending at
+            ``stamp``.
     """
 
     tilt: np.ndarray
     connectors: dict[str, np.ndarray]
     gyro: np.ndarray = field(default_factory=lambda: np.zeros(3))
     accuracy: Accuracy = Accuracy()
+    turned: np.ndarray = field(default_factory=lambda: np.eye(3))
+    stamp: float | None = None
+    step: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -393,6 +408,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                                 for tag in (0x6779, 0x7367))
         self._gyro_bias = self._gyro_rng.normal(0.0, options.gyro_bias, (len(self.nodes), 3))
         self._gyro = np.zeros((len(self.nodes), 3))        # last reported rates [rad/s]
+        self._turned = np.tile(np.eye(3), (len(self.nodes), 1, 1))   # delta-angle counters
+        self._gyro_step = 0.0                              # the step those rates average [s]
 
     # -- building ---------------------------------------------------------------------
 
@@ -776,6 +793,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._gyro_bias += rng.normal(0.0, o.gyro_walk * np.sqrt(duration), self._gyro.shape)
         self._gyro = rate + self._gyro_bias + rng.normal(0.0, o.gyro_noise / np.sqrt(duration),
                                                           self._gyro.shape)
+        self._turned = self._turned @ Rotation.from_rotvec(self._gyro * duration).as_matrix()
+        self._gyro_step = duration
 
     def _gyro_sample(self, i: int, period: float) -> np.ndarray:
         """Node ``i``'s gyro (3,) [rad/s, node frame] as a servo loop samples it once per
@@ -1215,7 +1234,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                      self._accuracy)
         for i, node in enumerate(self.nodes):
             out[node] = NodeReport(self.noise.rotation(rot_z(-node_yaw[i]) @ node_rot[i]),
-                                   located[node], self._gyro[i].copy(), self._accuracy)
+                                   located[node], self._gyro[i].copy(), self._accuracy,
+                                   self._turned[i].copy(), self.time, self._gyro_step)
         return out
 
     def _encoders(self, k: int, node: str, encoded: np.ndarray) -> np.ndarray:

@@ -378,3 +378,14 @@ def test_ik_with_the_ground_model_reaches_a_grounded_target():
         x={e: contact.rotation @ v for e, v in grounded.x.items()})
     sol = solve_ik(tree, config, target, IKOptions(ground=model))
     assert sol.success and sol.ground is not None and sol.ground.stable
+
+
+def test_a_tree_without_joints_and_its_yaw_held_has_nothing_to_solve():
+    """fig22 at 2 deg + 5 % seed 14 stopped in its first move with ``AttributeError: nit``:
+    the tracking step holds the yaw, and a tree without joints then leaves L-BFGS-B no
+    free variable, which scipy answers without an iteration count."""
+    config = random_stick(3, 4)
+    rigid = KinematicTree(config, [FixedNode(config.edge_ids(), config.vertices())])
+    sol = solve_ik(rigid, config, yawed(config, 0.5),
+                   IKOptions(solve_yaw=False, initial_yaw=0.2))
+    assert sol.yaw == 0.2 and sol.iterations == 0 and sol.reason == "no_joints"

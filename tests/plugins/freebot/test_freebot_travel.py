@@ -136,10 +136,12 @@ def test_a_travelling_piece_is_located_from_its_modules_odometry_and_gyros(mujoc
         assert np.linalg.norm(locator.relative(module)[other] - truth) < 0.01, (module, other)
 
 
-def test_a_straight_piece_does_not_roll_across_its_line(mujoco_driver):
+def test_a_straight_piece_rolls_across_its_line_only_by_its_keel(mujoco_driver):
     # its shells would spin about the line through every centre, and nothing outside
-    # the piece gives a torque about it (the floor's friction is what would move it):
-    # its angular momentum about the line stays zero, so it moves along its line only
+    # the piece gives a torque about it (the floor's friction is what would move it)
+    # but the weight of its root's hanging magnet unit, the keel: its angular momentum
+    # about the line changes only by that, so it starts across far slower than along
+    # (1 s: 20 mm along, 8 mm across; before the keel, 3.5 mm)
     driver = mujoco_driver("freebot", "chain6")
     world = driver.world
     moved = {}
@@ -153,7 +155,7 @@ def test_a_straight_piece_does_not_roll_across_its_line(mujoco_driver):
         driver.step(1.0)
         moved[name] = float(np.linalg.norm(world.centre("F3") - start))
     assert moved["along"] == pytest.approx(SPEED, abs=0.002)
-    assert moved["across"] < 0.25 * SPEED
+    assert moved["across"] < 0.5 * SPEED
 
 
 def test_twist_velocities_are_one_rigid_motion_under_the_speed_bound():
@@ -265,6 +267,52 @@ def test_separate_start_pieces_are_related_by_the_start_layout(mujoco_driver):
         assert np.linalg.norm(locator.relative(module)[other] - truth) < 0.01, (module, other)
 
 
+def _let_go(config: Configuration, module: str, holder: str):
+    """A MuJoCo FreeBOT driver reset to ``config``, 0.3 s after ``module`` let go of
+    ``holder``."""
+    driver = plugin.driver_factory()()
+    driver.connect()
+    driver.reset(config)
+    driver.send_action({module: ModuleCommand(undock=(f"@{holder}",))})
+    driver.step(0.3)
+    return driver
+
+
+def _turn_then_drive(driver, piece: tuple[str, ...], ticks: int, settle: float = 0.0
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Turn ``piece`` in place at 0.2 rad/s for ``ticks`` of 0.1 s, hold still ``settle``
+    [s], then drive it along its line at ``SPEED`` for 3 s: its modules' centres (n, 2) on
+    ground truth before and after the drive."""
+    for _ in range(ticks):
+        _twist(driver, piece, 0.0, 0.2)
+        driver.step(0.1)
+    if settle:
+        _twist(driver, piece, 0.0, 0.0)
+        driver.step(settle)
+    before = np.array([driver.world.centre(m)[:2] for m in piece])
+    for _ in range(30):
+        _twist(driver, piece, SPEED, 0.0)
+        driver.step(0.1)
+    return before, np.array([driver.world.centre(m)[:2] for m in piece])
+
+
+def _twist(driver, piece: tuple[str, ...], speed: float, turn: float) -> None:
+    """Command ``piece`` from its reports: ``speed`` [m/s] along its line (first module to
+    last) and ``turn`` [rad/s] about its centroid."""
+    reports = driver.get_observation().sensors
+    links = links_of(reports)
+    centres, headings, _ = centres_of(reports, links, module_headings(reports, links),
+                                      driver.world.length)
+    centres = {m: centres[m] for m in piece}
+    line = (centres[piece[-1]] - centres[piece[0]])[:2]
+    velocities, w = twist_velocities(
+        centres, {m: headings[m] for m in piece}, speed * line / np.linalg.norm(line),
+        turn, np.mean([c[:2] for c in centres.values()], axis=0), speed=SPEED)
+    driver.send_action({m: ModuleCommand(joints={"roll_x": float(u[0]),
+                                                 "roll_y": float(u[1]), "turn": w})
+                        for m, u in velocities.items()})
+
+
 def test_a_piece_that_let_go_sideways_turns_then_drives_along_its_line():
     # F1-F2 held on F3 across its line, then let go: F2, the piece's free module, has its
     # magnet (and the weld's foot) pointing sideways. Turned in place a quarter turn about
@@ -277,43 +325,37 @@ def test_a_piece_that_let_go_sideways_turns_then_drives_along_its_line():
         config.add_module(m, "freebot")
     config.connect("F1", "F2", z=[1.0, 0.0, 0.0])
     config.connect("F2", "F3", z=[0.0, 1.0, 0.0])
-    driver = plugin.driver_factory()()
-    driver.connect()
-    driver.reset(config)
-    world = driver.world
-    driver.send_action({"F2": ModuleCommand(undock=("@F3",))})
-    driver.step(0.3)
+    driver = _let_go(config, "F2", "F3")
     piece = ("F1", "F2")
-
-    def twist(velocity, turn: float) -> None:
-        reports = driver.get_observation().sensors
-        links = links_of(reports)
-        centres, headings, _ = centres_of(reports, links, module_headings(reports, links),
-                                          world.length)
-        centres = {m: centres[m] for m in piece}
-        about = np.mean([c[:2] for c in centres.values()], axis=0)
-        line = (centres["F2"] - centres["F1"])[:2]
-        v = velocity * line / np.linalg.norm(line)
-        velocities, w = twist_velocities(centres, {m: headings[m] for m in piece}, v, turn,
-                                         about, speed=SPEED)
-        driver.send_action({m: ModuleCommand(joints={"roll_x": float(u[0]),
-                                                     "roll_y": float(u[1]), "turn": w})
-                            for m, u in velocities.items()})
-
-    for _ in range(80):                       # a quarter turn at up to 0.2 rad/s
-        twist(0.0, 0.2)
-        driver.step(0.1)
-    before = np.array([world.centre(m)[:2] for m in piece])
-    for _ in range(30):
-        twist(SPEED, 0.0)
-        driver.step(0.1)
-    after = np.array([world.centre(m)[:2] for m in piece])
+    before, after = _turn_then_drive(driver, piece, 80)   # a quarter turn at 0.2 rad/s
     line = before[1] - before[0]
     line /= np.linalg.norm(line)
     moved = after.mean(axis=0) - before.mean(axis=0)
     assert float(moved @ line) >= 0.8 * SPEED * 3.0
     across = abs(float(line[0] * moved[1] - line[1] * moved[0]))
     assert across < float(moved @ line)                  # mostly along its line
+
+
+def test_a_straight_piece_keeps_its_line_after_a_turn_in_place():
+    # F1..F4 in a row, F4 held on F5 across it, then let go: turned in place about its
+    # centroid (0.2 rad/s for 7.8 s), it keeps rolling about its own line afterwards
+    # (its angular momentum about that line) unless something holds it: told 0.02 m/s
+    # along its line for 3 s it went 60 mm along and 54 mm across (42 deg off its line:
+    # pieces-to-tree's F13-F16 drove 36 deg off and into F4-F5). Its root's magnet unit
+    # now hangs as a pendulum (the keel) and holds the piece's roll: under 5 mm across
+    config = Configuration("freebot", name="turned")
+    for i in range(1, 6):
+        config.add_module(f"F{i}", "freebot")
+    for i in range(1, 4):
+        config.connect(f"F{i}", f"F{i + 1}", z=[1.0, 0.0, 0.0])
+    config.connect("F4", "F5", z=[0.0, 1.0, 0.0])
+    driver = _let_go(config, "F4", "F5")
+    piece = ("F1", "F2", "F3", "F4")
+    before, after = _turn_then_drive(driver, piece, 78, settle=1.0)
+    moved = after.mean(axis=0) - before.mean(axis=0)
+    line = (before[-1] - before[0]) / np.linalg.norm(before[-1] - before[0])
+    assert float(moved @ line) >= 0.8 * SPEED * 3.0
+    assert abs(float(line[0] * moved[1] - line[1] * moved[0])) < 0.005
 
 
 def test_a_piece_whose_goal_place_is_taken_docks_where_the_target_is_free_now():
@@ -536,3 +578,66 @@ def test_a_piece_beside_a_row_its_map_bends_drives_out_along_its_line():
     end = way.legs[-1].to + 0.02 * way.push
     wanted = np.mean([goal[m][:2] for m in piece], axis=0)
     assert np.allclose(end, wanted, atol=0.01)
+
+
+
+def _latched(mujoco_driver, name: str, root: str, target: str, piece: tuple[str, ...]):
+    """The shipped configuration ``name`` and the FreeBOT controller in the tick that sees
+    a piece's latch: ``piece`` was pushing on toward ``target`` (its way's target centre
+    far ahead) with its ``root``'s connector armed, and ``root`` reports the latch on
+    ``target``; with the commands of that tick."""
+    from msrr.core.events import Phase
+    from msrr.core.freeform.piece_way import Leg, PieceWay
+    from msrr.core.plan import Action, ActionType
+
+    driver = mujoco_driver("freebot", name)
+    start = load_configuration(ROOT / "plugins" / "freebot" / "configs" / f"{name}.json")
+    controller = plugin.controllers()[0]
+    controller.start(start)
+    shape = 0.1 * np.arange(len(piece), dtype=float)[:, None] * np.array([1.0, 0.0])
+    way = PieceWay(root=root, target=target, piece=piece, origin=np.zeros(2),
+                   shape=shape - shape.mean(axis=0), heading=0.0,
+                   legs=(Leg("drive", np.zeros(2), 0.3),), centre=np.array([10.0, 0.0]),
+                   push=np.array([1.0, 0.0]), line=None)
+    controller._pieces = {root: (way, 1)}
+    action = Action(ActionType.CONNECTION, start)
+    control = controller.control(action, Phase.CONNECT, driver.get_observation())
+    return driver, start, controller, control
+
+
+def test_a_piece_that_reports_its_latch_travels_no_more(mujoco_driver):
+    # the tick that saw the latch told the piece to travel again, and that travel outlived
+    # the dock: pieces-to-tree under 2 deg of noise (seed 12) rolled a latched row of four
+    # on into the tree through the plan's final move until F11-F12 broke at 10.2 N
+    driver, _, controller, control = _latched(mujoco_driver, "row4", "F2", "F3", ("F1", "F2"))
+    assert not {"F1", "F2"} & set(control.commands), "the latched piece gets no command"
+    assert not controller._pieces
+    before = {m: driver.world.centre(m) for m in ("F1", "F2")}
+    driver.send_action(control.commands)
+    driver.step(1.0)
+    assert not np.any(driver.world._travel)
+    for m, c in before.items():
+        assert np.linalg.norm(driver.world.centre(m) - c) < 0.001, m
+
+
+def test_a_latched_piece_is_not_swung_to_take_out_a_few_degrees(mujoco_driver):
+    # once latched a piece's shells are braked, so a move turning its connections, or one
+    # that carries it, drags it over the floor: pieces-to-tree under 2 deg of noise broke
+    # F2-F3 in the final move (seeds 11, 12). ``line6``: F1 -> F2 -> F3 <- F4 <- F5 <- F6;
+    # F1 latched on F2, so F2 -> F3 carries it; F4 -> F3 does not
+    driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
+    observation = driver.get_observation()
+
+    def turned(degrees: float) -> Configuration:
+        goal = start.copy()
+        for e in list(goal.edges()):
+            turn = {("F2", "F3"): degrees, ("F4", "F3"): -degrees}.get((e.source, e.target))
+            if turn is not None:
+                goal.disconnect(e.id)
+                goal.connect(e.source, e.target, z=rot_z(np.radians(turn)) @ np.asarray(e.z))
+        return goal
+
+    near = controller.commands(turned(3.0), observation)
+    assert "F4" in near and not {"F1", "F2"} & set(near)
+    far = controller.commands(turned(30.0), observation)
+    assert {"F2", "F4"} <= set(far)

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from msrr.core import plugins
 from msrr.core.app.cli import get_cli
 from msrr.core.app.run import RunRequest, prepare_run, resolve_scenario
+from msrr.core.closed_loop import turned_goal
 from msrr.core.driver import ModuleCommand
 from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
@@ -109,6 +110,24 @@ def test_one_crawl_loop_moves_the_standup_forward(tmp_path):
     assert result.exit_code == 0, result.output
     moved = json.loads((tmp_path / "run" / "summary.json").read_text())["locomotion"][0]
     assert 0.05 < moved["distance_m"] < 0.15 and moved["heading_error_deg"] < 15.0
+
+
+def test_the_squirm_steers_by_turning_its_planted_end_leg_against_the_body(tmp_path):
+    """The gait loop's turn (issue 31) moves only the planted end leg of each squirm step
+    (its foot grips, so the body pivots on it): the held stem strut and the free half keep
+    their goal vectors."""
+    actions = prepare_run(RunRequest(robot="freesn", scenario="fig19-squirm",
+                                     out=tmp_path / "run", log=False)).run.plan.actions
+    for action in [a for a in actions if a.behavior is not None][:2]:
+        tree, goal = action.kinematic_tree, action.target
+        turned = turned_goal(goal, tree, np.radians(6.0))
+        moved = {e.id for e in goal.edges()
+                 if not np.allclose(e.z, turned.edge(e.id).z, atol=1e-12)}
+        assert moved == {e for n in tree.nodes if n.planted for e in n.edges}
+        (edge,) = moved
+        before, after = goal.edge(edge).z, turned.edge(edge).z
+        turn = np.arctan2(after[1], after[0]) - np.arctan2(before[1], before[0])
+        assert np.degrees(turn) == pytest.approx(-6.0)
 
 
 def test_fig19_squirm_alternates_the_held_half(tmp_path):

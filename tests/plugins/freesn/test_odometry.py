@@ -217,3 +217,23 @@ def test_a_node_spinning_through_upside_down_keeps_its_heading_under_tilt_noise(
         worst = max(worst, float(np.linalg.norm(Rotation.from_matrix(estimate.T @ true)
                                                 .as_rotvec())))
     assert math.degrees(worst) < 10.0
+
+
+def test_the_gyro_heading_takes_each_stamped_reading_once():
+    """Issue 32 over the module link: a node turning about the vertical at 0.8 rad/s,
+    reported with its delta-angle counter and stamp. A report the host holds (the same
+    stamp at the next tick) turns the heading by nothing, not by its rate again; the next
+    report after one missed turns it by both steps, as the counter says: the heading
+    stays the true one throughout."""
+    rate, dt = 0.8, 0.1
+    odometry = FreeSNRecognizer().estimator()
+    reports = []
+    for k in range(4):
+        true = rot_z(rate * k * dt)
+        reports.append(NodeReport(true, {}, np.array([0.0, 0.0, rate]), turned=true,
+                                  stamp=round(k * dt, 9), step=dt if k else 0.0))
+    odometry._turn({"N0": reports[0]}, 0.0)
+    odometry.yaw["N0"] = 0.0                       # first seen: its heading given
+    for k, time_step in ((1, dt), (1, dt), (1, dt), (3, dt)):   # held twice, 2 missed
+        odometry._turn({"N0": reports[k]}, time_step)
+        assert odometry.yaw["N0"] == pytest.approx(rate * k * dt, abs=1e-9)

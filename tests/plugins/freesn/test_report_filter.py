@@ -13,10 +13,12 @@ import pytest
 from freesn_filter_reference import ReportFilter as Reference
 from scipy.spatial.transform import Rotation
 
+from msrr.core.alignment import rot_z
 from msrr.core.app.run import RunRequest, execute_run, prepare_run
 from msrr.core.configuration import Configuration
 from msrr.core.driver import Observation
 from msrr.core.errors import ExecutionError
+from msrr.core.freeform.mujoco import yaw_of
 from msrr.core.library import load_library
 from msrr.plugins.freesn.sim import FreeSNMujocoDriver
 from msrr.plugins.freesn.sim.controller import FreeSNController
@@ -199,3 +201,99 @@ def test_the_batched_filter_estimates_what_the_per_item_filter_did(tmp_path, mon
     assert result.docks == 1
     assert twins and sum(t.filtered for t in twins) > 20
     assert max(t.worst for t in twins) < 1e-9
+
+
+def _turning_node(rates: list[np.ndarray], step: float = 0.1) -> list[NodeReport]:
+    """One node turning at ``rates[k]`` [rad/s, node frame] through step ``k``, from a
+    tilted start: its reports after each step (the first at time 0), tilts exact,
+    ``gyro`` the step's rate, ``turned`` their product, stamped by the module's clock."""
+    start = Rotation.from_rotvec([0.1, -0.05, 0.3]).as_matrix()
+    acc = Accuracy(angle=NOISE, gyro_noise=2e-4, gyro_bias=5e-4, gyro_walk=1e-4)
+    turned, out = np.eye(3), []
+    for k, rate in enumerate([np.zeros(3), *rates]):
+        turned = turned @ Rotation.from_rotvec(rate * (step if k else 0.0)).as_matrix()
+        true = start @ turned
+        out.append(NodeReport(rot_z(-yaw_of(true)) @ true, {}, rate, acc, turned,
+                              round(k * step, 9), step if k else 0.0))
+    return out
+
+
+def _fed(reports: list[tuple[float, NodeReport]]) -> ReportFilter:
+    report_filter = ReportFilter()
+    for time, report in reports:
+        report_filter.update(Observation(time=time, sensors={"N1": report}))
+    return report_filter
+
+
+def test_a_report_delivered_twice_changes_nothing():
+    """Issue 32: over the link the host holds a module's last report until the next
+    arrives; the filter takes it again at the next tick. Its stamp says it is no new
+    reading: the node's estimate (attitude, bias, covariance) stays as it was, rather
+    than the held rate being integrated again and its tilt counted twice."""
+    r = _turning_node([np.array([0.3, -0.6, 1.2])])
+    once = _fed([(0.0, r[0]), (0.1, r[1])]).nodes["N1"]
+    twice = _fed([(0.0, r[0]), (0.1, r[1]), (0.2, r[1]), (0.3, r[1])]).nodes["N1"]
+    for field in ("rotation", "bias", "cov"):
+        np.testing.assert_array_equal(getattr(twice, field), getattr(once, field))
+
+
+def test_two_reports_with_one_missed_between_give_the_estimate_of_all_three():
+    """The second of three reports lost (or polled past): the third's delta-angle
+    counter against the first's gives the rotation of both steps, so the attitude is the
+    one all three give (and the truth: the tilts here are exact), not the last step's
+    rate integrated over the whole gap."""
+    rates = [np.array([0.3, -0.6, 1.2]), np.array([-0.9, 0.2, -0.4])]
+    r = _turning_node(rates)
+    every = _fed([(0.0, r[0]), (0.1, r[1]), (0.2, r[2])]).nodes["N1"]
+    missed = _fed([(0.0, r[0]), (0.2, r[2])]).nodes["N1"]
+    np.testing.assert_allclose(missed.rotation, every.rotation, atol=1e-9)
+    truth = Rotation.from_rotvec([0.1, -0.05, 0.3]).as_matrix() @ r[2].turned
+    yaw = yaw_of(truth) - yaw_of(every.rotation)   # the filter's heading starts at 0
+    np.testing.assert_allclose(rot_z(yaw) @ every.rotation, truth, atol=1e-9)
+    np.testing.assert_allclose(missed.bias, every.bias, atol=1e-12)
+
+
+def test_the_simulated_node_gyro_counts_its_rates_with_the_module_clock():
+    """A noisy S6N3 swinging a leg: each node report's ``turned`` is the last one times
+    the rotation of its ``gyro`` over its ``step``, stamped with the simulator's time."""
+    controller = FreeSNController()
+    with FreeSNMujocoDriver(noise=NOISE, slip=0.10, seed=11) as driver:
+        driver.reset(_library_config("S6N3-2.2"))
+        before = driver.get_observation()
+        for _ in range(5):
+            driver.send_action(controller.commands(_library_config("S6N3-2.3"), before))
+            driver.step(0.1)
+            after = driver.get_observation()
+            for node, report in after.sensors.items():
+                if not isinstance(report, NodeReport):
+                    continue
+                assert report.stamp == after.time and report.step == pytest.approx(0.1)
+                step = Rotation.from_rotvec(report.gyro * report.step).as_matrix()
+                np.testing.assert_allclose(report.turned, before.sensors[node].turned @ step,
+                                           atol=1e-12)
+            before = after
+    assert any(np.abs(r.gyro).max() > 0.05 for r in after.sensors.values()
+               if isinstance(r, NodeReport))   # the nodes did turn
+
+
+def test_a_held_observation_moves_no_connector():
+    """The whole observation delivered again at the next tick (the host heard no module):
+    no node report is new, so no localisation is read again and every filtered report --
+    tilts, connector directions, strut attitudes -- is what it was (to the rounding of
+    the encoders' unchanged count turned by itself)."""
+    with FreeSNMujocoDriver(noise=NOISE, slip=0.10, seed=11) as driver:
+        driver.reset(_library_config("S6N3-2.2"))
+        first = driver.get_observation()
+        driver.step(0.1)
+        second = driver.get_observation()
+    report_filter = ReportFilter()
+    report_filter.update(first)
+    fresh = report_filter.update(second)
+    held = report_filter.update(replace(second, time=second.time + 0.1))
+    for module, report in fresh.sensors.items():
+        again = held.sensors[module]
+        arrays = [("tilt", report.tilt, again.tilt)] + [
+            (f"{name} {k}", v, getattr(again, name)[k]) for name in ("connectors", "attitude")
+            for k, v in getattr(report, name, {}).items()]
+        for what, a, b in arrays:
+            np.testing.assert_allclose(b, a, atol=1e-12, err_msg=f"{module} {what}")
