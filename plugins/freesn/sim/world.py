@@ -634,14 +634,18 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             # its free end's wheels, or the leg of a foot (a leaf node), which would
             # otherwise let the foot roll sideways by twisting the leg; a strut in a loop
             # follows its other end's pull
-            other = self.docked[self._end_index[(strut, "b" if end == "a" else "a")]]
+            far = self._end_index[(strut, "b" if end == "a" else "a")]
+            other = self.docked[far]
             leaf = other is None or self.docked.count(other) == 1
             keep = leaf and self._has_target[k] and not self._wheel[k]
+            level = None
+            if keep and other is None and self._wheel[far]:   # rolling on its free wheels
+                level = _level(self._sign[k] * want, to_node @ _EZ, self._target[k][:, 1])
             if keep:   # turned about the vertical first, its twist is kept to the world's
                 kept = self._target[k]
                 current = _about(to_node @ _EZ, kept @ u, want) @ kept
             have = current @ u
-            self._target[k] = _minimal(have, want) @ current
+            self._target[k] = _minimal(have, want) @ current if level is None else level
             self._twist_free[k] = not keep   # else the turns on the way set its twist
         else:
             self._target[k] = _frame(self._sign[k] * want, to_node @ forward)
@@ -1408,6 +1412,24 @@ def _about(axis: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
         return np.eye(3)
     angle = np.arctan2(np.dot(axis, np.cross(pv, pw)), np.dot(pv, pw))
     return Rotation.from_rotvec(axis * angle).as_matrix()
+
+
+def _level(z: np.ndarray, up: np.ndarray, near: np.ndarray) -> np.ndarray | None:
+    """Rotation (3, 3) with columns ``y x z``, ``y``, ``z``: unit ``z`` the strut's axis
+    and ``y``, its wheels' axle, level (perpendicular to unit ``up``), on ``near``'s side;
+    ``None`` where ``z`` lies within ``_AZIMUTH_FROM`` of the vertical (no level axle
+    is defined there).
+
+    A leaf strut driving on its free connector's wheels holds their axle level: then they
+    roll along the leg's vertical plane, as the wheel behaviors' gains assume (S4N1's
+    ``strut-wheels``: legs at any azimuth, their axles tangential, Fig. 18(d)), whatever
+    twist the leg was built with or the turns on the way would give it (issue 31)."""
+    y = np.cross(up, z)
+    norm = np.linalg.norm(y)
+    if norm < _AZIMUTH_FROM:
+        return None
+    y = y / norm if np.dot(y, near) >= 0.0 else -y / norm
+    return np.column_stack([np.cross(y, z), y, z])
 
 
 def _frame(z: np.ndarray, x: np.ndarray) -> np.ndarray:
