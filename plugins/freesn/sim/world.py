@@ -157,6 +157,7 @@ _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is level
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
 _LEVEL_STEP = np.radians(5.0)   # ... and at most this much (issue 31, fig18's hub)
 _AZIMUTH_FROM = np.sin(np.radians(10.0))  # a direction nearer the vertical has no azimuth
+_AXLE_LEVEL = np.sin(np.radians(10.0))  # a free wheel pair's axle this near level is levelled
 
 
 @dataclass(frozen=True)
@@ -633,7 +634,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             # that rotation) rather than the one it was pushed to: the morphology of
             # its free end's wheels, or the leg of a foot (a leaf node), which would
             # otherwise let the foot roll sideways by twisting the leg; a strut in a loop
-            # follows its other end's pull
+            # follows its other end's pull. A leaf strut rolling on its free end's wheels
+            # holds their axle level (:func:`_level`), not the twist it was built with
             far = self._end_index[(strut, "b" if end == "a" else "a")]
             other = self.docked[far]
             leaf = other is None or self.docked.count(other) == 1
@@ -1416,17 +1418,20 @@ def _about(axis: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 def _level(z: np.ndarray, up: np.ndarray, near: np.ndarray) -> np.ndarray | None:
     """Rotation (3, 3) with columns ``y x z``, ``y``, ``z``: unit ``z`` the strut's axis
-    and ``y``, its wheels' axle, level (perpendicular to unit ``up``), on ``near``'s side;
-    ``None`` where ``z`` lies within ``_AZIMUTH_FROM`` of the vertical (no level axle
-    is defined there).
+    and ``y``, its wheels' axle, level (perpendicular to unit ``up``), on the side of
+    unit ``near`` (the axle now); ``None`` where ``z`` lies within ``_AZIMUTH_FROM`` of
+    the vertical (no level axle is defined there) or ``near`` is more than
+    ``_AXLE_LEVEL`` off level (a pair built to ride tilted: S6N3's tripod legs, 27-45
+    deg).
 
-    A leaf strut driving on its free connector's wheels holds their axle level: then they
-    roll along the leg's vertical plane, as the wheel behaviors' gains assume (S4N1's
-    ``strut-wheels``: legs at any azimuth, their axles tangential, Fig. 18(d)), whatever
-    twist the leg was built with or the turns on the way would give it (issue 31)."""
+    A leaf strut driving on its free connector's wheels, both on the floor, holds their
+    axle level: then they roll along the leg's vertical plane, as S4N1's ``strut-wheels``
+    gains assume (legs at any azimuth, their axles tangential, Fig. 18(d)), whatever twist
+    the leg was built with (a few degrees off) or the turns on the way would give it; a
+    kept twist turned those degrees of axle into tens of degrees of course (issue 31)."""
     y = np.cross(up, z)
     norm = np.linalg.norm(y)
-    if norm < _AZIMUTH_FROM:
+    if norm < _AZIMUTH_FROM or abs(np.dot(near, up)) > _AXLE_LEVEL:
         return None
     y = y / norm if np.dot(y, near) >= 0.0 else -y / norm
     return np.column_stack([np.cross(y, z), y, z])

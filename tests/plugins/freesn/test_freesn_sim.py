@@ -757,3 +757,20 @@ def test_a_leg_rolling_on_its_free_wheels_holds_their_axle_level():
         axle = world._target[k][:, 1]   # the strut's y in the node frame
         assert abs(np.dot(axle, to_node @ [0.0, 0.0, 1.0])) < 1e-9   # level
         assert abs(np.dot(axle, to_node @ turned)) < 1e-9   # across the leg: tangential
+
+
+def test_a_leg_whose_free_wheels_ride_tilted_keeps_its_twist():
+    """A wheel pair built to ride with its axle tilted (S6N3's tripod legs: 27-45 deg
+    off level) is not levelled while it drives: it keeps the twist it was built with."""
+    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
+    edge = start.edge("S1")
+    twisted = Rotation.from_rotvec(np.radians(40.0) * edge.z).as_matrix() @ edge.x
+    world = FreeSNWorld(start.with_vectors(x={"S1": twisted}), SPEC, SimOptions())
+    k = world.ends.index(("S1", "a"))
+    aim = world.ground_truth(world.docked[k]).edge("S1").z
+    world.command_target("S1", "a", (aim, None, 1.0))
+    built = world._target[k][:, 1].copy()
+    world.command_wheels("S1", "b", 5.0)
+    world.command_target("S1", "a", (aim, None, 1.0))
+    assert abs(built[2]) > np.sin(np.radians(15.0))   # tilted as built ...
+    assert np.allclose(world._target[k][:, 1], built, atol=1e-9)   # ... and kept
