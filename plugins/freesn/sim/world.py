@@ -156,7 +156,7 @@ _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin l
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
 _LEVEL_STEP = np.radians(5.0)   # ... and at most this much (issue 31, fig18's hub)
-_AZIMUTH_FROM = np.sin(np.radians(10.0))  # a direction nearer the vertical has no azimuth
+_AZIMUTH_FROM = np.sin(np.radians(10.0))  # a leg nearer the vertical has no level axle
 _AXLE_LEVEL = np.sin(np.radians(10.0))  # a free wheel pair's axle this near level is levelled
 
 
@@ -643,10 +643,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             level = None
             if keep and other is None and self._wheel[far]:   # rolling on its free wheels
                 level = _level(self._sign[k] * want, to_node @ _EZ, self._target[k][:, 1])
-            if keep:   # a free leg: turned about the vertical first, kept to the world's
-                kept = self._target[k]
-                current = kept if other is not None else \
-                    _about(to_node @ _EZ, kept @ u, want) @ kept
+            if keep:
+                current = self._target[k]
             have = current @ u
             self._target[k] = _minimal(have, want) @ current if level is None else level
             self._twist_free[k] = not keep   # else the turns on the way set its twist
@@ -1396,27 +1394,6 @@ def _minimal(v: np.ndarray, w: np.ndarray) -> np.ndarray:
         perp = np.cross(v, [1.0, 0, 0] if abs(v[0]) < 0.9 else [0, 1.0, 0])
         return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
     return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
-
-
-def _about(axis: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Rotation (3, 3) about unit ``axis`` taking unit ``v``'s azimuth about it onto unit
-    ``w``'s; the identity where either lies within ``_AZIMUTH_FROM`` of the axis (its
-    azimuth is not defined there).
-
-    A free leg's connector (a leaf strut with a free end) keeps its twist through a turn
-    as this rotation about the vertical followed by the minimal one in the vertical
-    plane, not as the minimal one alone: minimal rotations compose into a turn about the
-    strut's own axis as large as the solid angle its path encloses (65 deg per turn round
-    the vertical at 55 deg down), so a leg whose node spun under it (S4N1's strut wheels
-    under noise) twisted its wheels off their course. A foot's leg (on a leaf node)
-    composes minimal rotations as before (with the turn first, the exact fig18 node
-    wheels went 2.047 -> 2.036 m)."""
-    pv, pw = v - np.dot(v, axis) * axis, w - np.dot(w, axis) * axis
-    nv, nw = np.linalg.norm(pv), np.linalg.norm(pw)
-    if min(nv, nw) < _AZIMUTH_FROM:
-        return np.eye(3)
-    angle = np.arctan2(np.dot(axis, np.cross(pv, pw)), np.dot(pv, pw))
-    return Rotation.from_rotvec(axis * angle).as_matrix()
 
 
 def _level(z: np.ndarray, up: np.ndarray, near: np.ndarray) -> np.ndarray | None:
