@@ -460,14 +460,18 @@ class StallWatch:
 
 def heading_loop(call: BehaviorCall | None, heading: float | None,
                  options: ExecutorOptions) -> HeadingLoop | None:
-    """The heading loop of a mapping behavior that has a ``yaw_rate`` gain, starting at
-    ``heading`` [rad]; ``None`` when it has none or the heading is not known."""
+    """The heading loop of a mapping behavior that has a ``yaw_rate`` gain or
+    :func:`slides`, starting at ``heading`` [rad]; ``None`` when it has neither or the
+    heading is not known. A behavior that cannot turn (radial strut wheels) gets a loop
+    bound to no correction: :func:`steered` holds its direction by turning its travel."""
+    turns = call is not None and any(p == "yaw_rate" and g for c in call.commands
+                                     for p, g in c.gains)
     if call is None or call.kind != "mapping" or heading is None or options.heading_gain == 0 \
-            or not any(p == "yaw_rate" and g for c in call.commands for p, g in c.gains):
+            or not (turns or slides(call)):
         return None
     return HeadingLoop(heading, float(call.parameters.get("yaw_rate", 0.0)),
                        options.heading_gain, options.heading_integral,
-                       min(options.max_heading_correction, turn_bound(call)))
+                       min(options.max_heading_correction, turn_bound(call)) if turns else 0.0)
 
 
 def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions
@@ -558,11 +562,13 @@ def steered(call: BehaviorCall, loop: HeadingLoop, course: CourseLoop | None, he
     """The parameters of mapping behavior ``call`` at ``elapsed`` [s], the body's heading
     estimated at ``heading`` [rad] and its place at ``place`` [m] (shape (2,)): ``yaw_rate``
     corrected by ``loop``; the offset ``course`` sets turns the heading's reference, or,
-    for a call that :func:`slides`, its travel itself, the heading held (issue 31: the
-    node wheels turn the body at a thirtieth of the rate asked, every wheel scrubbing,
-    while a creep crosses the line; sliding, the travel turns at once)."""
+    for a call that :func:`slides`, its travel itself, turned back by as much as the body
+    turned, so it keeps its direction in the world (issue 31: the node wheels turn the
+    body at a thirtieth of the rate asked, every wheel scrubbing, while a creep crosses
+    the line; sliding, the travel turns at once; radial strut wheels cannot turn the
+    body at all, and with no place known have no course loop either)."""
     offset = 0.0 if course is None or place is None else course.offset(place)
-    if course is None or not slides(call):
+    if not slides(call):
         return {**call.parameters,
                 "yaw_rate": loop.asked + loop.correction(heading, elapsed, dt, offset)}
     correction = loop.correction(heading, elapsed, dt)

@@ -206,3 +206,35 @@ def test_sliding_turns_the_travel_asked_and_nothing_else():
     assert asked["yaw_rate"] == 0.1
     back = slid({"speed": -0.03, "sideways": 0.01}, math.pi)
     assert (back["speed"], back["sideways"]) == pytest.approx((0.03, -0.01))
+
+
+RADIAL = tuple(CommandGain(f"S{i + 1}", "wheel_speed",
+                           (("speed", math.cos(a)), ("sideways", math.sin(a))), connector="target")
+               for i, a in enumerate(np.radians([45.0, 135.0, 225.0, 315.0])))
+"""fig18(d)'s strut wheels: four radial wheels, no ``yaw_rate`` (they exert no yaw)."""
+
+
+def test_a_base_that_cannot_turn_keeps_its_travel_in_the_world_as_it_yaws():
+    """fig18(d)'s strut wheels at 2 deg of noise (issue 31): the body yaws by what the
+    floor does (here 0.5 deg/s) and nothing it can command turns it back; with no place
+    known there is no course loop. Its travel, turned back by the yaw the gyros measure,
+    keeps the direction asked in the world frame where the behavior began; a loop that
+    asked for a turn would ask for nothing the wheels carry out."""
+    call = BehaviorCall("strut-wheels", "mapping", {"speed": 0.03}, RADIAL, duration=60.0,
+                        direction=(1.0, 0.0, 0.0))
+    assert slides(call) and turn_bound(call) == math.inf
+    loop = heading_loop(call, 0.2, OPTIONS)
+    assert loop is not None and loop.bound == 0.0
+    place, psi, dt = np.zeros(2), 0.2, 0.1
+    for step in range(600):
+        asked = steered(call, loop, None, psi, None, step * dt, dt)
+        assert asked["yaw_rate"] == 0.0
+        wheels = np.array([command.value(asked) for command in call.commands])
+        body = np.linalg.lstsq(np.array([[math.cos(a), math.sin(a)] for a in
+                                         np.radians([45.0, 135.0, 225.0, 315.0])]),
+                               wheels, rcond=None)[0]           # the travel the wheels roll
+        place = place + dt * (rot_z(psi)[:2, :2] @ body)
+        psi += dt * math.radians(0.5)
+    assert math.degrees(psi - 0.2) > 25.0
+    assert np.linalg.norm(place) == pytest.approx(1.8, rel=1e-6)
+    assert abs(math.degrees(math.atan2(place[1], place[0]) - 0.2)) < 0.5

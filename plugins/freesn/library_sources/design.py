@@ -466,12 +466,16 @@ def s4n1() -> None:
     drive = []
     for i, az in enumerate(SPIDER):
         # free connector wheels, axle y tangential: +1 rad/s rolls the end radially
-        # outward by r; the body's speed v along x needs v cos(azimuth) of it (the
-        # tangential part slips). Radial wheels exert no yaw moment: no yaw_rate.
+        # outward by r; the body's velocity v needs v . e_r of it, v_x cos(azimuth) +
+        # v_y sin(azimuth) (the tangential part slips). Radial wheels exert no yaw
+        # moment: no yaw_rate; a base that travels any way, so ``sideways``, which the
+        # executor turns the travel by to hold its direction in the world (issue 31).
+        a = math.radians(az)
         drive.append({"module": f"S{i + 1}", "command": "wheel_speed", "connector": "target",
-                      "gains": {"speed": round(math.cos(math.radians(az)) / R_WHEEL, 9)}})
+                      "gains": {"speed": round(math.cos(a) / R_WHEEL, 9),
+                                "sideways": round(math.sin(a) / R_WHEEL, 9)}})
     behaviors = [
-        {"name": "strut-wheels", "start": "spider-wheels", "parameters": ["speed"],
+        {"name": "strut-wheels", "start": "spider-wheels", "parameters": ["speed", "sideways"],
          "description": "Fig. 18(d)-(f): the leaf struts' wheels on the floor drive",
          "commands": drive},
         {"name": "struts-as-wheels", "start": "spider-rollers",

@@ -156,6 +156,8 @@ _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin l
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
 _LEVEL_STEP = np.radians(5.0)   # ... and at most this much (issue 31, fig18's hub)
+_AZIMUTH_FROM = np.sin(np.radians(10.0))  # a leg nearer the vertical has no level axle
+_AXLE_LEVEL = np.sin(np.radians(10.0))  # a free wheel pair's axle this near level is levelled
 
 
 @dataclass(frozen=True)
@@ -632,14 +634,19 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             # that rotation) rather than the one it was pushed to: the morphology of
             # its free end's wheels, or the leg of a foot (a leaf node), which would
             # otherwise let the foot roll sideways by twisting the leg; a strut in a loop
-            # follows its other end's pull
-            other = self.docked[self._end_index[(strut, "b" if end == "a" else "a")]]
+            # follows its other end's pull. A leaf strut rolling on its free end's wheels
+            # holds their axle level (:func:`_level`), not the twist it was built with
+            far = self._end_index[(strut, "b" if end == "a" else "a")]
+            other = self.docked[far]
             leaf = other is None or self.docked.count(other) == 1
             keep = leaf and self._has_target[k] and not self._wheel[k]
+            level = None
+            if keep and other is None and self._wheel[far]:   # rolling on its free wheels
+                level = _level(self._sign[k] * want, to_node @ _EZ, self._target[k][:, 1])
             if keep:
                 current = self._target[k]
             have = current @ u
-            self._target[k] = _minimal(have, want) @ current
+            self._target[k] = _minimal(have, want) @ current if level is None else level
             self._twist_free[k] = not keep   # else the turns on the way set its twist
         else:
             self._target[k] = _frame(self._sign[k] * want, to_node @ forward)
@@ -1387,6 +1394,27 @@ def _minimal(v: np.ndarray, w: np.ndarray) -> np.ndarray:
         perp = np.cross(v, [1.0, 0, 0] if abs(v[0]) < 0.9 else [0, 1.0, 0])
         return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
     return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
+
+
+def _level(z: np.ndarray, up: np.ndarray, near: np.ndarray) -> np.ndarray | None:
+    """Rotation (3, 3) with columns ``y x z``, ``y``, ``z``: unit ``z`` the strut's axis
+    and ``y``, its wheels' axle, level (perpendicular to unit ``up``), on the side of
+    unit ``near`` (the axle now); ``None`` where ``z`` lies within ``_AZIMUTH_FROM`` of
+    the vertical (no level axle is defined there) or ``near`` is more than
+    ``_AXLE_LEVEL`` off level (a pair built to ride tilted: S6N3's tripod legs, 27-45
+    deg).
+
+    A leaf strut driving on its free connector's wheels, both on the floor, holds their
+    axle level: then they roll along the leg's vertical plane, as S4N1's ``strut-wheels``
+    gains assume (legs at any azimuth, their axles tangential, Fig. 18(d)), whatever twist
+    the leg was built with (a few degrees off) or the turns on the way would give it; a
+    kept twist turned those degrees of axle into tens of degrees of course (issue 31)."""
+    y = np.cross(up, z)
+    norm = np.linalg.norm(y)
+    if norm < _AZIMUTH_FROM or abs(np.dot(near, up)) > _AXLE_LEVEL:
+        return None
+    y = y / norm if np.dot(y, near) >= 0.0 else -y / norm
+    return np.column_stack([np.cross(y, z), y, z])
 
 
 def _frame(z: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -713,3 +713,44 @@ def test_the_ground_truth_is_in_the_world_frame_whatever_a_node_shell_does():
     after = world.ground_truth()
     for edge in before.edges():
         assert np.allclose(edge.z, after.edge(edge.id).z, atol=1e-9)
+
+
+def test_a_leg_rolling_on_its_free_wheels_holds_their_axle_level():
+    """A leaf strut driving on its free connector's wheels is commanded the design's
+    twist, its wheels' axle (the strut's y) level, hence tangential: S4N1's legs built 8
+    deg twisted off it (as built, the start file's legs are 5, 1, 2, -1 deg off) and
+    taken round the vertical end with their axles level; the kept twist held the 8 deg,
+    and the radial wheels drove the spider tens of degrees off its course (issue 31)."""
+    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
+    edge = start.edge("S1")
+    twisted = Rotation.from_rotvec(np.radians(8.0) * edge.z).as_matrix() @ edge.x
+    world = FreeSNWorld(start.with_vectors(x={"S1": twisted}), SPEC, SimOptions())
+    k = world.ends.index(("S1", "a"))
+    node = world.docked[k]
+    aim = world.ground_truth(node).edge("S1").z
+    world.command_target("S1", "a", (aim, None, 1.0))
+    world.command_wheels("S1", "b", 5.0)   # the free end's wheels drive
+    to_node = world._node_tilt(world._node_index[node])   # horizontal -> node frame
+    for step in range(0, 37):
+        turned = rot_z(np.radians(10.0 * step)) @ aim
+        world.command_target("S1", "a", (turned, None, 1.0))
+        axle = world._target[k][:, 1]   # the strut's y in the node frame
+        assert abs(np.dot(axle, to_node @ [0.0, 0.0, 1.0])) < 1e-9   # level
+        assert abs(np.dot(axle, to_node @ turned)) < 1e-9   # across the leg: tangential
+
+
+def test_a_leg_whose_free_wheels_ride_tilted_keeps_its_twist():
+    """A wheel pair built to ride with its axle tilted (S6N3's tripod legs: 27-45 deg
+    off level) is not levelled while it drives: it keeps the twist it was built with."""
+    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
+    edge = start.edge("S1")
+    twisted = Rotation.from_rotvec(np.radians(40.0) * edge.z).as_matrix() @ edge.x
+    world = FreeSNWorld(start.with_vectors(x={"S1": twisted}), SPEC, SimOptions())
+    k = world.ends.index(("S1", "a"))
+    aim = world.ground_truth(world.docked[k]).edge("S1").z
+    world.command_target("S1", "a", (aim, None, 1.0))
+    built = world._target[k][:, 1].copy()
+    world.command_wheels("S1", "b", 5.0)
+    world.command_target("S1", "a", (aim, None, 1.0))
+    assert abs(built[2]) > np.sin(np.radians(15.0))   # tilted as built ...
+    assert np.allclose(world._target[k][:, 1], built, atol=1e-9)   # ... and kept
