@@ -303,7 +303,8 @@ class DockCycle:
     place (:func:`aimed`, on the recognized configuration), and presses again, aimed the
     same way; and so on until the phase ends. The magnets stay armed throughout: a dock
     may come on the way in or out. A phase that docks within ``press_time`` never sees
-    anything but ``S_extr``.
+    anything but ``S_extr``, and one that docks no strut end (nothing to extrude or
+    aim: FreeBOT's and SnailBot's contacts) only ``S_conn``.
 
     Args:
         conn: ``S_conn`` of the phase.
@@ -315,6 +316,7 @@ class DockCycle:
     def __init__(self, conn: Configuration, made: tuple[ConnectionChange, ...],
                  options: TrackingOptions, start: float):
         self.conn, self.made, self.options = conn, made, options
+        self.struts = any(c.source_port in STRUT_ENDS for c in made)
         self.pressing = True
         self.since = start
         self.backoffs = 0
@@ -328,7 +330,8 @@ class DockCycle:
         """The new goal when the cycle turns at ``now`` [s], else ``None``; ``seen`` is
         the recognized configuration (the aim)."""
         o = self.options
-        if now - self.since < (o.press_time if self.pressing else o.back_time) - 1e-9:
+        if not self.struts or \
+                now - self.since < (o.press_time if self.pressing else o.back_time) - 1e-9:
             return None
         self.pressing = not self.pressing
         self.since = now

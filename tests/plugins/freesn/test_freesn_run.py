@@ -140,6 +140,8 @@ def test_a_dock_cycle_presses_then_backs_off_aimed_then_presses_again():
     again = cycle.update(16.0, conn)
     assert again is not None and cycle.pressing and again == aimed(extruded(conn, made, 0.1),
                                                                   conn, made)
+    contact = (ConnectionChange("T1", "B3", None, "X"),)   # not a strut end: nothing to aim
+    assert DockCycle(conn, contact, options, start=0.0).update(100.0, conn) is None
 
 
 def test_a_strut_aimed_off_its_node_backs_off_and_docks_re_aimed():
