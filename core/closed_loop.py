@@ -65,8 +65,8 @@ from .kinematics import (
 from .plan import ConnectionChange
 from .shape import skeletal_error
 
-__all__ = ["JointController", "PhaseTracker", "TrackingOptions", "connection_goal",
-           "extruded", "tree_for", "turned_goal"]
+__all__ = ["DockCycle", "JointController", "PhaseTracker", "TrackingOptions", "aimed",
+           "connection_goal", "extruded", "tree_for", "turned_goal"]
 
 
 @runtime_checkable
@@ -92,6 +92,10 @@ class TrackingOptions:
         reach_tolerance: a phase is reached when the recognized configuration is this
             close to its goal (RMS angle after yaw alignment) [rad].
         shrink: ``S_extr`` brings the merged nodes this fraction of a strut length closer.
+        press_time: a connect phase presses toward ``S_extr`` this long [s] before it
+            backs off and re-aims (:class:`DockCycle`).
+        back_time: how long it then holds the connector off the node [s].
+        stand_off: ... this fraction of a strut length farther than ``S_conn``.
         max_iterations: L-BFGS-B iterations of one tracking step (bounds the tick's time
             without a wall-clock budget, so runs are reproducible).
         ftol: L-BFGS-B relative objective tolerance of a tracking step. A tracking step
@@ -110,6 +114,9 @@ class TrackingOptions:
 
     reach_tolerance: float = float(np.radians(3.0))
     shrink: float = 0.1
+    press_time: float = 4.0
+    back_time: float = 2.0
+    stand_off: float = 0.05
     max_iterations: int = 30
     ftol: float = 1e-7
     initial_restarts: int = 8
@@ -158,28 +165,48 @@ def turned_goal(goal: Configuration, tree: KinematicTree, turn: float) -> Config
     return goal.with_vectors(z=z, x=x or None)
 
 
-def _chain(config: Configuration, strut: str, end: str, node: str
-           ) -> list[tuple[str, float]] | None:
-    """Edges (with the sign of their ``z`` along the way) from the strut's other end to
-    ``node``, avoiding the strut; ``None`` when there is no such path."""
+def _without(config: Configuration, strut: str, end: str) -> tuple[nx.MultiGraph, str]:
+    """The graph of ``config`` without ``strut``, and the strut's other end's node."""
     edge = config.edge(strut)
     base = edge.target if end == STRUT_ENDS[0] else edge.source
     graph = nx.MultiGraph()
     for e in config.edges():
         if e.id != strut:
             graph.add_edge(e.source, e.target, key=e.id)
+    return graph, base
+
+
+def _signed(config: Configuration, graph: nx.MultiGraph, path: list[str]
+            ) -> list[tuple[str, float]]:
+    """The edges along ``path`` (the first of parallel ones) with the sign of their ``z``."""
+    out = []
+    for u, w in zip(path, path[1:], strict=False):
+        key = min(graph[u][w])
+        out.append((key, 1.0 if config.edge(key).source == u else -1.0))
+    return out
+
+
+def _chain(config: Configuration, strut: str, end: str, node: str
+           ) -> list[tuple[str, float]] | None:
+    """Edges (with the sign of their ``z`` along the way) from the strut's other end to
+    ``node``, avoiding the strut; ``None`` when there is no such path."""
+    graph, base = _without(config, strut, end)
     if base not in graph or node not in graph:
         return None
     try:
         path = nx.shortest_path(graph, base, node)
     except nx.NetworkXNoPath:
         return None
-    out = []
-    for u, w in zip(path, path[1:], strict=False):
-        key = min(graph[u][w])
-        e = config.edge(key)
-        out.append((key, 1.0 if e.source == u else -1.0))
-    return out
+    return _signed(config, graph, path)
+
+
+def _chains(config: Configuration, strut: str, end: str, node: str
+            ) -> list[list[tuple[str, float]]]:
+    """Every shortest chain of :func:`_chain`."""
+    graph, base = _without(config, strut, end)
+    if base not in graph or node not in graph or not nx.has_path(graph, base, node):
+        return []
+    return [_signed(config, graph, path) for path in nx.all_shortest_paths(graph, base, node)]
 
 
 def _bent(vectors: np.ndarray, axis: np.ndarray, lam: float, *, total: bool = True
@@ -198,8 +225,10 @@ def extruded(conn: Configuration, made: tuple[ConnectionChange, ...], shrink: fl
     end to ``node`` sums (unit lengths) to ``D``. Each chain vector becomes
     ``normalise(z_i - lambda D/|D|)`` with ``lambda`` found by bisection so the chain's
     reach along ``D`` is ``|D| - shrink``: the merged nodes come ``shrink`` strut lengths
-    closer and the connector is pushed into the node. A chain of one edge cannot shorten
-    and is left as it is. Changes that are not strut ends are ignored.
+    closer and the connector is pushed into the node. A negative ``shrink`` lengthens the
+    chain instead (the connector held off the node: :class:`DockCycle`'s back-off). A
+    chain of one edge cannot shorten and is left as it is. Changes that are not strut
+    ends are ignored.
     """
     z = {e.id: np.array(e.z) for e in conn.edges() if e.z is not None}
     for change in made:
@@ -216,16 +245,100 @@ def extruded(conn: Configuration, made: tuple[ConnectionChange, ...], shrink: fl
         axis = reach / length
         goal = length - shrink
 
-        lo, hi = 0.0, 0.95  # below 1: a chain vector along D must not vanish
-        if _bent(vectors, axis, hi) @ axis > goal:
+        # below 1: a chain vector along D must not vanish; a negative shrink lengthens
+        lo, hi = (0.0, 0.95) if shrink >= 0 else (-0.95, 0.0)
+        if _bent(vectors, axis, hi) @ axis > goal \
+                or (shrink < 0 and _bent(vectors, axis, lo) @ axis < goal):
             continue
         for _ in range(50):
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if _bent(vectors, axis, mid) @ axis > goal else (lo, mid)
-        moved = _bent(vectors, axis, hi, total=False)
+        moved = _bent(vectors, axis, hi if shrink >= 0 else lo, total=False)
         for (e, s), v in zip(chain, moved, strict=True):
             z[e] = s * v
     return conn.with_vectors(z=z)
+
+
+def aimed(goal: Configuration, seen: Configuration, made: tuple[ConnectionChange, ...]
+          ) -> Configuration:
+    """``goal`` with each strut that docks aimed at its node's place in ``seen``.
+
+    The node's place is the sum of ``seen``'s chain from the strut's other end to the
+    node (unit struts, as :func:`extruded`), averaged over every shortest chain (in a
+    closed structure they differ by the recognition's errors only), turned into ``goal``'s frame by the yaw that
+    aligns ``seen`` with ``goal`` over the other edges (eq. 8). A structure that sits a few
+    degrees off the library shape moves the node off the goal's strut direction, and at a
+    strut length that is millimetres: enough to land the magnet askew on the shell.
+    """
+    docking = {c.source for c in made if c.source_port in STRUT_ENDS}
+    rest = [e.id for e in goal.edges()
+            if e.id not in docking and e.z is not None and seen.edge(e.id).z is not None]
+    if not docking or not rest:
+        return goal
+    back = rot_z(-align_yaw(seen.vectors(rest), goal.vectors(rest)).theta)
+    z = {e.id: np.array(e.z) for e in goal.edges() if e.z is not None}
+    for change in made:
+        if change.source_port not in STRUT_ENDS or change.source not in z:
+            continue
+        chains = _chains(seen, change.source, change.source_port, change.target)
+        if not chains:
+            continue
+        reach = np.mean([sum(s * np.asarray(seen.edge(e).z) for e, s in chain)
+                         for chain in chains], axis=0)
+        length = float(np.linalg.norm(reach))
+        if length > 1e-9:   # z runs from the strut's a end to its b end
+            sign = 1.0 if change.source_port == STRUT_ENDS[1] else -1.0
+            z[change.source] = sign * back @ (reach / length)
+    return goal.with_vectors(z=z)
+
+
+class DockCycle:
+    """The goals of a connect phase over time: press, and back off to re-aim when no dock
+    came (section 4.1's ``S_extr``, with a retry loop the paper leaves to the hardware).
+
+    The phase presses toward ``S_extr`` (``extruded(conn, made, shrink)``) for
+    ``press_time``. A magnet that landed askew does not dock, and pressing an end onto a
+    sphere off its centre only slides it farther off (fig22's R6 under noise: 12 deg askew
+    at 16 N, then 35 deg). Then it backs off for ``back_time``: the chain lengthened by
+    ``stand_off`` (the end clear of the shell) and the strut aimed at the node's measured
+    place (:func:`aimed`, on the recognized configuration), and presses again, aimed the
+    same way; and so on until the phase ends. The magnets stay armed throughout: a dock
+    may come on the way in or out. A phase that docks within ``press_time`` never sees
+    anything but ``S_extr``, and one that docks no strut end (nothing to extrude or
+    aim: FreeBOT's and SnailBot's contacts) only ``S_conn``.
+
+    Args:
+        conn: ``S_conn`` of the phase.
+        made: the connections the phase makes.
+        options: ``shrink``, ``press_time``, ``back_time``, ``stand_off``.
+        start: driver time the phase began [s].
+    """
+
+    def __init__(self, conn: Configuration, made: tuple[ConnectionChange, ...],
+                 options: TrackingOptions, start: float):
+        self.conn, self.made, self.options = conn, made, options
+        self.struts = any(c.source_port in STRUT_ENDS for c in made)
+        self.pressing = True
+        self.since = start
+        self.backoffs = 0
+
+    @property
+    def goal(self) -> Configuration:
+        """The phase's first goal, ``S_extr``."""
+        return extruded(self.conn, self.made, self.options.shrink)
+
+    def update(self, now: float, seen: Configuration) -> Configuration | None:
+        """The new goal when the cycle turns at ``now`` [s], else ``None``; ``seen`` is
+        the recognized configuration (the aim)."""
+        o = self.options
+        if not self.struts or \
+                now - self.since < (o.press_time if self.pressing else o.back_time) - 1e-9:
+            return None
+        self.pressing = not self.pressing
+        self.since = now
+        self.backoffs += not self.pressing
+        shrink = o.shrink if self.pressing else -o.stand_off
+        return aimed(extruded(self.conn, self.made, shrink), seen, self.made)
 
 
 def tree_for(topology: Configuration, given: object, joint_mode: type | None
@@ -272,6 +385,7 @@ class PhaseTracker:
         self._since = 0
         self._error = np.inf
         self._z: dict[str, np.ndarray] = {}
+        self.seen: Configuration | None = None
         self.last: IKSolution | None = None
         self.explorations = 0
 
@@ -316,7 +430,7 @@ class PhaseTracker:
     def _smoothed(self, current: Configuration) -> Configuration:
         """``current`` with each edge's ``z`` low-passed over the ticks (factor
         ``smoothing``): white recognition noise averages out of the reaching test, which
-        otherwise never passes at 18 modules under 2 deg of noise."""
+        otherwise never passes at 18 modules under 2 deg of noise. Kept as :attr:`seen`."""
         a = self.options.smoothing
         z = {}
         for e in current.edges():
@@ -327,7 +441,8 @@ class PhaseTracker:
             flat = v.ravel(order="K")   # np.linalg.norm's own arithmetic, its layers aside
             z[e.id] = v / math.sqrt(flat.dot(flat))
         self._z = z
-        return current.with_vectors(z=z)
+        self.seen = current.with_vectors(z=z)
+        return self.seen
 
     @property
     def error(self) -> float:

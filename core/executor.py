@@ -100,11 +100,11 @@ from .actions import TopologyDiff, flow_move, topology_diff
 from .alignment import rot_z, wrap_angle
 from .capabilities import Recognizer
 from .closed_loop import (
+    DockCycle,
     JointController,
     PhaseTracker,
     TrackingOptions,
     connection_goal,
-    extruded,
     tree_for,
     turned_goal,
 )
@@ -629,6 +629,7 @@ class Executor:
         self._current: Configuration | None = None
         self._expected: set = set()
         self._tracker: PhaseTracker | None = None
+        self._docking: DockCycle | None = None  # a tracked connect phase's press/back cycle
         self.sink: EventSink = sink or NoEvents()
         self._joint_mode: type | None = None
         self._registered = dict(controllers or {})
@@ -856,14 +857,14 @@ class Executor:
             return True
         current = self._recognize(observation)
         conn = connection_goal(current, action.target)
-        if phase is Phase.CONNECT and self._tracker is not None and not retry:
-            self._tracker.set_goal(turned_goal(
-                extruded(conn, diff.made, self.options.tracking.shrink), self._tracker.tree,
-                self._turn))
-            return True
-        goal = conn
+        self._docking = None
         if phase is Phase.CONNECT:
-            goal = extruded(conn, diff.made, self.options.tracking.shrink)
+            self._docking = DockCycle(conn, diff.made, self.options.tracking, self.driver.time)
+        if phase is Phase.CONNECT and self._tracker is not None and not retry:
+            self._tracker.set_goal(turned_goal(self._docking.goal, self._tracker.tree,
+                                               self._turn))
+            return True
+        goal = conn if self._docking is None else self._docking.goal
         tree = tree_for(current, action.kinematic_tree, self._joint_mode)
         if tree is None:
             self._tracker = None
@@ -873,6 +874,17 @@ class Executor:
         self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
                                      ground=ground, median_yaw=self.run.spec.defaults.median_yaw)
         return True
+
+    def _redock(self, configuration: Configuration) -> None:
+        """A connect phase's goal as its :class:`DockCycle` turns (press, back off, re-aim
+        at the recognized configuration, low-passed)."""
+        if self._docking is None or self._tracker is None:
+            return
+        seen = self._tracker.seen
+        goal = self._docking.update(self.driver.time,
+                                    configuration if seen is None else seen)
+        if goal is not None:
+            self._tracker.set_goal(turned_goal(goal, self._tracker.tree, self._turn))
 
     def _controller_for(self, name: str) -> JointController:
         """The joint controller registered as ``name``, else the executor's own."""
@@ -915,6 +927,7 @@ class Executor:
         if self._tracks(action) and phase is Phase.RELEASE:  # the controller's undocks only
             control = _undocks(self.controller.control(action, phase, observation))
         elif self._tracker is not None:
+            self._redock(configuration)
             control = self._track(configuration, observation)
         elif phase is Phase.BEHAVIOR:  # nothing holds the shape: the behavior's commands only
             control = Control()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +18,10 @@ from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.app.cli import get_cli
 from msrr.core.app.feasibility import FAULT_CHECK_PERIOD, default_runner, run_edge, tilted_error
 from msrr.core.closed_loop import (
+    DockCycle,
     PhaseTracker,
     TrackingOptions,
+    aimed,
     connection_goal,
     extruded,
     tree_for,
@@ -85,6 +88,78 @@ def test_extruded_leaves_a_one_edge_chain_alone():
     conn.connect("N1", "S2:b", id="S2", kind="strut", z=[1.0, 0.0, 0.0])
     extr = extruded(conn, (ConnectionChange("S2", "N2", "b"),), 0.1)
     assert all(np.allclose(extr.edge(e).z, conn.edge(e).z) for e in conn.edge_ids())
+
+
+def test_extruded_with_a_negative_shrink_holds_the_merged_nodes_apart():
+    case = _case("S12N6:S12N6-5.2->S12N6-4.3")      # fig22's R6 re-dock: a chain of 2
+    conn = connection_goal(case.start, case.target)
+    (change,) = case.action.changes
+    strut = conn.edge(change.source)
+    base = strut.target if change.source_port == "a" else strut.source
+    apart = _positions(extruded(conn, case.action.changes, -0.05), base)
+    before = _positions(conn, base)
+    d0 = np.linalg.norm(before[change.target] - before[base])
+    assert np.linalg.norm(apart[change.target] - apart[base]) == pytest.approx(d0 + 0.05,
+                                                                               abs=1e-6)
+
+
+def test_aimed_points_a_docking_strut_at_its_node_where_it_is_seen():
+    """R6 docks on T1 from B3. A goal that aims R6 4 deg off T1 (the structure sits off
+    the library shape) is re-aimed at T1's place in the seen configuration, which is the
+    library shape turned 30 deg about the vertical: along the library's R6, in the
+    goal's frame; every other edge is left alone."""
+    case = _case("S12N6:S12N6-5.2->S12N6-4.3")
+    conn = connection_goal(case.start, case.target)
+    made = case.action.changes
+    tilt = Rotation.from_rotvec([np.radians(4.0), 0.0, 0.0]).as_matrix()
+    missing = conn.with_vectors(z={e.id: tilt @ e.z if e.id == "R6" else e.z
+                                   for e in conn.edges()})
+    seen = conn.with_vectors(z={e.id: rot_z(0.5) @ e.z for e in conn.edges()})
+    goal = aimed(missing, seen, made)
+    where = _positions(conn, "B3")
+    want = (where["T1"] - where["B3"]) / np.linalg.norm(where["T1"] - where["B3"])
+    assert np.allclose(conn.edge("R6").z, want, atol=1e-6)     # the library aims at T1
+    assert np.allclose(goal.edge("R6").z, want, atol=1e-3)
+    assert all(np.allclose(goal.edge(e).z, missing.edge(e).z) for e in conn.edge_ids()
+               if e != "R6")
+
+
+def test_a_dock_cycle_presses_then_backs_off_aimed_then_presses_again():
+    case = _case("S12N6:S12N6-5.2->S12N6-4.3")
+    conn = connection_goal(case.start, case.target)
+    made = case.action.changes
+    options = TrackingOptions(press_time=4.0, back_time=2.0, stand_off=0.05)
+    cycle = DockCycle(conn, made, options, start=10.0)
+    assert cycle.goal == extruded(conn, made, 0.1)
+    assert cycle.update(13.9, conn) is None
+    back = cycle.update(14.0, conn)
+    assert back is not None and not cycle.pressing and cycle.backoffs == 1
+    where, before = _positions(back, "B3"), _positions(conn, "B3")
+    assert np.linalg.norm(where["T1"] - where["B3"]) > np.linalg.norm(before["T1"] - before["B3"])
+    assert cycle.update(15.9, conn) is None
+    again = cycle.update(16.0, conn)
+    assert again is not None and cycle.pressing and again == aimed(extruded(conn, made, 0.1),
+                                                                  conn, made)
+    contact = (ConnectionChange("T1", "B3", None, "X"),)   # not a strut end: nothing to aim
+    assert DockCycle(conn, contact, options, start=0.0).update(100.0, conn) is None
+
+
+def test_a_strut_aimed_off_its_node_backs_off_and_docks_re_aimed():
+    """Issue 31 (fig22's R6 under noise): the plan's target aims S5 4 deg (about the
+    vertical) off N1, as a structure that sits off the library shape does, so its magnet
+    lands askew (over 10 deg at the face) and S_extr's push slides it off the shell. Before:
+    no dock in 15 s; after, the connect phase backs off at ``press_time``, aims S5 at N1's
+    recognized place and docks."""
+    case = _case("S6N3:S6N3-2.3->S6N3-3.1")
+    target = case.action.target
+    off = target.with_vectors(z={e.id: rot_z(np.radians(4.0)) @ e.z if e.id == "S5" else e.z
+                                 for e in target.edges()})
+    case = replace(case, action=replace(case.action, target=off))
+    runner = default_runner("freesn", options=ExecutorOptions(action_timeout=15.0, retries=0),
+                            seed=3)
+    check = run_edge(case, runner)
+    assert check.feasible, check.reason
+    assert check.docks == 1 and check.shape_error_deg < 5.0
 
 
 def test_tracking_holds_fixed_nodes_at_their_goal_not_where_they_are_seen():
