@@ -278,6 +278,17 @@ def _let_go(config: Configuration, module: str, holder: str):
     return driver
 
 
+def _row_let_go_across(name: str):
+    """F1..F4 in a row held on F5 across its line, F4 let go of F5: the driver."""
+    config = Configuration("freebot", name=name)
+    for i in range(1, 6):
+        config.add_module(f"F{i}", "freebot")
+    for i in range(1, 4):
+        config.connect(f"F{i}", f"F{i + 1}", z=[1.0, 0.0, 0.0])
+    config.connect("F4", "F5", z=[0.0, 1.0, 0.0])
+    return _let_go(config, "F4", "F5")
+
+
 def _turn_then_drive(driver, piece: tuple[str, ...], ticks: int, settle: float = 0.0
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Turn ``piece`` in place at 0.2 rad/s for ``ticks`` of 0.1 s, hold still ``settle``
@@ -343,13 +354,7 @@ def test_a_straight_piece_keeps_its_line_after_a_turn_in_place():
     # along its line for 3 s it went 60 mm along and 54 mm across (42 deg off its line:
     # pieces-to-tree's F13-F16 drove 36 deg off and into F4-F5). Its root's magnet unit
     # now hangs as a pendulum (the keel) and holds the piece's roll: under 5 mm across
-    config = Configuration("freebot", name="turned")
-    for i in range(1, 6):
-        config.add_module(f"F{i}", "freebot")
-    for i in range(1, 4):
-        config.connect(f"F{i}", f"F{i + 1}", z=[1.0, 0.0, 0.0])
-    config.connect("F4", "F5", z=[0.0, 1.0, 0.0])
-    driver = _let_go(config, "F4", "F5")
+    driver = _row_let_go_across("turned")
     piece = ("F1", "F2", "F3", "F4")
     before, after = _turn_then_drive(driver, piece, 78, settle=1.0)
     moved = after.mean(axis=0) - before.mean(axis=0)
@@ -688,13 +693,7 @@ def _drive_with_keel_off(off: float) -> tuple[float, float]:
     """The row F1..F4 let go of F5 across its line, told 0.02 m/s along its line for 3 s,
     its keel F4's command turned by ``off`` [rad] (its unit's frame turned about the
     vertical): the line's turn [deg] and the centroid's motion across it [m], on ground truth."""
-    config = Configuration("freebot", name="keel")
-    for i in range(1, 6):
-        config.add_module(f"F{i}", "freebot")
-    for i in range(1, 4):
-        config.connect(f"F{i}", f"F{i + 1}", z=[1.0, 0.0, 0.0])
-    config.connect("F4", "F5", z=[0.0, 1.0, 0.0])
-    driver = _let_go(config, "F4", "F5")
+    driver = _row_let_go_across("keel")
     piece = ("F1", "F2", "F3", "F4")
     before = np.array([driver.world.centre(m)[:2] for m in piece])
     for _ in range(30):

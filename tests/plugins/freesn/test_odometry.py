@@ -105,12 +105,9 @@ def test_the_heading_loop_turns_back_toward_the_start_within_its_bound():
     assert asked.correction(math.pi - 0.05, 0.0, 0.1) == -0.5      # wraps: the short way
 
 
-def test_a_root_turned_over_takes_its_heading_from_the_upright_nodes():
-    """A node's heading (its twist about the vertical) is singular when it is turned over,
-    as the squirm's rolling root is; one report's noise there swung the estimate by
-    radians and the estimated place by 0.6 m (fig19-squirm, 2 deg + 5 %, seed 2). The
-    root then takes the median of its upright neighbours' headings less their relative
-    ones; an upright root keeps its own."""
+def _standing_odometry():
+    """The odometry after one update of S4N5 standing on its node wheels (hub ``N0``):
+    ``(odometry, reports, links, root, group)``."""
     library = load_library(FREESN / "libraries" / "S4N5.json")
     stand = library.sublibraries["S4N5"].behaviors["node-wheels"].start
     world = FreeSNWorld(load_configuration(FREESN / "configs" / "library" / f"{stand}.json"),
@@ -122,6 +119,16 @@ def test_a_root_turned_over_takes_its_heading_from_the_upright_nodes():
     odometry.update(Observation(0.0, reports, {}), configuration)
     root, links = "N0", links_of(reports)
     group = node_positions(configuration, root, STRUT.geometry["length"])
+    return odometry, reports, links, root, group
+
+
+def test_a_root_turned_over_takes_its_heading_from_the_upright_nodes():
+    """A node's heading (its twist about the vertical) is singular when it is turned over,
+    as the squirm's rolling root is; one report's noise there swung the estimate by
+    radians and the estimated place by 0.6 m (fig19-squirm, 2 deg + 5 %, seed 2). The
+    root then takes the median of its upright neighbours' headings less their relative
+    ones; an upright root keeps its own."""
+    odometry, reports, links, root, group = _standing_odometry()
     kept = dict(odometry.yaw)
     assert odometry._consensus(reports, links, root, group) == kept[root]   # upright
     odometry.yaw[root] = _wrap(kept[root] + 2.5)                          # a swung twist
@@ -135,17 +142,7 @@ def test_a_node_turning_past_upright_moves_a_turned_over_roots_heading_by_little
     ``(1 + cos tilt)^2``), so a node that tilts past :data:`UPRIGHT` leaves it smoothly:
     the circular median before jumped to another node's heading in one tick (+7 deg, the
     squirm at 2 deg + 5 %, seed 10) and kept the offset."""
-    library = load_library(FREESN / "libraries" / "S4N5.json")
-    stand = library.sublibraries["S4N5"].behaviors["node-wheels"].start
-    world = FreeSNWorld(load_configuration(FREESN / "configs" / "library" / f"{stand}.json"),
-                        SPEC, SimOptions())
-    reports = world.reports()
-    recognizer = FreeSNRecognizer()
-    odometry = recognizer.estimator()
-    configuration = recognizer.recognize(reports)
-    odometry.update(Observation(0.0, reports, {}), configuration)
-    root, links = "N0", links_of(reports)
-    group = node_positions(configuration, root, STRUT.geometry["length"])
+    odometry, reports, links, root, group = _standing_odometry()
     relative = node_headings(reports, links, root)
     odometry.tilt[root] = np.diag([1.0, -1.0, -1.0])                      # turned over
 
