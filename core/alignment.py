@@ -147,7 +147,9 @@ def median_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | Non
                near: float = 0.0) -> float | None:
     """The weighted median of the yaws [rad] that turn each column of ``z_target`` onto
     the same column of ``z`` about the vertical (shapes (3, n)), wrapped about ``near``;
-    ``None`` when no column has a horizontal part of at least :data:`FLAT` in both.
+    ``None`` when no column has a horizontal part of at least :data:`FLAT` in both. Where
+    the weights split exactly in half, the midpoint of the two middle yaws (with equal
+    weights, ``np.median``'s).
 
     Robust where eq. 8's least squares (:func:`align_yaw`) is not: while part of the
     vectors is far from its target, eq. 8's yaw turns the whole target part of the way
@@ -163,5 +165,9 @@ def median_yaw(z: np.ndarray, z_target: np.ndarray, *, weights: np.ndarray | Non
                        - near) + near
     order = np.argsort(turns, kind="stable")
     cumulative = np.cumsum(w[flat][order])
-    i = int(np.searchsorted(cumulative, 0.5 * cumulative[-1]))
-    return float(wrap_angle(float(turns[order][i])))
+    half = 0.5 * cumulative[-1]
+    i = int(np.searchsorted(cumulative, half))
+    ordered = turns[order]
+    middle = 0.5 * (ordered[i] + ordered[i + 1]) if cumulative[i] == half \
+        and i + 1 < len(ordered) else ordered[i]
+    return float(middle) if -np.pi <= middle < np.pi else float(wrap_angle(float(middle)))

@@ -33,7 +33,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from ..actions import flow_of, topology_diff
-from ..alignment import rot_z, wrap_angle
+from ..alignment import median_yaw, rot_z, wrap_angle
 from ..configuration import Configuration
 from ..control import Control
 from ..driver import ModuleCommand, Observation
@@ -202,21 +202,14 @@ def flow_direction(config: Configuration, module: str, old: str, new: str,
 def common_turn(current: Configuration, target: Configuration) -> float:
     """The turn [rad] about the vertical shared by most connections: the median over the
     connections of both (with a horizontal part) of the yaw from ``target``'s vector to
-    ``current``'s. Robust where the least-squares yaw of eq. 8 is not: while one module
-    still has far to go, the eq. 8 yaw would turn the whole goal part of the way towards
-    it, and every other module would start moving the wrong way."""
-    angles = []
-    for e in target.edges():
-        if e.z is None or e.id not in current.edge_ids():
-            continue
-        have, want = current.edge(e.id).z, e.z
-        if have is None or np.hypot(*have[:2]) < 0.2 or np.hypot(*want[:2]) < 0.2:
-            continue
-        angles.append(np.arctan2(have[1], have[0]) - np.arctan2(want[1], want[0]))
-    if not angles:
-        return 0.0
-    wrapped = (np.asarray(angles) + np.pi) % (2 * np.pi) - np.pi
-    return float(np.median(wrapped))
+    ``current``'s (:func:`~msrr.core.alignment.median_yaw`; 0 when none has one). Robust
+    where the least-squares yaw of eq. 8 is not: while one module still has far to go,
+    the eq. 8 yaw would turn the whole goal part of the way towards it, and every other
+    module would start moving the wrong way."""
+    ids = [e.id for e in target.edges() if e.z is not None and e.id in current.edge_ids()
+           and current.edge(e.id).z is not None]
+    turn = median_yaw(current.vectors(ids), target.vectors(ids)) if ids else None
+    return 0.0 if turn is None else turn
 
 
 def sucker_twist(current: Configuration, target: Configuration, module: str) -> float:

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from msrr.core.alignment import align_yaw, rot_z
+from msrr.core.alignment import align_yaw, median_yaw, rot_z, wrap_angle
 
 
 def _units(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -72,3 +72,26 @@ def test_near_keeps_the_local_minimum_it_starts_in() -> None:
     assert kept.cost == pytest.approx(cost(kept.theta))
     assert kept.cost < min(cost(kept.theta - 1e-3), cost(kept.theta + 1e-3))  # refined
     assert align_yaw(z, zt, weights=w, near=-1.5).theta == pytest.approx(best.theta)
+
+
+@pytest.mark.parametrize("seed", range(20))
+@pytest.mark.parametrize("n", [1, 2, 5, 8])
+def test_the_median_yaw_with_equal_weights_is_numpys_median_of_the_turns(seed: int,
+                                                                          n: int) -> None:
+    """With equal weights the weighted median is ``np.median`` of the wrapped turns, to
+    the bit (an even count: the midpoint of the two middle ones); a weight that outweighs
+    the rest decides alone."""
+    rng = np.random.default_rng(seed)
+    z, z_target = rng.normal(size=(3, n)), rng.normal(size=(3, n))
+    z /= np.linalg.norm(z, axis=0)
+    z_target /= np.linalg.norm(z_target, axis=0)
+    flat = (np.hypot(z[0], z[1]) >= 0.2) & (np.hypot(z_target[0], z_target[1]) >= 0.2)
+    turns = wrap_angle(np.arctan2(z[1], z[0]) - np.arctan2(z_target[1], z_target[0]))[flat]
+    got = median_yaw(z, z_target)
+    if not flat.any():
+        assert got is None
+        return
+    assert got == float(np.median(turns))
+    heavy = np.ones(n)
+    heavy[int(np.flatnonzero(flat)[0])] = 10.0 * n
+    assert median_yaw(z, z_target, weights=heavy) == pytest.approx(float(turns[0]))
