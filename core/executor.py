@@ -131,7 +131,7 @@ from .shape import skeletal_error, skeletal_errors
 __all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "GaitLoop", "HeadingLoop",
            "StallWatch", "behavior_commands", "course_loop", "gait_loop", "heading_loop",
            "ends_loop", "held_heading",
-           "phases_of", "slid", "slides", "steered", "turn_bound"]
+           "phases_of", "slid", "slides", "steered", "timed_step", "turn_bound"]
 
 
 @dataclass(frozen=True)
@@ -163,6 +163,16 @@ class ExecutorOptions:
             improved by less than ``stall_gain`` [rad] over this long [s of driver time]
             ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
             error's low-pass time constant [s].
+        gait_step_time: how long a *timed* gait step runs at most [s of driver time]: a
+            step of a sequence behavior whose stance differs from the one before it by less
+            than ``timed_step_size`` (RMS, eq. 8) ends when reached or after this long,
+            whichever is first. The reaching test cannot tell such a step from its start
+            under noise: the S12N6 trot's stances differ by 3.3 deg, and under 2 deg of
+            report noise its estimate stayed 3.4-4.5 deg from the goal while the stance
+            was held until the body sank (seeds 10-12 0/3, docs/freesn.md); with exact
+            reports its steps end at their first or second tick anyway. 0: no timed steps.
+        timed_step_size: see ``gait_step_time`` [rad]; the S4N5 crawl's and squirm's
+            steps (18.3, 26.1 deg) are not timed.
         settle_tolerance: a ``move`` that stalls on its last attempt with its estimated
             shape error (the watch's) under this [rad] is taken as reached, not failed
             (0: never): 5 deg, the judge's goal tolerance. FreeBOT pieces-to-tree's final
@@ -189,6 +199,8 @@ class ExecutorOptions:
     stall_window: float = 15.0
     stall_gain: float = math.radians(0.5)
     stall_time: float = 1.0
+    gait_step_time: float = 0.2
+    timed_step_size: float = math.radians(6.0)
     settle_tolerance: float = math.radians(5.0)
 
     def __post_init__(self) -> None:
@@ -203,6 +215,9 @@ class ExecutorOptions:
                  self.gait_gain, self.gait_integral, self.max_gait_turn)
         if min(loops) < 0:
             raise ExecutionError(f"heading and course gains and bounds must be >= 0, got {loops}")
+        if min(self.gait_step_time, self.timed_step_size) < 0:
+            raise ExecutionError("gait step time and timed step size must be >= 0, got "
+                                 f"{self.gait_step_time}, {self.timed_step_size}")
         if min(self.stall_window, self.stall_gain, self.settle_tolerance) < 0 \
                 or not self.stall_time > 0:
             raise ExecutionError("stall window, gain and settle tolerance must be >= 0 and its "
@@ -482,6 +497,18 @@ def gait_loop(call: BehaviorCall | None, heading: float | None, options: Executo
             or options.gait_gain == options.gait_integral == 0:
         return None
     return GaitLoop(heading, options.gait_gain, options.gait_integral, options.max_gait_turn)
+
+
+def timed_step(action: Action, before: Configuration, options: ExecutorOptions) -> float:
+    """How long [s] ``action`` may run when it is a *timed* gait step, else 0: a step of a
+    sequence behavior whose target is within ``options.timed_step_size`` (RMS, eq. 8) of
+    ``before``, the target of the action before it (:class:`ExecutorOptions`,
+    ``gait_step_time``)."""
+    call = action.behavior
+    if not options.gait_step_time or call is None or call.kind != "sequence":
+        return 0.0
+    near = skeletal_error(before, action.target) < options.timed_step_size
+    return options.gait_step_time if near else 0.0
 
 
 def ends_loop(actions: Sequence[Action], index: int) -> bool:
@@ -775,6 +802,9 @@ class Executor:
             if phase is Phase.BEHAVIOR and action.behavior is not None \
                     and action.behavior.duration is not None:
                 deadline = self.driver.time + action.behavior.duration + self.dt
+            timed = self._timed_step(index, action, phase)
+            if timed:
+                deadline = min(deadline, self.driver.time + timed)
             watch = self._stall_watch(phase)
             stalled = ""
             while self.driver.time < deadline - 1e-9 and not stalled:
@@ -782,6 +812,8 @@ class Executor:
                     return
                 if watch is not None:
                     stalled = watch.stalled(self._progress(), self.driver.time, self.dt)
+            if timed and not stalled:
+                return   # a timed gait step ends on its time (ExecutorOptions.gait_step_time)
         if stalled and self._settled(phase, watch):
             assert watch is not None and watch.error is not None
             self.result.settled.append(
@@ -795,6 +827,12 @@ class Executor:
             f"action {index + 1} ({action}) failed: phase {phase.value} did not finish within "
             f"{budget:g} s of driver time after {attempts} attempt(s)"
             + self._pending(phase, diff))
+
+    def _timed_step(self, index: int, action: Action, phase: Phase) -> float:
+        """The time bound [s] of ``action``'s ``move`` (:func:`timed_step`), else 0."""
+        if phase is not Phase.MOVE or index == 0:
+            return 0.0
+        return timed_step(action, self.run.plan.actions[index - 1].target, self.options)
 
     def _settled(self, phase: Phase, watch: StallWatch | None) -> bool:
         """A ``move`` stalled on its last attempt within ``settle_tolerance`` of its goal
