@@ -502,12 +502,13 @@ def gait_loop(call: BehaviorCall | None, heading: float | None, options: Executo
 def timed_step(action: Action, before: Configuration, options: ExecutorOptions) -> float:
     """How long [s] ``action`` may run when it is a *timed* gait step, else 0: a step of a
     sequence behavior whose target is within ``options.timed_step_size`` (RMS, eq. 8) of
-    ``before``, the target of the action before it (:class:`ExecutorOptions`,
-    ``gait_step_time``)."""
+    ``before``, the target of the action before it, both with connection vectors
+    (:class:`ExecutorOptions`, ``gait_step_time``)."""
     call = action.behavior
     if not options.gait_step_time or call is None or call.kind != "sequence":
         return 0.0
-    near = skeletal_error(before, action.target) < options.timed_step_size
+    step, angles, _ = skeletal_errors(before, action.target)
+    near = len(angles) > 0 and step < options.timed_step_size   # shapes with vectors only
     return options.gait_step_time if near else 0.0
 
 
@@ -829,8 +830,9 @@ class Executor:
             + self._pending(phase, diff))
 
     def _timed_step(self, index: int, action: Action, phase: Phase) -> float:
-        """The time bound [s] of ``action``'s ``move`` (:func:`timed_step`), else 0."""
-        if phase is not Phase.MOVE or index == 0:
+        """The time bound [s] of ``action``'s tracked ``move`` (:func:`timed_step`), else 0
+        (a controller's own path, as MMRP's moves, is never timed)."""
+        if phase is not Phase.MOVE or index == 0 or self._tracker is None:
             return 0.0
         return timed_step(action, self.run.plan.actions[index - 1].target, self.options)
 
