@@ -945,7 +945,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         are the plan: turn ``d``, roll ``b``, turn ``g``; ``d`` comes from ``E^T z``'s
         azimuth, taken in ``(-pi/2, pi/2]`` so a connector may roll backwards. Beyond
         ``_TURN_ON`` from its target a connector turns (``omega_z = k d``) and rolls as its
-        heading comes within ``_HEADING_GO`` (fully within ``_HEADING_OK``); nearer than
+        heading comes within ``_HEADING_GO`` (fully within ``_HEADING_OK``, where it stops
+        turning, its turn braked, so both wheels push the roll); nearer than
         ``_TURN_OFF`` it only rolls out the error along its heading and corrects its twist
         (the error's ``y`` and ``z`` components; ``x`` is left to the grip), unless the
         twist is free (a strut whose aim alone was commanded, or one whose other end's
@@ -994,7 +995,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         wheeling = self._wheel[ks] != 0.0
         roll = np.where(turning | wheeling,
                         swing * np.cos(heading) * np.where(wheeling, 1.0, gate), error[:, 1])
-        turn = np.where(turning, heading, twist)
+        # turning, a connector whose heading is within _HEADING_OK rolls and asks no turn
+        # (the firmware's 5 deg): its turn is braked and both wheels push the roll; a turn
+        # loop on the last degrees took one wheel's torque from a loaded roll (fig20's legs)
+        turn = np.where(turning, np.where(np.abs(heading) < _HEADING_OK, 0.0, heading), twist)
         still = self._stop(ks, np.hypot(swing, twist), wheeling)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
