@@ -997,8 +997,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                         swing * np.cos(heading) * np.where(wheeling, 1.0, gate), error[:, 1])
         # turning, a connector whose heading is within _HEADING_OK rolls and asks no turn
         # (the firmware's 5 deg): its turn is braked and both wheels push the roll; a turn
-        # loop on the last degrees took one wheel's torque from a loaded roll (fig20's legs)
-        turn = np.where(turning, np.where(np.abs(heading) < _HEADING_OK, 0.0, heading), twist)
+        # loop on the last degrees took one wheel's torque from a loaded roll (fig20's legs).
+        # Not an end of a strut driven at both (they turn as one, _common_turn)
+        alone = ~np.isin(ks ^ 1, ks)
+        aligned = alone & (np.abs(heading) < _HEADING_OK)
+        turn = np.where(turning, np.where(aligned, 0.0, heading), twist)
         still = self._stop(ks, np.hypot(swing, twist), wheeling)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
