@@ -240,8 +240,8 @@ def test_struts_as_wheels_legs_hold_their_aim_while_their_wheels_spin_them():
 
 
 def test_a_loaded_connector_rolling_on_its_heading_keeps_its_torque_for_the_roll():
-    """A connector whose heading is within the firmware's 5 deg of its way rolls and asks
-    its wheels for no turn (their turn braked), so both wheels push the roll: against a
+    """A connector whose heading is within 1 deg of its way rolls and asks its wheels for
+    no turn (their turn braked), so both wheels push the roll: against a
     rolling load of 0.6 of its torque and a twisting load of 0.3 of its wheels' friction
     couple it rolls 30 deg to its target within 1 s (< 1 deg left). Before, the turn loop
     held the heading with the wheels' torque, the roll stalled 17.6 deg short; fig20's
