@@ -151,6 +151,7 @@ _STILL_OFF = np.radians(0.6)  # ... until pushed this far off it
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
 _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
+_HEADING_HOLD = np.radians(1.0)  # ... and under which it stops turning, its turn braked
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
@@ -945,7 +946,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         are the plan: turn ``d``, roll ``b``, turn ``g``; ``d`` comes from ``E^T z``'s
         azimuth, taken in ``(-pi/2, pi/2]`` so a connector may roll backwards. Beyond
         ``_TURN_ON`` from its target a connector turns (``omega_z = k d``) and rolls as its
-        heading comes within ``_HEADING_GO`` (fully within ``_HEADING_OK``); nearer than
+        heading comes within ``_HEADING_GO`` (fully within ``_HEADING_OK``; within
+        ``_HEADING_HOLD`` it stops turning, its turn braked, so both wheels push the roll,
+        unless its strut is driven at both ends); nearer than
         ``_TURN_OFF`` it only rolls out the error along its heading and corrects its twist
         (the error's ``y`` and ``z`` components; ``x`` is left to the grip), unless the
         twist is free (a strut whose aim alone was commanded, or one whose other end's
@@ -994,7 +997,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         wheeling = self._wheel[ks] != 0.0
         roll = np.where(turning | wheeling,
                         swing * np.cos(heading) * np.where(wheeling, 1.0, gate), error[:, 1])
-        turn = np.where(turning, heading, twist)
+        # turning, a connector whose heading is within _HEADING_HOLD rolls and asks no turn:
+        # its turn is braked and both wheels push the roll; a turn loop on the last degree
+        # took one wheel's torque from a loaded roll (fig20's legs; at 5 deg the turn stopped
+        # so abruptly that a wheel overran its top speed). Not an end of a strut driven at
+        # both (they turn as one, _common_turn)
+        alone = ~np.isin(ks ^ 1, ks)
+        aligned = alone & (np.abs(heading) < _HEADING_HOLD)
+        turn = np.where(turning, np.where(aligned, 0.0, heading), twist)
         still = self._stop(ks, np.hypot(swing, twist), wheeling)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
