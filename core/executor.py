@@ -58,8 +58,10 @@ and the ``broken``/``made`` links with their ports.
   the loops left once it is covered (by the same estimate) are skipped
   (``RunResult.actions_skipped``). A sequence that states its direction has a heading
   loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
-  step but a loop's last has its goal turned about the planted feet
-  (:func:`~msrr.core.closed_loop.turned_goal`).
+  step but the behavior's first has its goal turned about the planted feet
+  (:func:`~msrr.core.closed_loop.turned_goal`), and a gait that stops after a turned
+  loop's last step takes that step again unturned (:func:`settles`), so it stands in its
+  designed stance.
 
 The executor judges nothing and reads only :class:`~msrr.core.driver.Observation`:
 module reports, never a simulator's poses or dock state (:mod:`msrr.core.witness`). It
@@ -130,7 +132,7 @@ from .shape import skeletal_error, skeletal_errors
 
 __all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "GaitLoop", "HeadingLoop",
            "StallWatch", "behavior_commands", "course_loop", "gait_loop", "heading_loop",
-           "ends_loop", "held_heading",
+           "ends_loop", "held_heading", "settles",
            "phases_of", "slid", "slides", "steered", "turn_bound"]
 
 
@@ -380,8 +382,8 @@ class CourseLoop:
 class GaitLoop:
     """A sequence behavior's heading loop (issue 31): a gait has no ``yaw_rate`` to
     correct, and one of its loops may turn the body unasked (the FreeSN squirm turned
-    7.4 deg a loop, exact, every loop the same way). Before each step but a loop's last
-    (:func:`ends_loop`) this asks the step to turn the body about its planted feet by
+    7.4 deg a loop, exact, every loop the same way). Before each step (but the
+    behavior's first) this asks the step to turn the body about its planted feet by
     ``gain e + integral_gain sum(e)``, ``e`` the error of the estimated heading from
     ``start + offset`` (``offset``: what a :class:`CourseLoop` asks on top, per metre off
     the commanded line), bounded; the executor bends the step's goal by it
@@ -486,16 +488,25 @@ def gait_loop(call: BehaviorCall | None, heading: float | None, options: Executo
 
 def ends_loop(actions: Sequence[Action], index: int) -> bool:
     """Whether ``actions[index]`` is the last step of its loop of a sequence behavior (the
-    plan's last action, or the next one is not in the same loop). A gait stops only at the
-    end of a loop, so its :class:`GaitLoop` asks no turn of these steps and the gait always
-    stands in its designed stance when it stops, which the judge measures (the squirm's
-    planted leg turned 8 deg left its last stance 5.2-5.6 deg RMS off under noise, over
-    the 5 deg tolerance)."""
+    plan's last action, or the next one is not in the same loop): a gait stops only there
+    (:func:`settles`)."""
     call = actions[index].behavior
     if call is None or index + 1 >= len(actions):
         return True
     following = actions[index + 1].behavior
     return following is None or following.name != call.name or following.loop != call.loop
+
+
+def settles(actions: Sequence[Action], index: int, turn: float) -> bool:
+    """Whether a gait that stops after ``actions[index]``, run with its goal turned by
+    ``turn`` [rad] (:class:`GaitLoop`), takes that step again unturned: the step ends a
+    loop (:func:`ends_loop`) and was turned. The judge measures the stance a gait stops
+    in (the squirm's planted leg turned 8 deg left its last stance 5.2-5.6 deg RMS off
+    under noise, over the 5 deg tolerance); asking no turn of these steps instead left
+    the loop too weak to hold the squirm (issue 31: its squirm-down step's turn alone
+    moved the body about 1 deg of the 8 asked, and each squirm-up step turned it -5 to
+    -9 deg)."""
+    return bool(turn) and ends_loop(actions, index)
 
 
 def held_heading(heading: float, recognized: Configuration, target: Configuration) -> float:
@@ -673,18 +684,22 @@ class Executor:
         self._current = self._estimated(self._observe())
         if isinstance(self.controller, StartLayout):
             self.controller.start(self.placed or plan.start)
-        index, last = -1, None
+        index, last, turned = -1, None, None
         try:
             for index, action in enumerate(plan.actions):
                 if self._skips(index, action):
+                    self._settle(turned)
+                    turned = None
                     result.actions_skipped += 1
                     continue
                 if index in self._spans:
                     self._moving_from = self._centre()
                 self._turn = self._gait_turn(index, action, last)
                 self._execute_action(index, action)
+                turned = (index, action) if settles(plan.actions, index, self._turn) else None
                 last = action
                 result.actions_done += 1
+            self._settle(turned)
             index = len(plan.actions)
             remaining = topology_diff(self._current, plan.goal)
             if remaining:
@@ -697,6 +712,14 @@ class Executor:
             self._tally()
             self.driver.send_action({})
         return result
+
+    def _settle(self, turned: tuple[int, Action] | None) -> None:
+        """A gait stopping after ``turned`` (index, action: a loop's last step run with its
+        goal turned, :func:`settles`) takes that step again unturned, into its designed
+        stance; nothing when ``None``."""
+        if turned is not None:
+            self._turn = 0.0
+            self._execute_action(*turned)
 
     def _tally(self) -> None:
         """Fill :attr:`result`'s counts from what the driver reported so far."""
@@ -1005,7 +1028,7 @@ class Executor:
             self._gait = gait_loop(call, heading, self.options)
             self._gait_course = None if self._gait is None else course_loop(
                 call, self.estimate, frame, self.options)
-        if self._gait is None or heading is None or ends_loop(self.run.plan.actions, index):
+        if self._gait is None or heading is None:
             return 0.0
         place, course = self.estimate.position, self._gait_course
         offset = 0.0 if course is None or place is None else course.offset(place)
