@@ -125,7 +125,7 @@ from .events import (
     Tick,
     TopologyEvent,
 )
-from .kinematics import GroundModel
+from .kinematics import GroundModel, KinematicTree
 from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_runs
 from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
@@ -499,7 +499,9 @@ def ends_loop(actions: Sequence[Action], index: int) -> bool:
 
 def settles(actions: Sequence[Action], index: int, turn: float) -> bool:
     """Whether a gait that stops after ``actions[index]``, run with its goal turned by
-    ``turn`` [rad] (:class:`GaitLoop`), takes that step again unturned: the step ends a
+    ``turn`` [rad] (:class:`GaitLoop`; 0: not turned, as a tree that cannot pivot on one
+    planted foot is not, :func:`~msrr.core.closed_loop.turned_goal`), takes that step
+    again unturned: the step ends a
     loop (:func:`ends_loop`) and was turned. The judge measures the stance a gait stops
     in (the squirm's planted leg turned 8 deg left its last stance 5.2-5.6 deg RMS off
     under noise, over the 5 deg tolerance); asking no turn of these steps instead left
@@ -658,6 +660,7 @@ class Executor:
         self._gait: GaitLoop | None = None  # the running sequence behavior's
         self._gait_course: CourseLoop | None = None  # and its course loop
         self._turn = 0.0  # the turn the gait loop asks of the running action [rad]
+        self._turned = False  # whether it turned the running action's goal
         self._seen: Configuration | None = None  # recognized with the last estimate
         self._skipping = False
         self._phase_began = 0.0
@@ -694,9 +697,10 @@ class Executor:
                     continue
                 if index in self._spans:
                     self._moving_from = self._centre()
-                self._turn = self._gait_turn(index, action, last)
+                self._turn, self._turned = self._gait_turn(index, action, last), False
                 self._execute_action(index, action)
-                turned = (index, action) if settles(plan.actions, index, self._turn) else None
+                turn = self._turn if self._turned else 0.0
+                turned = (index, action) if settles(plan.actions, index, turn) else None
                 last = action
                 result.actions_done += 1
             self._settle(turned)
@@ -884,15 +888,14 @@ class Executor:
         if phase is Phase.CONNECT:
             self._docking = DockCycle(conn, diff.made, self.options.tracking, self.driver.time)
         if phase is Phase.CONNECT and self._tracker is not None and not retry:
-            self._tracker.set_goal(turned_goal(self._docking.goal, self._tracker.tree,
-                                               self._turn))
+            self._tracker.set_goal(self._turned_goal(self._docking.goal, self._tracker.tree))
             return True
         goal = conn if self._docking is None else self._docking.goal
         tree = tree_for(current, action.kinematic_tree, self._joint_mode)
         if tree is None:
             self._tracker = None
             return False
-        goal = turned_goal(goal, tree, self._turn)
+        goal = self._turned_goal(goal, tree)
         ground = GroundModel.for_configuration(current, self.run.spec)
         self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
                                      ground=ground, median_yaw=self.run.spec.defaults.median_yaw)
@@ -907,7 +910,15 @@ class Executor:
         goal = self._docking.update(self.driver.time,
                                     configuration if seen is None else seen)
         if goal is not None:
-            self._tracker.set_goal(turned_goal(goal, self._tracker.tree, self._turn))
+            self._tracker.set_goal(self._turned_goal(goal, self._tracker.tree))
+
+    def _turned_goal(self, goal: Configuration, tree: KinematicTree) -> Configuration:
+        """``goal`` turned by the gait loop's turn (:func:`turned_goal`), noting whether
+        that changed it (a tree with no single planted foot, or a root without edges,
+        is not turned: nothing to settle)."""
+        turned = turned_goal(goal, tree, self._turn)
+        self._turned |= turned is not goal
+        return turned
 
     def _controller_for(self, name: str) -> JointController:
         """The joint controller registered as ``name``, else the executor's own."""
