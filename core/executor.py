@@ -58,8 +58,10 @@ and the ``broken``/``made`` links with their ports.
   the loops left once it is covered (by the same estimate) are skipped
   (``RunResult.actions_skipped``). A sequence that states its direction has a heading
   loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
-  step but a loop's last has its goal turned about the planted feet
-  (:func:`~msrr.core.closed_loop.turned_goal`).
+  step but the behavior's first has its goal turned about the planted feet
+  (:func:`~msrr.core.closed_loop.turned_goal`), and a gait that stops after a turned
+  loop's last step takes that step again unturned (:func:`settles`), so it stands in its
+  designed stance.
 
 The executor judges nothing and reads only :class:`~msrr.core.driver.Observation`:
 module reports, never a simulator's poses or dock state (:mod:`msrr.core.witness`). It
@@ -123,14 +125,14 @@ from .events import (
     Tick,
     TopologyEvent,
 )
-from .kinematics import GroundModel
+from .kinematics import GroundModel, KinematicTree
 from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_runs
 from .robot import Robot
 from .shape import skeletal_error, skeletal_errors
 
 __all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "GaitLoop", "HeadingLoop",
            "StallWatch", "behavior_commands", "course_loop", "gait_loop", "heading_loop",
-           "ends_loop", "held_heading",
+           "ends_loop", "held_heading", "settles",
            "phases_of", "slid", "slides", "steered", "timed_step", "turn_bound"]
 
 
@@ -395,8 +397,8 @@ class CourseLoop:
 class GaitLoop:
     """A sequence behavior's heading loop (issue 31): a gait has no ``yaw_rate`` to
     correct, and one of its loops may turn the body unasked (the FreeSN squirm turned
-    7.4 deg a loop, exact, every loop the same way). Before each step but a loop's last
-    (:func:`ends_loop`) this asks the step to turn the body about its planted feet by
+    7.4 deg a loop, exact, every loop the same way). Before each step (but the
+    behavior's first) this asks the step to turn the body about its planted feet by
     ``gain e + integral_gain sum(e)``, ``e`` the error of the estimated heading from
     ``start + offset`` (``offset``: what a :class:`CourseLoop` asks on top, per metre off
     the commanded line), bounded; the executor bends the step's goal by it
@@ -514,16 +516,27 @@ def timed_step(action: Action, before: Configuration, options: ExecutorOptions) 
 
 def ends_loop(actions: Sequence[Action], index: int) -> bool:
     """Whether ``actions[index]`` is the last step of its loop of a sequence behavior (the
-    plan's last action, or the next one is not in the same loop). A gait stops only at the
-    end of a loop, so its :class:`GaitLoop` asks no turn of these steps and the gait always
-    stands in its designed stance when it stops, which the judge measures (the squirm's
-    planted leg turned 8 deg left its last stance 5.2-5.6 deg RMS off under noise, over
-    the 5 deg tolerance)."""
+    plan's last action, or the next one is not in the same loop): a gait stops only there
+    (:func:`settles`)."""
     call = actions[index].behavior
     if call is None or index + 1 >= len(actions):
         return True
     following = actions[index + 1].behavior
     return following is None or following.name != call.name or following.loop != call.loop
+
+
+def settles(actions: Sequence[Action], index: int, turn: float) -> bool:
+    """Whether a gait that stops after ``actions[index]``, run with its goal turned by
+    ``turn`` [rad] (:class:`GaitLoop`; 0: not turned, as a tree that cannot pivot on one
+    planted foot is not, :func:`~msrr.core.closed_loop.turned_goal`), takes that step
+    again unturned: the step ends a
+    loop (:func:`ends_loop`) and was turned. The judge measures the stance a gait stops
+    in (the squirm's planted leg turned 8 deg left its last stance 5.2-5.6 deg RMS off
+    under noise, over the 5 deg tolerance); asking no turn of these steps instead left
+    the loop too weak to hold the squirm (issue 31: its squirm-down step's turn alone
+    moved the body about 1 deg of the 8 asked, and each squirm-up step turned it -5 to
+    -9 deg)."""
+    return bool(turn) and ends_loop(actions, index)
 
 
 def held_heading(heading: float, recognized: Configuration, target: Configuration) -> float:
@@ -675,6 +688,7 @@ class Executor:
         self._gait: GaitLoop | None = None  # the running sequence behavior's
         self._gait_course: CourseLoop | None = None  # and its course loop
         self._turn = 0.0  # the turn the gait loop asks of the running action [rad]
+        self._turned = False  # whether it turned the running action's goal
         self._seen: Configuration | None = None  # recognized with the last estimate
         self._skipping = False
         self._phase_began = 0.0
@@ -701,18 +715,23 @@ class Executor:
         self._current = self._estimated(self._observe())
         if isinstance(self.controller, StartLayout):
             self.controller.start(self.placed or plan.start)
-        index, last = -1, None
+        index, last, turned = -1, None, None
         try:
             for index, action in enumerate(plan.actions):
                 if self._skips(index, action):
+                    self._settle(turned)
+                    turned = None
                     result.actions_skipped += 1
                     continue
                 if index in self._spans:
                     self._moving_from = self._centre()
-                self._turn = self._gait_turn(index, action, last)
+                self._turn, self._turned = self._gait_turn(index, action, last), False
                 self._execute_action(index, action)
+                turn = self._turn if self._turned else 0.0
+                turned = (index, action) if settles(plan.actions, index, turn) else None
                 last = action
                 result.actions_done += 1
+            self._settle(turned)
             index = len(plan.actions)
             remaining = topology_diff(self._current, plan.goal)
             if remaining:
@@ -725,6 +744,14 @@ class Executor:
             self._tally()
             self.driver.send_action({})
         return result
+
+    def _settle(self, turned: tuple[int, Action] | None) -> None:
+        """A gait stopping after ``turned`` (index, action: a loop's last step run with its
+        goal turned, :func:`settles`) takes that step again unturned, into its designed
+        stance; nothing when ``None``."""
+        if turned is not None:
+            self._turn = 0.0
+            self._execute_action(*turned)
 
     def _tally(self) -> None:
         """Fill :attr:`result`'s counts from what the driver reported so far."""
@@ -901,15 +928,14 @@ class Executor:
         if phase is Phase.CONNECT:
             self._docking = DockCycle(conn, diff.made, self.options.tracking, self.driver.time)
         if phase is Phase.CONNECT and self._tracker is not None and not retry:
-            self._tracker.set_goal(turned_goal(self._docking.goal, self._tracker.tree,
-                                               self._turn))
+            self._tracker.set_goal(self._turned_goal(self._docking.goal, self._tracker.tree))
             return True
         goal = conn if self._docking is None else self._docking.goal
         tree = tree_for(current, action.kinematic_tree, self._joint_mode)
         if tree is None:
             self._tracker = None
             return False
-        goal = turned_goal(goal, tree, self._turn)
+        goal = self._turned_goal(goal, tree)
         ground = GroundModel.for_configuration(current, self.run.spec)
         self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
                                      ground=ground, median_yaw=self.run.spec.defaults.median_yaw)
@@ -924,7 +950,15 @@ class Executor:
         goal = self._docking.update(self.driver.time,
                                     configuration if seen is None else seen)
         if goal is not None:
-            self._tracker.set_goal(turned_goal(goal, self._tracker.tree, self._turn))
+            self._tracker.set_goal(self._turned_goal(goal, self._tracker.tree))
+
+    def _turned_goal(self, goal: Configuration, tree: KinematicTree) -> Configuration:
+        """``goal`` turned by the gait loop's turn (:func:`turned_goal`), noting whether
+        that changed it (a tree with no single planted foot, or a root without edges,
+        is not turned: nothing to settle)."""
+        turned = turned_goal(goal, tree, self._turn)
+        self._turned |= turned is not goal
+        return turned
 
     def _controller_for(self, name: str) -> JointController:
         """The joint controller registered as ``name``, else the executor's own."""
@@ -1045,7 +1079,7 @@ class Executor:
             self._gait = gait_loop(call, heading, self.options)
             self._gait_course = None if self._gait is None else course_loop(
                 call, self.estimate, frame, self.options)
-        if self._gait is None or heading is None or ends_loop(self.run.plan.actions, index):
+        if self._gait is None or heading is None:
             return 0.0
         place, course = self.estimate.position, self._gait_course
         offset = 0.0 if course is None or place is None else course.offset(place)

@@ -25,8 +25,15 @@ from tiny_robot import (
 from msrr.core import plugins
 from msrr.core.app.run import parse_parameters, plan_stages
 from msrr.core.errors import ConfigurationError, UnknownNameError
+from msrr.core.estimation import Estimate
 from msrr.core.events import Phase, Run
-from msrr.core.executor import Executor, ExecutorOptions, behavior_commands, phases_of
+from msrr.core.executor import (
+    Executor,
+    ExecutorOptions,
+    behavior_commands,
+    ends_loop,
+    phases_of,
+)
 from msrr.core.judge import Judge, JudgeOptions, asked_distance, judge_behavior
 from msrr.core.plan import (
     Action,
@@ -130,12 +137,13 @@ def test_a_turn_in_place_asks_no_distance_and_a_short_drive_is_judged_on_what_it
     assert not veered.success and "53 deg off the commanded direction" in veered.reason
 
 
-def sequence_plan(loops: int, distance: float | None) -> Plan:
+def sequence_plan(loops: int, distance: float | None, direction=None) -> Plan:
     """A sequence behavior of one step per loop: every module 0.6 m further along x."""
     start = chain(("a", "b"))
     actions = []
     for k in range(loops):
-        call = BehaviorCall("creep", "sequence", {}, loops=loops, loop=k, distance=distance)
+        call = BehaviorCall("creep", "sequence", {}, loops=loops, loop=k, distance=distance,
+                            direction=direction)
         goals = {m: [i + 0.6 * (k + 1), 0.0, 0.0] for i, m in enumerate(start.vertices())}
         actions.append(Action(ActionType.MOVING, start, tuple(goals), goals=goals, behavior=call))
     return Plan(NAME, "test", start, start, actions)
@@ -150,6 +158,51 @@ def test_a_sequence_behavior_skips_its_loops_once_the_distance_is_covered():
     full, _ = execute(sequence_plan(3, distance=None))
     assert (full.actions_done, full.actions_skipped) == (3, 0)
     assert full.locomotion[0].distance == pytest.approx(1.8, abs=3e-3)
+
+
+def test_the_gait_loop_turns_a_loops_last_step_too():
+    """Issue 31: asked of the squirm-down step alone, the squirm's turn moved the body
+    about 1 deg of the 8 asked and each squirm-up step (a loop's last) turned it -5 to -9
+    deg back: the loop now turns every step but the behavior's first."""
+    plan = sequence_plan(3, distance=None, direction=(1.0, 0.0, 0.0))
+    steps = plan.actions
+    run = Run(robot=NAME, scenario="test", plan=plan, spec=SPEC, driver="points")
+    with PointDriver() as world:
+        world.reset(plan.start)
+        executor = Executor(run, world, LinkRecognizer(), GoalController(), ExecutorOptions())
+        executor.estimate = Estimate(position=np.zeros(2), heading=0.3)
+        assert executor._gait_turn(1, steps[1], steps[0]) == 0.0   # the loop starts at 0.3
+        executor.estimate = Estimate(position=np.zeros(2), heading=0.1)
+        assert ends_loop(steps, 2)
+        assert executor._gait_turn(2, steps[2], steps[1]) > 0.0    # turned 0.2 rad right
+
+
+def test_a_gait_stopped_after_a_turned_step_takes_that_step_again_unturned(monkeypatch):
+    """The judge measures the stance a gait stops in: a loop's last step whose goal was
+    turned is run again with no turn when the gait stops after it (:func:`settles`); a
+    step whose tree could not be turned (no single planted foot) is not."""
+    runs = []
+    pivots = [True]
+    execute_action = Executor._execute_action
+
+    def recorded(self, index, action):
+        runs.append((index, self._turn))
+        self._turned = pivots[0] and bool(self._turn)   # what turned_goal did to its goal
+        return execute_action(self, index, action)
+
+    monkeypatch.setattr(Executor, "_execute_action", recorded)
+    monkeypatch.setattr(Executor, "_gait_turn", lambda self, index, action, last: 0.1)
+    result, _ = execute(sequence_plan(5, distance=1.0))
+    assert result.success, result.reason
+    assert (result.actions_done, result.actions_skipped) == (2, 3)
+    assert runs == [(0, 0.1), (1, 0.1), (1, 0.0)]     # 1.2 m after two loops: stopped
+    runs.clear()
+    assert execute(sequence_plan(2, distance=None))[0].success
+    assert runs == [(0, 0.1), (1, 0.1), (1, 0.0)]     # the plan's last step
+    pivots[0] = False
+    runs.clear()
+    assert execute(sequence_plan(5, distance=1.0))[0].success
+    assert runs == [(0, 0.1), (1, 0.1)]               # nothing turned: nothing repeated
 
 
 def test_a_goal_is_judged_on_the_ground_truth_topology():

@@ -16,7 +16,14 @@ import pytest
 from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.closed_loop import turned_goal
 from msrr.core.estimation import Estimate
-from msrr.core.executor import ExecutorOptions, GaitLoop, course_loop, ends_loop, gait_loop
+from msrr.core.executor import (
+    ExecutorOptions,
+    GaitLoop,
+    course_loop,
+    ends_loop,
+    gait_loop,
+    settles,
+)
 from msrr.core.kinematics import FixedNode, KinematicTree
 from msrr.core.plan import Action, ActionType, BehaviorCall
 
@@ -129,9 +136,11 @@ def test_only_a_sequence_that_states_its_direction_gets_a_gait_loop():
         ExecutorOptions(max_gait_turn=-1.0)
 
 
-def test_the_gait_asks_no_turn_of_the_step_it_stops_in():
+def test_a_gait_settles_only_a_turned_step_it_can_stop_in():
     """A gait stops only at a loop's end: those steps are the ones :func:`ends_loop` names
-    (the squirm's loop: squirm-down, then squirm-up, the stance it is judged in)."""
+    (the squirm's loop: squirm-down, then squirm-up, the stance it is judged in), and only
+    such a step run turned is taken again unturned when the gait stops after it
+    (:func:`settles`)."""
     goal = chain(4)
     steps = [Action(ActionType.MOVING, goal)]   # the way to the gait's start
     for loop in range(3):
@@ -139,3 +148,5 @@ def test_the_gait_asks_no_turn_of_the_step_it_stops_in():
                             direction=(1.0, 0.0, 0.0))
         steps += [Action(ActionType.MOVING, goal, behavior=call) for _ in range(2)]
     assert [ends_loop(steps, i) for i in range(1, 7)] == [False, True] * 3
+    assert [settles(steps, i, 0.1) for i in range(1, 7)] == [False, True] * 3
+    assert not any(settles(steps, i, 0.0) for i in range(1, 7))
