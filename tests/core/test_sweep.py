@@ -11,7 +11,14 @@ import pytest
 from click.testing import CliRunner
 
 from msrr.core.app.cli import get_cli
-from msrr.core.app.commands.sweep import SweepRow, _locomotion, summarize, sweep_csv
+from msrr.core.app.commands.sweep import (
+    SweepRow,
+    _locomotion,
+    setting_label,
+    summarize,
+    sweep_csv,
+    sweep_title,
+)
 from msrr.core.events import BehaviorVerdict
 
 BASE = ["sweep", "--robot", "mmrp", "--scenario", "series-t", "--driver", "kinematic",
@@ -40,6 +47,16 @@ def test_summary_counts_successes_and_spreads_per_setting():
     table = list(csv.reader(sweep_csv(rows).splitlines()))
     assert table[0][:3] == ["faults", "seed", "success"] and len(table) == 5
     assert table[3][table[0].index("position_rms_m")] == ""  # nan: an empty cell
+
+
+def test_the_title_names_the_driver_options_and_each_label_its_successes():
+    assert sweep_title("freesn", "fig21", 10, ()) == "freesn fig21: 10 seeds"
+    assert sweep_title("freesn", "fig21", 10, (("noise", "0.0698"), ("slip", "0.10"))) \
+        == "freesn fig21 with noise=0.0698 slip=0.10: 10 seeds"
+    rows = [_row("", 0, True, 0.001, 4.0), _row("", 1, False, math.nan, 9.0, "x"),
+            _row("loss:p=0.5", 0, True, 0.002, 5.0)]
+    assert setting_label(rows, "") == "none\n1/2 succeed"
+    assert setting_label(rows, "loss:p=0.5") == "loss:p=0.5\n1/1 succeed"
 
 
 def test_a_runs_worst_behavior_is_its_least_covered_and_its_largest_heading_error():

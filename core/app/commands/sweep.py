@@ -259,6 +259,19 @@ def summarize(rows: list[SweepRow]) -> list[list[object]]:
     return out
 
 
+def sweep_title(robot: str, name: str, runs: int, options: tuple[tuple[str, str], ...]) -> str:
+    """The sweep's title, with the driver options every run had (its noise and slip: a
+    plot or table read later says what it measured)."""
+    given = f" with {' '.join(f'{k}={v}' for k, v in options)}" if options else ""
+    return f"{robot} {name}{given}: {plural(runs, 'seed')}"
+
+
+def setting_label(rows: list[SweepRow], setting: str) -> str:
+    """A fault setting's label on the plot: its name and how many of its runs succeeded."""
+    group = [r for r in rows if r.faults == setting]
+    return f"{setting or 'none'}\n{sum(r.success for r in group)}/{len(group)} succeed"
+
+
 def _plot(rows: list[SweepRow], path: Path, title: str) -> str:
     """Write ``sweep.png``: final position RMS error (or strut angle) and simulated time per
     fault setting; the line to print."""
@@ -269,7 +282,7 @@ def _plot(rows: list[SweepRow], path: Path, title: str) -> str:
     except ImportError:
         return f"no plot: matplotlib is missing; {MATPLOTLIB_HINT}"
     settings = list(dict.fromkeys(r.faults for r in rows))
-    labels = [s or "none" for s in settings]
+    labels = [setting_label(rows, s) for s in settings]
     use_position = any(math.isfinite(r.position_rms_m) for r in rows)
     error_name = "final position RMS error [mm]" if use_position else "final shape error [deg]"
 
@@ -363,7 +376,7 @@ def command(robot: str, scenario: str | None, start: Path | None, goal: Path | N
         prepare_check(next(task for task in tasks if task.faults == setting))
     rows, journal, how = _run_sweep(tasks, folder, resume=resume, retries=retries,
                                     workers=workers, cluster=cluster)
-    title = f"{robot} {name}: {plural(runs, 'seed')}"
+    title = sweep_title(robot, name, runs, options)
     with finishing(f"the sweep was written to {folder}"):
         _write(rows, folder, journal, f"{title} from {seed} per fault setting ({how})", title)
 
