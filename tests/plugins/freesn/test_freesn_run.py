@@ -233,6 +233,66 @@ def test_platform_run_from_to_reports_the_ground_truth_shape_error(tmp_path):
     assert summary["docks"] == 1
 
 
+def _break_once(monkeypatch, strut: str, end: str, at: float) -> None:
+    """The world tears ``strut``'s ``end`` off its node once, at ``at`` [s], as a load over
+    the connection's strength does (the simulator's side: a ``break``, not a command)."""
+    from msrr.plugins.freesn.sim.world import FreeSNWorld
+
+    check = FreeSNWorld._check_loads
+
+    def breaking(world, steps=1):
+        check(world, steps)
+        k = world._end_index[(strut, end)]
+        if world.time >= at and not getattr(world, "_broke_once", False) \
+                and world.docked[k] is not None:
+            world._broke_once = True
+            world._release(k, "break")
+
+    monkeypatch.setattr(FreeSNWorld, "_check_loads", breaking)
+
+
+def test_a_connection_that_breaks_unplanned_is_docked_again_before_the_move_goes_on(
+        tmp_path, monkeypatch):
+    """Issue 31 (fig22 at 4 deg + 10 %: ``unexpected undock n2-s7a``, a connection torn off
+    under load). S6N3's crouch; the world breaks S2's end on N3 0.3 s in. Before: the run
+    failed there (``action 1: unexpected undock N3-S2b``). Now the executor docks it again
+    (approach, connect), the move goes on and reaches its goal; the break stays on the
+    record (an unexpected undock, a ``connector broke`` fault, ``redocked``)."""
+    _break_once(monkeypatch, "S2", "b", 0.3)
+    result = CliRunner().invoke(get_cli(), [
+        "run", "--robot", "freesn", "--scenario", "s6n3-crouch", "--out", str(tmp_path / "run"),
+        "--no-log", "--timeout", "30"])
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert result.exit_code == 0, summary["reason"]
+    assert summary["success"] and summary["goal"]["topology"] is True
+    assert len(summary["redocked"]) == 1 and "S2b" in summary["redocked"][0]
+    assert [f["kind"] for f in summary["faults"]] == ["connector broke"]
+    assert (summary["docks"], summary["undocks"]) == (1, 1)
+
+
+def test_a_second_break_past_the_redock_budget_fails_the_action(tmp_path, monkeypatch):
+    """With ``redocks`` spent (0 here: the executor's option), a break fails the action as
+    before, naming it."""
+    from msrr.core.executor import Executor
+
+    _break_once(monkeypatch, "S2", "b", 0.3)
+    init = Executor.__init__
+
+    def no_redocks(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self.options = replace(self.options, redocks=0)
+
+    monkeypatch.setattr(Executor, "__init__", no_redocks)
+    result = CliRunner().invoke(get_cli(), [
+        "run", "--robot", "freesn", "--scenario", "s6n3-crouch", "--out", str(tmp_path / "run"),
+        "--no-log", "--timeout", "30"])
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert result.exit_code == 1 and not summary["success"]
+    assert summary["reason"].startswith("action 1: unexpected undock") and "S2b" in \
+        summary["reason"]
+    assert summary["redocked"] == []
+
+
 def test_library_check_writes_the_sidecar_atomically(tmp_path):
     library = tmp_path / "S6N3.json"
     library.write_bytes((FREESN / "libraries" / "S6N3.json").read_bytes())
