@@ -670,6 +670,7 @@ class Executor:
         self._skipping = False
         self._phase_began = 0.0
         self._redocks = 0  # unplanned undocks docked again in the running action
+        self._halt: dict[str, dict[str, float]] = {}  # wheels stopped while re-docking
         if self._ik and robot is not None:
             try:
                 self._joint_mode = robot.default_joint_mode()
@@ -829,7 +830,9 @@ class Executor:
 
         An approach and a connect phase (section 4.1's ``S_conn`` and ``S_extr``, with the
         connect phase's press, back-off and re-aim) toward ``action``'s target, the ends
-        docked as a connection action docks them: what a planned re-dock does. The
+        docked as a connection action docks them: what a planned re-dock does. A
+        behavior's wheels stop meanwhile (a strut commanded without wheels keeps them
+        turning). The
         break stays on the timeline as the unexpected undock it was, the action's status
         goes ``redocking`` and the run's result notes it (:attr:`RunResult.redocked`).
 
@@ -842,9 +845,11 @@ class Executor:
                                 f" (after {self._redocks} re-dock(s) in this action)"))
         self._redocks += 1
         began, names = self.driver.time, ", ".join(str(c) for c in broken.changes)
-        saved = (self._loop, self._course, self._phase_began, self._expected)
+        saved = (self._loop, self._course, self._phase_began, self._expected, self._halt)
         self.sink.action(self.run, action, ActionStatus.REDOCKING)
         self._expected = saved[3] | {c.key for c in broken.changes}
+        if phase is Phase.BEHAVIOR:   # the behavior's wheels stop while the ends dock
+            self._halt = {m: dict.fromkeys(w, 0.0) for m, w in behavior_commands(action).items()}
         again = TopologyDiff(made=broken.changes, broken=())
         try:
             for step in (Phase.APPROACH, Phase.CONNECT):
@@ -853,7 +858,7 @@ class Executor:
             raise _ActionFailed(f"{broken.reason}; docking it again failed: "
                                 f"{failure.reason}") from None
         finally:
-            self._expected = saved[3]
+            self._expected, self._halt = saved[3], saved[4]
         spent = self.driver.time - began
         # the phase's own clock stops while the ends dock again (a behavior runs its course)
         self._loop, self._course, self._phase_began = saved[0], saved[1], saved[2] + spent
@@ -1011,6 +1016,8 @@ class Executor:
         commands = _merge(control, extra)
         if phase is Phase.BEHAVIOR:
             commands = _with_wheels(commands, behavior_commands(action, self._steered(action)))
+        elif self._halt:
+            commands = _with_wheels(commands, self._halt)
         self.driver.send_action(commands)
         self.driver.step(self.dt)
         self.tick_index += 1  # executed: counted even if a listener is interrupted below
