@@ -832,9 +832,9 @@ class Executor:
         connect phase's press, back-off and re-aim) toward ``action``'s target, the ends
         docked as a connection action docks them: what a planned re-dock does. A
         behavior's wheels stop meanwhile (a strut commanded without wheels keeps them
-        turning). The
-        break stays on the timeline as the unexpected undock it was, the action's status
-        goes ``redocking`` and the run's result notes it (:attr:`RunResult.redocked`).
+        turning). The break stays on the timeline as the unexpected undock it was, the
+        action's status goes ``redocking`` and the run's result notes it
+        (:attr:`RunResult.redocked`).
 
         Raises:
             _ActionFailed: more breaks in this action than ``options.redocks``, or the
