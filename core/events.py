@@ -34,6 +34,7 @@ class ActionStatus(StrEnum):
     STARTED = "started"
     SUCCEEDED = "succeeded"
     RETRYING = "retrying"
+    REDOCKING = "redocking"
     FAILED = "failed"
 
 
@@ -292,6 +293,9 @@ class RunResult:
         settled: moves that stalled on their last attempt within the executor's settle
             tolerance and were taken as reached, one line each ("action 18 (...) settled
             at 4.2 deg estimated"): the judge, not the move, decides whether they were.
+        redocked: connections that broke unplanned (a strut end's load over its
+            strength) and were docked again before the action went on, one line each
+            ("action 7: n2-s7a broke at 127.6 s, re-docked at 131.2 s").
     """
 
     success: bool
@@ -315,6 +319,7 @@ class RunResult:
     targets: list[GoalVerdict] = field(default_factory=list)
     locomotion: list[BehaviorVerdict] = field(default_factory=list)
     settled: list[str] = field(default_factory=list)
+    redocked: list[str] = field(default_factory=list)
 
     def summary(self) -> dict[str, object]:
         """JSON-ready numbers (for ``summary.json``)."""
@@ -332,7 +337,7 @@ class RunResult:
                 "interrupted": self.interrupted or None,
                 "targets": [t.summary() for t in self.targets],
                 "locomotion": [m.summary() for m in self.locomotion],
-                "settled": list(self.settled)}
+                "settled": list(self.settled), "redocked": list(self.redocked)}
 
 
 class EventSink(Protocol):

@@ -245,7 +245,8 @@ def msrr_on_action(run: Run, action: Action, status: ActionStatus) -> None:
 
     :param run: the run.
     :param action: the :class:`~msrr.core.plan.Action` (one of ``run.plan.actions``).
-    :param status: ``STARTED``, ``SUCCEEDED``, ``RETRYING`` or ``FAILED``.
+    :param status: ``STARTED``, ``SUCCEEDED``, ``RETRYING``, ``REDOCKING`` (a
+        connection broke unplanned and is being docked again) or ``FAILED``.
     """
 
 

@@ -512,7 +512,8 @@ class TimelineRecorder:
         if action.retrieved:   # the library configuration (and mapping) it comes from
             text += f"\n\nretrieved: {action.retrieved}"
         rec.log("action", rr.TextDocument(text, media_type="text/markdown"))
-        level = {ActionStatus.FAILED: "ERROR", ActionStatus.RETRYING: "WARN"}.get(status, "INFO")
+        level = {ActionStatus.FAILED: "ERROR", ActionStatus.RETRYING: "WARN",
+                 ActionStatus.REDOCKING: "WARN"}.get(status, "INFO")
         rec.log("events/actions", rr.TextLog(f"action {index + 1}: {action.label} {status}",
                                              level=level))
         if status == ActionStatus.STARTED:

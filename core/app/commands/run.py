@@ -206,6 +206,7 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
     if result.faults:
         rows.append(["faults", len(result.faults)])
     rows.extend(["settled, not reached", line] for line in result.settled)
+    rows.extend(["broke, re-docked", line] for line in result.redocked)
     rows.append(["success", "yes" if result.success else "no"])
     return table("Run summary", ["", "value"], rows)
 

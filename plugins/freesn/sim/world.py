@@ -592,6 +592,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         if self.docked[k] is not None and (not self._has_target[k] or (was and not speed)):
             self._hold(k)
 
+    def wheel_speed(self, strut: str, end: str) -> float:
+        """The speed [rad/s] ``strut``'s ``end`` runs its wheel pair at (0: not running)."""
+        return float(self._wheel[self._end(strut, end)])
+
     def command_dock(self, strut: str, end: str) -> None:
         """Extend the magnet array of ``strut``'s ``end`` (kept until it docks)."""
         k = self._end(strut, end)

@@ -13,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 from scipy.spatial.transform import Rotation
 
+from msrr.core import hookimpl, plugins
 from msrr.core.actions import topology_diff
 from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.app.cli import get_cli
@@ -231,6 +232,102 @@ def test_platform_run_from_to_reports_the_ground_truth_shape_error(tmp_path):
     assert summary["success"] and goal["topology"] is True and goal["basis"] == "ground truth"
     assert goal["shape"]["metric"] == "skeletal" and goal["shape"]["error_deg"] < 5.0
     assert summary["docks"] == 1
+
+
+def _break_once(monkeypatch, strut: str, end: str, at: float) -> None:
+    """The world tears ``strut``'s ``end`` off its node once, at ``at`` [s], as a load over
+    the connection's strength does (the simulator's side: a ``break``, not a command)."""
+    from msrr.plugins.freesn.sim.world import FreeSNWorld
+
+    check = FreeSNWorld._check_loads
+
+    def breaking(world, steps=1):
+        check(world, steps)
+        k = world._end_index[(strut, end)]
+        if world.time >= at and not getattr(world, "_broke_once", False) \
+                and world.docked[k] is not None:
+            world._broke_once = True
+            world._release(k, "break")
+
+    monkeypatch.setattr(FreeSNWorld, "_check_loads", breaking)
+
+
+def test_a_connection_that_breaks_unplanned_is_docked_again_before_the_move_goes_on(
+        tmp_path, monkeypatch):
+    """Issue 31 (fig22 at 4 deg + 10 %: ``unexpected undock n2-s7a``, a connection torn off
+    under load). S6N3's crouch; the world breaks S2's end on N3 0.3 s in. Before: the run
+    failed there (``action 1: unexpected undock N3-S2b``). Now the executor docks it again
+    (approach, connect), the move goes on and reaches its goal; the break stays on the
+    record (an unexpected undock, a ``connector broke`` fault, ``redocked``)."""
+    _break_once(monkeypatch, "S2", "b", 0.3)
+    result = CliRunner().invoke(get_cli(), [
+        "run", "--robot", "freesn", "--scenario", "s6n3-crouch", "--out", str(tmp_path / "run"),
+        "--no-log", "--timeout", "30"])
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert result.exit_code == 0, summary["reason"]
+    assert summary["success"] and summary["goal"]["topology"] is True
+    assert len(summary["redocked"]) == 1 and "S2b" in summary["redocked"][0]
+    assert [f["kind"] for f in summary["faults"]] == ["connector broke"]
+    assert (summary["docks"], summary["undocks"]) == (1, 1)
+
+
+class _Ticks:
+    """The run's ticks, as a listener gets them."""
+
+    def __init__(self):
+        self.ticks: list = []
+
+    @hookimpl
+    def msrr_on_tick(self, run, tick) -> None:
+        self.ticks.append(tick)
+
+
+def test_a_behaviors_wheels_stop_while_a_broken_connection_docks_again(tmp_path, monkeypatch):
+    """fig22 seed 15 at 4 deg + 10 %: the node wheels kept turning at their last speeds
+    while the torn-off end was re-docked (a strut commanded without wheels keeps them
+    running), and the approach stalled at 34 deg. S6N3's wheeled move, s4's end on n2 (a
+    side of the triangle) torn off 2 s in: every re-docking tick commands the behavior's
+    wheels to 0, and the behavior then runs on (its own commands again). Whether the run
+    succeeds is not this test's: the triangle ends 9 deg off fig20a after a 48 s re-dock."""
+    _break_once(monkeypatch, "s4", "b", 2.0)
+    seen = _Ticks()
+    start = FREESN / "configs" / "scenarios" / "fig20-start.json"
+    with plugins.temporary(seen):
+        result = CliRunner().invoke(get_cli(), [
+            "run", "--robot", "freesn", "--from", str(start), "--behavior", "wheeled-move",
+            "--param", "speed=0.05", "--param", "yaw_rate=0", "--duration", "4",
+            "--out", str(tmp_path / "run"), "--no-log", "--timeout", "30"])
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert len(summary["redocked"]) == 1, result.output
+    behaving = [t for t in seen.ticks if t.phase is Phase.BEHAVIOR]
+    wheels = {m for t in behaving for m, c in t.commands.items() if c.wheels}
+    redocking = [t for t in seen.ticks if t.phase in (Phase.APPROACH, Phase.CONNECT)]
+    assert wheels and redocking and behaving[-1].time > redocking[-1].time
+    for tick in redocking:
+        assert all(set(tick.commands[m].wheels.values()) == {0.0} for m in wheels), tick.index
+
+
+def test_a_second_break_past_the_redock_budget_fails_the_action(tmp_path, monkeypatch):
+    """With ``redocks`` spent (0 here: the executor's option), a break fails the action as
+    before, naming it."""
+    from msrr.core.executor import Executor
+
+    _break_once(monkeypatch, "S2", "b", 0.3)
+    init = Executor.__init__
+
+    def no_redocks(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self.options = replace(self.options, redocks=0)
+
+    monkeypatch.setattr(Executor, "__init__", no_redocks)
+    result = CliRunner().invoke(get_cli(), [
+        "run", "--robot", "freesn", "--scenario", "s6n3-crouch", "--out", str(tmp_path / "run"),
+        "--no-log", "--timeout", "30"])
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert result.exit_code == 1 and not summary["success"]
+    assert summary["reason"].startswith("action 1: unexpected undock") and "S2b" in \
+        summary["reason"]
+    assert summary["redocked"] == []
 
 
 def test_library_check_writes_the_sidecar_atomically(tmp_path):
