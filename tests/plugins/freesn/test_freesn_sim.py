@@ -195,6 +195,19 @@ def test_driver_is_registered_and_rejects_unknown_commands():
                 driver.send_action(commands)
 
 
+def test_a_command_that_names_no_wheels_stops_them():
+    """A ``ModuleCommand`` is one tick's: wheels a strut's next command leaves out stop
+    (before, they ran on at the last speed into the next action)."""
+    with FreeSNMujocoDriver(seed=1) as driver:
+        driver.reset(_library_config("S6N3", "S6N3-1.1"))
+        driver.send_action({"S4": ModuleCommand(wheels={"b": 2.0})})
+        driver.step(0.1)
+        assert driver.world.wheel_speed("S4", "b") == 2.0
+        driver.send_action({"S4": ModuleCommand(wheels={"a": 1.0})})
+        assert (driver.world.wheel_speed("S4", "a"), driver.world.wheel_speed("S4", "b")) \
+            == (1.0, 0.0)
+
+
 # -- identification --------------------------------------------------------------------
 
 
