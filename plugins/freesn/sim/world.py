@@ -967,21 +967,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         speeds: :meth:`_wheel_speeds`.
         """
         p, o = self.phys, self.options
-        e_q = quat_mul(self._ball_target[ks], quat_conj(self._ball(ks)))
-        w, x, y, z = e_q.T
-        u = np.column_stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
-        swing = np.arccos(np.clip(u[:, 2], -1.0, 1.0))
-        ahead = _wrap(np.pi - np.arctan2(u[:, 1], u[:, 0]))
-        behind = _wrap(ahead - np.pi)
-        # forwards or backwards, whichever needs the smaller turn; the way chosen is
-        # kept until the other is _HEADING_GO better, so noise does not flip it
-        was = self._backwards[ks]
-        back = np.where(was, np.abs(behind) < np.abs(ahead) + _HEADING_GO,
-                        np.abs(behind) + _HEADING_GO < np.abs(ahead))
-        self._backwards[ks] = back
-        heading = np.where(back, behind, ahead)
-        swing = np.where(back, -swing, swing)
-        error = quat_log(e_q)
+        swing, heading, error = self._way(ks)
         # a strut whose other end's magnet is out to dock keeps its twist: spun, that end
         # would scrub the node it meets and turn it askew
         docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
@@ -1025,6 +1011,24 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
         return self._wheel_speeds(omega, ~turning & ~wheeling), held
+
+    def _way(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Connectors ``ks``' way to their targets (:meth:`_steer`): the signed swing (n,)
+        [rad] (negative rolling backwards), the heading to turn (n,) [rad] and the error's
+        rotation vector (n, 3) in the strut frame."""
+        e_q = quat_mul(self._ball_target[ks], quat_conj(self._ball(ks)))
+        w, x, y, z = e_q.T
+        u = np.column_stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
+        swing = np.arccos(np.clip(u[:, 2], -1.0, 1.0))
+        ahead = _wrap(np.pi - np.arctan2(u[:, 1], u[:, 0]))
+        behind = _wrap(ahead - np.pi)
+        # forwards or backwards, whichever needs the smaller turn; the way chosen is
+        # kept until the other is _HEADING_GO better, so noise does not flip it
+        was = self._backwards[ks]
+        back = np.where(was, np.abs(behind) < np.abs(ahead) + _HEADING_GO,
+                        np.abs(behind) + _HEADING_GO < np.abs(ahead))
+        self._backwards[ks] = back
+        return np.where(back, -swing, swing), np.where(back, behind, ahead), quat_log(e_q)
 
     def _wheel_speeds(self, omega: np.ndarray, near: np.ndarray) -> np.ndarray:
         """Wheel speeds (n, 2) [rad/s] for the rolling and turning rates ``omega`` (n, 2)
