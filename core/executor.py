@@ -60,7 +60,7 @@ and the ``broken``/``made`` links with their ports.
   loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
   step but the behavior's first has its goal turned about the planted feet
   (:func:`~msrr.core.closed_loop.turned_goal`), and a gait that stops after a turned
-  loop's last step takes that step again unturned (:func:`settles`), so it stands in its
+  loop's last step takes that step again unturned (:func:`retakes_unturned`), so it stands in its
   designed stance.
 
 The executor judges nothing and reads only :class:`~msrr.core.driver.Observation`:
@@ -132,7 +132,7 @@ from .shape import skeletal_error, skeletal_errors
 
 __all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "GaitLoop", "HeadingLoop",
            "StallWatch", "behavior_commands", "course_loop", "gait_loop", "heading_loop",
-           "ends_loop", "held_heading", "settles",
+           "ends_loop", "held_heading", "retakes_unturned",
            "phases_of", "slid", "slides", "steered", "timed_step", "turn_bound"]
 
 
@@ -536,7 +536,7 @@ def timed_step(action: Action, before: Configuration, options: ExecutorOptions) 
 def ends_loop(actions: Sequence[Action], index: int) -> bool:
     """Whether ``actions[index]`` is the last step of its loop of a sequence behavior (the
     plan's last action, or the next one is not in the same loop): a gait stops only there
-    (:func:`settles`)."""
+    (:func:`retakes_unturned`)."""
     call = actions[index].behavior
     if call is None or index + 1 >= len(actions):
         return True
@@ -544,7 +544,7 @@ def ends_loop(actions: Sequence[Action], index: int) -> bool:
     return following is None or following.name != call.name or following.loop != call.loop
 
 
-def settles(actions: Sequence[Action], index: int, turn: float) -> bool:
+def retakes_unturned(actions: Sequence[Action], index: int, turn: float) -> bool:
     """Whether a gait that stops after ``actions[index]``, run with its goal turned by
     ``turn`` [rad] (:class:`GaitLoop`; 0: not turned, as a tree that cannot pivot on one
     planted foot is not, :func:`~msrr.core.closed_loop.turned_goal`), takes that step
@@ -739,7 +739,7 @@ class Executor:
         try:
             for index, action in enumerate(plan.actions):
                 if self._skips(index, action):
-                    self._settle(turned)
+                    self._retake_unturned(turned)
                     turned = None
                     result.actions_skipped += 1
                     continue
@@ -748,10 +748,10 @@ class Executor:
                 self._turn, self._turned = self._gait_turn(index, action, last), False
                 self._execute_action(index, action)
                 turn = self._turn if self._turned else 0.0
-                turned = (index, action) if settles(plan.actions, index, turn) else None
+                turned = (index, action) if retakes_unturned(plan.actions, index, turn) else None
                 last = action
                 result.actions_done += 1
-            self._settle(turned)
+            self._retake_unturned(turned)
             index = len(plan.actions)
             remaining = topology_diff(self._current, plan.goal)
             if remaining:
@@ -765,9 +765,9 @@ class Executor:
             self.driver.send_action({})
         return result
 
-    def _settle(self, turned: tuple[int, Action] | None) -> None:
+    def _retake_unturned(self, turned: tuple[int, Action] | None) -> None:
         """A gait stopping after ``turned`` (index, action: a loop's last step run with its
-        goal turned, :func:`settles`) takes that step again unturned, into its designed
+        goal turned, :func:`retakes_unturned`) takes that step again unturned, into its designed
         stance; nothing when ``None``."""
         if turned is not None:
             self._turn = 0.0

@@ -179,7 +179,7 @@ def test_the_gait_loop_turns_a_loops_last_step_too():
 
 def test_a_gait_stopped_after_a_turned_step_takes_that_step_again_unturned(monkeypatch):
     """The judge measures the stance a gait stops in: a loop's last step whose goal was
-    turned is run again with no turn when the gait stops after it (:func:`settles`); a
+    turned is run again with no turn when the gait stops after it (:func:`~msrr.core.executor.retakes_unturned`); a
     step whose tree could not be turned (no single planted foot) is not."""
     runs = []
     pivots = [True]

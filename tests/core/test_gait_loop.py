@@ -22,7 +22,7 @@ from msrr.core.executor import (
     course_loop,
     ends_loop,
     gait_loop,
-    settles,
+    retakes_unturned,
 )
 from msrr.core.kinematics import FixedNode, KinematicTree
 from msrr.core.plan import Action, ActionType, BehaviorCall
@@ -136,11 +136,11 @@ def test_only_a_sequence_that_states_its_direction_gets_a_gait_loop():
         ExecutorOptions(max_gait_turn=-1.0)
 
 
-def test_a_gait_settles_only_a_turned_step_it_can_stop_in():
+def test_a_gait_retakes_unturned_only_a_turned_step_it_can_stop_in():
     """A gait stops only at a loop's end: those steps are the ones :func:`ends_loop` names
     (the squirm's loop: squirm-down, then squirm-up, the stance it is judged in), and only
     such a step run turned is taken again unturned when the gait stops after it
-    (:func:`settles`)."""
+    (:func:`retakes_unturned`)."""
     goal = chain(4)
     steps = [Action(ActionType.MOVING, goal)]   # the way to the gait's start
     for loop in range(3):
@@ -148,5 +148,5 @@ def test_a_gait_settles_only_a_turned_step_it_can_stop_in():
                             direction=(1.0, 0.0, 0.0))
         steps += [Action(ActionType.MOVING, goal, behavior=call) for _ in range(2)]
     assert [ends_loop(steps, i) for i in range(1, 7)] == [False, True] * 3
-    assert [settles(steps, i, 0.1) for i in range(1, 7)] == [False, True] * 3
-    assert not any(settles(steps, i, 0.0) for i in range(1, 7))
+    assert [retakes_unturned(steps, i, 0.1) for i in range(1, 7)] == [False, True] * 3
+    assert not any(retakes_unturned(steps, i, 0.0) for i in range(1, 7))
