@@ -296,6 +296,8 @@ class RunResult:
         redocked: connections that broke unplanned (a strut end's load over its
             strength) and were docked again before the action went on, one line each
             ("action 7: n2-s7a broke at 127.6 s, re-docked at 131.2 s").
+        timed_out_steps: timed gait steps (the executor's ``gait_step_time``) that ended on
+            their time without their stance estimated reached.
     """
 
     success: bool
@@ -320,6 +322,7 @@ class RunResult:
     locomotion: list[BehaviorVerdict] = field(default_factory=list)
     settled: list[str] = field(default_factory=list)
     redocked: list[str] = field(default_factory=list)
+    timed_out_steps: int = 0
 
     def summary(self) -> dict[str, object]:
         """JSON-ready numbers (for ``summary.json``)."""
@@ -337,7 +340,8 @@ class RunResult:
                 "interrupted": self.interrupted or None,
                 "targets": [t.summary() for t in self.targets],
                 "locomotion": [m.summary() for m in self.locomotion],
-                "settled": list(self.settled), "redocked": list(self.redocked)}
+                "settled": list(self.settled), "redocked": list(self.redocked),
+                "timed_out_steps": self.timed_out_steps}
 
 
 class EventSink(Protocol):

@@ -60,8 +60,11 @@ and the ``broken``/``made`` links with their ports.
   loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
   step but the behavior's first has its goal turned about the planted feet
   (:func:`~msrr.core.closed_loop.turned_goal`), and a gait that stops after a turned
-  loop's last step takes that step again unturned (:func:`retakes_unturned`), so it stands in its
-  designed stance.
+  loop's last step takes that step again unturned (:func:`retakes_unturned`), so it
+  stands in its designed stance. A step of a sequence whose stance is within
+  ``timed_step_size`` of the one before ends when reached or on its time
+  (:func:`timed_step`); one that ended on its time is counted
+  (``RunResult.timed_out_steps``).
 
 The executor judges nothing and reads only :class:`~msrr.core.driver.Observation`:
 module reports, never a simulator's poses or dock state (:mod:`msrr.core.witness`). It
@@ -866,8 +869,9 @@ class Executor:
                     continue
                 if watch is not None:
                     stalled = watch.stalled(self._progress(), self.driver.time, self.dt)
-            if timed and not stalled:
-                return   # a timed gait step ends on its time (ExecutorOptions.gait_step_time)
+            if timed and not stalled:   # ended on its time (ExecutorOptions.gait_step_time)
+                self.result.timed_out_steps += 1
+                return
         if stalled and self._settled(phase, watch):
             assert watch is not None and watch.error is not None
             self.result.settled.append(
@@ -896,9 +900,9 @@ class Executor:
         An approach and a connect phase (section 4.1's ``S_conn`` and ``S_extr``, with the
         connect phase's press, back-off and re-aim) toward ``action``'s target, the ends
         docked as a connection action docks them: what a planned re-dock does. A
-        behavior's wheels stop meanwhile (its commands name none). The break stays on the timeline as the unexpected undock it was, the
-        action's status goes ``redocking`` and the run's result notes it
-        (:attr:`RunResult.redocked`).
+        behavior's wheels stop meanwhile (its commands name none). The break stays on the
+        timeline as the unexpected undock it was, the action's status goes ``redocking``
+        and the run's result notes it (:attr:`RunResult.redocked`).
 
         Raises:
             _ActionFailed: more breaks in this action than ``options.redocks``, or the
@@ -1025,7 +1029,7 @@ class Executor:
     def _turned_goal(self, goal: Configuration, tree: KinematicTree) -> Configuration:
         """``goal`` turned by the gait loop's turn (:func:`turned_goal`), noting whether
         that changed it (a tree with no single planted foot, or a root without edges,
-        is not turned: nothing to settle)."""
+        is not turned: nothing to take again, :func:`retakes_unturned`)."""
         turned = turned_goal(goal, tree, self._turn)
         self._turned |= turned is not goal
         return turned

@@ -207,6 +207,8 @@ def _summary(result: RunResult, planned_docks: int, planned_undocks: int,
         rows.append(["faults", len(result.faults)])
     rows.extend(["settled, not reached", line] for line in result.settled)
     rows.extend(["broke, re-docked", line] for line in result.redocked)
+    if result.timed_out_steps:
+        rows.append(["gait steps ended on time, not reached", result.timed_out_steps])
     rows.append(["success", "yes" if result.success else "no"])
     return table("Run summary", ["", "value"], rows)
 

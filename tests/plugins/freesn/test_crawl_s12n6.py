@@ -138,6 +138,8 @@ def test_a_noisy_trot_step_ends_on_its_time_instead_of_holding_the_stance(tmp_pa
     timed = _noisy_trot(tmp_path, 0.2)
     assert timed.success, timed.reason
     assert timed.sim_time < 0.5 + 4 * 0.2 + 1e-6   # the move to the stance, four steps
+    assert 1 <= timed.timed_out_steps <= 4 and held.timed_out_steps == 0   # said, not hidden
+    assert timed.summary()["timed_out_steps"] == timed.timed_out_steps
 
 
 def test_only_the_trots_steps_are_timed():
