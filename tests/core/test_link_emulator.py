@@ -273,5 +273,8 @@ def test_under_a_budget_the_host_polls_all_modules_at_once_and_keeps_within_it(t
         # period (0.1 s) after the others, still the same instant of the robot
         first = max((t for t in ticks if at - t <= 0.1 + 1e-9), default=at)
         ticks.setdefault(first, set()).add(module)
-    together = sum(len(m) == 3 for m in ticks.values())
-    assert together >= 0.8 * len(ticks), ticks  # one instant of the robot
+    # the window's first and last instants may be cut by its edges (a poll answered
+    # partly before the cut, or after the last step): whole polls only
+    whole = [ticks[t] for t in sorted(ticks)][1:-1]
+    together = sum(len(m) == 3 for m in whole)
+    assert len(whole) >= 3 and together >= 0.8 * len(whole), ticks  # one instant
