@@ -631,6 +631,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._braked[k] = False
         to_node = self._node_tilt(self._node_index[node])   # horizontal -> node frame
         self._localise(k)
+        self._level_fix(k)
         want = to_node @ direction
         current = self._believed(np.array([k]))[0]   # node -> strut, believed
         u = self._sign[k] * _EZ
@@ -749,6 +750,22 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         if self.noise.std:
             sample = self.noise.rng.normal(0.0, self.noise.std, 3)
             self._fix[k] += _FUSION * (sample - self._fix[k])
+
+    def _level_fix(self, k: int) -> None:
+        """Connector ``k`` corrects its twist about the strut axis by its strut's
+        accelerometer: gravity in the strut's frame gives the roll about a non-vertical
+        axis with the reports' noise, so the encoders' random walk (``eps``, slip and
+        drift) is low-passed toward that reading's error, ``e <- (1 - b) e + b n`` with
+        ``b = _FUSION sin^2`` (the axis's angle from the vertical: about a vertical axis
+        gravity says nothing)."""
+        if not (self.noise.std or self._eps[k]):
+            return
+        axis_z = float(self.data.xmat[self._strut_body[k // 2]][8])
+        seen = 1.0 - axis_z * axis_z
+        if seen < _AZIMUTH_FROM**2:
+            return
+        sample = self.noise.rng.normal(0.0, self.noise.std) if self.noise.std else 0.0
+        self._eps[k] += _FUSION * seen * (sample - self._eps[k])
 
     def _believed(self, ks: np.ndarray) -> np.ndarray:
         """Node -> strut rotations (n, 3, 3) as the connectors believe them: the truth

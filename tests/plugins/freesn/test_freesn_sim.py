@@ -553,6 +553,24 @@ def test_connectors_servo_on_their_own_noisy_sensors():
     assert 0.3 < wander(np.radians(2.0)) < 4.0
 
 
+def test_a_connectors_twist_drift_is_pulled_back_by_its_struts_accelerometer():
+    """The encoders' twist error (``eps``: slip and drift, a random walk) is fused with
+    the strut's accelerometer at each command, weighted by how far the axis is from the
+    vertical: with exact readings it decays as ``(1 - _FUSION sin^2)^n``; before, it stayed
+    (a strut wheel's axle rolled that far off level for good)."""
+    world = FreeSNWorld(_library_config("S6N3", "S6N3-1.1"), SPEC, SimOptions(slip=0.1))
+    world.step(0.1)
+    k = world.ends.index(("S4", "a"))
+    want = world.ground_truth(world.docked[k]).edge("S4").z
+    axis_z = world.data.xmat[world.bodies["S4"]].reshape(3, 3)[2, 2]
+    seen = 1.0 - axis_z**2
+    assert seen > 0.1                                  # a leg, not vertical
+    world._eps[k] = 0.3
+    for _ in range(10):
+        world.command_target("S4", "a", (want, None, 1.0))
+    assert world._eps[k] == pytest.approx(0.3 * (1.0 - 0.2 * seen) ** 10, rel=1e-9)
+
+
 def test_a_nodes_attitude_estimate_is_its_noisy_readings_low_passed():
     """The connectors turn commands into the node frame through the node's attitude
     estimate: each tick's reading (the reports' noise) fused at ``_FUSION`` into the
