@@ -886,12 +886,13 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         if moved:
             self._update_ball_targets(np.array(moved))
 
-    def _spin_speed(self, ks: np.ndarray, asked: np.ndarray, rate: np.ndarray,
+    def _spin_speed(self, ks: np.ndarray, asked: np.ndarray, axis: np.ndarray,
                     wheeling: np.ndarray) -> np.ndarray:
         """Spin commands (n,) [rad/s] of connectors ``ks`` with the wheel speed loop: the
         spin ``asked`` plus ``_SPIN_GAIN`` times its integrated lag behind the measured
-        spin ``rate`` (n,) [rad/s] (the wheels' encoders), the integral bounded to the
-        spin rate; for the ``wheeling`` ones only."""
+        spin (the ball joint's rate about the strut ``axis``, (n, 3), connector frame),
+        the integral bounded to the spin rate; for the ``wheeling`` ones only."""
+        rate = np.einsum("ni,ni->n", self.data.qvel[self._dofs[ks]], axis)
         bound = self.phys.max_spin_rate / _SPIN_GAIN
         lag = np.clip(self._spin_lag[ks] + (asked - rate) * self._every * self.options.timestep,
                       -bound, bound)
@@ -936,8 +937,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             scale *= np.minimum(1.0, limit / np.maximum(p.damping * norm * scale, 1e-12))
             spin = np.minimum(np.maximum(spin, -p.max_spin_rate), p.max_spin_rate)
             if wheeling.any():
-                rate = np.einsum("ni,ni->n", self.data.qvel[self._dofs[ks]], axis)
-                spin = self._spin_speed(ks, spin, rate, wheeling)
+                spin = self._spin_speed(ks, spin, axis, wheeling)
             # a reduced effort softens the position loop of a loop-closing connector; its
             # wheels, when commanded, still run at the full torque
             spin_limit = np.where(wheeling, p.max_torque, limit)
@@ -1027,11 +1027,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             integral = np.clip(integral, -self._integral_bound, self._integral_bound)
             self._integral[ks, 1:] = integral
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
-        if wheeling.any():   # the wheels' speed loop on the spin (the turn their encoders see)
-            v = self.data.actuator_velocity[self._motor[ks]]
-            rate = (v[:, 1] - v[:, 0]) / (2.0 * p.turn_ratio)
-            spin = self._spin_speed(ks, self._wheel[ks] / p.turn_ratio, rate, wheeling)
-            omega[:, 1] = np.where(wheeling, spin, omega[:, 1])
+        omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
         return self._wheel_speeds(omega, ~turning & ~wheeling), held
 
     def _way(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
