@@ -57,7 +57,7 @@ from ..robot import NODE, STRUT
 from .recognizer import links_of, node_headings, root_order
 from .world import NodeReport
 
-__all__ = ["CONTACT", "ImuOdometry", "gyro_since", "node_positions", "on_struts"]
+__all__ = ["CONTACT", "LATCH", "ImuOdometry", "gyro_since", "node_positions", "on_struts"]
 
 CONTACT = 0.015
 """A node whose centre is at most this much [m] above the lowest node's stands on the
@@ -73,6 +73,13 @@ foot set that changes moves the place by the shape's noise (2 deg over 0.4 m: 1.
 UPRIGHT = -0.5
 """A node whose vertical axis points above this (its ``z`` component) is upright enough
 for its twist about the vertical to be its heading (within 120 deg of upright)."""
+
+
+LATCH = -0.7
+"""A root turning over past :data:`UPRIGHT` hands its own heading on to its upright
+nodes' mean only while its vertical's ``z`` component is above this (its twist's error
+then at most ``1 / (1 + LATCH)``, 3.3 times an upright node's); found further over (a
+first report, or upright nodes found again) it takes their mean as it is."""
 
 
 def gyro_since(report: NodeReport, last: tuple[float, np.ndarray] | None, dt: float
@@ -193,6 +200,7 @@ class ImuOdometry:
         self.last: Estimate | None = None         # the last estimate accepted
         self.counted: dict[str, tuple[float, np.ndarray]] = {}  # stamp, counter used last
         self.spans: dict[str, float] = {}         # per node, the time its last turn covered
+        self.carry: float | None = None           # root's own heading less the consensus [rad]
 
     def update(self, observation: Observation, configuration: Configuration) -> Estimate:
         """The estimate after ``observation`` and the configuration recognized from it."""
@@ -236,17 +244,32 @@ class ImuOdometry:
         leaves the mean at a sixteenth of an upright node's weight; the circular median
         used before (stops 39-44) jumped to another node's heading when one left: +7 deg
         in one tick, kept for the rest of the run (fig19-squirm at 2 deg + 5 %, seed 10).
+
+        The switch of source is continuous: when the root turns over (or finds upright
+        nodes again) the mean is offset by what it differs from the root's own heading
+        then (:attr:`carry`; only while that heading is still well defined, :data:`LATCH`),
+        so it gives the heading's changes, not its level. The votes
+        carry the relative headings' errors (the connectors' twist, slip on the rolling
+        root's shell): at 2 deg + 5 %, seed 10 (stop 47), they differed from the root's
+        own heading by 5 deg as it turned over, and the body's estimate jumped from 0.6
+        to 8.4 deg off the truth, where it stayed.
         """
         if self.tilt[root][2, 2] >= UPRIGHT:
+            self.carry = None
             return self.yaw[root]
         relative = node_headings(reports, links, root)
         members = [n for n in group if n in relative and n in self.yaw]
         upright = [n for n in members if self.tilt[n][2, 2] >= UPRIGHT]
         if not upright:
+            self.carry = None
             return self.yaw[root]
         votes = np.array([self.yaw[n] - relative[n] for n in upright])
         weights = np.array([(1.0 + self.tilt[n][2, 2]) ** 2 for n in upright])
         heading = math.atan2(float(weights @ np.sin(votes)), float(weights @ np.cos(votes)))
+        if self.carry is None:
+            near = self.tilt[root][2, 2] >= LATCH
+            self.carry = wrap_angle(self.yaw[root] - heading) if near else 0.0
+        heading = wrap_angle(heading + self.carry)
         for n in members:
             if n not in upright:
                 self.yaw[n] = wrap_angle(heading + relative[n])

@@ -156,8 +156,42 @@ def test_a_node_turning_past_upright_moves_a_turned_over_roots_heading_by_little
                                         [0.0, math.sin(tilt), math.cos(tilt)]])
         return math.degrees(odometry._consensus(reports, links, root, group))
 
+    odometry.carry = 0.0            # it turned over in agreement with its upright nodes
     assert 2.0 < root_heading(1.0) < 6.0                  # between the upright nodes' votes
     assert abs(root_heading(UPRIGHT + 0.01) - root_heading(UPRIGHT - 0.01)) < 0.5   # no jump
+
+
+def test_a_root_turning_over_keeps_its_heading_where_its_upright_nodes_disagree():
+    """The root's heading does not jump when it turns past :data:`UPRIGHT` and takes it
+    from its upright nodes: their votes carry the relative headings' errors, and the mean
+    is offset by what it differs from the root's own heading then, so it moves the
+    heading by its changes only (the squirm at 2 deg + 5 %, seed 10, stop 47: the votes
+    were 5 deg off the root's own heading, and the body's estimate jumped 8 deg off the
+    truth and stayed there). Once upright again the root goes on from there."""
+    odometry, reports, links, root, group = _standing_odometry()
+    relative = node_headings(reports, links, root)
+    own = odometry.yaw[root]
+    for node in ("N1", "N2", "N3", "N4"):
+        odometry.yaw[node] = own + math.radians(8.0) + relative[node]   # the votes: 8 deg
+        odometry.tilt[node] = np.eye(3)
+
+    def turned(z: float) -> None:
+        tilt = math.acos(z)
+        odometry.tilt[root] = np.array([[1.0, 0.0, 0.0],
+                                        [0.0, math.cos(tilt), -math.sin(tilt)],
+                                        [0.0, math.sin(tilt), math.cos(tilt)]])
+
+    turned(UPRIGHT + 0.01)
+    assert odometry._consensus(reports, links, root, group) == own          # its own
+    turned(UPRIGHT - 0.01)
+    assert abs(odometry._consensus(reports, links, root, group) - own) < 1e-9   # no jump
+    for node in ("N1", "N2", "N3", "N4"):
+        odometry.yaw[node] += math.radians(3.0)              # the upright nodes turn 3 deg
+    turned(-1.0)
+    heading = odometry._consensus(reports, links, root, group)
+    assert math.degrees(heading - own) == pytest.approx(3.0)     # the body turned with them
+    turned(1.0)
+    assert odometry._consensus(reports, links, root, group) == heading   # upright: goes on
 
 
 def test_a_place_that_leaps_is_a_glitch_not_a_motion():
