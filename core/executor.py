@@ -163,12 +163,7 @@ class ExecutorOptions:
             planted feet asked of a step per radian of heading error (0 with
             ``gait_integral`` 0: no loop; :class:`GaitLoop`).
         gait_integral: its integral gain, per step (a turn the gait makes unasked).
-        max_gait_turn: bound of the turn one step is asked [rad]: 12 deg. The squirm's
-            steps carry out a third to a half of it (exact: +3.8 deg a squirm-down step
-            at 8 deg); under 2 deg of noise and 5 % slip its squirm-up steps turned the
-            body -7.3 deg and its squirm-down steps +2.0 deg at 8 deg, so a loop at the
-            bound lost 5 deg and the loop saturated for the whole run (seed 10: the body
-            ended -50 deg, heading error 19.3 deg; at 12 deg, 11.1 deg; stop 47).
+        max_gait_turn: bound of the turn one step is asked [rad].
         stall_window: a tracked ``approach`` or ``move`` phase whose estimated shape error
             improved by less than ``stall_gain`` [rad] over this long [s of driver time]
             ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
@@ -212,7 +207,7 @@ class ExecutorOptions:
     max_course_offset: float = math.radians(60.0)
     gait_gain: float = 0.5
     gait_integral: float = 0.2
-    max_gait_turn: float = math.radians(12.0)
+    max_gait_turn: float = math.radians(8.0)
     stall_window: float = 15.0
     stall_gain: float = math.radians(0.5)
     stall_time: float = 1.0

@@ -115,17 +115,6 @@ def test_the_gait_loop_keeps_a_gait_that_turns_unasked_on_its_line(drift, crab):
     assert abs(off) < 5.0
 
 
-def test_a_gait_step_may_be_asked_12_deg():
-    """Under 2 deg of noise and 5 % slip the squirm's loop of two steps turned its body
-    -5.3 deg with 8 deg a step asked (-7.3 and +2.0; seed 10, stop 47): the loop sat at
-    its bound the whole run, the body ended -50 deg and the travel 19.3 deg off; asked up
-    to 12 deg, 11.1 deg."""
-    call = BehaviorCall("squirm", "sequence", {}, loops=2, direction=(1.0, 0.0, 0.0))
-    loop = gait_loop(call, 0.0, OPTIONS)
-    assert loop is not None and math.degrees(loop.bound) == pytest.approx(12.0)
-    assert math.degrees(loop.turn(-1.0)) == pytest.approx(12.0)   # 1 rad right: 12 left
-
-
 def test_the_gait_turn_is_bounded_and_does_not_wind_up():
     loop = GaitLoop(0.0, gain=0.5, integral_gain=0.2, bound=math.radians(8.0))
     for _ in range(50):   # turned 1 rad left of where it started: it asks to turn right
