@@ -47,6 +47,14 @@ class SimOptions(MujocoOptions):
             default 250 is the strut firmware's base control period, 4 ms.
         break_filter: time constant of the connection-load low-pass before the strength
             check [s] (a magnet does not let go on a one-step impulse).
+        fusion: weight of a fresh reading in the estimates a connector servos on, fused
+            at each command (10 Hz): its node's IMU attitude (the accelerometer into the
+            gyro-propagated attitude) and its own pose on the node (a magnetic fix into
+            its encoders); the estimate's error is ``e <- (1 - b) (e + drift) + b n``
+            (std ``b / sqrt(1 - (1 - b)^2)`` of the noise, about 0.16 at 0.05, 0.33 at
+            0.2). 0.05 (about 2 s) since issue 31 stop 47: at 0.2 (0.45 s) the connectors
+            holding fig22(j) chased their fixes' 1.3 deg jitter at 4 deg of noise and its
+            top sank to the floor held still; the gyros' drift over 2 s is 0.06 deg.
         gyro_bias: standard deviation of each node gyro's constant bias per axis
             [rad/s], drawn once per run (what is left after calibrating at rest).
         gyro_walk: random walk of that bias (bias instability) [rad/s / sqrt(s)].
@@ -77,6 +85,8 @@ class SimOptions(MujocoOptions):
         DriverOption("integral_gain", float, "connector integral gain", "1/s^2", 0.0, 1e5),
         DriverOption("integral_bound", float, "integral's command / the roll rate", "",
                      0.0, 1.0, low_open=True),
+        DriverOption("fusion", float, "weight of a fresh reading in a connector's attitude and "
+                     "pose estimates", "", 0.0, 1.0, low_open=True),
         DriverOption("break_filter", float, "time constant of the connection-load filter", "s",
                      0.0, 10.0, low_open=True),
         DriverOption("gyro_bias", float, "std of each node gyro's constant bias", "rad/s",
@@ -95,6 +105,7 @@ class SimOptions(MujocoOptions):
     integral_gain: float = 400.0
     integral_bound: float = 1.0
     break_filter: float = 0.05
+    fusion: float = 0.05
     gyro_bias: float = 5e-4
     gyro_walk: float = 1e-4
     gyro_noise: float = 2e-4
@@ -102,7 +113,7 @@ class SimOptions(MujocoOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         self._check(positive=("strength_factor", "torque_factor", "break_filter",
-                              "integral_bound"),
+                              "integral_bound", "fusion"),
                     non_negative=("drift", "slip", "integral_gain", "gyro_bias", "gyro_walk",
                                   "gyro_noise"))
         if self.connector_drive not in ("differential", "holonomic"):

@@ -69,10 +69,11 @@ recognizer's estimator integrates the gyros (:mod:`.recognizer`).
 
 Sensing in the loop: a connector servos on its own sensors with the reports' noise
 model (``noise``, the same seeded generator): the node's IMU attitude (one estimate per
-node and tick, shared by its connectors; the readings' error low-passed, ``_FUSION``)
-turns a command into the node frame, and its
-pose on the node is its encoders fused with a magnetic-localisation fix per command
-(the fixes' error low-passed, ``_FUSION``); it never reads the true node orientation.
+node and tick, shared by its connectors; the readings' error low-passed at the weight
+``SimOptions.fusion``, with the gyro's drift in between) turns a command into the node
+frame, and its pose on the node is its encoders fused with a magnetic-localisation fix
+per command (the fixes' error low-passed, ``fusion``); it never reads the true node
+orientation.
 
 Docking (Fig. 11c-d): a dock command extends the magnet array; an extended free end
 docks when its magnet touches a node (the face within ``_CONTACT`` of the docked
@@ -138,7 +139,7 @@ _ALIGNMENT = np.radians(10.0)  # strut axis to the node centre: a magnet that do
 _ATTRACTION_CONE = np.radians(45.0)  # a magnet pulls on a node in front of it
 _MAGNET_FALLOFF = 0.005  # g0 = l_m / mu_r: air gap at which a face-on pull falls to 1/4 [m]
 _MAGNET_HALF_WIDTH = 0.01  # half the magnet array's face (it sits between wheels 30 mm apart) [m]
-_FUSION = 0.2  # weight of a fresh fix (localisation, attitude) in an estimate (10 Hz: 0.45 s)
+_FUSION = 0.2  # weight of a fresh accelerometer twist reading in a connector's (10 Hz: 0.45 s)
 _GRIP_LEVER = 0.05    # a grip tendon's length: contact point to its anchor along the axle [m]
 _GRIP_SOLIMP = [0.999, 0.9999, 0.001, 0.5, 2.0]  # a stiff grip (MuJoCo's default creeps)
 _GRIPS = ("grip", "roll", "turn")  # a connector's friction tendons: sideways, wheels braked
@@ -347,6 +348,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._fix = np.zeros((k, 3))                       # localisation error, node frame [rad]
         self._imu: dict[int, np.ndarray] = {}              # node tilt readings this tick
         self._attitude = np.zeros((len(self.nodes), 3))   # node attitude error [rad]
+        self._fused_at: dict[int, float] = {}              # node -> time of its last fusion [s]
         self._load = np.zeros(k)
         self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
@@ -690,9 +692,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         frame; one estimate per node and tick, shared by its connectors). The node's IMU
         fuses each accelerometer reading, with the reports' noise, into its gyro-propagated
         attitude as the connectors fuse their fixes: the estimate's error is the readings'
-        error low-passed, ``a <- (1 - b) a + b n`` (``_FUSION``). A raw reading per tick
-        would make every connector chase a fresh 2 deg jitter and the loop a chain closes
-        would never settle (fig21's last dock, issue 31).
+        error low-passed, ``a <- (1 - b) (a + g dt) + b n`` (``b`` the option ``fusion``;
+        ``g dt`` the node gyro's bias over the time since the last fusion, the drift the
+        reading corrects). A raw reading per tick would make every connector chase a fresh
+        2 deg jitter and the loop a chain closes would never settle (fig21's last dock,
+        issue 31); at ``b`` = 0.2 fig22(j)'s held top sank at 4 deg (issue 31, stop 47).
 
         The shell of a node its connectors hold is free under them, so it ends where each
         estimate puts it: it takes every estimate's error for good, and any torque its
@@ -715,7 +719,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             tilt = rot_z(-float(heading(self.data.xquat[body])))
             if self.noise.std:
                 sample = self.noise.rng.normal(0.0, self.noise.std, 3)
-                self._attitude[i] += _FUSION * (sample - self._attitude[i])
+                drift = tilt @ self.data.xmat[body].reshape(3, 3) @ self._gyro_bias[i] * (
+                    self.time - self._fused_at.get(i, self.time))
+                self._fused_at[i] = self.time
+                b = self.options.fusion
+                self._attitude[i] += drift + b * (sample - self._attitude[i] - drift)
                 tilt = Rotation.from_rotvec(self._attitude[i]).as_matrix() @ tilt
             attitude = tilt @ self.data.xmat[body].reshape(3, 3)   # node in horizontal frame
             self._imu[i] = (self._levelled(i, attitude) @ attitude).T
@@ -746,10 +754,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _localise(self, k: int) -> None:
         """Connector ``k`` takes a magnetic-localisation fix (the reports' noise, node
         frame) and fuses it with its encoders: its pose error is the fixes' error
-        low-passed, ``f <- (1 - b) f + b n`` per fix (``_FUSION``)."""
+        low-passed, ``f <- (1 - b) f + b n`` per fix (``b`` the option ``fusion``; the
+        encoders do not drift in swing here: the wheels' slip is the twist ``eps``)."""
         if self.noise.std:
             sample = self.noise.rng.normal(0.0, self.noise.std, 3)
-            self._fix[k] += _FUSION * (sample - self._fix[k])
+            self._fix[k] += self.options.fusion * (sample - self._fix[k])
 
     def _level_fix(self, k: int) -> None:
         """Connector ``k`` corrects its twist about the strut axis by its strut's

@@ -573,25 +573,25 @@ def test_a_connectors_twist_drift_is_pulled_back_by_its_struts_accelerometer():
 
 def test_a_nodes_attitude_estimate_is_its_noisy_readings_low_passed():
     """The connectors turn commands into the node frame through the node's attitude
-    estimate: each tick's reading (the reports' noise) fused at ``_FUSION`` into the
+    estimate: each tick's reading (the reports' noise) fused at ``b`` = ``fusion`` into the
     gyro-propagated attitude, so the error is a low-passed noise (std ``sigma b / sqrt(1 -
-    (1 - b)^2)`` ~ 0.33 sigma, lag-one correlation ``1 - b``), not a fresh 2 deg per tick;
-    exact without noise."""
+    (1 - b)^2)`` ~ 0.16 sigma at 0.05, lag-one correlation ``1 - b``), not a fresh 2 deg
+    per tick; exact without noise."""
     start = _library_config("S6N3", "S6N3-1.1")
 
     def errors(noise: float) -> np.ndarray:
         world = FreeSNWorld(start, SPEC, SimOptions(noise=noise, seed=3))
         body = world._node_body[0]
         out = []
-        for _ in range(600):
+        for _ in range(4000):
             world._imu.clear()
             truth = world.data.xmat[body].reshape(3, 3).T \
                 @ rot_z(-float(heading(world.data.xquat[body]))).T
             out.append(Rotation.from_matrix(world._node_tilt(0) @ truth.T).as_rotvec())
-        return np.array(out[50:])
+        return np.array(out[200:])
 
     assert np.abs(errors(0.0)).max() < 1e-9
-    sigma, b = np.radians(2.0), 0.2
+    sigma, b = np.radians(2.0), SimOptions().fusion
     e = errors(sigma)
     assert np.std(e) == pytest.approx(sigma * b / np.sqrt(1 - (1 - b) ** 2), rel=0.2)
     lag = np.mean([np.corrcoef(e[1:, i], e[:-1, i])[0, 1] for i in range(3)])
