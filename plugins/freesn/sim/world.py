@@ -139,7 +139,7 @@ _ALIGNMENT = np.radians(10.0)  # strut axis to the node centre: a magnet that do
 _ATTRACTION_CONE = np.radians(45.0)  # a magnet pulls on a node in front of it
 _MAGNET_FALLOFF = 0.005  # g0 = l_m / mu_r: air gap at which a face-on pull falls to 1/4 [m]
 _MAGNET_HALF_WIDTH = 0.01  # half the magnet array's face (it sits between wheels 30 mm apart) [m]
-_FUSION = 0.2  # weight of a fresh accelerometer twist reading in a connector's (10 Hz: 0.45 s)
+_TWIST_FUSION = 0.2  # weight of a strut accelerometer's twist reading (10 Hz: 0.45 s)
 _GRIP_LEVER = 0.05    # a grip tendon's length: contact point to its anchor along the axle [m]
 _GRIP_SOLIMP = [0.999, 0.9999, 0.001, 0.5, 2.0]  # a stiff grip (MuJoCo's default creeps)
 _GRIPS = ("grip", "roll", "turn")  # a connector's friction tendons: sideways, wheels braked
@@ -765,7 +765,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         accelerometer: gravity in the strut's frame gives the roll about a non-vertical
         axis with the reports' noise, so the encoders' random walk (``eps``, slip and
         drift) is low-passed toward that reading's error, ``e <- (1 - b) e + b n`` with
-        ``b = _FUSION sin^2`` (the axis's angle from the vertical: about a vertical axis
+        ``b = _TWIST_FUSION sin^2`` (the axis's angle from the vertical: about a vertical axis
         gravity says nothing)."""
         if not (self.noise.std or self._eps[k]):
             return
@@ -774,7 +774,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         if seen < _AZIMUTH_FROM**2:
             return
         sample = self.noise.rng.normal(0.0, self.noise.std) if self.noise.std else 0.0
-        self._eps[k] += _FUSION * seen * (sample - self._eps[k])
+        self._eps[k] += _TWIST_FUSION * seen * (sample - self._eps[k])
 
     def _believed(self, ks: np.ndarray) -> np.ndarray:
         """Node -> strut rotations (n, 3, 3) as the connectors believe them: the truth

@@ -556,7 +556,7 @@ def test_connectors_servo_on_their_own_noisy_sensors():
 def test_a_connectors_twist_drift_is_pulled_back_by_its_struts_accelerometer():
     """The encoders' twist error (``eps``: slip and drift, a random walk) is fused with
     the strut's accelerometer at each command, weighted by how far the axis is from the
-    vertical: with exact readings it decays as ``(1 - _FUSION sin^2)^n``; before, it stayed
+    vertical: with exact readings it decays as ``(1 - _TWIST_FUSION sin^2)^n``; before, it stayed
     (a strut wheel's axle rolled that far off level for good)."""
     world = FreeSNWorld(_library_config("S6N3", "S6N3-1.1"), SPEC, SimOptions(slip=0.1))
     world.step(0.1)
