@@ -34,7 +34,11 @@ Reaching (section 4.1, "the controllers are terminated if the current system
 configuration is close to the target by monitoring the estimated motion costs"): a
 phase is reached when the distance cost of eq. 8 -- the RMS angle between the
 recognized vectors (low-passed over the ticks) and the goal vectors after yaw
-alignment, :func:`shape_error` -- is under ``reach_tolerance``. The IK's own motion cost (eqs. 3-5) is not used for this: its
+alignment, :func:`~msrr.core.shape.skeletal_error` -- is under ``reach_tolerance``; or
+on the measure the controllers of the tree's nodes give, when they aim each connection
+relative to its parent (:func:`reach_measure`: FreeBOT's and SnailBot's bends, whose
+recognized absolute shape carries the headings' chained errors, which no command takes
+out). The IK's own motion cost (eqs. 3-5) is not used for this: its
 steering terms stay near 0.1 rad per joint under 2 deg of recognition noise even when
 the shape is within 1 deg, so no fixed threshold on it separates reached from not.
 """
