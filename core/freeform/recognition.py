@@ -28,7 +28,7 @@ tells its connector to dock on ``Q`` and leave ``P``, which the world does in on
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -295,14 +295,17 @@ def _links(config: Configuration) -> dict[str, str]:
     return {e.source: e.target for e in config.edges() if e.z is not None}
 
 
-def bend_errors(current: Configuration, goal: Configuration) -> tuple[float, np.ndarray]:
+def bend_errors(current: Configuration, goal: Configuration, *,
+                held: Collection[str] = ()) -> tuple[float, np.ndarray]:
     """How far ``current``'s bends are from ``goal``'s: ``(rms, per-connection angles
     (n,))`` [rad], each connection ``i -> j`` of both (with a vector) compared with the
     goal's turned about the vertical by ``j``'s :func:`anchors` (where ``j`` has none,
     by the connections' common turn, :func:`common_turn`); ``(0, [])`` when they share
     none. It is what :meth:`ContactController.commands` aims at, so what its moves are
     reached by: eq. 8's distance after one yaw alignment of the whole carries the
-    headings' chained errors, which no command takes out."""
+    headings' chained errors, which no command takes out. The connection of a module
+    of ``held`` within ``_LATCH_HOLD`` is left out: the controller holds it (a latched
+    piece's, :meth:`ContactController.commands`) and does not move it."""
     links = _links(current)
     anchor = anchors(current, goal, links)
     common = common_turn(current, goal)
@@ -312,7 +315,9 @@ def bend_errors(current: Configuration, goal: Configuration) -> tuple[float, np.
         if e.z is None or have is None or links.get(e.source) != e.target:
             continue
         aim = rot_z(anchor.get(e.target, common)) @ np.asarray(e.z, dtype=float)
-        angles.append(_angle(have, aim))
+        angle = _angle(have, aim)
+        if e.source not in held or angle >= _LATCH_HOLD:
+            angles.append(angle)
     if not angles:
         return 0.0, np.zeros(0)
     out = np.array(angles)
@@ -414,7 +419,15 @@ class ContactController:
         alignment (:func:`~msrr.core.shape.skeletal_error`). Its moves are reached on it,
         and the executor's tracking judges the phases it drives on it
         (:attr:`~msrr.core.closed_loop.PhaseTracker.error`)."""
-        return skeletal_error if self.sucker else bend_error
+        return skeletal_error if self.sucker else self._commanded_bends
+
+    def _commanded_bends(self, current: Configuration, goal: Configuration) -> float:
+        """:func:`bend_error` over the connections :meth:`commands` moves: those it holds
+        (a latched piece's within ``_LATCH_HOLD``, :func:`_swinging`) keep the latch's
+        error, which the hold accepts, and the judge decides on the simulator's state
+        (pieces-to-tree under 2 deg of noise, the final move: 18 of 19 connections held,
+        the move stalled on their errors)."""
+        return bend_errors(current, goal, held=_swinging(_links(current), self._latched))[0]
 
     def start(self, configuration: Configuration) -> None:
         """The run starts from ``configuration``: the locator learns where its modules

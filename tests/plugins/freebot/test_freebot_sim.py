@@ -269,17 +269,17 @@ def test_a_tracked_phase_is_reached_on_the_bends_its_controllers_aim_at(mujoco_d
     # controllers give none and keep eq. 8's distance after one yaw alignment
     from msrr.core import plugins
     from msrr.core.closed_loop import PhaseTracker, TrackingOptions, reach_measure, tree_for
-    from msrr.core.freeform import bend_error
 
     goal = load_configuration(CONFIGS / "forest20" / "forest20.json")
     driver = mujoco_driver("freebot", "forest20/forest20")
     reports = _with_link_yaw(driver.get_observation().sensors, np.radians(1.5))
     recognized = plugin.recognizer().recognize(reports)
-    assert reach_measure(plugin.controllers()) is bend_error
+    controller = plugin.controllers()[0]
+    assert reach_measure([controller, controller]) == controller.reach_measure
     assert reach_measure(plugins.capabilities("freesn").controllers.values()) is skeletal_error
     robot = plugins.resolve("freebot")
     tree = tree_for(recognized, None, robot.default_joint_mode())
-    bends = PhaseTracker(tree, goal, TrackingOptions(), measure=bend_error)
+    bends = PhaseTracker(tree, goal, TrackingOptions(), measure=controller.reach_measure)
     bends.step(recognized)
     assert bends.reached and np.degrees(bends.error) == pytest.approx(1.5, abs=0.2)
     eq8 = PhaseTracker(tree, goal, TrackingOptions())
