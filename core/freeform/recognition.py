@@ -367,6 +367,10 @@ class ContactController:
         spacing: centre distance of two docked modules [m] (the dead reckoning's scale).
         ground_speed: fastest travel of a free module over the floor [m/s].
         arrive: distance [m] from the docking spot under which an approach is reached.
+        bends: aim each connection at its goal's bend at its parent and reach the moves
+            on those bends (:func:`anchors`, :attr:`reach_measure`; FreeBOT), else in the
+            root's frame, reached on eq. 8's distance (SnailBot: with the bends its exact
+            ``pieces-to-tree`` ended 7.4 deg off, not diagnosed). Never with ``sucker``.
         piece_speed: fastest centre of a piece travelling over the floor [m/s], or 0: a
             module that carries others does not travel (its connector is rigid with the
             shell its tracks hold: SnailBot).
@@ -378,7 +382,7 @@ class ContactController:
     def __init__(self, name: str, recognizer: ContactRecognizer, *, sucker: bool = False,
                  tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0),
                  spacing: float = 0.1, ground_speed: float = 0.04, arrive: float = 0.005,
-                 piece_speed: float = 0.0, smoothing: float = 0.5,
+                 piece_speed: float = 0.0, smoothing: float = 0.5, bends: bool = False,
                  layout: Callable[[Configuration], tuple[Mapping[str, np.ndarray],
                                                          Mapping[str, np.ndarray]]] | None = None):
         self.name = name
@@ -389,6 +393,7 @@ class ContactController:
         self.tolerance = tolerance
         self.flow_tolerance = flow_tolerance
         self.smoothing = smoothing
+        self.bends = bends and not sucker
         self.ground_speed = ground_speed
         self.arrive = arrive
         self.locator = Locator(spacing)
@@ -414,12 +419,12 @@ class ContactController:
     @property
     def reach_measure(self) -> Callable[[Configuration, Configuration], float]:
         """How far a recognized configuration is from a goal [rad], as this controller's
-        commands see it: the bends (:func:`bend_error`) it aims at, or for a sucker mode,
-        which turns each module about its own axis, eq. 8's RMS angle after one yaw
-        alignment (:func:`~msrr.core.shape.skeletal_error`). Its moves are reached on it,
+        commands see it: with ``bends``, the bends it aims at (:func:`bend_error`, those it
+        holds left out), else eq. 8's RMS angle after one yaw alignment
+        (:func:`~msrr.core.shape.skeletal_error`). Its moves are reached on it,
         and the executor's tracking judges the phases it drives on it
         (:attr:`~msrr.core.closed_loop.PhaseTracker.error`)."""
-        return skeletal_error if self.sucker else self._commanded_bends
+        return self._commanded_bends if self.bends else skeletal_error
 
     def _commanded_bends(self, current: Configuration, goal: Configuration) -> float:
         """:func:`bend_error` over the connections :meth:`commands` moves: those it holds
@@ -476,7 +481,7 @@ class ContactController:
         turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
         swings = _swinging(links, self._latched)
-        anchor = {} if self.sucker else anchors(current, turned, links)
+        anchor = anchors(current, turned, links) if self.bends else {}
         for e in target.edges():
             if e.z is None or links.get(e.source) != e.target:
                 continue
@@ -759,8 +764,8 @@ class ContactController:
         if phase is Phase.MOVE and not diff:
             commands = self.commands(action.target, observation, yaw=self._yaw,
                                      current=current)
-            reached = self.reach_measure(self._smoothed(current), action.target) \
-                < self.tolerance
+            seen = self._smoothed(current) if self.bends else current
+            reached = self.reach_measure(seen, action.target) < self.tolerance
         return Control(commands=commands, reached=reached)
 
     def _smoothed(self, current: Configuration) -> Configuration:

@@ -266,7 +266,7 @@ def test_a_move_aims_each_connection_at_its_bend_and_is_reached_on_the_bends(muj
 def test_a_tracked_phase_is_reached_on_the_bends_its_controllers_aim_at(mujoco_driver):
     # the executor's IK tracking (FreeBOT's connected moves, as pieces-to-tree's last)
     # reaches a phase on the measure its nodes' controllers give: the bends; FreeSN's
-    # controllers give none and keep eq. 8's distance after one yaw alignment
+    # controllers give none and SnailBot's eq. 8's distance after one yaw alignment
     from msrr.core import plugins
     from msrr.core.closed_loop import PhaseTracker, TrackingOptions, reach_measure, tree_for
 
@@ -277,6 +277,9 @@ def test_a_tracked_phase_is_reached_on_the_bends_its_controllers_aim_at(mujoco_d
     controller = plugin.controllers()[0]
     assert reach_measure([controller, controller]) == controller.reach_measure
     assert reach_measure(plugins.capabilities("freesn").controllers.values()) is skeletal_error
+    from msrr.plugins.snailbot.plugin import plugin as snailbot  # aims in the root frame
+
+    assert all(c.reach_measure is skeletal_error for c in snailbot.controllers())
     robot = plugins.resolve("freebot")
     tree = tree_for(recognized, None, robot.default_joint_mode())
     bends = PhaseTracker(tree, goal, TrackingOptions(), measure=controller.reach_measure)
