@@ -36,7 +36,7 @@ phase is reached when the distance cost of eq. 8 -- the RMS angle between the
 recognized vectors (low-passed over the ticks) and the goal vectors after yaw
 alignment, :func:`~msrr.core.shape.skeletal_error` -- is under ``reach_tolerance``; or
 on the measure the controllers of the tree's nodes give, when they aim each connection
-relative to its parent (:func:`reach_measure`: FreeBOT's and SnailBot's bends, whose
+relative to its parent (:func:`reach_measure`: FreeBOT's bends, whose
 recognized absolute shape carries the headings' chained errors, which no command takes
 out). The IK's own motion cost (eqs. 3-5) is not used for this: its
 steering terms stay near 0.1 rad per joint under 2 deg of recognition noise even when
@@ -352,7 +352,7 @@ Measure = Callable[[Configuration, Configuration], float]
 def reach_measure(controllers: Iterable[object]) -> Measure:
     """The distance a tracked phase driven by ``controllers`` is reached on: the
     ``reach_measure`` they all give (a controller that aims each connection relative to
-    its parent, FreeBOT's and SnailBot's, is reached on those bends), else eq. 8's RMS
+    its parent, FreeBOT's, is reached on those bends), else eq. 8's RMS
     angle after one yaw alignment (:func:`~msrr.core.shape.skeletal_error`), which is
     also what controllers that name different ones get."""
     found = {getattr(c, "reach_measure", skeletal_error) for c in controllers}
