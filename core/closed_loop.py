@@ -34,7 +34,11 @@ Reaching (section 4.1, "the controllers are terminated if the current system
 configuration is close to the target by monitoring the estimated motion costs"): a
 phase is reached when the distance cost of eq. 8 -- the RMS angle between the
 recognized vectors (low-passed over the ticks) and the goal vectors after yaw
-alignment, :func:`shape_error` -- is under ``reach_tolerance``. The IK's own motion cost (eqs. 3-5) is not used for this: its
+alignment, :func:`~msrr.core.shape.skeletal_error` -- is under ``reach_tolerance``; or
+on the measure the controllers of the tree's nodes give, when they aim each connection
+relative to its parent (:func:`reach_measure`: FreeBOT's bends, whose
+recognized absolute shape carries the headings' chained errors, which no command takes
+out). The IK's own motion cost (eqs. 3-5) is not used for this: its
 steering terms stay near 0.1 rad per joint under 2 deg of recognition noise even when
 the shape is within 1 deg, so no fixed threshold on it separates reached from not.
 """
@@ -42,7 +46,7 @@ the shape is within 1 deg, so no fixed threshold on it separates reached from no
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -65,8 +69,8 @@ from .kinematics import (
 from .plan import ConnectionChange
 from .shape import skeletal_error
 
-__all__ = ["DockCycle", "JointController", "PhaseTracker", "TrackingOptions", "aimed",
-           "connection_goal", "extruded", "tree_for", "turned_goal"]
+__all__ = ["DockCycle", "JointController", "Measure", "PhaseTracker", "TrackingOptions", "aimed",
+           "connection_goal", "extruded", "reach_measure", "tree_for", "turned_goal"]
 
 
 @runtime_checkable
@@ -341,6 +345,20 @@ class DockCycle:
         return aimed(extruded(self.conn, self.made, shrink), seen, self.made)
 
 
+Measure = Callable[[Configuration, Configuration], float]
+"""A distance [rad] of a recognized configuration (first) from a goal (second)."""
+
+
+def reach_measure(controllers: Iterable[object]) -> Measure:
+    """The distance a tracked phase driven by ``controllers`` is reached on: the
+    ``reach_measure`` they all give (a controller that aims each connection relative to
+    its parent, FreeBOT's, is reached on those bends), else eq. 8's RMS
+    angle after one yaw alignment (:func:`~msrr.core.shape.skeletal_error`), which is
+    also what controllers that name different ones get."""
+    found = {getattr(c, "reach_measure", skeletal_error) for c in controllers}
+    return found.pop() if len(found) == 1 else skeletal_error
+
+
 def tree_for(topology: Configuration, given: object, joint_mode: type | None
              ) -> KinematicTree | None:
     """The kinematic tree for a phase on ``topology``: ``given`` when it is a tree over the
@@ -367,13 +385,19 @@ class PhaseTracker:
             when ``options.ground``.
         median_yaw: hold the yaw at the edges' median turn
             (:attr:`~msrr.core.robot.RobotDefaults.median_yaw`).
+        measure: the distance [rad] of a (low-passed) recognized configuration from the
+            goal that the phase is reached and watched on: that of the controllers the
+            tree's nodes use where they give one (:func:`reach_measure`), else eq. 8's
+            RMS angle after one yaw alignment (:func:`~msrr.core.shape.skeletal_error`).
     """
 
     def __init__(self, tree: KinematicTree, goal: Configuration, options: TrackingOptions,
-                 seed: int = 0, ground: GroundModel | None = None, median_yaw: bool = False):
+                 seed: int = 0, ground: GroundModel | None = None, median_yaw: bool = False,
+                 measure: Measure = skeletal_error):
         self.tree = tree
         self.goal = goal
         self.options = options
+        self.measure = measure
         ik = IKOptions(max_iterations=options.max_iterations, ftol=options.ftol,
                        max_restarts=options.initial_restarts, seed=seed,
                        ground=ground if options.ground else None)
@@ -397,7 +421,7 @@ class PhaseTracker:
         joint = solution.configuration
         if self._held:
             joint = self._hold(joint)
-        self._error = skeletal_error(self._smoothed(current), self.goal)
+        self._error = self.measure(self._smoothed(current), self.goal)
         if solution.rms_angle < self._best - 1e-4:
             self._best, self._since = solution.rms_angle, 0
         else:
@@ -446,14 +470,15 @@ class PhaseTracker:
 
     @property
     def error(self) -> float:
-        """RMS angle [rad] of the low-passed recognized configuration from the goal after
-        yaw alignment, as of the last :meth:`step` (``inf`` before it)."""
+        """The low-passed recognized configuration's distance from the goal [rad]
+        (``measure``: by default the RMS angle after yaw alignment), as of the last
+        :meth:`step` (``inf`` before it)."""
         return float(self._error)
 
     @property
     def reached(self) -> bool:
-        """The recognized configuration is within ``reach_tolerance`` RMS of the goal after
-        yaw alignment (checked on the configuration of the last :meth:`step`)."""
+        """The recognized configuration is within ``reach_tolerance`` of the goal by
+        ``measure`` (checked on the configuration of the last :meth:`step`)."""
         return self._error < self.options.reach_tolerance
 
     def set_goal(self, goal: Configuration) -> None:

@@ -110,6 +110,7 @@ from .closed_loop import (
     PhaseTracker,
     TrackingOptions,
     connection_goal,
+    reach_measure,
     tree_for,
     turned_goal,
 )
@@ -131,7 +132,7 @@ from .events import (
 from .kinematics import GroundModel, KinematicTree
 from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_runs
 from .robot import Robot
-from .shape import skeletal_error, skeletal_errors
+from .shape import skeletal_errors
 
 __all__ = ["SIDEWAYS", "CourseLoop", "Executor", "ExecutorOptions", "GaitLoop", "HeadingLoop",
            "StallWatch", "behavior_commands", "course_loop", "gait_loop", "heading_loop",
@@ -969,7 +970,7 @@ class Executor:
         # how far the robot is, and how far the IK's best answer is (a tree that cannot
         # reach the goal shows as a large residual)
         return (f"; target not reached ("
-                f"{math.degrees(skeletal_error(self._current, tracker.goal)):.1f} deg RMS "
+                f"{math.degrees(tracker.measure(self._current, tracker.goal)):.1f} deg RMS "
                 f"from the phase goal, IK residual {math.degrees(tracker.last.rms_angle):.1f}"
                 f" deg)")
 
@@ -1011,8 +1012,10 @@ class Executor:
             return False
         goal = self._turned_goal(goal, tree)
         ground = GroundModel.for_configuration(current, self.run.spec)
+        measure = reach_measure(self._controller_for(node.controller) for node in tree.nodes)
         self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
-                                     ground=ground, median_yaw=self.run.spec.defaults.median_yaw)
+                                     ground=ground, median_yaw=self.run.spec.defaults.median_yaw,
+                                     measure=measure)
         return True
 
     def _redock(self, configuration: Configuration) -> None:

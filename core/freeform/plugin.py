@@ -51,17 +51,20 @@ class FreeformPlugin:
         bearing: the connector turns freely inside the shell, which rolls (FreeBOT).
         sucker: the joint mode whose controller engages the module's vacuum sucker
             (SnailBot: ``"sucker_revolute"``); ``None``: the module has no sucker.
+        bends: the controllers aim each connection at its goal's bend at its parent and
+            reach moves on those bends (FreeBOT; :class:`~msrr.core.freeform.ContactController`).
         rgba: shell colour in the simulator.
     """
 
     def __init__(self, module: str, *, driver_description: str, bearing: bool = False,
-                 sucker: str | None = None,
+                 sucker: str | None = None, bends: bool = False,
                  rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)):
         self.__name__ = module   # what ``platform plugins`` shows as the plugin's module
         self.package = module.rpartition(".")[0]
         self.driver_description = driver_description
         self.bearing = bearing
         self.sucker = sucker
+        self.bends = bends
         self.rgba = rgba
         self._driver: FreeformDriverFactory | None = None
 
@@ -147,7 +150,8 @@ class FreeformPlugin:
         # centre at 80 % of a shell's rolling bound, the rest for the motors' loops
         piece = 0.8 * self.design.max_rate * self.design.radius if self.design.bearing else 0.0
         return [ContactController(mode.controller, shared, sucker=mode.name == self.sucker,
-                                  spacing=spacing, piece_speed=piece, layout=layout)
+                                  spacing=spacing, piece_speed=piece, layout=layout,
+                                  bends=self.bends)
                 for mode in self.joint_modes()]
 
     # -- hooks --------------------------------------------------------------------------

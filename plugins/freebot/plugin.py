@@ -19,7 +19,7 @@ from msrr.core.freeform.plugin import FreeformPlugin
 __all__ = ["plugin"]
 
 plugin = FreeformPlugin(
-    __name__, bearing=True, rgba=(0.62, 0.64, 0.7, 1.0),
+    __name__, bearing=True, bends=True, rgba=(0.62, 0.64, 0.7, 1.0),
     driver_description="MuJoCo: steel spheres, magnets on a drive about the parent's centre, welds")
 """The plugin; its hooks are this module's too, so the entry point may name either
 (``msrr.plugins.freebot.plugin`` or ``msrr.plugins.freebot.plugin:plugin``)."""
