@@ -49,6 +49,16 @@ def _angle(u: np.ndarray, v: np.ndarray) -> float:
                                               -1.0, 1.0))))
 
 
+def _aim(world: FreeSNWorld, degrees: float, axis: tuple[float, float, float]
+         ) -> tuple[np.ndarray, np.ndarray]:
+    """Command S1's docked end toward its axis turned ``degrees`` about ``axis`` (node
+    frame); the axis before and the target."""
+    start, _ = _on_node(world)
+    target = Rotation.from_rotvec(np.radians(degrees) * np.array(axis)).apply(start)
+    world.command_target("S1", "a", (target, None, 1.0))
+    return start, target
+
+
 def test_a_connector_turns_before_it_rolls_sideways():
     """A target 60 deg to the side of the wheels' heading: the strut first turns about
     its axis (the contact point stays), then rolls there; a driving wheel stays within
@@ -56,9 +66,8 @@ def test_a_connector_turns_before_it_rolls_sideways():
     the motor's bound."""
     world = _one_strut()
     phys = world.phys
-    start, heading0 = _on_node(world)
-    target = Rotation.from_rotvec(np.radians(60.0) * np.array([0.0, 0.0, 1.0])).apply(start)
-    world.command_target("S1", "a", (target, None, 1.0))
+    _, heading0 = _on_node(world)
+    start, target = _aim(world, 60.0, (0.0, 0.0, 1.0))
     turned_in_place = fastest = strongest = 0.0
     for _ in range(150):
         world.step(0.02)
@@ -148,9 +157,7 @@ def test_a_connector_turning_in_place_still_grips_in_its_rolling_direction():
     stopped: a rolling torque of half the wheels' friction does not roll it (< 1 deg off
     the start while the strut turns; 3.3 deg before the brakes)."""
     world = _one_strut()
-    start, _ = _on_node(world)
-    target = Rotation.from_rotvec(np.radians(30.0) * np.array([0.0, 0.0, 1.0])).apply(start)
-    world.command_target("S1", "a", (target, None, 1.0))
+    start, _ = _aim(world, 30.0, (0.0, 0.0, 1.0))
     world.step(0.02)
     assert world._turning[0]
     p = world.phys
@@ -247,9 +254,7 @@ def test_a_loaded_connector_rolling_on_its_heading_keeps_its_torque_for_the_roll
     held the heading with the wheels' torque, the roll stalled 17.6 deg short; fig20's
     last move (a leg lifting the body, its foot twisting it) stalled at 32 deg so."""
     world = _one_strut()
-    start, _ = _on_node(world)
-    target = Rotation.from_rotvec(np.radians(-30.0) * np.array([0.0, 1.0, 0.0])).apply(start)
-    world.command_target("S1", "a", (target, None, 1.0))
+    start, target = _aim(world, -30.0, (0.0, 1.0, 0.0))
     p = world.phys
     load = np.array([0.0, 0.6 * p.max_torque, 0.3 * p.grip * 0.5 * p.wheel_base])
     _push(world, load / np.linalg.norm(load), float(np.linalg.norm(load)), 0.05)
@@ -267,9 +272,7 @@ def test_a_leg_turning_when_its_free_wheels_start_stops_turning():
     scenario the legs turned 50-90 % of the time, their twist up to 180 deg off, the
     wheels' axles 30 deg off level, and the spider covered 8 % of its course."""
     world = _one_strut()
-    start, _ = _on_node(world)
-    target = Rotation.from_rotvec(np.radians(20.0) * np.array([0.0, 0.0, 1.0])).apply(start)
-    world.command_target("S1", "a", (target, None, 1.0))
+    _aim(world, 20.0, (0.0, 0.0, 1.0))
     world.step(0.1)
     assert world._turning[0]
     up = np.array([0.0, 0.0, 1.0])   # the wheels' forward vector the target keeps
