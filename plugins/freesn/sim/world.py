@@ -368,6 +368,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._node_rate = 3 + np.array([m.joint(f"free/{n}").dofadr[0] for n in self.nodes])
         self._index_drives(self.ends if self._differential else [])
         self._still = np.zeros(k, dtype=bool)              # at its target: wheels braked
+        self._aim = np.zeros((k, 3))                       # last commanded direction, horizontal
         self._dofs = self._dadr[:, None] + np.arange(3)
         self._tau = np.zeros((k, 3))                       # holonomic connectors' torques
         self._grip_at = np.array([[[x, y, sign * phys.node_radius] for x, y in _ANCHORS]
@@ -629,6 +630,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         if node is None:
             return
         direction, forward, effort = target
+        self._aim[k] = direction
         self._set_effort(k, effort)
         self._braked[k] = False
         to_node = self._node_tilt(self._node_index[node])   # horizontal -> node frame
@@ -726,8 +728,41 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                 self._attitude[i] += drift + b * (sample - self._attitude[i] - drift)
                 tilt = Rotation.from_rotvec(self._attitude[i]).as_matrix() @ tilt
             attitude = tilt @ self.data.xmat[body].reshape(3, 3)   # node in horizontal frame
-            self._imu[i] = (self._levelled(i, attitude) @ attitude).T
+            fitted = self._fitted(i)
+            self._imu[i] = (self._levelled(i, attitude) @ attitude).T if fitted is None \
+                else fitted
         return self._imu[i]
+
+    def _fitted(self, i: int) -> np.ndarray | None:
+        """The frame (3, 3), node from horizontal, in which node ``i``'s legs stand where
+        they are asked to, as near as a rotation brings them (Wahba's problem, solved by
+        SVD): for a node whose every connector (three or more) holds a leaf strut driving
+        on its free end's wheels (the strut wheels, Fig. 18(d)-(f)), else ``None``.
+
+        Such legs cannot move sideways on the node (their turn would steer their wheels,
+        :meth:`_steer`), so only their rolls are free; the node's tilt under them is then
+        free too: any tilt has rolls that put every leg at its commanded elevation, and
+        the feet, on the floor, settle the body at the tilt the rolls imply. Aimed through
+        the IMU's attitude the legs kept whatever tilt the body had sagged to, and their
+        places on the node, fixed since the move, stood 4-9 deg sideways of their aims
+        (S4N1's spider, differential connectors, stop 48). Aimed through the frame that
+        fits the legs' believed places on the node (localisation, never the simulator's
+        state) to their commanded directions (``_aim``, the last command of each), the
+        rolls bring the body to the tilt at which those places are where the shape asks;
+        the part no rotation can fit stays."""
+        if not self._differential:
+            return None
+        node = self.nodes[i]
+        ks = np.array([k for k, n in enumerate(self.docked) if n == node], dtype=int)
+        if len(ks) < 3 or not self._has_target[ks].all():
+            return None
+        far = ks ^ 1
+        if (self._eq[far] >= 0).any() or (self._wheel[far] == 0.0).any():
+            return None
+        have = np.einsum("nij,nj->ni", self._believed(ks), self._sign[ks, None] * _EZ)
+        u, _, vt = np.linalg.svd(have.T @ self._aim[ks])
+        u[:, 2] *= np.sign(np.linalg.det(u @ vt))
+        return u @ vt
 
     def _levelled(self, i: int, attitude: np.ndarray) -> np.ndarray:
         """The turn (3, 3) toward upright that node ``i``'s connectors take its estimated
