@@ -1031,9 +1031,11 @@ class Executor:
 
     def _turned_goal(self, goal: Configuration, tree: KinematicTree) -> Configuration:
         """``goal`` turned by the gait loop's turn (:func:`turned_goal`), noting whether
-        that changed it (a tree with no single planted foot, or a root without edges,
-        is not turned: nothing to take again, :func:`retakes_unturned`)."""
-        turned = turned_goal(goal, tree, self._turn)
+        that changed it (a tree with no planted foot, or a root without edges, is not
+        turned: nothing to take again, :func:`retakes_unturned`); the feet's places from
+        the robot's edge lengths."""
+        turned = goal if not self._turn else turned_goal(
+            goal, tree, self._turn, GroundModel.for_configuration(goal, self.run.spec))
         self._turned |= turned is not goal
         return turned
 
