@@ -514,14 +514,19 @@ def heading_loop(call: BehaviorCall | None, heading: float | None,
                        min(options.max_heading_correction, turn_bound(call)) if turns else 0.0)
 
 
-def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions
-              ) -> GaitLoop | None:
+def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions,
+              step: float = math.inf) -> GaitLoop | None:
     """The heading loop of a sequence behavior that states its direction, starting at
-    ``heading`` [rad]; ``None`` when there is none or the heading is not known."""
+    ``heading`` [rad]; ``None`` when there is none or the heading is not known. A step is
+    turned by at most ``max_gait_turn`` and at most ``step`` [rad], the gait's own step (RMS,
+    eq. 8, between two of its stances): the S12N6 trot's steps of 3.3 deg turned by 8 deg
+    folded the body at 4 deg + 10 % (seed 12; at most 3.3 deg it crawls, docs/freesn.md
+    stop 48); the squirm's 26 deg steps keep 8 deg."""
     if call is None or call.kind != "sequence" or call.direction is None or heading is None \
             or options.gait_gain == options.gait_integral == 0:
         return None
-    return GaitLoop(heading, options.gait_gain, options.gait_integral, options.max_gait_turn)
+    return GaitLoop(heading, options.gait_gain, options.gait_integral,
+                    min(options.max_gait_turn, step))
 
 
 def timed_step(action: Action, before: Configuration, options: ExecutorOptions) -> float:
@@ -1155,7 +1160,8 @@ class Executor:
             frame = skeletal_errors(self._seen, last.target)[2]
             heading += frame
         if self._gait is None:
-            self._gait = gait_loop(call, heading, self.options)
+            step = skeletal_errors(last.target, action.target)[0]
+            self._gait = gait_loop(call, heading, self.options, step)
             self._gait_course = None if self._gait is None else course_loop(
                 call, self.estimate, frame, self.options)
         if self._gait is None or heading is None:

@@ -81,6 +81,18 @@ def test_turned_goal_changes_nothing_without_a_planted_foot_a_root_edge_or_a_tur
     assert turned_goal(goal, rootless, 0.1) is goal   # the turn would be a gauge
 
 
+
+def test_a_gait_loop_turns_a_step_by_at_most_the_step_itself():
+    """A gait step is turned by at most its own size (RMS between two stances): the S12N6
+    trot's 3.3 deg steps, turned by up to 8 deg, folded its body under noise (stop 48); the
+    squirm's 26 deg steps keep ``max_gait_turn``."""
+    call = BehaviorCall("trot", "sequence", {}, loops=4, distance=1.0, direction=(1.0, 0.0, 0.0))
+    far_off = math.radians(-30.0)
+    trot = gait_loop(call, 0.0, OPTIONS, math.radians(3.3))
+    assert math.degrees(trot.turn(far_off)) == pytest.approx(3.3)
+    squirm = gait_loop(call, 0.0, OPTIONS, math.radians(26.1))
+    assert squirm.turn(far_off) == pytest.approx(OPTIONS.max_gait_turn)
+
 def trotter() -> Configuration:
     """A body bar R1 from H1 to H2 on two diagonal legs: R2 from H1 down to the foot F1 on
     the left, R3 from H2 down to F2 on the right (the S12N6 trot's planted pair)."""
