@@ -1160,8 +1160,9 @@ class Executor:
             frame = skeletal_errors(self._seen, last.target)[2]
             heading += frame
         if self._gait is None:
-            step = skeletal_errors(last.target, action.target)[0]
-            self._gait = gait_loop(call, heading, self.options, step)
+            step, angles, _ = skeletal_errors(last.target, action.target)
+            self._gait = gait_loop(call, heading, self.options,   # stances of one shape:
+                                   step if len(angles) and step > 0 else math.inf)  # no bound
             self._gait_course = None if self._gait is None else course_loop(
                 call, self.estimate, frame, self.options)
         if self._gait is None or heading is None:
