@@ -204,12 +204,12 @@ def _turned_on_feet(goal: Configuration, tree: KinematicTree, feet: set[int], tu
     of one edge hanging from the body) aimed from its hip at its foot's place turned by
     ``-turn`` about that middle in the body's frame, its length kept by its height (a
     foot moves by about ``turn`` times its distance from the middle, its height by that
-    times its leg's lean: the S12N6 trot's feet 2.3 mm each at 5 deg, the body level);
-    what hangs from a foot turned by ``-turn``. Turning each leg
-    about its own hip instead puts the feet off a rigid turn of the body by ``turn``
-    times the hip's distance from the middle (the S12N6 trot stalled with it, body 102
-    deg off). ``goal`` as it is when a planted node is not a single edge to its foot, or
-    a vector is missing."""
+    times its leg's lean: the S12N6 trot's feet 10 mm and 2-3 mm at 5 deg), its forward
+    vector turned by ``-turn`` and kept square to it; what hangs from a foot turned by
+    ``-turn``. Turning each leg about its own hip instead puts the feet off a rigid turn
+    of the body by ``turn`` times the hip's distance from the middle (the S12N6 trot
+    stalled with it, body 102 deg off). ``goal`` as it is when a planted node is not a
+    single edge to its foot, or a vector is missing."""
     legs = [i for i in sorted(feet) if tree.nodes[i].planted and tree.parents[i] not in feet]
     ends: list[tuple[str, str, str]] = []   # (edge, hip, foot)
     for i in legs:
@@ -242,6 +242,9 @@ def _turned_on_feet(goal: Configuration, tree: KinematicTree, feet: set[int], tu
         down = places[foot][2] - places[hip][2]
         leg = np.array([*flat, math.copysign(math.sqrt(length**2 - reach**2), down)]) / length
         z[edge] = leg if goal.edge(edge).target == foot else -leg
+        if edge in x:   # square to the new z again
+            square = x[edge] - (x[edge] @ z[edge]) * z[edge]
+            x[edge] = square / np.linalg.norm(square)
     return goal.with_vectors(z=z, x=x or None)
 
 

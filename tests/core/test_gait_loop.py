@@ -101,7 +101,8 @@ def trotter() -> Configuration:
         config.add_module(v, "hub")
     config.connect("H1", "H2", id="R1", kind="rod", z=[-1, 0, 0])
     leg = np.array([0.05, 0.28, -0.96]) / np.linalg.norm([0.05, 0.28, -0.96])
-    config.connect("H1", "F1", id="R2", kind="rod", z=leg)
+    ahead = np.array([1.0, 0.0, 0.0]) - leg[0] * leg   # a forward vector square to the leg
+    config.connect("H1", "F1", id="R2", kind="rod", z=leg, x=ahead / np.linalg.norm(ahead))
     config.connect("F2", "H2", id="R3", kind="rod", z=-leg * [1, -1, 1])  # foot first
     return config
 
@@ -127,6 +128,7 @@ def test_turned_goal_turns_the_body_rigidly_about_two_planted_feet():
     assert max(map(abs, sank)) < 0.02 and abs(sank[0] - sank[1]) < 0.005   # near level
     for leg in ("R2", "R3"):
         assert np.linalg.norm(turned.edge(leg).z) == pytest.approx(1.0)
+    assert turned.edge("R2").x @ turned.edge("R2").z == pytest.approx(0.0, abs=1e-12)
     line = after["F2"] - after["F1"], before["F2"] - before["F1"]
     seen = math.atan2(line[0][1], line[0][0]) - math.atan2(line[1][1], line[1][0])
     assert math.degrees(wrap(seen)) == pytest.approx(-5.0)
