@@ -137,35 +137,114 @@ def connection_goal(topology: Configuration, target: Configuration) -> Configura
     return topology.with_vectors(z=z, x=x or None)
 
 
-def turned_goal(goal: Configuration, tree: KinematicTree, turn: float) -> Configuration:
+def turned_goal(goal: Configuration, tree: KinematicTree, turn: float,
+                ground: GroundModel | None = None) -> Configuration:
     """``goal`` with the body turned by ``turn`` [rad] about the vertical relative to its
-    planted feet: the vectors of every planted node
-    (:attr:`~msrr.core.kinematics.KinematicNode.planted`), and of the nodes hanging from
-    one, turned by ``-turn``; the rest kept (a sequence gait's heading loop, issue 31:
+    planted feet (a sequence gait's heading loop, issue 31:
     :class:`~msrr.core.executor.GaitLoop`).
 
     The yaw of a tracking step is held where the root's edges are (eq. 7: they cannot
     move; :func:`~msrr.core.kinematics.tracker.held_yaw`), so a turn of the whole goal
-    changes nothing; a planted leg turned against the rest pivots the body on the foot
-    that grips the ground. Bending the part the step moves instead (the squirm's free half
-    about its middle node) steers little and slips: in the squirm the held half, whose
-    raised middle node has no grip, turned back against it. A tree whose root holds no
-    edge leaves the yaw to the others, one without a planted node has nothing to turn
-    about, and one with two or more cannot pivot on them (each leg turned about its own
-    hip moves its foot off a rigid turn of the body: the S12N6 trot's diagonal pairs
-    stalled): ``goal`` is returned as it is."""
-    if not turn or not tree.root.edges or sum(node.planted for node in tree.nodes) != 1:
+    changes nothing; the planted legs turned against the rest pivot the body on the feet
+    that grip the ground. With one planted node
+    (:attr:`~msrr.core.kinematics.KinematicNode.planted`) its vectors, and those of the
+    nodes hanging from it, are turned by ``-turn``: the body pivots on that foot. With
+    two or more (the S12N6 trot's diagonal pair) the body turns rigidly about the
+    middle of their feet (:func:`_turned_on_feet`). Bending the part the step moves
+    instead (the squirm's free half about its middle node) steers little and slips: in
+    the squirm the held half, whose raised middle node has no grip, turned back against
+    it. A tree whose root holds no edge leaves the yaw to the others and one without a
+    planted node has nothing to turn about: ``goal`` is returned as it is.
+
+    Args:
+        ground: the edges' lengths for the feet's places (:class:`GroundModel`; unit
+            lengths when ``None``); read with two or more planted nodes only.
+    """
+    planted = [i for i, node in enumerate(tree.nodes) if node.planted]
+    if not turn or not tree.root.edges or not planted:
         return goal
     feet: set[int] = set()
     for i, node in enumerate(tree.nodes[1:], start=1):
         if node.planted or tree.parents[i] in feet:
             feet.add(i)
+    if len(planted) > 1:
+        return _turned_on_feet(goal, tree, feet, turn, ground or GroundModel())
     turned = {e for i in feet for e in tree.nodes[i].edges}
     if not turned:
         return goal
     back = rot_z(-turn)
     z = {e.id: back @ e.z if e.id in turned else e.z for e in goal.edges() if e.z is not None}
     x = {e.id: back @ e.x if e.id in turned else e.x for e in goal.edges() if e.x is not None}
+    return goal.with_vectors(z=z, x=x or None)
+
+
+def _places(goal: Configuration, start: str, ground: GroundModel) -> dict[str, np.ndarray]:
+    """Every vertex's place [m] (3,) from ``start`` along ``goal``'s edges (their ``z``
+    times their length, breadth first; a loop's closing edge is not read)."""
+    places = {start: np.zeros(3)}
+    queue = [start]
+    graph = goal.graph
+    while queue:
+        here = queue.pop(0)
+        for u, w, key in list(graph.out_edges(here, keys=True)) + \
+                list(graph.in_edges(here, keys=True)):
+            other = w if u == here else u
+            if other in places:
+                continue
+            step = goal.edge(key).z * ground.lengths.get(key, ground.default_length)
+            places[other] = places[here] + (step if u == here else -step)
+            queue.append(other)
+    return places
+
+
+def _turned_on_feet(goal: Configuration, tree: KinematicTree, feet: set[int], turn: float,
+                    ground: GroundModel) -> Configuration:
+    """``goal`` with the body turned by ``turn`` [rad] about the vertical through the middle
+    of its planted feet, the feet kept where they stand: each planted leg (a planted node
+    of one edge hanging from the body) aimed from its hip at its foot's place turned by
+    ``-turn`` about that middle in the body's frame, its length kept by its height (a
+    foot moves by about ``turn`` times its distance from the middle, its height by that
+    times its leg's lean: the S12N6 trot's feet 10 mm and 2-3 mm at 5 deg), its forward
+    vector turned by ``-turn`` and kept square to it; what hangs from a foot turned by
+    ``-turn``. Turning each leg about its own hip instead puts the feet off a rigid turn
+    of the body by ``turn`` times the hip's distance from the middle (the S12N6 trot
+    stalled with it, body 102 deg off). ``goal`` as it is when a planted node is not a
+    single edge to its foot, or a vector is missing."""
+    legs = [i for i in sorted(feet) if tree.nodes[i].planted and tree.parents[i] not in feet]
+    ends: list[tuple[str, str, str]] = []   # (edge, hip, foot)
+    for i in legs:
+        node = tree.nodes[i]
+        if len(node.edges) != 1:
+            return goal
+        edge = goal.edge(node.edges[0])
+        if edge.z is None or (edge.target in node.vertices) == (edge.source in node.vertices):
+            return goal
+        foot = edge.target if edge.target in node.vertices else edge.source
+        ends.append((edge.id, edge.source if foot == edge.target else edge.target, foot))
+    if any(e.z is None for e in goal.edges()):
+        return goal
+    places = _places(goal, ends[0][1], ground)
+    middle = np.mean([places[foot] for _, _, foot in ends], axis=0)
+    back = rot_z(-turn)
+    z = {e.id: e.z for e in goal.edges()}
+    x = {e.id: e.x for e in goal.edges() if e.x is not None}
+    for i in feet:
+        for e in tree.nodes[i].edges:
+            z[e] = back @ z[e]
+            if e in x:
+                x[e] = back @ x[e]
+    for edge, hip, foot in ends:
+        length = ground.lengths.get(edge, ground.default_length)
+        moved = middle + back @ (places[foot] - middle)
+        flat = (moved - places[hip])[:2]
+        reach = min(float(np.linalg.norm(flat)), length)
+        flat = flat * (reach / max(float(np.linalg.norm(flat)), 1e-12))
+        down = places[foot][2] - places[hip][2]
+        leg = np.array([*flat, math.copysign(math.sqrt(length**2 - reach**2), down)]) / length
+        z[edge] = leg if goal.edge(edge).target == foot else -leg
+        if edge in x:   # square to the new z again
+            square = x[edge] - (x[edge] @ z[edge]) * z[edge]
+            x[edge] = square / np.linalg.norm(square)
     return goal.with_vectors(z=z, x=x or None)
 
 

@@ -514,14 +514,19 @@ def heading_loop(call: BehaviorCall | None, heading: float | None,
                        min(options.max_heading_correction, turn_bound(call)) if turns else 0.0)
 
 
-def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions
-              ) -> GaitLoop | None:
+def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions,
+              step: float = math.inf) -> GaitLoop | None:
     """The heading loop of a sequence behavior that states its direction, starting at
-    ``heading`` [rad]; ``None`` when there is none or the heading is not known."""
+    ``heading`` [rad]; ``None`` when there is none or the heading is not known. A step is
+    turned by at most ``max_gait_turn`` and at most ``step`` [rad], the gait's own step (RMS,
+    eq. 8, between two of its stances): the S12N6 trot's steps of 3.3 deg turned by 8 deg
+    folded the body at 4 deg + 10 % (seed 12; at most 3.3 deg it crawls, docs/freesn.md
+    stop 48); the squirm's 26 deg steps keep 8 deg."""
     if call is None or call.kind != "sequence" or call.direction is None or heading is None \
             or options.gait_gain == options.gait_integral == 0:
         return None
-    return GaitLoop(heading, options.gait_gain, options.gait_integral, options.max_gait_turn)
+    return GaitLoop(heading, options.gait_gain, options.gait_integral,
+                    min(options.max_gait_turn, step))
 
 
 def timed_step(action: Action, before: Configuration, options: ExecutorOptions) -> float:
@@ -1031,9 +1036,11 @@ class Executor:
 
     def _turned_goal(self, goal: Configuration, tree: KinematicTree) -> Configuration:
         """``goal`` turned by the gait loop's turn (:func:`turned_goal`), noting whether
-        that changed it (a tree with no single planted foot, or a root without edges,
-        is not turned: nothing to take again, :func:`retakes_unturned`)."""
-        turned = turned_goal(goal, tree, self._turn)
+        that changed it (a tree with no planted foot, or a root without edges, is not
+        turned: nothing to take again, :func:`retakes_unturned`); the feet's places from
+        the robot's edge lengths."""
+        turned = goal if not self._turn else turned_goal(
+            goal, tree, self._turn, GroundModel.for_configuration(goal, self.run.spec))
         self._turned |= turned is not goal
         return turned
 
@@ -1153,7 +1160,9 @@ class Executor:
             frame = skeletal_errors(self._seen, last.target)[2]
             heading += frame
         if self._gait is None:
-            self._gait = gait_loop(call, heading, self.options)
+            step, angles, _ = skeletal_errors(last.target, action.target)
+            self._gait = gait_loop(call, heading, self.options,   # stances of one shape:
+                                   step if len(angles) and step > 0 else math.inf)  # no bound
             self._gait_course = None if self._gait is None else course_loop(
                 call, self.estimate, frame, self.options)
         if self._gait is None or heading is None:

@@ -15,6 +15,7 @@ import pytest
 
 from msrr.core.alignment import align_yaw, rot_z
 from msrr.core.closed_loop import turned_goal
+from msrr.core.configuration import Configuration
 from msrr.core.estimation import Estimate
 from msrr.core.executor import (
     ExecutorOptions,
@@ -70,7 +71,7 @@ def wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
-def test_turned_goal_changes_nothing_without_one_planted_foot_a_root_edge_or_a_turn():
+def test_turned_goal_changes_nothing_without_a_planted_foot_a_root_edge_or_a_turn():
     goal = chain(4)
     assert turned_goal(goal, squirm_tree(goal, planted=False), 0.1) is goal
     assert turned_goal(goal, squirm_tree(goal), 0.0) is goal
@@ -78,9 +79,65 @@ def test_turned_goal_changes_nothing_without_one_planted_foot_a_root_edge_or_a_t
                                     Foot(["R4"], ["H5"]), GimbalJoint(["R2"], ["H2"]),
                                     GimbalJoint(["R1"], ["H1"])])
     assert turned_goal(goal, rootless, 0.1) is goal   # the turn would be a gauge
-    two_feet = KinematicTree(goal, [FixedNode(["R3"], ["H3", "H4"]), Foot(["R4"], ["H5"]),
-                                    GimbalJoint(["R2"], ["H2"]), Foot(["R1"], ["H1"])])
-    assert turned_goal(goal, two_feet, 0.1) is goal   # no rigid pivot on two feet
+
+
+
+def test_a_gait_loop_turns_a_step_by_at_most_the_step_itself():
+    """A gait step is turned by at most its own size (RMS between two stances): the S12N6
+    trot's 3.3 deg steps, turned by up to 8 deg, folded its body under noise (stop 48); the
+    squirm's 26 deg steps keep ``max_gait_turn``."""
+    call = BehaviorCall("trot", "sequence", {}, loops=4, distance=1.0, direction=(1.0, 0.0, 0.0))
+    far_off = math.radians(-30.0)
+    trot = gait_loop(call, 0.0, OPTIONS, math.radians(3.3))
+    assert math.degrees(trot.turn(far_off)) == pytest.approx(3.3)
+    squirm = gait_loop(call, 0.0, OPTIONS, math.radians(26.1))
+    assert squirm.turn(far_off) == pytest.approx(OPTIONS.max_gait_turn)
+
+def trotter() -> Configuration:
+    """A body bar R1 from H1 to H2 on two diagonal legs: R2 from H1 down to the foot F1 on
+    the left, R3 from H2 down to F2 on the right (the S12N6 trot's planted pair)."""
+    config = Configuration("stick", name="trotter")
+    for v in ("H1", "H2", "F1", "F2"):
+        config.add_module(v, "hub")
+    config.connect("H1", "H2", id="R1", kind="rod", z=[-1, 0, 0])
+    leg = np.array([0.05, 0.28, -0.96]) / np.linalg.norm([0.05, 0.28, -0.96])
+    ahead = np.array([1.0, 0.0, 0.0]) - leg[0] * leg   # a forward vector square to the leg
+    config.connect("H1", "F1", id="R2", kind="rod", z=leg, x=ahead / np.linalg.norm(ahead))
+    config.connect("F2", "H2", id="R3", kind="rod", z=-leg * [1, -1, 1])  # foot first
+    return config
+
+
+def test_turned_goal_turns_the_body_rigidly_about_two_planted_feet():
+    """With a diagonal pair planted (the S12N6 trot) the body turns about the middle of
+    the two feet and both feet stay where they stand; turning each leg about its own hip
+    (or, before, nothing) leaves the body's heading or the feet's places off."""
+    goal = trotter()
+    tree = KinematicTree(goal, [FixedNode(["R1"], ["H1", "H2"]), Foot(["R2"], ["F1"]),
+                                Foot(["R3"], ["F2"])])
+    turn = math.radians(5.0)
+    turned = turned_goal(goal, tree, turn)
+    assert np.allclose(turned.edge("R1").z, goal.edge("R1").z)   # the body is the frame
+    before, after = places(goal), places(turned)
+    middle = (before["F1"] + before["F2"]) / 2
+    # in the world the body turned by +turn about the feet's middle: the feet stay put
+    sank = []
+    for foot in ("F1", "F2"):
+        world = middle + rot_z(turn) @ (after[foot] - middle)
+        assert np.allclose(world[:2], before[foot][:2], atol=1e-12)
+        sank.append(world[2] - before[foot][2])   # a leg keeps its length by its height
+    assert max(map(abs, sank)) < 0.02 and abs(sank[0] - sank[1]) < 0.005   # near level
+    for leg in ("R2", "R3"):
+        assert np.linalg.norm(turned.edge(leg).z) == pytest.approx(1.0)
+    assert turned.edge("R2").x @ turned.edge("R2").z == pytest.approx(0.0, abs=1e-12)
+    line = after["F2"] - after["F1"], before["F2"] - before["F1"]
+    seen = math.atan2(line[0][1], line[0][0]) - math.atan2(line[1][1], line[1][0])
+    assert math.degrees(wrap(seen)) == pytest.approx(-5.0)
+
+
+def places(config: Configuration) -> dict[str, np.ndarray]:
+    """The trotter's vertices' places (unit rods) from H1."""
+    z = {e.id: e.z for e in config.edges()}
+    return {"H1": np.zeros(3), "H2": z["R1"], "F1": z["R2"], "F2": z["R1"] - z["R3"]}
 
 
 def walk(drift: float, crab: float, *, loop: bool, steps: int = 24, heading: float = 0.4,

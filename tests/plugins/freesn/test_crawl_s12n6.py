@@ -16,8 +16,10 @@ from click.testing import CliRunner
 from msrr.core import plugins
 from msrr.core.app.cli import get_cli
 from msrr.core.app.run import RunRequest, execute_run, prepare_run, resolve_scenario
+from msrr.core.closed_loop import turned_goal
 from msrr.core.errors import ExecutionError
 from msrr.core.executor import ExecutorOptions, timed_step
+from msrr.core.kinematics import GroundModel
 from msrr.core.plan import Action, ActionType, BehaviorCall
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
@@ -97,6 +99,44 @@ def test_fig19_crawl_s12n6_plans_the_path_then_loops_of_planted_diagonals(tmp_pa
         assert planted[0] | planted[1] == set(legs) and not planted[0] & planted[1]
         for pair in planted:   # a diagonal: one leg on each body node
             assert len({legs[leg][0] for leg in pair}) == 2
+
+
+
+def test_the_trot_steers_by_turning_the_body_about_its_planted_diagonal(tmp_path):
+    """The gait loop's turn (issue 31, stop 48) moves only the planted diagonal's legs of a
+    trot step, so that both feet stay where they stand and the body turns about their
+    middle; before, a step with two planted feet was never turned (the trot had no
+    heading loop: at 4 deg + 10 %, seeds 10 and 19 ended 20.0 and 22.4 deg off)."""
+    prepared = prepare_run(RunRequest(robot="freesn", scenario="fig19-crawl-s12n6",
+                                      out=tmp_path / "run", log=False))
+    ground = GroundModel.for_configuration(prepared.run.plan.start, prepared.run.spec)
+    turn = math.radians(4.0)
+    for action in [a for a in prepared.run.plan.actions if a.behavior is not None][:2]:
+        tree, goal = action.kinematic_tree, action.target
+        turned = turned_goal(goal, tree, turn, ground)
+        moved = {e.id for e in goal.edges()
+                 if not np.allclose(e.z, turned.edge(e.id).z, atol=1e-12)}
+        legs = {e for n in tree.nodes if n.planted for e in n.edges}
+        assert moved == legs and len(legs) == 2
+        # in the body's frame both feet turn by -turn about their middle: the line
+        # from one foot to the other turns by -turn
+        before, after = (_feet_line(config, sorted(legs)) for config in (goal, turned))
+        seen = math.atan2(after[1], after[0]) - math.atan2(before[1], before[0])
+        assert math.degrees(seen) == pytest.approx(-4.0, abs=0.01)
+
+
+def _feet_line(config, legs: list[str]) -> np.ndarray:
+    """From the first leg's foot to the second's [m], shape (3,): along the first leg
+    back to its hip, the bar to the other hip, down the second leg (0.2 m struts)."""
+    hips, down = [], []
+    for leg in legs:
+        edge = config.edge(leg)
+        leaf = config.graph.degree(edge.target) == 1
+        hips.append(edge.source if leaf else edge.target)
+        down.append(0.2 * (edge.z if leaf else -edge.z))
+    bar = next(e for e in config.edges() if {e.source, e.target} == set(hips))
+    across = 0.2 * (bar.z if bar.source == hips[0] else -bar.z)
+    return -down[0] + across + down[1]
 
 
 def test_one_s12n6_crawl_loop_moves_the_body_forward(tmp_path):
