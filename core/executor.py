@@ -57,7 +57,8 @@ and the ``broken``/``made`` links with their ports.
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
   the loops left once it is covered (by the same estimate) are skipped
   (``RunResult.actions_skipped``). A sequence that states its direction has a heading
-  loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
+  loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference),
+  started where the behavior starts (the judge's commanded direction): each
   step but the behavior's first has its goal turned about the planted feet
   (:func:`~msrr.core.closed_loop.turned_goal`), and a gait that stops after a turned
   loop's last step takes that step again unturned (:func:`retakes_unturned`), so it
@@ -1140,22 +1141,27 @@ class Executor:
     def _gait_turn(self, index: int, action: Action, last: Action | None) -> float:
         """The turn [rad] the gait loop asks of ``action``, a step of a sequence behavior
         (:class:`GaitLoop`); 0 for any other action and for a behavior's first step. The
-        loop starts where that step ends: the body's heading is read on the shape the
-        last step reached, in the frame the behavior's targets (and its ``direction``)
-        share, and the shape before the first step need not be in it."""
+        loop starts before that first step, where the judge takes the commanded
+        direction: the body's heading read on the shape the behavior starts from against
+        the first step's target, in the frame the behavior's targets (and its
+        ``direction``) share; later steps read it on the shape the last step reached
+        against that step's target. Started after the first step instead, the loop took
+        that step's turn (the squirm's first squirm-up, -5.6 deg exact, -7 to -8 deg under
+        noise) for its reference and its course loop's line, never to be taken out."""
         call = action.behavior
-        if call is None or call.kind != "sequence" or index in self._spans or last is None \
-                or last.behavior is None:
+        if call is None or call.kind != "sequence":
             self._gait = None
             return 0.0
+        first = index in self._spans or last is None or last.behavior is None
         heading, frame = self.estimate.heading, 0.0
         if heading is not None and self._seen is not None:
-            frame = skeletal_errors(self._seen, last.target)[2]
+            frame = skeletal_errors(self._seen, (action if first else last).target)[2]
             heading += frame
-        if self._gait is None:
+        if first:
             self._gait = gait_loop(call, heading, self.options)
             self._gait_course = None if self._gait is None else course_loop(
                 call, self.estimate, frame, self.options)
+            return 0.0
         if self._gait is None or heading is None:
             return 0.0
         place, course = self.estimate.position, self._gait_course
