@@ -166,6 +166,12 @@ class ExecutorOptions:
             ``gait_integral`` 0: no loop; :class:`GaitLoop`).
         gait_integral: its integral gain, per step (a turn the gait makes unasked).
         max_gait_turn: bound of the turn one step is asked [rad].
+        max_gait_course_offset: bound of the heading offset a sequence behavior's course
+            loop sets [rad] (``max_course_offset`` is the mapping behaviors'). A gait turns
+            its body by a few degrees a loop at most (the FreeSN squirm at its bound: +1 to
+            +5 deg a loop exact, less under noise), so an offset of 45-60 deg after a step
+            that slid sideways was one it could not turn to in its run: the loop turned the
+            body the wrong way after it and stayed at its bound for the rest (issue 31).
         stall_window: a tracked ``approach`` or ``move`` phase whose estimated shape error
             improved by less than ``stall_gain`` [rad] over this long [s of driver time]
             ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
@@ -210,6 +216,7 @@ class ExecutorOptions:
     gait_gain: float = 0.5
     gait_integral: float = 0.2
     max_gait_turn: float = math.radians(8.0)
+    max_gait_course_offset: float = math.radians(20.0)
     stall_window: float = 15.0
     stall_gain: float = math.radians(0.5)
     stall_time: float = 1.0
@@ -228,7 +235,8 @@ class ExecutorOptions:
                                  f"{self.redocks}")
         loops = (self.heading_gain, self.heading_integral, self.max_heading_correction,
                  self.course_gain, self.course_integral, self.max_course_offset,
-                 self.gait_gain, self.gait_integral, self.max_gait_turn)
+                 self.gait_gain, self.gait_integral, self.max_gait_turn,
+                 self.max_gait_course_offset)
         if min(loops) < 0:
             raise ExecutionError(f"heading and course gains and bounds must be >= 0, got {loops}")
         if min(self.gait_step_time, self.timed_step_size) < 0:
@@ -585,11 +593,12 @@ def turn_bound(call: BehaviorCall) -> float:
 
 
 def course_loop(call: BehaviorCall | None, estimate: Estimate, frame: float,
-                options: ExecutorOptions) -> CourseLoop | None:
+                options: ExecutorOptions, bound: float | None = None) -> CourseLoop | None:
     """The course loop of a straight mapping behavior (no ``yaw_rate`` asked) that states
     its direction, from the ``estimate`` where it begins; ``frame`` [rad] turns the
     action target's frame (the call's ``direction``) onto the recognized configuration's,
-    whose heading the estimate gives. ``None`` when there is none to close, or the place
+    whose heading the estimate gives; ``bound`` [rad] of its offset, default
+    ``options.max_course_offset``. ``None`` when there is none to close, or the place
     or heading is not known."""
     if call is None or call.direction is None or call.parameters.get("yaw_rate", 0.0) \
             or estimate.position is None or estimate.heading is None \
@@ -601,7 +610,8 @@ def course_loop(call: BehaviorCall | None, estimate: Estimate, frame: float,
         return None
     sense = -1.0 if call.parameters.get("speed", 1.0) < 0 else 1.0
     return CourseLoop(np.asarray(estimate.position, dtype=float).copy(), sense * turned / norm,
-                      options.course_gain, options.course_integral, options.max_course_offset)
+                      options.course_gain, options.course_integral,
+                      options.max_course_offset if bound is None else bound)
 
 
 SIDEWAYS = "sideways"
@@ -1160,7 +1170,7 @@ class Executor:
         if first:
             self._gait = gait_loop(call, heading, self.options)
             self._gait_course = None if self._gait is None else course_loop(
-                call, self.estimate, frame, self.options)
+                call, self.estimate, frame, self.options, self.options.max_gait_course_offset)
             return 0.0
         if self._gait is None or heading is None:
             return 0.0
