@@ -57,7 +57,8 @@ and the ``broken``/``made`` links with their ports.
   robot has). The steps of a *sequence* behavior are ordinary actions; with a distance,
   the loops left once it is covered (by the same estimate) are skipped
   (``RunResult.actions_skipped``). A sequence that states its direction has a heading
-  loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference): each
+  loop of its own (:class:`GaitLoop`, a :class:`CourseLoop` setting its reference),
+  started where the behavior starts (the judge's commanded direction): each
   step but the behavior's first has its goal turned about the planted feet
   (:func:`~msrr.core.closed_loop.turned_goal`), and a gait that stops after a turned
   loop's last step takes that step again unturned (:func:`retakes_unturned`), so it
@@ -165,6 +166,12 @@ class ExecutorOptions:
             ``gait_integral`` 0: no loop; :class:`GaitLoop`).
         gait_integral: its integral gain, per step (a turn the gait makes unasked).
         max_gait_turn: bound of the turn one step is asked [rad].
+        max_gait_course_offset: bound of the heading offset a sequence behavior's course
+            loop sets [rad] (``max_course_offset`` is the mapping behaviors'). A gait turns
+            its body by a few degrees a loop at most (the FreeSN squirm at its bound: +1 to
+            +5 deg a loop exact, less under noise), so an offset of 45-60 deg after a step
+            that slid sideways was one it could not turn to in its run: the loop turned the
+            body the wrong way after it and stayed at its bound for the rest (issue 31).
         stall_window: a tracked ``approach`` or ``move`` phase whose estimated shape error
             improved by less than ``stall_gain`` [rad] over this long [s of driver time]
             ends early, stalled (:class:`StallWatch`; 0: never); stall_time: the
@@ -209,6 +216,7 @@ class ExecutorOptions:
     gait_gain: float = 0.5
     gait_integral: float = 0.2
     max_gait_turn: float = math.radians(8.0)
+    max_gait_course_offset: float = math.radians(20.0)
     stall_window: float = 15.0
     stall_gain: float = math.radians(0.5)
     stall_time: float = 1.0
@@ -227,7 +235,8 @@ class ExecutorOptions:
                                  f"{self.redocks}")
         loops = (self.heading_gain, self.heading_integral, self.max_heading_correction,
                  self.course_gain, self.course_integral, self.max_course_offset,
-                 self.gait_gain, self.gait_integral, self.max_gait_turn)
+                 self.gait_gain, self.gait_integral, self.max_gait_turn,
+                 self.max_gait_course_offset)
         if min(loops) < 0:
             raise ExecutionError(f"heading and course gains and bounds must be >= 0, got {loops}")
         if min(self.gait_step_time, self.timed_step_size) < 0:
@@ -441,15 +450,20 @@ class GaitLoop:
     bound: float
     integral: float = 0.0
 
-    def turn(self, heading: float, offset: float = 0.0) -> float:
+    def turn(self, heading: float, offset: float = 0.0, step: float = math.inf) -> float:
         """The turn [rad] to ask of the next step, the body's heading estimated at
-        ``heading`` [rad] and the reference turned by ``offset`` [rad]."""
+        ``heading`` [rad] and the reference turned by ``offset`` [rad]; at most ``bound``
+        and at most ``step`` [rad], the step's own size (RMS, eq. 8, between the stances
+        it goes from and to): the S12N6 trot's steps of 3.3 deg turned by 8 deg folded the
+        body at 4 deg + 10 % (seed 12; at most 3.3 deg it crawls, docs/freesn.md stop 48),
+        the squirm's 26 deg steps keep 8 deg."""
         error = wrap_angle(self.start + offset - heading)
         if self.integral_gain > 0:
             held = self.bound / self.integral_gain
             self.integral = float(np.clip(self.integral + error, -held, held))
+        most = min(self.bound, step)
         return float(np.clip(self.gain * error + self.integral_gain * self.integral,
-                             -self.bound, self.bound))
+                             -most, most))
 
 
 @dataclass
@@ -514,19 +528,14 @@ def heading_loop(call: BehaviorCall | None, heading: float | None,
                        min(options.max_heading_correction, turn_bound(call)) if turns else 0.0)
 
 
-def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions,
-              step: float = math.inf) -> GaitLoop | None:
+def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions
+              ) -> GaitLoop | None:
     """The heading loop of a sequence behavior that states its direction, starting at
-    ``heading`` [rad]; ``None`` when there is none or the heading is not known. A step is
-    turned by at most ``max_gait_turn`` and at most ``step`` [rad], the gait's own step (RMS,
-    eq. 8, between two of its stances): the S12N6 trot's steps of 3.3 deg turned by 8 deg
-    folded the body at 4 deg + 10 % (seed 12; at most 3.3 deg it crawls, docs/freesn.md
-    stop 48); the squirm's 26 deg steps keep 8 deg."""
+    ``heading`` [rad]; ``None`` when there is none or the heading is not known."""
     if call is None or call.kind != "sequence" or call.direction is None or heading is None \
             or options.gait_gain == options.gait_integral == 0:
         return None
-    return GaitLoop(heading, options.gait_gain, options.gait_integral,
-                    min(options.max_gait_turn, step))
+    return GaitLoop(heading, options.gait_gain, options.gait_integral, options.max_gait_turn)
 
 
 def timed_step(action: Action, before: Configuration, options: ExecutorOptions) -> float:
@@ -589,11 +598,12 @@ def turn_bound(call: BehaviorCall) -> float:
 
 
 def course_loop(call: BehaviorCall | None, estimate: Estimate, frame: float,
-                options: ExecutorOptions) -> CourseLoop | None:
+                options: ExecutorOptions, bound: float | None = None) -> CourseLoop | None:
     """The course loop of a straight mapping behavior (no ``yaw_rate`` asked) that states
     its direction, from the ``estimate`` where it begins; ``frame`` [rad] turns the
     action target's frame (the call's ``direction``) onto the recognized configuration's,
-    whose heading the estimate gives. ``None`` when there is none to close, or the place
+    whose heading the estimate gives; ``bound`` [rad] of its offset, default
+    ``options.max_course_offset``. ``None`` when there is none to close, or the place
     or heading is not known."""
     if call is None or call.direction is None or call.parameters.get("yaw_rate", 0.0) \
             or estimate.position is None or estimate.heading is None \
@@ -605,7 +615,8 @@ def course_loop(call: BehaviorCall | None, estimate: Estimate, frame: float,
         return None
     sense = -1.0 if call.parameters.get("speed", 1.0) < 0 else 1.0
     return CourseLoop(np.asarray(estimate.position, dtype=float).copy(), sense * turned / norm,
-                      options.course_gain, options.course_integral, options.max_course_offset)
+                      options.course_gain, options.course_integral,
+                      options.max_course_offset if bound is None else bound)
 
 
 SIDEWAYS = "sideways"
@@ -1147,29 +1158,34 @@ class Executor:
     def _gait_turn(self, index: int, action: Action, last: Action | None) -> float:
         """The turn [rad] the gait loop asks of ``action``, a step of a sequence behavior
         (:class:`GaitLoop`); 0 for any other action and for a behavior's first step. The
-        loop starts where that step ends: the body's heading is read on the shape the
-        last step reached, in the frame the behavior's targets (and its ``direction``)
-        share, and the shape before the first step need not be in it."""
+        loop starts before that first step, where the judge takes the commanded
+        direction: the body's heading read on the shape the behavior starts from against
+        the first step's target, in the frame the behavior's targets (and its
+        ``direction``) share; later steps read it on the shape the last step reached
+        against that step's target. Started after the first step instead, the loop took
+        that step's turn (the squirm's first squirm-up, -5.6 deg exact, -7 to -8 deg under
+        noise) for its reference and its course loop's line, never to be taken out."""
         call = action.behavior
-        if call is None or call.kind != "sequence" or index in self._spans or last is None \
-                or last.behavior is None:
+        if call is None or call.kind != "sequence":
             self._gait = None
             return 0.0
+        first = index in self._spans or last is None or last.behavior is None
         heading, frame = self.estimate.heading, 0.0
         if heading is not None and self._seen is not None:
-            frame = skeletal_errors(self._seen, last.target)[2]
+            frame = skeletal_errors(self._seen, (action if first else last).target)[2]
             heading += frame
-        if self._gait is None:
-            step, angles, _ = skeletal_errors(last.target, action.target)
-            self._gait = gait_loop(call, heading, self.options,   # stances of one shape:
-                                   step if len(angles) and step > 0 else math.inf)  # no bound
+        if first:
+            self._gait = gait_loop(call, heading, self.options)
             self._gait_course = None if self._gait is None else course_loop(
-                call, self.estimate, frame, self.options)
+                call, self.estimate, frame, self.options, self.options.max_gait_course_offset)
+            return 0.0
         if self._gait is None or heading is None:
             return 0.0
         place, course = self.estimate.position, self._gait_course
         offset = 0.0 if course is None or place is None else course.offset(place)
-        return self._gait.turn(heading, offset)
+        step, angles, _ = skeletal_errors(last.target, action.target)   # stances of one
+        return self._gait.turn(heading, offset,                         # shape: no bound
+                               step if len(angles) and step > 0 else math.inf)
 
     def _frame(self, action: Action) -> float:
         """The turn [rad] of ``action``'s target onto the configuration recognized now

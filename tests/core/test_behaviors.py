@@ -171,11 +171,50 @@ def test_the_gait_loop_turns_a_loops_last_step_too():
         world.reset(plan.start)
         executor = Executor(run, world, LinkRecognizer(), GoalController(), ExecutorOptions())
         executor.estimate = Estimate(position=np.zeros(2), heading=0.3)
-        assert executor._gait_turn(1, steps[1], steps[0]) == 0.0   # the loop starts at 0.3
+        assert executor._gait_turn(0, steps[0], None) == 0.0       # the loop starts at 0.3
         executor.estimate = Estimate(position=np.zeros(2), heading=0.1)
         assert ends_loop(steps, 2)
         assert executor._gait_turn(2, steps[2], steps[1]) > 0.0    # turned 0.2 rad right
 
+
+def test_the_gait_loop_starts_where_the_behavior_starts_not_after_its_first_step():
+    """Issue 31: the squirm's first squirm-up step turned the body -5.6 deg (exact) and
+    moved it 50 mm; a loop started after that step took both for its reference and its
+    course line, and no step took them out. It starts before the first step now, where
+    the judge takes the commanded direction."""
+    plan = sequence_plan(3, distance=None, direction=(1.0, 0.0, 0.0))
+    steps = plan.actions
+    run = Run(robot=NAME, scenario="test", plan=plan, spec=SPEC, driver="points")
+    with PointDriver() as world:
+        world.reset(plan.start)
+        for moved, sign in ((Estimate(position=np.zeros(2), heading=-0.1), 1.0),
+                            (Estimate(position=np.array([0.5, 0.1]), heading=0.0), -1.0)):
+            executor = Executor(run, world, LinkRecognizer(), GoalController(),
+                                ExecutorOptions())
+            executor.estimate = Estimate(position=np.zeros(2), heading=0.0)
+            assert executor._gait_turn(0, steps[0], None) == 0.0   # the first step: none
+            executor.estimate = moved   # the first step turned right, or went off left
+            assert sign * executor._gait_turn(1, steps[1], steps[0]) > 0.0   # taken out
+
+
+
+def test_a_gaits_course_loop_asks_no_more_than_a_gait_can_turn():
+    """Issue 31: a squirm-up step that slid put the estimated place 110 mm left of the line;
+    the course loop's offset went to -45 deg (the mapping behaviors' bound is 60), a turn
+    the squirm could not make in its run, and the gait loop turned the body after it.
+    A gait's course offset is bounded by ``max_gait_course_offset`` (20 deg)."""
+    plan = sequence_plan(3, distance=None, direction=(1.0, 0.0, 0.0))
+    steps = plan.actions
+    run = Run(robot=NAME, scenario="test", plan=plan, spec=SPEC, driver="points")
+    options = ExecutorOptions(gait_gain=1.0, gait_integral=0.0, max_gait_turn=1.5)
+    with PointDriver() as world:
+        world.reset(plan.start)
+        executor = Executor(run, world, LinkRecognizer(), GoalController(), options)
+        executor.estimate = Estimate(position=np.zeros(2), heading=0.0)
+        executor._gait_turn(0, steps[0], None)
+        executor.estimate = Estimate(position=np.array([0.05, 0.11]), heading=0.0)
+        turn = executor._gait_turn(1, steps[1], steps[0])   # the heading error: the offset
+        assert math.radians(-20.0) - 1e-9 <= turn < 0.0   # was -60 deg
 
 def test_a_gait_stopped_after_a_turned_step_takes_that_step_again_unturned(monkeypatch):
     """The judge measures the stance a gait stops in: a loop's last step whose goal was

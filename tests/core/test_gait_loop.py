@@ -88,10 +88,9 @@ def test_a_gait_loop_turns_a_step_by_at_most_the_step_itself():
     squirm's 26 deg steps keep ``max_gait_turn``."""
     call = BehaviorCall("trot", "sequence", {}, loops=4, distance=1.0, direction=(1.0, 0.0, 0.0))
     far_off = math.radians(-30.0)
-    trot = gait_loop(call, 0.0, OPTIONS, math.radians(3.3))
-    assert math.degrees(trot.turn(far_off)) == pytest.approx(3.3)
-    squirm = gait_loop(call, 0.0, OPTIONS, math.radians(26.1))
-    assert squirm.turn(far_off) == pytest.approx(OPTIONS.max_gait_turn)
+    loop = gait_loop(call, 0.0, OPTIONS)
+    assert math.degrees(loop.turn(far_off, step=math.radians(3.3))) == pytest.approx(3.3)
+    assert loop.turn(far_off, step=math.radians(26.1)) == pytest.approx(OPTIONS.max_gait_turn)
 
 def trotter() -> Configuration:
     """A body bar R1 from H1 to H2 on two diagonal legs: R2 from H1 down to the foot F1 on
