@@ -43,6 +43,13 @@ class SimOptions(MujocoOptions):
         integral_bound: the integral's anti-windup bound: its speed command at most this
             fraction of the roll rate (issue 31; 1: the whole roll rate, so a connector
             held off its target by a load pushes with the full torque at any error).
+        integral_band: the servo error the integral leaves alone, in units of the rms error
+            the connector's own estimates put in it (``fusion``'s filtered noise of its
+            node's attitude and of its fix, ``sqrt(6) noise b / sqrt(1 - (1 - b)^2)``;
+            0 without noise): what lies within it the connector cannot tell from its
+            estimates' wander, which, integrated to the bound, pushed the structure's
+            loops and feet against each other (issue 31, stop 48: fig18's node wheels at
+            fusion 0.05). 0: the whole error, as before.
         servo_rate: rate of the connectors' motor loops and of the load check [Hz]; the
             default 250 is the strut firmware's base control period, 4 ms.
         break_filter: time constant of the connection-load low-pass before the strength
@@ -87,6 +94,8 @@ class SimOptions(MujocoOptions):
                      0.0, 1.0, low_open=True),
         DriverOption("fusion", float, "weight of a fresh reading in a connector's attitude and "
                      "pose estimates", "", 0.0, 1.0, low_open=True),
+        DriverOption("integral_band", float, "error band the integral leaves to the estimates, "
+                     "in their rms", "", 0.0, 10.0),
         DriverOption("break_filter", float, "time constant of the connection-load filter", "s",
                      0.0, 10.0, low_open=True),
         DriverOption("gyro_bias", float, "std of each node gyro's constant bias", "rad/s",
@@ -106,6 +115,7 @@ class SimOptions(MujocoOptions):
     integral_bound: float = 1.0
     break_filter: float = 0.05
     fusion: float = 0.05
+    integral_band: float = 2.0
     gyro_bias: float = 5e-4
     gyro_walk: float = 1e-4
     gyro_noise: float = 2e-4
@@ -114,7 +124,7 @@ class SimOptions(MujocoOptions):
         super().__post_init__()
         self._check(positive=("strength_factor", "torque_factor", "break_filter",
                               "integral_bound", "fusion"),
-                    non_negative=("drift", "slip", "integral_gain", "gyro_bias", "gyro_walk",
+                    non_negative=("drift", "slip", "integral_gain", "integral_band", "gyro_bias", "gyro_walk",
                                   "gyro_noise"))
         if self.connector_drive not in ("differential", "holonomic"):
             raise ExecutionError(f"connector_drive must be 'differential' or 'holonomic', "

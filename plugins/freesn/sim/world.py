@@ -963,7 +963,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             error = quat_log(relative)
             omega = self.options.position_gain * error
             if self.options.integral_gain > 0.0:
-                integral = self._integral[ks] + error * (self._every * self.options.timestep)
+                integral = self._integral[ks] + self._beyond_band(error) * (
+                    self._every * self.options.timestep)
                 size = np.sqrt(np.einsum("ni,ni->n", integral, integral))
                 integral *= np.minimum(1.0, self._integral_bound / np.maximum(size, 1e-12)
                                        )[:, None]
@@ -991,6 +992,21 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._track_saturation(ks, np.sqrt(np.einsum("ni,ni->n", torque, torque)) / p.max_torque)
         self.data.qfrc_applied[self._dofs] = tau
         self._drive_free_wheels()
+
+    def _beyond_band(self, error: np.ndarray) -> np.ndarray:
+        """The part (n, 3) of servo errors ``error`` (n, 3) [rad] the integral action takes:
+        what lies beyond ``integral_band`` times the rms error the connector's own estimates
+        put in it (its node's attitude and its fix, each ``noise b / sqrt(1 - (1 - b)^2)``
+        per axis, ``b`` = ``fusion``). Within it the connector cannot tell a load's offset
+        from its estimates' wander; integrated, that wander pushes the loops a structure
+        closes against each other (issue 31, stop 48). The whole error without noise."""
+        o = self.options
+        band = o.integral_band * np.sqrt(6.0) * self.noise.std * o.fusion / np.sqrt(
+            1.0 - (1.0 - o.fusion) ** 2)
+        if band <= 0.0:
+            return error
+        size = np.sqrt(np.einsum("ni,ni->n", error, error))
+        return error * (np.maximum(size - band, 0.0) / np.maximum(size, 1e-12))[:, None]
 
     @property
     def _integral_bound(self) -> float:
