@@ -48,9 +48,9 @@ from .piece_way import PieceWay, normalized, plan_piece_way
 from .travel import Locator, floor_path, pursue, twist_velocities
 from .world import ModuleReport
 
-__all__ = ["ContactController", "ContactRecognizer", "anchors", "bend_error", "bend_errors",
-           "common_turn", "flow_direction", "goal_side", "links_of", "module_headings",
-           "spread_headings"]
+__all__ = ["BendMeasure", "ContactController", "ContactRecognizer", "Latches", "anchors",
+           "bend_error", "bend_errors", "common_turn", "flow_direction", "goal_side", "links_of",
+           "module_headings", "piece_turn", "spread_headings"]
 
 Reports = Mapping[str, ModuleReport]
 FLOW_ANGLE = np.pi / 3
@@ -363,17 +363,22 @@ class Latches:
         self.swing: dict[str, float] = {}
         self.began: dict[str, float] = {}
         self.settled: set[str] = set()
+        self.read: dict[str, float] = {}
+        """root -> driver time [s] its turn was last read (once a tick, whichever of the
+        robot's controllers reads it)."""
 
     def clear(self) -> None:
         """Forget every latch (a new run)."""
-        self.__init__()   # type: ignore[misc]
+        for known in (self.modules, self.pieces, self.swing, self.began, self.settled,
+                      self.read):
+            known.clear()
 
     def latch(self, root: str, target: str, piece: Collection[str]) -> None:
         """``root``'s piece ``piece`` latched on ``target``."""
         self.modules.update(piece)
         self.pieces[root] = (target, tuple(sorted(piece)))
-        self.swing.pop(root, None)
-        self.began.pop(root, None)
+        for known in (self.swing, self.began, self.read):
+            known.pop(root, None)
         self.settled.discard(root)
 
     def swinging(self, links: Mapping[str, str]) -> dict[str, tuple[str, tuple[str, ...]]]:
@@ -438,7 +443,9 @@ class BendMeasure:
         _, angles = bend_errors(current, goal, held=_swinging(links, self.latches.modules))
         turns = [piece_turn(current, goal, links, target, piece)
                  for target, piece in self.latches.swinging(links).values()]
-        out = np.concatenate([angles, [t for t in turns if t is not None]])
+        # a piece turned _LATCH_HOLD or more is moved by its connections, counted above
+        out = np.concatenate([angles, [t for t in turns if t is not None
+                                       and abs(t) < _LATCH_HOLD]])
         return float(np.sqrt(np.mean(out**2))) if len(out) else 0.0
 
 
@@ -565,7 +572,9 @@ class ContactController:
         what is left is the map's error at the latch and the recognition's noise. Moving
         it would swing the piece over the floor on braked shells, dragging it: under
         2 deg of noise pieces-to-tree's final move so broke F2-F3 (F2 carries F1 and the
-        latched F13-F16; 7 N on F2-F3 within the move's first 0.1 s)."""
+        latched F13-F16; 7 N on F2-F3 within the move's first 0.1 s).
+        Such a piece a few degrees off its goal's place is swung onto it instead, rolling
+        about the module it latched on (:meth:`_swing`), then held."""
         reports = observation.sensors
         current = current or self.recognizer.recognize(reports)
         yaw = (yaw or 0.0)
@@ -618,9 +627,11 @@ class ContactController:
             if turn is None:
                 continue
             old = latches.swing.get(root)
-            a = _SWING_SMOOTHING
-            error = turn if old is None else (1 - a) * old + a * turn
-            latches.swing[root] = error
+            if latches.read.get(root) != observation.time:   # read once a tick
+                a = _SWING_SMOOTHING
+                latches.swing[root] = turn if old is None else (1 - a) * old + a * turn
+                latches.read[root] = observation.time
+            error = latches.swing[root]
             began = latches.began.setdefault(root, observation.time)
             looked = observation.time - began >= _SWING_LOOK - 1e-9
             if abs(error) >= _LATCH_HOLD or not looked:
