@@ -46,7 +46,7 @@ the shape is within 1 deg, so no fixed threshold on it separates reached from no
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -57,6 +57,7 @@ from .actions import STRUT_ENDS, topology_diff
 from .alignment import align_yaw, rot_z
 from .configuration import Configuration
 from .driver import ModuleCommand, Observation
+from .errors import PlanningError
 from .kinematics import (
     FixedNode,
     GroundModel,
@@ -69,8 +70,9 @@ from .kinematics import (
 from .plan import ConnectionChange
 from .shape import skeletal_error
 
-__all__ = ["DockCycle", "JointController", "Measure", "PhaseTracker", "TrackingOptions", "aimed",
-           "connection_goal", "extruded", "reach_measure", "tree_for", "turned_goal"]
+__all__ = ["EQ8", "DockCycle", "JointController", "Measure", "PhaseTracker", "ReachMeasure",
+           "SkeletalMeasure", "TrackingOptions", "aimed", "connection_goal", "extruded",
+           "reach_measure", "tree_for", "turned_goal"]
 
 
 @runtime_checkable
@@ -428,14 +430,58 @@ Measure = Callable[[Configuration, Configuration], float]
 """A distance [rad] of a recognized configuration (first) from a goal (second)."""
 
 
-def reach_measure(controllers: Iterable[object]) -> Measure:
-    """The distance a tracked phase driven by ``controllers`` is reached on: the
-    ``reach_measure`` they all give (a controller that aims each connection relative to
-    its parent, FreeBOT's, is reached on those bends), else eq. 8's RMS
-    angle after one yaw alignment (:func:`~msrr.core.shape.skeletal_error`), which is
-    also what controllers that name different ones get."""
-    found = {getattr(c, "reach_measure", skeletal_error) for c in controllers}
-    return found.pop() if len(found) == 1 else skeletal_error
+@runtime_checkable
+class ReachMeasure(Protocol):
+    """A named :data:`Measure` that a controller reaches its phases on
+    (``controller.reach_measure``); two measures are the same when they compare equal, so
+    a robot's controllers that aim alike give equal ones (not a bound method each)."""
+
+    name: str
+
+    def __call__(self, current: Configuration, goal: Configuration) -> float: ...
+
+
+@dataclass(frozen=True)
+class SkeletalMeasure:
+    """Eq. 8's distance: the RMS angle after one yaw alignment
+    (:func:`~msrr.core.shape.skeletal_error`)."""
+
+    name: str = "eq8"
+
+    def __call__(self, current: Configuration, goal: Configuration) -> float:
+        return skeletal_error(current, goal)
+
+
+EQ8 = SkeletalMeasure()
+"""Eq. 8's distance, what a controller that names no measure is reached on."""
+
+
+def reach_measure(tree: KinematicTree, controller_for: Callable[[str], object]
+                  ) -> ReachMeasure:
+    """The distance a tracked phase on ``tree`` is reached on: the ``reach_measure`` the
+    controllers of its nodes that move connections give (``controller_for``: a node's
+    ``controller`` name -> the controller; a controller that names none gives eq. 8's,
+    :data:`EQ8`; a node without edges commands nothing and has no say). FreeBOT's
+    controllers aim each connection relative to its parent and are reached on those
+    bends.
+
+    Raises:
+        PlanningError: the nodes' controllers give different measures (each node named
+            with its edges and its measure): no one distance says the phase is reached.
+    """
+    found: dict[ReachMeasure, list[str]] = {}
+    for node in tree.nodes:
+        if not node.edges:
+            continue
+        measure = getattr(controller_for(node.controller), "reach_measure", EQ8)
+        found.setdefault(measure, []).append(f"{node.name} {'+'.join(node.edges)}")
+    if len(found) > 1:
+        said = "; ".join(f"{getattr(m, 'name', m)!s}: {', '.join(nodes[:3])}"
+                         + (f" and {len(nodes) - 3} more" if len(nodes) > 3 else "")
+                         for m, nodes in found.items())
+        raise PlanningError(f"the kinematic tree's controllers are reached on different "
+                            f"measures ({said}): a tracked phase needs one")
+    return next(iter(found), EQ8)
 
 
 def tree_for(topology: Configuration, given: object, joint_mode: type | None
@@ -472,7 +518,7 @@ class PhaseTracker:
 
     def __init__(self, tree: KinematicTree, goal: Configuration, options: TrackingOptions,
                  seed: int = 0, ground: GroundModel | None = None, median_yaw: bool = False,
-                 measure: Measure = skeletal_error):
+                 measure: Measure = EQ8):
         self.tree = tree
         self.goal = goal
         self.options = options

@@ -1028,7 +1028,7 @@ class Executor:
             return False
         goal = self._turned_goal(goal, tree)
         ground = GroundModel.for_configuration(current, self.run.spec)
-        measure = reach_measure(self._controller_for(node.controller) for node in tree.nodes)
+        measure = reach_measure(tree, self._controller_for)
         self._tracker = PhaseTracker(tree, goal, self.options.tracking, seed=self.run.seed,
                                      ground=ground, median_yaw=self.run.spec.defaults.median_yaw,
                                      measure=measure)

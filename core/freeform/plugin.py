@@ -135,13 +135,15 @@ class FreeformPlugin:
 
     def controllers(self) -> list[ContactController]:
         """One controller per joint mode, named as the mode's ``controller``; the
-        ``sucker`` mode's engages the sucker."""
+        ``sucker`` mode's engages the sucker. They share the recognizer and what they know
+        of latched pieces (:class:`~msrr.core.freeform.recognition.Latches`), so they hold
+        the same connections and give one reach measure."""
         from functools import partial
 
-        from .recognition import ContactController
+        from .recognition import ContactController, Latches
         from .world import FreeformOptions, place
 
-        shared = self.recognizer()
+        shared, latches = self.recognizer(), Latches()
         # centre distance of a docked pair, and the start laid out as the world lays it
         # (the lab's placement of the start file)
         spacing = 2.0 * self.design.radius + FreeformOptions().gap
@@ -151,7 +153,7 @@ class FreeformPlugin:
         piece = 0.8 * self.design.max_rate * self.design.radius if self.design.bearing else 0.0
         return [ContactController(mode.controller, shared, sucker=mode.name == self.sucker,
                                   spacing=spacing, piece_speed=piece, layout=layout,
-                                  bends=self.bends)
+                                  bends=self.bends, latches=latches)
                 for mode in self.joint_modes()]
 
     # -- hooks --------------------------------------------------------------------------

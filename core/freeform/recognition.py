@@ -34,6 +34,7 @@ import numpy as np
 
 from ..actions import flow_of, topology_diff
 from ..alignment import median_yaw, rot_z, wrap_angle
+from ..closed_loop import EQ8, ReachMeasure
 from ..configuration import Configuration
 from ..control import Control
 from ..driver import ModuleCommand, Observation
@@ -41,15 +42,15 @@ from ..errors import ConfigurationError, ExecutionError
 from ..events import Phase
 from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
-from ..shape import skeletal_error, skeletal_errors
+from ..shape import skeletal_errors
 from .mujoco import yaw_of
 from .piece_way import PieceWay, normalized, plan_piece_way
 from .travel import Locator, floor_path, pursue, twist_velocities
 from .world import ModuleReport
 
-__all__ = ["ContactController", "ContactRecognizer", "anchors", "bend_error", "bend_errors",
-           "common_turn", "flow_direction", "goal_side", "links_of", "module_headings",
-           "spread_headings"]
+__all__ = ["BendMeasure", "ContactController", "ContactRecognizer", "Latches", "anchors",
+           "bend_error", "bend_errors", "common_turn", "flow_direction", "goal_side", "links_of",
+           "module_headings", "piece_turn", "spread_headings"]
 
 Reports = Mapping[str, ModuleReport]
 FLOW_ANGLE = np.pi / 3
@@ -344,6 +345,112 @@ latched connection up to 10 deg off from tick to tick (pieces-to-tree, seed 12, 
 move's first ticks: 1.0-10.0 deg), so a smaller band chased the noise."""
 
 
+class Latches:
+    """What the controllers of one robot know of the pieces that travelled and latched,
+    shared by all of them (one per joint mode; :class:`BendMeasure` compares by it).
+
+    Attributes:
+        modules: the modules of those pieces (held within ``_LATCH_HOLD``).
+        pieces: root -> (the module it latched on, the piece's modules).
+        swing: root -> its piece's turn error [rad] low-passed (:func:`piece_turn`).
+        began: root -> driver time [s] its swing began.
+        settled: the roots whose swing is done (held from then on).
+    """
+
+    def __init__(self) -> None:
+        self.modules: set[str] = set()
+        self.pieces: dict[str, tuple[str, tuple[str, ...]]] = {}
+        self.swing: dict[str, float] = {}
+        self.began: dict[str, float] = {}
+        self.settled: set[str] = set()
+        self.read: dict[str, float] = {}
+        """root -> driver time [s] its turn was last read (once a tick, whichever of the
+        robot's controllers reads it)."""
+
+    def clear(self) -> None:
+        """Forget every latch (a new run)."""
+        for known in (self.modules, self.pieces, self.swing, self.began, self.settled,
+                      self.read):
+            known.clear()
+
+    def latch(self, root: str, target: str, piece: Collection[str]) -> None:
+        """``root``'s piece ``piece`` latched on ``target``."""
+        self.modules.update(piece)
+        self.pieces[root] = (target, tuple(sorted(piece)))
+        for known in (self.swing, self.began, self.read):
+            known.pop(root, None)
+        self.settled.discard(root)
+
+    def swinging(self, links: Mapping[str, str]) -> dict[str, tuple[str, tuple[str, ...]]]:
+        """The latched pieces still to be swung onto their goal (root -> (target, piece)),
+        those whose root still holds its target in ``links``."""
+        return {r: p for r, p in self.pieces.items()
+                if r not in self.settled and links.get(r) == p[0]}
+
+
+def piece_turn(current: Configuration, goal: Configuration, links: Mapping[str, str],
+               target: str, piece: Collection[str]) -> float | None:
+    """The turn [rad] about the vertical of a piece latched on ``target`` from its goal:
+    the mean signed yaw of its connections (its own and the latch, ``links``) against
+    ``goal``'s turned by ``target``'s :func:`anchors` (its goal's place at ``target``,
+    free of the headings' chained errors). A turn of the whole piece about ``target``'s
+    centre turns each of them by as much, so it takes this out at best (eq. 8 over
+    them). ``None`` when ``target`` has no anchor or none of them lies horizontal."""
+    turn = anchors(current, goal, links).get(target)
+    if turn is None:
+        return None
+    out = []
+    for m in piece:
+        have, want = _vector(current, m, links.get(m, "")), _vector(goal, m, links.get(m, ""))
+        if have is None or want is None:
+            continue
+        want = rot_z(turn) @ want
+        if np.hypot(*have[:2]) < _LEVEL or np.hypot(*want[:2]) < _LEVEL:
+            continue
+        out.append(wrap_angle(np.arctan2(have[1], have[0]) - np.arctan2(want[1], want[0])))
+    return float(np.mean(out)) if out else None
+
+
+_LEVEL = 0.5
+"""Smallest horizontal part of a unit connection vector whose yaw :func:`piece_turn` reads."""
+
+
+class BendMeasure:
+    """The reach measure of controllers that aim at the bends (:func:`bend_errors`, RMS):
+    the connections they hold (a latched piece's within ``_LATCH_HOLD``) left out; while a
+    latched piece is still being swung, at least its turn (:func:`piece_turn`) times
+    ``_SWING_WEIGHT``, so a move does not end before the swing: in the RMS over the
+    bends, a row's turn of 3.6 deg was diluted under the move's 3 deg and the final move
+    ended within 0.1-1.4 s, the swing not begun or cut short (pieces-to-tree at 2 deg).
+
+    Named (``name``) and compared by its :class:`Latches`: the controllers of one robot
+    share theirs, so every one of its joint modes gives the same measure
+    (:func:`~msrr.core.closed_loop.reach_measure`)."""
+
+    name = "bends"
+
+    def __init__(self, latches: Latches):
+        self.latches = latches
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, BendMeasure) and other.latches is self.latches
+
+    def __hash__(self) -> int:
+        return hash((self.name, id(self.latches)))
+
+    def __repr__(self) -> str:
+        return f"BendMeasure(latches={id(self.latches):#x})"
+
+    def __call__(self, current: Configuration, goal: Configuration) -> float:
+        links = _links(current)
+        rms, _ = bend_errors(current, goal, held=_swinging(links, self.latches.modules))
+        turns = [piece_turn(current, goal, links, target, piece)
+                 for target, piece in self.latches.swinging(links).values()]
+        # a piece turned _LATCH_HOLD or more is moved by its connections, counted above
+        pending = [abs(t) for t in turns if t is not None and abs(t) < _LATCH_HOLD]
+        return max([rms] + [_SWING_WEIGHT * t for t in pending])
+
+
 def _direction(vector: np.ndarray) -> dict[str, float]:
     return {f"dir_{a}": float(c) for a, c in zip("xyz", vector, strict=True)}
 
@@ -383,6 +490,7 @@ class ContactController:
                  tolerance: float = np.radians(3.0), flow_tolerance: float = np.radians(2.0),
                  spacing: float = 0.1, ground_speed: float = 0.04, arrive: float = 0.005,
                  piece_speed: float = 0.0, smoothing: float = 0.5, bends: bool = False,
+                 latches: Latches | None = None,
                  layout: Callable[[Configuration], tuple[Mapping[str, np.ndarray],
                                                          Mapping[str, np.ndarray]]] | None = None):
         self.name = name
@@ -411,28 +519,24 @@ class ContactController:
         self._planned: Configuration | None = None
         """The plan's configuration before the action being run (``None``: not known)."""
         self._acting: Action | None = None
-        self._latched: set[str] = set()
-        """The modules of the pieces that travelled and latched (:meth:`commands`)."""
+        self.latches = Latches() if latches is None else latches
+        """The pieces that travelled and latched (:meth:`commands`), shared with the
+        robot's other controllers."""
         self._seen: dict[str, np.ndarray] = {}
         """Edge id -> its vector low-passed over a move's ticks (:meth:`_smoothed`)."""
 
     @property
-    def reach_measure(self) -> Callable[[Configuration, Configuration], float]:
+    def reach_measure(self) -> ReachMeasure:
         """How far a recognized configuration is from a goal [rad], as this controller's
-        commands see it: with ``bends``, the bends it aims at (:func:`bend_error`, those it
-        holds left out), else eq. 8's RMS angle after one yaw alignment
-        (:func:`~msrr.core.shape.skeletal_error`). Its moves are reached on it,
-        and the executor's tracking judges the phases it drives on it
-        (:attr:`~msrr.core.closed_loop.PhaseTracker.error`)."""
-        return self._commanded_bends if self.bends else skeletal_error
-
-    def _commanded_bends(self, current: Configuration, goal: Configuration) -> float:
-        """:func:`bend_error` over the connections :meth:`commands` moves: those it holds
-        (a latched piece's within ``_LATCH_HOLD``, :func:`_swinging`) keep the latch's
-        error, which the hold accepts, and the judge decides on the simulator's state
-        (pieces-to-tree under 2 deg of noise, the final move: 18 of 19 connections held,
-        the move stalled on their errors)."""
-        return bend_errors(current, goal, held=_swinging(_links(current), self._latched))[0]
+        commands see it: with ``bends``, the bends it aims at (:class:`BendMeasure`: those
+        it holds left out, as they keep the latch's error; a latched piece it still swings
+        counted by its turn), else eq. 8's RMS angle after one yaw alignment
+        (:data:`~msrr.core.closed_loop.EQ8`). Its moves are reached on it, and the
+        executor's tracking judges the phases it drives on it
+        (:attr:`~msrr.core.closed_loop.PhaseTracker.error`). Pieces-to-tree under 2 deg
+        of noise, the final move: 18 of 19 connections held, the move stalled on their
+        errors when they were counted."""
+        return BendMeasure(self.latches) if self.bends else EQ8
 
     def start(self, configuration: Configuration) -> None:
         """The run starts from ``configuration``: the locator learns where its modules
@@ -441,7 +545,7 @@ class ContactController:
         self.locator = Locator(self.locator.spacing)
         self._ways, self._pieces = {}, {}
         self._planned, self._acting = None, None   # the plan may start from a recognition
-        self._latched = set()
+        self.latches.clear()
         if self._layout is not None:
             centres, frames = self._layout(configuration)
             self.locator.start({m: (centres[m], frames[m]) for m in centres})
@@ -470,7 +574,9 @@ class ContactController:
         what is left is the map's error at the latch and the recognition's noise. Moving
         it would swing the piece over the floor on braked shells, dragging it: under
         2 deg of noise pieces-to-tree's final move so broke F2-F3 (F2 carries F1 and the
-        latched F13-F16; 7 N on F2-F3 within the move's first 0.1 s)."""
+        latched F13-F16; 7 N on F2-F3 within the move's first 0.1 s).
+        Such a piece a few degrees off its goal's place is swung onto it instead, rolling
+        about the module it latched on (:meth:`_swing`), then held."""
         reports = observation.sensors
         current = current or self.recognizer.recognize(reports)
         yaw = (yaw or 0.0)
@@ -480,10 +586,12 @@ class ContactController:
         turn = rot_z(yaw)
         turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
-        swings = _swinging(links, self._latched)
+        swings = _swinging(links, self.latches.modules)
         anchor = anchors(current, turned, links) if self.bends else {}
+        swung = self._swing(current, turned, links, observation) if self.bends else {}
+        out.update(swung)
         for e in target.edges():
-            if e.z is None or links.get(e.source) != e.target:
+            if e.z is None or links.get(e.source) != e.target or e.source in swung:
                 continue
             aim = rot_z(anchor.get(e.target, 0.0)) @ turn @ np.asarray(e.z)
             if e.source in swings and _angle(_vector(current, e.source, e.target), aim) \
@@ -494,6 +602,53 @@ class ContactController:
             else:
                 joints = _direction(rot_z(-heading[e.target]) @ aim)
             out[e.source] = ModuleCommand(joints=joints)
+        return out
+
+    def _swing(self, current: Configuration, goal: Configuration, links: Mapping[str, str],
+               observation: Observation) -> dict[str, ModuleCommand]:
+        """The commands that swing each latched piece onto its goal about the centre of the
+        module it latched on, rolling (:meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`:
+        one rigid twist turning about that centre; its shells roll, nothing drags).
+
+        A latch lands where the piece's root touches its target, which the map has
+        centimetres off under noise, so the piece lies a few degrees off its goal's place
+        there (pieces-to-tree at 2 deg, seed 18: both rows latched, the true shape 5.04 deg
+        off, and the held rows kept it). Its turn (:func:`piece_turn`, low-passed:
+        ``_SWING_SMOOTHING``) is read for ``_SWING_LOOK`` ticks, then taken out at
+        ``_SWING_GAIN`` per second, at most ``_SWING_RATE``, until it is under
+        ``_SWING_DONE`` or ``_SWING_TIME`` has passed; from then on the piece is held
+        (:attr:`Latches.settled`). A piece turned ``_LATCH_HOLD`` or more is moved by its
+        connections' own commands, as before."""
+        latches, out = self.latches, {}
+        pieces = latches.swinging(links)
+        if not pieces or not self.piece_speed:
+            return out
+        self._locate(observation.sensors)
+        for root, (target, piece) in pieces.items():
+            turn = piece_turn(current, goal, links, target, piece)
+            if turn is None:
+                continue
+            old = latches.swing.get(root)
+            if latches.read.get(root) != observation.time:   # read once a tick
+                a = _SWING_SMOOTHING
+                latches.swing[root] = turn if old is None else (1 - a) * old + a * turn
+                latches.read[root] = observation.time
+            error = latches.swing[root]
+            began = latches.began.setdefault(root, observation.time)
+            looked = observation.time - began >= _SWING_LOOK - 1e-9
+            if abs(error) >= _LATCH_HOLD or not looked:
+                continue
+            if abs(error) < _SWING_DONE or observation.time - began > _SWING_TIME:
+                latches.settled.add(root)
+                continue
+            rate = float(np.clip(-_SWING_GAIN * error, -_SWING_RATE, _SWING_RATE))
+            centres = {m: self.locator.pose(m)[0] for m in piece}
+            headings = {m: self.locator.pose(m)[1] for m in piece}
+            velocities, w = twist_velocities(centres, headings, np.zeros(2), rate,
+                                             self.locator.pose(target)[0][:2],
+                                             speed=self.piece_speed)
+            out.update({m: ModuleCommand(joints={"roll_x": float(v[0]), "roll_y": float(v[1]),
+                                                 "turn": w}) for m, v in velocities.items()})
         return out
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> float | None:
@@ -591,7 +746,7 @@ class ContactController:
         for root, (way, stage) in list(self._pieces.items()):
             if phase is Phase.CONNECT and reports[root].attached == way.target:
                 del self._pieces[root]
-                self._latched.update(way.piece)
+                self.latches.latch(root, way.target, way.piece)
                 continue
             centres = {m: self.locator.pose(m)[0] for m in way.piece}
             headings = {m: self.locator.pose(m)[1] for m in way.piece}
@@ -846,6 +1001,14 @@ def _refuse_carried_travel(current: Configuration, action: Action) -> None:
 _STALL_TIME = 1.0            # a lone module still this long [s] ...
 _STALL_MOVE = 0.002          # ... moving less than this [m] ...
 _STALL_NEAR = 1.0            # ... within this many spacings of its way's end is blocked
+_SWING_LOOK = 0.5            # a latched piece's turn read this long [s] before a swing
+_SWING_SMOOTHING = 0.2       # its low-pass, the newest tick's weight
+_SWING_GAIN = 0.5            # its swing per turn error [1/s]
+_SWING_RATE = 0.05           # its fastest swing [rad/s]
+_SWING_DONE = np.radians(0.75)   # the turn under which its swing is done
+_SWING_TIME = 15.0           # the longest swing [s]
+_SWING_WEIGHT = 4.0          # a swinging piece's turn in the reach measure: under 3 deg at
+                             # _SWING_DONE, the executor's reach tolerance
 _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
 _STEER_GAIN = 10.0           # a straight piece's steer per metre off its leg's line [rad/m]

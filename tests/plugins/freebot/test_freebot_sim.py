@@ -268,23 +268,79 @@ def test_a_tracked_phase_is_reached_on_the_bends_its_controllers_aim_at(mujoco_d
     # reaches a phase on the measure its nodes' controllers give: the bends; FreeSN's
     # controllers give none and SnailBot's eq. 8's distance after one yaw alignment
     from msrr.core import plugins
-    from msrr.core.closed_loop import PhaseTracker, TrackingOptions, reach_measure, tree_for
+    from msrr.core.closed_loop import (
+        EQ8,
+        PhaseTracker,
+        TrackingOptions,
+        reach_measure,
+        tree_for,
+    )
 
     goal = load_configuration(CONFIGS / "forest20" / "forest20.json")
     driver = mujoco_driver("freebot", "forest20/forest20")
     reports = _with_link_yaw(driver.get_observation().sensors, np.radians(1.5))
     recognized = plugin.recognizer().recognize(reports)
     controller = plugin.controllers()[0]
-    assert reach_measure([controller, controller]) == controller.reach_measure
-    assert reach_measure(plugins.capabilities("freesn").controllers.values()) is skeletal_error
-    from msrr.plugins.snailbot.plugin import plugin as snailbot  # aims in the root frame
-
-    assert all(c.reach_measure is skeletal_error for c in snailbot.controllers())
     robot = plugins.resolve("freebot")
     tree = tree_for(recognized, None, robot.default_joint_mode())
+    assert reach_measure(tree, lambda name: controller) == controller.reach_measure
+    assert reach_measure(tree, lambda name: object()) == EQ8   # a controller naming none
+    from msrr.plugins.snailbot.plugin import plugin as snailbot  # aims in the root frame
+
+    assert all(c.reach_measure == EQ8 for c in snailbot.controllers())
     bends = PhaseTracker(tree, goal, TrackingOptions(), measure=controller.reach_measure)
     bends.step(recognized)
     assert bends.reached and np.degrees(bends.error) == pytest.approx(1.5, abs=0.2)
     eq8 = PhaseTracker(tree, goal, TrackingOptions())
     eq8.step(recognized)
     assert not eq8.reached
+
+
+def _forest20_tree():
+    """The default kinematic tree of ``forest20`` (FreeBOT's rolling contact joints)."""
+    from msrr.core import plugins
+    from msrr.core.closed_loop import tree_for
+
+    goal = load_configuration(CONFIGS / "forest20" / "forest20.json")
+    return tree_for(goal, None, plugins.resolve("freebot").default_joint_mode())
+
+
+def test_the_controllers_of_one_robot_give_one_reach_measure():
+    # one contact controller per joint mode: a tracked tree whose nodes use two of them
+    # was reached on eq. 8's distance without a word, the bends lost (each controller's
+    # measure a bound method of its own, so no two compared equal)
+    from itertools import cycle
+
+    from msrr.core.closed_loop import reach_measure
+    from msrr.core.freeform import FreeformPlugin
+    from msrr.plugins.freebot.joints import RollingContactJoint
+
+    rolled = type("Rolled", (RollingContactJoint,),
+                  {"name": "rolled", "controller": "freebot.rolled"})
+
+    class TwoModes(FreeformPlugin):
+        def joint_modes(self):
+            return (RollingContactJoint, rolled)
+
+    two = TwoModes("msrr.plugins.freebot.plugin", driver_description="", bearing=True,
+                   bends=True)
+    first, second = two.controllers()
+    assert first is not second and first.reach_measure == second.reach_measure
+    assert first.reach_measure.name == "bends"
+    either = cycle([first, second])
+    assert reach_measure(_forest20_tree(), lambda name: next(either)) == first.reach_measure
+
+
+def test_a_tree_whose_controllers_want_different_measures_is_refused():
+    # the bends of FreeBOT's controllers beside a controller reached on eq. 8's distance:
+    # no one distance says the phase is reached (before: eq. 8's, silently)
+    from itertools import cycle
+
+    from msrr.core.closed_loop import reach_measure
+    from msrr.core.errors import PlanningError
+
+    bends = plugin.controllers()[0]
+    either = cycle([bends, object()])
+    with pytest.raises(PlanningError, match=r"bends: rolling_contact F\d+-F\d+, .* and 7 "
+                                            r"more; eq8: rolling_contact F\d+-F\d+"):
+        reach_measure(_forest20_tree(), lambda name: next(either))

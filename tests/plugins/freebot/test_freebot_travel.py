@@ -648,11 +648,69 @@ def test_a_latched_piece_is_not_swung_to_take_out_a_few_degrees(mujoco_driver):
     assert {"F2", "F4"} <= set(far)
 
 
+def test_a_latched_piece_a_few_degrees_off_is_swung_onto_its_goal_rolling(mujoco_driver):
+    # a latch lands where the piece's root touches its target, which the map has
+    # centimetres off under noise; held within 20 deg, the piece stayed off:
+    # pieces-to-tree at 2 deg, seed 18, both rows latched and the true shape ended 5.04
+    # deg off (the judge's tolerance 5). ``line6`` with F1 latched on F2 (F2 -> F3
+    # carries it), the goal turning F1 -> F2 by 6 deg about the vertical: F1 rolls round
+    # F2 onto it, the rest stays, nothing breaks, and the move's measure counts the swing
+    from msrr.core.freeform.recognition import piece_turn
+
+    driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
+    goal = start.copy()
+    for e in list(goal.edges()):
+        if e.source == "F1":
+            goal.disconnect(e.id)
+            goal.connect(e.source, e.target, z=rot_z(np.radians(6.0)) @ np.asarray(e.z))
+    links = {e.source: e.target for e in start.edges()}
+    truth = driver.ground_truth()
+    assert np.degrees(abs(piece_turn(truth, goal, links, "F2", ("F1",)))) > 5.0
+    rest = [e.id for e in start.edges() if e.source != "F1"]
+    before = truth.vectors(rest)
+    seen = controller.recognizer.recognize(driver.get_observation().sensors)
+    assert np.degrees(controller.reach_measure(seen, goal)) > 2.5, "the swing counts"
+    for _ in range(100):
+        observation = driver.get_observation()
+        driver.send_action(controller.commands(goal, observation))
+        driver.step(0.1)
+    truth = driver.ground_truth()
+    assert "F1" in controller.latches.settled
+    assert np.degrees(abs(piece_turn(truth, goal, links, "F2", ("F1",)))) < 1.0
+    assert np.degrees(np.max(np.arccos(np.clip(np.sum(truth.vectors(rest) * before, axis=0),
+                                               -1, 1)))) < 0.5
+    assert not driver.faults()
+    seen = controller.recognizer.recognize(driver.get_observation().sensors)
+    assert np.degrees(controller.reach_measure(seen, goal)) < 1.0, "settled: held"
+
+
+def test_a_move_is_not_reached_before_its_latched_pieces_are_swung(mujoco_driver):
+    # in the RMS over every commanded bend a swinging piece's turn was diluted: a row
+    # turned 3.6 deg among 19 connections kept the final move under its 3 deg, which
+    # ended within 0.1-1.4 s, the swing not begun or cut short (pieces-to-tree at 2 deg,
+    # seed 10: both rows left 2.2 and 3.6 deg turned on ground truth). ``line6`` with F1
+    # latched on F2, the goal turning F1 -> F2 by 2 deg: not reached until it is swung
+    from msrr.core.closed_loop import TrackingOptions
+
+    driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
+    goal = start.copy()
+    for e in list(goal.edges()):
+        if e.source == "F1":
+            goal.disconnect(e.id)
+            goal.connect(e.source, e.target, z=rot_z(np.radians(2.0)) @ np.asarray(e.z))
+    seen = controller.recognizer.recognize(driver.get_observation().sensors)
+    tolerance = TrackingOptions().reach_tolerance
+    assert controller.reach_measure(seen, goal) >= tolerance, "the swing is pending"
+    controller.latches.settled.add("F1")
+    assert controller.reach_measure(seen, goal) < tolerance, "swung: the bends only"
+
+
 def test_a_move_is_reached_on_the_bends_it_commands_not_on_a_held_latch(mujoco_driver):
     # a latched piece's connections within 20 deg of the goal are held, not moved, so a
     # move reached on them too stalls on the latch's error: pieces-to-tree's final move
     # under 2 deg of noise (seed 15: 5.5 deg for 15 s, twice, 18 of 19 connections held).
-    # ``line6`` with F1 latched on F2: F1 -> F2 is held, F4 -> F3 moves
+    # ``line6`` with F1 latched on F2: F1 -> F2 is held once its swing is done
+    # (test_a_latched_piece_a_few_degrees_off_is_swung_onto_its_goal_rolling), F4 -> F3 moves
     driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
     current = controller.recognizer.recognize(driver.get_observation().sensors)
     measure = controller.reach_measure
@@ -668,6 +726,8 @@ def test_a_move_is_reached_on_the_bends_it_commands_not_on_a_held_latch(mujoco_d
 
     held = turned(F1=10.0)
     assert np.degrees(bend_error(current, held)) > 4.0
+    assert np.degrees(measure(current, held)) > 4.0, "F1 still to be swung: counted"
+    controller.latches.settled.add("F1")     # its swing done (or given up): held
     assert np.degrees(measure(current, held)) < 0.5, "F1 -> F2 is held: not counted"
     assert np.degrees(measure(current, turned(F1=10.0, F4=-10.0))) > 4.0, "F4 is moved"
     assert np.degrees(measure(current, turned(F1=30.0))) > 10.0, "farther: moved again"
