@@ -648,6 +648,17 @@ def test_a_latched_piece_is_not_swung_to_take_out_a_few_degrees(mujoco_driver):
     assert {"F2", "F4"} <= set(far)
 
 
+def _turned_from(start: Configuration, source: str, degrees: float) -> Configuration:
+    """``start`` with the connection out of ``source`` turned by ``degrees`` about the
+    vertical."""
+    goal = start.copy()
+    for e in list(goal.edges()):
+        if e.source == source:
+            goal.disconnect(e.id)
+            goal.connect(e.source, e.target, z=rot_z(np.radians(degrees)) @ np.asarray(e.z))
+    return goal
+
+
 def test_a_latched_piece_a_few_degrees_off_is_swung_onto_its_goal_rolling(mujoco_driver):
     # a latch lands where the piece's root touches its target, which the map has
     # centimetres off under noise; held within 20 deg, the piece stayed off:
@@ -658,11 +669,7 @@ def test_a_latched_piece_a_few_degrees_off_is_swung_onto_its_goal_rolling(mujoco
     from msrr.core.freeform.recognition import piece_turn
 
     driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
-    goal = start.copy()
-    for e in list(goal.edges()):
-        if e.source == "F1":
-            goal.disconnect(e.id)
-            goal.connect(e.source, e.target, z=rot_z(np.radians(6.0)) @ np.asarray(e.z))
+    goal = _turned_from(start, "F1", 6.0)
     links = {e.source: e.target for e in start.edges()}
     truth = driver.ground_truth()
     assert np.degrees(abs(piece_turn(truth, goal, links, "F2", ("F1",)))) > 5.0
@@ -693,11 +700,7 @@ def test_a_move_is_not_reached_before_its_latched_pieces_are_swung(mujoco_driver
     from msrr.core.closed_loop import TrackingOptions
 
     driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
-    goal = start.copy()
-    for e in list(goal.edges()):
-        if e.source == "F1":
-            goal.disconnect(e.id)
-            goal.connect(e.source, e.target, z=rot_z(np.radians(2.0)) @ np.asarray(e.z))
+    goal = _turned_from(start, "F1", 2.0)
     seen = controller.recognizer.recognize(driver.get_observation().sensors)
     tolerance = TrackingOptions().reach_tolerance
     assert controller.reach_measure(seen, goal) >= tolerance, "the swing is pending"
