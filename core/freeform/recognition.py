@@ -355,6 +355,8 @@ class Latches:
         swing: root -> its piece's turn error [rad] low-passed (:func:`piece_turn`).
         began: root -> driver time [s] its swing began.
         settled: the roots whose swing is done (held from then on).
+        read: root -> driver time [s] its turn was last read (once a tick, whichever of
+            the robot's controllers reads it).
     """
 
     def __init__(self) -> None:
@@ -364,8 +366,6 @@ class Latches:
         self.began: dict[str, float] = {}
         self.settled: set[str] = set()
         self.read: dict[str, float] = {}
-        """root -> driver time [s] its turn was last read (once a tick, whichever of the
-        robot's controllers reads it)."""
 
     def clear(self) -> None:
         """Forget every latch (a new run)."""
@@ -625,12 +625,11 @@ class ContactController:
             return out
         self._locate(observation.sensors)
         for root, (target, piece) in pieces.items():
-            turn = piece_turn(current, goal, links, target, piece)
-            if turn is None:
-                continue
-            old = latches.swing.get(root)
             if latches.read.get(root) != observation.time:   # read once a tick
-                a = _SWING_SMOOTHING
+                turn = piece_turn(current, goal, links, target, piece)
+                if turn is None:
+                    continue
+                old, a = latches.swing.get(root), _SWING_SMOOTHING
                 latches.swing[root] = turn if old is None else (1 - a) * old + a * turn
                 latches.read[root] = observation.time
             error = latches.swing[root]
