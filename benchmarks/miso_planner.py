@@ -25,17 +25,29 @@ Start and goal of an instance are two draws of the same kind and size. Four tabl
    568 modules; ``plugins/freebot/configs/human/``): changes beside the published IM
    result, 91.
 
+With ``--peer DIR`` (a checkout of ``FreeformRobotics/MISO_connection``) the scale table
+also runs the *published* IM, unmodified, on the same instances in the same run: a
+subprocess of ``--peer-python`` (an interpreter with the peer's own dependencies: numpy,
+networkx, anytree, graphviz; none of them msrr's) imports its ``IM/Matrix2tree.py`` and
+``IM/POINTER_Pairing.py`` and times the calls its ``IM/run_POINTER.py`` times. Its
+changes are recomputed from its pairing (its own ``error`` truncates a float square,
+docs/freebot.md), and the heuristic's time is compared with its time.
+
 The last line is machine-readable::
 
     optimal_rate=... worse_than_im=... time_ratio_1000=... human_changes=...
 
-Usage: ``python benchmarks/miso_planner.py --seed 0``
+Usage: ``python benchmarks/miso_planner.py --seed 0 [--peer DIR --peer-python PY]``
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +58,7 @@ from rich.table import Table
 
 from msrr.core.app.batch import exit_on_interrupt, run_batch
 from msrr.core.freeform.miso import (
+    FREE,
     MisoLimits,
     MisoProblem,
     changes,
@@ -67,6 +80,32 @@ LARGE = (50, 100, 200, 500, 1000)
 RULES = MisoLimits(max_in=6, no_docking_onto="child")   # FreeBOT's, Luo and Lam's model
 HUMAN = Path(__file__).resolve().parent.parent / "plugins" / "freebot" / "configs" / "human"
 PUBLISHED_IM_HUMAN = 91
+PEER_RUN = """
+import json, sys, time
+import numpy as np
+sys.setrecursionlimit(100000)
+sys.path.insert(0, sys.argv[1])
+import Matrix2tree, POINTER_Pairing
+data = np.load(sys.argv[2])
+start = time.time()   # from here on, the calls IM/run_POINTER.py times
+trees = []
+for matrix, name in ((data["I"], "Initial"), (data["F"], "Final")):
+    tree = Matrix2tree.Matrix2tree(matrix, name)
+    tree.matrix2tree(printer=False)
+    tree.CNL_cal()
+    tree.tree_render(printer=False, draw=False)
+    tree.Pointer()
+    tree.Pointer_int(printer=False)
+    trees.append(tree)
+pairing = POINTER_Pairing.POINTER_Pairing(*trees)
+pairing.Virtual_roots(printer=False)
+pairing.Difference(printer=False)
+seconds = time.time() - start
+print(json.dumps({"pairs": [list(map(int, c.Match)) for c in pairing.csg], "seconds": seconds}))
+"""
+"""The published IM run on one instance, in the peer's own interpreter: its pipeline as
+``IM/run_POINTER.py`` runs it (argv: the peer's ``IM`` folder, an ``.npz`` of ``I`` and
+``F``, row ``i`` holding a 1 in column ``j`` when module ``i`` sits on ``j``)."""
 
 
 def draw(kind: str, n: int, rng: np.random.Generator) -> tuple[int, ...]:
@@ -109,6 +148,36 @@ def compare(task: tuple[str, int, MisoProblem]) -> Compared:
                     heuristic.cost, exact.cost, bool(exact.stats["changes_proved"]), ms)
 
 
+@dataclass(frozen=True)
+class Peer:
+    """The published planner's checkout and the interpreter that runs it."""
+
+    folder: Path
+    python: str
+
+    def im(self, problem: MisoProblem) -> tuple[int, float]:
+        """The published IM on ``problem``: changes of its pairing and its time [ms]."""
+        n = problem.n
+        matrices = {name: np.zeros((n, n)) for name in ("I", "F")}
+        for name, parent in (("I", problem.start), ("F", problem.goal)):
+            for i, p in enumerate(parent):
+                if p != FREE:
+                    matrices[name][i, p] = 1.0
+        with tempfile.TemporaryDirectory() as scratch:
+            path = Path(scratch) / "instance.npz"
+            np.savez(path, **matrices)
+            out = subprocess.run([self.python, "-c", PEER_RUN, str(self.folder / "IM"),
+                                  str(path)], capture_output=True, text=True, check=False)
+        if out.returncode != 0:
+            raise SystemExit(f"{self.folder}: the published IM failed: "
+                             f"{out.stderr.strip().splitlines()[-1:]}")
+        result = json.loads(out.stdout.strip().splitlines()[-1])
+        pair = [FREE] * n
+        for a, b in result["pairs"]:
+            pair[a] = b
+        return changes(problem.start, targets(problem, pair)), 1e3 * result["seconds"]
+
+
 @dataclass
 class Timed:
     kind: str
@@ -119,10 +188,13 @@ class Timed:
     pairing_ms: float
     im_ms: float
     plan_ms: float
+    peer: int | None = None
+    peer_ms: float | None = None
 
 
-def timed(kind: str, n: int, problem: MisoProblem) -> Timed:
-    """IM's pairing, the heuristic's pairing and its whole plan, one after the other."""
+def timed(kind: str, n: int, problem: MisoProblem, peer: Peer | None = None) -> Timed:
+    """IM's pairing, the heuristic's pairing and its whole plan, one after the other;
+    then the published IM when ``peer`` is given."""
     t0 = time.perf_counter()
     im = im_changes(problem)
     t1 = time.perf_counter()
@@ -131,8 +203,9 @@ def timed(kind: str, n: int, problem: MisoProblem) -> Timed:
     plan = solve_heuristic(problem)
     t3 = time.perf_counter()
     assert plan.changes == changes(problem.start, targets(problem, pair))
+    published = peer.im(problem) if peer is not None else (None, None)
     return Timed(kind, n, plan.changes, im, plan.cost, 1e3 * (t2 - t1), 1e3 * (t1 - t0),
-                 1e3 * (t3 - t2))
+                 1e3 * (t3 - t2), *published)
 
 
 def optimality_table(rows: list[Compared], sizes: tuple[int, ...], title: str) -> Table:
@@ -160,25 +233,33 @@ def optimality_table(rows: list[Compared], sizes: tuple[int, ...], title: str) -
 
 
 def scale_table(runs: list[Timed]) -> Table:
-    table = Table(title="Scale: heuristic and IM in the same process (median ms)")
-    for column in ("kind", "n", "changes heur.", "changes IM", "steps heur.", "worse than IM",
-                   "pairing ms", "IM ms", "pairing / IM", "whole plan ms"):
+    peer = all(t.peer is not None for t in runs)
+    title = "Scale: heuristic, IM" + (" and the published IM" if peer else "")
+    table = Table(title=f"{title} in the same run (median ms)")
+    columns = ["kind", "n", "changes heur.", "changes IM", "steps heur.", "worse than IM",
+               "pairing ms", "IM ms", "pairing / IM", "whole plan ms"]
+    if peer:
+        columns += ["changes published IM", "published IM ms", "pairing / published"]
+    for column in columns:
         table.add_column(column, justify="right")
     for kind in KINDS:
         for n in LARGE:
             r = [t for t in runs if t.kind == kind and t.n == n]
             pairing, im = statistics.median(t.pairing_ms for t in r), statistics.median(
                 t.im_ms for t in r)
-            table.add_row(kind, str(n), f"{np.mean([t.heuristic for t in r]):.1f}",
-                          f"{np.mean([t.im for t in r]):.1f}",
-                          f"{np.mean([t.steps for t in r]):.1f}",
-                          str(sum(t.heuristic > t.im for t in r)), f"{pairing:.0f}",
-                          f"{im:.0f}", f"{pairing / im:.2f}",
-                          f"{statistics.median(t.plan_ms for t in r):.0f}")
+            row = [kind, str(n), f"{np.mean([t.heuristic for t in r]):.1f}",
+                   f"{np.mean([t.im for t in r]):.1f}", f"{np.mean([t.steps for t in r]):.1f}",
+                   str(sum(t.heuristic > t.im for t in r)), f"{pairing:.0f}", f"{im:.0f}",
+                   f"{pairing / im:.2f}", f"{statistics.median(t.plan_ms for t in r):.0f}"]
+            if peer:
+                published = statistics.median(t.peer_ms for t in r)
+                row += [f"{np.mean([t.peer for t in r]):.1f}", f"{published:.0f}",
+                        f"{pairing / published:.2f}"]
+            table.add_row(*row)
     return table
 
 
-def human(console: Console) -> int:
+def human(console: Console, peer: Peer | None) -> int:
     start = load_configuration(HUMAN / "human-chains.json")
     goal = load_configuration(HUMAN / "human.json")
     problem = MisoProblem.from_configurations(start, goal, RULES)
@@ -190,6 +271,9 @@ def human(console: Console) -> int:
         table.add_column(column, justify="right")
     table.add_row("miso (heuristic)", str(plan.changes), str(plan.cost), f"{ms:.0f}")
     table.add_row("IM, published", str(PUBLISHED_IM_HUMAN), "", "")
+    if peer is not None:
+        published, published_ms = peer.im(problem)
+        table.add_row("IM, published code run here", str(published), "", f"{published_ms:.0f}")
     table.add_row("IM, our reimplementation", str(im_changes(problem)), "", "")
     console.print(table)
     return plan.changes
@@ -206,7 +290,16 @@ def main() -> None:
                         help="instances per size and kind for the scale table (default 3)")
     parser.add_argument("--workers", type=int, default=1,
                         help="worker processes for the exact comparisons (1: here; 0: per core)")
+    parser.add_argument("--peer", type=Path, default=None,
+                        help="a checkout of FreeformRobotics/MISO_connection: the scale "
+                        "table runs its published IM too")
+    parser.add_argument("--peer-python", default=sys.executable,
+                        help="the interpreter with the peer's dependencies (numpy, networkx, "
+                        "anytree, graphviz); default this one")
     args = parser.parse_args()
+    if args.peer is not None and not (args.peer / "IM" / "POINTER_Pairing.py").is_file():
+        parser.error(f"--peer {args.peer}: no IM/POINTER_Pairing.py there")
+    peer = Peer(args.peer.resolve(), args.peer_python) if args.peer is not None else None
     console = Console(highlight=False, width=160)
     console.print(f"seed={args.seed} instances={args.instances} reach={args.reach} "
                   f"repeats={args.repeats} rules: at most 6 on a module, no docking onto "
@@ -222,16 +315,20 @@ def main() -> None:
                              workers=args.workers).values()
     console.print(optimality_table(compared, SMALL, "Heuristic vs exact and IM, n = 5..10"))
     console.print(optimality_table(compared, REACH, "The exact solver's reach"))
-    runs = [timed(*task) for task in large]   # here, in order: the times compare
+    runs = [timed(*task, peer) for task in large]   # here, in order: the times compare
     console.print(scale_table(runs))
-    human_changes = human(console)
-    rate = float(np.mean([c.heuristic == c.exact for c in compared if c.n in SMALL]))
+    human_changes = human(console, peer)
+    small_rows = [c.heuristic == c.exact for c in compared if c.n in SMALL]
+    rate = float(np.mean(small_rows)) if small_rows else float("nan")
     worse = sum(c.heuristic > c.im for c in compared) + sum(t.heuristic > t.im for t in runs)
     big = [t for t in runs if t.n == LARGE[-1]]
     ratio = statistics.median(t.pairing_ms for t in big) / statistics.median(
         t.im_ms for t in big)
+    published = (f" time_ratio_published_1000="
+                 f"{statistics.median(t.pairing_ms for t in big) / statistics.median(t.peer_ms for t in big):.3f}"
+                 if peer is not None else "")
     print(f"optimal_rate={rate:.3f} worse_than_im={worse} time_ratio_1000={ratio:.2f} "
-          f"human_changes={human_changes}")
+          f"human_changes={human_changes}{published}")
 
 
 if __name__ == "__main__":

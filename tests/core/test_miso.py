@@ -401,3 +401,74 @@ def test_the_same_input_gives_the_same_plan_file_under_any_hash_seed(tmp_path, p
         plans.append(plan)
     assert plans[0] == plans[1]
     assert plans[0]["stats"]["steps"] > 0
+
+
+def _benchmark():
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "miso_planner.py"
+    spec = importlib.util.spec_from_file_location("miso_planner_benchmark", path)
+    module = sys.modules.setdefault("miso_planner_benchmark",
+                                    importlib.util.module_from_spec(spec))
+    spec.loader.exec_module(module)
+    return module
+
+
+_FAKE_MATRIX2TREE = '''
+class Matrix2tree:
+    def __init__(self, matrix, name):
+        self.matrix = matrix
+    def matrix2tree(self, printer):
+        pass
+    def CNL_cal(self):
+        pass
+    def tree_render(self, printer, draw):
+        pass
+    def Pointer(self):
+        pass
+    def Pointer_int(self, printer):
+        pass
+'''
+
+_FAKE_POINTER_PAIRING = '''
+import json, os
+
+class _Node:
+    def __init__(self, a, b):
+        self.Match = (a, b)
+
+class POINTER_Pairing:
+    """Pairs start module i with goal module n-1-i and records the matrices it saw."""
+    def __init__(self, A, B):
+        self.n = len(A.matrix)
+        json.dump({"I": A.matrix.tolist(), "F": B.matrix.tolist()},
+                  open(os.environ["MISO_FAKE_SEEN"], "w"))
+    def Virtual_roots(self, printer):
+        self.csg = [_Node(i, self.n - 1 - i) for i in range(self.n)]
+    def Difference(self, printer):
+        return None, 0
+'''
+
+
+def test_the_published_im_is_handed_each_module_on_its_parent_and_read_back(tmp_path,
+                                                                          monkeypatch):
+    """The benchmark's ``--peer`` harness: row ``i`` of the peer's matrices holds a 1 in
+    column ``parent[i]`` (its ``Matrix_gen``'s convention), and its ``csg`` matches are read
+    as start -> goal: changes recomputed from them, not from its own ``error``. A fake
+    peer stands in for the published code (not in this repository)."""
+    benchmark = _benchmark()
+    (tmp_path / "IM").mkdir()
+    (tmp_path / "IM" / "Matrix2tree.py").write_text(_FAKE_MATRIX2TREE)
+    (tmp_path / "IM" / "POINTER_Pairing.py").write_text(_FAKE_POINTER_PAIRING)
+    monkeypatch.setenv("MISO_FAKE_SEEN", str(tmp_path / "seen.json"))
+    rng = np.random.default_rng(3)
+    problem = MisoProblem.from_parents(random_cyclic(9, rng), random_forest(9, 3, rng),
+                                       MisoLimits(max_in=6, no_docking_onto="child"))
+    count, ms = benchmark.Peer(tmp_path, sys.executable).im(problem)
+    seen = json.loads((tmp_path / "seen.json").read_text())
+    for name, parent in (("I", problem.start), ("F", problem.goal)):
+        assert [[j for j, v in enumerate(row) if v] for row in seen[name]] == [
+            [] if p == FREE else [p] for p in parent]
+    reversed_pairing = [problem.n - 1 - i for i in range(problem.n)]
+    assert count == changes(problem.start, targets(problem, reversed_pairing))
+    assert ms >= 0.0
