@@ -328,3 +328,74 @@ def test_strut_wheels_legs_stand_where_the_shape_asks_after_driving_from_a_tilte
             driver.step(0.1)
         error = np.degrees(skeletal_errors(world.ground_truth(), goal)[0])
     assert error < 1.5, error
+
+
+def _hung() -> FreeSNWorld:
+    """N1 held by S0 alone (docked at N2 too, along +x) and carrying S1, free at its
+    other end (along +y); gravity off."""
+    config = Configuration("freesn")
+    config.add_module("N1", "node")
+    config.add_module("N2", "node")
+    config.add_virtual("S1:b")
+    up = np.array([0.0, 0.0, 1.0])
+    config.connect("N1", "N2", id="S0", kind="strut", z=np.array([1.0, 0.0, 0.0]), x=up)
+    config.connect("N1", "S1:b", id="S1", kind="strut", z=np.array([0.0, 1.0, 0.0]), x=up)
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    return world
+
+
+def test_a_free_strut_on_a_node_one_strut_holds_keeps_its_aim_while_the_node_turns():
+    """A node that one docked strut alone holds turns under its free struts (fig22 after
+    the undock of ``n0-s0b``: ``n4`` on ``s11`` turned at 71 deg/s under ``s0`` and ``s1``
+    by their reaction). A free strut's aim, commanded once in the horizontal frame, stays
+    there while the node (and its holder) turn 18-38 deg under it: within 2 deg after
+    1-1.4 s. Before, its target was fixed on the shell between commands and it turned with
+    the node, 13-26 deg off; its aims ran away on the shell and the connectors chased them
+    (the undock's move took 24 s, then a connection broke)."""
+    world = _hung()
+    up = np.array([0.0, 0.0, 1.0])
+    aim = np.array([0.0, 1.0, 0.0])
+    world.command_target("S1", "a", (aim, None, 1.0))
+    node, strut = world._node_body[0], world._strut_body[1]
+    dofs = world._node_rate[0] + np.arange(3)
+    off = []
+    for step in range(35):
+        turn = world.data.xmat[node].reshape(3, 3)
+        world.data.qfrc_applied[dofs] = turn.T @ (0.005 * up)   # about the vertical
+        world.step(0.04)
+        if step >= 24:
+            off.append(_angle(world.data.xmat[strut].reshape(3, 3)[:, 2], aim))
+    turn = world.data.xmat[node].reshape(3, 3)
+    assert np.degrees(np.arctan2(turn[1, 0], turn[0, 0])) > 15.0   # the node turned
+    assert max(off) < 2.0, off
+
+
+def test_a_free_strut_waits_for_the_one_strut_that_holds_its_node():
+    """The one connector that holds a node holds it by its brakes only while it stands at
+    its target; driven, its free struts' reaction turns the node (at its top speed a motor
+    has no torque left), and after fig22's undock of ``n0-s0b`` ``n4`` turned at 44-93
+    deg/s under ``s0:a``, ``s1:a`` and its holder ``s11:b``, all at their top speed, the
+    free struts' swings never shrinking. A free strut's connector therefore holds still,
+    its wheels braked, until the holder stands (< 1 deg on the node while the holder moves
+    10 deg, 7.9 deg in 0.1 s before), then reaches its aim (< 2 deg at 2 s)."""
+    world = _hung()
+    holder, free = world._end("S0", "a"), world._end("S1", "a")
+
+    def on_node(k: int) -> np.ndarray:
+        node = world.data.xmat[world._node_body[0]].reshape(3, 3)
+        return node.T @ (world.data.xmat[world._strut_body[k // 2]].reshape(3, 3)[:, 2]
+                         * world._sign[k])
+
+    start = on_node(free)
+    world.command_target("S0", "a", (Rotation.from_rotvec(np.radians(10.0) * np.array(
+        [0.0, 1.0, 0.0])).apply([1.0, 0.0, 0.0]), None, 1.0))
+    aim = Rotation.from_rotvec(np.radians(20.0) * np.array([1.0, 0.0, 0.0])).apply(
+        [0.0, 1.0, 0.0])
+    world.command_target("S1", "a", (aim, None, 1.0))
+    world.step(0.1)
+    assert not world._still[holder]
+    assert _angle(on_node(free), start) < 1.0
+    world.step(1.9)
+    assert world._still[holder]
+    assert _angle(world.data.xmat[world._strut_body[1]].reshape(3, 3)[:, 2], aim) < 2.0
