@@ -1145,16 +1145,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
 
     def _waits(self, ks: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` (n,) hold still, their wheels braked, for the one
-        connector that holds their node (:meth:`_hung_once`): a free strut's connector while
-        that holder is not standing at its target (nor spinning the node as a wheel). The
-        holder holds the node by its brakes only while it stands; driven, at its top speed
-        it has no torque left (its back-EMF), and the free struts' reaction turned the node
-        as fast as they rolled: ``n4`` at 44-93 deg/s after fig22's undock of ``n0-s0b``,
-        ``s0:a``, ``s1:a`` and the holder ``s11:b`` all at their top speed, their swings
-        20-38 deg and never shrinking (stop 49)."""
+        connector that holds their node (:meth:`_hung_once`): a free strut's connector
+        while that holder turns about its strut's axis (not spinning the node as a wheel).
+        Such a turn spins the node and its free struts about that axis, nothing else
+        holding it, and the free struts chased their aims round it: ``n4`` at 44-93 deg/s
+        after fig22's undock of ``n0-s0b`` (stop 49)."""
         holder = self._holder[ks]
         j = np.maximum(holder, 0)
-        return (holder >= 0) & ~self._still[j] & (self._wheel[j] == 0.0)
+        return (holder >= 0) & self._turning[j] & (self._wheel[j] == 0.0)
 
     def _way(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Connectors ``ks``' way to their targets (:meth:`_steer`): the signed swing (n,)
