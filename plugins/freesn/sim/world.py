@@ -312,6 +312,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     """
 
     options: SimOptions
+    _holder: np.ndarray   # each end's node's one holder, or -1 (set by every servo step)
 
     def __init__(self, config: Configuration, spec: RobotSpec, options: SimOptions):
         super().__init__(options, seat=_SEAT)
@@ -368,7 +369,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._node_rate = 3 + np.array([m.joint(f"free/{n}").dofadr[0] for n in self.nodes])
         self._index_drives(self.ends if self._differential else [])
         self._still = np.zeros(k, dtype=bool)              # at its target: wheels braked
-        self._holder = np.full(k, -1)                      # the one holder of its node, or -1
         self._aim = np.zeros((k, 3))                       # last commanded direction, horizontal
         self._dofs = self._dadr[:, None] + np.arange(3)
         self._tau = np.zeros((k, 3))                       # holonomic connectors' torques
@@ -1089,7 +1089,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         magnet is out to dock); left with a sideways error alone, past ``_STILL_OFF``, it
         turns toward it again. A connector whose strut's free end drives its wheels never
         turns (the turn would steer them; one turning when they start stops). Within ``_STILL_ON`` of its target (swing and the twist
-        asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`). Each channel is
+        asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`); a free strut's
+        connector on a node one strut holds stops while that holder turns (:meth:`_waits`). Each channel is
         the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
         channel asked for nothing stops, its wheels braked (a turn in place holds its
         rolling); wheels commanded in opposition set ``omega_z`` themselves, and that
