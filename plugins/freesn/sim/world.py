@@ -1089,8 +1089,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         magnet is out to dock); left with a sideways error alone, past ``_STILL_OFF``, it
         turns toward it again. A connector whose strut's free end drives its wheels never
         turns (the turn would steer them; one turning when they start stops). Within ``_STILL_ON`` of its target (swing and the twist
-        asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`); a free strut's
-        connector on a node one strut holds stops while that holder turns (:meth:`_waits`). Each channel is
+        asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`); a hung node's
+        free struts and its holder's far end likewise (:meth:`_waits`, :meth:`_pinned`). Each channel is
         the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
         channel asked for nothing stops, its wheels braked (a turn in place holds its
         rolling); wheels commanded in opposition set ``omega_z`` themselves, and that
@@ -1108,6 +1108,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # wheels), which stops a turn it began before they ran: the turn steers those
         # wheels (the spider's legs turned 50-90 % of the time, their axles 30 deg off level)
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
+        # nor the far end of a strut that wheels a node with free struts (_pinned)
+        pinned = self._pinned(ks)
+        steers |= pinned
+        twist = np.where(pinned, 0.0, twist)
         aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON)
         self._turning[ks] = ~steers & np.where(
             self._turning[ks], np.abs(swing) > _TURN_OFF,
@@ -1149,11 +1153,24 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         connector that holds their node (:meth:`_hung_once`): a free strut's connector
         while that holder turns about its strut's axis (not spinning the node as a wheel).
         Such a turn spins the node and its free struts about that axis, nothing else
-        holding it, and the free struts chased their aims round it: ``n4`` at 44-93 deg/s
+        holding it, and the free struts chased their aims round it: ``n4`` at 40-93 deg/s
         after fig22's undock of ``n0-s0b`` (stop 49)."""
         holder = self._holder[ks]
         j = np.maximum(holder, 0)
         return (holder >= 0) & self._turning[j] & (self._wheel[j] == 0.0)
+
+    def _pinned(self, ks: np.ndarray) -> np.ndarray:
+        """Which connectors ``ks`` (n,) are the far end of a strut that alone holds a node
+        carrying free struts (:meth:`_hung_once`) while its end on that node spins the
+        node as a wheel. That end cannot turn against the far end's turn (its wheels'
+        difference is its commanded spin), so the turn spins the node and its free struts
+        round the strut's axis: in fig22's node wheels ``s11:a``'s turn on ``n2`` spun
+        ``n4`` at 144 deg/s and broke ``s11:b`` (stop 49). It turns neither toward an error
+        nor for its twist; what it cannot roll out is left, as for the strut wheels' legs
+        (stop 47)."""
+        holds = np.zeros(len(self.ends), dtype=bool)
+        holds[self._holder[self._holder >= 0]] = True
+        return holds[ks ^ 1] & (self._wheel[ks ^ 1] != 0.0)
 
     def _way(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Connectors ``ks``' way to their targets (:meth:`_steer`): the signed swing (n,)

@@ -399,3 +399,20 @@ def test_a_free_strut_waits_while_the_one_strut_that_holds_its_node_turns():
     assert _angle(on_node(free), start) < 1.0
     world.step(3.9)
     assert _angle(world.data.xmat[world._strut_body[1]].reshape(3, 3)[:, 2], aim) < 2.0
+
+
+def test_the_far_end_of_a_strut_wheeling_a_node_with_free_struts_does_not_turn():
+    """In fig22's node wheels ``n4`` hangs on ``s11``, whose end there spins it as a
+    wheel and so cannot turn against a turn of the far end: ``s11:a``'s turn on ``n2``
+    spun ``n4`` and its free struts at 144 deg/s and broke ``s11:b``. The far end of such
+    a strut therefore does not turn: given a 10 deg sideways target it never enters the
+    turn mode in 0.5 s (before, it turned in place for it)."""
+    world = _hung()
+    far = world._end("S0", "b")
+    world.command_target("S1", "a", (np.array([0.0, 1.0, 0.0]), None, 1.0))
+    world.command_wheels("S0", "a", 2.0)
+    world.command_target("S0", "b", (Rotation.from_rotvec(np.radians(10.0) * np.array(
+        [0.0, 0.0, 1.0])).apply([-1.0, 0.0, 0.0]), None, 1.0))
+    for _ in range(25):
+        world.step(0.02)
+        assert not world._turning[far]
