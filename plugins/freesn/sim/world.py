@@ -312,6 +312,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     """
 
     options: SimOptions
+    _holder: np.ndarray   # each end's node's one holder, or -1 (set by every servo step)
 
     def __init__(self, config: Configuration, spec: RobotSpec, options: SimOptions):
         super().__init__(options, seat=_SEAT)
@@ -880,11 +881,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         steer (:meth:`_steer`), every wheel motor gets its command (:meth:`_drive`), the
         grips follow their contact points."""
         self._attract()
-        self._follow_spins()
+        self._holder = self._hung_once()
+        hung = self._holder >= 0
+        self._follow_spins(hung)
         ks = self._driven
         if not self._differential:
             self._servo_torques(ks)
             return
+        self._follow_node_turns(hung)
         speed = np.zeros((len(self.ends), 2))
         held = np.zeros((len(self.ends), 2), dtype=bool)
         if len(ks):
@@ -895,12 +899,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                / (0.5 * self.phys.wheel_torque))
         self._place_grips()
 
-    def _follow_spins(self) -> None:
+    def _follow_spins(self, hung: np.ndarray) -> None:
         """The targets of the connectors on a node that docked wheels spin (not wheeling
         themselves) turn with the node about the wheels' strut axes: by the node's rotation
         over the servo period as its gyro samples it (:meth:`_gyro_sample`) projected onto
         the span of those axes as the wheeling connectors believe them (:meth:`_believed`:
-        their localisation and odometry errors), so only the commanded spin is followed.
+        their localisation and odometry errors), so only the commanded spin is followed;
+        not the connectors ``hung`` on a node one strut holds, which follow its whole
+        rotation (:meth:`_follow_node_turns`).
 
         Only wheels on a strut docked at its other end spin their node (the node wheels of
         fig22(j)): the strut is held there, so the wheels' turn goes into the node. A strut
@@ -914,7 +920,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         if not len(wheeling):
             return
         period = self._every * self.options.timestep
-        followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0)
+        followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0) & ~hung
         moved = []
         for node in sorted({self.docked[k] for k in wheeling}):
             mine = np.flatnonzero(followers & np.array([n == node for n in self.docked]))
@@ -929,6 +935,53 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             moved.extend(mine)
         if moved:
             self._update_ball_targets(np.array(moved))
+
+    def _hung_once(self) -> np.ndarray:
+        """The connector (k,) that alone holds the node of each free strut's connector (a
+        strut free at its other end, its wheels not commanded, with a target) when one
+        docked strut alone holds that node (a strut docked at both ends), else -1; all -1
+        with holonomic connectors (:meth:`_follow_node_turns`, :meth:`_steer`)."""
+        k = len(self.ends)
+        holder = np.full(k, -1)
+        if not self._differential:
+            return holder
+        docked = self._eq >= 0
+        other = self._eq[np.arange(k) ^ 1] >= 0
+        free = docked & ~other & self._has_target & (self._wheel == 0.0)
+        if not free.any():
+            return holder
+        holders: dict[str, list[int]] = {}
+        for j in np.flatnonzero(docked & other):
+            holders.setdefault(self.docked[j], []).append(int(j))
+        for j in np.flatnonzero(free):
+            mine = holders.get(self.docked[j], [])
+            if len(mine) == 1:
+                holder[j] = mine[0]
+        return holder
+
+    def _follow_node_turns(self, hung: np.ndarray) -> None:
+        """The targets of the free struts' connectors ``hung`` (:meth:`_hung_once`) turn
+        against their node's rotation over the servo period as its gyro samples it
+        (:meth:`_gyro_sample`): their aims, commanded in the horizontal frame, stay there
+        between commands. Such a node hangs on one connector's grip and turns under its
+        free struts' reaction; with their targets fixed on the shell they chased it (fig22
+        after the undock of ``n0-s0b``: ``n4`` turned at a median 71 deg/s under ``s0``
+        and ``s1``, their aims ran away on it and ``s0:a``'s twist swept through 360 deg;
+        stop 48). A node two or more struts hold turns with the structure, and one with no
+        holder is the body its legs carry (the spider's frame, :meth:`_fitted`): neither
+        is followed. The whole rotation is followed, a docked wheel pair's spin of that
+        node included (:meth:`_follow_spins` leaves these connectors alone)."""
+        if not hung.any():
+            return
+        period = self._every * self.options.timestep
+        moved = []
+        for node in sorted({self.docked[k] for k in np.flatnonzero(hung)}):
+            mine = np.flatnonzero(hung & np.array([n == node for n in self.docked]))
+            rate = self._gyro_sample(self._node_index[node], period)
+            turn = Rotation.from_rotvec(-rate * period).as_matrix()
+            self._target[mine] = turn @ self._target[mine]
+            moved.extend(mine)
+        self._update_ball_targets(np.array(moved))
 
     def _spin_speed(self, ks: np.ndarray, asked: np.ndarray, axis: np.ndarray,
                     wheeling: np.ndarray) -> np.ndarray:
@@ -1036,7 +1089,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         magnet is out to dock); left with a sideways error alone, past ``_STILL_OFF``, it
         turns toward it again. A connector whose strut's free end drives its wheels never
         turns (the turn would steer them; one turning when they start stops). Within ``_STILL_ON`` of its target (swing and the twist
-        asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`). Each channel is
+        asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`); a hung node's
+        free struts and its holder's far end likewise (:meth:`_waits`, :meth:`_pinned`). Each channel is
         the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
         channel asked for nothing stops, its wheels braked (a turn in place holds its
         rolling); wheels commanded in opposition set ``omega_z`` themselves, and that
@@ -1054,6 +1108,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # wheels), which stops a turn it began before they ran: the turn steers those
         # wheels (the spider's legs turned 50-90 % of the time, their axles 30 deg off level)
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
+        # nor the far end of a strut that wheels a node with free struts (_pinned)
+        pinned = self._pinned(ks)
+        steers |= pinned
+        twist = np.where(pinned, 0.0, twist)
         aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON)
         self._turning[ks] = ~steers & np.where(
             self._turning[ks], np.abs(swing) > _TURN_OFF,
@@ -1073,7 +1131,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         alone = ~np.isin(ks ^ 1, ks)
         aligned = alone & (np.abs(heading) < _HEADING_HOLD)
         turn = np.where(turning, np.where(aligned, 0.0, heading), twist)
-        still = self._stop(ks, np.hypot(swing, twist), wheeling)
+        still = self._stop(ks, np.hypot(swing, twist), wheeling) | self._waits(ks)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
                                  np.abs(swing) * turning * self._effort[ks])
@@ -1089,6 +1147,30 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
         return self._wheel_speeds(omega, ~turning & ~wheeling), held
+
+    def _waits(self, ks: np.ndarray) -> np.ndarray:
+        """Which connectors ``ks`` (n,) hold still, their wheels braked, for the one
+        connector that holds their node (:meth:`_hung_once`): a free strut's connector
+        while that holder turns about its strut's axis (not spinning the node as a wheel).
+        Such a turn spins the node and its free struts about that axis, nothing else
+        holding it, and the free struts chased their aims round it: ``n4`` at 40-93 deg/s
+        after fig22's undock of ``n0-s0b`` (stop 49)."""
+        holder = self._holder[ks]
+        j = np.maximum(holder, 0)
+        return (holder >= 0) & self._turning[j] & (self._wheel[j] == 0.0)
+
+    def _pinned(self, ks: np.ndarray) -> np.ndarray:
+        """Which connectors ``ks`` (n,) are the far end of a strut that alone holds a node
+        carrying free struts (:meth:`_hung_once`) while its end on that node spins the
+        node as a wheel. That end cannot turn against the far end's turn (its wheels'
+        difference is its commanded spin), so the turn spins the node and its free struts
+        round the strut's axis: in fig22's node wheels ``s11:a``'s turn on ``n2`` spun
+        ``n4`` at 144 deg/s and broke ``s11:b`` (stop 49). It turns neither toward an error
+        nor for its twist; what it cannot roll out is left, as for the strut wheels' legs
+        (stop 47)."""
+        holds = np.zeros(len(self.ends), dtype=bool)
+        holds[self._holder[self._holder >= 0]] = True
+        return holds[ks ^ 1] & (self._wheel[ks ^ 1] != 0.0)
 
     def _way(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Connectors ``ks``' way to their targets (:meth:`_steer`): the signed swing (n,)

@@ -328,3 +328,91 @@ def test_strut_wheels_legs_stand_where_the_shape_asks_after_driving_from_a_tilte
             driver.step(0.1)
         error = np.degrees(skeletal_errors(world.ground_truth(), goal)[0])
     assert error < 1.5, error
+
+
+def _hung() -> FreeSNWorld:
+    """N1 held by S0 alone (docked at N2 too, along +x) and carrying S1, free at its
+    other end (along +y); gravity off."""
+    config = Configuration("freesn")
+    config.add_module("N1", "node")
+    config.add_module("N2", "node")
+    config.add_virtual("S1:b")
+    up = np.array([0.0, 0.0, 1.0])
+    config.connect("N1", "N2", id="S0", kind="strut", z=np.array([1.0, 0.0, 0.0]), x=up)
+    config.connect("N1", "S1:b", id="S1", kind="strut", z=np.array([0.0, 1.0, 0.0]), x=up)
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    return world
+
+
+def test_a_free_strut_on_a_node_one_strut_holds_keeps_its_aim_while_the_node_turns():
+    """A node that one docked strut alone holds turns under its free struts (fig22 after
+    the undock of ``n0-s0b``: ``n4`` on ``s11`` turned at 71 deg/s under ``s0`` and ``s1``
+    by their reaction). A free strut's aim, commanded once in the horizontal frame, stays
+    there while the node (and its holder) turn 18-38 deg under it: within 2 deg after
+    1-1.4 s. Before, its target was fixed on the shell between commands and it turned with
+    the node, 13-26 deg off; its aims ran away on the shell and the connectors chased them
+    (the undock's move took 24 s, then a connection broke)."""
+    world = _hung()
+    up = np.array([0.0, 0.0, 1.0])
+    aim = np.array([0.0, 1.0, 0.0])
+    world.command_target("S1", "a", (aim, None, 1.0))
+    node, strut = world._node_body[0], world._strut_body[1]
+    dofs = world._node_rate[0] + np.arange(3)
+    off = []
+    for step in range(35):
+        turn = world.data.xmat[node].reshape(3, 3)
+        world.data.qfrc_applied[dofs] = turn.T @ (0.005 * up)   # about the vertical
+        world.step(0.04)
+        if step >= 24:
+            off.append(_angle(world.data.xmat[strut].reshape(3, 3)[:, 2], aim))
+    turn = world.data.xmat[node].reshape(3, 3)
+    assert np.degrees(np.arctan2(turn[1, 0], turn[0, 0])) > 15.0   # the node turned
+    assert max(off) < 2.0, off
+
+
+def test_a_free_strut_waits_while_the_one_strut_that_holds_its_node_turns():
+    """A node that one docked strut alone holds turns with that strut when its connector
+    there turns about the strut's axis (nothing else holds the node about it), and its
+    free struts chased their aims round it: after fig22's undock of ``n0-s0b`` ``n4``
+    turned at 44-93 deg/s under ``s0:a``, ``s1:a`` and its holder ``s11:b``, the free
+    struts' swings never shrinking. A free strut's connector therefore holds still, its
+    wheels braked, while the holder turns (< 1 deg on the node; 7.9 deg in 0.1 s before,
+    the holder then turning in place for a 10 deg sideways target), and goes on when it
+    stops (its aim < 2 deg off at 4 s; gravity off, the two nodes float)."""
+    world = _hung()
+    holder, free = world._end("S0", "a"), world._end("S1", "a")
+
+    def on_node(k: int) -> np.ndarray:
+        node = world.data.xmat[world._node_body[0]].reshape(3, 3)
+        return node.T @ (world.data.xmat[world._strut_body[k // 2]].reshape(3, 3)[:, 2]
+                         * world._sign[k])
+
+    start = on_node(free)
+    world.command_target("S0", "a", (Rotation.from_rotvec(np.radians(10.0) * np.array(
+        [0.0, 0.0, 1.0])).apply([1.0, 0.0, 0.0]), None, 1.0))   # sideways: turns first
+    aim = Rotation.from_rotvec(np.radians(20.0) * np.array([1.0, 0.0, 0.0])).apply(
+        [0.0, 1.0, 0.0])
+    world.command_target("S1", "a", (aim, None, 1.0))
+    world.step(0.1)
+    assert world._turning[holder]
+    assert _angle(on_node(free), start) < 1.0
+    world.step(3.9)
+    assert _angle(world.data.xmat[world._strut_body[1]].reshape(3, 3)[:, 2], aim) < 2.0
+
+
+def test_the_far_end_of_a_strut_wheeling_a_node_with_free_struts_does_not_turn():
+    """In fig22's node wheels ``n4`` hangs on ``s11``, whose end there spins it as a
+    wheel and so cannot turn against a turn of the far end: ``s11:a``'s turn on ``n2``
+    spun ``n4`` and its free struts at 144 deg/s and broke ``s11:b``. The far end of such
+    a strut therefore does not turn: given a 10 deg sideways target it never enters the
+    turn mode in 0.5 s (before, it turned in place for it)."""
+    world = _hung()
+    far = world._end("S0", "b")
+    world.command_target("S1", "a", (np.array([0.0, 1.0, 0.0]), None, 1.0))
+    world.command_wheels("S0", "a", 2.0)
+    world.command_target("S0", "b", (Rotation.from_rotvec(np.radians(10.0) * np.array(
+        [0.0, 0.0, 1.0])).apply([-1.0, 0.0, 0.0]), None, 1.0))
+    for _ in range(25):
+        world.step(0.02)
+        assert not world._turning[far]
