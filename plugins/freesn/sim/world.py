@@ -158,6 +158,7 @@ _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin l
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
 _LEVEL_STEP = np.radians(5.0)   # ... and at most this much (issue 31, fig18's hub)
+_LEVEL_HOLDS = 3                # ... if it holds this many connectors (a chain node, two, is not)
 _AZIMUTH_FROM = np.sin(np.radians(10.0))  # a leg nearer the vertical has no level axle
 _AXLE_LEVEL = np.sin(np.radians(10.0))  # a free wheel pair's axle this near level is levelled
 
@@ -709,7 +710,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         16-60 s at 4 deg of noise, its frame spun under the commands and a hub connection
         broke. A non-root node's frame cancels out of its commands (they turn by its
         measured heading relative to the root's). So the connectors of a root that holds
-        two or more of them and spins on none (not a foot, not a wheel: rolling its
+        three or more of them and spins on none (not a foot, not a wheel: rolling its
         shell would move it) aim as if its
         shell were ``_LEVEL_GAIN`` of its tilt past ``_LEVEL_FROM`` nearer upright (at
         most ``_LEVEL_STEP`` a command): the shell turns back, the struts stay where the
@@ -768,16 +769,20 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _levelled(self, i: int, attitude: np.ndarray) -> np.ndarray:
         """The turn (3, 3) toward upright that node ``i``'s connectors take its estimated
         ``attitude`` (3, 3) through (:meth:`_node_tilt`): the identity unless it is held by
-        two or more connectors, none spinning it, is its group's root (most connectors
-        docked, then the first id: :func:`.recognizer.root_order`) and is tilted past
-        ``_LEVEL_FROM``."""
+        ``_LEVEL_HOLDS`` or more connectors, none spinning it, is its group's root (most
+        connectors docked, then the first id: :func:`.recognizer.root_order`) and is tilted
+        past ``_LEVEL_FROM``. Not a chain's node (two connectors: the squirm's root ``n0``, by
+        id), which lies on the floor and rolls as the chain moves, past 100 deg half the
+        time: levelled, the hump strut its connector drives swung sideways in the steps it
+        was tilted past the bound, the hump bent 10-24 deg at the raised node under 2 deg
+        of noise and the body turned about as much (issue 31, stop 49)."""
         up = attitude[:, 2]
         excess = float(np.arccos(np.clip(up[2], -1.0, 1.0))) - _LEVEL_FROM
         if excess <= 0.0:
             return np.eye(3)
         node = self.nodes[i]
         ks = [k for k, n in enumerate(self.docked) if n == node]
-        if len(ks) < 2 or any(self._wheel[k] for k in ks):
+        if len(ks) < _LEVEL_HOLDS or any(self._wheel[k] for k in ks):
             return np.eye(3)
         group = next(g for g in self.groups() if node in g)
         degree = {n: self.docked.count(n) for n in self.nodes if n in group}

@@ -81,6 +81,20 @@ def test_only_a_held_shell_tilted_past_the_bound_is_levelled():
     assert np.allclose(world._levelled(hub, tilted), np.eye(3))
 
 
+def test_a_chain_node_on_two_connectors_is_not_levelled():
+    """The squirm's chain root ``n0`` (two connectors, the group's root by id) tilted 150
+    deg keeps its frame: it lies on the floor and rolls, so the levelling turn only swung
+    the hump strut its connector drives sideways (issue 31, stop 49: the hump bent 10-24
+    deg at the raised node while ``n0`` was past 100 deg, and the body turned with it)."""
+    start = load_configuration(FREESN / "configs" / "scenarios" / "fig19-squirm-start.json")
+    world = FreeSNWorld(start, SPEC, SimOptions())
+    degree = {n: world.docked.count(n) for n in world.nodes}
+    root = min(degree, key=lambda n: (-degree[n], n))
+    assert (root, degree[root]) == ("n0", 2)
+    tilted = Rotation.from_rotvec([np.radians(150.0), 0.0, 0.0]).as_matrix()
+    assert np.allclose(world._levelled(world._node_index[root], tilted), np.eye(3))
+
+
 def _held_integrals(seconds: float, **options: float) -> np.ndarray:
     """The S4N5 standup held still by the controller every 0.1 s (filtered reports, as the
     executor's; no wheel turning) at 2 deg of noise, seed 12: per tick, the fraction of its
