@@ -58,10 +58,12 @@ class SimOptions(MujocoOptions):
             at each command (10 Hz): its node's IMU attitude (the accelerometer into the
             gyro-propagated attitude) and its own pose on the node (a magnetic fix into
             its encoders); the estimate's error is ``e <- (1 - b) (e + drift) + b n``
-            (std ``b / sqrt(1 - (1 - b)^2)`` of the noise, about 0.16 at 0.05, 0.33 at
-            0.2). 0.05 (about 2 s) since issue 31 stop 47: at 0.2 (0.45 s) the connectors
-            holding fig22(j) chased their fixes' 1.3 deg jitter at 4 deg of noise and its
-            top sank to the floor held still; the gyros' drift over 2 s is 0.06 deg.
+            (std ``b / sqrt(1 - (1 - b)^2)`` of the noise, about 0.10 at 0.02, 0.16 at
+            0.05, 0.33 at 0.2). 0.02 (about 5 s) since issue 31 stop 49: at 0.2 (0.45 s)
+            the connectors holding fig22(j) chased their fixes' 1.3 deg jitter at 4 deg
+            of noise and its top sank to the floor held still (0.05 from stop 47); at
+            0.05 their slower wander still bent the S12N6 crawl's bar and turned the node
+            wheels; the gyros' drift over 5 s is 0.14 deg.
         gyro_bias: standard deviation of each node gyro's constant bias per axis
             [rad/s], drawn once per run (what is left after calibrating at rest).
         gyro_walk: random walk of that bias (bias instability) [rad/s / sqrt(s)].
@@ -114,7 +116,7 @@ class SimOptions(MujocoOptions):
     integral_gain: float = 400.0
     integral_bound: float = 1.0
     break_filter: float = 0.05
-    fusion: float = 0.05
+    fusion: float = 0.02
     integral_band: float = 2.0
     gyro_bias: float = 5e-4
     gyro_walk: float = 1e-4

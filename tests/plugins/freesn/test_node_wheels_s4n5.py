@@ -124,9 +124,12 @@ def test_held_connectors_leave_their_estimates_wander_to_the_position_loop():
     against the others (8 % of the connector-ticks here) for seconds at a time, and
     fig18's node wheels went 16-22 deg off their heading through the feet (issue 31,
     stop 48). Within ``integral_band`` (2) times that wander's rms the integral takes
-    nothing: none reaches its bound."""
-    assert _held_integrals(6.0, integral_band=0.0)[10:].mean() > 0.03
-    assert _held_integrals(6.0)[10:].max() == 0.0
+    nothing: none reaches its bound. At fusion 0.05, where it was found; at the default
+    0.02 since stop 49 the wander is slower and smaller, and one connector of the eight
+    sits at its bound from 0.8 to 2.0 s with the band or without it (band 0: 3.5 % of
+    the connector-ticks), a real error of the noisy commands, not the wander."""
+    assert _held_integrals(6.0, integral_band=0.0, fusion=0.05)[10:].mean() > 0.03
+    assert _held_integrals(6.0, fusion=0.05)[10:].max() == 0.0
 
 
 def test_the_integral_band_is_the_estimates_rms_and_nothing_without_noise():
