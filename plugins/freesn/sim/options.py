@@ -49,7 +49,9 @@ class SimOptions(MujocoOptions):
             0 without noise): what lies within it the connector cannot tell from its
             estimates' wander, which, integrated to the bound, pushed the structure's
             loops and feet against each other (issue 31, stop 48: fig18's node wheels at
-            fusion 0.05). 0: the whole error, as before.
+            fusion 0.05). The band stops an integral growing, not shrinking, and a
+            structure pressing a dock takes its whole error (stop 49: fig21's closing
+            dock at 4 deg). 0: the whole error, as before.
         servo_rate: rate of the connectors' motor loops and of the load check [Hz]; the
             default 250 is the strut firmware's base control period, 4 ms.
         break_filter: time constant of the connection-load low-pass before the strength

@@ -1021,8 +1021,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             error = quat_log(relative)
             omega = self.options.position_gain * error
             if self.options.integral_gain > 0.0:
-                integral = self._integral[ks] + self._beyond_band(error) * (
-                    self._every * self.options.timestep)
+                integral = self._integral[ks] + self._beyond_band(
+                    error, self._integral[ks], ks) * (self._every * self.options.timestep)
                 size = np.sqrt(np.einsum("ni,ni->n", integral, integral))
                 integral *= np.minimum(1.0, self._integral_bound / np.maximum(size, 1e-12)
                                        )[:, None]
@@ -1051,20 +1051,54 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self.data.qfrc_applied[self._dofs] = tau
         self._drive_free_wheels()
 
-    def _beyond_band(self, error: np.ndarray) -> np.ndarray:
+    def _beyond_band(self, error: np.ndarray, integral: np.ndarray | None = None,
+                     ks: np.ndarray | None = None) -> np.ndarray:
         """The part (n, 3) of servo errors ``error`` (n, 3) [rad] the integral action takes:
         what lies beyond ``integral_band`` times the rms error the connector's own estimates
         put in it (its node's attitude and its fix, each ``noise b / sqrt(1 - (1 - b)^2)``
         per axis, ``b`` = ``fusion``). Within it the connector cannot tell a load's offset
         from its estimates' wander; integrated, that wander pushes the loops a structure
-        closes against each other (issue 31, stop 48). The whole error without noise."""
+        closes against each other (issue 31, stop 48). The whole error without noise.
+
+        The band stops the integral growing, never shrinking: the error within it also
+        takes back the part of ``integral`` (n, 3) [rad s] it opposes. A transient winds an
+        integral to its bound, whose push the position loop then balances at an error of
+        the roll rate over the position gain (2.1 deg), inside the band at 4 deg of noise:
+        never unwound, it held its connector that far off in the transient's direction,
+        and fig21's open ring missed its closing dock (issue 31, stop 49).
+
+        Connectors ``ks`` (n,) of a structure pressing a dock (:meth:`_pressing`) take
+        their whole error: the press's goal lies past the node (``S_extr``), so what is
+        left of it is load, not wander, and a dock needs the last degrees of every joint
+        on the way (fig21 at 4 deg: the band held the closing magnet 21-31 mm short, its
+        connectors within 1 deg of their targets, stop 49)."""
         o = self.options
         band = o.integral_band * np.sqrt(6.0) * self.noise.std * o.fusion / np.sqrt(
             1.0 - (1.0 - o.fusion) ** 2)
         if band <= 0.0:
             return error
         size = np.sqrt(np.einsum("ni,ni->n", error, error))
-        return error * (np.maximum(size - band, 0.0) / np.maximum(size, 1e-12))[:, None]
+        beyond = error * (np.maximum(size - band, 0.0) / np.maximum(size, 1e-12))[:, None]
+        if integral is not None:
+            held = np.sqrt(np.einsum("ni,ni->n", integral, integral))
+            unit = integral / np.maximum(held, 1e-12)[:, None]
+            back = np.minimum(np.einsum("ni,ni->n", error - beyond, unit), 0.0)
+            beyond += back[:, None] * unit
+        if ks is not None:
+            beyond = np.where(self._pressing(ks)[:, None], error, beyond)
+        return beyond
+
+    def _pressing(self, ks: np.ndarray) -> np.ndarray:
+        """Whether each of connectors ``ks`` (n,) is in a structure with an extended free
+        magnet (a dock commanded and not yet made: its connect phase presses it on)."""
+        out = np.zeros(len(ks), dtype=bool)
+        struts = {self.ends[k][0] for k, m in enumerate(self.magnet) if m == "extended"}
+        if not struts:
+            return out
+        for group in self.groups():
+            if struts & group:
+                out |= np.array([self.ends[k][0] in group for k in ks], dtype=bool)
+        return out
 
     @property
     def _integral_bound(self) -> float:
