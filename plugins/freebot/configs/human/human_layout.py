@@ -5,9 +5,9 @@ and a start laid near it, ``human-chains-near.json``.
 FreeBOTs: a spine F1..F18 carrying two ribs on each module, four of them (on F6 and F7)
 forking into two chains of 15 and 16, and two arms on F18 with four chains of 18 each.
 Only the tree (each module's parent, read from ``human.json``) is the paper's; the
-vectors are ours. The earlier grid layout stood 93 modules in columns above the floor, which no piece
-rolling on the floor builds. This one lays every module on the floor and every chain
-straight, so a straight piece docks in its goal's shape:
+vectors are ours. The earlier grid layout stood 93 modules in columns above the floor,
+which no piece rolling on the floor builds. This one lays every module on the floor and
+every chain straight, so a straight piece docks in its goal's shape:
 
 - the spine along ``x``; a spine module's smaller rib to ``-y``, its larger to ``+y``, at
   120 deg from ``x`` on F1, 114 on F2..F5, 90 on F6 and F7, 66 on F8..F17 (mirrored to
@@ -30,8 +30,8 @@ the floor, every vector a unit one, no two unconnected centres closer than one s
 **The start.** The six chains of ``human-chains.json`` (F1..F100, F101..F200,
 F201..F300, F301..F400, F401..F500, F501..F568, each module on the one before), laid
 where a lab would lay them (:data:`RUNS`): the chain F201..F300, whose first 44 modules
-are the goal's spine and stay put, from the origin along ``x`` as the goal lays them,
-its tail turned up beyond them; the others beside the figure, each in straight runs
+are the goal's spine and stay put, from the origin along ``x`` as the goal lays them;
+the others beside the figure, each in straight runs
 that turn only where the plan cuts the chain anyway (at the first module of a piece
 that travels), so every travelling piece is straight.
 
@@ -187,10 +187,10 @@ START_DESCRIPTION = (
 # Each chain: its first module's place (x, y) [m] and its runs, (first module, heading
 # [deg] from x of the run's growth, module to module).
 RUNS: dict[str, tuple[tuple[float, float], list[tuple[str, float]]]] = {
-    "F201": ((0.0, 0.0), [("F201", 0.0), ("F245", 90.0)]),
+    "F201": ((0.0, 0.0), [("F201", 0.0)]),
     "F501": ((-1.0, 6.3), [("F501", -90.0)]),
     "F401": ((1.0, -3.82), [("F401", 90.0), ("F420", 0.0), ("F421", -90.0), ("F429", 0.0), ("F430", 90.0), ("F438", 0.0), ("F439", -90.0), ("F447", 0.0), ("F448", 90.0), ("F456", 0.0), ("F457", -90.0), ("F465", 0.0), ("F466", 90.0), ("F474", 0.0), ("F475", -90.0), ("F483", 0.0), ("F484", 90.0), ("F492", 0.0), ("F493", -90.0)]),
-    "F301": ((3.2, 10.8), [("F301", -90.0)]),
+    "F301": ((10.8, 2.9), [("F301", 180.0)]),
     "F1": ((-2.02, -2.1), [("F1", 0.0), ("F27", -90.0)]),
     "F101": ((3.131, -4.0), [("F101", 180.0), ("F127", -90.0)]),
 }
