@@ -10,10 +10,11 @@ which no piece rolling on the floor builds. This one lays every module on the fl
 every chain straight, so a straight piece docks in its goal's shape:
 
 - the spine along ``x``; a spine module's smaller rib to ``-y``, its larger to ``+y``, at
-  120 deg from ``x`` on F1, 114 on F2..F5, 90 on F6 and F7, 66 on F8..F17 (mirrored to
-  ``-y``), so the ribs open a wedge on either side of F6's and F7's;
+  120 deg from ``x`` on F1, 114 on F2..F5, 95 on F6, 85 on F7, 66 on F8..F17 (mirrored
+  to ``-y``), so the ribs open a wedge on either side of F6's and F7's, and F6's and F7's
+  part 10 deg: a long piece sliding in beside the other one, docked, stands clear of it;
 - a rib that forks continues straight with its larger chain; the other leaves 60 deg
-  off it into the wedge beside (F6's at 150 deg, F7's at 30 deg, mirrored to ``-y``);
+  off it into the wedge beside (F6's at 155 deg, F7's at 25 deg, mirrored to ``-y``);
 - F18's arm of F487 continues the spine, its four side chains (and its tip, F495..F496)
   at 90 deg; the arm of F406 at -66 deg, its four side chains along ``x`` (on the side
   where the plan's pieces for them hang, split off the long pieces docked on F6 and F7).
@@ -58,7 +59,7 @@ GOAL_DESCRIPTION = (
     "Luo and Lam's human example (2023, section VI.B), goal: one tree of 568 FreeBOTs "
     "(the chain F1..F568 with 52 modules moved), a human figure; laid flat by "
     "human_layout.py (the tree is the paper's, the vectors ours): every module on the "
-    "floor, every chain straight, ribs at 114, 90 and 66 deg from the spine")
+    "floor, every chain straight, ribs at 114, 95, 85 and 66 deg from the spine")
 ARMS = {"F487": 0.0, "F406": -66.0}                       # F18's two arms [deg]
 SIDE_CHAINS = {"F497": 90.0, "F515": 90.0, "F533": 90.0, "F495": 90.0,
                "F415": 0.0, "F433": 0.0, "F451": 0.0, "F469": 0.0}
@@ -66,7 +67,7 @@ SIDE_CHAINS = {"F497": 90.0, "F515": 90.0, "F533": 90.0, "F495": 90.0,
 
 def _rib_angle(k: int) -> float:
     """The angle [deg] from ``x`` of spine module ``F{k}``'s ribs (the ``+y`` one)."""
-    return 120.0 if k == 1 else 114.0 if k <= 5 else 90.0 if k <= 7 else 66.0
+    return {1: 120.0, 6: 95.0, 7: 85.0}.get(k, 114.0 if k <= 5 else 66.0)
 
 
 def _size(children: dict[str, list[str]], m: str) -> int:
@@ -189,10 +190,10 @@ START_DESCRIPTION = (
 RUNS: dict[str, tuple[tuple[float, float], list[tuple[str, float]]]] = {
     "F201": ((0.0, 0.0), [("F201", 0.0)]),
     "F501": ((-1.0, 6.3), [("F501", -90.0)]),
-    "F401": ((1.0, -3.82), [("F401", 90.0), ("F420", 0.0), ("F421", -90.0), ("F429", 0.0), ("F430", 90.0), ("F438", 0.0), ("F439", -90.0), ("F447", 0.0), ("F448", 90.0), ("F456", 0.0), ("F457", -90.0), ("F465", 0.0), ("F466", 90.0), ("F474", 0.0), ("F475", -90.0), ("F483", 0.0), ("F484", 90.0), ("F492", 0.0), ("F493", -90.0)]),
+    "F401": ((1.3, -3.82), [("F401", 90.0), ("F420", 0.0), ("F421", -90.0), ("F429", 0.0), ("F430", 90.0), ("F438", 0.0), ("F439", -90.0), ("F447", 0.0), ("F448", 90.0), ("F456", 0.0), ("F457", -90.0), ("F465", 0.0), ("F466", 90.0), ("F474", 0.0), ("F475", -90.0), ("F483", 0.0), ("F484", 90.0), ("F492", 0.0), ("F493", -90.0)]),
     "F301": ((10.8, 2.9), [("F301", 180.0)]),
-    "F1": ((-2.02, -2.1), [("F1", 0.0), ("F27", -90.0)]),
-    "F101": ((3.131, -4.0), [("F101", 180.0), ("F127", -90.0)]),
+    "F1": ((-2.203, -2.092), [("F1", 0.0), ("F27", -95.0)]),
+    "F101": ((3.48, -3.985), [("F101", 180.0), ("F127", -85.0)]),
 }
 
 
