@@ -48,6 +48,7 @@ _CLEARANCE = 0.008    # kept between shells [m]
 _GRAZE = 0.010        # a module touched at the start is kept this much closer [m]: the
 #                       map's own bend (2 deg of angle noise over a row puts its modules
 #                       millimetres off its line, and the piece's too)
+_GOAL_STRAIGHT = 0.02  # a goal's shape is straight within this many spacings of a line
 _SHORT = 0.02         # the way stops this far short of the docking spot [m]
 _LAST = 0.15          # its last stretch, straight in [m]
 _EXPANSIONS = 20000   # the search gives up after this many poses
@@ -435,11 +436,15 @@ def _goal_pose(shape: np.ndarray, then: np.ndarray, root: int, centre: np.ndarra
     alone docks its root off the target's side when its shape is not the goal's). The
     turn is the least-squares one over the modules, except for a straight piece whose
     goal is bent: it lies straight out from the target through the root's goal place
-    (the plan's last move bends it), rather than across the target's other sides.
+    (the plan's last move bends it), rather than across the target's other sides. The
+    goal's vectors are exact, so its shape is straight only within ``_GOAL_STRAIGHT``
+    spacings of a line: a shallow C (within a quarter spacing, straight for a piece on
+    the map) is bent, and fitted by least squares it would turn the piece off its root's
+    own direction, across the target's neighbours' places.
     """
     turn = best_turn(shape, then - then.mean(axis=0))
     arm = -shape[root]                                   # root -> centroid
-    if line is not None and straight_line(then, spacing) is None \
+    if line is not None and straight_line(then, spacing, _GOAL_STRAIGHT) is None \
             and float(np.linalg.norm(arm)) > 1e-9:
         out = then[root] - centre
         turn = wrap_angle(float(np.arctan2(out[1], out[0]) - np.arctan2(arm[1], arm[0])))

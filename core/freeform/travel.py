@@ -258,18 +258,19 @@ def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
 _STRAIGHT = 0.25      # a piece is straight within this many spacings of its line
 
 
-def straight_line(points: np.ndarray, spacing: float) -> np.ndarray | None:
+def straight_line(points: np.ndarray, spacing: float, within: float = _STRAIGHT
+                  ) -> np.ndarray | None:
     """The unit direction (2,) of the line through ``points`` (n, 2+) [m] if every point
-    is within a quarter ``spacing`` of it (a straight piece, which moves along its line
-    only: :meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`), else
-    ``None``; ``None`` for a single point."""
+    is within ``within`` ``spacing`` of it (by default a quarter: a straight piece, which
+    moves along its line only: :meth:`~msrr.core.freeform.world.FreeformWorld.command_travel`),
+    else ``None``; ``None`` for a single point."""
     flat = np.asarray(points, dtype=float)[:, :2]
     if len(flat) < 2:
         return None
     flat = flat - flat.mean(axis=0)
     line = np.linalg.svd(flat)[2][0]
     across = flat - np.outer(flat @ line, line)
-    return None if np.max(np.linalg.norm(across, axis=1)) > _STRAIGHT * spacing else line
+    return None if np.max(np.linalg.norm(across, axis=1)) > within * spacing else line
 
 
 def twist_velocities(centres: Mapping[str, np.ndarray], headings: Mapping[str, float],

@@ -806,3 +806,27 @@ def test_a_keel_whose_frame_turned_drives_with_its_piece():
     # its piece's twist, taken from an arm of the piece
     turn, across = _drive_with_keel_off(np.radians(6.0))
     assert abs(turn) < 0.5 and abs(across) < 0.005, (turn, across)   # main: 1.49 deg
+
+
+def test_a_straight_piece_with_a_shallow_c_for_a_goal_docks_straight_out_from_its_target():
+    # the goal hangs P1-P2 from T1 at -114 deg, then P3 straight down, P4 at -66 deg: a
+    # shallow C, within a quarter spacing of a line (the human example's step 2: a rib of
+    # two and its two riders). The piece lies straight out through P1's goal place (before:
+    # fitted by least squares, it hung straight down, across T2's rib at -114 deg)
+    from msrr.core.freeform.piece_way import piece_way
+
+    spacing = 0.1
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(4)}
+    piece = {f"P{i}": np.array([0.1 * i - 0.2, -1.0]) for i in range(1, 5)}
+    here = row | piece
+    rib = np.array([np.cos(np.radians(-114.0)), np.sin(np.radians(-114.0))])
+    tail = np.array([np.cos(np.radians(-66.0)), np.sin(np.radians(-66.0))])
+    p1 = row["T1"] + spacing * rib
+    p3 = p1 + spacing * rib + np.array([0.0, -spacing])
+    goal = {m: np.append(p, 0.0) for m, p in row.items()} | {
+        m: np.append(p, 0.0) for m, p in
+        {"P1": p1, "P2": p1 + spacing * rib, "P3": p3, "P4": p3 + spacing * tail}.items()}
+    way = piece_way(here, set(piece), set(row), "P1", 0.0, "T1", goal, spacing)
+    docked = _docked(way, here, 0.0)
+    assert np.allclose(docked["P1"], p1, atol=0.003)
+    assert np.allclose(docked["P4"], row["T1"] + 4 * spacing * rib, atol=0.003)
