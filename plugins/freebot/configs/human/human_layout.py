@@ -51,6 +51,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from msrr.core.freeform.travel import lay_out_pieces
+
 HERE = Path(__file__).resolve().parent
 GOAL = HERE / "human.json"
 SPACING = 0.101          # centre distance of two docked FreeBOTs [m] (world spacing)
@@ -139,15 +141,7 @@ def centres(document: dict, spacing: float = SPACING) -> dict[str, np.ndarray]:
         z = np.asarray(c["z"], dtype=float)
         adjacent[c["source"]].append((c["target"], z))
         adjacent[c["target"]].append((c["source"], -z))
-    root = document["modules"][0]["id"]
-    where, queue = {root: np.zeros(3)}, deque([root])
-    while queue:
-        u = queue.popleft()
-        for v, z in adjacent[u]:
-            if v not in where:
-                where[v] = where[u] + spacing * z
-                queue.append(v)
-    return where
+    return lay_out_pieces(adjacent, [document["modules"][0]["id"]], spacing)[0]
 
 
 def problems(document: dict, spacing: float = SPACING) -> list[str]:
