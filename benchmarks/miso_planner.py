@@ -169,8 +169,9 @@ class Peer:
             out = subprocess.run([self.python, "-c", PEER_RUN, str(self.folder / "IM"),
                                   str(path)], capture_output=True, text=True, check=False)
         if out.returncode != 0:
-            raise SystemExit(f"{self.folder}: the published IM failed: "
-                             f"{out.stderr.strip().splitlines()[-1:]}")
+            last = (out.stderr.strip().splitlines() or ["no message"])[-1]
+            raise SystemExit(f"{self.folder}: the published IM failed under "
+                             f"{self.python}: {last}")
         result = json.loads(out.stdout.strip().splitlines()[-1])
         pair = [FREE] * n
         for a, b in result["pairs"]:
