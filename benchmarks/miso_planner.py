@@ -155,6 +155,14 @@ class Peer:
     folder: Path
     python: str
 
+    def missing(self) -> str | None:
+        """Why the published IM cannot be imported under ``python``, or ``None``."""
+        out = subprocess.run([self.python, "-c", "import sys; sys.path.insert(0, sys.argv[1]); "
+                              "import Matrix2tree, POINTER_Pairing", str(self.folder / "IM")],
+                             capture_output=True, text=True, check=False)
+        return None if out.returncode == 0 else (out.stderr.strip().splitlines()
+                                                 or ["no message"])[-1]
+
     def im(self, problem: MisoProblem) -> tuple[int, float]:
         """The published IM on ``problem``: changes of its pairing and its time [ms]."""
         n = problem.n
@@ -301,6 +309,8 @@ def main() -> None:
     if args.peer is not None and not (args.peer / "IM" / "POINTER_Pairing.py").is_file():
         parser.error(f"--peer {args.peer}: no IM/POINTER_Pairing.py there")
     peer = Peer(args.peer.resolve(), args.peer_python) if args.peer is not None else None
+    if peer is not None and (why := peer.missing()) is not None:
+        parser.error(f"--peer-python {peer.python}: cannot import the published IM: {why}")
     console = Console(highlight=False, width=160)
     console.print(f"seed={args.seed} instances={args.instances} reach={args.reach} "
                   f"repeats={args.repeats} rules: at most 6 on a module, no docking onto "
