@@ -148,6 +148,11 @@ def compare(task: tuple[str, int, MisoProblem]) -> Compared:
                     heuristic.cost, exact.cost, bool(exact.stats["changes_proved"]), ms)
 
 
+def _last_line(stderr: str) -> str:
+    """A failed subprocess's last line of error output (its exception)."""
+    return (stderr.strip().splitlines() or ["no message"])[-1]
+
+
 @dataclass(frozen=True)
 class Peer:
     """The published planner's checkout and the interpreter that runs it."""
@@ -160,8 +165,7 @@ class Peer:
         out = subprocess.run([self.python, "-c", "import sys; sys.path.insert(0, sys.argv[1]); "
                               "import Matrix2tree, POINTER_Pairing", str(self.folder / "IM")],
                              capture_output=True, text=True, check=False)
-        return None if out.returncode == 0 else (out.stderr.strip().splitlines()
-                                                 or ["no message"])[-1]
+        return None if out.returncode == 0 else _last_line(out.stderr)
 
     def im(self, problem: MisoProblem) -> tuple[int, float]:
         """The published IM on ``problem``: changes of its pairing and its time [ms]."""
@@ -177,9 +181,8 @@ class Peer:
             out = subprocess.run([self.python, "-c", PEER_RUN, str(self.folder / "IM"),
                                   str(path)], capture_output=True, text=True, check=False)
         if out.returncode != 0:
-            last = (out.stderr.strip().splitlines() or ["no message"])[-1]
             raise SystemExit(f"{self.folder}: the published IM failed under "
-                             f"{self.python}: {last}")
+                             f"{self.python}: {_last_line(out.stderr)}")
         result = json.loads(out.stdout.strip().splitlines()[-1])
         pair = [FREE] * n
         for a, b in result["pairs"]:
