@@ -161,7 +161,7 @@ _LEVEL_STEP = np.radians(5.0)   # ... and at most this much (issue 31, fig18's h
 _LEVEL_HOLDS = 3                # ... if it holds this many connectors (a chain node, two, is not)
 _AZIMUTH_FROM = np.sin(np.radians(10.0))  # a leg nearer the vertical has no level axle
 _AXLE_LEVEL = np.sin(np.radians(10.0))  # a free wheel pair's axle built this near level is
-# levelled (the ride a pair is built for, :meth:`FreeSNWorld._ride_of`)
+# held level (the ride a pair is built for, :meth:`FreeSNWorld._ride_of`)
 
 
 @dataclass(frozen=True)
@@ -359,7 +359,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._turning = np.zeros(k, dtype=bool)            # turning toward a target
         self._backwards = np.zeros(k, dtype=bool)          # ... to roll there backwards
         self._twist_free = np.zeros(k, dtype=bool)         # target twist left to the turns
-        self._ride = np.full(k, np.nan)   # axle as docked: +-1 level (its side), 0 tilted
+        self._ride = np.full((k, 2), np.nan)   # axle as docked: (cos, sin) from level
         self._integral = np.zeros((k, 3))                  # position loop's error integral [rad s]
         self._effort = np.ones(k)                          # fraction of the torque limit
         self._braked = np.zeros(k, dtype=bool)             # held by command_brake
@@ -694,12 +694,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _ball(self, ks: np.ndarray) -> np.ndarray:
         return self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
 
-    def _ride_of(self, k: int, up: np.ndarray) -> float:
-        """How docked connector ``k``'s free wheels ride, as it was built or docked: ``+1``
-        or ``-1``, its axle level, on that side of ``up x z`` (``z`` the strut's axis, both
-        in the node frame); ``0``, tilted past ``_AXLE_LEVEL`` (S6N3's tripod legs, 27-45
-        deg); read from its held target at its first command after the dock (``nan``
-        while its axis is within ``_AZIMUTH_FROM`` of ``up``: no level axle there).
+    def _ride_of(self, k: int, up: np.ndarray) -> np.ndarray:
+        """How docked connector ``k``'s free wheels ride, as it was built or docked: the
+        cosine and sine (2,) of its axle's turn about the strut's axis ``z`` from the level
+        axle ``up x z`` toward ``z x (up x z)`` (both in the node frame); ``(+-1, 0)``, level
+        on that side, for an axle within ``_AXLE_LEVEL`` of level (S4N1's legs); the turn
+        itself for one built tilted (S6N3's tripod legs, 27-45 deg). Read from its held
+        target at its first command after the dock (``nan`` while its axis is within
+        ``_AZIMUTH_FROM`` of ``up``: no level axle there).
 
         A property of the build, not of the twist the way leaves: a leaf strut's kept
         twist composes minimal rotations, which turn its axle by the solid angle its aim
@@ -708,14 +710,19 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         and 17): taken by the current tilt for a pair built tilted, they were not levelled,
         their axles twisted on past the vertical while they drove, and, level again on the
         reversed side, held there: every wheel rolled backwards (issue 31, stop 50)."""
-        if np.isnan(self._ride[k]):
+        if np.isnan(self._ride[k, 0]):
             held = self._target[k]
-            side = np.cross(up, held @ (self._sign[k] * _EZ))
-            if np.linalg.norm(side) >= _AZIMUTH_FROM:
-                axle = held[:, 1]
-                self._ride[k] = 0.0 if abs(float(axle @ up)) > _AXLE_LEVEL else \
-                    (1.0 if float(axle @ side) >= 0.0 else -1.0)
-        return float(self._ride[k])
+            z = held @ (self._sign[k] * _EZ)
+            side = np.cross(up, z)
+            norm = float(np.linalg.norm(side))
+            if norm >= _AZIMUTH_FROM:
+                axle, side = held[:, 1], side / norm
+                if abs(float(axle @ up)) <= _AXLE_LEVEL:
+                    self._ride[k] = (1.0 if float(axle @ side) >= 0.0 else -1.0, 0.0)
+                else:
+                    turn = np.arctan2(float(axle @ np.cross(z, side)), float(axle @ side))
+                    self._ride[k] = (np.cos(turn), np.sin(turn))
+        return self._ride[k]
 
     def _node_tilt(self, i: int) -> np.ndarray:
         """Node frame from node ``i``'s horizontal frame (3, 3), as its connectors get
@@ -1640,26 +1647,29 @@ def _minimal(v: np.ndarray, w: np.ndarray) -> np.ndarray:
     return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
 
 
-def _level(z: np.ndarray, up: np.ndarray, ride: float) -> np.ndarray | None:
+def _level(z: np.ndarray, up: np.ndarray, ride: np.ndarray) -> np.ndarray | None:
     """Rotation (3, 3) with columns ``y x z``, ``y``, ``z``: unit ``z`` the strut's axis
-    and ``y``, its wheels' axle, level (perpendicular to unit ``up``), on the side ``ride``
-    (``+1``: along ``up x z``; ``-1``: against it; :meth:`FreeSNWorld._ride_of`, the side it
-    was built on); ``None`` where ``z`` lies within ``_AZIMUTH_FROM`` of the vertical (no
-    level axle is defined there) or the pair was built to ride tilted (``ride`` 0: S6N3's
-    tripod legs, 27-45 deg; ``nan``: not known).
+    and ``y``, its wheels' axle, turned from the level axle ``l = up x z / |up x z|``
+    (``up`` unit) as it was built (``ride``, the cosine and sine (2,) of the turn about
+    ``z`` toward ``z x l``: :meth:`FreeSNWorld._ride_of`): level, on the side it was built
+    on, for S4N1's legs; ``None`` where ``z`` lies within ``_AZIMUTH_FROM`` of the
+    vertical (no level axle is defined there) or the ride is not known (``nan``).
 
     A leaf strut driving on its free connector's wheels, both on the floor, holds their
     axle level: then they roll along the leg's vertical plane, as S4N1's ``strut-wheels``
     gains assume (legs at any azimuth, their axles tangential, Fig. 18(d)), whatever twist
     the leg was built with (a few degrees off) or the turns on the way would give it; a
     kept twist turned those degrees of axle into tens of degrees of course (issue 31).
-    The side is the build's, not the axle's now: an axle the way turned past the
-    vertical, levelled on its own side, rolls its wheels backwards (issue 31, stop 50)."""
+    The side and the tilt are the build's, not the axle's now: an axle the way turned
+    past the vertical, levelled on its own side, rolls its wheels backwards, and a pair
+    built tilted whose kept twist the way brought within 10 deg of level was levelled
+    (issue 31, stop 50)."""
     y = np.cross(up, z)
     norm = np.linalg.norm(y)
-    if norm < _AZIMUTH_FROM or not ride or np.isnan(ride):
+    if norm < _AZIMUTH_FROM or np.isnan(ride[0]):
         return None
-    y = ride * y / norm
+    y = y / norm
+    y = ride[0] * y + ride[1] * np.cross(z, y)
     return np.column_stack([np.cross(y, z), y, z])
 
 

@@ -819,3 +819,32 @@ def test_a_leg_twisted_on_the_way_rolls_on_its_free_wheels_level_on_its_built_si
     world.command_target("S1", "a", (aim, None, 1.0))
     assert abs(np.dot(world._target[k][:, 1], up)) < 1e-9   # level
     assert side() == pytest.approx(built, abs=1e-9)   # on the side it was built on
+
+
+def test_a_leg_whose_free_wheels_ride_tilted_holds_its_built_tilt_round_the_vertical():
+    """A wheel pair built to ride tilted (S6N3's tripod legs: 27-45 deg off level) holds
+    the turn from level it was built with while it drives, wherever its leg is aimed: its
+    kept twist turned with the solid angle the aim swept, and S6N3's wheeled move (exact)
+    drifted its legs' axles from 26 deg to 45 deg off level, or, within 10 deg of level,
+    levelled them (issue 31, stop 50)."""
+    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
+    edge = start.edge("S1")
+    twisted = Rotation.from_rotvec(np.radians(40.0) * edge.z).as_matrix() @ edge.x
+    world = FreeSNWorld(start.with_vectors(x={"S1": twisted}), SPEC, SimOptions())
+    k = world.ends.index(("S1", "a"))
+    node = world.docked[k]
+    aim = world.ground_truth(node).edge("S1").z
+    up = world._node_tilt(world._node_index[node]) @ [0.0, 0.0, 1.0]
+
+    def turn() -> float:   # the axle's turn about the strut's axis from the level axle
+        axle, z = world._target[k][:, 1], world._sign[k] * world._target[k][:, 2]
+        level = np.cross(up, z) / np.linalg.norm(np.cross(up, z))
+        return float(np.arctan2(axle @ np.cross(z, level), axle @ level))
+
+    world.command_target("S1", "a", (aim, None, 1.0))
+    built = turn()
+    assert abs(np.sin(built)) > np.sin(np.radians(30.0))   # tilted as built
+    world.command_wheels("S1", "b", 5.0)   # the free end's wheels drive
+    for step in range(1, 73):   # twice round the vertical
+        world.command_target("S1", "a", (rot_z(np.radians(10.0 * step)) @ aim, None, 1.0))
+        assert turn() == pytest.approx(built, abs=1e-9)
