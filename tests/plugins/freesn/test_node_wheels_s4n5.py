@@ -234,3 +234,23 @@ def test_the_legs_of_node_wheels_leave_the_wheels_load_to_the_stance_under_noise
     assert feet[WHEELS_FROM:].max() > 0.0
     exact, _ = _leg_integrals(3.0, noise=0.0)
     assert exact[WHEELS_FROM:].max() > 0.0
+
+
+def test_only_a_stance_on_four_node_wheels_or_more_has_wheel_legs():
+    """``_wheel_legs``: under noise, the S4N5 standup's four hub connectors while its four
+    node wheels run (not before, nor the wheels' own connectors); fig22(j) on its three
+    node wheels has none (three wheels carry the split the floor sets)."""
+    start = load_configuration(FREESN / "configs" / "library" / "S4N5-1.2.json")
+    world = FreeSNWorld(start, SPEC, SimOptions(noise=np.radians(2.0)))
+    ks = np.arange(len(world.ends))
+    hub = max(world.nodes, key=world.docked.count)
+    assert not world._wheel_legs(ks).any()
+    feet = [k for k in ks if world.docked[k] != hub]
+    world._wheel[feet] = 1.0
+    assert list(ks[world._wheel_legs(ks)]) == [k for k in ks if world.docked[k] == hub]
+    assert not FreeSNWorld(start, SPEC, SimOptions())._wheel_legs(ks).any()
+    kiwi = load_configuration(FREESN / "configs" / "library" / "S12N6-5.1.json")
+    world = FreeSNWorld(kiwi, SPEC, SimOptions(noise=np.radians(2.0)))
+    for strut in ("R1", "R3", "R5"):
+        world._wheel[world._end_index[(strut, "b")]] = 1.0
+    assert not world._wheel_legs(np.arange(len(world.ends))).any()
