@@ -154,6 +154,7 @@ _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_HOLD = np.radians(1.0)  # ... and under which it stops turning, its turn braked
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
+_ROLLER_AIM = 0.5  # a roller's aim takes at most this of a wheel's torque, the spin the rest
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
@@ -1204,7 +1205,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         channel asked for nothing stops, its wheels braked (a turn in place holds its
         rolling); wheels commanded in opposition set ``omega_z`` themselves, and that
         connector rolls ``b cos d`` whatever its heading (it cannot turn toward it). The wheel
-        speeds: :meth:`_wheel_speeds`.
+        speeds: :meth:`_commands`.
         """
         p, o = self.phys, self.options
         swing, heading, error = self._way(ks)
@@ -1255,7 +1256,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             self._integral[ks, 1:] = integral
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
-        return self._wheel_speeds(omega, ~turning & ~wheeling), held
+        return self._commands(ks, omega, ~turning & ~wheeling, wheeling), held
 
     def _waits(self, ks: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` (n,) hold still, their wheels braked, for the one
@@ -1313,6 +1314,50 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         speed = np.column_stack([rolling - turn, rolling + turn])
         fastest = np.max(np.abs(speed), axis=1, keepdims=True)
         return speed * np.minimum(1.0, top / np.maximum(fastest, 1e-12))
+
+    def _commands(self, ks: np.ndarray, omega: np.ndarray, near: np.ndarray,
+                  wheeling: np.ndarray) -> np.ndarray:
+        """Wheel commands (n, 2) [rad/s] of connectors ``ks`` for the rates ``omega`` (n, 2):
+        a roller's (``wheeling``, its strut free at the other end) by
+        :meth:`_roller_speeds`, any other's by :meth:`_wheel_speeds`."""
+        speed = self._wheel_speeds(omega, near)
+        rollers = wheeling & (self._eq[ks ^ 1] < 0)
+        if rollers.any():
+            speed[rollers] = self._roller_speeds(ks[rollers], omega[rollers])
+        self._spin_lag[ks[~rollers]] = 0.0
+        return speed
+
+    def _roller_speeds(self, ks: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Wheel commands (n, 2) [rad/s] of rollers ``ks`` (docked connectors spinning a
+        strut free at its other end: fig22(e)'s chords, fig18(g)'s legs) for the rolling
+        and spin rates ``omega`` (n, 2) [rad/s].
+
+        Each wheel's torque ``D_w (u - v)`` is split in two. The aim's rolling part, the
+        position loop's, comes first but takes at most ``_ROLLER_AIM`` of the wheel torque;
+        the spin gets what the wheel's current and voltage leave, through the speed loop
+        of the holonomic model's docked wheels (:meth:`_spin_speed`: the spin's lag behind
+        its command, on the wheels' encoders, integrated, times ``_SPIN_GAIN`` added to
+        it, the lag bounded so the command reaches twice the top speed; the voltage ``u``
+        likewise). Scaled together within the top speed (:meth:`_wheel_speeds`) the aim
+        took the wheels' voltage from the spin: fig22(e)'s rollers spun at a third of their
+        command and slipped, the structure at 16 % of the asked speed (stop 50)."""
+        p = self.phys
+        kv, limit, top = 0.5 * p.wheel_damping, 0.5 * p.wheel_torque, p.max_wheel_speed
+        v = self.data.actuator_velocity[self._motor[ks]]
+        lo = np.maximum(-limit, kv * (-2.0 * top - v))   # each wheel's torque now
+        hi = np.minimum(limit, kv * (2.0 * top - v))
+        aim = _ROLLER_AIM * limit
+        roll = kv * (np.clip(p.roll_ratio * omega[:, 0], -top, top) - v.mean(axis=1))
+        roll = np.clip(np.clip(roll, -aim, aim), lo.max(axis=1), hi.min(axis=1))
+        had = 0.5 * (v[:, 1] - v[:, 0])
+        asked = p.turn_ratio * omega[:, 1]
+        bound = top / _SPIN_GAIN
+        self._spin_lag[ks] = np.clip(self._spin_lag[ks] + (asked - had) * self._every
+                                     * self.options.timestep, -bound, bound)
+        spin = kv * (asked + _SPIN_GAIN * self._spin_lag[ks] - had)
+        spin = np.clip(spin, np.maximum(roll - hi[:, 0], lo[:, 1] - roll),
+                       np.minimum(roll - lo[:, 0], hi[:, 1] - roll))
+        return v + np.column_stack([roll - spin, roll + spin]) / kv
 
     def _stop(self, ks: np.ndarray, error: np.ndarray, wheeling: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` stand at their targets (n,): within ``_STILL_ON`` of it
