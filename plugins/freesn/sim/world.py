@@ -379,12 +379,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._grip_at = np.array([[[x, y, sign * phys.node_radius] for x, y in _ANCHORS]
                                   for sign in self._sign])   # (k, 3, 3), strut axes
         self._last_ball = np.tile(np.array([1.0, 0, 0, 0]), (k, 1))
-        self._modules = [*self.nodes, *self.struts]
-        self._geom_module = np.full(m.ngeom, -1, dtype=int)   # geom -> module index, or -1
-        self._geom_module[[m.geom(f"sphere/{n}").id for n in self.nodes]] = \
-            np.arange(len(self.nodes))
-        self._geom_module[[m.geom(f"capsule/{s}").id for s in self.struts]] = \
-            len(self.nodes) + np.arange(len(self.struts))
+        self._index_geoms()
         self.interpenetrations: dict[tuple[str, str], Interpenetration] = {}
         self._init_gyros(options)
         self._accuracy = Accuracy(options.noise, options.slip, options.drift,
@@ -398,6 +393,16 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                     self._dock(self._end_index[(s, end)], node, event=False)
         mujoco.mj_forward(self.model, self.data)
         self._record_interpenetrations()
+
+    def _index_geoms(self) -> None:
+        """Each module's index in ``_modules`` by its geom's id (-1: not a module's)."""
+        m = self.model
+        self._modules = [*self.nodes, *self.struts]
+        self._geom_module = np.full(m.ngeom, -1, dtype=int)
+        self._geom_module[[m.geom(f"sphere/{n}").id for n in self.nodes]] = \
+            np.arange(len(self.nodes))
+        self._geom_module[[m.geom(f"capsule/{s}").id for s in self.struts]] = \
+            len(self.nodes) + np.arange(len(self.struts))
 
     def _index_drives(self, drives: list[tuple[str, str]]) -> None:
         """The ids of the differential drives' wheel motors (k, 2), tendon anchors (k, 3:
