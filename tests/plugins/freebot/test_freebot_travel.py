@@ -564,6 +564,30 @@ def test_a_piece_slides_in_between_two_chains_one_spacing_apart_from_a_tilted_st
     assert _closest(way.legs, offsets, others, (way.origin, 0.01)) >= spacing - 0.01
 
 
+def test_a_long_piece_slides_in_between_two_docked_chains_as_long_as_itself():
+    # the human example's arm: side chains of 18 docked on T2 and T4, the piece of 18
+    # docks on T3 between them. Its stand, clear of both, lies beyond their ends, 1.8 m
+    # back: the stretch in grows by the piece's length (before: at most 1.65 m, so no
+    # stand on its goal line was clear and it docked at a free place above the row)
+    from msrr.core.freeform.piece_way import piece_way
+
+    spacing, n = 0.1, 18
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(7)}
+    comb = {f"{c}{j}": np.array([x, -0.1 * j]) for c, x in (("A", 0.2), ("B", 0.4))
+            for j in range(1, n + 1)}
+    piece = {f"P{i}": np.array([0.1 * i + 0.6, -3.2]) for i in range(1, n + 1)}
+    here = row | comb | piece
+    goal = {m: np.append(p, 0.0) for m, p in (row | comb).items()} | {
+        f"P{i}": np.array([0.3, -0.1 * i, 0.0]) for i in range(1, n + 1)}
+    way = piece_way(here, set(piece), set(row) | set(comb), "P1", 0.0, "T3", goal, spacing)
+    docked = _docked(way, here, 0.0)
+    for i in (1, n):
+        assert np.allclose(docked[f"P{i}"], [0.3, -0.1 * i], atol=0.003)
+    others = np.array([p for m, p in here.items() if m not in piece])
+    offsets = np.array([piece[m] for m in way.piece]) - np.mean(list(piece.values()), axis=0)
+    assert _closest(way.legs, offsets, others, (way.origin, 0.0)) >= spacing - 0.01
+
+
 def test_a_piece_beside_a_row_its_map_bends_drives_out_along_its_line():
     # under 2 deg of angle noise the map bends a row by millimetres: here the row of four
     # lying beside a row of twelve, one spacing away, zigzags 4 mm, so driving out along
