@@ -4,9 +4,8 @@ Luo and Lam's human example (six chains of 568 FreeBOTs into a human figure) is 
 with ``miso``; then every step that docks a module over the floor is planned as the
 controller would plan it -- a lone module's way (``travel.floor_path``), a piece's way
 (``piece_way.piece_way``: its goal place, or the free place nearest to it) -- on the
-centres the previous steps left, each piece put where its way ends, docked, and bent to
-its goal's shape there as the plan's last move bends it (no physics: what the ways need,
-not what the MuJoCo run does). Prints the seed and, per step, the
+centres the previous steps left, each piece put where its way ends, docked (no physics:
+what the ways need, not what the MuJoCo run does). Prints the seed and, per step, the
 piece's size, where it docks (goal place or not), its legs, the travel of its farthest
 module beside the straight distance its centroid covers, and the time the way takes at
 the piece speed; stops at the first step whose way cannot be planned and says why.
@@ -59,7 +58,7 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
     """Plan step ``k``'s floor docks on ``pos`` (moved in place); a table row, or
     ``None`` when the action docks nothing over the floor."""
     from msrr.core.freeform.piece_way import piece_way
-    from msrr.core.freeform.travel import floor_path, piece_goal
+    from msrr.core.freeform.travel import floor_path
 
     after = current.copy()
     for c in action.changes:
@@ -92,9 +91,6 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
             pos[m] = p
         at_goal = np.linalg.norm(pos[c.source] - (pos[c.target] + (
             goal[c.source] - goal[c.target])[:2])) < 0.02
-        if at_goal:       # the plan's last move bends it to the goal's shape
-            pos.update(piece_goal(goal, {m: pos[m] for m in groups[c.target] | piece},
-                                  piece, c.target))
         reach = float(np.max(np.linalg.norm(way.shape, axis=1)))
         travel = sum(float(np.linalg.norm(b.to - a)) + reach * abs(float(np.angle(np.exp(
             1j * (b.heading - h))))) for (a, h), b in zip(
