@@ -536,6 +536,29 @@ def test_a_straight_piece_with_a_bent_goal_docks_its_root_at_its_goal_place():
     assert _closest(way.legs, offsets, others, (way.origin, 0.0)) >= spacing - 0.01
 
 
+def test_a_piece_goal_is_not_turned_by_a_docked_piece_not_yet_bent():
+    # the human example: a long piece docked straight down from T2 whose goal bends it
+    # along x further down (the plan's last move bends it, later). The goal place of the
+    # next piece, on T5, follows the row and the modules in their goal's shape (before:
+    # the least squares over all turned it 17 deg, across its neighbour's place)
+    from msrr.core.freeform.travel import piece_goal
+
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(8)}
+    docked = {f"D{j}": np.array([0.2, -0.1 * j]) for j in range(1, 31)}
+    goal = {m: np.append(p, 0.0) for m, p in row.items()} | {
+        f"D{j}": np.array([0.2, -0.1 * j, 0.0]) if j <= 5
+        else np.array([0.2 + 0.1 * (j - 5), -0.5, 0.0]) for j in range(1, 31)} | {
+        f"P{i}": np.array([0.5, 0.1 * i, 0.0]) for i in range(1, 6)}
+    here = row | docked
+    end = piece_goal(goal, here, {f"P{i}" for i in range(1, 6)}, "T5")
+    for i in range(1, 6):
+        assert np.allclose(end[f"P{i}"], [0.5, 0.1 * i], atol=1e-9)
+    # all in their goal's shape: the least squares over all, as before
+    exact = piece_goal(goal, row | {m: p[:2] for m, p in goal.items() if m in docked},
+                       {f"P{i}" for i in range(1, 6)}, "T5")
+    assert np.allclose(exact["P5"], [0.5, 0.5], atol=1e-9)
+
+
 def test_a_piece_slides_in_between_two_chains_one_spacing_apart_from_a_tilted_start():
     # a comb: chains of five hang from T2 and T4; the goal hangs P1..P5 from T3 between
     # them, one spacing from each, as the human example packs its chains. The piece lies
