@@ -451,7 +451,8 @@ def _goal_pose(shape: np.ndarray, then: np.ndarray, root: int, centre: np.ndarra
     return then[root] + rot_z(turn)[:2, :2] @ arm, turn
 
 
-_BACK = 1.5           # a stretch in grows at most this much past _LAST [m]
+_BACK = 1.5           # a stretch in grows at most this much past _LAST, and the piece's
+#                       length (to clear chains as long as itself docked either side) [m]
 _BACK_STEP = 0.05     # ... in steps of this [m]
 _TRIES = 4            # free docking places tried (nearest the goal's first)
 _OVERLAP = 0.01       # shells closer than the spacing less this overlap [m]
@@ -477,10 +478,15 @@ def _dock_free(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray
     ``_BACK_STEP``, at most ``_BACK`` more) that starts clear, where the piece can turn
     round in place if there is such a stand (a way reaches it from any side): a piece
     docking beside others, one spacing from them as the goal packs its chains, slides in
-    along them from where it is clear of them."""
+    along them from where it is clear of them (none clear that near, its stand beyond
+    their ends: the stretch grows by at most the piece's own length more)."""
     backs = [_LAST] if clear_in else _LAST + np.arange(0.0, _BACK + 1e-9, _BACK_STEP)
     clear = [float(b) for b in backs if space.free(
         (middle - (_SHORT + b) * push)[None, :], np.array([heading]))]
+    if not clear and not clear_in:      # beside docked chains as long as itself
+        longer = backs[-1] + np.arange(_BACK_STEP, 2.0 * space.reach + 1e-9, _BACK_STEP)
+        clear = [float(b) for b in longer if space.free(
+            (middle - (_SHORT + b) * push)[None, :], np.array([heading]))]
     if not clear:
         return None
     back = clear[0]

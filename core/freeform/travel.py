@@ -239,20 +239,40 @@ def best_turn(a: np.ndarray, b: np.ndarray) -> float:
                             np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
 
 
+_OUTLIER = 0.25      # a module farther than this from its goal place is not yet in its
+#                      goal's shape (a piece the plan's last move bends later) [m]
+
+
 def piece_goal(goal: Mapping[str, np.ndarray], here: Mapping[str, np.ndarray],
                piece: set[str], target: str) -> dict[str, np.ndarray]:
     """Where the modules of ``piece`` must be (2,) [m] for ``goal``'s shape with the
     module they dock on, ``target``, which stays: ``goal``'s centres (3,) of ``piece``
     turned by the yaw that best brings ``goal``'s other modules onto ``here`` (the
     centres now of the modules that stay, the target's group: one frame; least squares,
-    weighted alike) and put so that ``target`` is where it is now."""
+    weighted alike; :func:`_group_turn`) and put so that ``target`` is where it is now."""
     fixed = sorted(m for m in goal if m not in piece and m in here)
     a = np.array([np.asarray(goal[m], dtype=float)[:2] for m in fixed])
     b = np.array([np.asarray(here[m], dtype=float)[:2] for m in fixed])
-    turn = rot_z(best_turn(a, b))[:2, :2]
     origin = np.asarray(goal[target], dtype=float)[:2]
-    return {m: np.asarray(here[target], dtype=float)[:2] + turn @ (
-        np.asarray(goal[m], dtype=float)[:2] - origin) for m in piece}
+    centre = np.asarray(here[target], dtype=float)[:2]
+    turn = rot_z(_group_turn(a - origin, b - centre))[:2, :2]
+    return {m: centre + turn @ (np.asarray(goal[m], dtype=float)[:2] - origin) for m in piece}
+
+
+def _group_turn(a: np.ndarray, b: np.ndarray) -> float:
+    """The yaw [rad] from the goal's centres ``a`` (n, 2) to those now, ``b`` (n, 2),
+    both about the target: :func:`best_turn` over all of them, or, when some lie more
+    than ``_OUTLIER`` from where the median turn about the target puts them (a piece
+    docked straight whose goal is bent, not yet bent: its far modules metres off, which
+    would turn the fit), over the others only."""
+    turn = best_turn(a, b)
+    far = np.linalg.norm(a, axis=1) > 2 * _OUTLIER
+    if not np.any(far):
+        return turn
+    each = np.arctan2(b[far, 1], b[far, 0]) - np.arctan2(a[far, 1], a[far, 0])
+    median = turn + float(np.median(np.angle(np.exp(1j * (each - turn)))))
+    keep = np.linalg.norm(a @ rot_z(median)[:2, :2].T - b, axis=1) <= _OUTLIER
+    return turn if np.all(keep) or np.sum(keep) < 2 else best_turn(a[keep], b[keep])
 
 
 _STRAIGHT = 0.25      # a piece is straight within this many spacings of its line

@@ -536,6 +536,29 @@ def test_a_straight_piece_with_a_bent_goal_docks_its_root_at_its_goal_place():
     assert _closest(way.legs, offsets, others, (way.origin, 0.0)) >= spacing - 0.01
 
 
+def test_a_piece_goal_is_not_turned_by_a_docked_piece_not_yet_bent():
+    # the human example: a long piece docked straight down from T2 whose goal bends it
+    # along x further down (the plan's last move bends it, later). The goal place of the
+    # next piece, on T5, follows the row and the modules in their goal's shape (before:
+    # the least squares over all turned it 17 deg, across its neighbour's place)
+    from msrr.core.freeform.travel import piece_goal
+
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(8)}
+    docked = {f"D{j}": np.array([0.2, -0.1 * j]) for j in range(1, 31)}
+    goal = {m: np.append(p, 0.0) for m, p in row.items()} | {
+        f"D{j}": np.array([0.2, -0.1 * j, 0.0]) if j <= 5
+        else np.array([0.2 + 0.1 * (j - 5), -0.5, 0.0]) for j in range(1, 31)} | {
+        f"P{i}": np.array([0.5, 0.1 * i, 0.0]) for i in range(1, 6)}
+    here = row | docked
+    end = piece_goal(goal, here, {f"P{i}" for i in range(1, 6)}, "T5")
+    for i in range(1, 6):
+        assert np.allclose(end[f"P{i}"], [0.5, 0.1 * i], atol=1e-9)
+    # all in their goal's shape: the least squares over all, as before
+    exact = piece_goal(goal, row | {m: p[:2] for m, p in goal.items() if m in docked},
+                       {f"P{i}" for i in range(1, 6)}, "T5")
+    assert np.allclose(exact["P5"], [0.5, 0.5], atol=1e-9)
+
+
 def test_a_piece_slides_in_between_two_chains_one_spacing_apart_from_a_tilted_start():
     # a comb: chains of five hang from T2 and T4; the goal hangs P1..P5 from T3 between
     # them, one spacing from each, as the human example packs its chains. The piece lies
@@ -562,6 +585,30 @@ def test_a_piece_slides_in_between_two_chains_one_spacing_apart_from_a_tilted_st
     offsets = (np.array([piece[m] for m in way.piece])
                - np.mean(list(piece.values()), axis=0)) @ tilt
     assert _closest(way.legs, offsets, others, (way.origin, 0.01)) >= spacing - 0.01
+
+
+def test_a_long_piece_slides_in_between_two_docked_chains_as_long_as_itself():
+    # the human example's arm: side chains of 18 docked on T2 and T4, the piece of 18
+    # docks on T3 between them. Its stand, clear of both, lies beyond their ends, 1.8 m
+    # back: the stretch in grows by the piece's length (before: at most 1.65 m, so no
+    # stand on its goal line was clear and it docked at a free place above the row)
+    from msrr.core.freeform.piece_way import piece_way
+
+    spacing, n = 0.1, 18
+    row = {f"T{i}": np.array([0.1 * i, 0.0]) for i in range(7)}
+    comb = {f"{c}{j}": np.array([x, -0.1 * j]) for c, x in (("A", 0.2), ("B", 0.4))
+            for j in range(1, n + 1)}
+    piece = {f"P{i}": np.array([0.1 * i + 0.6, -3.2]) for i in range(1, n + 1)}
+    here = row | comb | piece
+    goal = {m: np.append(p, 0.0) for m, p in (row | comb).items()} | {
+        f"P{i}": np.array([0.3, -0.1 * i, 0.0]) for i in range(1, n + 1)}
+    way = piece_way(here, set(piece), set(row) | set(comb), "P1", 0.0, "T3", goal, spacing)
+    docked = _docked(way, here, 0.0)
+    for i in (1, n):
+        assert np.allclose(docked[f"P{i}"], [0.3, -0.1 * i], atol=0.003)
+    others = np.array([p for m, p in here.items() if m not in piece])
+    offsets = np.array([piece[m] for m in way.piece]) - np.mean(list(piece.values()), axis=0)
+    assert _closest(way.legs, offsets, others, (way.origin, 0.0)) >= spacing - 0.01
 
 
 def test_a_piece_beside_a_row_its_map_bends_drives_out_along_its_line():

@@ -31,10 +31,14 @@ the floor, every vector a unit one, no two unconnected centres closer than one s
 **The start.** The six chains of ``human-chains.json`` (F1..F100, F101..F200,
 F201..F300, F301..F400, F401..F500, F501..F568, each module on the one before), laid
 where a lab would lay them (:data:`RUNS`): the chain F201..F300, whose first 44 modules
-are the goal's spine and stay put, from the origin along ``x`` as the goal lays them;
-the others beside the figure, each in straight runs
+are the goal's spine and stay put, from the origin along ``x`` as the goal lays them,
+its tail up from the arm's end and back along the top (its last two pieces go to F205's
+and F208's ribs); the others beside the figure, each in straight runs
 that turn only where the plan cuts the chain anyway (at the first module of a piece
-that travels), so every travelling piece is straight.
+that travels), so every travelling piece is straight. The long pieces of F1..F100 and
+F101..F200 lie on their goal lines below F6 and F7, F26 2.1 m down (F1..F25 turns off
+to the left below the room F205's lower rib needs to come in along its line) and F126
+4.8 m down (F125, at the corner, lies beyond the 42-module piece's stand).
 
 Usage: ``python plugins/freebot/configs/human/human_layout.py [--check]`` (``--check``:
 exit 1 if a file is not what this writes).
@@ -182,12 +186,12 @@ START_DESCRIPTION = (
 # Each chain: its first module's place (x, y) [m] and its runs, (first module, heading
 # [deg] from x of the run's growth, module to module).
 RUNS: dict[str, tuple[tuple[float, float], list[tuple[str, float]]]] = {
-    "F201": ((0.0, 0.0), [("F201", 0.0)]),
+    "F201": ((0.0, 0.0), [("F201", 0.0), ("F245", 90.0), ("F281", 180.0)]),
     "F501": ((-1.0, 6.3), [("F501", -90.0)]),
     "F401": ((1.3, -3.82), [("F401", 90.0), ("F420", 0.0), ("F421", -90.0), ("F429", 0.0), ("F430", 90.0), ("F438", 0.0), ("F439", -90.0), ("F447", 0.0), ("F448", 90.0), ("F456", 0.0), ("F457", -90.0), ("F465", 0.0), ("F466", 90.0), ("F474", 0.0), ("F475", -90.0), ("F483", 0.0), ("F484", 90.0), ("F492", 0.0), ("F493", -90.0)]),
     "F301": ((10.8, 4.3), [("F301", 180.0)]),
     "F1": ((-2.203, -2.092), [("F1", 0.0), ("F27", -95.0)]),
-    "F101": ((3.48, -3.985), [("F101", 180.0), ("F127", -85.0)]),
+    "F101": ((3.553, -4.78), [("F101", 180.0), ("F127", -85.0)]),
 }
 
 
