@@ -353,7 +353,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._attitude = np.zeros((len(self.nodes), 3))   # node attitude error [rad]
         self._fused_at: dict[int, float] = {}              # node -> time of its last fusion [s]
         self._load = np.zeros(k)
-        self._pulled = np.zeros(k)                         # low-passed pull-off [N]
         self._eq = np.full(k, -1, dtype=int)               # active weld of each end, or -1
         self._driven = np.zeros(0, dtype=int)             # docked ends with a target
         self._torque = np.zeros((k, 2))                    # wheel motor torques [N m]
@@ -400,7 +399,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
 
     def _index_drives(self, drives: list[tuple[str, str]]) -> None:
         """The ids of the differential drives' wheel motors (k, 2), tendon anchors (k, 3:
-        ``_GRIPS``), grip tendons (k,) and brake tendons (k, 2: rolling, turning)."""
+        ``_GRIPS``) and brake tendons (k, 2: rolling, turning)."""
         m = self.model
         self._motor = np.array([[m.actuator(f"wheel/{s}/{e}/{side}").id
                                  for side in ("left", "right")] for s, e in drives],
@@ -409,8 +408,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                     for s, e in drives], dtype=int).reshape(-1, 3)
         self._brake = np.array([[m.tendon(f"{t}/{s}/{e}").id for t in _GRIPS[1:]]
                                 for s, e in drives], dtype=int).reshape(-1, 2)
-        self._grip = np.array([m.tendon(f"{_GRIPS[0]}/{s}/{e}").id for s, e in drives],
-                              dtype=int)
 
     def _init_gyros(self, options: SimOptions) -> None:
         """The node gyros: a seeded bias each; the reports' draws (``"gy"``) and the
@@ -540,7 +537,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._conn_node[k] = Rotation.from_quat(self.model.eq_data[eq, 6:10],
                                                 scalar_first=True).as_matrix()
         self.magnet[k] = "neutral"   # back to the origin after the dock (section 4.2)
-        self._load[k] = self._pulled[k] = 0.0
+        self._load[k] = 0.0
         self._hold(k)
         if event:
             self.events.append(DockEvent(self.time, strut, end, node, "dock"))
@@ -562,7 +559,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._fix[k] = 0.0
         self._turning[k] = self._backwards[k] = False
         self.events.append(DockEvent(self.time, strut, end, node, kind, float(self._load[k])))
-        self._load[k] = self._pulled[k] = 0.0
+        self._load[k] = 0.0
 
     def _hold(self, k: int) -> None:
         """Brake connector ``k`` where it believes it is."""
@@ -1301,10 +1298,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         return still
 
     def _hold_wheels(self, held: np.ndarray) -> None:
-        """Set every connector's side grip, and brake the wheels of the channels ``held``
-        (k, 2) (rolling, turning): a stopped wheel neither turns nor is turned (a gear train
-        the load does not back-drive), so its contact grips the shell as it grips sideways,
-        up to the wheels' friction: the
+        """Brake the wheels of the channels ``held`` (k, 2) (rolling, turning): a stopped
+        wheel neither turns nor is turned (a gear train the load does not back-drive), so
+        its contact grips the shell as it grips sideways, up to the wheels' friction: the
         roll tendon's ``frictionloss`` the grip, the turn tendon's the two wheels' friction
         couple ``grip b / 2`` through its lever. A connector at a reduced effort (one that
         closes a loop and follows softly) holds its rolling with that fraction of the
@@ -1312,19 +1308,12 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         connection broke (s4:a at n0, 20.1 N at 2.3 s); its turning stays braked in full,
         since a strut's turn about its own axis moves no connection vector and strains no
         loop, while a node free to turn under it let the S6N3-2.1 triangle on the floor
-        creep 47 mm/s. Coasting connectors and free ends hold nothing. Every friction (the
-        side grip too) is Coulomb's, the friction coefficient times the wheels' normal force:
-        the magnet's pull less the connector's low-passed pull-off (press not added, so the
-        grip never exceeds the connection strength the break counts shear against); held at
-        the full pull, fig22's node wheels broke s4:b off n5 pulled off 13.5 N with its
-        wheels holding 20 N sideways (stop 50)."""
+        creep 47 mm/s. Coasting connectors and free ends hold nothing."""
         p = self.phys
         held = held & (self._eq >= 0)[:, None] & (self._effort > 0.0)[:, None]
-        normal = np.clip(1.0 - self._pulled / p.strength, 0.0, 1.0)   # of the magnet's pull
-        self.model.tendon_frictionloss[self._grip] = p.grip * normal
         force = np.column_stack([p.grip * self._effort,
                                  np.full(len(held), p.grip * p.wheel_base / (2.0 * _GRIP_LEVER))])
-        self.model.tendon_frictionloss[self._brake] = np.where(held, force * normal[:, None], 0.0)
+        self.model.tendon_frictionloss[self._brake] = np.where(held, force, 0.0)
 
     def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray) -> np.ndarray:
         """One turn for both ends of a strut docked and driven at both (FreeSN paper,
@@ -1396,7 +1385,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         docked = self._eq >= 0
         ks = np.flatnonzero(docked)
         load = np.zeros(len(ks))
-        pulled = np.zeros(len(ks))
         if len(ks):  # equality rows come first, six per weld, in the order of the equality ids
             n = 6 * len(ks)
             by_weld = np.zeros((self.model.neq, 3))
@@ -1405,16 +1393,12 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             # outward, node centre -> strut: the strut's +z at end a, -z at end b
             out = self._sign[ks, None] * d.xmat[self._strut_body[ks // 2]].reshape(-1, 3, 3)[
                 :, :, 2]
-            along = np.einsum("ni,ni->n", on_connector, out)
-            pressed = np.maximum(along, 0.0)
-            pulled = np.maximum(-along, 0.0)
+            pressed = np.maximum(np.einsum("ni,ni->n", on_connector, out), 0.0)
             held = on_connector - pressed[:, None] * out   # pull-off and shear
             load = np.sqrt(np.einsum("ni,ni->n", held, held))
         alpha = min(1.0, steps * self.options.timestep / self.options.break_filter)
         self._load[docked] += alpha * (load - self._load[docked])
         self._load[~docked] = 0.0
-        self._pulled[docked] += alpha * (pulled - self._pulled[docked])
-        self._pulled[~docked] = 0.0
         for k in np.flatnonzero(self._load > self.phys.strength):
             self._release(int(k), "break")
 

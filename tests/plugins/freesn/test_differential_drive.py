@@ -9,7 +9,6 @@ from __future__ import annotations
 import itertools
 from dataclasses import replace
 
-import mujoco
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -109,44 +108,6 @@ def test_the_wheels_grip_sideways_until_the_load_beats_friction(load, slides):
     else:
         assert moved < 0.5
 
-
-
-@pytest.mark.parametrize("pull, slides", [(0.0, False), (0.5, True)])
-def test_a_connector_pulled_off_its_node_grips_sideways_with_what_the_magnet_still_presses(
-        pull, slides):
-    """Coulomb friction: the wheels' side grip is the friction coefficient times their
-    normal force, the magnet's pull less what pulls the connector off its node. A sideways
-    torque of 0.75 of the grip on a braked connector holds without a pull-off; with the
-    strut pulled off along its axis by half the connection strength (the grip halved) the
-    wheels skid, before any break (fig22's node wheels: s4:b, pulled off 13.5 N, held 20 N
-    sideways until the connection broke; issue 32 item 6, stop 50)."""
-    world = _one_strut()
-    world.command_brake("S1", "a")
-    world.step(0.05)
-    p = world.phys
-    start, _ = _on_node(world)
-    torque = 0.75 * p.grip * p.node_radius
-    dofs = world._dadr[0] + np.arange(3)
-    strut = world._strut_body[0]
-    for _ in range(50):
-        out = world._sign[0] * world.data.xmat[strut].reshape(3, 3)[:, 2]   # node -> strut
-        applied = np.zeros(world.model.nv)
-        mujoco.mj_applyFT(world.model, world.data, pull * p.strength * out, np.zeros(3),
-                          world.data.xipos[strut], strut, applied)
-        node = world._node_body[0]   # and the node the other way: the weld carries it
-        mujoco.mj_applyFT(world.model, world.data, -pull * p.strength * out, np.zeros(3),
-                          world.data.xipos[node], node, applied)
-        ball = world._ball(np.array([0]))[0]
-        lateral = Rotation.from_quat(ball, scalar_first=True).inv().apply([1.0, 0.0, 0.0])
-        applied[dofs] += torque * lateral   # on the connector, child frame
-        world.data.qfrc_applied[:] = applied
-        world.step(0.01)
-    assert world.docked[0] is not None, "the connection broke"
-    moved = _angle(_on_node(world)[0], start)
-    if slides:
-        assert moved > 5.0
-    else:
-        assert moved < 0.5
 
 def _push(world: FreeSNWorld, axis: np.ndarray, torque: float, seconds: float) -> float:
     """Apply ``torque`` [N m] about strut-frame ``axis`` on the connector for ``seconds``:
