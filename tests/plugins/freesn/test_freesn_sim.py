@@ -746,19 +746,27 @@ def test_the_ground_truth_is_in_the_world_frame_whatever_a_node_shell_does():
         assert np.allclose(edge.z, after.edge(edge.id).z, atol=1e-9)
 
 
+def _s4n1_leg(twist_deg: float = 0.0) -> tuple[FreeSNWorld, int, str, np.ndarray]:
+    """S4N1 with its leg ``S1`` built turned ``twist_deg`` about its own axis: the world,
+    the index of the leg's docked end ``S1:a``, the node it holds and its aim there."""
+    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
+    if twist_deg:
+        edge = start.edge("S1")
+        twisted = Rotation.from_rotvec(np.radians(twist_deg) * edge.z).as_matrix() @ edge.x
+        start = start.with_vectors(x={"S1": twisted})
+    world = FreeSNWorld(start, SPEC, SimOptions())
+    k = world.ends.index(("S1", "a"))
+    node = world.docked[k]
+    return world, k, node, world.ground_truth(node).edge("S1").z
+
+
 def test_a_leg_rolling_on_its_free_wheels_holds_their_axle_level():
     """A leaf strut driving on its free connector's wheels is commanded the design's
     twist, its wheels' axle (the strut's y) level, hence tangential: S4N1's legs built 8
     deg twisted off it (as built, the start file's legs are 5, 1, 2, -1 deg off) and
     taken round the vertical end with their axles level; the kept twist held the 8 deg,
     and the radial wheels drove the spider tens of degrees off its course (issue 31)."""
-    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
-    edge = start.edge("S1")
-    twisted = Rotation.from_rotvec(np.radians(8.0) * edge.z).as_matrix() @ edge.x
-    world = FreeSNWorld(start.with_vectors(x={"S1": twisted}), SPEC, SimOptions())
-    k = world.ends.index(("S1", "a"))
-    node = world.docked[k]
-    aim = world.ground_truth(node).edge("S1").z
+    world, k, node, aim = _s4n1_leg(8.0)
     world.command_target("S1", "a", (aim, None, 1.0))
     world.command_wheels("S1", "b", 5.0)   # the free end's wheels drive
     to_node = world._node_tilt(world._node_index[node])   # horizontal -> node frame
@@ -773,12 +781,7 @@ def test_a_leg_rolling_on_its_free_wheels_holds_their_axle_level():
 def test_a_leg_whose_free_wheels_ride_tilted_keeps_its_twist():
     """A wheel pair built to ride with its axle tilted (S6N3's tripod legs: 27-45 deg
     off level) is not levelled while it drives: it keeps the twist it was built with."""
-    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
-    edge = start.edge("S1")
-    twisted = Rotation.from_rotvec(np.radians(40.0) * edge.z).as_matrix() @ edge.x
-    world = FreeSNWorld(start.with_vectors(x={"S1": twisted}), SPEC, SimOptions())
-    k = world.ends.index(("S1", "a"))
-    aim = world.ground_truth(world.docked[k]).edge("S1").z
+    world, k, _, aim = _s4n1_leg(40.0)
     world.command_target("S1", "a", (aim, None, 1.0))
     built = world._target[k][:, 1].copy()
     world.command_wheels("S1", "b", 5.0)
@@ -796,11 +799,7 @@ def test_a_leg_twisted_on_the_way_rolls_on_its_free_wheels_level_on_its_built_si
     its wheels started: S4N1 at 4 deg + 10 %, seeds 13 and 17), it was not levelled and
     twisted on past the vertical; level again on the reversed side, its wheels rolled
     backwards and the spider drove backwards (issue 31, stop 50)."""
-    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
-    world = FreeSNWorld(start, SPEC, SimOptions())
-    k = world.ends.index(("S1", "a"))
-    node = world.docked[k]
-    aim = world.ground_truth(node).edge("S1").z
+    world, k, node, aim = _s4n1_leg()
     to_node = world._node_tilt(world._node_index[node])   # horizontal -> node frame
     up = to_node @ [0.0, 0.0, 1.0]
 
@@ -827,13 +826,7 @@ def test_a_leg_whose_free_wheels_ride_tilted_holds_its_built_tilt_round_the_vert
     kept twist turned with the solid angle the aim swept, and S6N3's wheeled move (exact)
     drifted its legs' axles from 26 deg to 45 deg off level, or, within 10 deg of level,
     levelled them (issue 31, stop 50)."""
-    start = load_configuration(FREESN / "configs" / "library" / "S4N1-1.2.json")
-    edge = start.edge("S1")
-    twisted = Rotation.from_rotvec(np.radians(40.0) * edge.z).as_matrix() @ edge.x
-    world = FreeSNWorld(start.with_vectors(x={"S1": twisted}), SPEC, SimOptions())
-    k = world.ends.index(("S1", "a"))
-    node = world.docked[k]
-    aim = world.ground_truth(node).edge("S1").z
+    world, k, node, aim = _s4n1_leg(40.0)
     up = world._node_tilt(world._node_index[node]) @ [0.0, 0.0, 1.0]
 
     def turn() -> float:   # the axle's turn about the strut's axis from the level axle
