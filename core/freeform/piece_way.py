@@ -480,13 +480,15 @@ def _dock_free(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray
     docking beside others, one spacing from them as the goal packs its chains, slides in
     along them from where it is clear of them (none clear that near, its stand beyond
     their ends: the stretch grows by at most the piece's own length more)."""
-    backs = [_LAST] if clear_in else _LAST + np.arange(0.0, _BACK + 1e-9, _BACK_STEP)
-    clear = [float(b) for b in backs if space.free(
-        (middle - (_SHORT + b) * push)[None, :], np.array([heading]))]
-    if not clear and not clear_in:      # beside docked chains as long as itself
-        longer = backs[-1] + np.arange(_BACK_STEP, 2.0 * space.reach + 1e-9, _BACK_STEP)
-        clear = [float(b) for b in longer if space.free(
+    def clear_of(backs: np.ndarray | list[float]) -> list[float]:
+        return [float(b) for b in backs if space.free(
             (middle - (_SHORT + b) * push)[None, :], np.array([heading]))]
+
+    backs = [_LAST] if clear_in else _LAST + np.arange(0.0, _BACK + 1e-9, _BACK_STEP)
+    clear = clear_of(backs)
+    if not clear and not clear_in:      # beside docked chains as long as itself
+        clear = clear_of(backs[-1] + np.arange(_BACK_STEP, 2.0 * space.reach + 1e-9,
+                                               _BACK_STEP))
     if not clear:
         return None
     back = clear[0]
