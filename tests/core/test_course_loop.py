@@ -238,3 +238,73 @@ def test_a_base_that_cannot_turn_keeps_its_travel_in_the_world_as_it_yaws():
     assert math.degrees(psi - 0.2) > 25.0
     assert np.linalg.norm(place) == pytest.approx(1.8, rel=1e-6)
     assert abs(math.degrees(math.atan2(place[1], place[0]) - 0.2)) < 0.5
+
+
+def test_a_sliding_travel_gives_way_to_the_turn_while_the_heading_loop_is_past_its_bound():
+    """The travel a kiwi drive is asked is cut to ``bound / demand`` while its heading loop
+    asks more than its bound, in the same direction, and is whole again once the loop is
+    back within it (issue 31: fig22(j) under noise)."""
+    call = BehaviorCall("node-wheels", "mapping", {"speed": 0.03}, KIWI, duration=60.0,
+                        direction=(1.0, 0.0, 0.0))
+    loop = heading_loop(call, 0.0, OPTIONS)
+    assert loop is not None and loop.bound == pytest.approx(0.3)
+    within = steered(call, loop, None, -0.2, None, 0.0, 0.1)     # demand 0.2 + 0.004
+    assert loop.travel_share() == 1.0
+    assert (within["speed"], within["sideways"]) == pytest.approx((0.03 * math.cos(0.2),
+                                                                   0.03 * math.sin(0.2)))
+    past = steered(call, loop, None, -0.5, None, 0.0, 0.1)       # demand 0.5 + 0.014
+    assert loop.demand == pytest.approx(0.5 + 0.2 * 0.07)
+    assert loop.travel_share() == pytest.approx(0.3 / 0.514)
+    assert past["yaw_rate"] == pytest.approx(0.3)
+    assert math.hypot(past["speed"], past["sideways"]) == pytest.approx(0.03 * 0.3 / 0.514)
+    assert math.atan2(past["sideways"], past["speed"]) == pytest.approx(0.5)
+    back = steered(call, loop, None, 0.1, None, 0.0, 0.1)
+    assert loop.travel_share() == 1.0
+    assert math.hypot(back["speed"], back["sideways"]) == pytest.approx(0.03)
+
+
+def test_only_a_sliding_call_with_a_turn_to_give_cuts_its_travel():
+    """A call that does not slide keeps its travel (its turn bound is a share of it), and
+    so does one whose loop may not turn (radial strut wheels: bound 0)."""
+    straight = BehaviorCall("wheeled-move", "mapping", {"speed": 0.05, "yaw_rate": 0.0},
+                            ROLLERS, duration=60.0)
+    loop = heading_loop(straight, 0.0, OPTIONS)
+    assert steered(straight, loop, None, -2.0, None, 0.0, 0.1)["speed"] == 0.05
+    assert loop.travel_share() < 1.0                # past its bound, but nothing to cut
+    radial = BehaviorCall("strut-wheels", "mapping", {"speed": 0.03}, RADIAL, duration=60.0)
+    fixed = heading_loop(radial, 0.0, OPTIONS)
+    asked = steered(radial, fixed, None, -2.0, None, 0.0, 0.1)
+    assert fixed.travel_share() == 1.0
+    assert math.hypot(asked["speed"], asked["sideways"]) == pytest.approx(0.03)
+
+
+def bound_wheel(call: BehaviorCall, *, line: float = 0.05, turns: float = 0.2,
+                drag: float = 2.0, duration: float = 60.0, dt: float = 0.1
+                ) -> tuple[np.ndarray, float]:
+    """Where a kiwi body ends [m], shape (2,), and its heading [rad]: it slides as asked
+    and turns at ``turns`` of the ``yaw_rate`` asked, but its wheel ``R3`` (rolling along
+    the travel) is torque-bound at ``line``: what it is asked past that drags the body
+    round at ``drag`` [rad/s per unit] against the loop (fig22(j)'s ``R3``, issue 31)."""
+    loop = heading_loop(call, 0.0, OPTIONS)
+    assert loop is not None
+    place, psi = np.zeros(2), 0.0
+    r3 = next(command for command in call.commands if command.module == "R3")
+    for step in range(round(duration / dt)):
+        asked = steered(call, loop, None, psi, place, step * dt, dt)
+        lag = max(0.0, abs(r3.value(asked)) - line)
+        place = place + dt * (rot_z(psi)[:2, :2] @ np.array([asked["speed"], asked["sideways"]]))
+        psi += dt * (turns * asked["yaw_rate"] - drag * lag)
+    return place, psi
+
+
+def test_a_kiwi_with_a_torque_bound_wheel_holds_its_heading_by_giving_up_travel():
+    """At its full travel the bound wheel's drag beats the loop at its bound and the body
+    turns away (before the travel gave way: 32 deg in 60 s, and turning); cut to the loop's share, the
+    drag falls under what the loop can turn and the heading holds, most of the travel
+    kept."""
+    call = BehaviorCall("node-wheels", "mapping", {"speed": 0.03}, KIWI, duration=60.0,
+                        direction=(1.0, 0.0, 0.0))
+    place, heading = bound_wheel(call)
+    assert abs(math.degrees(heading)) < 5.0
+    assert np.linalg.norm(place) > 0.7 * 1.8
+    assert abs(math.degrees(math.atan2(place[1], place[0]))) < 5.0
