@@ -355,7 +355,6 @@ class HeadingLoop:
         bound: bound of the correction added to ``yaw_rate`` [rad/s] (the integral is
             held within it: no wind-up).
         integral: the heading error integrated so far [rad s].
-        demand: the last correction before its bound [rad/s] (:meth:`travel_share`).
     """
 
     start: float
@@ -364,7 +363,6 @@ class HeadingLoop:
     integral_gain: float
     bound: float
     integral: float = 0.0
-    demand: float = 0.0
 
     def correction(self, heading: float, elapsed: float, dt: float, offset: float = 0.0
                    ) -> float:
@@ -376,24 +374,8 @@ class HeadingLoop:
         if self.integral_gain > 0:
             held = self.bound / self.integral_gain
             self.integral = float(np.clip(self.integral + error * dt, -held, held))
-        self.demand = self.gain * error + self.integral_gain * self.integral
-        return float(np.clip(self.demand, -self.bound, self.bound))
-
-    def travel_share(self) -> float:
-        """The share of its travel a body that :func:`slides` is asked while the last
-        correction's demand is past the bound: ``bound / |demand|`` (1 within it, and for
-        a loop bound to no correction, which turns nothing).
-
-        The turn has priority over the travel when the wheels cannot give both (issue 31:
-        fig22(j)'s kiwi drive under noise held its correction at the bound for tens of
-        seconds, its wheel rolling along the travel torque-bound, and ended 21-39 deg off
-        its line). A unicycle's ``v cos(e)`` slows its travel by the heading error; this
-        slows it by how far the loop is past what it may ask, so a loop within its bound
-        (every exact run) keeps the travel whole, and as the heading recovers the travel
-        comes back."""
-        if self.bound <= 0 or abs(self.demand) <= self.bound:
-            return 1.0
-        return self.bound / abs(self.demand)
+        return float(np.clip(self.gain * error + self.integral_gain * self.integral,
+                             -self.bound, self.bound))
 
 
 @dataclass
@@ -664,21 +646,14 @@ def steered(call: BehaviorCall, loop: HeadingLoop, course: CourseLoop | None, he
     turned, so it keeps its direction in the world (issue 31: the node wheels turn the
     body at a thirtieth of the rate asked, every wheel scrubbing, while a creep crosses
     the line; sliding, the travel turns at once; radial strut wheels cannot turn the
-    body at all, and with no place known have no course loop either). A sliding travel
-    is cut to the loop's :meth:`~HeadingLoop.travel_share` while the heading loop asks
-    more than its bound: a holonomic base turns without its travel, so the turn goes
-    first. A call that does not slide keeps its travel: its turn bound is a share of the
-    travel (:func:`turn_bound`), and slower it would scrub round on the spot."""
+    body at all, and with no place known have no course loop either)."""
     offset = 0.0 if course is None or place is None else course.offset(place)
     if not slides(call):
         return {**call.parameters,
                 "yaw_rate": loop.asked + loop.correction(heading, elapsed, dt, offset)}
     correction = loop.correction(heading, elapsed, dt)
     turned = wrap_angle(heading - loop.start - loop.asked * elapsed)
-    travel, share = slid(call.parameters, offset - turned), loop.travel_share()
-    if share < 1.0:
-        travel = {**travel, "speed": share * travel["speed"], SIDEWAYS: share * travel[SIDEWAYS]}
-    return {**travel, "yaw_rate": loop.asked + correction}
+    return {**slid(call.parameters, offset - turned), "yaw_rate": loop.asked + correction}
 
 
 def _with_wheels(commands: dict[str, ModuleCommand], wheels: dict[str, dict[str, float]]
