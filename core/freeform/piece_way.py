@@ -25,6 +25,7 @@ times the piece's radius about its centroid): the time at the speed bound.
 
 from __future__ import annotations
 
+import functools
 import heapq
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -53,6 +54,7 @@ _SHORT = 0.02         # the way stops this far short of the docking spot [m]
 _LAST = 0.15          # its last stretch, straight in [m]
 _EXPANSIONS = 20000   # the search gives up after this many poses
 _DIRECT = 8           # the direct way is tried from every this many poses
+_CHUNK = 256          # collision points checked at once (a move stops at the first hit)
 
 
 @dataclass(frozen=True)
@@ -140,36 +142,98 @@ class _Space:
     def free(self, centres: np.ndarray, headings: np.ndarray, escaping: bool = False) -> bool:
         """Whether the piece at every pose (centroids (k, 2), headings (k,)) is clear;
         ``escaping``: it drives straight out of its start, where it may stay as close to
-        what it touches as it starts (else it keeps the full clearance)."""
+        what it touches as it starts (else it keeps the full clearance). The poses are
+        checked ``_CHUNK`` points at a time, in order, and the first one that is not clear
+        ends the check (a move is refused as soon as its first pose hits)."""
         if self.tree is None:
             return True
-        points = np.concatenate([_modules(self.offsets, c, h)
-                                 for c, h in zip(centres, headings, strict=True)])
+        per = max(1, _CHUNK // len(self.offsets))
+        for lo in range(0, len(centres), per):
+            points = _poses(self.offsets, centres[lo:lo + per], headings[lo:lo + per])
+            if not self._clear(points, escaping):
+                return False
+        return True
+
+    def _clear(self, points: np.ndarray, escaping: bool) -> bool:
+        """Whether every point (n, 2) keeps its clearance: the full one from its nearest
+        obstacle, or (``escaping``) each of its 8 nearest obstacles' own ``keep``."""
+        if not escaping:
+            dist, _ = self.tree.query(points, k=1, distance_upper_bound=self.limit)
+            return not np.any(dist < self.limit)
         k = min(8, len(self.others))
         dist, idx = self.tree.query(points, k=k, distance_upper_bound=self.limit)
         dist, idx = dist.reshape(len(points), k), idx.reshape(len(points), k)
         hit = idx < len(self.others)
-        keep = self.keep if escaping else np.full(len(self.others), self.limit)
-        return not np.any(dist[hit] < keep[idx[hit]])
+        return not np.any(dist[hit] < self.keep[idx[hit]])
+
+    def all_free(self, moves: list[tuple[np.ndarray, np.ndarray, bool]]) -> list[bool]:
+        """:meth:`free` of each move (centroids (k, 2), headings (k,), ``escaping``),
+        the same answers from one query of the obstacles for all their points (a
+        search's moves from one pose are short: one query costs less than many)."""
+        if self.tree is None:
+            return [True] * len(moves)
+        if sum(len(c) for c, _, _ in moves) * len(self.offsets) > 4 * _CHUNK:
+            return [self.free(*move) for move in moves]
+        points = _poses(self.offsets, np.concatenate([c for c, _, _ in moves]),
+                        np.concatenate([h for _, h, _ in moves]))
+        k = min(8, len(self.others))
+        dist, idx = self.tree.query(points, k=k, distance_upper_bound=self.limit)
+        dist, idx = dist.reshape(len(points), k), idx.reshape(len(points), k)
+        full = ~(dist[:, 0] < self.limit)                 # the nearest keeps the limit
+        near = ~np.any(dist < np.append(self.keep, -np.inf)[idx], axis=1)
+        out, lo = [], 0
+        for c, _, escaping in moves:
+            hi = lo + len(c) * len(self.offsets)
+            out.append(bool(np.all((near if escaping else full)[lo:hi])))
+            lo = hi
+        return out
+
+    def turn(self, centre: np.ndarray, a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
+        """The poses (centroids (n, 2), headings (n,)) of the turn in place about
+        ``centre`` from heading ``a`` to ``b`` (the short way), ``_SAMPLE`` apart at the
+        farthest module."""
+        sweep = wrap_angle(b - a)
+        n = max(2, int(np.ceil(abs(sweep) * max(self.reach, 1e-3) / _SAMPLE)) + 1)
+        return np.repeat(centre[None, :], n, axis=0), a + np.linspace(0.0, sweep, n)
+
+    def drive(self, a: np.ndarray, b: np.ndarray, heading: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """The poses of the straight drive from centroid ``a`` to ``b`` at ``heading``."""
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / _SAMPLE)) + 1)
+        t = _fractions(n)
+        return a + t * (b - a), np.full(n, heading)
 
     def turn_free(self, centre: np.ndarray, a: float, b: float) -> bool:
         """The turn in place about ``centre`` from heading ``a`` to ``b`` (the short way)."""
-        sweep = wrap_angle(b - a)
-        n = max(2, int(np.ceil(abs(sweep) * max(self.reach, 1e-3) / _SAMPLE)) + 1)
-        angles = a + np.linspace(0.0, sweep, n)
-        return self.free(np.repeat(centre[None, :], n, axis=0), angles)
+        return self.free(*self.turn(centre, a, b))
 
     def drive_free(self, a: np.ndarray, b: np.ndarray, heading: float,
                    escaping: bool = False) -> bool:
         """The straight drive from centroid ``a`` to ``b`` at ``heading``."""
-        n = max(2, int(np.ceil(np.linalg.norm(b - a) / _SAMPLE)) + 1)
-        t = np.linspace(0.0, 1.0, n)[:, None]
-        return self.free(a + t * (b - a), np.full(n, heading), escaping)
+        return self.free(*self.drive(a, b, heading), escaping)
+
+
+@functools.lru_cache(maxsize=4096)
+def _fractions(n: int) -> np.ndarray:
+    """``np.linspace(0, 1, n)`` as a column (n, 1), kept (a search asks for a few lengths
+    of drive many times); read-only."""
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    t.flags.writeable = False
+    return t
 
 
 def _modules(offsets: np.ndarray, centre: np.ndarray, heading: float) -> np.ndarray:
     """The piece's module centres (m, 2) at pose ``(centre, heading)``."""
     return centre + offsets @ rot_z(heading)[:2, :2].T
+
+
+def _poses(offsets: np.ndarray, centres: np.ndarray, headings: np.ndarray) -> np.ndarray:
+    """The piece's module centres at every pose (centroids (k, 2), headings (k,)), as
+    points (k m, 2), pose after pose: :func:`_modules` of each, in one stacked product."""
+    c, s = np.cos(headings), np.sin(headings)
+    turned = np.empty((len(headings), 2, 2))      # Rz(h)[:2, :2].T of each pose
+    turned[:, 0, 0], turned[:, 0, 1], turned[:, 1, 0], turned[:, 1, 1] = c, s, -s, c
+    return (centres[:, None, :] + offsets[None] @ turned).reshape(-1, 2)
 
 
 def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
@@ -244,21 +308,17 @@ def _moves(space: _Space, c: np.ndarray, h: float, line: np.ndarray | None,
     ``_TURN`` onto the goal's heading lattice, and drives of ``step`` (``escaping``: the
     pose was reached by drives straight out of the start, which may graze what the start
     touches; a turn never does, as it would push it)."""
-    out = []
-    for sign in (1.0, -1.0):
-        to = h + sign * _TURN
-        if space.turn_free(c, h, to):
-            out.append((Leg("turn", c, wrap_angle(to)), _TURN * weight))
+    legs = [(Leg("turn", c, wrap_angle(h + sign * _TURN)), _TURN * weight,
+             (*space.turn(c, h, h + sign * _TURN), False)) for sign in (1.0, -1.0)]
     if line is None:
         directions = [np.array([np.cos(a), np.sin(a)]) for a in np.arange(8) * np.pi / 4]
     else:
         ahead = rot_z(h)[:2, :2] @ line
         directions = [ahead, -ahead]
-    for d in directions:
-        to = c + step * d
-        if space.drive_free(c, to, h, escaping):
-            out.append((Leg("drive", to, h), step))
-    return out
+    ends = c + step * np.array(directions)
+    legs += [(Leg("drive", to, h), step, (*space.drive(c, to, h), escaping)) for to in ends]
+    free = space.all_free([move for _, _, move in legs])
+    return [(leg, cost) for (leg, cost, _), ok in zip(legs, free, strict=True) if ok]
 
 
 def _direct(space: _Space, c: np.ndarray, h: float, g: np.ndarray, hg: float,
@@ -503,7 +563,7 @@ def _dock_free(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray
         return back
     n = int(np.ceil((_SHORT + back) / _SAMPLE)) + 1
     poses = pre + np.linspace(0.0, 1.0, n)[:, None] * (middle - pre)
-    points = np.concatenate([_modules(offsets, c, heading) for c in poses])
+    points = _poses(offsets, poses, np.full(len(poses), heading))
     k = min(3, len(others))
     gap = space.limit - _CLEARANCE - _OVERLAP
     dist, idx = space.tree.query(points, k=k, distance_upper_bound=gap)

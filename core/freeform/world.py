@@ -302,6 +302,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._dofs = np.array([j.dofadr[0] for j in drives])[:, None] + np.arange(3)
         n = len(self.modules)
         self.docked: list[str | None] = [None] * n
+        self._joined: tuple[tuple[str | None, ...], list[frozenset[str]],
+                            dict[str, frozenset[str]]] | None = None   # :meth:`groups`' memo
         self._parent = np.full(n, -1)   # index of ``docked`` (-1: free), kept with it
         self.armed: list[str | None] = [None] * n    # dock target ("" = any touching module)
         self.release: list[bool] = [False] * n        # undock waiting for a flow's switch
@@ -921,7 +923,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
     def _group_of(self, module: str) -> frozenset[str]:
         """The modules joined to ``module`` through docks (itself included)."""
-        return next(g for g in self.groups() if module in g)
+        self.groups()
+        assert self._joined is not None
+        return self._joined[2][module]
 
     def _motor(self, q: np.ndarray, goal: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Torques (n, 3) of ball-joint motors at ``q`` (n, 4) toward the rotations
@@ -1063,10 +1067,16 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         return key, self._owner[int(self.model.eq_obj2id[self.welds.id(key)])]
 
     def groups(self) -> list[frozenset[str]]:
-        """Modules of each physically separate system (connected through docks)."""
-        return connected_groups(self.modules, ((self.modules[k], target)
-                                               for k, target in enumerate(self.docked)
-                                               if target is not None))
+        """Modules of each physically separate system (connected through docks): found
+        again only when a dock changed since the last call (the servo loop asks for a
+        travelling piece's group every period, and 568 modules cost a graph each time)."""
+        docked = tuple(self.docked)
+        if self._joined is None or self._joined[0] != docked:
+            groups = connected_groups(self.modules, ((self.modules[k], target)
+                                                     for k, target in enumerate(docked)
+                                                     if target is not None))
+            self._joined = (docked, groups, {m: g for g in groups for m in g})
+        return list(self._joined[1])
 
 
 def _quat_exp(rotvec: np.ndarray) -> np.ndarray:

@@ -344,3 +344,27 @@ def test_a_tree_whose_controllers_want_different_measures_is_refused():
     with pytest.raises(PlanningError, match=r"bends: rolling_contact F\d+-F\d+, .* and 7 "
                                             r"more; eq8: rolling_contact F\d+-F\d+"):
         reach_measure(_forest20_tree(), lambda name: next(either))
+
+
+def test_the_world_finds_its_groups_again_only_when_a_dock_changes(mujoco_driver, monkeypatch):
+    # the servo loop asks for a travelling piece's group every period (its keel, its
+    # goals' anchor): joined from the docks each time, that was a graph of every module
+    # 250 times a simulated second (a third of the human run's CPU while a piece travels)
+    from msrr.core.driver import ModuleCommand
+    from msrr.core.freeform import world as worlds
+
+    driver = mujoco_driver("freebot", "line6")
+    world = driver.world
+    joined = []
+    real = worlds.connected_groups
+    monkeypatch.setattr(worlds, "connected_groups",
+                        lambda modules, links: joined.append(1) or real(modules, links))
+    driver.send_action({m: ModuleCommand(joints={"roll_x": 0.01, "roll_y": 0.0, "turn": 0.0})
+                        for m in world.modules})
+    driver.step(0.2)                                  # 25 servo periods, the piece travelling
+    assert world._travel.any()
+    assert len(joined) <= 1
+    assert world.groups() == [frozenset(world.modules)]
+    driver.send_action({"F1": ModuleCommand(undock=("@F2",))})
+    driver.step(0.1)
+    assert sorted(map(sorted, world.groups())) == [["F1"], sorted(set(world.modules) - {"F1"})]

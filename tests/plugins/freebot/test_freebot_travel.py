@@ -877,3 +877,59 @@ def test_a_straight_piece_with_a_shallow_c_for_a_goal_docks_straight_out_from_it
     docked = _docked(way, here, 0.0)
     assert np.allclose(docked["P1"], p1, atol=0.003)
     assert np.allclose(docked["P4"], row["T1"] + 4 * spacing * rib, atol=0.003)
+
+
+def test_a_long_move_is_refused_at_its_first_hit_without_checking_the_rest():
+    # the direct way is tried from every eighth pose of the search, metres long, and a
+    # failing one mostly hits near its start: checked whole, the human example's first
+    # step spent most of its 11 minutes of planning sampling drives already refused
+    from msrr.core.freeform import piece_way as ways
+
+    offsets = np.array([[-0.05, 0.0], [0.05, 0.0]])
+    space = ways._Space(np.array([[0.0, 0.0]]), offsets, 0.1, (np.array([5.0, 5.0]), 0.0))
+    tree, queried = space.tree, []
+
+    class Counting:
+        def query(self, points, **options):
+            queried.append(len(points))
+            return tree.query(points, **options)
+
+    space.tree = Counting()
+    assert not space.drive_free(np.array([0.0, 0.05]), np.array([3.0, 0.05]), 0.0)
+    assert sum(queried) < 601, "not all its 601 poses (1,202 points) sampled"
+    assert space.drive_free(np.array([0.0, 0.5]), np.array([3.0, 0.5]), 0.0)
+
+
+def test_a_piece_way_is_the_one_planned_before_its_search_was_batched(monkeypatch):
+    # the moves from one pose checked in one query of the obstacles, and a long move
+    # stopped at its first hit, change no answer (legs to the tenth of a millimetre, as
+    # planned by the search before, at commit dbff9af): chains-to-tree's layout, and a
+    # piece whose goal place no way reaches before it docks at a free place
+    from msrr.core.freeform import piece_way as ways
+    from msrr.core.freeform.piece_way import piece_way, plan_legs
+
+    rows = np.array([[0.101 * i, y] for y in (0.0, 0.101) for i in range(4)])
+    chain = np.array([[0.101 * i, 0.202] for i in range(4)])
+    start = (chain.mean(axis=0), 0.0)
+    goal = (np.array([0.202, 0.101 + 0.121 + 0.1515 + 0.15]), -np.pi / 2)
+    legs = plan_legs(rows, chain - start[0], np.array([1.0, 0.0]), start, goal, 0.101)
+    assert _rounded(legs) == [("drive", 0.5415, 0.202, 0.0), ("turn", 0.5415, 0.202, -0.7582),
+                              ("drive", 0.202, 0.5235, -0.7582),
+                              ("turn", 0.202, 0.5235, -1.5708)]
+    monkeypatch.setattr(ways, "_EXPANSIONS", 300)
+    row = {f"R{i}": np.array([0.1 * i - 0.4, 0.0]) for i in range(9)}
+    pen = {f"W{k}": p for k, p in enumerate(
+        [np.array([x, -0.8]) for x in np.arange(-0.4, 0.41, 0.1)]
+        + [np.array([s * 0.4, -0.1 * j]) for s in (-1, 1) for j in range(1, 8)])}
+    piece = {"P1": np.array([0.0, 0.6]), "P2": np.array([0.1, 0.6])}
+    goals = {m: np.append(p, 0.0) for m, p in (row | pen).items()} | {
+        "P1": np.array([0.0, -0.1, 0.0]), "P2": np.array([0.0, -0.2, 0.0])}
+    way = piece_way(row | pen | piece, set(piece), set(row) | set(pen), "P1", 0.0, "R4",
+                    goals, 0.1)
+    assert _rounded(way.legs) == [("turn", 0.05, 0.6, 1.8992), ("drive", 0.16, 0.2771, 1.8992),
+                                  ("turn", 0.16, 0.2771, 1.0472), ("drive", 0.085, 0.1472, 1.0472)]
+
+
+def _rounded(legs) -> list[tuple[str, float, float, float]]:
+    return [(leg.kind, round(float(leg.to[0]), 4), round(float(leg.to[1]), 4),
+             round(float(leg.heading), 4)) for leg in legs]
