@@ -154,7 +154,7 @@ _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_HOLD = np.radians(1.0)  # ... and under which it stops turning, its turn braked
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
-_ROLLER_AIM = 0.5  # a roller's aim takes at most this of a wheel's torque, the spin the rest
+_ROLLER_AIM = 0.5  # a wheeling connector's aim takes at most this of a wheel's torque, the spin the rest
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
@@ -1223,10 +1223,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # wheels), which stops a turn it began before they ran: the turn steers those
         # wheels (the spider's legs turned 50-90 % of the time, their axles 30 deg off level)
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
-        # nor the far end of a strut that wheels a node with free struts (_pinned)
+        # nor a connector whose wheels are commanded (their difference is its commanded
+        # spin), nor the far end of a strut whose other end spins its node (_pinned); the
+        # twist of both is the wheels' (a wheeling end's turn handed to its far end by
+        # _common_turn spun the strut under the node wheel: stop 51)
+        wheeling = self._wheel[ks] != 0.0
         pinned = self._pinned(ks)
-        steers |= pinned
-        twist = np.where(pinned, 0.0, twist)
+        steers |= pinned | wheeling
+        twist = np.where(pinned | wheeling, 0.0, twist)
         aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON)
         self._turning[ks] = ~steers & np.where(
             self._turning[ks], np.abs(swing) > _TURN_OFF,
@@ -1235,7 +1239,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
         # a wheeling connector cannot turn (its wheels' difference is its commanded spin):
         # it rolls out the part of its swing along its heading, which the spin sweeps round
-        wheeling = self._wheel[ks] != 0.0
         roll = np.where(turning | wheeling,
                         swing * np.cos(heading) * np.where(wheeling, 1.0, gate), error[:, 1])
         # turning, a connector whose heading is within _HEADING_HOLD rolls and asks no turn:
@@ -1275,17 +1278,18 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         return (holder >= 0) & self._turning[j] & (self._wheel[j] == 0.0)
 
     def _pinned(self, ks: np.ndarray) -> np.ndarray:
-        """Which connectors ``ks`` (n,) are the far end of a strut that alone holds a node
-        carrying free struts (:meth:`_hung_once`) while its end on that node spins the
-        node as a wheel. That end cannot turn against the far end's turn (its wheels'
-        difference is its commanded spin), so the turn spins the node and its free struts
-        round the strut's axis: in fig22's node wheels ``s11:a``'s turn on ``n2`` spun
-        ``n4`` at 144 deg/s and broke ``s11:b`` (stop 49). It turns neither toward an error
-        nor for its twist; what it cannot roll out is left, as for the strut wheels' legs
-        (stop 47)."""
-        holds = np.zeros(len(self.ends), dtype=bool)
-        holds[self._holder[self._holder >= 0]] = True
-        return holds[ks ^ 1] & (self._wheel[ks ^ 1] != 0.0)
+        """Which connectors ``ks`` (n,) are the far end of a strut docked at both ends whose
+        other end spins its node as a wheel (the node wheels, Fig. 22(j)). That end cannot
+        turn against the far end's turn (its wheels' difference is its commanded spin), so
+        the turn spins the strut under it, and the node's spin is the wheels' less the
+        strut's: with the far ends turning, fig22(j)'s node wheels spun their nodes at
+        -14 %, 6 % and -14 % of their command from the library's start and the body
+        turned 35 deg in 28 s (stop 51); on a node one strut alone holds, the turn spins
+        the node and its free struts round (``s11:a``'s turn on ``n2`` spun ``n4`` at
+        144 deg/s and broke ``s11:b``, stop 49). It turns neither toward an error nor for
+        its twist (its turn braked); what it cannot roll out is left, as for the strut
+        wheels' legs (stop 47)."""
+        return (self._wheel[ks ^ 1] != 0.0) & (self._eq[ks ^ 1] >= 0)
 
     def _way(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Connectors ``ks``' way to their targets (:meth:`_steer`): the signed swing (n,)
@@ -1323,19 +1327,19 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _commands(self, ks: np.ndarray, omega: np.ndarray, near: np.ndarray,
                   wheeling: np.ndarray) -> np.ndarray:
         """Wheel commands (n, 2) [rad/s] of connectors ``ks`` for the rates ``omega`` (n, 2):
-        a roller's (``wheeling``, its strut free at the other end) by
-        :meth:`_roller_speeds`, any other's by :meth:`_wheel_speeds`."""
+        a wheeling one's (its wheels commanded) by :meth:`_wheeling_speeds`, any other's by
+        :meth:`_wheel_speeds`."""
         speed = self._wheel_speeds(omega, near)
-        rollers = wheeling & (self._eq[ks ^ 1] < 0)
-        if rollers.any():
-            speed[rollers] = self._roller_speeds(ks[rollers], omega[rollers])
-        self._spin_lag[ks[~rollers]] = 0.0
+        if wheeling.any():
+            speed[wheeling] = self._wheeling_speeds(ks[wheeling], omega[wheeling])
+        self._spin_lag[ks[~wheeling]] = 0.0
         return speed
 
-    def _roller_speeds(self, ks: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        """Wheel commands (n, 2) [rad/s] of rollers ``ks`` (docked connectors spinning a
-        strut free at its other end: fig22(e)'s chords, fig18(g)'s legs) for the rolling
-        and spin rates ``omega`` (n, 2) [rad/s].
+    def _wheeling_speeds(self, ks: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Wheel commands (n, 2) [rad/s] of wheeling connectors ``ks`` (their wheels
+        commanded: a roller, spinning a strut free at its other end, fig22(e)'s chords and
+        fig18(g)'s legs; a node wheel, spinning its node under a strut docked at both ends,
+        fig22(j), fig18(a)) for the rolling and spin rates ``omega`` (n, 2) [rad/s].
 
         Each wheel's torque ``D_w (u - v)`` is split in two. The aim's rolling part, the
         position loop's, comes first but takes at most ``_ROLLER_AIM`` of the wheel torque;
@@ -1345,7 +1349,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         it, the lag bounded so the command reaches twice the top speed; the voltage ``u``
         likewise). Scaled together within the top speed (:meth:`_wheel_speeds`) the aim
         took the wheels' voltage from the spin: fig22(e)'s rollers spun at a third of their
-        command and slipped, the structure at 16 % of the asked speed (stop 50)."""
+        command and slipped, the structure at 16 % of the asked speed (stop 50); a node
+        wheel's motors, a voltage within the top speed, gave 0.065 of their 0.144 N m
+        stalled, and fig22(j)'s node wheels spun their nodes at 6 % or less (stop 51)."""
         p = self.phys
         kv, limit, top = 0.5 * p.wheel_damping, 0.5 * p.wheel_torque, p.max_wheel_speed
         v = self.data.actuator_velocity[self._motor[ks]]
