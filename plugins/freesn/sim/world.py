@@ -1223,10 +1223,12 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # wheels), which stops a turn it began before they ran: the turn steers those
         # wheels (the spider's legs turned 50-90 % of the time, their axles 30 deg off level)
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
-        # nor a connector whose wheels are commanded (their difference is its commanded
-        # spin), nor the far end of a strut whose other end spins its node (_pinned); the
-        # twist of both is the wheels' (a wheeling end's turn handed to its far end by
-        # _common_turn spun the strut under the node wheel: stop 51)
+        # nor the far end of a strut that wheels a node with free struts (_pinned), nor a
+        # connector whose wheels are commanded: their difference is its commanded spin, and
+        # its twist is theirs (a node wheel's turn or twist, handed to the far end of its
+        # strut by _common_turn, turned that end and spun the strut under the wheels:
+        # fig22(j)'s node wheels spun their nodes at -14 %, 6 % and -14 % of their command;
+        # stop 51)
         wheeling = self._wheel[ks] != 0.0
         pinned = self._pinned(ks)
         steers |= pinned | wheeling
@@ -1278,18 +1280,17 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         return (holder >= 0) & self._turning[j] & (self._wheel[j] == 0.0)
 
     def _pinned(self, ks: np.ndarray) -> np.ndarray:
-        """Which connectors ``ks`` (n,) are the far end of a strut docked at both ends whose
-        other end spins its node as a wheel (the node wheels, Fig. 22(j)). That end cannot
-        turn against the far end's turn (its wheels' difference is its commanded spin), so
-        the turn spins the strut under it, and the node's spin is the wheels' less the
-        strut's: with the far ends turning, fig22(j)'s node wheels spun their nodes at
-        -14 %, 6 % and -14 % of their command from the library's start and the body
-        turned 35 deg in 28 s (stop 51); on a node one strut alone holds, the turn spins
-        the node and its free struts round (``s11:a``'s turn on ``n2`` spun ``n4`` at
-        144 deg/s and broke ``s11:b``, stop 49). It turns neither toward an error nor for
-        its twist (its turn braked); what it cannot roll out is left, as for the strut
-        wheels' legs (stop 47)."""
-        return (self._wheel[ks ^ 1] != 0.0) & (self._eq[ks ^ 1] >= 0)
+        """Which connectors ``ks`` (n,) are the far end of a strut that alone holds a node
+        carrying free struts (:meth:`_hung_once`) while its end on that node spins the
+        node as a wheel. That end cannot turn against the far end's turn (its wheels'
+        difference is its commanded spin), so the turn spins the node and its free struts
+        round the strut's axis: in fig22's node wheels ``s11:a``'s turn on ``n2`` spun
+        ``n4`` at 144 deg/s and broke ``s11:b`` (stop 49). It turns neither toward an error
+        nor for its twist; what it cannot roll out is left, as for the strut wheels' legs
+        (stop 47)."""
+        holds = np.zeros(len(self.ends), dtype=bool)
+        holds[self._holder[self._holder >= 0]] = True
+        return holds[ks ^ 1] & (self._wheel[ks ^ 1] != 0.0)
 
     def _way(self, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Connectors ``ks``' way to their targets (:meth:`_steer`): the signed swing (n,)
