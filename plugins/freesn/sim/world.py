@@ -1224,11 +1224,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # wheels (the spider's legs turned 50-90 % of the time, their axles 30 deg off level)
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
         # nor the far end of a strut that wheels a node with free struts (_pinned), nor a
-        # connector whose wheels are commanded: their difference is its commanded spin, and
-        # its twist is theirs (a node wheel's turn or twist, handed to the far end of its
-        # strut by _common_turn, turned that end and spun the strut under the wheels:
-        # fig22(j)'s node wheels spun their nodes at -14 %, 6 % and -14 % of their command;
-        # stop 51)
+        # wheeling one (its twist is its wheels'; _common_turn gave its turn to the far end)
         wheeling = self._wheel[ks] != 0.0
         pinned = self._pinned(ks)
         steers |= pinned | wheeling
