@@ -154,6 +154,7 @@ _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_HOLD = np.radians(1.0)  # ... and under which it stops turning, its turn braked
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
+_WAY_KEPT = np.radians(90.0)  # a turning connector changes way only when the other is this better
 _ROLLER_AIM = 0.5  # a wheeling connector's aim takes at most this of a wheel's torque, the spin the rest
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
@@ -1299,10 +1300,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         ahead = _wrap(np.pi - np.arctan2(u[:, 1], u[:, 0]))
         behind = _wrap(ahead - np.pi)
         # forwards or backwards, whichever needs the smaller turn; the way chosen is
-        # kept until the other is _HEADING_GO better, so noise does not flip it
+        # kept until the other is _HEADING_GO better, so noise does not flip it, and while
+        # turning until it is _WAY_KEPT better: a sideways error's way flips on a swing of
+        # its direction by a few degrees, and with it the turn's sense (fig22's s7:a, 1.6 deg
+        # off, turned from -96 deg to +73 deg at the wheels' top speed; stop 51)
         was = self._backwards[ks]
-        back = np.where(was, np.abs(behind) < np.abs(ahead) + _HEADING_GO,
-                        np.abs(behind) + _HEADING_GO < np.abs(ahead))
+        kept = np.where(self._turning[ks], _WAY_KEPT, _HEADING_GO)
+        back = np.where(was, np.abs(behind) < np.abs(ahead) + kept,
+                        np.abs(behind) + kept < np.abs(ahead))
         self._backwards[ks] = back
         return np.where(back, -swing, swing), np.where(back, behind, ahead), quat_log(e_q)
 

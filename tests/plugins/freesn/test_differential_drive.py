@@ -485,3 +485,31 @@ def test_a_node_wheel_spins_its_node_at_its_command_under_load_while_its_far_end
             held.append(abs(rates[1]) / asked)
     assert np.mean(spun) > 0.9, np.mean(spun)
     assert np.mean(held) < 0.2, np.mean(held)
+
+
+def _sideways(world: FreeSNWorld, degrees: float, azimuth: float) -> None:
+    """S1:a's target ``degrees`` off its pose about the strut-frame axis at ``azimuth``
+    from ``x`` (0: sideways, the heading to turn +-90 deg; 90: straight ahead)."""
+    k = np.array([0])
+    a = np.radians(azimuth)
+    error = Rotation.from_rotvec(np.radians(degrees) * np.array([np.cos(a), np.sin(a), 0.0]))
+    world._ball_target[k] = quat_mul(error.as_quat(scalar_first=True)[None], world._ball(k))
+
+
+def test_a_turn_toward_a_small_sideways_error_keeps_its_sense_as_the_errors_direction_swings():
+    """A connector 1.6 deg off sideways turns toward the error (heading +84 deg, forwards);
+    the error's direction then swings 18 deg (heading +102 deg forwards, -78 deg
+    backwards). It keeps turning the same way: before, the way flipped to backwards and
+    the turn's sense with it (fig22's s7:a, -96 deg then +73 deg at the wheels' top speed,
+    broke off n2 at 79.0 s; stop 51)."""
+    world = _one_strut()
+    world._holder = world._hung_once()
+    _sideways(world, 1.6, 6.0)
+    speed, _ = world._steer(np.array([0]))
+    assert world._turning[0] and not world._backwards[0]
+    first = np.sign(speed[0, 1] - speed[0, 0])
+    _sideways(world, 1.6, -12.0)
+    speed, _ = world._steer(np.array([0]))
+    assert world._turning[0]
+    assert np.sign(speed[0, 1] - speed[0, 0]) == first
+    assert not world._backwards[0]
