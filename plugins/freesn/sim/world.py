@@ -154,7 +154,7 @@ _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_HOLD = np.radians(1.0)  # ... and under which it stops turning, its turn braked
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
-_WAY_KEPT = np.radians(90.0)  # a turning connector changes way only when the other is this better
+_WAY_KEPT = np.radians(90.0)  # a connector turning on a small swing changes way only this much better
 _ROLLER_AIM = 0.5  # a wheeling connector's aim takes at most this of a wheel's torque, the spin the rest
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
@@ -1301,11 +1301,12 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         behind = _wrap(ahead - np.pi)
         # forwards or backwards, whichever needs the smaller turn; the way chosen is
         # kept until the other is _HEADING_GO better, so noise does not flip it, and while
-        # turning until it is _WAY_KEPT better: a sideways error's way flips on a swing of
-        # its direction by a few degrees, and with it the turn's sense (fig22's s7:a, 1.6 deg
-        # off, turned from -96 deg to +73 deg at the wheels' top speed; stop 51)
+        # turning on a swing under _TURN_ON until it is _WAY_KEPT better: a small sideways
+        # error's direction swings by degrees with the node's motion, which flipped its way
+        # and the turn's sense (fig22's s7:a, 1.6 deg off, turned at -96 deg, then +73 deg,
+        # at the wheels' top speed, and broke off n2; stop 51)
         was = self._backwards[ks]
-        kept = np.where(self._turning[ks], _WAY_KEPT, _HEADING_GO)
+        kept = np.where(self._turning[ks] & (swing < _TURN_ON), _WAY_KEPT, _HEADING_GO)
         back = np.where(was, np.abs(behind) < np.abs(ahead) + kept,
                         np.abs(behind) + kept < np.abs(ahead))
         self._backwards[ks] = back
