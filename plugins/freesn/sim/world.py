@@ -154,7 +154,8 @@ _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
 _HEADING_HOLD = np.radians(1.0)  # ... and under which it stops turning, its turn braked
 _HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
-_ROLLER_AIM = 0.5  # a roller's aim takes at most this of a wheel's torque, the spin the rest
+_WAY_KEPT = np.radians(90.0)  # ... turning on a small swing, the way kept until this much better
+_ROLLER_AIM = 0.5  # a wheeling connector's aim takes at most this of a wheel's torque, the spin the rest
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
 _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is levelled back ...
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
@@ -1223,10 +1224,12 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # wheels), which stops a turn it began before they ran: the turn steers those
         # wheels (the spider's legs turned 50-90 % of the time, their axles 30 deg off level)
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
-        # nor the far end of a strut that wheels a node with free struts (_pinned)
+        # nor the far end of a strut that wheels a node with free struts (_pinned), nor a
+        # wheeling one (its twist is its wheels'; _common_turn gave its turn to the far end)
+        wheeling = self._wheel[ks] != 0.0
         pinned = self._pinned(ks)
-        steers |= pinned
-        twist = np.where(pinned, 0.0, twist)
+        steers |= pinned | wheeling
+        twist = np.where(pinned | wheeling, 0.0, twist)
         aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON)
         self._turning[ks] = ~steers & np.where(
             self._turning[ks], np.abs(swing) > _TURN_OFF,
@@ -1235,7 +1238,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
         # a wheeling connector cannot turn (its wheels' difference is its commanded spin):
         # it rolls out the part of its swing along its heading, which the spin sweeps round
-        wheeling = self._wheel[ks] != 0.0
         roll = np.where(turning | wheeling,
                         swing * np.cos(heading) * np.where(wheeling, 1.0, gate), error[:, 1])
         # turning, a connector whose heading is within _HEADING_HOLD rolls and asks no turn:
@@ -1298,10 +1300,15 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         ahead = _wrap(np.pi - np.arctan2(u[:, 1], u[:, 0]))
         behind = _wrap(ahead - np.pi)
         # forwards or backwards, whichever needs the smaller turn; the way chosen is
-        # kept until the other is _HEADING_GO better, so noise does not flip it
+        # kept until the other is _HEADING_GO better, so noise does not flip it, and while
+        # turning on a swing under _TURN_ON until it is _WAY_KEPT better: a small sideways
+        # error's direction swings by degrees with the node's motion, which flipped its way
+        # and the turn's sense (fig22's s7:a, 1.6 deg off, turned at -96 deg, then +73 deg,
+        # at the wheels' top speed, and broke off n2; stop 51)
         was = self._backwards[ks]
-        back = np.where(was, np.abs(behind) < np.abs(ahead) + _HEADING_GO,
-                        np.abs(behind) + _HEADING_GO < np.abs(ahead))
+        kept = np.where(self._turning[ks] & (swing < _TURN_ON), _WAY_KEPT, _HEADING_GO)
+        back = np.where(was, np.abs(behind) < np.abs(ahead) + kept,
+                        np.abs(behind) + kept < np.abs(ahead))
         self._backwards[ks] = back
         return np.where(back, -swing, swing), np.where(back, behind, ahead), quat_log(e_q)
 
@@ -1323,19 +1330,19 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _commands(self, ks: np.ndarray, omega: np.ndarray, near: np.ndarray,
                   wheeling: np.ndarray) -> np.ndarray:
         """Wheel commands (n, 2) [rad/s] of connectors ``ks`` for the rates ``omega`` (n, 2):
-        a roller's (``wheeling``, its strut free at the other end) by
-        :meth:`_roller_speeds`, any other's by :meth:`_wheel_speeds`."""
+        a wheeling one's (its wheels commanded) by :meth:`_wheeling_speeds`, any other's by
+        :meth:`_wheel_speeds`."""
         speed = self._wheel_speeds(omega, near)
-        rollers = wheeling & (self._eq[ks ^ 1] < 0)
-        if rollers.any():
-            speed[rollers] = self._roller_speeds(ks[rollers], omega[rollers])
-        self._spin_lag[ks[~rollers]] = 0.0
+        if wheeling.any():
+            speed[wheeling] = self._wheeling_speeds(ks[wheeling], omega[wheeling])
+        self._spin_lag[ks[~wheeling]] = 0.0
         return speed
 
-    def _roller_speeds(self, ks: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        """Wheel commands (n, 2) [rad/s] of rollers ``ks`` (docked connectors spinning a
-        strut free at its other end: fig22(e)'s chords, fig18(g)'s legs) for the rolling
-        and spin rates ``omega`` (n, 2) [rad/s].
+    def _wheeling_speeds(self, ks: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Wheel commands (n, 2) [rad/s] of wheeling connectors ``ks`` (their wheels
+        commanded: a roller, spinning a strut free at its other end, fig22(e)'s chords and
+        fig18(g)'s legs; a node wheel, spinning its node under a strut docked at both ends,
+        fig22(j), fig18(a)) for the rolling and spin rates ``omega`` (n, 2) [rad/s].
 
         Each wheel's torque ``D_w (u - v)`` is split in two. The aim's rolling part, the
         position loop's, comes first but takes at most ``_ROLLER_AIM`` of the wheel torque;
@@ -1345,7 +1352,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         it, the lag bounded so the command reaches twice the top speed; the voltage ``u``
         likewise). Scaled together within the top speed (:meth:`_wheel_speeds`) the aim
         took the wheels' voltage from the spin: fig22(e)'s rollers spun at a third of their
-        command and slipped, the structure at 16 % of the asked speed (stop 50)."""
+        command and slipped, the structure at 16 % of the asked speed (stop 50); a node
+        wheel's motors, a voltage within the top speed, gave 0.065 of their 0.144 N m
+        stalled, and fig22(j)'s node wheels spun their nodes at 6 % or less (stop 51)."""
         p = self.phys
         kv, limit, top = 0.5 * p.wheel_damping, 0.5 * p.wheel_torque, p.max_wheel_speed
         v = self.data.actuator_velocity[self._motor[ks]]

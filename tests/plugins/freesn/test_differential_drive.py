@@ -443,3 +443,73 @@ def test_the_far_end_of_a_strut_wheeling_a_node_with_free_struts_does_not_turn()
     for _ in range(25):
         world.step(0.02)
         assert not world._turning[far]
+
+
+def test_a_node_wheel_spins_its_node_at_its_command_under_load_while_its_far_end_holds():
+    """A node wheel (Fig. 22(j)): S0 docked at N1 and N2 (gravity off), its end on N1
+    spinning N1 at 2 rad/s of wheel speed (1.03 rad/s) against 0.3 N m about the strut's
+    axis, N2 held by as much the other way, its aim 10 deg to the side (which a connector
+    that is not wheeling turns toward). It does not turn, its far end holds (the strut
+    turns on N2 at < 0.2 of the spin; 0.10) and N1 spins at its command (0.9 of it at least
+    over the second second). Before, the wheeling end turned and handed its turn to the
+    far end (``_common_turn``), which spun the strut at 1.4 times the asked spin, and
+    the wheels' motors, a voltage within the top speed, drove N1 at 0.60 of it: fig22(j)'s
+    node wheels spun their nodes at -14 %, 6 % and -14 % of their command and the body
+    turned 35 deg in 28 s."""
+    config = Configuration("freesn")
+    config.add_module("N1", "node")
+    config.add_module("N2", "node")
+    x = np.array([1.0, 0.0, 0.0])
+    config.connect("N1", "N2", id="S0", kind="strut", z=x, x=np.array([0.0, 0.0, 1.0]))
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    wheel, far = world._end("S0", "a"), world._end("S0", "b")
+    world.command_target("S0", "a", (Rotation.from_rotvec(np.radians(10.0) * np.array(
+        [0.0, 0.0, 1.0])).apply(x), None, 1.0))
+    world.command_target("S0", "b", (-x, None, 1.0))
+    world.command_wheels("S0", "a", 2.0)
+    asked = 2.0 / world.phys.turn_ratio
+    spun, held = [], []
+    for i in range(100):
+        for n, sign in ((0, -1.0), (1, 1.0)):   # about the strut's axis, in node frames
+            turn = world.data.xmat[world._node_body[n]].reshape(3, 3)
+            world.data.qfrc_applied[world._node_rate[n] + np.arange(3)] = turn.T @ (
+                sign * 0.3 * x)
+        world.step(0.02)
+        assert not world._turning[wheel]
+        if i >= 50:
+            rates = [float(world.data.qvel[world._dofs[k]] @ Rotation.from_quat(
+                world._ball(np.array([k]))[0], scalar_first=True).inv().apply([0, 0, 1.0]))
+                for k in (wheel, far)]   # about the strut's axis, relative to it
+            spun.append(abs(rates[0]) / asked)
+            held.append(abs(rates[1]) / asked)
+    assert np.mean(spun) > 0.9, np.mean(spun)
+    assert np.mean(held) < 0.2, np.mean(held)
+
+
+def _sideways(world: FreeSNWorld, degrees: float, azimuth: float) -> None:
+    """S1:a's target ``degrees`` off its pose about the strut-frame axis at ``azimuth``
+    from ``x`` (0: sideways, the heading to turn +-90 deg; 90: straight ahead)."""
+    k = np.array([0])
+    a = np.radians(azimuth)
+    error = Rotation.from_rotvec(np.radians(degrees) * np.array([np.cos(a), np.sin(a), 0.0]))
+    world._ball_target[k] = quat_mul(error.as_quat(scalar_first=True)[None], world._ball(k))
+
+
+def test_a_turn_toward_a_small_sideways_error_keeps_its_sense_as_the_errors_direction_swings():
+    """A connector 1.6 deg off sideways turns toward the error (heading +84 deg, forwards);
+    the error's direction then swings 18 deg (heading +102 deg forwards, -78 deg
+    backwards). It keeps turning the same way: before, the way flipped to backwards and
+    the turn's sense with it (fig22's s7:a, -96 deg then +73 deg at the wheels' top speed,
+    broke off n2 at 79.0 s; stop 51)."""
+    world = _one_strut()
+    world._holder = world._hung_once()
+    _sideways(world, 1.6, 6.0)
+    speed, _ = world._steer(np.array([0]))
+    assert world._turning[0] and not world._backwards[0]
+    first = np.sign(speed[0, 1] - speed[0, 0])
+    _sideways(world, 1.6, -12.0)
+    speed, _ = world._steer(np.array([0]))
+    assert world._turning[0]
+    assert np.sign(speed[0, 1] - speed[0, 0]) == first
+    assert not world._backwards[0]
