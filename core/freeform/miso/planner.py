@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ...configuration import Configuration
+from ...errors import ExecutionError
 from ...plan import Action, ActionType, ConnectionChange, Plan
 from .exact import exact_pairing
 from .model import (
@@ -28,9 +30,10 @@ from .model import (
 )
 from .order import order_steps
 from .pairing import heuristic_pairing
+from .places import goal_in_start_frame, nearer_pairing, travel
 
-__all__ = ["MisoPlanner", "MisoSolution", "miso_planners", "plan_miso", "solve_exact",
-           "solve_heuristic"]
+__all__ = ["Layout", "MisoPlanner", "MisoSolution", "carries_places", "miso_planners",
+           "plan_miso", "solve_exact", "solve_heuristic"]
 
 
 @dataclass
@@ -158,6 +161,43 @@ def _keep_labels(solution: MisoSolution, problem: MisoProblem) -> MisoSolution:
                             problem, solution)[:2], stats=solution.stats)
 
 
+Layout = Callable[[Configuration], Mapping[str, np.ndarray]]
+"""Where the world lays a configuration: every module's centre (3,) [m]."""
+
+
+def carries_places(config: Configuration) -> bool:
+    """Whether ``config`` says where its modules lie: a module with a ``position`` (a
+    lab's layout of the start); without one a configuration is topology and vectors."""
+    return any(config.position(v) is not None for v in config.vertices()
+               if not config.is_virtual(v))
+
+
+def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
+            goal: Configuration, layout: Layout, notes: list[str]) -> MisoSolution:
+    """``solution``, or the plan of the same fragments sent to the nearer images
+    (:func:`~.places.nearer_pairing`) when it has no more changes or steps and no fewer
+    flows; ``stats`` gain both pairings' module-metres."""
+    try:
+        here, there = layout(start), layout(goal)
+    except ExecutionError as error:
+        notes.append(f"pieces paired by topology only: the world cannot lay them ({error})")
+        return solution
+    s = np.array([here[m] for m in problem.start_ids], dtype=np.float64)
+    laid = np.array([there[m] for m in problem.goal_ids], dtype=np.float64)
+    g = goal_in_start_frame(problem, solution.pairing, s, laid)
+    pair = nearer_pairing(problem, solution.pairing, s, laid)
+    stats = {**solution.stats, "module_metres_topology": travel(solution.pairing, s, g)}
+    other = _solution(problem, pair, time.perf_counter())
+    if pair == list(solution.pairing) or _rank(problem, other) > _rank(problem, solution):
+        return MisoSolution(solution.pairing, solution.steps, solution.lower_bound,
+                            optimal=solution.optimal,
+                            stats={**stats, "module_metres": stats["module_metres_topology"]})
+    return MisoSolution(pair, other.steps, other.lower_bound,
+                        optimal=solution.optimal and _rank(problem, other)[:2] == _rank(
+                            problem, solution)[:2],
+                        stats={**stats, "module_metres": travel(pair, s, g)})
+
+
 def _same_shape(a: Configuration, b: Configuration) -> bool:
     """Same connections (by ends) with the same vectors."""
     def links(c: Configuration) -> dict[tuple[str, str], tuple]:
@@ -225,7 +265,7 @@ def _carried(parent: list[int], module: int) -> list[int]:
 
 def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
               planner: str = "miso", limits: MisoLimits = UNLIMITED,
-              time_limit: float = 60.0) -> Plan:
+              time_limit: float = 60.0, layout: Layout | None = None) -> Plan:
     """A :class:`~msrr.core.plan.Plan` of MISO connection changes from ``start`` to ``goal``
     (any pieces, cycles allowed), under the robot's ``limits``.
 
@@ -239,13 +279,23 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     then (it travels into the goal's shape); new ones take the goal's vectors. ``plan.stats`` holds both metrics,
     ``steps`` and ``changes`` (``broken`` + ``made``).
 
+    With a ``layout`` (where the world lays a configuration) and a start that carries
+    places (:func:`carries_places`), the pieces of equal shape go to the nearer of their
+    interchangeable places (:func:`~.places.nearer_pairing`; same changes and steps);
+    ``stats`` then hold ``module_metres`` and ``module_metres_topology``, the straight
+    travel of every module under both pairings [m].
+
     Raises:
         PlanningError: module counts or kinds differ, or a configuration breaks the
             robot's rules.
     """
     problem = MisoProblem.from_configurations(start, goal, limits)
-    solution = _keep_labels((solve_exact(problem, time_limit=time_limit) if exact
-                             else solve_heuristic(problem)), problem)
+    solution = solve_exact(problem, time_limit=time_limit) if exact else solve_heuristic(
+        problem)
+    notes: list[str] = []
+    if layout is not None and carries_places(start):
+        solution = _nearer(solution, problem, start, goal, layout, notes)
+    solution = _keep_labels(solution, problem)
     ids = problem.start_ids
     final = targets(problem, solution.pairing)
     goal_index = {v: b for b, v in enumerate(goal.vertices())}
@@ -265,7 +315,6 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
         # ends where the leaf touches its new parent) does not set the goal's vectors
         actions.append(Action(ActionType.MOVING, reached, ids, note="take the goal's shape"))
     mapping = {ids[a]: problem.goal_ids[b] for a, b in enumerate(solution.pairing)}
-    notes = []
     if exact and not solution.stats.get("changes_proved", 0.0):
         notes.append(f"exact search stopped after {time_limit:g} s: best plan found, "
                      "optimality not proved")
@@ -297,17 +346,20 @@ class MisoPlanner:
     exact: bool = False
     limits: MisoLimits = UNLIMITED
     time_limit: float = 60.0
+    layout: Layout | None = None
 
     def plan(self, start: Configuration, goal: Configuration, *, seed: int = 0) -> Plan:
         """Plan ``start`` -> ``goal``; deterministic (``seed`` unused)."""
         return plan_miso(start, goal, exact=self.exact, planner=self.name, limits=self.limits,
-                         time_limit=self.time_limit)
+                         time_limit=self.time_limit, layout=self.layout)
 
 
-def miso_planners(limits: MisoLimits) -> tuple[MisoPlanner, MisoPlanner]:
-    """``miso`` and ``miso-exact`` under a robot's rules."""
-    return (MisoPlanner(limits=limits),
-            MisoPlanner(name="miso-exact", exact=True, limits=limits,
+def miso_planners(limits: MisoLimits, layout: Layout | None = None
+                  ) -> tuple[MisoPlanner, MisoPlanner]:
+    """``miso`` and ``miso-exact`` under a robot's rules; with the world's ``layout``,
+    pieces of equal shape go to the nearer places when the start carries places."""
+    return (MisoPlanner(limits=limits, layout=layout),
+            MisoPlanner(name="miso-exact", exact=True, limits=limits, layout=layout,
                         description="MISO connection planning, exact: integer program "
                                     "(scipy milp) for the fewest connection changes, "
                                     "proved"))

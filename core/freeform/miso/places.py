@@ -1,0 +1,138 @@
+"""Among pairings of the fewest changes, the one whose pieces travel least: a geometric
+tie-break when the configurations carry places.
+
+A pairing ``pi`` cuts the start into *fragments*: the modules joined by kept connections
+(``goal[pi(i)] == pi(start[i])``), each a rooted tree that lands, unchanged, on an
+isomorphic subtree of the goal, its *image*. Two fragments of the same rooted shape can
+trade images: inside each, every connection stays kept; at their borders nothing was
+kept (a fragment is maximal), so the trade keeps at least as many connections. Which
+fragment takes which image is the planner's free choice -- the topology alone does not
+tell it -- and the pieces the plan moves are these fragments. :func:`nearer_pairing`
+makes that choice by place: per class of equal shapes, one minimum-cost assignment
+(``scipy.optimize.linear_sum_assignment``) of fragments to images, the cost of a
+fragment on an image the sum over its modules of the straight distance from its start
+place to its goal place (module-metres: a piece's travel, turns included, weighed by the
+modules it carries).
+
+The goal's places come from its own vectors, in a frame of their own; they are put in
+the start's frame by the piece that stays: the largest fragment whose root is free in
+both configurations (nothing docks it anywhere, so the goal is built around it where it
+lies), fitted by a turn about ``z`` and a shift (least squares over its modules, Kabsch
+in the floor plane). With no such fragment the goal's places are taken as they are.
+
+Deterministic: fragments in the order of their smallest module, classes by an integer
+encoding of rooted shapes (AHU) assigned in that order, ties left to the assignment
+solver, which is deterministic; the new pairing is kept only when it moves the modules
+strictly less and keeps every connection the old one kept.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from .model import FREE, MisoProblem, children_of, pairing_score, rooted, targets
+
+__all__ = ["fragments", "goal_in_start_frame", "nearer_pairing", "travel"]
+
+
+def fragments(problem: MisoProblem, pair: Sequence[int]) -> list[list[int]]:
+    """The start's fragments under ``pair``, each in a canonical top-down order (its root
+    first; children by shape, then index), in the order of their roots' indices; cycles
+    are cut as :func:`~.model.rooted` cuts them."""
+    forest = rooted(problem.start)
+    final = targets(problem, pair)
+    kids = [[c for c in cs if final[c] == forest[c]] for cs in children_of(forest)]
+    roots = [i for i in range(problem.n) if forest[i] == FREE or final[i] != forest[i]]
+    shape = _shapes(kids, roots)
+    out = []
+    for r in roots:
+        order, stack = [], [r]
+        while stack:
+            u = stack.pop()
+            order.append(u)
+            stack.extend(sorted(kids[u], key=lambda c: (shape[c], c), reverse=True))
+        out.append(order)
+    return out
+
+
+def _shapes(kids: list[list[int]], roots: list[int]) -> dict[int, int]:
+    """An integer per module, equal for two modules exactly when their subtrees (along
+    ``kids``) have the same rooted shape (AHU encoding, ids by first appearance)."""
+    order = list(roots)
+    for u in order:
+        order.extend(kids[u])
+    table: dict[tuple[int, ...], int] = {}
+    shape: dict[int, int] = {}
+    for u in reversed(order):
+        key = tuple(sorted(shape[c] for c in kids[u]))
+        shape[u] = table.setdefault(key, len(table))
+    return shape
+
+
+def goal_in_start_frame(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                        goal_places: np.ndarray) -> np.ndarray:
+    """``goal_places`` (n, 3) moved into the start's frame by the piece that stays (module
+    docstring): the largest fragment whose root is free in both, fitted by a turn about
+    ``z`` and a shift; unchanged when there is none."""
+    stays = [f for f in fragments(problem, pair)
+             if problem.start[f[0]] == FREE and problem.goal[pair[f[0]]] == FREE]
+    if not stays:
+        return np.array(goal_places, dtype=np.float64)
+    anchor = max(stays, key=len)   # the first of the largest (roots in index order)
+    p = np.asarray(goal_places, dtype=np.float64)[[pair[a] for a in anchor]]
+    q = np.asarray(start_places, dtype=np.float64)[anchor]
+    pc, qc = p.mean(axis=0), q.mean(axis=0)
+    cross = (p[:, :2] - pc[:2]).T @ (q[:, :2] - qc[:2])
+    yaw = np.arctan2(cross[0, 1] - cross[1, 0], cross[0, 0] + cross[1, 1])
+    c, s = np.cos(yaw), np.sin(yaw)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return (np.asarray(goal_places, dtype=np.float64) - pc) @ turn.T + qc
+
+
+def travel(pair: Sequence[int], start_places: np.ndarray, goal_places: np.ndarray) -> float:
+    """Module-metres of ``pair``: the sum of the straight distances from each module's
+    start place to its goal place [m]."""
+    goal = np.asarray(goal_places, dtype=np.float64)[list(pair)]
+    return float(np.linalg.norm(np.asarray(start_places, dtype=np.float64) - goal,
+                                axis=1).sum())
+
+
+def nearer_pairing(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                   goal_places: np.ndarray) -> list[int]:
+    """``pair`` with its fragments' images reassigned, per class of equal shapes, so
+    the modules travel least from ``start_places`` (n, 3) to ``goal_places`` (n, 3, the
+    goal's index order, in any frame: moved by :func:`goal_in_start_frame`) [m]; ``pair``
+    itself unless that moves them strictly less and keeps as many connections."""
+    goal = goal_in_start_frame(problem, pair, start_places, goal_places)
+    here = np.asarray(start_places, dtype=np.float64)
+    forest = rooted(problem.start)
+    classes: dict[tuple[int, ...], list[list[int]]] = {}
+    for f in fragments(problem, pair):   # a class: one shape, read in canonical order
+        classes.setdefault(_signature(forest, f), []).append(f)
+    new = list(pair)
+    for members in classes.values():
+        if len(members) < 2:
+            continue
+        froms = here[np.array(members)]                                    # (k, s, 3)
+        images = goal[np.array([[pair[a] for a in f] for f in members])]   # (k, s, 3)
+        cost = np.stack([np.linalg.norm(f[None] - images, axis=2).sum(axis=1)
+                         for f in froms])
+        rows, cols = linear_sum_assignment(cost)
+        for r, c in zip(rows, cols, strict=True):
+            for a, b in zip(members[r], members[c], strict=True):
+                new[a] = pair[b]
+    before, after = travel(pair, here, goal), travel(new, here, goal)
+    if after < before - 1e-9 and pairing_score(problem, new) >= pairing_score(problem, pair):
+        return new
+    return list(pair)
+
+
+def _signature(forest: Sequence[int], fragment: list[int]) -> tuple[int, ...]:
+    """The fragment's shape as its canonical order's parent positions (``-1`` at the
+    root): equal exactly when two fragments' canonical orders correspond module by
+    module."""
+    at = {m: k for k, m in enumerate(fragment)}
+    return tuple(at.get(forest[m], -1) if k else -1 for k, m in enumerate(fragment))
