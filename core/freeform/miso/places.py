@@ -12,7 +12,8 @@ makes that choice by place: per class of equal shapes, one minimum-cost assignme
 (``scipy.optimize.linear_sum_assignment``) of fragments to images, the cost of a
 fragment on an image the sum over its modules of the straight distance from its start
 place to its goal place (module-metres: a piece's travel, turns included, weighed by the
-modules it carries).
+modules it carries), less a weight above any such sum when both roots are free (a free
+module paired with a free one saves a step: those pairs are kept first).
 
 The goal's places come from its own vectors, in a frame of their own; they are put in
 the start's frame by the piece that stays: the largest fragment whose root is free in
@@ -120,6 +121,9 @@ def nearer_pairing(problem: MisoProblem, pair: Sequence[int], start_places: np.n
         images = goal[np.array([[pair[a] for a in f] for f in members])]   # (k, s, 3)
         cost = np.stack([np.linalg.norm(f[None] - images, axis=2).sum(axis=1)
                          for f in froms])
+        free_a = np.array([problem.start[f[0]] == FREE for f in members])
+        free_b = np.array([problem.goal[pair[f[0]]] == FREE for f in members])
+        cost -= (cost.sum() + 1.0) * (free_a[:, None] & free_b[None, :])
         rows, cols = linear_sum_assignment(cost)
         for r, c in zip(rows, cols, strict=True):
             for a, b in zip(members[r], members[c], strict=True):
