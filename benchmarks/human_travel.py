@@ -4,18 +4,19 @@ pairing by places (issue 28, item 6).
 ``miso`` plans Luo and Lam's human example (six chains of 568 FreeBOTs into a human
 figure) twice: by topology alone, and with the world's layout, which sends the pieces of
 one shape to the nearer of their interchangeable places (:mod:`msrr.core.freeform.miso.places`).
-For every step that docks a piece over the floor it prints the piece's size and the
-straight distance its centroid covers: the piece's modules whose connections up to its
-top are the goal's go to their goal places (the goal in the start's frame, fitted on the
-piece that stays), the rest (riders that leave it later) are carried along by the
-shift of the module they hang from. No way is planned: this is a lower bound of the
-floor travel ``human_floor.py`` measures, turns and detours left out.
+For every step that docks a piece it prints the piece's size and the straight distance
+its centroid covers (:func:`~msrr.core.freeform.miso.places.step_travel`: the piece's
+modules whose connections up to its top are the goal's go to their goal places, the goal
+in the start's frame fitted on the piece that stays; riders that leave it later are
+shifted with the module they hang from). No way is planned: a lower bound of the floor
+travel ``human_floor.py`` measures, turns and detours left out.
 
 Usage: ``python benchmarks/human_travel.py [--start FILE] [--seed 0]``.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -28,59 +29,52 @@ ROOT = Path(__file__).resolve().parents[1]
 HUMAN = ROOT / "plugins" / "freebot" / "configs" / "human"
 
 
-def _goal_places(plan, start, goal, layout) -> dict[str, np.ndarray]:
-    """Each start module's goal place (3,) [m] in the start's frame."""
-    from msrr.core.freeform.miso import MisoProblem, goal_in_start_frame
+def rows(plan, start, goal, layout) -> list[tuple[int, str, int, float]]:
+    """Per step that docks: (action, dock, modules in the piece, straight travel [m])."""
+    from msrr.core.freeform.miso import (
+        FREE,
+        MisoProblem,
+        Step,
+        goal_in_start_frame,
+        step_travel,
+    )
 
     problem = MisoProblem.from_configurations(start, goal)
-    index = {m: b for b, m in enumerate(problem.goal_ids)}
-    pair = [index[plan.mapping[m]] for m in problem.start_ids]
-    here, there = layout(start), layout(goal)
-    laid = goal_in_start_frame(problem, pair, np.array([here[m] for m in problem.start_ids]),
-                               np.array([there[m] for m in problem.goal_ids]))
-    return {m: laid[pair[a]] for a, m in enumerate(problem.start_ids)}
-
-
-def steps(plan, start, goal, layout) -> list[tuple[int, str, int, float]]:
-    """Per docking step: (action, dock, modules, centroid's straight travel [m])."""
-    place = _goal_places(plan, start, goal, layout)
-    final = {e.source: e.target for e in plan.goal.edges()}
-    pos = {m: np.asarray(p, dtype=np.float64) for m, p in layout(start).items()}
-    parent = {e.source: e.target for e in start.edges()}
-    out = []
+    index = {m: i for i, m in enumerate(problem.start_ids)}
+    goal_index = {m: b for b, m in enumerate(problem.goal_ids)}
+    pair = [goal_index[plan.mapping[m]] for m in problem.start_ids]
+    steps, docks = [], []
     for k, action in enumerate(plan.actions, 1):
-        made = [c for c in action.changes
-                if {e.source: e.target for e in action.target.edges()}.get(c.source) == c.target]
-        new = {e.source: e.target for e in action.target.edges()}
-        for c in made:
-            on: dict[str, list[str]] = {}
-            for m, p in new.items():
-                on.setdefault(p, []).append(m)
-            piece, todo = [], [c.source]
-            while todo:
-                m = todo.pop()
-                piece.append(m)
-                todo.extend(sorted(on.get(m, ())))
-            if c.target in piece or parent.get(c.source) == c.target:
-                continue
-            before = np.mean([pos[m] for m in piece], axis=0)
-            for m in piece:   # top down: a module after the one it hangs from
-                settled = m == c.source or (final.get(m) == new.get(m) and m in _at_goal)
-                if settled:
-                    shift_of[m] = place[m] - pos[m]
-                    pos[m] = place[m]
-                    _at_goal.add(m)
-                else:
-                    shift_of[m] = shift_of[new[m]]
-                    pos[m] = pos[m] + shift_of[m]
-            out.append((k, f"{c.source} -> {c.target}", len(piece),
-                        float(np.linalg.norm(np.mean([pos[m] for m in piece], axis=0) - before))))
-        parent = new
+        if not action.changes:
+            continue
+        now = {(e.source, e.target) for e in action.target.edges()}
+        made = [c for c in action.changes if (c.source, c.target) in now]
+        broken = [c for c in action.changes if (c.source, c.target) not in now]
+        m = action.changes[0].source
+        steps.append(Step(index[m], index[broken[0].target] if broken else FREE,
+                          index[made[0].target] if made else FREE))
+        docks.append((k, f"{m} -> {made[0].target}" if made else f"{m} free"))
+    here, there = layout(start), layout(goal)
+    s = np.array([here[m] for m in problem.start_ids])
+    g = goal_in_start_frame(problem, pair, s, np.array([there[m] for m in problem.goal_ids]))
+    parent = list(problem.start)
+    out = []
+    for (k, dock), step, d in zip(docks, steps, step_travel(problem, pair, steps, s, g),
+                                  strict=True):
+        parent[step.module] = step.new
+        size = 1 + sum(1 for i in range(problem.n) if _under(parent, i, step.module))
+        if step.new != FREE:
+            out.append((k, dock, size, d))
     return out
 
 
-_at_goal: set[str] = set()
-shift_of: dict[str, np.ndarray] = {}
+def _under(parent: list[int], i: int, top: int) -> bool:
+    """Whether module ``i``'s connector path reaches ``top`` (``i`` rides on it)."""
+    seen = set()
+    while parent[i] != -1 and i not in seen and i != top:
+        seen.add(i)
+        i = parent[i]
+    return i == top and bool(seen)
 
 
 @click.command()
@@ -89,38 +83,29 @@ shift_of: dict[str, np.ndarray] = {}
                                                        path_type=Path),
               default=HUMAN / "human-chains-near.json", show_default=True)
 def main(seed: int, start_file: Path) -> None:
-    from dataclasses import replace
-
     from msrr.core import plugins
 
     start = load_configuration(start_file)
     goal = load_configuration(HUMAN / "human.json")
     by_places = plugins.planners("freebot")["miso"]
-    layout = by_places.layout
-    runs = {}
-    for name, planner in (("topology", replace(by_places, layout=None)),
-                          ("places", by_places)):
-        plan = planner.plan(start, goal, seed=seed)
-        _at_goal.clear()
-        shift_of.clear()
-        runs[name] = (plan, steps(plan, start, goal, layout))
+    plans = {name: planner.plan(start, goal, seed=seed) for name, planner in (
+        ("topology", replace(by_places, layout=None)), ("places", by_places))}
+    runs = {name: rows(plan, start, goal, by_places.layout) for name, plan in plans.items()}
     console.print(f"seed {seed}; start {start_file.name}")
-    rows = []
-    for (k, dock, n, d), (k2, dock2, n2, d2) in zip(runs["topology"][1], runs["places"][1],
-                                                     strict=False):
-        rows.append([str(k), dock, str(n), f"{d:.2f}", str(k2), dock2, str(n2), f"{d2:.2f}"])
-    sums = [sum(s[3] for s in runs[r][1]) for r in ("topology", "places")]
-    rows.append(["sum", "", "", f"{sums[0]:.1f}", "", "", "", f"{sums[1]:.1f}"])
+    table_rows = [[str(k), dock, str(n), f"{d:.2f}", str(k2), dock2, str(n2), f"{d2:.2f}"]
+                  for (k, dock, n, d), (k2, dock2, n2, d2) in zip(
+                      runs["topology"], runs["places"], strict=False)]
+    sums = [sum(r[3] for r in runs[name]) for name in ("topology", "places")]
+    table_rows.append(["sum", "", "", f"{sums[0]:.1f}", "", "", "", f"{sums[1]:.1f}"])
     console.print(table("the human example's pieces, centroid travel straight [m]",
                         ["action", "dock (topology)", "modules", "straight [m]",
-                         "action", "dock (places)", "modules", "straight [m]"], rows))
-    stats = runs["places"][0].stats
-    for name, (plan, _) in runs.items():
-        console.print(f"{name}: {plan.stats['changes']:.0f} changes, {plan.stats['steps']:.0f}"
-                      " steps")
-    console.print(f"module-metres (every module's straight distance, start to goal place): "
-                  f"topology {stats.get('module_metres_topology', float('nan')):.0f}, places "
-                  f"{stats.get('module_metres', float('nan')):.0f}")
+                         "action", "dock (places)", "modules", "straight [m]"], table_rows))
+    for name, plan in plans.items():
+        console.print(f"{name}: {plan.stats['changes']:.0f} changes, "
+                      f"{plan.stats['steps']:.0f} steps")
+    stats = plans["places"].stats
+    console.print(f"planner's sums (travel_m): topology {stats.get('travel_m_topology', 0):.1f},"
+                  f" places {stats.get('travel_m', 0):.1f}")
 
 
 if __name__ == "__main__":

@@ -62,7 +62,14 @@ from .model import (
 )
 from .order import order_steps
 from .pairing import heuristic_pairing
-from .places import fragments, goal_in_start_frame, nearer_pairing, travel
+from .places import (
+    class_moves,
+    fragments,
+    goal_in_start_frame,
+    nearer_pairing,
+    step_travel,
+    travel,
+)
 from .planner import (
     Layout,
     MisoPlanner,
@@ -89,6 +96,7 @@ __all__ = [
     "carries_places",
     "changes",
     "children_of",
+    "class_moves",
     "count_flows",
     "cycles",
     "depths",
@@ -115,6 +123,7 @@ __all__ = [
     "solve_heuristic",
     "step_changes",
     "step_is_legal",
+    "step_travel",
     "targets",
     "travel",
 ]

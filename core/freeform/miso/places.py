@@ -34,9 +34,10 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .model import FREE, MisoProblem, children_of, pairing_score, rooted, targets
+from .model import FREE, MisoProblem, Step, children_of, pairing_score, rooted, targets
 
-__all__ = ["fragments", "goal_in_start_frame", "nearer_pairing", "travel"]
+__all__ = ["class_moves", "fragments", "goal_in_start_frame", "nearer_pairing",
+           "step_travel", "travel"]
 
 
 def fragments(problem: MisoProblem, pair: Sequence[int]) -> list[list[int]]:
@@ -101,19 +102,19 @@ def travel(pair: Sequence[int], start_places: np.ndarray, goal_places: np.ndarra
                                 axis=1).sum())
 
 
-def nearer_pairing(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
-                   goal_places: np.ndarray) -> list[int]:
-    """``pair`` with its fragments' images reassigned, per class of equal shapes, so
-    the modules travel least from ``start_places`` (n, 3) to ``goal_places`` (n, 3, the
-    goal's index order, in any frame: moved by :func:`goal_in_start_frame`) [m]; ``pair``
-    itself unless that moves them strictly less and keeps as many connections."""
+def class_moves(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                goal_places: np.ndarray) -> list[dict[int, int]]:
+    """Per class of equal shapes whose fragments travel less on other images (module
+    docstring), the new image of each member module: ``{start index: goal index}``;
+    classes in the order of their first fragment. ``goal_places`` (n, 3) in the goal's
+    index order, in any frame (moved by :func:`goal_in_start_frame`) [m]."""
     goal = goal_in_start_frame(problem, pair, start_places, goal_places)
     here = np.asarray(start_places, dtype=np.float64)
     forest = rooted(problem.start)
     classes: dict[tuple[int, ...], list[list[int]]] = {}
     for f in fragments(problem, pair):   # a class: one shape, read in canonical order
         classes.setdefault(_signature(forest, f), []).append(f)
-    new = list(pair)
+    moves = []
     for members in classes.values():
         if len(members) < 2:
             continue
@@ -123,15 +124,65 @@ def nearer_pairing(problem: MisoProblem, pair: Sequence[int], start_places: np.n
                          for f in froms])
         free_a = np.array([problem.start[f[0]] == FREE for f in members])
         free_b = np.array([problem.goal[pair[f[0]]] == FREE for f in members])
-        cost -= (cost.sum() + 1.0) * (free_a[:, None] & free_b[None, :])
+        kept_free = free_a[:, None] & free_b[None, :]
+        now = float(np.trace(cost)) - (cost.sum() + 1.0) * int(np.trace(kept_free))
+        cost -= (cost.sum() + 1.0) * kept_free
         rows, cols = linear_sum_assignment(cost)
-        for r, c in zip(rows, cols, strict=True):
-            for a, b in zip(members[r], members[c], strict=True):
-                new[a] = pair[b]
-    before, after = travel(pair, here, goal), travel(new, here, goal)
-    if after < before - 1e-9 and pairing_score(problem, new) >= pairing_score(problem, pair):
-        return new
-    return list(pair)
+        if float(cost[rows, cols].sum()) < now - 1e-9:
+            moves.append({a: pair[b] for r, c in zip(rows, cols, strict=True)
+                          for a, b in zip(members[r], members[c], strict=True)})
+    return moves
+
+
+def nearer_pairing(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                   goal_places: np.ndarray) -> list[int]:
+    """``pair`` with every class's move (:func:`class_moves`) made: the modules travel
+    least from ``start_places`` to ``goal_places`` among the fragments' reassignments;
+    ``pair`` itself unless that keeps as many connections."""
+    new = list(pair)
+    for move in class_moves(problem, pair, start_places, goal_places):
+        for a, b in move.items():
+            new[a] = b
+    return new if pairing_score(problem, new) >= pairing_score(problem, pair) else list(pair)
+
+
+def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step],
+                start_places: np.ndarray, goal_places: np.ndarray) -> list[float]:
+    """The straight travel [m] of the piece each step moves: its centroid's shift, the
+    piece's modules whose connections up to the stepping module are the goal's laid at
+    their goal places (``goal_places`` (n, 3), goal index order, in the start's frame),
+    the others (riders that leave later) shifted with the module they hang from; 0 for
+    a step to free. A lower bound of a way over the floor: no turns, no detours."""
+    final = targets(problem, pair)
+    there = np.asarray(goal_places, dtype=np.float64)[list(pair)]
+    pos = np.array(start_places, dtype=np.float64)
+    parent = list(problem.start)
+    kids = children_of(parent)
+    out = []
+    for step in steps:
+        if step.old != FREE:
+            kids[step.old].remove(step.module)
+        parent[step.module] = step.new
+        if step.new == FREE:
+            out.append(0.0)
+            continue
+        kids[step.new].append(step.module)
+        piece = [step.module]
+        for m in piece:   # top down; a ring closed by the step is walked once
+            piece.extend(c for c in kids[m] if c != step.module)
+        before = pos[piece].mean(axis=0)
+        shift = {step.module: there[step.module] - pos[step.module]}
+        placed = {step.module}
+        for m in piece[1:]:
+            if final[m] == parent[m] and parent[m] in placed:
+                shift[m] = there[m] - pos[m]
+                placed.add(m)
+            else:
+                shift[m] = shift[parent[m]]
+        for m in piece:
+            pos[m] += shift[m]
+        out.append(float(np.linalg.norm(pos[piece].mean(axis=0) - before)))
+    return out
 
 
 def _signature(forest: Sequence[int], fragment: list[int]) -> tuple[int, ...]:

@@ -24,13 +24,14 @@ from .model import (
     is_flow,
     kept,
     mismatches,
+    pairing_score,
     pieces,
     step_changes,
     targets,
 )
 from .order import order_steps
 from .pairing import heuristic_pairing
-from .places import goal_in_start_frame, nearer_pairing, travel
+from .places import class_moves, goal_in_start_frame, step_travel
 
 __all__ = ["Layout", "MisoPlanner", "MisoSolution", "carries_places", "miso_planners",
            "plan_miso", "solve_exact", "solve_heuristic"]
@@ -174,9 +175,10 @@ def carries_places(config: Configuration) -> bool:
 
 def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
             goal: Configuration, layout: Layout, notes: list[str]) -> MisoSolution:
-    """``solution``, or the plan of the same fragments sent to the nearer images
-    (:func:`~.places.nearer_pairing`) when it has no more changes or steps and no fewer
-    flows; ``stats`` gain both pairings' module-metres."""
+    """``solution`` with the moves of :func:`~.places.class_moves` made, class by class,
+    each kept when the plan then has no more changes or steps, no fewer flows, and its
+    pieces travel less (:func:`~.places.step_travel`, summed); ``stats`` gain the sums
+    before and after (``travel_m_topology``, ``travel_m``)."""
     try:
         here, there = layout(start), layout(goal)
     except ExecutionError as error:
@@ -185,17 +187,22 @@ def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
     s = np.array([here[m] for m in problem.start_ids], dtype=np.float64)
     laid = np.array([there[m] for m in problem.goal_ids], dtype=np.float64)
     g = goal_in_start_frame(problem, solution.pairing, s, laid)
-    pair = nearer_pairing(problem, solution.pairing, s, laid)
-    stats = {**solution.stats, "module_metres_topology": travel(solution.pairing, s, g)}
-    other = _solution(problem, pair, time.perf_counter())
-    if pair == list(solution.pairing) or _rank(problem, other) > _rank(problem, solution):
-        return MisoSolution(solution.pairing, solution.steps, solution.lower_bound,
-                            optimal=solution.optimal,
-                            stats={**stats, "module_metres": stats["module_metres_topology"]})
-    return MisoSolution(pair, other.steps, other.lower_bound,
-                        optimal=solution.optimal and _rank(problem, other)[:2] == _rank(
+    best, score = solution, pairing_score(problem, solution.pairing)
+    cost = before = sum(step_travel(problem, best.pairing, best.steps, s, g))
+    for move in class_moves(problem, solution.pairing, s, laid):
+        pair = list(best.pairing)
+        for a, b in move.items():
+            pair[a] = b
+        if pairing_score(problem, pair) < score:
+            continue
+        other = _solution(problem, pair, time.perf_counter())
+        moved = sum(step_travel(problem, pair, other.steps, s, g))
+        if _rank(problem, other) <= _rank(problem, best) and moved < cost - 1e-9:
+            best, cost = other, moved
+    return MisoSolution(best.pairing, best.steps, best.lower_bound,
+                        optimal=solution.optimal and _rank(problem, best)[:2] == _rank(
                             problem, solution)[:2],
-                        stats={**stats, "module_metres": travel(pair, s, g)})
+                        stats={**solution.stats, "travel_m_topology": before, "travel_m": cost})
 
 
 def _same_shape(a: Configuration, b: Configuration) -> bool:
@@ -281,9 +288,9 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
 
     With a ``layout`` (where the world lays a configuration) and a start that carries
     places (:func:`carries_places`), the pieces of equal shape go to the nearer of their
-    interchangeable places (:func:`~.places.nearer_pairing`; same changes and steps);
-    ``stats`` then hold ``module_metres`` and ``module_metres_topology``, the straight
-    travel of every module under both pairings [m].
+    interchangeable places (:func:`~.places.class_moves`; same changes and steps);
+    ``stats`` then hold ``travel_m`` and ``travel_m_topology``, the straight travel of
+    the pieces the steps move, summed, under both pairings [m].
 
     Raises:
         PlanningError: module counts or kinds differ, or a configuration breaks the
