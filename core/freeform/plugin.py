@@ -184,13 +184,13 @@ class FreeformPlugin:
             from .miso import MisoLimits, miso_planners
 
             def layout(config: Configuration) -> dict[str, np.ndarray]:
-                """The world's layout of ``config`` (module centres), so the planner
-                pairs pieces of one shape by where they lie when the start file says
-                where its modules are; the simulator is imported only then."""
-                from .world import FreeformOptions, place
+                """The world's layout of ``config`` (module centres, the world's default
+                gap), so the planner pairs pieces of one shape by where they lie when the
+                start file says where its modules are (no simulator imported)."""
+                from .layout import DOCK_GAP, place
 
                 radius = self.design.radius
-                return place(config, 2.0 * radius + FreeformOptions().gap, radius)[0]
+                return place(config, 2.0 * radius + DOCK_GAP, radius)[0]
 
             for planner in miso_planners(MisoLimits(**self.miso_rules), layout):
                 register(planner)
