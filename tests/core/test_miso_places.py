@@ -161,3 +161,18 @@ def test_plans_by_places_are_the_same_under_any_hash_seed(tmp_path):
         plans.append(plan)
     assert plans[0] == plans[1]
     assert plans[0]["stats"]["travel_m"] < plans[0]["stats"]["travel_m_topology"]
+
+
+def test_a_start_the_world_cannot_lay_is_paired_by_topology_and_says_so():
+    start = _three_chains(True)
+    overlapping = Configuration("freebot", name="overlapping")
+    for m in start.vertices():   # the chain of S5 laid over the chain of S3
+        at = {"S0": (0.0, 0.0), "S3": (1.0, 0.1), "S5": (1.05, 0.1)}.get(m)
+        overlapping.add_module(m, "freebot", position=[*at, 0.05] if at else None)
+    for e in start.edges():
+        overlapping.connect(e.source, e.target, z=e.z)
+    planner = plugins.planners("freebot")["miso"]
+    plan = planner.plan(overlapping, _cross())
+    assert plan.mapping == replace(planner, layout=None).plan(overlapping, _cross()).mapping
+    assert any("topology only" in note and "overlap" in note for note in plan.notes)
+    assert "travel_m" not in plan.stats
