@@ -57,24 +57,12 @@ def rows(plan, start, goal, layout) -> list[tuple[int, str, int, float]]:
     here, there = layout(start), layout(goal)
     s = np.array([here[m] for m in problem.start_ids])
     g = goal_in_start_frame(problem, pair, s, np.array([there[m] for m in problem.goal_ids]))
-    parent = list(problem.start)
     out = []
-    for (k, dock), step, d in zip(docks, steps, step_travel(problem, pair, steps, s, g),
-                                  strict=True):
-        parent[step.module] = step.new
-        size = 1 + sum(1 for i in range(problem.n) if _under(parent, i, step.module))
+    for (k, dock), step, (size, d) in zip(docks, steps,
+                                          step_travel(problem, pair, steps, s, g), strict=True):
         if step.new != FREE:
             out.append((k, dock, size, d))
     return out
-
-
-def _under(parent: list[int], i: int, top: int) -> bool:
-    """Whether module ``i``'s connector path reaches ``top`` (``i`` rides on it)."""
-    seen = set()
-    while parent[i] != -1 and i not in seen and i != top:
-        seen.add(i)
-        i = parent[i]
-    return i == top and bool(seen)
 
 
 @click.command()
@@ -104,8 +92,10 @@ def main(seed: int, start_file: Path) -> None:
         console.print(f"{name}: {plan.stats['changes']:.0f} changes, "
                       f"{plan.stats['steps']:.0f} steps")
     stats = plans["places"].stats
-    console.print(f"planner's sums (travel_m): topology {stats.get('travel_m_topology', 0):.1f},"
-                  f" places {stats.get('travel_m', 0):.1f}")
+    console.print(f"planner's sums: travel_m topology {stats.get('travel_m_topology', 0):.1f}, "
+                  f"places {stats.get('travel_m', 0):.1f}; module_metres topology "
+                  f"{stats.get('module_metres_topology', 0):.0f}, places "
+                  f"{stats.get('module_metres', 0):.0f}")
 
 
 if __name__ == "__main__":

@@ -147,12 +147,15 @@ def nearer_pairing(problem: MisoProblem, pair: Sequence[int], start_places: np.n
 
 
 def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step],
-                start_places: np.ndarray, goal_places: np.ndarray) -> list[float]:
-    """The straight travel [m] of the piece each step moves: its centroid's shift, the
-    piece's modules whose connections up to the stepping module are the goal's laid at
-    their goal places (``goal_places`` (n, 3), goal index order, in the start's frame),
-    the others (riders that leave later) shifted with the module they hang from; 0 for
-    a step to free. A lower bound of a way over the floor: no turns, no detours."""
+                start_places: np.ndarray, goal_places: np.ndarray
+                ) -> list[tuple[int, float]]:
+    """The modules of the piece each step moves, and its straight travel [m]: its
+    centroid's shift plus
+    the arc its turn sweeps at its reach, the piece's modules whose connections up to
+    the stepping module are the goal's laid at their goal places (``goal_places``
+    (n, 3), goal index order, in the start's frame), the others (riders that leave
+    later) shifted with the module they hang from; ``(1, 0.0)`` for a step to free.
+    Short of a way over the floor: one turn, no detours."""
     final = targets(problem, pair)
     there = np.asarray(goal_places, dtype=np.float64)[list(pair)]
     pos = np.array(start_places, dtype=np.float64)
@@ -164,13 +167,12 @@ def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step]
             kids[step.old].remove(step.module)
         parent[step.module] = step.new
         if step.new == FREE:
-            out.append(0.0)
+            out.append((1, 0.0))
             continue
         kids[step.new].append(step.module)
         piece = [step.module]
         for m in piece:   # top down; a ring closed by the step is walked once
             piece.extend(c for c in kids[m] if c != step.module)
-        before = pos[piece].mean(axis=0)
         shift = {step.module: there[step.module] - pos[step.module]}
         placed = {step.module}
         for m in piece[1:]:
@@ -179,10 +181,23 @@ def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step]
                 placed.add(m)
             else:
                 shift[m] = shift[parent[m]]
+        was = pos[piece].copy()
         for m in piece:
             pos[m] += shift[m]
-        out.append(float(np.linalg.norm(pos[piece].mean(axis=0) - before)))
+        out.append((len(piece), _move(was, pos[piece])))
     return out
+
+
+def _move(before: np.ndarray, after: np.ndarray) -> float:
+    """A piece's straight travel from ``before`` to ``after`` (n, 3) [m]: its centroid's
+    shift plus its turn about ``z`` (least squares, Kabsch in the floor plane) times its
+    reach (its farthest module from the centroid), the arc its end sweeps turning."""
+    a = before[:, :2] - before[:, :2].mean(axis=0)
+    b = after[:, :2] - after[:, :2].mean(axis=0)
+    cross = a.T @ b
+    turn = abs(float(np.arctan2(cross[0, 1] - cross[1, 0], cross[0, 0] + cross[1, 1])))
+    reach = float(np.max(np.linalg.norm(a, axis=1)))
+    return float(np.linalg.norm(after.mean(axis=0) - before.mean(axis=0))) + reach * turn
 
 
 def _signature(forest: Sequence[int], fragment: list[int]) -> tuple[int, ...]:

@@ -176,9 +176,12 @@ def carries_places(config: Configuration) -> bool:
 def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
             goal: Configuration, layout: Layout, notes: list[str]) -> MisoSolution:
     """``solution`` with the moves of :func:`~.places.class_moves` made, class by class,
-    each kept when the plan then has no more changes or steps, no fewer flows, and its
-    pieces travel less (:func:`~.places.step_travel`, summed); ``stats`` gain the sums
-    before and after (``travel_m_topology``, ``travel_m``)."""
+    each kept when the plan then has no more changes or steps, no fewer flows, and moves
+    fewer module-metres step by step (:func:`~.places.step_travel`: each step's piece's
+    travel times its modules, the work the world simulates: a rider carried far costs
+    as much as its own trip); ``stats`` gain the sums by topology and after
+    (``module_metres_topology``, ``module_metres``; the pieces' travel unweighted,
+    ``travel_m_topology``, ``travel_m``)."""
     try:
         here, there = layout(start), layout(goal)
     except ExecutionError as error:
@@ -187,8 +190,13 @@ def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
     s = np.array([here[m] for m in problem.start_ids], dtype=np.float64)
     laid = np.array([there[m] for m in problem.goal_ids], dtype=np.float64)
     g = goal_in_start_frame(problem, solution.pairing, s, laid)
+
+    def sums(pair: list[int], steps: list[Step]) -> tuple[float, float]:
+        moved = step_travel(problem, pair, steps, s, g)
+        return sum(n * d for n, d in moved), sum(d for _, d in moved)
+
     best, score = solution, pairing_score(problem, solution.pairing)
-    cost = before = sum(step_travel(problem, best.pairing, best.steps, s, g))
+    (work, metres) = before = sums(solution.pairing, solution.steps)
     for move in class_moves(problem, solution.pairing, s, laid):
         pair = list(best.pairing)
         for a, b in move.items():
@@ -196,13 +204,15 @@ def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
         if pairing_score(problem, pair) < score:
             continue
         other = _solution(problem, pair, time.perf_counter())
-        moved = sum(step_travel(problem, pair, other.steps, s, g))
-        if _rank(problem, other) <= _rank(problem, best) and moved < cost - 1e-9:
-            best, cost = other, moved
+        trial = sums(pair, other.steps)
+        if _rank(problem, other) <= _rank(problem, best) and trial[0] < work - 1e-9:
+            best, (work, metres) = other, trial
     return MisoSolution(best.pairing, best.steps, best.lower_bound,
                         optimal=solution.optimal and _rank(problem, best)[:2] == _rank(
                             problem, solution)[:2],
-                        stats={**solution.stats, "travel_m_topology": before, "travel_m": cost})
+                        stats={**solution.stats, "module_metres_topology": before[0],
+                               "module_metres": work, "travel_m_topology": before[1],
+                               "travel_m": metres})
 
 
 def _same_shape(a: Configuration, b: Configuration) -> bool:
@@ -289,8 +299,9 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     With a ``layout`` (where the world lays a configuration) and a start that carries
     places (:func:`carries_places`), the pieces of equal shape go to the nearer of their
     interchangeable places (:func:`~.places.class_moves`; same changes and steps);
-    ``stats`` then hold ``travel_m`` and ``travel_m_topology``, the straight travel of
-    the pieces the steps move, summed, under both pairings [m].
+    ``stats`` then hold ``module_metres`` and ``travel_m`` (and both ``_topology``): the
+    straight travel of the pieces the steps move, weighed by their modules and not,
+    summed [m].
 
     Raises:
         PlanningError: module counts or kinds differ, or a configuration breaks the
