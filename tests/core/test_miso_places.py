@@ -76,6 +76,7 @@ def test_two_chains_of_one_length_go_to_the_arms_on_their_own_sides():
     for key in ("changes", "steps"):
         assert plan.stats[key] == by_topology.stats[key] == 2
     assert plan.stats["travel_m"] < 0.8 * plan.stats["travel_m_topology"]
+    assert plan.stats["module_metres"] < 0.8 * plan.stats["module_metres_topology"]
 
 
 def test_a_start_without_places_plans_as_by_topology():
@@ -114,12 +115,13 @@ def test_fragments_are_the_pieces_joined_by_kept_connections():
                for k in range(1, len(f)))
 
 
-def test_the_human_example_keeps_its_89_changes_and_its_pieces_travel_less():
+def test_the_human_example_keeps_its_89_changes_and_its_pieces_move_less():
     start = load_configuration(HUMAN / "human-chains-near.json")
     goal = load_configuration(HUMAN / "human.json")
     plan = plugins.planners("freebot")["miso"].plan(start, goal)
     assert (plan.stats["changes"], plan.stats["steps"]) == (89, 47)
-    assert plan.stats["travel_m"] < 0.95 * plan.stats["travel_m_topology"]
+    assert plan.stats["module_metres"] < 0.99 * plan.stats["module_metres_topology"]
+    assert plan.stats["travel_m"] < plan.stats["travel_m_topology"]
 
 
 PLAN_WITH_PLACES = """
@@ -160,7 +162,7 @@ def test_plans_by_places_are_the_same_under_any_hash_seed(tmp_path):
         plan["stats"] = {k: v for k, v in plan["stats"].items() if not k.endswith("_ms")}
         plans.append(plan)
     assert plans[0] == plans[1]
-    assert plans[0]["stats"]["travel_m"] < plans[0]["stats"]["travel_m_topology"]
+    assert plans[0]["stats"]["module_metres"] < plans[0]["stats"]["module_metres_topology"]
 
 
 def test_a_start_the_world_cannot_lay_is_paired_by_topology_and_says_so():
