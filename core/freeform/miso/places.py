@@ -7,13 +7,16 @@ isomorphic subtree of the goal, its *image*. Two fragments of the same rooted sh
 trade images: inside each, every connection stays kept; at their borders nothing was
 kept (a fragment is maximal), so the trade keeps at least as many connections. Which
 fragment takes which image is the planner's free choice -- the topology alone does not
-tell it -- and the pieces the plan moves are these fragments. :func:`nearer_pairing`
-makes that choice by place: per class of equal shapes, one minimum-cost assignment
-(``scipy.optimize.linear_sum_assignment``) of fragments to images, the cost of a
-fragment on an image the sum over its modules of the straight distance from its start
-place to its goal place (module-metres: a piece's travel, turns included, weighed by the
-modules it carries), less a weight above any such sum when both roots are free (a free
-module paired with a free one saves a step: those pairs are kept first).
+tell it -- and the pieces the plan moves are these fragments (with riders: fragments
+below that leave later). :func:`class_moves` proposes that choice by place: per class of
+equal shapes, one minimum-cost assignment (``scipy.optimize.linear_sum_assignment``) of
+fragments to images, the cost of a fragment on an image the sum over its modules of the
+straight distance from its start place to its goal place, less a weight above any such
+sum when both roots are free (a free module paired with a free one saves a step: those
+pairs are kept first). A trade also changes which riders travel with which piece, so the
+planner judges each class's trade on the steps themselves (:func:`step_travel`: each
+step's piece, its travel and its modules); :func:`nearer_pairing` makes every class's
+trade at once.
 
 The goal's places come from its own vectors, in a frame of their own; they are put in
 the start's frame by the piece that stays: the largest fragment whose root is free in
@@ -21,10 +24,10 @@ both configurations (nothing docks it anywhere, so the goal is built around it w
 lies), fitted by a turn about ``z`` and a shift (least squares over its modules, Kabsch
 in the floor plane). With no such fragment the goal's places are taken as they are.
 
-Deterministic: fragments in the order of their smallest module, classes by an integer
+Deterministic: fragments in the order of their roots' indices, classes by an integer
 encoding of rooted shapes (AHU) assigned in that order, ties left to the assignment
-solver, which is deterministic; the new pairing is kept only when it moves the modules
-strictly less and keeps every connection the old one kept.
+solver, which is deterministic; a class's trade is proposed only when it moves the
+modules strictly less.
 """
 
 from __future__ import annotations
@@ -150,12 +153,11 @@ def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step]
                 start_places: np.ndarray, goal_places: np.ndarray
                 ) -> list[tuple[int, float]]:
     """The modules of the piece each step moves, and its straight travel [m]: its
-    centroid's shift plus
-    the arc its turn sweeps at its reach, the piece's modules whose connections up to
-    the stepping module are the goal's laid at their goal places (``goal_places``
-    (n, 3), goal index order, in the start's frame), the others (riders that leave
-    later) shifted with the module they hang from; ``(1, 0.0)`` for a step to free.
-    Short of a way over the floor: one turn, no detours."""
+    centroid's shift plus the arc its turn sweeps at its reach, the piece's modules whose
+    connections up to the stepping module are the goal's laid at their goal places
+    (``goal_places`` (n, 3), goal index order, in the start's frame), the others (riders
+    that leave later) shifted with the module they hang from; ``(1, 0.0)`` for a step to
+    free. Short of a way over the floor: one turn, no detours, no obstacles."""
     final = targets(problem, pair)
     there = np.asarray(goal_places, dtype=np.float64)[list(pair)]
     pos = np.array(start_places, dtype=np.float64)
