@@ -3,7 +3,10 @@ item 4), at the scale of Luo and Lam's largest instances.
 
 For each robot (FreeBOT, SnailBot) and planner, writes a start (a forest of six trees)
 and a goal (one tree) of ``--modules`` modules drawn with the benchmark's generators
-(:mod:`msrr.core.freeform.miso`, six connections at most on a module), runs
+(:mod:`msrr.core.freeform.miso`, six connections at most on a module); and, for the
+pairing by places (pieces of one shape sent to the nearer places when the start says
+where its modules lie), takes Luo and Lam's human example from its near start
+(``human-chains-near.json``, 568 modules). For each it runs
 ``platform plan START GOAL --planner miso --json PLAN`` as a user does, once per hash
 seed, and compares the plan files with their timings (``stats`` ending in ``_ms``)
 removed. Prints the seed and a table; exits 1 if two plans differ.
@@ -31,6 +34,7 @@ from msrr.core.freeform.miso import random_forest, random_miso_tree
 from msrr.core.io import save_configuration
 
 ROBOTS = ("freebot", "snailbot")
+HUMAN = Path(__file__).resolve().parents[1] / "plugins" / "freebot" / "configs" / "human"
 
 
 def configuration(robot: str, parents: tuple[int, ...], name: str) -> Configuration:
@@ -58,6 +62,17 @@ def plan_file(start: Path, goal: Path, out: Path, hash_seed: str) -> tuple[dict,
     return plan, wall
 
 
+def _compare(start: Path, goal: Path, folder: Path, name: str, hash_seeds: str
+             ) -> tuple[list[str], bool]:
+    """Plan ``start`` -> ``goal`` once per hash seed: the table row's steps, changes,
+    whether the plan files are identical, and the wall times."""
+    runs = [plan_file(start, goal, folder / f"{name}-{h}.json", h) for h in hash_seeds.split(",")]
+    identical = all(plan == runs[0][0] for plan, _ in runs)
+    stats = runs[0][0]["stats"]
+    return [str(int(stats["steps"])), str(int(stats["changes"])), "yes" if identical else "NO",
+            " / ".join(f"{wall:.1f}" for _, wall in runs)], identical
+
+
 @click.command()
 @click.option("--seed", default=0, show_default=True, help="Seed of the instances.")
 @click.option("--modules", default=1000, show_default=True, help="Modules per instance.")
@@ -74,14 +89,13 @@ def main(seed: int, modules: int, hash_seeds: str) -> None:
                                start)
             save_configuration(configuration(robot, random_miso_tree(modules, rng), "tree"),
                                goal)
-            runs = [plan_file(start, goal, Path(folder, f"{robot}-{h}.json"), h)
-                    for h in hash_seeds.split(",")]
-            identical = all(plan == runs[0][0] for plan, _ in runs)
+            row, identical = _compare(start, goal, Path(folder), robot, hash_seeds)
+            rows.append([robot, "miso", str(modules), *row])
             same &= identical
-            stats = runs[0][0]["stats"]
-            rows.append([robot, "miso", modules, int(stats["steps"]), int(stats["changes"]),
-                         "yes" if identical else "NO",
-                         " / ".join(f"{wall:.1f}" for _, wall in runs)])
+        row, identical = _compare(HUMAN / "human-chains-near.json", HUMAN / "human.json",
+                                  Path(folder), "human", hash_seeds)
+        rows.append(["freebot", "miso, by places", "568 (human, near start)", *row])
+        same &= identical
     console.print(table("Plan files under different hash seeds (timings aside)",
                         ["robot", "planner", "modules", "steps", "changes", "identical",
                          "wall per run [s]"], rows))

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from .design import ModuleDesign, freeform_robot, read_freeform_robot
     from .driver import FreeformDriver, FreeformDriverFactory
+    from .layout import place
     from .miso import MisoLimits, MisoPlanner, plan_miso
     from .mujoco import MujocoOptions, MujocoWorld, SensorNoise, Switches
     from .mujoco_driver import MujocoDriver
@@ -49,7 +50,7 @@ if TYPE_CHECKING:
         links_of,
         module_headings,
     )
-    from .world import ConstraintEvent, FreeformOptions, FreeformWorld, ModuleReport, place
+    from .world import ConstraintEvent, FreeformOptions, FreeformWorld, ModuleReport
 
 _WHERE = {
     "ConstraintEvent": "world",
@@ -78,7 +79,7 @@ _WHERE = {
     "goal_side": "recognition",
     "links_of": "recognition",
     "module_headings": "recognition",
-    "place": "world",
+    "place": "layout",
     "plan_miso": "miso",
     "read_freeform_robot": "design",
 }

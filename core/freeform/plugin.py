@@ -29,7 +29,10 @@ from typing import TYPE_CHECKING, Any
 from ..hookspecs import hookimpl
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from ..capabilities import Controller, DriverFactory, Planner, Recognizer
+    from ..configuration import Configuration
     from ..hookspecs import Register
     from ..kinematics.node import KinematicNode
     from ..robot import DockingRules, RobotSpec
@@ -180,7 +183,16 @@ class FreeformPlugin:
         if robot == self.spec.name:
             from .miso import MisoLimits, miso_planners
 
-            for planner in miso_planners(MisoLimits(**self.miso_rules)):
+            def layout(config: Configuration) -> dict[str, np.ndarray]:
+                """The world's layout of ``config`` (module centres, the world's default
+                gap), so the planner pairs pieces of one shape by where they lie when the
+                start file says where its modules are (no simulator imported)."""
+                from .layout import DOCK_GAP, place
+
+                radius = self.design.radius
+                return place(config, 2.0 * radius + DOCK_GAP, radius)[0]
+
+            for planner in miso_planners(MisoLimits(**self.miso_rules), layout):
                 register(planner)
 
     @hookimpl

@@ -27,7 +27,6 @@ proportional to the distance left, bounded).
 from __future__ import annotations
 
 import heapq
-from collections import deque
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -35,6 +34,7 @@ from scipy.spatial import cKDTree
 
 from ..alignment import rot_z
 from ..errors import ExecutionError
+from .layout import lay_out_pieces
 from .mujoco import yaw_of
 
 __all__ = ["Locator", "best_turn", "floor_path", "piece_goal", "pursue", "straight_line",
@@ -67,28 +67,6 @@ def centres_of(reports: Mapping[str, object], links: Mapping[str, str],
     pieces = lay_out_pieces(neighbours, sorted(reports, key=lambda m: (m in links, m)), spacing)
     centres = {m: p for piece in pieces for m, p in piece.items()}
     return centres, heading, [set(piece) for piece in pieces]
-
-
-def lay_out_pieces(adjacent: Mapping[str, Sequence[tuple[str, np.ndarray]]],
-                   order: Sequence[str], spacing: float) -> list[dict[str, np.ndarray]]:
-    """The connected pieces of modules joined by unit vectors (``adjacent[u]`` holds
-    ``(v, z)``: ``v``'s centre is ``spacing * z`` [m] from ``u``'s), each as centres (3,)
-    [m] relative to its first module in ``order``, reached breadth first."""
-    placed: set[str] = set()
-    pieces: list[dict[str, np.ndarray]] = []
-    for start in order:
-        if start in placed:
-            continue
-        piece, queue = {start: np.zeros(3)}, deque([start])
-        while queue:
-            u = queue.popleft()
-            for v, z in adjacent[u]:
-                if v not in piece:
-                    piece[v] = piece[u] + spacing * z
-                    queue.append(v)
-        placed.update(piece)
-        pieces.append(piece)
-    return pieces
 
 
 class Locator:

@@ -16,6 +16,8 @@ problem from its statement; the code is our own.
 * :mod:`.exact` -- the exact pairing (an integer program, ``scipy.optimize.milp``) and
   brute-force references;
 * :mod:`.order` -- the step order under the rules;
+* :mod:`.places` -- among pairings of the fewest changes, the one whose pieces travel
+  least, when the configurations carry places;
 * :mod:`.planner` -- solutions and :class:`~msrr.core.plan.Plan` s, the registered
   planners ``miso`` and ``miso-exact``;
 * :mod:`.im` -- a reimplementation of Luo and Lam's IM, the benchmark's yardstick.
@@ -60,9 +62,19 @@ from .model import (
 )
 from .order import order_steps
 from .pairing import heuristic_pairing
+from .places import (
+    class_moves,
+    fragments,
+    goal_in_start_frame,
+    nearer_pairing,
+    step_travel,
+    travel,
+)
 from .planner import (
+    Layout,
     MisoPlanner,
     MisoSolution,
+    carries_places,
     miso_planners,
     plan_miso,
     solve_exact,
@@ -71,6 +83,7 @@ from .planner import (
 
 __all__ = [
     "FREE",
+    "Layout",
     "MisoLimits",
     "MisoPlanner",
     "MisoProblem",
@@ -80,18 +93,23 @@ __all__ = [
     "brute_force_changes",
     "brute_force_steps",
     "canonical_form",
+    "carries_places",
     "changes",
     "children_of",
+    "class_moves",
     "count_flows",
     "cycles",
     "depths",
     "exact_pairing",
+    "fragments",
+    "goal_in_start_frame",
     "heuristic_pairing",
     "im_pairing",
     "is_flow",
     "kept",
     "miso_planners",
     "mismatches",
+    "nearer_pairing",
     "order_steps",
     "pairing_score",
     "pieces",
@@ -105,5 +123,7 @@ __all__ = [
     "solve_heuristic",
     "step_changes",
     "step_is_legal",
+    "step_travel",
     "targets",
+    "travel",
 ]

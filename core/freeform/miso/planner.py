@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ...configuration import Configuration
+from ...errors import ExecutionError
 from ...plan import Action, ActionType, ConnectionChange, Plan
 from .exact import exact_pairing
 from .model import (
@@ -22,15 +24,17 @@ from .model import (
     is_flow,
     kept,
     mismatches,
+    pairing_score,
     pieces,
     step_changes,
     targets,
 )
 from .order import order_steps
 from .pairing import heuristic_pairing
+from .places import class_moves, goal_in_start_frame, step_travel
 
-__all__ = ["MisoPlanner", "MisoSolution", "miso_planners", "plan_miso", "solve_exact",
-           "solve_heuristic"]
+__all__ = ["Layout", "MisoPlanner", "MisoSolution", "carries_places", "miso_planners",
+           "plan_miso", "solve_exact", "solve_heuristic"]
 
 
 @dataclass
@@ -158,6 +162,59 @@ def _keep_labels(solution: MisoSolution, problem: MisoProblem) -> MisoSolution:
                             problem, solution)[:2], stats=solution.stats)
 
 
+Layout = Callable[[Configuration], Mapping[str, np.ndarray]]
+"""Where the world lays a configuration: every module's centre (3,) [m]."""
+
+
+def carries_places(config: Configuration) -> bool:
+    """Whether ``config`` says where its modules lie: a module with a ``position`` (a
+    lab's layout of the start); without one a configuration is topology and vectors."""
+    return any(config.position(v) is not None for v in config.vertices()
+               if not config.is_virtual(v))
+
+
+def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
+            goal: Configuration, layout: Layout, notes: list[str]) -> MisoSolution:
+    """``solution`` with the moves of :func:`~.places.class_moves` made, class by class,
+    each kept when the plan then has no more changes or steps, no fewer flows, and moves
+    fewer module-metres step by step (:func:`~.places.step_travel`: each step's piece's
+    travel times its modules, the work the world simulates: a rider carried far costs
+    as much as its own trip); ``stats`` gain the sums by topology and after
+    (``module_metres_topology``, ``module_metres``; the pieces' travel unweighted,
+    ``travel_m_topology``, ``travel_m``)."""
+    try:
+        here, there = layout(start), layout(goal)
+    except ExecutionError as error:
+        notes.append(f"pieces paired by topology only: the world cannot lay them ({error})")
+        return solution
+    s = np.array([here[m] for m in problem.start_ids], dtype=np.float64)
+    laid = np.array([there[m] for m in problem.goal_ids], dtype=np.float64)
+    g = goal_in_start_frame(problem, solution.pairing, s, laid)
+
+    def sums(pair: list[int], steps: list[Step]) -> tuple[float, float]:
+        moved = step_travel(problem, pair, steps, s, g)
+        return sum(n * d for n, d in moved), sum(d for _, d in moved)
+
+    best, score = solution, pairing_score(problem, solution.pairing)
+    (work, metres) = before = sums(solution.pairing, solution.steps)
+    for move in class_moves(problem, solution.pairing, s, laid):
+        pair = list(best.pairing)
+        for a, b in move.items():
+            pair[a] = b
+        if pairing_score(problem, pair) < score:
+            continue
+        other = _solution(problem, pair, time.perf_counter())
+        trial = sums(pair, other.steps)
+        if _rank(problem, other) <= _rank(problem, best) and trial[0] < work - 1e-9:
+            best, (work, metres) = other, trial
+    return MisoSolution(best.pairing, best.steps, best.lower_bound,
+                        optimal=solution.optimal and _rank(problem, best)[:2] == _rank(
+                            problem, solution)[:2],
+                        stats={**solution.stats, "module_metres_topology": before[0],
+                               "module_metres": work, "travel_m_topology": before[1],
+                               "travel_m": metres})
+
+
 def _same_shape(a: Configuration, b: Configuration) -> bool:
     """Same connections (by ends) with the same vectors."""
     def links(c: Configuration) -> dict[tuple[str, str], tuple]:
@@ -225,7 +282,7 @@ def _carried(parent: list[int], module: int) -> list[int]:
 
 def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
               planner: str = "miso", limits: MisoLimits = UNLIMITED,
-              time_limit: float = 60.0) -> Plan:
+              time_limit: float = 60.0, layout: Layout | None = None) -> Plan:
     """A :class:`~msrr.core.plan.Plan` of MISO connection changes from ``start`` to ``goal``
     (any pieces, cycles allowed), under the robot's ``limits``.
 
@@ -239,13 +296,24 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     then (it travels into the goal's shape); new ones take the goal's vectors. ``plan.stats`` holds both metrics,
     ``steps`` and ``changes`` (``broken`` + ``made``).
 
+    With a ``layout`` (where the world lays a configuration) and a start that carries
+    places (:func:`carries_places`), the pieces of equal shape go to the nearer of their
+    interchangeable places (:func:`~.places.class_moves`; same changes and steps);
+    ``stats`` then hold ``module_metres`` and ``travel_m`` (and both ``_topology``): the
+    straight travel of the pieces the steps move, weighed by their modules and not,
+    summed [m].
+
     Raises:
         PlanningError: module counts or kinds differ, or a configuration breaks the
             robot's rules.
     """
     problem = MisoProblem.from_configurations(start, goal, limits)
-    solution = _keep_labels((solve_exact(problem, time_limit=time_limit) if exact
-                             else solve_heuristic(problem)), problem)
+    solution = solve_exact(problem, time_limit=time_limit) if exact else solve_heuristic(
+        problem)
+    notes: list[str] = []
+    if layout is not None and carries_places(start):
+        solution = _nearer(solution, problem, start, goal, layout, notes)
+    solution = _keep_labels(solution, problem)
     ids = problem.start_ids
     final = targets(problem, solution.pairing)
     goal_index = {v: b for b, v in enumerate(goal.vertices())}
@@ -265,7 +333,6 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
         # ends where the leaf touches its new parent) does not set the goal's vectors
         actions.append(Action(ActionType.MOVING, reached, ids, note="take the goal's shape"))
     mapping = {ids[a]: problem.goal_ids[b] for a, b in enumerate(solution.pairing)}
-    notes = []
     if exact and not solution.stats.get("changes_proved", 0.0):
         notes.append(f"exact search stopped after {time_limit:g} s: best plan found, "
                      "optimality not proved")
@@ -297,17 +364,20 @@ class MisoPlanner:
     exact: bool = False
     limits: MisoLimits = UNLIMITED
     time_limit: float = 60.0
+    layout: Layout | None = None
 
     def plan(self, start: Configuration, goal: Configuration, *, seed: int = 0) -> Plan:
         """Plan ``start`` -> ``goal``; deterministic (``seed`` unused)."""
         return plan_miso(start, goal, exact=self.exact, planner=self.name, limits=self.limits,
-                         time_limit=self.time_limit)
+                         time_limit=self.time_limit, layout=self.layout)
 
 
-def miso_planners(limits: MisoLimits) -> tuple[MisoPlanner, MisoPlanner]:
-    """``miso`` and ``miso-exact`` under a robot's rules."""
-    return (MisoPlanner(limits=limits),
-            MisoPlanner(name="miso-exact", exact=True, limits=limits,
+def miso_planners(limits: MisoLimits, layout: Layout | None = None
+                  ) -> tuple[MisoPlanner, MisoPlanner]:
+    """``miso`` and ``miso-exact`` under a robot's rules; with the world's ``layout``,
+    pieces of equal shape go to the nearer places when the start carries places."""
+    return (MisoPlanner(limits=limits, layout=layout),
+            MisoPlanner(name="miso-exact", exact=True, limits=limits, layout=layout,
                         description="MISO connection planning, exact: integer program "
                                     "(scipy milp) for the fewest connection changes, "
                                     "proved"))

@@ -1,0 +1,210 @@
+"""Among pairings of the fewest changes, the one whose pieces travel least: a geometric
+tie-break when the configurations carry places.
+
+A pairing ``pi`` cuts the start into *fragments*: the modules joined by kept connections
+(``goal[pi(i)] == pi(start[i])``), each a rooted tree that lands, unchanged, on an
+isomorphic subtree of the goal, its *image*. Two fragments of the same rooted shape can
+trade images: inside each, every connection stays kept; at their borders nothing was
+kept (a fragment is maximal), so the trade keeps at least as many connections. Which
+fragment takes which image is the planner's free choice -- the topology alone does not
+tell it -- and the pieces the plan moves are these fragments (with riders: fragments
+below that leave later). :func:`class_moves` proposes that choice by place: per class of
+equal shapes, one minimum-cost assignment (``scipy.optimize.linear_sum_assignment``) of
+fragments to images, the cost of a fragment on an image the sum over its modules of the
+straight distance from its start place to its goal place, less a weight above any such
+sum when both roots are free (a free module paired with a free one saves a step: those
+pairs are kept first). A trade also changes which riders travel with which piece, so the
+planner judges each class's trade on the steps themselves (:func:`step_travel`: each
+step's piece, its travel and its modules); :func:`nearer_pairing` makes every class's
+trade at once.
+
+The goal's places come from its own vectors, in a frame of their own; they are put in
+the start's frame by the piece that stays: the largest fragment whose root is free in
+both configurations (nothing docks it anywhere, so the goal is built around it where it
+lies), fitted by a turn about ``z`` and a shift (least squares over its modules, Kabsch
+in the floor plane). With no such fragment the goal's places are taken as they are.
+
+Deterministic: fragments in the order of their roots' indices, classes by an integer
+encoding of rooted shapes (AHU) assigned in that order, ties left to the assignment
+solver, which is deterministic; a class's trade is proposed only when it moves the
+modules strictly less.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from .model import FREE, MisoProblem, Step, children_of, pairing_score, rooted, targets
+
+__all__ = ["class_moves", "fragments", "goal_in_start_frame", "nearer_pairing",
+           "step_travel", "travel"]
+
+
+def fragments(problem: MisoProblem, pair: Sequence[int]) -> list[list[int]]:
+    """The start's fragments under ``pair``, each in a canonical top-down order (its root
+    first; children by shape, then index), in the order of their roots' indices; cycles
+    are cut as :func:`~.model.rooted` cuts them."""
+    forest = rooted(problem.start)
+    final = targets(problem, pair)
+    kids = [[c for c in cs if final[c] == forest[c]] for cs in children_of(forest)]
+    roots = [i for i in range(problem.n) if forest[i] == FREE or final[i] != forest[i]]
+    shape = _shapes(kids, roots)
+    out = []
+    for r in roots:
+        order, stack = [], [r]
+        while stack:
+            u = stack.pop()
+            order.append(u)
+            stack.extend(sorted(kids[u], key=lambda c: (shape[c], c), reverse=True))
+        out.append(order)
+    return out
+
+
+def _shapes(kids: list[list[int]], roots: list[int]) -> dict[int, int]:
+    """An integer per module, equal for two modules exactly when their subtrees (along
+    ``kids``) have the same rooted shape (AHU encoding, ids by first appearance)."""
+    order = list(roots)
+    for u in order:
+        order.extend(kids[u])
+    table: dict[tuple[int, ...], int] = {}
+    shape: dict[int, int] = {}
+    for u in reversed(order):
+        key = tuple(sorted(shape[c] for c in kids[u]))
+        shape[u] = table.setdefault(key, len(table))
+    return shape
+
+
+def goal_in_start_frame(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                        goal_places: np.ndarray) -> np.ndarray:
+    """``goal_places`` (n, 3) moved into the start's frame by the piece that stays (module
+    docstring): the largest fragment whose root is free in both, fitted by a turn about
+    ``z`` and a shift; unchanged when there is none."""
+    stays = [f for f in fragments(problem, pair)
+             if problem.start[f[0]] == FREE and problem.goal[pair[f[0]]] == FREE]
+    if not stays:
+        return np.array(goal_places, dtype=np.float64)
+    anchor = max(stays, key=len)   # the first of the largest (roots in index order)
+    p = np.asarray(goal_places, dtype=np.float64)[[pair[a] for a in anchor]]
+    q = np.asarray(start_places, dtype=np.float64)[anchor]
+    pc, qc = p.mean(axis=0), q.mean(axis=0)
+    cross = (p[:, :2] - pc[:2]).T @ (q[:, :2] - qc[:2])
+    yaw = np.arctan2(cross[0, 1] - cross[1, 0], cross[0, 0] + cross[1, 1])
+    c, s = np.cos(yaw), np.sin(yaw)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return (np.asarray(goal_places, dtype=np.float64) - pc) @ turn.T + qc
+
+
+def travel(pair: Sequence[int], start_places: np.ndarray, goal_places: np.ndarray) -> float:
+    """Module-metres of ``pair``: the sum of the straight distances from each module's
+    start place to its goal place [m]."""
+    goal = np.asarray(goal_places, dtype=np.float64)[list(pair)]
+    return float(np.linalg.norm(np.asarray(start_places, dtype=np.float64) - goal,
+                                axis=1).sum())
+
+
+def class_moves(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                goal_places: np.ndarray) -> list[dict[int, int]]:
+    """Per class of equal shapes whose fragments travel less on other images (module
+    docstring), the new image of each member module: ``{start index: goal index}``;
+    classes in the order of their first fragment. ``goal_places`` (n, 3) in the goal's
+    index order, in any frame (moved by :func:`goal_in_start_frame`) [m]."""
+    goal = goal_in_start_frame(problem, pair, start_places, goal_places)
+    here = np.asarray(start_places, dtype=np.float64)
+    forest = rooted(problem.start)
+    classes: dict[tuple[int, ...], list[list[int]]] = {}
+    for f in fragments(problem, pair):   # a class: one shape, read in canonical order
+        classes.setdefault(_signature(forest, f), []).append(f)
+    moves = []
+    for members in classes.values():
+        if len(members) < 2:
+            continue
+        froms = here[np.array(members)]                                    # (k, s, 3)
+        images = goal[np.array([[pair[a] for a in f] for f in members])]   # (k, s, 3)
+        cost = np.stack([np.linalg.norm(f[None] - images, axis=2).sum(axis=1)
+                         for f in froms])
+        free_a = np.array([problem.start[f[0]] == FREE for f in members])
+        free_b = np.array([problem.goal[pair[f[0]]] == FREE for f in members])
+        kept_free = free_a[:, None] & free_b[None, :]
+        now = float(np.trace(cost)) - (cost.sum() + 1.0) * int(np.trace(kept_free))
+        cost -= (cost.sum() + 1.0) * kept_free
+        rows, cols = linear_sum_assignment(cost)
+        if float(cost[rows, cols].sum()) < now - 1e-9:
+            moves.append({a: pair[b] for r, c in zip(rows, cols, strict=True)
+                          for a, b in zip(members[r], members[c], strict=True)})
+    return moves
+
+
+def nearer_pairing(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                   goal_places: np.ndarray) -> list[int]:
+    """``pair`` with every class's move (:func:`class_moves`) made: the modules travel
+    least from ``start_places`` to ``goal_places`` among the fragments' reassignments;
+    ``pair`` itself unless that keeps as many connections."""
+    new = list(pair)
+    for move in class_moves(problem, pair, start_places, goal_places):
+        for a, b in move.items():
+            new[a] = b
+    return new if pairing_score(problem, new) >= pairing_score(problem, pair) else list(pair)
+
+
+def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step],
+                start_places: np.ndarray, goal_places: np.ndarray
+                ) -> list[tuple[int, float]]:
+    """The modules of the piece each step moves, and its straight travel [m]: its
+    centroid's shift plus the arc its turn sweeps at its reach, the piece's modules whose
+    connections up to the stepping module are the goal's laid at their goal places
+    (``goal_places`` (n, 3), goal index order, in the start's frame), the others (riders
+    that leave later) shifted with the module they hang from; ``(1, 0.0)`` for a step to
+    free. Short of a way over the floor: one turn, no detours, no obstacles."""
+    final = targets(problem, pair)
+    there = np.asarray(goal_places, dtype=np.float64)[list(pair)]
+    pos = np.array(start_places, dtype=np.float64)
+    parent = list(problem.start)
+    kids = children_of(parent)
+    out = []
+    for step in steps:
+        if step.old != FREE:
+            kids[step.old].remove(step.module)
+        parent[step.module] = step.new
+        if step.new == FREE:
+            out.append((1, 0.0))
+            continue
+        kids[step.new].append(step.module)
+        piece = [step.module]
+        for m in piece:   # top down; a ring closed by the step is walked once
+            piece.extend(c for c in kids[m] if c != step.module)
+        shift = {step.module: there[step.module] - pos[step.module]}
+        placed = {step.module}
+        for m in piece[1:]:
+            if final[m] == parent[m] and parent[m] in placed:
+                shift[m] = there[m] - pos[m]
+                placed.add(m)
+            else:
+                shift[m] = shift[parent[m]]
+        was = pos[piece].copy()
+        for m in piece:
+            pos[m] += shift[m]
+        out.append((len(piece), _move(was, pos[piece])))
+    return out
+
+
+def _move(before: np.ndarray, after: np.ndarray) -> float:
+    """A piece's straight travel from ``before`` to ``after`` (n, 3) [m]: its centroid's
+    shift plus its turn about ``z`` (least squares, Kabsch in the floor plane) times its
+    reach (its farthest module from the centroid), the arc its end sweeps turning."""
+    a = before[:, :2] - before[:, :2].mean(axis=0)
+    b = after[:, :2] - after[:, :2].mean(axis=0)
+    cross = a.T @ b
+    turn = abs(float(np.arctan2(cross[0, 1] - cross[1, 0], cross[0, 0] + cross[1, 1])))
+    reach = float(np.max(np.linalg.norm(a, axis=1)))
+    return float(np.linalg.norm(after.mean(axis=0) - before.mean(axis=0))) + reach * turn
+
+
+def _signature(forest: Sequence[int], fragment: list[int]) -> tuple[int, ...]:
+    """The fragment's shape as its canonical order's parent positions (``-1`` at the
+    root): equal exactly when two fragments' canonical orders correspond module by
+    module."""
+    at = {m: k for k, m in enumerate(fragment)}
+    return tuple(at.get(forest[m], -1) if k else -1 for k, m in enumerate(fragment))
