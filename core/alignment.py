@@ -17,7 +17,8 @@ from typing import overload
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-__all__ = ["YawAlignment", "align_yaw", "angles_between", "median_yaw", "rot_z", "wrap_angle"]
+__all__ = ["YawAlignment", "align_yaw", "angles_between", "best_turn", "median_yaw", "rot_z",
+           "wrap_angle"]
 
 
 def rot_z(theta: float) -> np.ndarray:
@@ -34,6 +35,14 @@ def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """``angle`` [rad] wrapped into [-pi, pi): a float for a float, an array for an array."""
     wrapped = (np.asarray(angle, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi
     return float(wrapped) if wrapped.ndim == 0 else wrapped
+
+
+def best_turn(a: np.ndarray, b: np.ndarray) -> float:
+    """The yaw [rad] that best turns the points ``a`` (n, 2) onto ``b`` (n, 2), each set
+    about its own mean (least squares, weighted alike: the 2-D Kabsch rotation)."""
+    a, b = a - a.mean(axis=0), b - b.mean(axis=0)
+    return float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
 
 
 def angles_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -32,7 +32,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..alignment import rot_z
+from ..alignment import best_turn, rot_z
 from ..errors import ExecutionError
 from .layout import lay_out_pieces
 from .mujoco import yaw_of
@@ -207,14 +207,6 @@ class Locator:
             raise ExecutionError(f"module {module} was never docked in a group: no report "
                                  "tells where it is")
         return out
-
-
-def best_turn(a: np.ndarray, b: np.ndarray) -> float:
-    """The yaw [rad] that best turns the points ``a`` (n, 2) onto ``b`` (n, 2), each set
-    about its own mean (least squares, weighted alike: the 2-D Kabsch rotation)."""
-    a, b = a - a.mean(axis=0), b - b.mean(axis=0)
-    return float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
-                            np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
 
 
 _OUTLIER = 0.25      # a module farther than this from its goal place is not yet in its

@@ -37,6 +37,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from ...alignment import best_turn
 from .model import FREE, MisoProblem, Step, children_of, pairing_score, rooted, targets
 
 __all__ = ["class_moves", "fragments", "goal_in_start_frame", "nearer_pairing",
@@ -90,8 +91,7 @@ def goal_in_start_frame(problem: MisoProblem, pair: Sequence[int], start_places:
     p = np.asarray(goal_places, dtype=np.float64)[[pair[a] for a in anchor]]
     q = np.asarray(start_places, dtype=np.float64)[anchor]
     pc, qc = p.mean(axis=0), q.mean(axis=0)
-    cross = (p[:, :2] - pc[:2]).T @ (q[:, :2] - qc[:2])
-    yaw = np.arctan2(cross[0, 1] - cross[1, 0], cross[0, 0] + cross[1, 1])
+    yaw = best_turn(p[:, :2], q[:, :2])
     c, s = np.cos(yaw), np.sin(yaw)
     turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return (np.asarray(goal_places, dtype=np.float64) - pc) @ turn.T + qc
@@ -194,11 +194,8 @@ def _move(before: np.ndarray, after: np.ndarray) -> float:
     """A piece's straight travel from ``before`` to ``after`` (n, 3) [m]: its centroid's
     shift plus its turn about ``z`` (least squares, Kabsch in the floor plane) times its
     reach (its farthest module from the centroid), the arc its end sweeps turning."""
-    a = before[:, :2] - before[:, :2].mean(axis=0)
-    b = after[:, :2] - after[:, :2].mean(axis=0)
-    cross = a.T @ b
-    turn = abs(float(np.arctan2(cross[0, 1] - cross[1, 0], cross[0, 0] + cross[1, 1])))
-    reach = float(np.max(np.linalg.norm(a, axis=1)))
+    turn = abs(best_turn(before[:, :2], after[:, :2]))
+    reach = float(np.max(np.linalg.norm(before[:, :2] - before[:, :2].mean(axis=0), axis=1)))
     return float(np.linalg.norm(after.mean(axis=0) - before.mean(axis=0))) + reach * turn
 
 
