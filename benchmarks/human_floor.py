@@ -11,13 +11,20 @@ module beside the straight distance its centroid covers, and the time the way ta
 the piece speed; stops at the first step whose way cannot be planned and says why.
 
 ``--start`` takes another start file of the same modules (one whose module positions lay
-the chains elsewhere, as a lab would).
+the chains elsewhere, as a lab would). ``--save DIR`` writes the state after every action
+(``after-NN.json``: the seed, the start file, the actions done, every module's centre,
+the rows so far; written whole, then renamed into place); ``--resume`` continues from such
+a file, or from the newest in a directory (the plan is made again: the same seed and start
+give the same plan).
 
-Usage: ``python benchmarks/human_floor.py [--seed 0] [--steps 47] [--start FILE]``.
+Usage: ``python benchmarks/human_floor.py [--seed 0] [--steps 47] [--start FILE]
+[--save DIR] [--resume DIR|FILE]``.
 """
 
 from __future__ import annotations
 
+import json
+import os
 import time
 from pathlib import Path
 
@@ -52,6 +59,26 @@ def _goal_centres(config, spacing: float) -> dict[str, np.ndarray]:
         adjacent[e.target].append((e.source, -z))
     return {m: p for piece in lay_out_pieces(adjacent, sorted(adjacent), spacing)
             for m, p in piece.items()}
+
+
+def _save(folder: Path, state: dict) -> None:
+    """Write ``state`` to ``folder/after-NN.json`` (NN: the actions done), whole or not at
+    all: to a temporary file first, then renamed over."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"after-{state['done']:02d}.json"
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(state))
+    os.replace(tmp, path)
+
+
+def _load(path: Path) -> dict:
+    """The state saved by :func:`_save` in file ``path``, or the newest in folder ``path``."""
+    if path.is_dir():
+        saved = sorted(path.glob("after-*.json"))
+        if not saved:
+            raise click.BadParameter(f"no after-NN.json in {path}")
+        path = saved[-1]
+    return json.loads(path.read_text())
 
 
 def _step(k, action, current, pos, spacing) -> list[str] | None:
@@ -112,7 +139,12 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
                                                        path_type=Path),
               default=HUMAN / "human-chains.json", show_default=True,
               help="the start file (the same modules, any layout)")
-def main(seed: int, steps: int, start_file: Path) -> None:
+@click.option("--save", type=click.Path(file_okay=False, path_type=Path),
+              help="write the state after each action here")
+@click.option("--resume", type=click.Path(exists=True, path_type=Path),
+              help="continue from a saved state (a file, or the newest in a folder)")
+def main(seed: int, steps: int, start_file: Path, save: Path | None,
+         resume: Path | None) -> None:
     from msrr.core import plugins
     from msrr.core.freeform.world import place
 
@@ -124,8 +156,17 @@ def main(seed: int, steps: int, start_file: Path) -> None:
     pos = {m: c[:2].copy() for m, c in centres.items()}
     console.print(f"seed {seed}; {len(plan.actions)} actions, "
                   f"{plan.stats['changes']:.0f} changes (IM, published: 91)")
-    rows, current, why = [], start, ""
-    for k, action in enumerate(plan.actions[:steps], 1):
+    rows, current, why, done = [], start, "", 0
+    if resume:
+        state = _load(resume)
+        if (state["seed"], state["start"]) != (seed, start_file.name):
+            raise click.BadParameter(f"{resume} was saved for seed {state['seed']} and "
+                                     f"start {state['start']}")
+        done, rows = state["done"], state["rows"]
+        pos = {m: np.array(p) for m, p in state["pos"].items()}
+        current = plan.actions[done - 1].target if done else start
+        console.print(f"resumed after action {done} ({resume})")
+    for k, action in enumerate(plan.actions[done:steps], done + 1):
         try:
             row = _step(k, action, current, pos, spacing)
         except ExecutionError as error:
@@ -133,7 +174,11 @@ def main(seed: int, steps: int, start_file: Path) -> None:
             break
         if row:
             rows.append(row)
+            console.print(" | ".join(row))
         current = action.target
+        if save:
+            _save(save, {"seed": seed, "start": start_file.name, "done": k, "rows": rows,
+                         "pos": {m: p.tolist() for m, p in pos.items()}})
     console.print(table("the human example's floor steps, planned kinematically",
                         ["action", "dock", "modules", "where", "legs", "travel [m]",
                          "straight [m]", "at 0.02 m/s [s]", "planning [s]"], rows))
