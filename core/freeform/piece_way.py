@@ -20,17 +20,23 @@ keeps ``spacing + _CLEARANCE`` from every other module at floor level (or, from 
 it already touches, no closer than it starts). Each expanded pose also tries the direct
 way, turn to face the goal, drive, turn to the goal heading (the analytic expansion of
 hybrid A*). The cost is the farthest any module travels (a drive's length, a turn's angle
-times the piece's radius about its centroid): the time at the speed bound.
+times the piece's radius about its centroid): the time at the speed bound. The search is
+led by the length of the centroid's shortest way round the other modules (Dolgov et al.'s
+holonomic-with-obstacles heuristic, :func:`_way_lengths`), not the straight distance
+alone: behind a wall across the straight line the straight distance leads the search
+into the pocket before the wall, which it fills until its bound on poses.
 """
 
 from __future__ import annotations
 
 import functools
 import heapq
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import coo_array
+from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from ..alignment import rot_z, wrap_angle
@@ -55,6 +61,9 @@ _LAST = 0.15          # its last stretch, straight in [m]
 _EXPANSIONS = 20000   # the search gives up after this many poses
 _DIRECT = 8           # the direct way is tried from every this many poses
 _CHUNK = 256          # collision points checked at once (a move stops at the first hit)
+_FIELD = 0.025        # cells of the centroid's shortest way round the others [m]
+_OCTILE = float(np.sqrt(4.0 - 2.0 * np.sqrt(2.0)))   # an 8-connected way's length over
+#                                                     the straight one's, at most
 
 
 @dataclass(frozen=True)
@@ -269,6 +278,8 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
         low = np.minimum(low, space.others.min(axis=0) - space.reach - spacing)
         high = np.maximum(high, space.others.max(axis=0) + space.reach + spacing)
 
+    ahead = _way_lengths(space, g, low, high)
+
     def key(c: np.ndarray, h: float) -> tuple[int, int, int, bool]:
         # headings off the goal's lattice (a start a little off it) keep their own
         # sixteenths: one key for all of them would leave each cell one heading
@@ -280,7 +291,7 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
     nodes: list[tuple[np.ndarray, float, int, bool]] = [(c0, h0, -1, True)]
     moves: list[Leg | None] = [None]
     best = {key(c0, h0): 0.0}
-    heap = [(float(np.linalg.norm(g - c0)), 0.0, 0)]
+    heap = [(ahead(c0), 0.0, 0)]
     for n in range(_EXPANSIONS):
         if not heap:
             break
@@ -297,9 +308,58 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
                 best[k] = new
                 nodes.append((leg.to, leg.heading, i, escaping and leg.kind == "drive"))
                 moves.append(leg)
-                heapq.heappush(heap, (new + float(np.linalg.norm(g - leg.to)), new,
-                                      len(nodes) - 1))
+                heapq.heappush(heap, (new + ahead(leg.to), new, len(nodes) - 1))
     raise ExecutionError(f"no free way over the floor for a piece of {len(offsets)} modules")
+
+
+def _way_lengths(space: _Space, goal: np.ndarray, low: np.ndarray, high: np.ndarray
+                 ) -> Callable[[np.ndarray], float]:
+    """The search's estimate of the way left from a centroid (2,) [m] to ``goal`` (2,) [m]
+    within the box ``low``-``high``: the length of the centroid's shortest way round the
+    other modules, over 8-connected cells of ``_FIELD`` (a diagonal step only between two
+    free sides), scaled by ``1 / _OCTILE`` so that on open floor it is never more than the
+    straight distance, and never less than that distance.
+
+    A cell is blocked where its centre lies nearer to another module than the full
+    clearance less the piece's module nearest its centroid: no pose of the piece, at any
+    heading, puts its centroid there (a row of modules one spacing apart is a wall). A
+    centroid in a cell no way of cells joins to the goal's (its start, grazing what it
+    lay beside) is estimated by the straight distance."""
+    def straight(c: np.ndarray) -> float:
+        return float(np.hypot(goal[0] - c[0], goal[1] - c[1]))
+
+    keep = space.limit - float(np.min(np.linalg.norm(space.offsets, axis=1)))
+    if space.tree is None or keep <= 0.0:
+        return straight
+    shape = tuple(int(n) for n in np.ceil((high - low) / _FIELD).astype(int) + 1)
+    ij = np.stack(np.meshgrid(*(np.arange(n) for n in shape), indexing="ij"), axis=-1)
+    dist, _ = space.tree.query((low + _FIELD * ij).reshape(-1, 2), k=1,
+                               distance_upper_bound=keep)
+    free = (dist >= keep).reshape(shape)
+    at = tuple(np.clip(np.rint((goal - low) / _FIELD).astype(int), 0, np.array(shape) - 1))
+    free[at] = True
+    index = np.arange(free.size).reshape(shape)
+    rows, cols, lengths = [], [], []
+    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        a = (slice(0, shape[0] - di), slice(max(0, -dj), shape[1] - max(0, dj)))
+        b = (slice(di, None), slice(max(0, dj), shape[1] + min(0, dj)))
+        ok = free[a] & free[b]
+        if di and dj:          # no corner cut between two blocked sides
+            ok &= free[a[0], b[1]] & free[b[0], a[1]]
+        rows.append(index[a][ok])
+        cols.append(index[b][ok])
+        lengths.append(np.full(int(ok.sum()), _FIELD * np.hypot(di, dj)))
+    n = free.size
+    graph = coo_array((np.concatenate(lengths), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(n, n)).tocsr()
+    field = (dijkstra(graph, directed=False, indices=int(index[at])) / _OCTILE).reshape(shape)
+
+    def ahead(c: np.ndarray) -> float:
+        i, j = np.clip(np.rint((c - low) / _FIELD).astype(int), 0, np.array(shape) - 1)
+        d = float(field[i, j])
+        return max(d, straight(c)) if np.isfinite(d) else straight(c)
+
+    return ahead
 
 
 def _moves(space: _Space, c: np.ndarray, h: float, line: np.ndarray | None,

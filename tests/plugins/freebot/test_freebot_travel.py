@@ -225,6 +225,23 @@ def test_a_straight_piece_way_is_turns_in_place_and_drives_along_its_line_all_cl
     assert _closest(legs, offsets, rows, start) >= 0.101 - 0.0021
 
 
+def test_a_piece_in_a_cup_whose_mouth_faces_away_from_its_goal_finds_its_way_out():
+    # the human example's action 22: a wall between the piece and its goal. Led by the
+    # straight distance, the search filled the cup before the wall and stopped at its
+    # bound on poses ("no free way"); led by the centroid's way round the modules, it
+    # leaves by the mouth and goes round the side
+    from msrr.core.freeform.piece_way import plan_legs
+
+    s = 0.101
+    cup = np.array([[0.0, y] for y in np.arange(-10, 11) * s]
+                   + [[x, side * 10 * s] for side in (-1, 1) for x in np.arange(1, 16) * s])
+    chain = np.column_stack([(np.arange(4) - 1.5) * s, np.zeros(4)])
+    start, goal = (np.array([0.8, 0.0]), 0.0), (np.array([-1.5, 2.5]), 0.0)
+    legs = plan_legs(cup, chain, np.array([1.0, 0.0]), start, goal, s)
+    assert np.allclose(legs[-1].to, goal[0]) and abs(np.sin(legs[-1].heading)) < 1e-9
+    assert _closest(legs, chain, cup, start) >= s + 0.008 - 1e-6
+
+
 def test_a_bent_piece_way_keeps_clear_and_a_closed_goal_is_refused():
     from msrr.core.errors import ExecutionError
     from msrr.core.freeform.piece_way import plan_legs
