@@ -84,8 +84,9 @@ class PieceWay:
     centroid ``origin`` (2,) [m], its modules at ``shape`` (m, 2) [m] from it, in the
     order of ``piece``, at heading ``heading``) to a stop short of its docking spot, then
     the guarded push along ``push`` (unit (2,), the piece's line for a straight piece)
-    toward ``centre`` (the target's) until the connector latches. ``line``: a straight piece's line (unit (2,), at heading 0; it
-    drives along it only), else ``None``.
+    toward ``centre`` (the target's) until the connector latches. ``line``: a straight
+    piece's line (unit (2,), at heading 0; it drives along it only), else ``None``.
+    ``at_goal``: it docks at its goal place (else at a free place touching the target).
 
     A heading is the piece's: the root's map heading when the way was planned, plus the
     turn of the piece's shape since (:meth:`heading_of`), not the root's heading now (a
@@ -102,6 +103,7 @@ class PieceWay:
     centre: np.ndarray
     push: np.ndarray
     line: np.ndarray | None
+    at_goal: bool = False
 
     def heading_of(self, centres: Mapping[str, np.ndarray]) -> float:
         """The piece's heading [rad] with its modules at ``centres`` (map, (2,) or (3,)):
@@ -513,17 +515,18 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
     space = _Space(others, offsets, spacing, start)
     wanted = (middle, wrap_angle(heading + turn), push)
     index = (ms.index(root), others, names.index(target))
-    def places() -> Iterator[tuple[np.ndarray, float, np.ndarray, float]]:
+    def places() -> Iterator[tuple[np.ndarray, float, np.ndarray, float, bool]]:
         """The goal place if free, then the free places touching the target, searched
         only when no way reaches the goal place (their search is the dear part); each
-        with the length of its last stretch in."""
+        with the length of its last stretch in, and whether it is the goal place."""
         back = _dock_free(space, offsets, *index, *wanted, clear_in=False)
         if back is not None:
-            yield (*wanted, back)
-        yield from _free_docks(space, offsets, *index, line0, wanted)
+            yield (*wanted, back, True)
+        yield from ((*place, False) for place in _free_docks(space, offsets, *index, line0,
+                                                              wanted))
 
     tried = 0
-    for middle, hd, push, back in places():
+    for middle, hd, push, back, at_goal in places():
         tried += 1
         finish = middle - _SHORT * push
         try:
@@ -533,7 +536,7 @@ def piece_way(here: Mapping[str, np.ndarray], piece: set[str], group: set[str], 
             continue
         legs.append(Leg("drive", finish, hd))
         return PieceWay(root, target, tuple(ms), now.mean(axis=0), a, heading, tuple(legs),
-                        centre, push, line0)
+                        centre, push, line0, at_goal)
     if not tried:
         rise = float(np.asarray(goal[root], dtype=float)[2] - np.asarray(goal[target],
                                                                          dtype=float)[2])

@@ -402,6 +402,7 @@ def test_a_piece_whose_goal_place_is_taken_docks_where_the_target_is_free_now():
     root = docked[way.piece.index("P1")]
     assert abs(np.linalg.norm(root - here["T0"]) - spacing) < 0.005, "P1 touches T0"
     assert np.allclose(way.centre, here["T0"])
+    assert not way.at_goal, "the way says it docks at a free place, not the goal's"
     others = np.array([p for m, p in here.items() if m not in piece])
     gaps = np.linalg.norm(docked[:, None, :] - others[None, :, :], axis=2)
     gaps[way.piece.index("P1"), list(here).index("T0")] = np.inf
@@ -418,6 +419,7 @@ def test_a_piece_whose_goal_place_is_taken_docks_where_the_target_is_free_now():
     way = piece_way(here, piece, set(row), "P1", 0.3, "T0", goal, spacing)
     end = way.legs[-1].to + 0.02 * way.push
     assert np.allclose(end, [0.0, -0.2], atol=1e-6)
+    assert way.at_goal
 
 
 def _three_chains(apart: float | None) -> Configuration:
