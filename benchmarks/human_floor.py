@@ -5,8 +5,12 @@ with ``miso``; then every step that docks a module over the floor is planned as 
 controller would plan it -- a lone module's way (``travel.floor_path``), a piece's way
 (``piece_way.piece_way``: its goal place, or the free place nearest to it) -- on the
 centres the previous steps left, each piece put where its way ends, docked (no physics:
-what the ways need, not what the MuJoCo run does). Prints the seed and, per step, the
-piece's size, where it docks (goal place or not), its legs, the travel of its farthest
+what the ways need, not what the MuJoCo run does). A piece docked at a free place is then
+swung rigidly about its target until its root is at its goal place, when no shell comes
+within a centimetre of overlapping on the way (as the action's last move swings a latched
+piece onto its goal); a piece at its goal place keeps the shape its way left it in.
+Prints the seed and, per step, the piece's size, where it docks (its goal place, or a
+free place, swung or not), its legs, the travel of its farthest
 module beside the straight distance its centroid covers, and the time the way takes at
 the piece speed; stops at the first step whose way cannot be planned and says why.
 
@@ -31,6 +35,7 @@ from pathlib import Path
 import click
 import networkx as nx
 import numpy as np
+from scipy.spatial import cKDTree
 
 from msrr.core.alignment import rot_z
 from msrr.core.console import console, table
@@ -81,11 +86,36 @@ def _load(path: Path) -> dict:
     return json.loads(path.read_text())
 
 
+def _swing(pos, piece: set[str], root: str, target: str, arm: np.ndarray,
+           spacing: float) -> float | None:
+    """Swing ``piece`` (docked by ``root`` on ``target`` at a free place) rigidly about the
+    target until its root lies along ``arm`` (2,) from it, as the action's last move swings
+    a latched piece onto its goal, if no shell comes within a centimetre of overlapping
+    another's on the way (``pos`` moved in place); the angle [rad] it swung, or ``None``."""
+    from msrr.core.alignment import wrap_angle
+
+    ms = sorted(piece)
+    centre = pos[target]
+    now = np.array([pos[m] for m in ms]) - centre
+    r = now[ms.index(root)]
+    angle = wrap_angle(float(np.arctan2(arm[1], arm[0]) - np.arctan2(r[1], r[0])))
+    others = np.array([p for m, p in pos.items() if m not in piece])
+    tree = cKDTree(others)
+    for t in np.linspace(0.0, 1.0, max(2, int(np.degrees(abs(angle)) * 2) + 1))[1:]:
+        at = centre + now @ rot_z(t * angle)[:2, :2].T
+        dist, _ = tree.query(at, k=1)
+        if np.any(dist < spacing - 0.01):
+            return None
+    for m, p in zip(ms, at, strict=True):
+        pos[m] = p
+    return angle
+
+
 def _step(k, action, current, pos, spacing) -> list[str] | None:
     """Plan step ``k``'s floor docks on ``pos`` (moved in place); a table row, or
     ``None`` when the action docks nothing over the floor."""
     from msrr.core.freeform.piece_way import piece_way
-    from msrr.core.freeform.travel import floor_path
+    from msrr.core.freeform.travel import floor_path, piece_goal
 
     after = current.copy()
     for c in action.changes:
@@ -116,15 +146,21 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
         for m, p in zip(way.piece, end + way.shape @ rot_z(way.legs[-1].heading)[:2, :2].T,
                         strict=True):
             pos[m] = p
-        at_goal = np.linalg.norm(pos[c.source] - (pos[c.target] + (
-            goal[c.source] - goal[c.target])[:2])) < 0.02
+        where = "goal place"
+        if not way.at_goal:
+            then = piece_goal(goal, {m: pos[m] for m in groups[c.target] | piece}, piece,
+                              c.target)
+            swung = _swing(pos, piece, c.source, c.target, then[c.source] - pos[c.target],
+                           spacing)
+            where = "free place, not the goal's" if swung is None else \
+                f"free place, swung {np.degrees(swung):+.0f} deg onto the goal's"
         reach = float(np.max(np.linalg.norm(way.shape, axis=1)))
         travel = sum(float(np.linalg.norm(b.to - a)) + reach * abs(float(np.angle(np.exp(
             1j * (b.heading - h))))) for (a, h), b in zip(
             [(way.origin, way.heading)] + [(x.to, x.heading) for x in way.legs[:-1]],
             way.legs, strict=True))
         return [str(k), f"{c.source} -> {c.target}", str(len(piece)),
-                "goal place" if at_goal else "free place, not the goal's",
+                where,
                 str(len(way.legs)), f"{travel:.2f}",
                 f"{np.linalg.norm(np.mean([pos[m] for m in piece], axis=0) - before):.2f}",
                 f"{travel / SPEED:.0f}",
