@@ -6,9 +6,9 @@ controller would plan it -- a lone module's way (``travel.floor_path``), a piece
 (``piece_way.piece_way``: its goal place, or the free place nearest to it) -- on the
 centres the previous steps left, each piece put where its way ends, docked (no physics:
 what the ways need, not what the MuJoCo run does). A piece docked at a free place is then
-swung rigidly about its target until its root is at its goal place, when no shell comes
-within a centimetre of overlapping on the way (as the action's last move swings a latched
-piece onto its goal); a piece at its goal place keeps the shape its way left it in.
+swung rigidly about its target until its root is at its goal place, when that is within
+20 deg and no shell comes within a centimetre of overlapping on the way (as the action's
+last move swings a latched piece onto its goal); a piece at its goal place keeps the shape its way left it in.
 Prints the seed and, per step, the piece's size, where it docks (its goal place, or a
 free place, swung or not), its legs, the travel of its farthest
 module beside the straight distance its centroid covers, and the time the way takes at
@@ -45,6 +45,7 @@ from msrr.core.io import load_configuration
 ROOT = Path(__file__).resolve().parents[1]
 HUMAN = ROOT / "plugins" / "freebot" / "configs" / "human"
 SPEED = 0.02   # a piece's fastest centre [m/s] (0.8 x max_speed x radius)
+SWING = np.radians(20.0)   # a latched piece is swung rigidly onto its goal within this [rad]
 
 
 def _groups(config) -> dict[str, set[str]]:
@@ -90,8 +91,9 @@ def _swing(pos, piece: set[str], root: str, target: str, arm: np.ndarray,
            spacing: float) -> float | None:
     """Swing ``piece`` (docked by ``root`` on ``target`` at a free place) rigidly about the
     target until its root lies along ``arm`` (2,) from it, as the action's last move swings
-    a latched piece onto its goal, if no shell comes within a centimetre of overlapping
-    another's on the way (``pos`` moved in place); the angle [rad] it swung, or ``None``."""
+    a latched piece within ``SWING`` of its goal (``recognition._LATCH_HOLD``), if no
+    shell comes within a centimetre of overlapping another's on the way (``pos`` moved in
+    place); the angle [rad] it swung, or ``None``."""
     from msrr.core.alignment import wrap_angle
 
     ms = sorted(piece)
@@ -99,6 +101,8 @@ def _swing(pos, piece: set[str], root: str, target: str, arm: np.ndarray,
     now = np.array([pos[m] for m in ms]) - centre
     r = now[ms.index(root)]
     angle = wrap_angle(float(np.arctan2(arm[1], arm[0]) - np.arctan2(r[1], r[0])))
+    if abs(angle) > SWING:
+        return None
     others = np.array([p for m, p in pos.items() if m not in piece])
     tree = cKDTree(others)
     for t in np.linspace(0.0, 1.0, max(2, int(np.degrees(abs(angle)) * 2) + 1))[1:]:
