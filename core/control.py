@@ -20,7 +20,7 @@ from .driver import ModuleCommand, Observation
 from .events import Phase
 from .plan import Action
 
-__all__ = ["Control", "Controller", "StartLayout"]
+__all__ = ["Control", "Controller", "StartLayout", "WheelCorrector"]
 
 
 @dataclass(frozen=True)
@@ -72,4 +72,21 @@ class StartLayout(Protocol):
 
     def start(self, configuration: Configuration) -> None:
         """The run starts from ``configuration``, laid out by the robot's rule."""
+        ...
+
+
+@runtime_checkable
+class WheelCorrector(Protocol):
+    """A controller that also corrects a mapping behavior's wheel commands from the
+    configuration recognized each tick (the executor calls :meth:`correct_wheels` in the
+    behavior's phase, before it merges them into the tick's commands): a wheel that sets
+    part of the stance, which no joint holds (FreeSN: a node wheel whose node only its own
+    strut holds, :func:`msrr.plugins.freesn.sim.controller.lone_wheel_corrections`). A
+    controller without it leaves the behavior's commands as they are."""
+
+    def correct_wheels(self, action: Action, configuration: Configuration,
+                       wheels: Mapping[str, Mapping[str, float]]
+                       ) -> dict[str, dict[str, float]]:
+        """``wheels`` (per module, per key: :func:`msrr.core.executor.behavior_commands`)
+        as this tick should send them, ``configuration`` recognized now."""
         ...

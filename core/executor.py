@@ -116,7 +116,7 @@ from .closed_loop import (
     turned_goal,
 )
 from .configuration import Configuration
-from .control import Control, Controller, StartLayout
+from .control import Control, Controller, StartLayout, WheelCorrector
 from .driver import Driver, ModuleCommand, Observation
 from .errors import ExecutionError, MsrrError
 from .estimation import Estimate, estimator_for, report_filter_for
@@ -1109,7 +1109,7 @@ class Executor:
             extra = _merge(Control(commands=extra), _port_commands(diff.made, "dock"))
         commands = _merge(control, extra)
         if phase is Phase.BEHAVIOR:
-            commands = _with_wheels(commands, behavior_commands(action, self._steered(action)))
+            commands = _with_wheels(commands, self._wheels(action, configuration))
         self.driver.send_action(commands)
         self.driver.step(self.dt)
         self.tick_index += 1  # executed: counted even if a listener is interrupted below
@@ -1147,6 +1147,15 @@ class Executor:
             return None
         return steered(call, loop, self._course, heading, self.estimate.position,
                        self.driver.time - self._phase_began, self.dt)
+
+    def _wheels(self, action: Action, configuration: Configuration) -> dict[str, dict[str, float]]:
+        """The behavior's wheel values for this tick (:func:`behavior_commands` of the
+        steered parameters), corrected by a :class:`~msrr.core.control.WheelCorrector`
+        controller from ``configuration``, recognized now."""
+        wheels = behavior_commands(action, self._steered(action))
+        if wheels and isinstance(self.controller, WheelCorrector):
+            wheels = self.controller.correct_wheels(action, configuration, wheels)
+        return wheels
 
     def _heading(self, action: Action) -> float | None:
         """The estimated heading [rad] of the body ``action`` holds (:func:`held_heading`)."""

@@ -92,6 +92,34 @@ def test_a_mapping_behavior_sends_the_linear_map_every_tick_for_its_duration():
     assert moved.heading_error == pytest.approx(0.0, abs=1e-9)        # along +x as told
 
 
+class HalvingController(GoalController):
+    """A :class:`~msrr.core.control.WheelCorrector`: every behavior wheel at half its value,
+    with what it was shown noted."""
+
+    def __init__(self):
+        self.seen: list[tuple[str, int]] = []
+
+    def correct_wheels(self, action, configuration, wheels):
+        self.seen.append((action.behavior.name, len(configuration.vertices())))
+        return {m: {k: 0.5 * v for k, v in values.items()} for m, values in wheels.items()}
+
+
+def test_a_wheel_corrector_controller_corrects_a_behaviors_wheels_each_tick():
+    start = chain(("a", "b"))
+    plan = Plan(NAME, "test", start, start, [drive()])
+    run = Run(robot=NAME, scenario="test", plan=plan, spec=SPEC, driver="points")
+    controller = HalvingController()
+    with TruthDriver() as world:
+        world.reset(start)
+        judge = Judge(run, world)
+        result = judge.conclude(Executor(run, world, LinkRecognizer(), controller,
+                                         ExecutorOptions(rate=10.0), sink=judge).execute())
+    assert result.success, result.reason
+    assert controller.seen == [("drive", len(start.vertices()))] * 20   # each tick, recognized
+    (moved,) = result.locomotion
+    assert math.isclose(moved.distance, 1.0, abs_tol=1e-9)  # half of 1 m/s for 2 s
+
+
 def test_distance_ends_a_mapping_behavior_and_a_wrong_way_shows_as_heading_error():
     start = chain(("a", "b"))
     action = drive(duration=None, distance=0.75, speed=-0.5)

@@ -34,7 +34,7 @@ from functools import lru_cache
 import networkx as nx
 import numpy as np
 
-from msrr.core.alignment import rot_z
+from msrr.core.alignment import align_yaw, rot_z, wrap_angle
 from msrr.core.configuration import Configuration
 from msrr.core.control import Control
 from msrr.core.driver import ModuleCommand, Observation
@@ -43,14 +43,16 @@ from msrr.core.events import Phase
 from msrr.core.plan import Action
 from msrr.core.shape import skeletal_errors
 
+from ..robot import NODE, STRUT
 from .commands import ENDS, connector_joints
 from .geometry import END_SIGN
 from .recognizer import FreeSNRecognizer, Links, links_of, node_headings, root_order
 from .world import NodeReport, StrutReport
 
-__all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "PLANTED_MODE", "SWING_MODE",
-           "FreeSNController", "bridges", "connector_commands", "driving_ends", "feet",
-           "plant_feet"]
+__all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "LONE_WHEEL_BOUND", "LONE_WHEEL_GAIN",
+           "NODE_ROLLING", "PLANTED_MODE", "SWING_MODE", "FreeSNController", "bridges",
+           "connector_commands", "driving_ends", "feet", "lone_wheel_corrections",
+           "lone_wheels", "plant_feet"]
 
 FOLLOW_EFFORT = 0.25
 """Torque fraction of a connector that closes a loop (it follows rather than fights)."""
@@ -63,6 +65,22 @@ PLANTED_MODE = "planted"
 
 SWING_MODE = "swing"
 """The leg joint whose foot connector (on a leaf node) coasts."""
+
+LONE_WHEEL_GAIN = 1.0
+"""Gain [1/s] of a lone node wheel's stance loop (:func:`lone_wheel_corrections`): the
+rate at which it closes its strut's azimuth error. Fig. 22(j), 4 deg + 10 % slip, seed 19
+(docs/freesn.md): 0.5 closed too little (28.4 deg off the heading), 2 failed the run."""
+
+LONE_WHEEL_BOUND = 2.0
+"""Bound [rad/s] of a lone node wheel's correction (its wheels run to 6 rad/s)."""
+
+NODE_ROLLING = NODE.geometry["radius"] * STRUT.geometry["wheel_radius"] / (
+    0.5 * STRUT.geometry["wheel_base"])
+"""How far [m] a node rolls on the floor per radian of its connector's wheels, per unit
+horizontal part of the strut axis: the wheels in opposition turn the node about the strut
+axis ``u`` at ``r / (b/2)`` rad per rad, and its centre rolls at ``R`` times that along
+``u x e_z`` (the node wheels' gains: ``library_sources/design.py``,
+``node_wheel_commands``)."""
 
 
 def feet(links: Links) -> set[tuple[str, str]]:
@@ -174,6 +192,100 @@ def bridges(links: Links) -> set[str]:
             if graph.number_of_edges(u, v) == 1 and ((u, v) in cut or (v, u) in cut)}
 
 
+def _held(configuration: Configuration, node: str) -> int:
+    """How many struts docked at both ends hold ``node`` (a free strut holds nothing)."""
+    return sum(not configuration.is_virtual(e.target if e.source == node else e.source)
+               for e in configuration.incident(node))
+
+
+def lone_wheels(configuration: Configuration, wheels: Mapping[str, Mapping[str, float]]
+                ) -> dict[tuple[str, str], str]:
+    """The wheels of ``wheels`` (per strut, per end ``a``/``b``) that spin a node only
+    their own strut holds, the strut's other node held by more: ``(strut, end)`` -> that
+    other node (the body node the wheel node swings about). Nothing but the wheel's own
+    rolling sets where such a node lies round its body node (a spherical joint holds the
+    strut's axis, and the node rolls along the swing)."""
+    edges = set(configuration.edge_ids())
+    out: dict[tuple[str, str], str] = {}
+    for strut, values in wheels.items():
+        if strut not in edges:
+            continue
+        edge = configuration.edge(strut)
+        for end in values:
+            if end not in ENDS:
+                continue
+            node, body = (edge.source, edge.target) if end == "a" else (edge.target,
+                                                                         edge.source)
+            if configuration.is_virtual(node) or configuration.is_virtual(body):
+                continue
+            if _held(configuration, node) == 1 and _held(configuration, body) > 1:
+                out[(strut, end)] = body
+    return out
+
+
+def _reach(configuration: Configuration, strut: str, body: str) -> np.ndarray | None:
+    """The horizontal unit direction, shape (2,), from node ``body`` along ``strut``; ``None``
+    when the strut has no vector or stands within about 11 deg of the vertical."""
+    edge = configuration.edge(strut)
+    if edge.z is None or body not in (edge.source, edge.target):
+        return None
+    out = (edge.z if edge.source == body else -edge.z)[:2]
+    size = float(np.linalg.norm(out))
+    return out / size if size > 0.2 else None
+
+
+def lone_wheel_corrections(target: Configuration, current: Configuration,
+                           wheels: Mapping[str, Mapping[str, float]], *,
+                           gain: float = LONE_WHEEL_GAIN, bound: float = LONE_WHEEL_BOUND,
+                           length: float = STRUT.geometry["length"],
+                           rolling: float = NODE_ROLLING) -> dict[str, dict[str, float]]:
+    """What to add [rad/s] to the behavior wheels of :func:`lone_wheels` so each closes its
+    strut's azimuth error about its body node at rate ``gain`` (issue 31, fig. 22(j)).
+
+    Such a node's place round its body node is set by its own rolling; when the wheels'
+    commands are no rigid motion of the stance, the difference lands on this strut, the one
+    joint that gives, and no connector can drag the node back along the floor. The error
+    ``delta`` is the recognized azimuth of the strut from its body node against the
+    target's, the target turned onto ``current`` by the eq. 8 yaw over every other strut
+    (a rigid turn of the whole is no error). A positive wheel speed turns the node about
+    the strut's ``+z`` (end ``a`` to ``b``), rolling it along ``+z x e_z``: a node at end
+    ``b`` swings round its body node by ``-rolling / length`` rad per rad of wheel (at
+    end ``a``, ``+``), so the correction is ``+/- gain * delta * length / rolling``,
+    within ``bound``.
+
+    Args:
+        target: the behavior's configuration (its stance). current: recognized now.
+        wheels: the behavior's wheel values, per strut, per end (``a``, ``b``).
+        gain: [1/s]; 0 corrects nothing. bound: [rad/s]. length: strut length [m].
+        rolling: [m/rad], :data:`NODE_ROLLING`.
+
+    Returns:
+        Per strut, per end, the value to add (only the lone wheels are named).
+    """
+    lone = lone_wheels(current, wheels)
+    if not lone or gain == 0.0:
+        return {}
+    turned = {strut for strut, _ in lone}
+    have = {e.id for e in current.edges() if e.z is not None}
+    ids = [e.id for e in target.edges() if e.z is not None and e.id in have
+           and e.id not in turned]
+    if not ids:
+        return {}
+    yaw = rot_z(align_yaw(current.vectors(ids), target.vectors(ids)).theta)[:2, :2]
+    out: dict[str, dict[str, float]] = {}
+    for (strut, end), body in sorted(lone.items()):
+        now = _reach(current, strut, body)
+        want = _reach(target, strut, body) if strut in set(target.edge_ids()) else None
+        if now is None or want is None:
+            continue
+        want = yaw @ want
+        delta = wrap_angle(float(np.arctan2(now[1], now[0]) - np.arctan2(want[1], want[0])))
+        sign = 1.0 if end == "b" else -1.0
+        value = float(np.clip(sign * gain * delta * length / rolling, -bound, bound))
+        out.setdefault(strut, {})[end] = value
+    return out
+
+
 def connector_commands(target: Configuration, reports: Mapping[str, NodeReport | StrutReport],
                        *, yaw: float = 0.0, forward: bool = False,
                        struts: set[str] | None = None,
@@ -229,16 +341,19 @@ class FreeSNController:
         mode: joint-mode name (``opposite_steering``, ...).
         tolerance: RMS strut angle [rad] under which a phase counts as reached.
         strut_length: for ``Control.errors``, strut angle -> end displacement [m].
+        lone_wheel_gain: of :meth:`correct_wheels` [1/s] (0: the behaviors' wheel
+            commands as they are).
     """
 
     def __init__(self, mode: str = "opposite_steering", *, tolerance: float = np.radians(3.0),
-                 strut_length: float = 0.2):
+                 strut_length: float = 0.2, lone_wheel_gain: float = LONE_WHEEL_GAIN):
         self.mode = mode
         self.name = f"freesn.{mode}"
         self.description = f"FreeSN {mode.replace('_', ' ')} joint controller"
         self.tolerance = tolerance
         self.strut_length = strut_length
         self.forward = mode in FORWARD_MODES
+        self.lone_wheel_gain = lone_wheel_gain
         self._recognizer = FreeSNRecognizer()
         self._yaw = 0.0
 
@@ -262,6 +377,19 @@ class FreeSNController:
             commands = plant_feet(commands, links_of(observation.sensors),
                                   coast=self.mode == SWING_MODE)
         return commands
+
+    def correct_wheels(self, action: Action, configuration: Configuration,
+                       wheels: Mapping[str, Mapping[str, float]]
+                       ) -> dict[str, dict[str, float]]:
+        """``wheels`` with each lone node wheel closing its stance
+        (:func:`lone_wheel_corrections` against ``action.target``; the
+        :class:`~msrr.core.control.WheelCorrector` protocol)."""
+        out = {module: dict(values) for module, values in wheels.items()}
+        for strut, added in lone_wheel_corrections(action.target, configuration, wheels,
+                                                   gain=self.lone_wheel_gain).items():
+            for end, value in added.items():
+                out[strut][end] += value
+        return out
 
     def begin(self, action: Action, phase: Phase, observation: Observation) -> None:
         """Fix the yaw of the action's target for this phase (eq. 8 alignment)."""
