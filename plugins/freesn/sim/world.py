@@ -961,17 +961,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         following (followed, the floor nodes rolled with the chords and the structure
         drifted sideways 9-11 % of its speed, with the sideways part the same sign both
         ways; held, 3 %)."""
-        wheeling = np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0) & (self._eq[
-            np.arange(len(self.ends)) ^ 1] >= 0))
-        if not len(wheeling):
+        wheeling = self._node_wheels()
+        followers = self._spin_followers(hung)
+        if not followers.any():
             return
         period = self._every * self.options.timestep
-        followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0) & ~hung
         moved = []
-        for node in sorted({self.docked[k] for k in wheeling}):
+        for node in sorted({self.docked[k] for k in np.flatnonzero(followers)}):
             mine = np.flatnonzero(followers & np.array([n == node for n in self.docked]))
-            if not len(mine):
-                continue
             ks = wheeling[[self.docked[k] == node for k in wheeling]]
             axes = self._believed(ks)[:, :, 2].T   # (3, m): strut axes, node frame
             rate = self._gyro_sample(self._node_index[node], period)
@@ -981,6 +978,21 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             moved.extend(mine)
         if moved:
             self._update_ball_targets(np.array(moved))
+
+    def _node_wheels(self) -> np.ndarray:
+        """The connectors (m,) whose wheels are commanded on a strut docked at both ends:
+        node wheels, which spin their node (fig22(j), fig18(a))."""
+        k = np.arange(len(self.ends))
+        return np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0) & (self._eq[k ^ 1] >= 0))
+
+    def _spin_followers(self, hung: np.ndarray) -> np.ndarray:
+        """Which connectors (k,) follow a node wheel's spin of their node
+        (:meth:`_follow_spins`): docked with a target, their own wheels not commanded, not
+        ``hung`` on a node one strut holds (:meth:`_hung_once`), on a node that a node
+        wheel (:meth:`_node_wheels`) spins."""
+        spun = {self.docked[k] for k in self._node_wheels()}
+        followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0) & ~hung
+        return followers & np.array([n in spun for n in self.docked], dtype=bool)
 
     def _hung_once(self) -> np.ndarray:
         """The connector (k,) that alone holds the node of each free strut's connector (a
@@ -1215,10 +1227,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """
         p, o = self.phys, self.options
         swing, heading, error = self._way(ks)
-        # a strut whose other end's magnet is out to dock keeps its twist: spun, that end
-        # would scrub the node it meets and turn it askew
-        docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
-        twist = np.where(self._twist_free[ks] | docking, 0.0, error[:, 2])
+        twist, spun = self._twist(ks, error)
         # a connector left with a sideways error alone, which rolling cannot remove, turns
         # toward it again; never one whose strut's free end drives its wheels (the strut
         # wheels), which stops a turn it began before they ran: the turn steers those
@@ -1251,7 +1260,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         still = self._stop(ks, np.hypot(swing, twist), wheeling) | self._waits(ks)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
-                                 np.abs(swing) * turning * self._effort[ks])
+                                 np.abs(swing) * turning * self._effort[ks], spun)
         channels = np.column_stack([roll, np.where(wheeling, 0.0, turn)])
         # a channel asked for nothing (a stopped connector, a turn in place, a straight roll
         # whose twist is free) brakes its wheels: it holds instead of being servoed
@@ -1264,6 +1273,19 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
         return self._commands(ks, omega, ~turning & ~wheeling, wheeling), held
+
+    def _twist(self, ks: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The twist corrections (n,) [rad] connectors ``ks`` servo, from their errors'
+        rotation vectors ``error`` (n, 3) in the strut frame, and which of them follow a
+        node wheel's spin (n,) (:meth:`_spin_followers`). None where the twist is free
+        (the aim alone commanded) or the strut's other end's magnet is out to dock (spun,
+        that end would scrub the node it meets and turn it askew); a spin follower turns
+        with its node about its own axis, its twist free or not: braked, it held the
+        node's spin, and its strut, held at its far end by a brake no stronger, turned with
+        the node (fig22(j)'s floor nodes, stop 52)."""
+        docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
+        spun = self._spin_followers(self._holder >= 0)[ks]
+        return np.where((self._twist_free[ks] & ~spun) | docking, 0.0, error[:, 2]), spun
 
     def _waits(self, ks: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` (n,) hold still, their wheels braked, for the one
@@ -1399,12 +1421,15 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                  np.full(len(held), p.grip * p.wheel_base / (2.0 * _GRIP_LEVER))])
         self.model.tendon_frictionloss[self._brake] = np.where(held, force, 0.0)
 
-    def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray) -> np.ndarray:
+    def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray,
+                     own: np.ndarray) -> np.ndarray:
         """One turn for both ends of a strut docked and driven at both (FreeSN paper,
         Fig. 6(c)): a turn spins the strut about its axis, on both nodes at once, so the
         other end steers opposite (in its own wheels' sense) and the nodes stay put. The
         end that leads (larger ``lead``: its swing while turning, times its effort) sets
-        the turn of both; when neither turns, the mean of their twist corrections."""
+        the turn of both; when neither turns, the mean of their twist corrections, unless
+        either end's is its ``own`` (n,): a spin follower's twist (:meth:`_steer`) turns
+        it with its node, not the strut, so each end keeps its own."""
         where = np.full(len(self.ends), -1)
         where[ks] = np.arange(len(ks))
         partner = where[ks ^ 1]
@@ -1413,7 +1438,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         mine = lead >= lead[other]
         chosen = np.where(mine, turn, turn[other])
         neither = (lead == 0.0) & (lead[other] == 0.0)
-        return np.where(pair, np.where(neither, 0.5 * (turn + turn[other]), chosen), turn)
+        shared = np.where(own | own[other], turn, 0.5 * (turn + turn[other]))
+        return np.where(pair, np.where(neither, shared, chosen), turn)
 
     def _drive(self, speed: np.ndarray) -> None:
         """Every wheel motor toward ``speed`` (k, 2) [rad/s]: a DC motor's torque ``D_w
