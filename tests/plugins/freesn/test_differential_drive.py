@@ -563,3 +563,90 @@ def test_a_follower_turns_with_the_node_a_node_wheel_spins_and_its_strut_keeps_i
             twisted.append(abs(float(w[:3] @ world.data.xmat[strut].reshape(3, 3)[:, 2])) / asked)
     assert np.mean(spun) > 0.9, np.mean(spun)
     assert np.mean(twisted) < 0.1, np.mean(twisted)
+
+
+def _held_node(travel: float) -> tuple[FreeSNWorld, np.ndarray]:
+    """N1 held by two struts docked at both ends, their axles built level (a fixed wheel):
+    S0 (to N2, 45 deg up toward +x) spins N1 from its end a at 2 rad/s of wheel speed
+    backwards, which alone rolls N1 along +y; S1 (to N3, 45 deg up at azimuth 120 deg)
+    follows. N1 is commanded to travel at azimuth ``travel`` [deg]
+    (:mod:`~msrr.plugins.freesn.sim.commands`); gravity off, N2 and N3
+    held by 1000 kg. The world and the travel (3,)."""
+    config = Configuration("freesn")
+    for node in ("N1", "N2", "N3"):
+        config.add_module(node, "node")
+    up = np.array([0.0, 0.0, 1.0])
+    a = np.radians(120.0)
+    u0 = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
+    u1 = np.array([np.cos(a), np.sin(a), 1.0]) / np.sqrt(2.0)
+    for sid, far, u in (("S0", "N2", u0), ("S1", "N3", u1)):
+        x = up - (up @ u) * u
+        config.connect("N1", far, id=sid, kind="strut", z=u, x=x / np.linalg.norm(x))
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    for node in ("N2", "N3"):
+        body = world._node_body[world._node_index[node]]
+        world.model.body_mass[body] = 1000.0
+        world.model.body_inertia[body] = 1000.0
+    mujoco.mj_setConst(world.model, world.data)
+    world.command_target("S0", "b", (-u0, None, 1.0))
+    world.command_target("S1", "a", (u1, None, 0.25))   # a loop's soft follower
+    world.command_target("S1", "b", (-u1, None, 1.0))
+    t = np.array([np.cos(np.radians(travel)), np.sin(np.radians(travel)), 0.0])
+    d = np.cross(u0, up) / np.linalg.norm(np.cross(u0, up))   # how S0 rolls N1: -y
+    along, across = float(t @ d), float(t @ np.cross(up, d))
+    world.command_wheels("S0", "a", 2.0 * np.sign(along))
+    world.command_travel("S0", "a", along, across)
+    return world, t
+
+
+def test_a_node_two_struts_hold_rolls_along_its_commanded_travel_steered_like_a_swerve_wheel():
+    """fig22(j)'s floor nodes B1, B2 (stop 52): a node held by two struts docked at both
+    ends turns relative to them only about ``x_W x x_F`` (each connector grips about its
+    heading), so it rolls one way only, set by their twists. As built (:func:`_held_node`)
+    N1 rolls along -30/150 deg; commanded to travel at 60 deg, 90 deg off that line, the
+    follower S1 is turned at both ends so N1 rolls along the travel: over the third
+    second the line N1's spin rolls it along is within 10 deg of the travel, and it spins
+    at least at half the wheel's spin. Before (no swerve), N1 spun about its built axis:
+    its rolling line 86-90 deg off the travel."""
+    world, t = _held_node(60.0)
+    up = np.array([0.0, 0.0, 1.0])
+    asked = 2.0 / world.phys.turn_ratio
+    node = world._node_body[world._node_index["N1"]]
+    off, rates = [], []
+    for i in range(75):
+        world.step(0.04)
+        if i >= 50:
+            w = np.zeros(6)
+            mujoco.mj_objectVelocity(world.model, world.data, mujoco.mjtObj.mjOBJ_BODY,
+                                     int(node), w, 0)
+            roll = np.cross(w[:3], up)   # the floor's way for a node spinning at w
+            off.append(_angle(roll, t) if roll @ t >= 0 else _angle(-roll, t))
+            rates.append(float(np.linalg.norm(w[:3])) / asked)
+    assert np.mean(off) < 10.0, np.mean(off)
+    assert np.mean(rates) > 0.5, np.mean(rates)
+
+
+def test_node_travel_and_swerve_heading_set_the_follower_so_the_node_rolls_along_the_travel():
+    """The pure maths (:func:`node_travel`, :func:`swerve_heading`): the travel from the
+    wheel speed and the travel across is the direction asked; the follower's heading it
+    gives leaves ``x_W x x_F`` at right angles to it; none without a travel."""
+    from msrr.plugins.freesn.sim.world import node_travel, swerve_heading
+    up = np.array([0.0, 0.0, 1.0])
+    u0 = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
+    a = np.radians(120.0)
+    u1 = np.array([np.cos(a), np.sin(a), 1.0]) / np.sqrt(2.0)
+    x0, x1 = up - (up @ u0) * u0, up - (up @ u1) * u1
+    x0, x1 = x0 / np.linalg.norm(x0), x1 / np.linalg.norm(x1)
+    follower = np.column_stack([x1, np.cross(u1, x1), u1])
+    for azimuth in (20.0, 60.0, 100.0, 200.0):
+        t = np.array([np.cos(np.radians(azimuth)), np.sin(np.radians(azimuth)), 0.0])
+        d = np.array([0.0, -1.0, 0.0])
+        travel = node_travel(u0, up, 3.0 * float(t @ d), 3.0 * float(t @ np.cross(up, d)))
+        assert np.allclose(travel, t, atol=1e-9)
+        heading = follower @ swerve_heading(x0, follower, travel)
+        assert abs(float(heading @ u1)) < 1e-9
+        assert abs(float(np.cross(x0, heading) @ t)) < 1e-9
+        assert float(heading @ x1) >= 0.0
+    assert not node_travel(u0, up, 0.0, 0.0).any()
+    assert swerve_heading(x0, follower, np.zeros(3)) is None
