@@ -567,11 +567,11 @@ def test_a_follower_turns_with_the_node_a_node_wheel_spins_and_its_strut_keeps_i
 
 def _held_node(travel: float) -> tuple[FreeSNWorld, np.ndarray]:
     """N1 held by two struts docked at both ends, their axles built level (a fixed wheel):
-    S0 (to N2, 45 deg up toward +x) spins N1 from its end a at 2 rad/s of wheel speed
-    backwards, which alone rolls N1 along +y; S1 (to N3, 45 deg up at azimuth 120 deg)
-    follows. N1 is commanded to travel at azimuth ``travel`` [deg]
-    (:mod:`~msrr.plugins.freesn.sim.commands`); gravity off, N2 and N3
-    held by 1000 kg. The world and the travel (3,)."""
+    S0 (to N2, 45 deg up toward +x) spins N1 from its end a at 0.1 rad/s of wheel speed,
+    which alone rolls N1 along -+y; S1 (to N3, 45 deg up at azimuth 120 deg) follows. N1
+    is commanded to travel at azimuth ``travel`` [deg]
+    (:mod:`~msrr.plugins.freesn.sim.commands`); gravity off, N2 and N3 held by 1000 kg.
+    The world and the travel (3,)."""
     config = Configuration("freesn")
     for node in ("N1", "N2", "N3"):
         config.add_module(node, "node")
@@ -595,36 +595,30 @@ def _held_node(travel: float) -> tuple[FreeSNWorld, np.ndarray]:
     t = np.array([np.cos(np.radians(travel)), np.sin(np.radians(travel)), 0.0])
     d = np.cross(u0, up) / np.linalg.norm(np.cross(u0, up))   # how S0 rolls N1: -y
     along, across = float(t @ d), float(t @ np.cross(up, d))
-    world.command_wheels("S0", "a", 2.0 * np.sign(along))
+    world.command_wheels("S0", "a", 0.1 * np.sign(along))
     world.command_travel("S0", "a", along, across)
     return world, t
 
 
-def test_a_node_two_struts_hold_rolls_along_its_commanded_travel_steered_like_a_swerve_wheel():
+def test_a_node_two_struts_hold_is_steered_to_roll_along_its_commanded_travel():
     """fig22(j)'s floor nodes B1, B2 (stop 52): a node held by two struts docked at both
-    ends turns relative to them only about ``x_W x x_F`` (each connector grips about its
-    heading), so it rolls one way only, set by their twists. As built (:func:`_held_node`)
-    N1 rolls along -30/150 deg; commanded to travel at 60 deg, 90 deg off that line, the
-    follower S1 is turned at both ends so N1 rolls along the travel: over the third
-    second the line N1's spin rolls it along is within 10 deg of the travel, and it spins
-    at least at half the wheel's spin. Before (no swerve), N1 spun about its built axis:
-    its rolling line 86-90 deg off the travel."""
+    ends turns relative to them only about ``n = x_W x x_F`` (each connector grips about
+    its heading), so it rolls one way only, ``n x up``, set by the struts' twists. As
+    built (:func:`_held_node`) N1 rolls along -30/150 deg; commanded to travel at 60 deg,
+    90 deg off that line, the follower S1 turns at both ends until N1's line is the
+    travel, like a swerve wheel: within 3 deg of it from 0.6 s to 2 s (the struts' true
+    axes). Before (no swerve), the line stayed 89-90 deg off."""
     world, t = _held_node(60.0)
     up = np.array([0.0, 0.0, 1.0])
-    asked = 2.0 / world.phys.turn_ratio
-    node = world._node_body[world._node_index["N1"]]
-    off, rates = [], []
-    for i in range(75):
+    off = []
+    for i in range(50):
         world.step(0.04)
-        if i >= 50:
-            w = np.zeros(6)
-            mujoco.mj_objectVelocity(world.model, world.data, mujoco.mjtObj.mjOBJ_BODY,
-                                     int(node), w, 0)
-            roll = np.cross(w[:3], up)   # the floor's way for a node spinning at w
-            off.append(_angle(roll, t) if roll @ t >= 0 else _angle(-roll, t))
-            rates.append(float(np.linalg.norm(w[:3])) / asked)
-    assert np.mean(off) < 10.0, np.mean(off)
-    assert np.mean(rates) > 0.5, np.mean(rates)
+        if i >= 14:
+            x0, x1 = (world.data.xmat[world._strut_body[world._strut_index[s]]].reshape(3, 3)
+                      [:, 0] for s in ("S0", "S1"))
+            line = np.cross(np.cross(x0, x1), up)
+            off.append(_angle(line, t) if line @ t >= 0 else _angle(-line, t))
+    assert max(off) < 3.0, max(off)
 
 
 def test_node_travel_and_swerve_heading_set_the_follower_so_the_node_rolls_along_the_travel():
