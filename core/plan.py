@@ -52,7 +52,7 @@ from .kinematics.tree_file import TREE_SCHEMA_VERSION, NodeModel
 from .robot import Robot, Violation, check_structure
 from .scenario import MAX_DISTANCE, MAX_LOOPS, MAX_TIME
 
-__all__ = ["STRUT_ENDS", "Action", "ActionType", "BehaviorCall", "CommandGain",
+__all__ = ["STRUT_ENDS", "WHEEL_SPEED", "Action", "ActionType", "BehaviorCall", "CommandGain",
            "ConnectionChange", "ConnectionKey", "Plan", "behavior_runs", "check_chain",
            "check_plan", "connection_key", "join_plans", "links", "load_plan", "natural_key",
            "parse_plan_file", "save_plan"]
@@ -133,6 +133,8 @@ class ConnectionChange:
 
 STRUT_ENDS = ("a", "b")
 """Names of the source and target end of a connection that is a module."""
+WHEEL_SPEED = "wheel_speed"
+"""A behavior's wheel command [rad/s]; of a connector, it travels under the end's name."""
 
 
 def links(config: Configuration, edges: Iterable[Edge] | None = None
@@ -184,12 +186,15 @@ class CommandGain:
 
     @property
     def key(self) -> str:
-        """The name the value travels under in ``ModuleCommand.wheels``: the connector's
-        end (``"a"`` the source end of an edge module, ``"b"`` its target end, as in
-        :data:`STRUT_ENDS`), else the command's name."""
+        """The name the value travels under in ``ModuleCommand.wheels``: for a
+        :data:`WHEEL_SPEED` command the connector's end (``"a"`` the source end of an
+        edge module, ``"b"`` its target end, as in :data:`STRUT_ENDS`), for another
+        command of a connector ``"<end>.<command>"`` (``"b.travel_across"``), else the
+        command's name."""
         if self.connector is None:
             return self.command
-        return STRUT_ENDS[0 if self.connector == "source" else 1]
+        end = STRUT_ENDS[0 if self.connector == "source" else 1]
+        return end if self.command == WHEEL_SPEED else f"{end}.{self.command}"
 
 
 @dataclass(frozen=True)

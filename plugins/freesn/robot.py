@@ -39,7 +39,8 @@ STRUT = ModuleKind(
         "connector_mass": 0.03,  # magnet array, wheels and motors of one connector [kg]; assumed
     },
     description="two magnetic differential-drive connectors, one at each end",
-    commands=("wheel_speed",),  # [rad/s] of one connector's wheel pair (sim/commands.py)
+    # [rad/s] of one connector's wheel pair; its node's travel (sim/commands.py)
+    commands=("wheel_speed", "travel_along", "travel_across"),
 )
 
 NODE = ModuleKind(

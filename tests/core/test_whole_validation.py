@@ -216,7 +216,7 @@ LIBRARIES: dict[str, tuple[Callable[[dict[str, Any]], None], str, str]] = {
     "unknown joint mode": (lambda d: _tree(d)["nodes"][1].update(type="warp"),
                            "trees[0].tree.nodes[1].type", "unknown node type"),
     "unknown command": (lambda d: _command(d).update(command="warp"), "commands[0].command",
-                        "unknown command 'warp' of a strut module (known: wheel_speed)"),
+                        "unknown command 'warp' of a strut module (known: wheel_speed, travel_along, travel_across)"),
 }
 
 

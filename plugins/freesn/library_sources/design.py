@@ -690,6 +690,13 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
     ``(e_z x p) . d``; the rest slips. Rolling directions 120 deg apart (fig22(j)) make
     the three a kiwi drive: the course loop slides the travel onto the line instead of
     turning the body, which every wheel scrubs (issue 31).
+
+    Each strut also gets ``travel_along`` and ``travel_across``: the body's commanded
+    translation (``speed``, ``sideways``; not its turn) along ``d`` and along the
+    strut's plan direction ``h = u_h / |u_h|``, in the wheel speed's scale: the travel
+    in the strut's own horizontal frame, which the connector servo steers the node's
+    other struts by (a node two struts hold is a fixed wheel: stop 52 in
+    docs/freesn.md).
     """
     rate = R_NODE * R_WHEEL / HALF_BASE   # centre speed [m/s] per rad/s of w, per |u_h|
     out = []
@@ -699,11 +706,16 @@ def node_wheel_commands(nodes: dict[str, np.ndarray], struts: tuple[str, ...]) -
         roll = np.cross(u, UP)                 # centre velocity per unit node spin
         scale = rate * float(np.linalg.norm(roll))
         d = roll / np.linalg.norm(roll)
+        h = np.cross(UP, d)                    # u_h / |u_h|
         tangential = np.cross(UP, nodes[target])
         out.append({"module": sid, "command": "wheel_speed", "connector": "target",
                     "gains": {"speed": round(float(d[0]) / scale, 9),
                               "yaw_rate": round(float(tangential @ d) / scale, 9),
                               "sideways": round(float(d[1]) / scale, 9) + 0.0}})
+        for command, e in (("travel_along", d), ("travel_across", h)):
+            out.append({"module": sid, "command": command, "connector": "target",
+                        "gains": {"speed": round(float(e[0]) / scale, 9) + 0.0,
+                                  "sideways": round(float(e[1]) / scale, 9) + 0.0}})
     return out
 
 

@@ -29,6 +29,14 @@ Fig. 18(a)-(c); a strut turns about its axis, Fig. 18(g)-(i)). On a free connect
 two wheels run together about the strut's ``y`` axis (their axle) at ``w``: on the
 ground they drive the strut end (Fig. 18(d)-(f)). A wheel speed stays until changed;
 ``0`` brakes the strut's twist where it is.
+``wheels={"b.travel_along": p, "b.travel_across": q}`` go with a node wheel (the
+behaviors' ``travel_along`` and ``travel_across`` commands): the body's commanded
+translation at its node, along the way the wheel rolls it, ``d = z x up`` made unit
+(``z`` the strut's axis), and along the strut's plan direction ``h = up x d``, in the wheel
+speed's scale; the travel is ``p d + q h``. A node two struts docked at both ends hold
+rolls one way only; the connector servo steers the other strut's twist so that way is
+this travel (a swerve wheel, ``FreeSNWorld._swerve``). Like a wheel speed they are one
+tick's: not named, 0.
 
 On the module link (``docs/protocol.md``) the connection and forward vectors are unit
 vectors: :data:`LINK_VECTORS` declares them, so each travels as one 4-byte direction
@@ -47,7 +55,7 @@ from msrr.core.errors import ExecutionError
 from msrr.core.link.declarations import declare_link
 
 __all__ = ["ENDS", "LINK_POSE_EVERY", "LINK_VECTORS", "ConnectorTarget", "connector_joints",
-           "parse_brakes", "parse_command", "parse_wheels"]
+           "parse_brakes", "parse_command", "parse_travel", "parse_wheels"]
 
 ENDS = ("a", "b")
 LINK_VECTORS = tuple(f"{end}.{what}" for end in ENDS for what in ("dir", "fwd"))
@@ -59,6 +67,8 @@ gait covered and the judge)."""
 declare_link("freesn", vectors=LINK_VECTORS, pose_every=LINK_POSE_EVERY)
 WHEEL_PORTS = {"a": "a", "b": "b", "source": "a", "target": "b"}
 """Names of a connector in ``ModuleCommand.wheels``: its end, or its end of the connection."""
+TRAVEL = ("travel_along", "travel_across")
+"""The behaviors' commands of a node wheel's travel: ``"<end>.travel_along"``..."""
 _AXES = ("x", "y", "z")
 
 
@@ -134,6 +144,8 @@ def parse_wheels(strut: str, command: ModuleCommand) -> dict[str, float]:
     """
     speeds: dict[str, float] = {}
     for name, value in command.wheels.items():
+        if name.split(".")[-1] in TRAVEL:
+            continue   # parse_travel's
         end = WHEEL_PORTS.get(name)
         if end is None:
             raise ExecutionError(f"strut {strut}: unknown wheel {name!r} (known: "
@@ -145,3 +157,25 @@ def parse_wheels(strut: str, command: ModuleCommand) -> dict[str, float]:
             raise ExecutionError(f"strut {strut}: wheel speed {name} must be finite, got {speed}")
         speeds[end] = speed
     return speeds
+
+
+def parse_travel(strut: str, command: ModuleCommand) -> dict[str, tuple[float, float]]:
+    """The node wheels' travel (``"<end>.travel_along"``, ``"<end>.travel_across"`` in
+    ``command.wheels``, either missing 0), by end (``a``, ``b``), in the wheel speed's
+    scale [rad/s].
+
+    Raises:
+        ExecutionError: an unknown end or a non-finite value.
+    """
+    out: dict[str, list[float]] = {}
+    for name, value in command.wheels.items():
+        end, _, what = name.rpartition(".")
+        if what not in TRAVEL:
+            continue
+        if end not in ENDS:
+            raise ExecutionError(f"strut {strut}: unknown connector in {name!r} (known: a, b)")
+        part = float(value)
+        if not np.isfinite(part):
+            raise ExecutionError(f"strut {strut}: {name} must be finite, got {part}")
+        out.setdefault(end, [0.0, 0.0])[TRAVEL.index(what)] = part
+    return {end: (along, across) for end, (along, across) in out.items()}

@@ -13,7 +13,7 @@ from msrr.core.freeform.mujoco_driver import MujocoDriver
 from msrr.core.robot import RobotSpec
 
 from ..robot import SPEC
-from .commands import ENDS, parse_brakes, parse_command, parse_wheels
+from .commands import ENDS, parse_brakes, parse_command, parse_travel, parse_wheels
 from .options import SimOptions
 from .world import FreeSNWorld
 
@@ -78,9 +78,11 @@ class FreeSNMujocoDriver(MujocoDriver[FreeSNWorld]):
             for end, effort in parse_brakes(strut, command).items():
                 world.command_brake(strut, end, effort)
             speeds = parse_wheels(strut, command)
+            travel = parse_travel(strut, command)
             for end in ENDS:   # a command is one tick's: wheels it does not name stop
                 if end in speeds or world.wheel_speed(strut, end):
                     world.command_wheels(strut, end, speeds.get(end, 0.0))
+                world.command_travel(strut, end, *travel.get(end, (0.0, 0.0)))
 
     def faults(self) -> list[str]:
         """Connector breaks, then module bodies that interpenetrated since the reset (the

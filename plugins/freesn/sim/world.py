@@ -121,7 +121,7 @@ from .geometry import END_SIGN, Placement, place
 from .options import Physical, SimOptions
 
 __all__ = ["INTERPENETRATION", "Accuracy", "DockEvent", "FreeSNWorld", "Interpenetration", "NodeReport",
-           "StrutReport", "magnet_pull"]
+           "StrutReport", "magnet_pull", "node_travel", "swerve_heading"]
 
 _GAP = 0.003          # strut capsule tip to node surface when docked [m]
 _ROLLER_MASS = 0.02   # rolling frame of a connector (wheels, magnet carrier) [kg]
@@ -370,6 +370,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._axle = np.array([m.joint(f"axle/{s}/{e}").dofadr[0] for s, e in self.ends],
                               dtype=int)
         self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
+        self._travel = np.zeros((k, 2))                    # node wheel's travel: along, across
         self._spin_lag = np.zeros(k)                       # wheel spin asked - measured [rad]
         self._node_rate = 3 + np.array([m.joint(f"free/{n}").dofadr[0] for n in self.nodes])
         self._index_drives(self.ends if self._differential else [])
@@ -589,6 +590,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         for end in ENDS:
             k = self._end(strut, end)
             self._wheel[k] = 0.0
+            self._travel[k] = 0.0
             self._braked[k] = False
             if self.docked[k] is not None:
                 self._set_effort(k, 1.0)
@@ -606,6 +608,13 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._wheel[k] = speed
         if self.docked[k] is not None and (not self._has_target[k] or (was and not speed)):
             self._hold(k)
+
+    def command_travel(self, strut: str, end: str, along: float, across: float) -> None:
+        """The body's commanded translation at the node ``strut``'s ``end`` spins as a
+        wheel, ``along`` the way the wheel rolls it and ``across`` along the strut's plan
+        direction, in its wheel speed's scale (see :mod:`.commands`; both 0: none). The
+        differential connectors steer that node's other struts by it (:meth:`_swerve`)."""
+        self._travel[self._end(strut, end)] = (float(along), float(across))
 
     def wheel_speed(self, strut: str, end: str) -> float:
         """The speed [rad/s] ``strut``'s ``end`` runs its wheel pair at (0: not running)."""
@@ -929,6 +938,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         self._attract()
         self._holder = self._hung_once()
         hung = self._holder >= 0
+        if self._differential:
+            self._swerve(hung)
         self._follow_spins(hung)
         ks = self._driven
         if not self._differential:
@@ -961,17 +972,14 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         following (followed, the floor nodes rolled with the chords and the structure
         drifted sideways 9-11 % of its speed, with the sideways part the same sign both
         ways; held, 3 %)."""
-        wheeling = np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0) & (self._eq[
-            np.arange(len(self.ends)) ^ 1] >= 0))
-        if not len(wheeling):
+        wheeling = self._node_wheels()
+        followers = self._spin_followers(hung)
+        if not followers.any():
             return
         period = self._every * self.options.timestep
-        followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0) & ~hung
         moved = []
-        for node in sorted({self.docked[k] for k in wheeling}):
+        for node in sorted({self.docked[k] for k in np.flatnonzero(followers)}):
             mine = np.flatnonzero(followers & np.array([n == node for n in self.docked]))
-            if not len(mine):
-                continue
             ks = wheeling[[self.docked[k] == node for k in wheeling]]
             axes = self._believed(ks)[:, :, 2].T   # (3, m): strut axes, node frame
             rate = self._gyro_sample(self._node_index[node], period)
@@ -981,6 +989,75 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             moved.extend(mine)
         if moved:
             self._update_ball_targets(np.array(moved))
+
+    def _swerve(self, hung: np.ndarray) -> None:
+        """Steer the floor nodes like swerve wheels: on a node a node wheel ``W`` spins
+        with a commanded travel (:meth:`command_travel`: the body's translation, not its
+        turn, which the wheels' speeds alone carry), every spin follower ``F``
+        (:meth:`_spin_followers`) on a strut docked at both ends gets, at both its ends,
+        the twist that leaves the node rolling along that travel (:func:`swerve_heading`).
+
+        A docked differential connector grips about its heading (its strut's ``x``), so a
+        node two such struts hold turns relative to them only about ``x_W x x_F`` and
+        rolls along one direction, which their twists set: the kiwi drive's travel
+        oblique to it left the body one motion, a turn, and the wheels stalled (fig22(j):
+        17 % of the travel asked, stop 52). Everything here is as the modules sense it:
+        the travel from the behavior's command in ``W``'s own horizontal frame, the
+        vertical from the node's attitude estimate (:meth:`_vertical`), the struts'
+        axes from the connectors' beliefs (:meth:`_believed`); the far end takes the
+        twist through its own belief of the strut."""
+        wheels = self._node_wheels()
+        wheels = wheels[self._travel[wheels].any(axis=1)]
+        if not len(wheels):
+            return
+        k = np.arange(len(self.ends))
+        follows = self._spin_followers(hung) & (self._eq[k ^ 1] >= 0)
+        moved = []
+        for kw in wheels:
+            node = self.docked[kw]
+            mine = [kf for kf in np.flatnonzero(follows) if self.docked[kf] == node]
+            if not mine:
+                continue
+            up = self._vertical(self._node_index[node])
+            wheel = self._believed(np.array([kw]))[0]
+            travel = node_travel(wheel[:, 2], up, *self._travel[kw])
+            for kf in mine:
+                seen = self._believed(np.array([kf, kf ^ 1]))
+                heading = swerve_heading(wheel[:, 0], seen[0], travel)
+                if heading is None:
+                    continue
+                for kk, belief in zip((kf, kf ^ 1), seen, strict=True):
+                    self._target[kk] = _frame(self._target[kk][:, 2], belief @ heading)
+                    self._twist_free[kk] = False
+                    moved.append(kk)
+        if moved:
+            self._update_ball_targets(np.array(moved))
+
+    def _vertical(self, i: int) -> np.ndarray:
+        """The vertical (3,) in node ``i``'s frame as its IMU estimates it now: the truth
+        off by the attitude estimate's last error (:meth:`_node_tilt`'s, which this
+        neither draws nor caches: a servo period's vertical, not the tick's frame the
+        commands share; cached here, the commands took a spinning node's frame a tick
+        old and every target on it was off by the turn since)."""
+        body = self._node_body[i]
+        tilt = Rotation.from_rotvec(self._attitude[i]).as_matrix() @ rot_z(
+            -float(heading(self.data.xquat[body])))
+        return (tilt @ self.data.xmat[body].reshape(3, 3)).T @ _EZ
+
+    def _node_wheels(self) -> np.ndarray:
+        """The connectors (m,) whose wheels are commanded on a strut docked at both ends:
+        node wheels, which spin their node (fig22(j), fig18(a))."""
+        k = np.arange(len(self.ends))
+        return np.flatnonzero((self._wheel != 0.0) & (self._eq >= 0) & (self._eq[k ^ 1] >= 0))
+
+    def _spin_followers(self, hung: np.ndarray) -> np.ndarray:
+        """Which connectors (k,) follow a node wheel's spin of their node
+        (:meth:`_follow_spins`): docked with a target, their own wheels not commanded, not
+        ``hung`` on a node one strut holds (:meth:`_hung_once`), on a node that a node
+        wheel (:meth:`_node_wheels`) spins."""
+        spun = {self.docked[k] for k in self._node_wheels()}
+        followers = (self._eq >= 0) & self._has_target & (self._wheel == 0.0) & ~hung
+        return followers & np.array([n in spun for n in self.docked], dtype=bool)
 
     def _hung_once(self) -> np.ndarray:
         """The connector (k,) that alone holds the node of each free strut's connector (a
@@ -1215,10 +1292,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """
         p, o = self.phys, self.options
         swing, heading, error = self._way(ks)
-        # a strut whose other end's magnet is out to dock keeps its twist: spun, that end
-        # would scrub the node it meets and turn it askew
-        docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
-        twist = np.where(self._twist_free[ks] | docking, 0.0, error[:, 2])
+        twist, spun = self._twist(ks, error)
         # a connector left with a sideways error alone, which rolling cannot remove, turns
         # toward it again; never one whose strut's free end drives its wheels (the strut
         # wheels), which stops a turn it began before they ran: the turn steers those
@@ -1251,7 +1325,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         still = self._stop(ks, np.hypot(swing, twist), wheeling) | self._waits(ks)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
-                                 np.abs(swing) * turning * self._effort[ks])
+                                 np.abs(swing) * turning * self._effort[ks], spun)
         channels = np.column_stack([roll, np.where(wheeling, 0.0, turn)])
         # a channel asked for nothing (a stopped connector, a turn in place, a straight roll
         # whose twist is free) brakes its wheels: it holds instead of being servoed
@@ -1264,6 +1338,19 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
         return self._commands(ks, omega, ~turning & ~wheeling, wheeling), held
+
+    def _twist(self, ks: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The twist corrections (n,) [rad] connectors ``ks`` servo, from their errors'
+        rotation vectors ``error`` (n, 3) in the strut frame, and which of them follow a
+        node wheel's spin (n,) (:meth:`_spin_followers`). None where the twist is free
+        (the aim alone commanded) or the strut's other end's magnet is out to dock (spun,
+        that end would scrub the node it meets and turn it askew); a spin follower turns
+        with its node about its own axis, its twist free or not: braked, it held the
+        node's spin, and its strut, held at its far end by a brake no stronger, turned with
+        the node (fig22(j)'s floor nodes, stop 52)."""
+        docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
+        spun = self._spin_followers(self._holder >= 0)[ks]
+        return np.where((self._twist_free[ks] & ~spun) | docking, 0.0, error[:, 2]), spun
 
     def _waits(self, ks: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` (n,) hold still, their wheels braked, for the one
@@ -1399,12 +1486,15 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                                  np.full(len(held), p.grip * p.wheel_base / (2.0 * _GRIP_LEVER))])
         self.model.tendon_frictionloss[self._brake] = np.where(held, force, 0.0)
 
-    def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray) -> np.ndarray:
+    def _common_turn(self, ks: np.ndarray, turn: np.ndarray, lead: np.ndarray,
+                     own: np.ndarray) -> np.ndarray:
         """One turn for both ends of a strut docked and driven at both (FreeSN paper,
         Fig. 6(c)): a turn spins the strut about its axis, on both nodes at once, so the
         other end steers opposite (in its own wheels' sense) and the nodes stay put. The
         end that leads (larger ``lead``: its swing while turning, times its effort) sets
-        the turn of both; when neither turns, the mean of their twist corrections."""
+        the turn of both; when neither turns, the mean of their twist corrections, unless
+        either end's is its ``own`` (n,): a spin follower's twist (:meth:`_steer`) turns
+        it with its node, not the strut, so each end keeps its own."""
         where = np.full(len(self.ends), -1)
         where[ks] = np.arange(len(ks))
         partner = where[ks ^ 1]
@@ -1413,7 +1503,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         mine = lead >= lead[other]
         chosen = np.where(mine, turn, turn[other])
         neither = (lead == 0.0) & (lead[other] == 0.0)
-        return np.where(pair, np.where(neither, 0.5 * (turn + turn[other]), chosen), turn)
+        shared = np.where(own | own[other], turn, 0.5 * (turn + turn[other]))
+        return np.where(pair, np.where(neither, shared, chosen), turn)
 
     def _drive(self, speed: np.ndarray) -> None:
         """Every wheel motor toward ``speed`` (k, 2) [rad/s]: a DC motor's torque ``D_w
@@ -1766,6 +1857,43 @@ def _level(z: np.ndarray, up: np.ndarray, ride: np.ndarray) -> np.ndarray | None
     y = y / norm
     y = ride[0] * y + ride[1] * np.cross(z, y)
     return np.column_stack([np.cross(y, z), y, z])
+
+
+def node_travel(axis: np.ndarray, up: np.ndarray, along: float, across: float) -> np.ndarray:
+    """The commanded travel (3,) of a node a node wheel spins, unit (zero for none), from
+    the wheel's strut ``axis`` (3,) and the vertical ``up`` (3,) in one frame, and the
+    travel's parts (any common scale): ``along`` the way the wheel rolls the node,
+    ``d = axis x up`` made unit, and ``across`` along the strut's plan direction
+    ``h = up x d`` (:mod:`.commands`)."""
+    d = np.cross(axis, up)
+    norm = float(np.linalg.norm(d))
+    if norm < 1e-9:
+        return np.zeros(3)
+    d /= norm
+    travel = along * d + across * np.cross(up, d)
+    size = float(np.linalg.norm(travel))
+    return travel / size if size > 1e-12 else np.zeros(3)
+
+
+def swerve_heading(heading: np.ndarray, follower: np.ndarray, travel: np.ndarray
+                   ) -> np.ndarray | None:
+    """The heading (3,) [strut frame of ``follower``] that leaves a node held by a node
+    wheel's strut, heading ``heading`` (3,), and by ``follower`` (3, 3: the strut's
+    rotation, node frame) rolling along ``travel`` (3,, unit, level; node frame).
+
+    Held by two differential connectors, the node turns only about ``n = x_W x x_F``
+    (each grips about its heading) and so rolls along ``n x up``; that is ``travel``
+    when ``n . travel = x_F . (travel x x_W) = 0``: ``x_F`` along ``z_F x (travel x
+    x_W)``, of the two senses the one nearer the follower's heading now. ``None`` when
+    there is no travel or any heading does (``travel`` along ``x_W``, or ``travel x
+    x_W`` along ``z_F``)."""
+    want = np.cross(follower[:, 2], np.cross(travel, heading))
+    norm = float(np.linalg.norm(want))
+    if norm < 1e-6:
+        return None
+    want /= norm
+    want = want if float(want @ follower[:, 0]) >= 0.0 else -want
+    return follower.T @ want
 
 
 def _frame(z: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import replace
 
+import mujoco
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -513,3 +514,133 @@ def test_a_turn_toward_a_small_sideways_error_keeps_its_sense_as_the_errors_dire
     assert world._turning[0]
     assert np.sign(speed[0, 1] - speed[0, 0]) == first
     assert not world._backwards[0]
+
+
+def test_a_follower_turns_with_the_node_a_node_wheel_spins_and_its_strut_keeps_its_twist():
+    """A node wheel's node with a second strut docked at both ends (fig22(j)'s floor nodes
+    B1, B2: ``R1:b`` wheels B1, ``R2:a`` follows): N1 between S0 (to N2, along +x, its end
+    on N1 spinning N1 at 2 rad/s of wheel speed) and S1 (to N3, 60 deg from S0), both
+    axles in the struts' plane (x up), so neither grip holds the spin (gravity off; N2
+    and N3 held by 1000 kg). A third of N1's spin about S0 is about S1's axis; S1's
+    connector on N1 follows it by turning, its strut keeping its twist (< 0.1 of the spin
+    about its axis over the second second) and N1 spins at its command (0.9 at least).
+    Before, S1's aim alone commanded, its twist was left free and its turn braked: it held
+    N1's spin with its brake's friction couple, which its far end's equal couple could not
+    hold, so the strut turned with N1 at 0.26 of the spin and N1 spun at 0.89 of its
+    command; in fig22(j) such a strut twisted at up to 3.4 rad/s and swung its node's
+    rolling direction 100 deg in a second (stop 52)."""
+    config = Configuration("freesn")
+    for node in ("N1", "N2", "N3"):
+        config.add_module(node, "node")
+    up, x = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    u1 = np.array([0.5, np.sqrt(3.0) / 2.0, 0.0])
+    config.connect("N1", "N2", id="S0", kind="strut", z=x, x=up)
+    config.connect("N1", "N3", id="S1", kind="strut", z=u1, x=up)
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    for node in ("N2", "N3"):
+        body = world._node_body[world._node_index[node]]
+        world.model.body_mass[body] = 1000.0
+        world.model.body_inertia[body] = 1000.0
+    mujoco.mj_setConst(world.model, world.data)
+    world.command_target("S0", "b", (-x, None, 1.0))
+    world.command_target("S1", "a", (u1, None, 0.25))   # a loop's soft follower
+    world.command_target("S1", "b", (-u1, None, 1.0))
+    world.command_wheels("S0", "a", 2.0)
+    asked = 2.0 / world.phys.turn_ratio
+    wheel = world._end("S0", "a")
+    spun, twisted = [], []
+    for i in range(50):
+        world.step(0.04)
+        if i >= 25:
+            rate = float(world.data.qvel[world._dofs[wheel]] @ Rotation.from_quat(
+                world._ball(np.array([wheel]))[0], scalar_first=True).inv().apply([0, 0, 1.0]))
+            strut = world._strut_body[world._strut_index["S1"]]
+            w = np.zeros(6)
+            mujoco.mj_objectVelocity(world.model, world.data, mujoco.mjtObj.mjOBJ_BODY,
+                                     int(strut), w, 0)
+            spun.append(abs(rate) / asked)
+            twisted.append(abs(float(w[:3] @ world.data.xmat[strut].reshape(3, 3)[:, 2])) / asked)
+    assert np.mean(spun) > 0.9, np.mean(spun)
+    assert np.mean(twisted) < 0.1, np.mean(twisted)
+
+
+def _held_node(travel: float) -> tuple[FreeSNWorld, np.ndarray]:
+    """N1 held by two struts docked at both ends, their axles built level (a fixed wheel):
+    S0 (to N2, 45 deg up toward +x) spins N1 from its end a at 0.1 rad/s of wheel speed,
+    which alone rolls N1 along -+y; S1 (to N3, 45 deg up at azimuth 120 deg) follows. N1
+    is commanded to travel at azimuth ``travel`` [deg]
+    (:mod:`~msrr.plugins.freesn.sim.commands`); gravity off, N2 and N3 held by 1000 kg.
+    The world and the travel (3,)."""
+    config = Configuration("freesn")
+    for node in ("N1", "N2", "N3"):
+        config.add_module(node, "node")
+    up = np.array([0.0, 0.0, 1.0])
+    a = np.radians(120.0)
+    u0 = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
+    u1 = np.array([np.cos(a), np.sin(a), 1.0]) / np.sqrt(2.0)
+    for sid, far, u in (("S0", "N2", u0), ("S1", "N3", u1)):
+        x = up - (up @ u) * u
+        config.connect("N1", far, id=sid, kind="strut", z=u, x=x / np.linalg.norm(x))
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    for node in ("N2", "N3"):
+        body = world._node_body[world._node_index[node]]
+        world.model.body_mass[body] = 1000.0
+        world.model.body_inertia[body] = 1000.0
+    mujoco.mj_setConst(world.model, world.data)
+    world.command_target("S0", "b", (-u0, None, 1.0))
+    world.command_target("S1", "a", (u1, None, 0.25))   # a loop's soft follower
+    world.command_target("S1", "b", (-u1, None, 1.0))
+    t = np.array([np.cos(np.radians(travel)), np.sin(np.radians(travel)), 0.0])
+    d = np.cross(u0, up) / np.linalg.norm(np.cross(u0, up))   # how S0 rolls N1: -y
+    along, across = float(t @ d), float(t @ np.cross(up, d))
+    world.command_wheels("S0", "a", 0.1 * np.sign(along))
+    world.command_travel("S0", "a", along, across)
+    return world, t
+
+
+def test_a_node_two_struts_hold_is_steered_to_roll_along_its_commanded_travel():
+    """fig22(j)'s floor nodes B1, B2 (stop 52): a node held by two struts docked at both
+    ends turns relative to them only about ``n = x_W x x_F`` (each connector grips about
+    its heading), so it rolls one way only, ``n x up``, set by the struts' twists. As
+    built (:func:`_held_node`) N1 rolls along -30/150 deg; commanded to travel at 60 deg,
+    90 deg off that line, the follower S1 turns at both ends until N1's line is the
+    travel, like a swerve wheel: within 3 deg of it from 0.6 s to 2 s (the struts' true
+    axes). Before (no swerve), the line stayed 89-90 deg off."""
+    world, t = _held_node(60.0)
+    up = np.array([0.0, 0.0, 1.0])
+    off = []
+    for i in range(50):
+        world.step(0.04)
+        if i >= 14:
+            x0, x1 = (world.data.xmat[world._strut_body[world._strut_index[s]]].reshape(3, 3)
+                      [:, 0] for s in ("S0", "S1"))
+            line = np.cross(np.cross(x0, x1), up)
+            off.append(_angle(line, t) if line @ t >= 0 else _angle(-line, t))
+    assert max(off) < 3.0, max(off)
+
+
+def test_node_travel_and_swerve_heading_set_the_follower_so_the_node_rolls_along_the_travel():
+    """The pure maths (:func:`node_travel`, :func:`swerve_heading`): the travel from the
+    wheel speed and the travel across is the direction asked; the follower's heading it
+    gives leaves ``x_W x x_F`` at right angles to it; none without a travel."""
+    from msrr.plugins.freesn.sim.world import node_travel, swerve_heading
+    up = np.array([0.0, 0.0, 1.0])
+    u0 = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
+    a = np.radians(120.0)
+    u1 = np.array([np.cos(a), np.sin(a), 1.0]) / np.sqrt(2.0)
+    x0, x1 = up - (up @ u0) * u0, up - (up @ u1) * u1
+    x0, x1 = x0 / np.linalg.norm(x0), x1 / np.linalg.norm(x1)
+    follower = np.column_stack([x1, np.cross(u1, x1), u1])
+    for azimuth in (20.0, 60.0, 100.0, 200.0):
+        t = np.array([np.cos(np.radians(azimuth)), np.sin(np.radians(azimuth)), 0.0])
+        d = np.array([0.0, -1.0, 0.0])
+        travel = node_travel(u0, up, 3.0 * float(t @ d), 3.0 * float(t @ np.cross(up, d)))
+        assert np.allclose(travel, t, atol=1e-9)
+        heading = follower @ swerve_heading(x0, follower, travel)
+        assert abs(float(heading @ u1)) < 1e-9
+        assert abs(float(np.cross(x0, heading) @ t)) < 1e-9
+        assert float(heading @ x1) >= 0.0
+    assert not node_travel(u0, up, 0.0, 0.0).any()
+    assert swerve_heading(x0, follower, np.zeros(3)) is None

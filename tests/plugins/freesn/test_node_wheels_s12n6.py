@@ -31,7 +31,7 @@ def _run(speed: float, seconds: float, sideways: float = 0.0
     behavior = library.behaviors["node-wheels"]
     start = load_configuration(FREESN / "configs" / "library" / "S12N6-5.1.json")
     wheels = {c.module: {c.connector: c.value({"speed": speed, "sideways": sideways})}
-              for c in behavior.commands}
+              for c in behavior.commands if c.command == "wheel_speed"}
     half_base = 0.5 * STRUT.geometry["wheel_base"]
     asked = {s: w["target"] * STRUT.geometry["wheel_radius"] / half_base
              for s, w in wheels.items()}
