@@ -516,6 +516,26 @@ def test_a_turn_toward_a_small_sideways_error_keeps_its_sense_as_the_errors_dire
     assert not world._backwards[0]
 
 
+def _two_strut_node(s0: tuple[np.ndarray, np.ndarray], s1: tuple[np.ndarray, np.ndarray]
+                    ) -> FreeSNWorld:
+    """A differential world of node N1 between strut S0 (to N2) and strut S1 (to N3), each
+    given as its axis ``z`` and heading ``x`` from N1; gravity off, N2 and N3 held by
+    1000 kg."""
+    config = Configuration("freesn")
+    for node in ("N1", "N2", "N3"):
+        config.add_module(node, "node")
+    for sid, far, (z, x) in (("S0", "N2", s0), ("S1", "N3", s1)):
+        config.connect("N1", far, id=sid, kind="strut", z=z, x=x)
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    for node in ("N2", "N3"):
+        body = world._node_body[world._node_index[node]]
+        world.model.body_mass[body] = 1000.0
+        world.model.body_inertia[body] = 1000.0
+    mujoco.mj_setConst(world.model, world.data)
+    return world
+
+
 def test_a_follower_turns_with_the_node_a_node_wheel_spins_and_its_strut_keeps_its_twist():
     """A node wheel's node with a second strut docked at both ends (fig22(j)'s floor nodes
     B1, B2: ``R1:b`` wheels B1, ``R2:a`` follows): N1 between S0 (to N2, along +x, its end
@@ -529,20 +549,9 @@ def test_a_follower_turns_with_the_node_a_node_wheel_spins_and_its_strut_keeps_i
     hold, so the strut turned with N1 at 0.26 of the spin and N1 spun at 0.89 of its
     command; in fig22(j) such a strut twisted at up to 3.4 rad/s and swung its node's
     rolling direction 100 deg in a second (stop 52)."""
-    config = Configuration("freesn")
-    for node in ("N1", "N2", "N3"):
-        config.add_module(node, "node")
     up, x = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
     u1 = np.array([0.5, np.sqrt(3.0) / 2.0, 0.0])
-    config.connect("N1", "N2", id="S0", kind="strut", z=x, x=up)
-    config.connect("N1", "N3", id="S1", kind="strut", z=u1, x=up)
-    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
-    world.model.opt.gravity[:] = 0.0
-    for node in ("N2", "N3"):
-        body = world._node_body[world._node_index[node]]
-        world.model.body_mass[body] = 1000.0
-        world.model.body_inertia[body] = 1000.0
-    mujoco.mj_setConst(world.model, world.data)
+    world = _two_strut_node((x, up), (u1, up))
     world.command_target("S0", "b", (-x, None, 1.0))
     world.command_target("S1", "a", (u1, None, 0.25))   # a loop's soft follower
     world.command_target("S1", "b", (-u1, None, 1.0))
@@ -572,23 +581,15 @@ def _held_node(travel: float) -> tuple[FreeSNWorld, np.ndarray]:
     is commanded to travel at azimuth ``travel`` [deg]
     (:mod:`~msrr.plugins.freesn.sim.commands`); gravity off, N2 and N3 held by 1000 kg.
     The world and the travel (3,)."""
-    config = Configuration("freesn")
-    for node in ("N1", "N2", "N3"):
-        config.add_module(node, "node")
     up = np.array([0.0, 0.0, 1.0])
     a = np.radians(120.0)
     u0 = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
     u1 = np.array([np.cos(a), np.sin(a), 1.0]) / np.sqrt(2.0)
-    for sid, far, u in (("S0", "N2", u0), ("S1", "N3", u1)):
+    def level(u: np.ndarray) -> np.ndarray:
         x = up - (up @ u) * u
-        config.connect("N1", far, id=sid, kind="strut", z=u, x=x / np.linalg.norm(x))
-    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
-    world.model.opt.gravity[:] = 0.0
-    for node in ("N2", "N3"):
-        body = world._node_body[world._node_index[node]]
-        world.model.body_mass[body] = 1000.0
-        world.model.body_inertia[body] = 1000.0
-    mujoco.mj_setConst(world.model, world.data)
+        return x / np.linalg.norm(x)
+
+    world = _two_strut_node((u0, level(u0)), (u1, level(u1)))
     world.command_target("S0", "b", (-u0, None, 1.0))
     world.command_target("S1", "a", (u1, None, 0.25))   # a loop's soft follower
     world.command_target("S1", "b", (-u1, None, 1.0))
