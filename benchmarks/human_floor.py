@@ -37,7 +37,7 @@ import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
 
-from msrr.core.alignment import rot_z
+from msrr.core.alignment import rot_z, wrap_angle
 from msrr.core.console import console, table
 from msrr.core.errors import ExecutionError
 from msrr.core.io import load_configuration
@@ -84,7 +84,12 @@ def _load(path: Path) -> dict:
         if not saved:
             raise click.BadParameter(f"no after-NN.json in {path}")
         path = saved[-1]
-    return json.loads(path.read_text())
+    try:
+        state = json.loads(path.read_text())
+        _ = (state["seed"], state["start"], state["done"], state["rows"], state["pos"])
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise click.BadParameter(f"{path}: not a saved state ({error})") from None
+    return state
 
 
 def _swing(pos, piece: set[str], root: str, target: str, arm: np.ndarray,
@@ -94,8 +99,6 @@ def _swing(pos, piece: set[str], root: str, target: str, arm: np.ndarray,
     a latched piece within ``SWING`` of its goal (``recognition._LATCH_HOLD``), if no
     shell comes within a centimetre of overlapping another's on the way (``pos`` moved in
     place); the angle [rad] it swung, or ``None``."""
-    from msrr.core.alignment import wrap_angle
-
     ms = sorted(piece)
     centre = pos[target]
     now = np.array([pos[m] for m in ms]) - centre
