@@ -15,10 +15,16 @@ from ..configuration import Configuration
 from ..errors import ExecutionError
 from ..kinematics.rotations import rotation_between
 
-__all__ = ["DOCK_GAP", "lay_out_pieces", "place"]
+__all__ = ["DOCK_GAP", "SLIDE_OVERLAP", "WAY_IN", "lay_out_pieces", "place"]
 
 DOCK_GAP = 0.001
 """Shell-to-shell gap of a docked pair [m] (the world's default ``gap``)."""
+
+WAY_IN = 0.15
+"""A docking piece's last stretch, straight in along its line, at the least [m]."""
+
+SLIDE_OVERLAP = 0.01
+"""How much closer than the spacing a piece sliding in may pass another's shell [m]."""
 
 _EZ = np.array([0.0, 0.0, 1.0])
 

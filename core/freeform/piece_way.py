@@ -41,6 +41,7 @@ from scipy.spatial import cKDTree
 
 from ..alignment import rot_z, wrap_angle
 from ..errors import ExecutionError
+from .layout import SLIDE_OVERLAP, WAY_IN
 from .travel import Locator, best_turn, piece_goal, straight_line
 
 __all__ = ["Leg", "PieceWay", "normalized", "piece_way", "plan_piece_way", "plan_legs",
@@ -57,7 +58,7 @@ _GRAZE = 0.010        # a module touched at the start is kept this much closer [
 #                       millimetres off its line, and the piece's too)
 _GOAL_STRAIGHT = 0.02  # a goal's shape is straight within this many spacings of a line
 _SHORT = 0.02         # the way stops this far short of the docking spot [m]
-_LAST = 0.15          # its last stretch, straight in [m]
+_LAST = WAY_IN        # its last stretch, straight in [m]
 _EXPANSIONS = 20000   # the search gives up after this many poses
 _DIRECT = 8           # the direct way is tried from every this many poses
 _CHUNK = 256          # collision points checked at once (a move stops at the first hit)
@@ -578,7 +579,7 @@ _BACK = 1.5           # a stretch in grows at most this much past _LAST, and the
 #                       length (to clear chains as long as itself docked either side) [m]
 _BACK_STEP = 0.05     # ... in steps of this [m]
 _TRIES = 4            # free docking places tried (nearest the goal's first)
-_OVERLAP = 0.01       # shells closer than the spacing less this overlap [m]
+_OVERLAP = SLIDE_OVERLAP   # shells closer than the spacing less this overlap [m]
 _DIRECTIONS = 72      # directions of the root about the target tried
 _APART = np.pi / 3    # free places tried first lie this far apart about the target [rad]
 

@@ -29,6 +29,7 @@ from msrr.core.freeform.miso import (
     targets,
     travel,
 )
+from msrr.core.freeform.piece_way import piece_way
 from msrr.core.io import load_configuration
 
 HUMAN = Path(__file__).resolve().parents[2] / "plugins" / "freebot" / "configs" / "human"
@@ -178,3 +179,61 @@ def test_a_start_the_world_cannot_lay_is_paired_by_topology_and_says_so():
     assert plan.mapping == replace(planner, layout=None).plan(overlapping, _cross()).mapping
     assert any("topology only" in note and "overlap" in note for note in plan.notes)
     assert "travel_m" not in plan.stats
+
+
+OUT_66 = [float(np.cos(np.radians(-66.0))), float(np.sin(np.radians(-66.0))), 0.0]
+
+
+def _pocket(prefix: str, placed: bool) -> Configuration:
+    """A spine ``{prefix}S0``..``S6`` along ``+x`` (its root S3); in the goal a rib of four,
+    ``A``, straight down (``-y``) from S5 and a rib of nine, ``B``, leaving S2 at -66 deg,
+    which passes 0.25 m below A's end, across the stretch A slides in along; at the start
+    both ribs lie apart to the right, upright (positions only when ``placed``)."""
+    c = Configuration("freebot", name="pocket start" if placed else "pocket")
+    at = {"S0": (0.0, 0.0), "A0": (1.3, -0.3), "B0": (1.7, -0.3)}
+    for name, n in (("S", 7), ("A", 4), ("B", 9)):
+        for k in range(n):
+            m = f"{name}{k}"
+            c.add_module(prefix + m, "freebot",
+                         position=[*at[m], 0.05] if placed and m in at else None)
+    into = Y if placed else [-v for v in OUT_66]
+    links = [(f"S{k}", f"S{k + 1}", X) for k in range(3)] \
+        + [(f"S{k}", f"S{k - 1}", MX) for k in range(4, 7)] \
+        + [(f"A{k + 1}", f"A{k}", Y) for k in range(3)] \
+        + [(f"B{k + 1}", f"B{k}", into) for k in range(8)]
+    if not placed:
+        links += [("A0", "S5", Y), ("B0", "S2", into)]
+    for source, target, z in links:
+        c.connect(prefix + source, prefix + target, z=z)
+    return c
+
+
+def test_a_piece_docks_before_one_whose_docked_body_would_close_its_way_in():
+    """By goal depth B (on S2) docks before A (on S5); docked, B crosses the stretch A
+    must slide in along, and A finds no way to its goal place (on the floor, below). With
+    the places the order docks A first; the same changes and steps."""
+    start, goal = _pocket("", True), _pocket("G", False)
+    planner = plugins.planners("freebot")["miso"]
+    plans = {"topology": replace(planner, layout=None).plan(start, goal),
+             "places": planner.plan(start, goal)}
+    docks = {k: [a.note.split()[1] for a in p.actions if a.changes] for k, p in plans.items()}
+    assert docks["topology"] == ["B0:", "A0:"]     # the order this test is about
+    assert docks["places"] == ["A0:", "B0:"]
+    for key in ("changes", "steps"):
+        assert plans["places"].stats[key] == plans["topology"].stats[key] == 2
+    assert (plans["places"].stats["closed_ways_topology"],
+            plans["places"].stats["closed_ways"]) == (1, 0)
+    # on the floor: A's way from where it lies, B at its start place or docked
+    here = {m: np.asarray(p)[:2] for m, p in planner.layout(start).items()}
+    laid = planner.layout(goal)
+    shift = np.append(here["S0"] - np.asarray(laid["GS0"])[:2], 0.0)
+    goal_here = {m: np.asarray(laid[g]) + shift for m, g in plans["places"].mapping.items()}
+    spine, rib_b = {f"S{k}" for k in range(7)}, {f"B{k}" for k in range(9)}
+    ways = {}
+    for b_docked in (False, True):
+        pos = dict(here) | ({m: goal_here[m][:2] for m in rib_b} if b_docked else {})
+        ways[b_docked] = piece_way(pos, {f"A{k}" for k in range(4)},
+                                   spine | (rib_b if b_docked else set()), "A0", 0.0, "S5",
+                                   goal_here, 0.101)
+    assert ways[False].at_goal
+    assert not ways[True].at_goal

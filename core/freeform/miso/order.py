@@ -3,7 +3,7 @@ rules, one step per mismatched module whenever the rules allow (:func:`order_ste
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -101,7 +101,8 @@ class _State:
 
 def order_steps(start: Sequence[int], goal: Sequence[int],
                 goal_depth: Sequence[int] | None = None, *,
-                limits: MisoLimits = UNLIMITED) -> list[Step]:
+                limits: MisoLimits = UNLIMITED,
+                closes: Mapping[int, Collection[int]] | None = None) -> list[Step]:
     """Legal steps from ``start`` to ``goal`` (pointer arrays over the same indices).
 
     Modules move in increasing goal depth (:func:`~.model.depths` of ``goal``), each
@@ -118,6 +119,12 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
     whenever one is legal; that order is kept unless it needs more steps or holds
     fewer flows.
 
+    ``closes[j]``: the modules whose way onto their target ``j``'s move would close once
+    ``j`` has docked (:func:`~.places.closed_ways`, from the floor's places). A move
+    that would close a pending module's way waits while another legal move does not
+    (the next pending module in goal depth, split as it would be); when every legal
+    move would close one, the first is made.
+
     Under ``limits.carries == "nothing"`` the order is :func:`leaf_order`.
 
     Raises:
@@ -127,8 +134,8 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
         goal_depth = depths(goal)
     if limits.carries == "nothing":
         return leaf_order(start, goal, goal_depth, limits)
-    plain = greedy_order(start, goal, goal_depth, limits, flows_first=False)
-    flowing = greedy_order(start, goal, goal_depth, limits, flows_first=True)
+    plain = greedy_order(start, goal, goal_depth, limits, flows_first=False, closes=closes)
+    flowing = greedy_order(start, goal, goal_depth, limits, flows_first=True, closes=closes)
     if len(flowing) > len(plain) or (len(flowing) == len(plain) and count_flows(
             start, flowing) < count_flows(start, plain)):
         return plain
@@ -136,9 +143,10 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
 
 
 def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence[int],
-                 limits: MisoLimits, *, flows_first: bool) -> list[Step]:
+                 limits: MisoLimits, *, flows_first: bool,
+                 closes: Mapping[int, Collection[int]] | None = None) -> list[Step]:
     """One greedy pass of :func:`order_steps`; ``flows_first``: a legal pending flow
-    before any other legal move."""
+    before any other legal move; ``closes``: as :func:`order_steps`'s."""
     n = len(start)
     state = _State(start, limits)
     steps: list[Step] = []
@@ -160,11 +168,10 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
                                                                  | (par[old] == new))
             chosen = next((int(k) for k in np.flatnonzero(flows)
                            if state.blocker(pending[k], goal[pending[k]]) is None), None)
+        i = None if chosen is None else state.split_first(pending[chosen], goal, waiting)
         if chosen is None:
-            chosen = next((k for k, i in enumerate(pending)
-                           if state.blocker(i, goal[i]) is None), None)
-        if chosen is not None:
-            i = state.split_first(pending[chosen], goal, waiting)
+            i = _next_move(state, pending, goal, waiting, closes or {})
+        if i is not None:
             pending.remove(i)
             waiting.discard(i)
             step = state.apply(i, goal[i])
@@ -175,6 +182,22 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
         deg[step.old] -= step.old != FREE
         deg[step.new] += step.new != FREE
     return steps
+
+
+def _next_move(state: _State, pending: list[int], goal: Sequence[int], waiting: set[int],
+               closes: Mapping[int, Collection[int]]) -> int | None:
+    """The module to move next: the first legal pending module in ``pending``'s order,
+    split as :meth:`_State.split_first` splits it, whose move closes no pending module's
+    way (``closes``), else the first such move; ``None`` when no move is legal."""
+    first = None
+    for k in pending:
+        if state.blocker(k, goal[k]) is not None:
+            continue
+        i = state.split_first(k, goal, waiting)
+        if not closes or waiting.isdisjoint(closes.get(i, ())):
+            return i
+        first = i if first is None else first
+    return first
 
 
 def _release(state: _State, pending: list[int], goal: Sequence[int]) -> Step:

@@ -38,10 +38,11 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ...alignment import best_turn
+from ..layout import SLIDE_OVERLAP, WAY_IN
 from .model import FREE, MisoProblem, Step, children_of, pairing_score, rooted, targets
 
-__all__ = ["class_moves", "fragments", "goal_in_start_frame", "nearer_pairing",
-           "step_travel", "travel"]
+__all__ = ["class_moves", "closed_ways", "fragments", "goal_in_start_frame",
+           "nearer_pairing", "step_travel", "travel"]
 
 
 def fragments(problem: MisoProblem, pair: Sequence[int]) -> list[list[int]]:
@@ -205,3 +206,57 @@ def _signature(forest: Sequence[int], fragment: list[int]) -> tuple[int, ...]:
     module."""
     at = {m: k for k, m in enumerate(fragment)}
     return tuple(at.get(forest[m], -1) if k else -1 for k, m in enumerate(fragment))
+
+
+def closed_ways(problem: MisoProblem, pair: Sequence[int], goal_places: np.ndarray
+                ) -> dict[int, set[int]]:
+    """Which docking pieces close another's way in, laid at their goal places: for each
+    fragment root ``j`` that moves (:func:`fragments`), the fragment roots ``i`` whose
+    way in its docked body crosses (start indices).
+
+    A piece of two or more modules docks by sliding in along the line from its target
+    through its centroid (a straight piece drives only along its own line): its way in
+    is its docked body slid back along that line by its own length and the last
+    stretch, ``WAY_IN`` (both :mod:`~msrr.core.freeform.layout`'s, as ``piece_way``'s) -- where it stands clear of neighbours as long as itself docked
+    either side of it. A module of another piece's docked body closer than the spacing
+    less ``SLIDE_OVERLAP`` to that swept body closes it: docked first, that piece leaves no
+    way in (``piece_way`` refuses such a way); the piece that holds its target does not
+    count (it docks first anyway). The spacing is the goal's own, the median length of
+    its connections. ``goal_places`` (n, 3): the goal's places in goal index order, in
+    the start's frame (:func:`goal_in_start_frame`) [m]. Lone modules roll in from any
+    side and close no way here.
+    """
+    final = targets(problem, pair)
+    there = np.asarray(goal_places, dtype=np.float64)[list(pair)][:, :2]
+    links = [float(np.linalg.norm(there[i] - there[p])) for i, p in enumerate(final)
+             if p != FREE]
+    if not links:
+        return {}
+    gap = float(np.median(links)) - SLIDE_OVERLAP
+    moving = [f for f in fragments(problem, pair)
+              if final[f[0]] != FREE and final[f[0]] != problem.start[f[0]]]
+    bodies = {f[0]: there[f] for f in moving}
+    holder = {m: f[0] for f in moving for m in f}
+    out: dict[int, set[int]] = {}
+    for f in moving:
+        if len(f) < 2:
+            continue
+        body, carrier = bodies[f[0]], holder.get(final[f[0]])
+        line = body.mean(axis=0) - there[final[f[0]]]
+        if float(np.linalg.norm(line)) < 1e-9:
+            continue
+        line /= np.linalg.norm(line)
+        back = float(np.max(np.linalg.norm(body - body[0], axis=1))) + WAY_IN
+        for j, other in bodies.items():
+            if j not in (f[0], carrier) and _swept_distance(body, line, back, other) < gap:
+                out.setdefault(j, set()).add(f[0])
+    return out
+
+
+def _swept_distance(body: np.ndarray, line: np.ndarray, back: float, points: np.ndarray
+                    ) -> float:
+    """The least distance [m] from ``points`` (k, 2) to ``body`` (m, 2) slid from where
+    it is up to ``back`` [m] along the unit ``line`` (2,): each module's segment."""
+    rel = points[:, None, :] - body[None, :, :]                        # (k, m, 2)
+    along = np.clip(rel @ line, 0.0, back)
+    return float(np.min(np.linalg.norm(rel - along[..., None] * line, axis=2)))

@@ -31,7 +31,7 @@ from .model import (
 )
 from .order import order_steps
 from .pairing import heuristic_pairing
-from .places import class_moves, goal_in_start_frame, step_travel
+from .places import class_moves, closed_ways, goal_in_start_frame, step_travel
 
 __all__ = ["Layout", "MisoPlanner", "MisoSolution", "carries_places", "miso_planners",
            "plan_miso", "solve_exact", "solve_heuristic"]
@@ -67,12 +67,12 @@ class MisoSolution:
         return step_changes(self.steps)
 
 
-def _solution(problem: MisoProblem, pair: list[int], t0: float, **stats: float
-              ) -> MisoSolution:
+def _solution(problem: MisoProblem, pair: list[int], t0: float,
+              closes: Mapping[int, set[int]] | None = None, **stats: float) -> MisoSolution:
     goal = targets(problem, pair)
     goal_depth = depths(problem.goal)
     steps = order_steps(problem.start, goal, [goal_depth[b] for b in pair],
-                        limits=problem.limits)
+                        limits=problem.limits, closes=closes)
     d = mismatches(problem.start, goal)
     return MisoSolution(pair, steps, d, stats={
         "time_ms": 1e3 * (time.perf_counter() - t0), **stats})
@@ -173,8 +173,55 @@ def carries_places(config: Configuration) -> bool:
                if not config.is_virtual(v))
 
 
-def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
-            goal: Configuration, layout: Layout, notes: list[str]) -> MisoSolution:
+def _laid(problem: MisoProblem, start: Configuration, goal: Configuration, layout: Layout,
+          notes: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The start's places and the goal's (each (n, 3), in the problem's index orders,
+    each in its own frame) [m], or ``None`` with a note when the world cannot lay them."""
+    try:
+        here, there = layout(start), layout(goal)
+    except ExecutionError as error:
+        notes.append(f"pieces paired by topology only: the world cannot lay them ({error})")
+        return None
+    return (np.array([here[m] for m in problem.start_ids], dtype=np.float64),
+            np.array([there[m] for m in problem.goal_ids], dtype=np.float64))
+
+
+def _floor_order(solution: MisoSolution, problem: MisoProblem, s: np.ndarray,
+                 laid: np.ndarray) -> MisoSolution:
+    """``solution`` with its steps ordered so that no piece docks across a pending
+    piece's way in while another move can be made first (:func:`~.places.closed_ways`
+    on the goal laid in the start's frame, :func:`~.order.order_steps`' ``closes``),
+    kept when it has no more changes or steps and no fewer flows; ``stats`` gain
+    ``closed_ways`` (the ways its order still closes: pieces that dock later across a
+    piece docked before) and ``closed_ways_topology`` (before), and the travel sums of
+    :func:`_nearer` follow the new order."""
+    g = goal_in_start_frame(problem, solution.pairing, s, laid)
+    closes = closed_ways(problem, solution.pairing, g)
+    other = _solution(problem, solution.pairing, time.perf_counter(), closes)
+    best = other if _rank(problem, other) <= _rank(problem, solution) else solution
+    stats = {**solution.stats, "closed_ways_topology": float(_closed(solution.steps, closes)),
+             "closed_ways": float(_closed(best.steps, closes))}
+    if best.steps != solution.steps and "module_metres" in stats:
+        moved = step_travel(problem, best.pairing, best.steps, s, g)
+        stats["module_metres"] = sum(n * d for n, d in moved)
+        stats["travel_m"] = sum(d for _, d in moved)
+    return MisoSolution(best.pairing, best.steps, best.lower_bound, optimal=solution.optimal
+                        and _rank(problem, best)[:2] == _rank(problem, solution)[:2],
+                        stats=stats)
+
+
+def _closed(steps: list[Step], closes: Mapping[int, set[int]]) -> int:
+    """How many pieces ``steps`` dock after a piece that closes their way (``closes``)."""
+    done: set[int] = set()
+    closed = 0
+    for step in steps:
+        closed += len(closes.get(step.module, set()) - done)
+        done.add(step.module)
+    return closed
+
+
+def _nearer(solution: MisoSolution, problem: MisoProblem, s: np.ndarray,
+            laid: np.ndarray) -> MisoSolution:
     """``solution`` with the moves of :func:`~.places.class_moves` made, class by class,
     each kept when the plan then has no more changes or steps, no fewer flows, and moves
     fewer module-metres step by step (:func:`~.places.step_travel`: each step's piece's
@@ -182,13 +229,6 @@ def _nearer(solution: MisoSolution, problem: MisoProblem, start: Configuration,
     as much as its own trip); ``stats`` gain the sums by topology and after
     (``module_metres_topology``, ``module_metres``; the pieces' travel unweighted,
     ``travel_m_topology``, ``travel_m``)."""
-    try:
-        here, there = layout(start), layout(goal)
-    except ExecutionError as error:
-        notes.append(f"pieces paired by topology only: the world cannot lay them ({error})")
-        return solution
-    s = np.array([here[m] for m in problem.start_ids], dtype=np.float64)
-    laid = np.array([there[m] for m in problem.goal_ids], dtype=np.float64)
     g = goal_in_start_frame(problem, solution.pairing, s, laid)
 
     def sums(pair: list[int], steps: list[Step]) -> tuple[float, float]:
@@ -311,9 +351,13 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     solution = solve_exact(problem, time_limit=time_limit) if exact else solve_heuristic(
         problem)
     notes: list[str] = []
-    if layout is not None and carries_places(start):
-        solution = _nearer(solution, problem, start, goal, layout, notes)
+    places = _laid(problem, start, goal, layout, notes) if layout is not None and \
+        carries_places(start) else None
+    if places is not None:
+        solution = _nearer(solution, problem, *places)
     solution = _keep_labels(solution, problem)
+    if places is not None:
+        solution = _floor_order(solution, problem, *places)
     ids = problem.start_ids
     final = targets(problem, solution.pairing)
     goal_index = {v: b for b, v in enumerate(goal.vertices())}
