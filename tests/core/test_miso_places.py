@@ -117,12 +117,16 @@ def test_fragments_are_the_pieces_joined_by_kept_connections():
 
 
 def test_the_human_example_keeps_its_89_changes_and_its_pieces_move_less():
+    """The pieces travel less than by topology, and the order leaves every way open; that
+    order makes F301's piece carry F326's 15 (F326 waits for the lower ribs, and its
+    target F133 has not arrived), so the module-metres are no longer below topology's."""
     start = load_configuration(HUMAN / "human-chains-near.json")
     goal = load_configuration(HUMAN / "human.json")
     plan = plugins.planners("freebot")["miso"].plan(start, goal)
     assert (plan.stats["changes"], plan.stats["steps"]) == (89, 47)
-    assert plan.stats["module_metres"] < 0.99 * plan.stats["module_metres_topology"]
-    assert plan.stats["travel_m"] < plan.stats["travel_m_topology"]
+    assert plan.stats["travel_m"] < 0.97 * plan.stats["travel_m_topology"]
+    assert plan.stats["module_metres"] < 1.01 * plan.stats["module_metres_topology"]
+    assert (plan.stats["closed_ways_topology"], plan.stats["closed_ways"]) == (13, 0)
 
 
 PLAN_WITH_PLACES = """

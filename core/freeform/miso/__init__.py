@@ -64,6 +64,7 @@ from .order import order_steps
 from .pairing import heuristic_pairing
 from .places import (
     class_moves,
+    closed_ways,
     fragments,
     goal_in_start_frame,
     nearer_pairing,
@@ -97,6 +98,7 @@ __all__ = [
     "changes",
     "children_of",
     "class_moves",
+    "closed_ways",
     "count_flows",
     "cycles",
     "depths",
