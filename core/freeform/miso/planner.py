@@ -341,7 +341,9 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     interchangeable places (:func:`~.places.class_moves`; same changes and steps);
     ``stats`` then hold ``module_metres`` and ``travel_m`` (and both ``_topology``): the
     straight travel of the pieces the steps move, weighed by their modules and not,
-    summed [m].
+    summed [m]. The steps are then ordered so that no piece docks across the way in of a
+    piece still to come (:func:`~.places.closed_ways`), when that costs no step;
+    ``stats`` hold ``closed_ways`` (and ``closed_ways_topology``, without that order).
 
     Raises:
         PlanningError: module counts or kinds differ, or a configuration breaks the
