@@ -53,6 +53,11 @@ _REACH = 0.16         # a longer piece's cells and drives grow with its reach [m
 _TURN = np.pi / 8     # a turn of the search [rad]
 _SAMPLE = 0.005       # collision samples along a move, at the farthest module [m]
 _CLEARANCE = 0.008    # kept between shells [m]
+_STAND = 0.005        # a stand keeps this much more than the way's clearance [m]: the
+#                       search's poses lie on a lattice and its direct way ends in a turn
+#                       at the stand, so a stand free by a hair (the human example's
+#                       action 46: 0.2 mm between two docked chains) is reached only
+#                       exactly down its line, never by the search
 _GRAZE = 0.010        # a module touched at the start is kept this much closer [m]: the
 #                       map's own bend (2 deg of angle noise over a row puts its modules
 #                       millimetres off its line, and the piece's too)
@@ -199,6 +204,14 @@ class _Space:
             out.append(bool(np.all((near if escaping else full)[lo:hi])))
             lo = hi
         return out
+
+    def stands(self, centre: np.ndarray, heading: float) -> bool:
+        """Whether the piece at pose ``(centre, heading)`` keeps ``_STAND`` more than the
+        full clearance from every other module (a stand the search can reach)."""
+        if self.tree is None:
+            return True
+        dist, _ = self.tree.query(_modules(self.offsets, centre, heading), k=1)
+        return bool(np.all(dist >= self.limit + _STAND))
 
     def turn(self, centre: np.ndarray, a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
         """The poses (centroids (n, 2), headings (n,)) of the turn in place about
@@ -595,7 +608,8 @@ def _dock_free(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray
                clear_in: bool = True) -> float | None:
     """The length [m] of the last stretch in if the piece can end docked with its
     centroid at ``middle`` (2,) and heading ``heading``, else ``None``: it stands
-    ``_SHORT`` + the stretch back along ``push`` with the way's clearance, and over the
+    ``_SHORT`` + the stretch back along ``push`` with the way's clearance and ``_STAND``
+    more (:meth:`_Space.stands`), and over the
     stretch in, docked at the end, no shell overlaps another (the root touches the
     target, ``others[target]``; nothing else does). ``clear_in``: the stretch, ``_LAST``
     long, keeps the way's clearance too; else it is the shortest from ``_LAST`` up (by
@@ -605,8 +619,7 @@ def _dock_free(space: _Space, offsets: np.ndarray, root: int, others: np.ndarray
     along them from where it is clear of them (none clear that near, its stand beyond
     their ends: the stretch grows by at most the piece's own length more)."""
     def clear_of(backs: np.ndarray | list[float]) -> list[float]:
-        return [float(b) for b in backs if space.free(
-            (middle - (_SHORT + b) * push)[None, :], np.array([heading]))]
+        return [float(b) for b in backs if space.stands(middle - (_SHORT + b) * push, heading)]
 
     backs = [_LAST] if clear_in else _LAST + np.arange(0.0, _BACK + 1e-9, _BACK_STEP)
     clear = clear_of(backs)

@@ -919,6 +919,29 @@ def test_a_long_move_is_refused_at_its_first_hit_without_checking_the_rest():
     assert space.drive_free(np.array([0.0, 0.5]), np.array([3.0, 0.5]), 0.0)
 
 
+def test_a_stand_between_docked_chains_is_free_off_its_line_not_by_a_hair():
+    # the human example's action 46: a chain of three slides in between two docked
+    # chains, its stand chosen where it cleared them by 0.2 mm, free nowhere 1 mm aside,
+    # so no way of the search (poses on a lattice, ending in a turn) reached it. Here the
+    # walls' modules line up with the piece's at the first stand (0.1092 m, the clearance
+    # 0.109 m), and lie half a module off them one step further back
+    from msrr.core.freeform import piece_way as ways
+
+    s = 0.101
+    offsets = np.array([[-s, 0.0], [0.0, 0.0], [s, 0.0]])       # root first, at -x
+    middle, push = np.array([2 * s, 0.0]), np.array([-1.0, 0.0])
+    first = middle[0] + ways._SHORT + ways._LAST               # the first stand's centroid
+    walls = np.array([[first + s * (k - 1), side * 0.1092] for k in range(25)
+                      for side in (-1, 1)])
+    others = np.vstack([[[0.0, 0.0]], walls])                   # the target first
+    space = ways._Space(others, offsets, s, (np.array([5.0, 5.0]), 0.0))
+    back = ways._dock_free(space, offsets, 0, others, 0, middle, 0.0, push, clear_in=False)
+    assert back is not None
+    stand = middle - (ways._SHORT + back) * push
+    for aside in (0.001, -0.001):
+        assert space.free((stand + np.array([0.0, aside]))[None, :], np.array([0.0])), aside
+
+
 def test_a_piece_way_is_the_one_planned_before_its_search_was_batched(monkeypatch):
     # the moves from one pose checked in one query of the obstacles, and a long move
     # stopped at its first hit, change no answer (legs to the tenth of a millimetre, as
