@@ -8,10 +8,13 @@ centres the previous steps left, each piece put where its way ends, docked (no p
 what the ways need, not what the MuJoCo run does). A piece docked at a free place is then
 swung rigidly about its target until its root is at its goal place, when that is within
 20 deg and no shell comes within a centimetre of overlapping on the way (as the action's
-last move swings a latched piece onto its goal); a piece at its goal place keeps the shape its way left it in.
+last move swings a latched piece onto its goal); a piece at its goal place is moved into
+the goal's shape when no shell comes within a centimetre of overlapping on the way (as the
+action's last move bends a docked piece to the action's goal: a straight piece whose goal
+is bent docks straight out through its root's goal place).
 Prints the seed and, per step, the piece's size, where it docks (its goal place, or a
 free place, swung or not), its legs, the travel of its farthest
-module beside the straight distance its centroid covers, and the time the way takes at
+module beside the straight distance its centroid covers on the way, and the time the way takes at
 the piece speed; stops at the first step whose way cannot be planned and says why.
 
 ``--start`` takes another start file of the same modules (one whose module positions lay
@@ -46,6 +49,8 @@ ROOT = Path(__file__).resolve().parents[1]
 HUMAN = ROOT / "plugins" / "freebot" / "configs" / "human"
 SPEED = 0.02   # a piece's fastest centre [m/s] (0.8 x max_speed x radius)
 SWING = np.radians(20.0)   # a latched piece is swung rigidly onto its goal within this [rad]
+BENT = 0.01    # a piece at its goal place moved farther than this [m] to take the goal's
+#                shape is said to be bent (less: the way's end within its tolerance)
 
 
 def _groups(config) -> dict[str, set[str]]:
@@ -153,8 +158,17 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
         for m, p in zip(way.piece, end + way.shape @ rot_z(way.legs[-1].heading)[:2, :2].T,
                         strict=True):
             pos[m] = p
+        moved = float(np.linalg.norm(np.mean([pos[m] for m in piece], axis=0) - before))
         where = "goal place"
-        if not way.at_goal:
+        if way.at_goal:
+            then = piece_goal(goal, {m: pos[m] for m in groups[c.target] | piece}, piece,
+                              c.target)
+            bent = _bend(pos, piece, then, spacing)
+            if bent is None:
+                where = "goal place, not bent to the goal's shape"
+            elif bent > BENT:
+                where = f"goal place, bent {bent:.2f} m onto the goal's shape"
+        else:
             then = piece_goal(goal, {m: pos[m] for m in groups[c.target] | piece}, piece,
                               c.target)
             swung = _swing(pos, piece, c.source, c.target, then[c.source] - pos[c.target],
@@ -169,10 +183,31 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
         return [str(k), f"{c.source} -> {c.target}", str(len(piece)),
                 where,
                 str(len(way.legs)), f"{travel:.2f}",
-                f"{np.linalg.norm(np.mean([pos[m] for m in piece], axis=0) - before):.2f}",
+                f"{moved:.2f}",
                 f"{travel / SPEED:.0f}",
                 f"{time.perf_counter() - t0:.1f}"]
     return None
+
+
+def _bend(pos, piece: set[str], then: dict[str, np.ndarray], spacing: float) -> float | None:
+    """Move ``piece`` (docked at its goal place in the shape its way left) into the goal's
+    shape ``then`` (centres (2,)), as the action's last move bends a docked piece to the
+    action's goal, if no shell comes within a centimetre of overlapping another's on the
+    way, each module on the straight line from where it is (``pos`` moved in place); the
+    farthest a module moved [m], or ``None``."""
+    ms = sorted(piece)
+    now = np.array([pos[m] for m in ms])
+    goal = np.array([then[m][:2] for m in ms])
+    far = float(np.max(np.linalg.norm(goal - now, axis=1)))
+    others = np.array([p for m, p in pos.items() if m not in piece])
+    tree = cKDTree(others)
+    for t in np.linspace(0.0, 1.0, max(2, int(np.ceil(far / 0.005)) + 1))[1:]:
+        dist, _ = tree.query(now + t * (goal - now), k=1)
+        if np.any(dist < spacing - 0.01):
+            return None
+    for m, p in zip(ms, goal, strict=True):
+        pos[m] = p
+    return far
 
 
 @click.command()
