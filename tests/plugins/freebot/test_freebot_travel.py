@@ -242,6 +242,32 @@ def test_a_piece_in_a_cup_whose_mouth_faces_away_from_its_goal_finds_its_way_out
     assert _closest(legs, chain, cup, start) >= s + 0.008 - 1e-6
 
 
+def test_a_search_cut_off_at_its_bound_is_run_again_weighted_and_finds_a_way(monkeypatch):
+    # the human example's action 33: a piece of 10 whose way goes round a wall through
+    # a door, 69,064 poses for the cheapest way, beyond the bound of 20,000; led by twice
+    # its estimate the search found one (17.68 m, 273 poses). Here the cup's way: 11,601
+    # poses for the cheapest, the bound 2,000
+    from msrr.core.freeform import piece_way as ways
+    from msrr.core.freeform.piece_way import PieceWay, plan_legs
+
+    s = 0.101
+    cup = np.array([[0.0, y] for y in np.arange(-10, 11) * s]
+                   + [[x, side * 10 * s] for side in (-1, 1) for x in np.arange(1, 16) * s])
+    chain = np.column_stack([(np.arange(4) - 1.5) * s, np.zeros(4)])
+    start, goal = (np.array([0.8, 0.0]), 0.0), (np.array([-1.5, 2.5]), 0.0)
+
+    def travel(legs) -> float:
+        return PieceWay("a", "b", ("a",), start[0], chain, 0.0, tuple(legs), goal[0],
+                        np.zeros(2), None).travel()
+
+    cheapest = travel(plan_legs(cup, chain, np.array([1.0, 0.0]), start, goal, s))
+    monkeypatch.setattr(ways, "_EXPANSIONS", 2000)
+    legs = plan_legs(cup, chain, np.array([1.0, 0.0]), start, goal, s)
+    assert np.allclose(legs[-1].to, goal[0]) and abs(np.sin(legs[-1].heading)) < 1e-9
+    assert _closest(legs, chain, cup, start) >= s + 0.008 - 1e-6
+    assert cheapest <= travel(legs) <= ways._INFLATE * cheapest
+
+
 def test_a_bent_piece_way_keeps_clear_and_a_closed_goal_is_refused():
     from msrr.core.errors import ExecutionError
     from msrr.core.freeform.piece_way import plan_legs
