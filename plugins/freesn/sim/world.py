@@ -1008,7 +1008,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         axes from the connectors' beliefs (:meth:`_believed`); the far end takes the
         twist through its own belief of the strut. Those ends are marked ``_swerved`` for
         this servo step: :meth:`_steer` never turns them toward an aim error (their turn
-        is the twist's)."""
+        is the twist's): left a degree off their aims sideways, ``s8``'s ends turned the
+        strut up to 90 deg off its twist and back at the wheels' top speed, and each turn
+        on the top node pushed its other connectors off their aims until ``s9`` broke
+        there (fig22, stop 53)."""
         self._swerved[:] = False
         wheels = self._node_wheels()
         wheels = wheels[self._travel[wheels].any(axis=1)]
@@ -1306,9 +1309,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
         # nor the far end of a strut that wheels a node with free struts (_pinned), nor a
         # wheeling one (its twist is its wheels'; _common_turn gave its turn to the far end),
-        # nor one whose twist the swerve sets (_swerve): its turns toward a small sideways
-        # error undid the floor node's steering and shook the top node under the far end
-        # until a strut there broke (fig22's s8:b on n5, s9 off n5; stop 53)
+        # nor one whose twist the swerve sets (_swerve: its turns undid the steering; stop 53)
         wheeling = self._wheel[ks] != 0.0
         pinned = self._pinned(ks)
         steers |= pinned | wheeling | self._swerved[ks]
