@@ -1332,7 +1332,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         alone = ~np.isin(ks ^ 1, ks)
         aligned = alone & (np.abs(heading) < _HEADING_HOLD)
         turn = np.where(turning, np.where(aligned, 0.0, heading), twist)
-        still = self._stop(ks, np.hypot(swing, twist), wheeling) | self._waits(ks)
+        still = self._standing(ks, np.hypot(swing, twist), wheeling)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
                                  np.abs(swing) * turning * self._effort[ks], spun)
@@ -1361,6 +1361,17 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
         spun = self._spin_followers(self._holder >= 0)[ks]
         return np.where((self._twist_free[ks] & ~spun) | docking, 0.0, error[:, 2]), spun
+
+    def _standing(self, ks: np.ndarray, error: np.ndarray, wheeling: np.ndarray) -> np.ndarray:
+        """Which connectors ``ks`` (n,) stand still, their wheels braked: stopped at their
+        targets (:meth:`_stop`; ``error`` [rad]) or waiting for their node's holder
+        (:meth:`_waits`). One standing keeps no integral: kept, it was spent in full when
+        the connector moved again, whatever its error had become; in fig20 ``s4``'s ends
+        came off 1-3 s holds with it at its bound (1.44 rad/s) against a fresh 0.42 rad/s
+        the other way, and the last move stalled at 31 deg (stop 53)."""
+        still = self._stop(ks, error, wheeling) | self._waits(ks)
+        self._integral[ks[still], 1:] = 0.0
+        return still
 
     def _waits(self, ks: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` (n,) hold still, their wheels braked, for the one
