@@ -149,7 +149,6 @@ plane: one lever along the axle (sideways slip), ahead (rolling), ahead and side
 a point one lever ahead (turning about the contact normal)."""
 _STILL_ON = np.radians(0.3)   # a connector this near its target stops, its wheels braked
 _STILL_OFF = np.radians(0.6)  # ... until pushed this far off it
-_INTEGRAL_BLEED = 0.5  # a stopped connector's integral decays with this time constant [s]
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
 _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
@@ -1333,7 +1332,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         alone = ~np.isin(ks ^ 1, ks)
         aligned = alone & (np.abs(heading) < _HEADING_HOLD)
         turn = np.where(turning, np.where(aligned, 0.0, heading), twist)
-        still = self._standing(ks, np.hypot(swing, twist), wheeling)
+        still = self._stop(ks, np.hypot(swing, twist), wheeling) | self._waits(ks)
         roll = np.where(still, 0.0, roll)
         turn = self._common_turn(ks, np.where(still, 0.0, turn),
                                  np.abs(swing) * turning * self._effort[ks], spun)
@@ -1362,20 +1361,6 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         docking = np.array([self.magnet[k ^ 1] == "extended" for k in ks], dtype=bool)
         spun = self._spin_followers(self._holder >= 0)[ks]
         return np.where((self._twist_free[ks] & ~spun) | docking, 0.0, error[:, 2]), spun
-
-    def _standing(self, ks: np.ndarray, error: np.ndarray, wheeling: np.ndarray) -> np.ndarray:
-        """Which connectors ``ks`` (n,) stand still, their wheels braked: stopped at their
-        targets (:meth:`_stop`; ``error`` [rad]) or waiting for their node's holder
-        (:meth:`_waits`). A stopped one's integral bleeds away (``_INTEGRAL_BLEED`` [s]):
-        kept, it was spent in full when the connector moved again, whatever its error had
-        become; in fig20 ``s4``'s ends came off 1-3 s stops with it at its bound (+-1.44
-        rad/s) against a fresh 0.42 rad/s, and the last move stalled at 31 deg (stop 53).
-        Cleared at once, or at the stops of ends of struts driven at both ends, fig22's
-        move after the undock of ``n0-s0b`` stalled instead (9.6 deg)."""
-        stopped = self._stop(ks, error, wheeling)
-        self._integral[ks[stopped], 1:] *= np.exp(-self._every * self.options.timestep
-                                                  / _INTEGRAL_BLEED)
-        return stopped | self._waits(ks)
 
     def _waits(self, ks: np.ndarray) -> np.ndarray:
         """Which connectors ``ks`` (n,) hold still, their wheels braked, for the one
