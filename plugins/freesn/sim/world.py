@@ -371,6 +371,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                               dtype=int)
         self._wheel = np.zeros(k)                          # commanded wheel speed [rad/s]
         self._travel = np.zeros((k, 2))                    # node wheel's travel: along, across
+        self._swerved = np.zeros(k, dtype=bool)            # twist set by _swerve this servo step
         self._spin_lag = np.zeros(k)                       # wheel spin asked - measured [rad]
         self._node_rate = 3 + np.array([m.joint(f"free/{n}").dofadr[0] for n in self.nodes])
         self._index_drives(self.ends if self._differential else [])
@@ -1005,7 +1006,13 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         the travel from the behavior's command in ``W``'s own horizontal frame, the
         vertical from the node's attitude estimate (:meth:`_vertical`), the struts'
         axes from the connectors' beliefs (:meth:`_believed`); the far end takes the
-        twist through its own belief of the strut."""
+        twist through its own belief of the strut. Those ends are marked ``_swerved`` for
+        this servo step: :meth:`_steer` never turns them toward an aim error (their turn
+        is the twist's): left a degree off their aims sideways, ``s8``'s ends turned the
+        strut up to 90 deg off its twist and back at the wheels' top speed, and each turn
+        on the top node pushed its other connectors off their aims until ``s9`` broke
+        there (fig22, stop 53)."""
+        self._swerved[:] = False
         wheels = self._node_wheels()
         wheels = wheels[self._travel[wheels].any(axis=1)]
         if not len(wheels):
@@ -1029,6 +1036,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                 for kk, belief in zip((kf, kf ^ 1), seen, strict=True):
                     self._target[kk] = _frame(self._target[kk][:, 2], belief @ heading)
                     self._twist_free[kk] = False
+                    self._swerved[kk] = True
                     moved.append(kk)
         if moved:
             self._update_ball_targets(np.array(moved))
@@ -1281,7 +1289,8 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         twist is free (a strut whose aim alone was commanded, or one whose other end's
         magnet is out to dock); left with a sideways error alone, past ``_STILL_OFF``, it
         turns toward it again. A connector whose strut's free end drives its wheels never
-        turns (the turn would steer them; one turning when they start stops). Within ``_STILL_ON`` of its target (swing and the twist
+        turns (the turn would steer them; one turning when they start stops), nor does one
+        whose twist the swerve sets (:meth:`_swerve`). Within ``_STILL_ON`` of its target (swing and the twist
         asked) it stops until pushed ``_STILL_OFF`` off (:meth:`_stop`); a hung node's
         free struts and its holder's far end likewise (:meth:`_waits`, :meth:`_pinned`). Each channel is
         the position loop ``k e + k_i int e`` (``position_gain``, ``integral_gain``); a
@@ -1299,10 +1308,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # wheels (the spider's legs turned 50-90 % of the time, their axles 30 deg off level)
         steers = (self._eq[ks ^ 1] < 0) & (self._wheel[ks ^ 1] != 0.0)
         # nor the far end of a strut that wheels a node with free struts (_pinned), nor a
-        # wheeling one (its twist is its wheels'; _common_turn gave its turn to the far end)
+        # wheeling one (its twist is its wheels'; _common_turn gave its turn to the far end),
+        # nor one whose twist the swerve sets (_swerve: its turns undid the steering; stop 53)
         wheeling = self._wheel[ks] != 0.0
         pinned = self._pinned(ks)
-        steers |= pinned | wheeling
+        steers |= pinned | wheeling | self._swerved[ks]
         twist = np.where(pinned | wheeling, 0.0, twist)
         aside = (np.abs(error[:, 1]) < _STILL_ON) & (np.abs(twist) < _STILL_ON)
         self._turning[ks] = ~steers & np.where(
