@@ -49,8 +49,9 @@ from .geometry import END_SIGN
 from .recognizer import FreeSNRecognizer, Links, links_of, node_headings, root_order
 from .world import NodeReport, StrutReport
 
-__all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "LONE_WHEEL_BOUND", "LONE_WHEEL_GAIN",
-           "NODE_ROLLING", "PLANTED_MODE", "SWING_MODE", "FreeSNController", "bridges",
+__all__ = ["FOLLOW_EFFORT", "FORWARD_MODES", "LONE_WHEEL_BAND", "LONE_WHEEL_BOUND",
+           "LONE_WHEEL_GAIN", "NODE_ROLLING", "PLANTED_MODE", "SWING_MODE", "FreeSNController",
+           "bridges",
            "connector_commands", "driving_ends", "feet", "lone_wheel_corrections",
            "lone_wheels", "plant_feet"]
 
@@ -73,6 +74,12 @@ rate at which it closes its strut's azimuth error. Fig. 22(j), 4 deg + 10 % slip
 
 LONE_WHEEL_BOUND = 2.0
 """Bound [rad/s] of a lone node wheel's correction (its wheels run to 6 rad/s)."""
+
+LONE_WHEEL_BAND = float(np.radians(3.0))
+"""Dead band [rad] of a lone node wheel's azimuth error: only the error beyond it is
+corrected. It is of the order of the recognized azimuth's noise at 4 deg of tilt noise;
+without it the correction chases that noise (fig. 22, 4 deg + 10 % slip, seed 23: 16.0 deg
+off the heading; with it 12.2 deg worst over seeds 10-29, docs/freesn.md, stop 53)."""
 
 NODE_ROLLING = NODE.geometry["radius"] * STRUT.geometry["wheel_radius"] / (
     0.5 * STRUT.geometry["wheel_base"])
@@ -237,6 +244,7 @@ def _reach(configuration: Configuration, strut: str, body: str) -> np.ndarray | 
 def lone_wheel_corrections(target: Configuration, current: Configuration,
                            wheels: Mapping[str, Mapping[str, float]], *,
                            gain: float = LONE_WHEEL_GAIN, bound: float = LONE_WHEEL_BOUND,
+                           band: float = LONE_WHEEL_BAND,
                            length: float = STRUT.geometry["length"],
                            rolling: float = NODE_ROLLING) -> dict[str, dict[str, float]]:
     """What to add [rad/s] to the behavior wheels of :func:`lone_wheels` so each closes its
@@ -256,7 +264,8 @@ def lone_wheel_corrections(target: Configuration, current: Configuration,
     Args:
         target: the behavior's configuration (its stance). current: recognized now.
         wheels: the behavior's wheel values, per strut, per end (``a``, ``b``).
-        gain: [1/s]; 0 corrects nothing. bound: [rad/s]. length: strut length [m].
+        gain: [1/s]; 0 corrects nothing. bound: [rad/s]. band: dead band [rad] on
+            ``|delta|`` (only the error beyond it is closed). length: strut length [m].
         rolling: [m/rad], :data:`NODE_ROLLING`.
 
     Returns:
@@ -280,6 +289,7 @@ def lone_wheel_corrections(target: Configuration, current: Configuration,
             continue
         want = yaw @ want
         delta = wrap_angle(float(np.arctan2(now[1], now[0]) - np.arctan2(want[1], want[0])))
+        delta = float(np.sign(delta)) * max(abs(delta) - band, 0.0)
         sign = 1.0 if end == "b" else -1.0
         value = float(np.clip(sign * gain * delta * length / rolling, -bound, bound))
         out.setdefault(strut, {})[end] = value

@@ -14,6 +14,7 @@ from msrr.core.configuration import Configuration
 from msrr.core.plan import Action, ActionType
 from msrr.plugins.freesn.robot import STRUT
 from msrr.plugins.freesn.sim.controller import (
+    LONE_WHEEL_BAND,
     LONE_WHEEL_BOUND,
     LONE_WHEEL_GAIN,
     NODE_ROLLING,
@@ -65,9 +66,10 @@ def test_a_lone_wheel_turns_its_node_back_by_its_azimuth_error(end: str):
     added = lone_wheel_corrections(stance(wheel_end=end), stance(delta, wheel_end=end), wheels)
     assert set(added) == {"S4"}                    # the triangle's wheel is held: not named
     value = added["S4"][end]
-    assert abs(value) == pytest.approx(LONE_WHEEL_GAIN * delta * L / NODE_ROLLING, rel=1e-6)
-    # the swing it drives closes the error at the gain's rate
-    assert swing_rate(end, value) == pytest.approx(-LONE_WHEEL_GAIN * delta, rel=1e-6)
+    beyond = delta - LONE_WHEEL_BAND
+    assert abs(value) == pytest.approx(LONE_WHEEL_GAIN * beyond * L / NODE_ROLLING, rel=1e-6)
+    # the swing it drives closes the error beyond the band at the gain's rate
+    assert swing_rate(end, value) == pytest.approx(-LONE_WHEEL_GAIN * beyond, rel=1e-6)
     far = lone_wheel_corrections(stance(wheel_end=end), stance(-0.5, wheel_end=end),
                                  wheels)["S4"][end]
     assert abs(far) == pytest.approx(LONE_WHEEL_BOUND) and swing_rate(end, far) > 0.0
@@ -78,7 +80,19 @@ def test_a_rigid_turn_of_the_whole_stance_needs_no_correction():
     added = lone_wheel_corrections(stance(), stance(turn=math.radians(40.0)), wheels)
     assert added["S4"]["b"] == pytest.approx(0.0, abs=1e-9)
     moved = lone_wheel_corrections(stance(), stance(0.1, turn=math.radians(40.0)), wheels)
-    assert moved["S4"]["b"] == pytest.approx(0.1 * L / NODE_ROLLING, rel=1e-6)
+    assert moved["S4"]["b"] == pytest.approx((0.1 - LONE_WHEEL_BAND) * L / NODE_ROLLING,
+                                             rel=1e-6)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_an_error_within_the_dead_band_is_left_alone(sign: float):
+    wheels = {"S4": {"b": 1.5}}
+    inside = lone_wheel_corrections(stance(), stance(sign * 0.9 * LONE_WHEEL_BAND), wheels)
+    assert inside["S4"]["b"] == pytest.approx(0.0, abs=1e-12)
+    past = lone_wheel_corrections(stance(), stance(sign * (LONE_WHEEL_BAND + 0.01)), wheels)
+    assert past["S4"]["b"] == pytest.approx(sign * 0.01 * L / NODE_ROLLING, rel=1e-4)
+    assert lone_wheel_corrections(stance(), stance(sign * 0.9 * LONE_WHEEL_BAND), wheels,
+                                  band=0.0)["S4"]["b"] != pytest.approx(0.0, abs=1e-3)
 
 
 def test_gain_zero_leaves_the_behaviors_wheels_as_they_are():
@@ -89,4 +103,5 @@ def test_gain_zero_leaves_the_behaviors_wheels_as_they_are():
         action, stance(0.1), wheels) == wheels
     corrected = FreeSNController().correct_wheels(action, stance(0.1), wheels)
     assert corrected["S1"] == {"b": 0.7}
-    assert corrected["S4"]["b"] == pytest.approx(1.5 + 0.1 * L / NODE_ROLLING, rel=1e-6)
+    assert corrected["S4"]["b"] == pytest.approx(
+        1.5 + (0.1 - LONE_WHEEL_BAND) * L / NODE_ROLLING, rel=1e-6)
