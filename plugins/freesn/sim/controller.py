@@ -79,7 +79,8 @@ LONE_WHEEL_BAND = float(np.radians(3.0))
 """Dead band [rad] of a lone node wheel's azimuth error: only the error beyond it is
 corrected. It is of the order of the recognized azimuth's noise at 4 deg of tilt noise;
 without it the correction chases that noise (fig. 22, 4 deg + 10 % slip, seed 23: 16.0 deg
-off the heading; with it 12.2 deg worst over seeds 10-29, docs/freesn.md, stop 53)."""
+off the heading; with it 12.2 deg worst over seeds 10-29 at that setting, docs/freesn.md
+"Stop 53: the lone wheel's dead band")."""
 
 NODE_ROLLING = NODE.geometry["radius"] * STRUT.geometry["wheel_radius"] / (
     0.5 * STRUT.geometry["wheel_base"])
