@@ -160,17 +160,15 @@ def _step(k, action, current, pos, spacing) -> list[str] | None:
             pos[m] = p
         moved = float(np.linalg.norm(np.mean([pos[m] for m in piece], axis=0) - before))
         where = "goal place"
+        then = piece_goal(goal, {m: pos[m] for m in groups[c.target] | piece}, piece,
+                          c.target)
         if way.at_goal:
-            then = piece_goal(goal, {m: pos[m] for m in groups[c.target] | piece}, piece,
-                              c.target)
             bent = _bend(pos, piece, then, spacing)
             if bent is None:
                 where = "goal place, not bent to the goal's shape"
             elif bent > BENT:
                 where = f"goal place, bent {bent:.2f} m onto the goal's shape"
         else:
-            then = piece_goal(goal, {m: pos[m] for m in groups[c.target] | piece}, piece,
-                              c.target)
             swung = _swing(pos, piece, c.source, c.target, then[c.source] - pos[c.target],
                            spacing)
             where = "free place, not the goal's" if swung is None else \

@@ -217,11 +217,12 @@ def closed_ways(problem: MisoProblem, pair: Sequence[int], goal_places: np.ndarr
     A piece of two or more modules docks by sliding in along the line from its target
     through its centroid (a straight piece drives only along its own line): its way in
     is its docked body slid back along that line by its own length and the last
-    stretch, ``WAY_IN`` (both :mod:`~msrr.core.freeform.layout`'s, as ``piece_way``'s) -- where it stands clear of neighbours as long as itself docked
-    either side of it. A module of another piece's docked body closer than the spacing
-    less ``SLIDE_OVERLAP`` to that swept body closes it: docked first, that piece leaves no
-    way in (``piece_way`` refuses such a way); the piece that holds its target does not
-    count (it docks first anyway). The spacing is the goal's own, the median length of
+    stretch, ``WAY_IN`` (:mod:`~msrr.core.freeform.layout`'s, as ``piece_way``'s): where
+    it stands clear of neighbours as long as itself docked either side of it. A module
+    of another piece's docked body closer than the spacing less ``SLIDE_OVERLAP`` to that
+    swept body closes it: docked first, that piece leaves no way in (``piece_way``
+    refuses such a way); the piece that holds its target does not count (it docks first
+    anyway). The spacing is the goal's own, the median length of
     its connections. ``goal_places`` (n, 3): the goal's places in goal index order, in
     the start's frame (:func:`goal_in_start_frame`) [m]. Lone modules roll in from any
     side and close no way here.
