@@ -308,6 +308,46 @@ def test_chain_to_star_plan_replays_to_the_goal(planner):
     assert all(np.array_equal(z[(e.source, e.target)], e.z) for e in goal.edges())
 
 
+def test_a_rider_is_held_as_it_rode_while_its_carrier_turns_onto_its_goal():
+    # the human example's action 1 (stop 53): F565's piece of four docked onto F202 in
+    # its goal's direction, 24 deg off the start's, and its riders F567-F568 (whose own
+    # goal is elsewhere, at action 47) kept the start's direction: kinked across the
+    # places of the next two ribs, so actions 3 and 4 found no goal place. Here three
+    # straight chains of two become a tree; the first step docks a chain by its free end,
+    # its other module a rider (its target not placed yet): it continues its carrier's
+    # line, turned with it, and is not left at the start's direction
+    y, d = [0.0, 1.0, 0.0], [0.6, 0.8, 0.0]
+
+    def config(parent, z):
+        c = Configuration("freebot", name="scene")
+        for i in range(len(parent)):
+            c.add_module(f"M{i}", "freebot")
+        for i, p in enumerate(parent):
+            if p != FREE:
+                c.connect(f"M{i}", f"M{p}", z=z)
+        return c
+
+    start, goal = config([FREE, 0, FREE, 2, FREE, 4], y), config([3, 4, 4, 1, FREE, 3], d)
+    plan = plan_miso(start, goal, limits=FREEBOT_RULES)
+    inverse = {b: a for a, b in plan.mapping.items()}
+    target = {inverse[e.source]: inverse[e.target] for e in goal.edges()}
+    riders = 0
+    for action in plan.actions[:-1]:
+        if action.type not in (ActionType.CONNECTION, ActionType.PARALLEL_CONNECTION):
+            continue
+        mover = action.changes[-1].source
+        links = {e.source: (e.target, np.asarray(e.z)) for e in action.target.edges()}
+        for m, (p, z) in links.items():
+            way = [m]
+            while way[-1] != mover and way[-1] in links:
+                way.append(links[way[-1]][0])
+            if way[-1] == mover and m != mover and any(target.get(k) != links[k][0]
+                                                       for k in way[:-1]):
+                riders += 1
+                assert np.allclose(z, d), (action.note, m, z)   # before: the start's y
+    assert riders
+
+
 def test_six_chains_plan_into_the_human_example_with_fewer_changes_than_im():
     start = load_configuration(FREEBOT / "human" / "human-chains.json")
     goal = load_configuration(FREEBOT / "human" / "human.json")

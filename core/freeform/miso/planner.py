@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...alignment import rot_z
 from ...configuration import Configuration
 from ...errors import ExecutionError
 from ...plan import Action, ActionType, ConnectionChange, Plan
@@ -283,9 +284,7 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
         flow = is_flow(parent, i, step.new)   # the pointer form of actions.flow_move
         parent[i] = step.new
         if made and not flow:      # the module goes over the floor with its piece
-            for m in _carried(parent, i):
-                if (m, parent[m]) in goal_vectors:
-                    vectors[(m, parent[m])] = goal_vectors[(m, parent[m])]
+            _carry(parent, i, step.old, vectors, goal_vectors)
         after = _configuration(start, ids, parent, vectors, edge_ids, f"step {t}")
         if flow:
             kind, verb, count = ActionType.FLOW, "flow", "flows"
@@ -305,19 +304,47 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
     return actions, current, counts
 
 
-def _carried(parent: list[int], module: int) -> list[int]:
-    """The modules whose connector path leads to ``module`` (its in-tree, without it)."""
+def _carry(parent: list[int], module: int, old: int,
+           vectors: dict[tuple[int, int], np.ndarray],
+           goal_vectors: dict[tuple[int, int], np.ndarray]) -> None:
+    """Set the vectors of the piece ``module`` docks with (``parent`` after the step,
+    ``old`` its former parent; ``vectors`` changed in place). A module hanging from
+    ``module`` by goal connections takes the goal's vectors: the piece travels in the
+    goal's shape. A *rider* (hanging by a connection it leaves later) is held as it
+    rode: its in-tree keeps its angles to the module it hangs from, turned about ``z``
+    with that module's own connection (a rider of a straight chain continues its line),
+    never left at the start's directions while its carrier turns under it. A module
+    that was free turns with its first child's connection."""
     on: dict[int, list[int]] = {}
     for m, p in enumerate(parent):
         if p != FREE:
             on.setdefault(p, []).append(m)
-    out, todo = [], list(on.get(module, ()))
+    kids = sorted(on.get(module, ()))
+    before = vectors.get((module, old)) if old != FREE else (
+        vectors.get((kids[0], module)) if kids else None)
+    turn = {module: 0.0 if before is None else _heading(vectors[(module, parent[module])])
+            - _heading(before)}
+    placed, todo = {module}, [module]
     while todo:
         m = todo.pop()
-        if m != module and m not in out:
-            out.append(m)
-            todo.extend(on.get(m, ()))
-    return sorted(out)
+        for c in sorted(on.get(m, ())):
+            if c == module or c in turn:   # a ring closed by the step is walked once
+                continue
+            key = (c, m)
+            was = vectors.get(key, np.array([0.0, 0.0, 1.0]))
+            if m in placed and key in goal_vectors:
+                vectors[key] = goal_vectors[key]
+                placed.add(c)
+                turn[c] = _heading(vectors[key]) - _heading(was)
+            else:
+                turn[c] = turn[m]
+                vectors[key] = rot_z(turn[m]) @ was
+            todo.append(c)
+
+
+def _heading(z: np.ndarray) -> float:
+    """The angle of ``z``'s horizontal part about the vertical [rad] (0 when vertical)."""
+    return float(np.arctan2(z[1], z[0])) if abs(z[0]) + abs(z[1]) > 1e-12 else 0.0
 
 
 def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
