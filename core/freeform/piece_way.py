@@ -130,11 +130,7 @@ class PieceWay:
         """The farthest any module goes along the legs [m]: each drive's length, each
         turn's angle times the piece's reach from its centroid (the way's cost)."""
         reach = float(np.max(np.linalg.norm(self.shape, axis=1)))
-        total, c, h = 0.0, self.origin, self.heading
-        for leg in self.legs:
-            total += float(np.linalg.norm(leg.to - c)) + reach * abs(wrap_angle(leg.heading - h))
-            c, h = leg.to, leg.heading
-        return total
+        return _cost(list(self.legs), (self.origin, self.heading), reach)
 
     def direction(self, stage: int) -> np.ndarray:
         """The unit direction (2,) of drive ``stage`` (from the end of the leg before it,
@@ -308,7 +304,7 @@ def plan_legs(others: np.ndarray, offsets: np.ndarray, line: np.ndarray | None,
         legs, cut = _search(space, (c0, h0), (g, hg), line, lambda c, w=inflate: w * ahead(c),
                             (low, high), cell, step)
         if legs is not None:
-            return legs
+            return legs if inflate == 1.0 else _shortcut(space, (c0, h0), legs, line)
         if not cut:             # every pose the lattice reaches was tried
             break
     raise ExecutionError(f"no free way over the floor for a piece of {len(space.offsets)} "
@@ -450,6 +446,42 @@ def _direct(space: _Space, c: np.ndarray, h: float, g: np.ndarray, hg: float,
                 and space.turn_free(g, hd, hg):
             return [Leg("turn", c, hd), Leg("drive", g, hd), Leg("turn", g, hg)]
     return None
+
+
+def _shortcut(space: _Space, start: tuple[np.ndarray, float], legs: list[Leg],
+              line: np.ndarray | None) -> list[Leg]:
+    """``legs`` from ``start`` with stretches between two of their poses replaced by the
+    direct way (:func:`_direct`: turn, drive, turn) where that is clear and shorter
+    (path shortcutting): from each pose in turn, the farthest later pose so reached. A
+    weighted search's way (``_INFLATE``) detours within its bound and zigzags on the
+    lattice; the cheapest way is what the unweighted search would have returned."""
+    poses = [(np.asarray(start[0], dtype=float), float(start[1]))]
+    poses += [(np.asarray(leg.to, dtype=float), leg.heading) for leg in legs]
+    out, i = [], 0
+    while i < len(legs):
+        for j in range(len(legs), i + 1, -1):
+            direct = _direct(space, *poses[i], *poses[j], line)
+            if direct is not None and _cost(direct, poses[i], space.reach) < _cost(
+                    legs[i:j], poses[i], space.reach) - 1e-9:
+                out += [leg for leg, (c, h) in zip(direct, [poses[i]] + [
+                    (d.to, d.heading) for d in direct[:-1]], strict=True)
+                        if leg.kind == "drive" or abs(wrap_angle(leg.heading - h)) > 1e-9]
+                i = j
+                break
+        else:
+            out.append(legs[i])
+            i += 1
+    return out
+
+
+def _cost(legs: list[Leg], start: tuple[np.ndarray, float], reach: float) -> float:
+    """The farthest module's travel along ``legs`` from pose ``start`` [m]: drives'
+    lengths, turns' angles times ``reach`` (the search's cost)."""
+    (c, h), total = start, 0.0
+    for leg in legs:
+        total += float(np.linalg.norm(leg.to - c)) + reach * abs(wrap_angle(leg.heading - h))
+        c, h = leg.to, leg.heading
+    return total
 
 
 def _unwind(nodes: list[tuple[np.ndarray, float, int, bool]], moves: list[Leg | None],
