@@ -30,7 +30,9 @@ estimate weighted by ``_INFLATE`` (weighted A*, Pohl 1970): the cheapest way rou
 wall through a door costs every pose whose cost so far plus estimate is below the way's,
 which in a scene of hundreds of modules are tens of thousands (the human example's action
 33: 69,064); led by twice the estimate, the search goes for the door (273 poses) and the
-way costs at most about twice the cheapest (there 17.68 m against 17.71 m, in more legs).
+way costs at most about twice the cheapest (there 17.68 m against 17.71 m, in more legs);
+its lattice's zigzags are then shortcut by direct ways between two of its poses
+(:func:`_shortcut`).
 """
 
 from __future__ import annotations

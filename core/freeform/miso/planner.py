@@ -271,7 +271,8 @@ def _actions(problem: MisoProblem, start: Configuration, solution: MisoSolution,
     pointer form, tested against :func:`msrr.core.actions.classify`); the last
     configuration; counts. A step that docks a module carrying others (not a flow) gives
     the connections of the piece that moves with it the goal's vectors (the piece travels
-    to its place in the goal's shape, instead of being swung there by the last move)."""
+    to its place in the goal's shape, instead of being swung there by the last move), its
+    riders turned with it (:func:`_carry`)."""
     ids = problem.start_ids
     parent = list(problem.start)
     current = start.copy()
@@ -360,8 +361,10 @@ def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
     (disconnection first, then connection; the module carries its in-tree). A last
     *moving* action sets the goal's vectors. Kept connections keep their ids and
     vectors, except those of a piece a (break-and-)make step moves, which take the goal's
-    then (it travels into the goal's shape); new ones take the goal's vectors. ``plan.stats`` holds both metrics,
-    ``steps`` and ``changes`` (``broken`` + ``made``).
+    then (it travels into the goal's shape; its riders, modules it carries by connections
+    they leave later, keep their angles to it, turned with it); new ones take the goal's
+    vectors. ``plan.stats`` holds both metrics, ``steps`` and ``changes`` (``broken`` +
+    ``made``).
 
     With a ``layout`` (where the world lays a configuration) and a start that carries
     places (:func:`carries_places`), the pieces of equal shape go to the nearer of their
