@@ -337,7 +337,7 @@ def test_a_rider_is_held_as_it_rode_while_its_carrier_turns_onto_its_goal():
             continue
         mover = action.changes[-1].source
         links = {e.source: (e.target, np.asarray(e.z)) for e in action.target.edges()}
-        for m, (p, z) in links.items():
+        for m, (_p, z) in links.items():
             way = [m]
             while way[-1] != mover and way[-1] in links:
                 way.append(links[way[-1]][0])

@@ -241,3 +241,32 @@ def test_a_piece_docks_before_one_whose_docked_body_would_close_its_way_in():
                                    goal_here, 0.101)
     assert ways[False].at_goal
     assert not ways[True].at_goal
+
+
+def test_a_piece_waits_while_a_rider_lies_across_its_way_until_the_rider_has_left():
+    """C0-C1 docks on S1 (a rib down) carrying its riders R0-R1, whose target E1 comes
+    with E's piece; held as they rode, the riders lie on A's goal place (A docks on U3
+    along +x under C's rib). By goal depth A docked next, onto the riders; now A waits
+    until they have left for E1 (the same changes and steps)."""
+    # C's riders: held as they rode, on A's goal place; C docks first all the same (A's
+    # docked body would close C's way in)
+    from msrr.core.freeform.miso.planner import _floor_order, _solution
+
+    s = 0.101
+    names = ["S0", "S1", "U1", "U2", "U3", "C0", "C1", "A0", "A1", "A2", "R0", "R1", "E0",
+             "E1"]
+    start = [FREE, 0, 0, 2, 3, FREE, 5, FREE, 7, 8, 6, 10, FREE, 12]
+    goal = [FREE, 0, 0, 2, 3, 1, 5, 4, 7, 8, 13, 10, 2, 12]
+    corner = [(0, 0), (s, 0), (0, -s), (0, -2 * s), (0, -3 * s)]
+    here = corner + [(0.5 + s * k, 0.5) for k in range(2)] + [
+        (0.5 + s * k, -0.8) for k in range(3)] + [(0.5 + s * k, 0.5) for k in (2, 3)] + [
+        (-0.5 - s * k, 0.5) for k in range(2)]
+    there = corner + [(s, -s), (s, -2 * s)] + [(s * k, -3 * s) for k in (1, 2, 3)] + [
+        (-3 * s, -s), (-4 * s, -s), (-s, -s), (-2 * s, -s)]
+    problem = MisoProblem.from_parents(start, goal, plugins.planners("freebot")["miso"].limits)
+    pair = list(range(len(names)))
+    here3, there3 = (np.array([[x, y, 0.05] for x, y in p]) for p in (here, there))
+    solution = _floor_order(_solution(problem, pair, 0.0), problem, here3, there3)
+    moved = [names[step.module] for step in solution.steps]
+    assert moved == ["C0", "E0", "R0", "A0"]      # before: C0, E0, A0, R0
+    assert (solution.changes, solution.cost) == (5, 4)

@@ -68,6 +68,7 @@ from .places import (
     fragments,
     goal_in_start_frame,
     nearer_pairing,
+    riding_ways,
     step_travel,
     travel,
 )
@@ -120,6 +121,7 @@ __all__ = [
     "random_cyclic",
     "random_forest",
     "random_miso_tree",
+    "riding_ways",
     "rooted",
     "solve_exact",
     "solve_heuristic",

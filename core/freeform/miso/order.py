@@ -10,7 +10,10 @@ import numpy as np
 from ...errors import PlanningError
 from .model import FREE, UNLIMITED, MisoLimits, Step, count_flows, cycles, depths
 
-__all__ = ["greedy_order", "leaf_order", "order_steps"]
+__all__ = ["Riding", "greedy_order", "leaf_order", "order_steps"]
+
+Riding = Mapping[int, Mapping[int, Collection[int]]]
+"""Per moving module, per rider it carries, the modules whose way that rider closes."""
 
 
 class _State:
@@ -87,6 +90,14 @@ class _State:
             layer = [c for j in layer for c in self.on[j] if c not in seen]
         return best
 
+    def carries(self, module: int, other: int) -> bool:
+        """Whether ``other`` lies in ``module``'s in-tree (its connector path leads there)."""
+        for _ in range(len(self.parent)):
+            other = self.parent[other]
+            if other in (FREE, module):
+                return other == module
+        return False
+
     def apply(self, module: int, new: int) -> Step:
         step = Step(module, self.parent[module], new)
         if step.old != FREE:
@@ -102,7 +113,8 @@ class _State:
 def order_steps(start: Sequence[int], goal: Sequence[int],
                 goal_depth: Sequence[int] | None = None, *,
                 limits: MisoLimits = UNLIMITED,
-                closes: Mapping[int, Collection[int]] | None = None) -> list[Step]:
+                closes: Mapping[int, Collection[int]] | None = None,
+                riding: Riding | None = None) -> list[Step]:
     """Legal steps from ``start`` to ``goal`` (pointer arrays over the same indices).
 
     Modules move in increasing goal depth (:func:`~.model.depths` of ``goal``), each
@@ -123,7 +135,10 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
     ``j`` has docked (:func:`~.places.closed_ways`, from the floor's places). A move
     that would close a pending module's way waits while another legal move does not
     (the next pending module in goal depth, split as it would be); when every legal
-    move would close one, the first is made.
+    move would close one, the first is made. ``riding[j][r]``: the modules whose way
+    rider ``r`` closes where it rides once ``j`` has docked carrying it
+    (:func:`~.places.riding_ways`): such a move waits as for ``closes`` while ``r``
+    rides there (it leaves when its own target is placed).
 
     Under ``limits.carries == "nothing"`` the order is :func:`leaf_order`.
 
@@ -134,8 +149,10 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
         goal_depth = depths(goal)
     if limits.carries == "nothing":
         return leaf_order(start, goal, goal_depth, limits)
-    plain = greedy_order(start, goal, goal_depth, limits, flows_first=False, closes=closes)
-    flowing = greedy_order(start, goal, goal_depth, limits, flows_first=True, closes=closes)
+    plain = greedy_order(start, goal, goal_depth, limits, flows_first=False, closes=closes,
+                         riding=riding)
+    flowing = greedy_order(start, goal, goal_depth, limits, flows_first=True, closes=closes,
+                           riding=riding)
     if len(flowing) > len(plain) or (len(flowing) == len(plain) and count_flows(
             start, flowing) < count_flows(start, plain)):
         return plain
@@ -144,9 +161,10 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
 
 def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence[int],
                  limits: MisoLimits, *, flows_first: bool,
-                 closes: Mapping[int, Collection[int]] | None = None) -> list[Step]:
+                 closes: Mapping[int, Collection[int]] | None = None,
+                 riding: Riding | None = None) -> list[Step]:
     """One greedy pass of :func:`order_steps`; ``flows_first``: a legal pending flow
-    before any other legal move; ``closes``: as :func:`order_steps`'s."""
+    before any other legal move; ``closes``, ``riding``: as :func:`order_steps`'s."""
     n = len(start)
     state = _State(start, limits)
     steps: list[Step] = []
@@ -170,7 +188,7 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
                            if state.blocker(pending[k], goal[pending[k]]) is None), None)
         i = None if chosen is None else state.split_first(pending[chosen], goal, waiting)
         if chosen is None:
-            i = _next_move(state, pending, goal, waiting, closes or {})
+            i = _next_move(state, pending, goal, waiting, closes or {}, riding or {})
         if i is not None:
             pending.remove(i)
             waiting.discard(i)
@@ -185,16 +203,19 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
 
 
 def _next_move(state: _State, pending: list[int], goal: Sequence[int], waiting: set[int],
-               closes: Mapping[int, Collection[int]]) -> int | None:
+               closes: Mapping[int, Collection[int]], riding: Riding) -> int | None:
     """The module to move next: the first legal pending module in ``pending``'s order,
     split as :meth:`_State.split_first` splits it, whose move closes no pending module's
-    way (``closes``), else the first such move; ``None`` when no move is legal."""
+    way (``closes``) and whose own way no rider closes where it rides now (``riding``),
+    else the first such move; ``None`` when no move is legal."""
+    shut = {w for j, rs in riding.items() if j not in waiting
+            for r, ways in rs.items() if r in waiting and state.carries(j, r) for w in ways}
     first = None
     for k in pending:
         if state.blocker(k, goal[k]) is not None:
             continue
         i = state.split_first(k, goal, waiting)
-        if not closes or waiting.isdisjoint(closes.get(i, ())):
+        if i not in shut and waiting.isdisjoint(closes.get(i, ())):
             return i
         first = i if first is None else first
     return first

@@ -37,12 +37,12 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ...alignment import best_turn
+from ...alignment import best_turn, rot_z
 from ..layout import SLIDE_OVERLAP, WAY_IN
 from .model import FREE, MisoProblem, Step, children_of, pairing_score, rooted, targets
 
 __all__ = ["class_moves", "closed_ways", "fragments", "goal_in_start_frame",
-           "nearer_pairing", "step_travel", "travel"]
+           "nearer_pairing", "riding_ways", "step_travel", "travel"]
 
 
 def fragments(problem: MisoProblem, pair: Sequence[int]) -> list[list[int]]:
@@ -227,31 +227,89 @@ def closed_ways(problem: MisoProblem, pair: Sequence[int], goal_places: np.ndarr
     the start's frame (:func:`goal_in_start_frame`) [m]. Lone modules roll in from any
     side and close no way here.
     """
-    final = targets(problem, pair)
     there = np.asarray(goal_places, dtype=np.float64)[list(pair)][:, :2]
+    ways, gap = _ways_in(problem, pair, there)
+    bodies = _moving_bodies(problem, pair, there)
+    out: dict[int, set[int]] = {}
+    for i, (body, line, back, carrier) in ways.items():
+        for j, other in bodies.items():
+            if j not in (i, carrier) and _swept_distance(body, line, back, other) < gap:
+                out.setdefault(j, set()).add(i)
+    return out
+
+
+def riding_ways(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
+                goal_places: np.ndarray) -> dict[int, dict[int, set[int]]]:
+    """Which ways in the riders of each docking piece close while they ride: for each
+    fragment root ``j`` that moves, per *rider* ``r`` (a module that hangs, in the
+    start, from a module ``p`` of ``j``'s fragment by a connection it leaves later), the
+    fragment roots ``i`` whose way in (as :func:`closed_ways`') ``r``'s in-tree crosses
+    where it rides: its start places turned rigidly about ``p`` with ``p``'s connection
+    and carried to ``p``'s goal place (as the plan holds a rider: its angles to ``p``
+    kept; a free root turns with its first child's connection). The carrier itself, the
+    piece whose target is in the rider, and the rider's own pieces do not count.
+    ``start_places`` (n, 3); ``goal_places`` (n, 3) in goal index order, in the start's
+    frame (:func:`goal_in_start_frame`) [m]."""
+    here = np.asarray(start_places, dtype=np.float64)[:, :2]
+    there = np.asarray(goal_places, dtype=np.float64)[list(pair)][:, :2]
+    ways, gap = _ways_in(problem, pair, there)
+    final, start = targets(problem, pair), rooted(problem.start)
+    kids = children_of(start)
+    out: dict[int, dict[int, set[int]]] = {}
+    for f in _moving_bodies(problem, pair, there, pieces=True).values():
+        body = set(f)
+        for p in f:
+            riders = [r for r in kids[p] if r not in body]
+            if not riders:
+                continue
+            was = here[p] - here[start[p]] if start[p] != FREE else here[kids[p][0]] - here[p]
+            now = there[p] - there[final[p]]
+            rot = rot_z(float(np.arctan2(now[1], now[0]) - np.arctan2(was[1], was[0])))[:2, :2]
+            for r in riders:
+                tree = [r]
+                for m in tree:
+                    tree.extend(kids[m])
+                ride = (here[tree] - here[p]) @ rot.T + there[p]
+                shut = {i for i, (way, line, back, _) in ways.items() if i != f[0]
+                        and i not in tree and final[i] not in tree
+                        and _swept_distance(way, line, back, ride) < gap}
+                if shut:
+                    out.setdefault(f[0], {})[r] = shut
+    return out
+
+
+def _moving_bodies(problem: MisoProblem, pair: Sequence[int], there: np.ndarray,
+                   pieces: bool = False) -> dict[int, np.ndarray | list[int]]:
+    """The fragments that dock somewhere new, by root: their goal places ``there``
+    (start index order, (n, 2)) [m], or (``pieces``) their modules."""
+    final = targets(problem, pair)
+    return {f[0]: (f if pieces else there[f]) for f in fragments(problem, pair)
+            if final[f[0]] != FREE and final[f[0]] != problem.start[f[0]]}
+
+
+def _ways_in(problem: MisoProblem, pair: Sequence[int], there: np.ndarray
+             ) -> tuple[dict[int, tuple[np.ndarray, np.ndarray, float, int | None]], float]:
+    """Each moving piece of two or more modules' way in (:func:`closed_ways`), by its
+    root: its docked body (k, 2), its unit line, how far back it is swept [m], the root of
+    the piece that holds its target (or ``None``); and the gap that closes a way [m]."""
+    final = targets(problem, pair)
     links = [float(np.linalg.norm(there[i] - there[p])) for i, p in enumerate(final)
              if p != FREE]
     if not links:
-        return {}
-    gap = float(np.median(links)) - SLIDE_OVERLAP
-    moving = [f for f in fragments(problem, pair)
-              if final[f[0]] != FREE and final[f[0]] != problem.start[f[0]]]
-    bodies = {f[0]: there[f] for f in moving}
-    holder = {m: f[0] for f in moving for m in f}
-    out: dict[int, set[int]] = {}
-    for f in moving:
+        return {}, 0.0
+    moving = _moving_bodies(problem, pair, there, pieces=True)
+    holder = {m: j for j, f in moving.items() for m in f}
+    out = {}
+    for j, f in moving.items():
         if len(f) < 2:
             continue
-        body, carrier = bodies[f[0]], holder.get(final[f[0]])
-        line = body.mean(axis=0) - there[final[f[0]]]
+        body = there[f]
+        line = body.mean(axis=0) - there[final[j]]
         if float(np.linalg.norm(line)) < 1e-9:
             continue
-        line /= np.linalg.norm(line)
         back = float(np.max(np.linalg.norm(body - body[0], axis=1))) + WAY_IN
-        for j, other in bodies.items():
-            if j not in (f[0], carrier) and _swept_distance(body, line, back, other) < gap:
-                out.setdefault(j, set()).add(f[0])
-    return out
+        out[j] = (body, line / np.linalg.norm(line), back, holder.get(final[j]))
+    return out, float(np.median(links)) - SLIDE_OVERLAP
 
 
 def _swept_distance(body: np.ndarray, line: np.ndarray, back: float, points: np.ndarray

@@ -30,9 +30,9 @@ from .model import (
     step_changes,
     targets,
 )
-from .order import order_steps
+from .order import Riding, order_steps
 from .pairing import heuristic_pairing
-from .places import class_moves, closed_ways, goal_in_start_frame, step_travel
+from .places import class_moves, closed_ways, goal_in_start_frame, riding_ways, step_travel
 
 __all__ = ["Layout", "MisoPlanner", "MisoSolution", "carries_places", "miso_planners",
            "plan_miso", "solve_exact", "solve_heuristic"]
@@ -69,11 +69,12 @@ class MisoSolution:
 
 
 def _solution(problem: MisoProblem, pair: list[int], t0: float,
-              closes: Mapping[int, set[int]] | None = None, **stats: float) -> MisoSolution:
+              closes: Mapping[int, set[int]] | None = None, riding: Riding | None = None,
+              **stats: float) -> MisoSolution:
     goal = targets(problem, pair)
     goal_depth = depths(problem.goal)
     steps = order_steps(problem.start, goal, [goal_depth[b] for b in pair],
-                        limits=problem.limits, closes=closes)
+                        limits=problem.limits, closes=closes, riding=riding)
     d = mismatches(problem.start, goal)
     return MisoSolution(pair, steps, d, stats={
         "time_ms": 1e3 * (time.perf_counter() - t0), **stats})
@@ -191,14 +192,16 @@ def _floor_order(solution: MisoSolution, problem: MisoProblem, s: np.ndarray,
                  laid: np.ndarray) -> MisoSolution:
     """``solution`` with its steps ordered so that no piece docks across a pending
     piece's way in while another move can be made first (:func:`~.places.closed_ways`
-    on the goal laid in the start's frame, :func:`~.order.order_steps`' ``closes``),
+    on the goal laid in the start's frame, :func:`~.order.order_steps`' ``closes``; nor
+    a rider where it rides, :func:`~.places.riding_ways`),
     kept when it has no more changes or steps and no fewer flows; ``stats`` gain
     ``closed_ways`` (the ways its order still closes: pieces that dock later across a
     piece docked before) and ``closed_ways_topology`` (before), and the travel sums of
     :func:`_nearer` follow the new order."""
     g = goal_in_start_frame(problem, solution.pairing, s, laid)
     closes = closed_ways(problem, solution.pairing, g)
-    other = _solution(problem, solution.pairing, time.perf_counter(), closes)
+    riding = riding_ways(problem, solution.pairing, s, g)
+    other = _solution(problem, solution.pairing, time.perf_counter(), closes, riding)
     best = other if _rank(problem, other) <= _rank(problem, solution) else solution
     stats = {**solution.stats, "closed_ways_topology": float(_closed(solution.steps, closes)),
              "closed_ways": float(_closed(best.steps, closes))}
