@@ -348,6 +348,18 @@ def test_a_rider_is_held_as_it_rode_while_its_carrier_turns_onto_its_goal():
     assert riders
 
 
+def test_a_rider_of_a_module_that_stood_on_another_keeps_its_vectors():
+    # a connection straight up or down has no heading: a rider of a module that docked
+    # from on top of another (or onto one) is not turned by an angle read off a vertical
+    from msrr.core.freeform.miso.planner import _carry
+
+    down, side, y = np.array([0.0, 0.0, -1.0]), np.array([0.6, 0.8, 0.0]), np.array(
+        [0.0, 1.0, 0.0])
+    vectors = {(0, 3): down, (0, 4): side, (1, 0): y}   # 0 stood on 3, docks on 4
+    _carry([4, 0, FREE, FREE, FREE], 0, 3, vectors, {(0, 4): side})
+    assert np.allclose(vectors[(1, 0)], y)      # before the guard: turned by 53 deg
+
+
 def test_six_chains_plan_into_the_human_example_with_fewer_changes_than_im():
     start = load_configuration(FREEBOT / "human" / "human-chains.json")
     goal = load_configuration(FREEBOT / "human" / "human.json")

@@ -264,7 +264,9 @@ def riding_ways(problem: MisoProblem, pair: Sequence[int], start_places: np.ndar
                 continue
             was = here[p] - here[start[p]] if start[p] != FREE else here[kids[p][0]] - here[p]
             now = there[p] - there[final[p]]
-            rot = rot_z(float(np.arctan2(now[1], now[0]) - np.arctan2(was[1], was[0])))[:2, :2]
+            turn = float(np.arctan2(now[1], now[0]) - np.arctan2(was[1], was[0])) if min(
+                np.hypot(*was), np.hypot(*now)) > 1e-6 else 0.0   # stacked: no heading
+            rot = rot_z(turn)[:2, :2]
             for r in riders:
                 tree = [r]
                 for m in tree:

@@ -326,8 +326,7 @@ def _carry(parent: list[int], module: int, old: int,
     kids = sorted(on.get(module, ()))
     before = vectors.get((module, old)) if old != FREE else (
         vectors.get((kids[0], module)) if kids else None)
-    turn = {module: 0.0 if before is None else _heading(vectors[(module, parent[module])])
-            - _heading(before)}
+    turn = {module: 0.0 if before is None else _turn(before, vectors[(module, parent[module])])}
     placed, todo = {module}, [module]
     while todo:
         m = todo.pop()
@@ -339,16 +338,19 @@ def _carry(parent: list[int], module: int, old: int,
             if m in placed and key in goal_vectors:
                 vectors[key] = goal_vectors[key]
                 placed.add(c)
-                turn[c] = _heading(vectors[key]) - _heading(was)
+                turn[c] = _turn(was, vectors[key])
             else:
                 turn[c] = turn[m]
                 vectors[key] = rot_z(turn[m]) @ was
             todo.append(c)
 
 
-def _heading(z: np.ndarray) -> float:
-    """The angle of ``z``'s horizontal part about the vertical [rad] (0 when vertical)."""
-    return float(np.arctan2(z[1], z[0])) if abs(z[0]) + abs(z[1]) > 1e-12 else 0.0
+def _turn(a: np.ndarray, b: np.ndarray) -> float:
+    """The turn about the vertical from connection vector ``a`` to ``b`` [rad]; 0 when
+    either is (nearly) vertical, where no heading is defined."""
+    if min(np.hypot(a[0], a[1]), np.hypot(b[0], b[1])) < 1e-6:
+        return 0.0
+    return float(np.arctan2(b[1], b[0]) - np.arctan2(a[1], a[0]))
 
 
 def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
