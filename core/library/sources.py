@@ -75,6 +75,10 @@ class SequenceSourceModel(StrictModel):
     behavior: str | None = Field(None, description="Label the sequence as this behavior.")
     loop: Flag = Field(False, description="The last step returns to the first and repeats.")
     steps: list[StepModel] = Field(min_length=1)
+    drive_root: str | None = Field(None, description="The node the behavior (with ``behavior``) is driven from "
+                                   "(a joint controller that drives from one node grows its "
+                                   "drive from it); default: of the nodes with the most "
+                                   "connections, the first by id.")
 
 
 class CommandSourceModel(StrictModel):
@@ -90,6 +94,10 @@ class MappingBehaviorModel(StrictModel):
     start: str = Field(min_length=1, description="Name of a configuration of these sources.")
     parameters: list[str] = Field(min_length=1)
     commands: list[CommandSourceModel] = Field(min_length=1)
+    drive_root: str | None = Field(None, description="The node the behavior is driven from "
+                                   "(a joint controller that drives from one node grows its "
+                                   "drive from it); default: of the nodes with the most "
+                                   "connections, the first by id.")
 
 
 class LibrarySourceFile(StrictModel):
@@ -141,6 +149,7 @@ class RecordedSequence:
     behavior: str | None = None
     description: str = ""
     origin: str = ""
+    drive_root: str | None = None
 
 
 @dataclass(frozen=True)
@@ -153,6 +162,7 @@ class MappingBehaviorSource:
     commands: tuple[CommandGain, ...]
     description: str = ""
     origin: str = ""
+    drive_root: str | None = None
 
 
 @dataclass(frozen=True)
@@ -297,8 +307,12 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
                     raise LibraryError("every step of a sequence needs the same modules "
                                        "(identical module ids, section 6.2)", source=source,
                                        field=f"sequences[{i}].steps[{j}]")
+            if s.drive_root is not None and \
+                    s.drive_root not in steps[0].configuration.vertices(virtual=False):
+                raise LibraryError(f"no node {s.drive_root!r} in the sequence's first step",
+                                   source=source, field=f"sequences[{i}].drive_root")
             sequences.append(RecordedSequence(s.name, steps, s.loop, s.behavior, s.description,
-                                              path.name))
+                                              path.name, s.drive_root))
         taken = _commands(robot)
         for i, b in enumerate(model.behaviors):
             for j, c in enumerate(b.commands):
@@ -315,7 +329,7 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
             commands = tuple(CommandGain(c.module, c.command, tuple(sorted(c.gains.items())),
                                          c.connector) for c in b.commands)
             behaviors.append(MappingBehaviorSource(b.name, b.start, tuple(b.parameters), commands,
-                                                   b.description, path.name))
+                                                   b.description, path.name, b.drive_root))
     assert robot is not None
     return LibrarySources(robot.name, name or paths[0].stem, tuple(groups), tuple(sequences),
                           tuple(behaviors), tuple(files), description)
