@@ -198,6 +198,27 @@ def _configuration(model: ConfigurationFile, source: str, field: str, robot: Rob
     return config
 
 
+def _sequence(model: SequenceSourceModel, source: str, where: str, robot: Robot,
+              origin: str) -> RecordedSequence:
+    """A recorded sequence: every step the same modules, its drive root a node of them."""
+    steps = tuple(SequenceStep(_configuration(st.configuration, source,
+                                              f"{where}.steps[{j}].configuration", robot),
+                               st.tree)
+                  for j, st in enumerate(model.steps))
+    modules = set(steps[0].configuration.modules())
+    for j, step in enumerate(steps):
+        if set(step.configuration.modules()) != modules:
+            raise LibraryError("every step of a sequence needs the same modules (identical "
+                               "module ids, section 6.2)", source=source,
+                               field=f"{where}.steps[{j}]")
+    if model.drive_root is not None and \
+            model.drive_root not in steps[0].configuration.vertices(virtual=False):
+        raise LibraryError(f"no node {model.drive_root!r} in the sequence's first step",
+                           source=source, field=f"{where}.drive_root")
+    return RecordedSequence(model.name, steps, model.loop, model.behavior, model.description,
+                            origin, model.drive_root)
+
+
 def _check_tree(model: TreeSourceModel, reference: Configuration, robot: Robot, source: str,
                 field: str) -> None:
     """A designed tree names one of the robot's joint modes, or is a serialised tree that
@@ -296,23 +317,8 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
                     _configuration(c, source, f"{where}.configurations[{j}]", robot)
                     for j, c in enumerate(g.configurations)),
                 origin=path.name))
-        for i, s in enumerate(model.sequences):
-            steps = tuple(SequenceStep(_configuration(st.configuration, source,
-                                                      f"sequences[{i}].steps[{j}].configuration",
-                                                      robot), st.tree)
-                          for j, st in enumerate(s.steps))
-            modules = set(steps[0].configuration.modules())
-            for j, step in enumerate(steps):
-                if set(step.configuration.modules()) != modules:
-                    raise LibraryError("every step of a sequence needs the same modules "
-                                       "(identical module ids, section 6.2)", source=source,
-                                       field=f"sequences[{i}].steps[{j}]")
-            if s.drive_root is not None and \
-                    s.drive_root not in steps[0].configuration.vertices(virtual=False):
-                raise LibraryError(f"no node {s.drive_root!r} in the sequence's first step",
-                                   source=source, field=f"sequences[{i}].drive_root")
-            sequences.append(RecordedSequence(s.name, steps, s.loop, s.behavior, s.description,
-                                              path.name, s.drive_root))
+        sequences += [_sequence(s, source, f"sequences[{i}]", robot, path.name)
+                      for i, s in enumerate(model.sequences)]
         taken = _commands(robot)
         for i, b in enumerate(model.behaviors):
             for j, c in enumerate(b.commands):
