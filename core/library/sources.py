@@ -63,6 +63,11 @@ class GroupSourceModel(StrictModel):
     configurations: list[ConfigurationFile] = []
 
 
+_DRIVE_ROOT_HELP = ("The node the behavior is driven from (a joint controller that drives "
+                   "from one node grows its drive from it); default: of the nodes with the "
+                   "most connections, the first by id.")
+
+
 class StepModel(StrictModel):
     configuration: ConfigurationFile
     tree: str | None = Field(None, description="Tree of the target group that executes the "
@@ -75,10 +80,7 @@ class SequenceSourceModel(StrictModel):
     behavior: str | None = Field(None, description="Label the sequence as this behavior.")
     loop: Flag = Field(False, description="The last step returns to the first and repeats.")
     steps: list[StepModel] = Field(min_length=1)
-    drive_root: str | None = Field(None, description="The node the behavior (with ``behavior``) is driven from "
-                                   "(a joint controller that drives from one node grows its "
-                                   "drive from it); default: of the nodes with the most "
-                                   "connections, the first by id.")
+    drive_root: str | None = Field(None, description=_DRIVE_ROOT_HELP)
 
 
 class CommandSourceModel(StrictModel):
@@ -94,10 +96,7 @@ class MappingBehaviorModel(StrictModel):
     start: str = Field(min_length=1, description="Name of a configuration of these sources.")
     parameters: list[str] = Field(min_length=1)
     commands: list[CommandSourceModel] = Field(min_length=1)
-    drive_root: str | None = Field(None, description="The node the behavior is driven from "
-                                   "(a joint controller that drives from one node grows its "
-                                   "drive from it); default: of the nodes with the most "
-                                   "connections, the first by id.")
+    drive_root: str | None = Field(None, description=_DRIVE_ROOT_HELP)
 
 
 class LibrarySourceFile(StrictModel):
