@@ -79,15 +79,20 @@ __all__ = ["EQ8", "DockCycle", "JointController", "Measure", "PhaseTracker", "Re
 class JointController(Protocol):
     """A controller that turns joint vectors (the IK result) into module commands.
 
-    ``commands(joint, observation, yaw=...)``: ``joint`` holds the joint vectors ``z``
-    (and ``x``) of every edge in the root horizontal frame of the recognized
-    configuration; ``yaw`` [rad] turns them into that frame (0: already in it).
+    ``commands(joint, observation, yaw=..., drive_root=...)``: ``joint`` holds the joint
+    vectors ``z`` (and ``x``) of every edge in the root horizontal frame of the
+    recognized configuration; ``yaw`` [rad] turns them into that frame (0: already in
+    it); ``drive_root`` is the node a running behavior is driven from
+    (:attr:`~msrr.core.plan.BehaviorCall.drive_root`), for a controller that drives
+    from one node (FreeSN's driving tree), ``None`` for its own choice; a controller
+    that drives every joint alike ignores it.
     """
 
     name: str
 
     def commands(self, target: Configuration, observation: Observation, *,
-                 yaw: float | None = None) -> Mapping[str, ModuleCommand]: ...
+                 yaw: float | None = None, drive_root: str | None = None
+                 ) -> Mapping[str, ModuleCommand]: ...
 
 
 @dataclass(frozen=True)

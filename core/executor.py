@@ -1063,8 +1063,10 @@ class Executor:
                                        else self.controller)  # type: ignore[assignment]
         return self._controllers[name]
 
-    def _track(self, configuration: Configuration, observation: Observation) -> Control:
-        """One tracking tick: IK from the last solution, then each node's controller."""
+    def _track(self, configuration: Configuration, observation: Observation,
+               drive_root: str | None) -> Control:
+        """One tracking tick: IK from the last solution, then each node's controller
+        (driven from a running behavior's ``drive_root``)."""
         tracker = self._tracker
         assert tracker is not None
         joint = tracker.step(configuration)
@@ -1073,7 +1075,8 @@ class Executor:
             by_controller.setdefault(node.controller, set()).update(node.edges)
         commands: dict[str, ModuleCommand] = {}
         for name, edges in by_controller.items():
-            sent = self._controller_for(name).commands(joint, observation, yaw=0.0)
+            sent = self._controller_for(name).commands(joint, observation, yaw=0.0,
+                                                       drive_root=drive_root)
             # an edge module (a strut) takes its commands under its own id; a connection
             # between two modules moves through its source's connector (FreeBOT, SnailBot)
             owners = edges | {joint.edge(e).source for e in edges}
@@ -1097,7 +1100,8 @@ class Executor:
             control = _undocks(self.controller.control(action, phase, observation))
         elif self._tracker is not None:
             self._redock(configuration)
-            control = self._track(configuration, observation)
+            control = self._track(configuration, observation,
+                                  action.behavior.drive_root if action.behavior else None)
         elif phase is Phase.BEHAVIOR:  # nothing holds the shape: the behavior's commands only
             control = Control()
         else:

@@ -220,6 +220,9 @@ class BehaviorCall:
         distance: the behavior ends once the system's centre moved this far [m].
         direction: the commanded direction of travel in the action target's frame
             (unit, 3 numbers), for the heading error; ``None`` when not known.
+        drive_root: the node the behavior is driven from (the library's
+            :attr:`~msrr.core.library.model.Behavior.drive_root`, in the system's ids);
+            ``None``: the joint controller's own choice.
     """
 
     name: str
@@ -231,6 +234,7 @@ class BehaviorCall:
     loop: int = 0
     distance: float | None = None
     direction: tuple[float, float, float] | None = None
+    drive_root: str | None = None
 
     def __post_init__(self) -> None:
         for what, value in (("duration", self.duration), ("distance", self.distance)):
@@ -490,6 +494,8 @@ class BehaviorModel(StrictModel):
     distance: Annotated[float, Strict(), AllowInfNan(False), Field(gt=0, le=MAX_DISTANCE)] \
         | None = None
     direction: Annotated[list[Number], Field(min_length=3, max_length=3)] | None = None
+    drive_root: str | None = Field(None, min_length=1, description="The node the behavior "
+                                   "is driven from (default: the joint controller's choice).")
 
 
 Index = Annotated[int, Strict(), Field(ge=0)] | None
@@ -600,7 +606,8 @@ def _behavior_model(call: BehaviorCall | None) -> BehaviorModel | None:
         commands=[CommandGainModel(module=c.module, command=c.command, gains=dict(c.gains),
                                    connector=c.connector) for c in call.commands],
         duration=call.duration, loops=call.loops, loop=call.loop, distance=call.distance,
-        direction=None if call.direction is None else list(call.direction))
+        direction=None if call.direction is None else list(call.direction),
+        drive_root=call.drive_root)
 
 
 def _behavior_call(model: BehaviorModel | None, source: str | None, field: str
@@ -615,7 +622,8 @@ def _behavior_call(model: BehaviorModel | None, source: str | None, field: str
             duration=model.duration, loops=model.loops, loop=model.loop,
             distance=model.distance,
             direction=None if model.direction is None else
-            (model.direction[0], model.direction[1], model.direction[2]))
+            (model.direction[0], model.direction[1], model.direction[2]),
+            drive_root=model.drive_root)
     except ConfigurationError as exc:
         raise ConfigurationError(exc.message, source=source,
                                  field=f"{field}.{exc.field}" if exc.field else field) from None
@@ -733,6 +741,10 @@ def _check_action(action: Action, i: int, source: str | None, has: Callable[[str
             raise ConfigurationError(f"module {command.module!r} is not in the action's "
                                      "target", source=source,
                                      field=f"actions[{i}].behavior.commands[{j}]")
+    root = action.behavior.drive_root if action.behavior else None
+    if root is not None and root not in action.target.vertices(virtual=False):
+        raise ConfigurationError(f"no node {root!r} in the action's target", source=source,
+                                 field=f"actions[{i}].behavior.drive_root")
 
 
 def _tree(document: dict[str, Any] | None, robot: str, modes: Mapping[str, type],

@@ -551,9 +551,10 @@ class ContactController:
             self.locator.start({m: (centres[m], frames[m]) for m in centres})
 
     def commands(self, target: Configuration, observation: Observation, *,
-                 yaw: float | None = None, current: Configuration | None = None
-                 ) -> dict[str, ModuleCommand]:
-        """Commands toward ``target``'s vectors (root horizontal frame).
+                 yaw: float | None = None, current: Configuration | None = None,
+                 drive_root: str | None = None) -> dict[str, ModuleCommand]:
+        """Commands toward ``target``'s vectors (root horizontal frame); every connection
+        is driven alike, so ``drive_root`` is not used.
 
         ``yaw`` [rad] turns them into the recognized frame; on top of it, the common turn
         about the vertical that is left between them and the recognized configuration is

@@ -41,6 +41,7 @@ from .model import (
     LibraryError,
     SubLibrary,
     TreeRef,
+    default_drive_root,
 )
 from .sources import DesignedGroup, LibrarySources, MappingBehaviorSource, RecordedSequence
 
@@ -245,7 +246,8 @@ class _Builder:
             ids = [p.config_id for p in placements]
             sub.behaviors[sequence.behavior] = Behavior(
                 sequence.behavior, "sequence", ids[0], tuple(ids[1:]), sequence.loop,
-                description=sequence.description)
+                description=sequence.description,
+                drive_root=self.drive_root(sub, placements[0], sequence.drive_root, origin))
 
     def add_mapping_behavior(self, behavior: MappingBehaviorSource) -> None:
         origin = f"{behavior.origin}: behavior {behavior.name!r}"
@@ -266,7 +268,22 @@ class _Builder:
             commands.append(CommandGain(module, command.command, command.gains, connector))
         sub.behaviors[behavior.name] = Behavior(
             behavior.name, "mapping", placement.config_id, parameters=behavior.parameters,
-            commands=tuple(commands), description=behavior.description)
+            commands=tuple(commands), description=behavior.description,
+            drive_root=self.drive_root(sub, placement, behavior.drive_root, origin))
+
+    @staticmethod
+    def drive_root(sub: SubLibrary, placement: _Placement, declared: str | None,
+                   origin: str) -> str:
+        """A behavior's drive root in its group's ids: the sources' node, else
+        :func:`~.model.default_drive_root` of the group's reference."""
+        reference = sub.group_of(placement.config_id).reference
+        if declared is None:
+            return default_drive_root(reference)
+        root = placement.mapping.nodes.get(declared)
+        if root is None or root not in reference.vertices(virtual=False):
+            raise LibraryError(f"{origin}: drive_root {declared!r} is no node of the "
+                               "behavior's start configuration")
+        return root
 
 
 def build_library(sources: LibrarySources, robot: Robot, *,

@@ -26,7 +26,7 @@ import networkx as nx
 from ..configuration import Configuration
 from ..errors import ConfigurationError, PlanningError
 from ..mapping import ModuleMap
-from ..plan import ActionType, CommandGain
+from ..plan import ActionType, CommandGain, natural_key
 
 __all__ = [
     "ActionEdge",
@@ -39,6 +39,7 @@ __all__ = [
     "RetrievalError",
     "SubLibrary",
     "TreeRef",
+    "default_drive_root",
 ]
 
 
@@ -118,6 +119,10 @@ class Behavior:
         parameters: for mappings, the low-dimensional parameter names.
         commands: for mappings, the linear map from parameters to module commands.
         description: one line.
+        drive_root: the node the behavior is driven from, in the start's ids: a joint
+            controller that drives from one node grows its drive from it (FreeSN's
+            driving tree); ``None`` (a library built before it was recorded): the
+            controller's own choice.
     """
 
     name: str
@@ -128,6 +133,16 @@ class Behavior:
     parameters: tuple[str, ...] = ()
     commands: tuple[CommandGain, ...] = ()
     description: str = ""
+    drive_root: str | None = None
+
+
+def default_drive_root(configuration: Configuration) -> str:
+    """A behavior's drive root when its sources name none (:attr:`Behavior.drive_root`):
+    of the nodes with the most connections, the first by id (natural order). Chosen in
+    the library's ids, so a build labelled any way is driven from the same node."""
+    nodes = configuration.vertices(virtual=False)
+    most = max(configuration.degree(n) for n in nodes)
+    return min((n for n in nodes if configuration.degree(n) == most), key=natural_key)
 
 
 @dataclass

@@ -173,7 +173,8 @@ class LibraryPlanner:
             call = BehaviorCall(
                 chosen.name, "mapping", values, retrieval.commands,
                 duration=duration if duration is not None or distance is not None
-                else DEFAULT_DURATION, distance=distance, direction=heading)
+                else DEFAULT_DURATION, distance=distance, direction=heading,
+                drive_root=retrieval.drive_root)
             actions.append(Action(ActionType.BEHAVIOR, at.target, kinematic_tree=at.tree,
                                   note=f"behavior {chosen.name}", behavior=call,
                                   retrieved=f"{retrieval.sublibrary} {at.library_id} "
@@ -185,7 +186,8 @@ class LibraryPlanner:
             steps = retrieval.actions(start)[len(retrieval.steps):]
             for loop in range(count):
                 call = BehaviorCall(chosen.name, "sequence", values, loops=count, loop=loop,
-                                    distance=distance, direction=heading)
+                                    distance=distance, direction=heading,
+                                    drive_root=retrieval.drive_root)
                 actions += [replace(a, behavior=call) for a in steps]
         plan = self._plan(start, retrieval, actions, began, f"behavior {chosen.name}")
         plan.goal = actions[-1].target if actions else start

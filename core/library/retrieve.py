@@ -88,6 +88,7 @@ class Retrieval:
             (for a looping behavior, ending back at its start).
         commands: a mapping behavior's commands, in system ids.
         target_mapping: ids of the target configuration's group -> system ids.
+        drive_root: the behavior's drive root (:attr:`Behavior.drive_root`) in system ids.
     """
 
     sublibrary: str
@@ -99,6 +100,7 @@ class Retrieval:
     behavior_steps: list[RetrievedStep] = field(default_factory=list)
     commands: tuple[CommandGain, ...] = ()
     target_mapping: ModuleMap | None = None
+    drive_root: str | None = None
 
     @property
     def cost(self) -> float:
@@ -336,5 +338,7 @@ def retrieve(library: Library, system: Configuration, robot: Robot, *, to: str |
             retrieval.behavior_steps, _ = mapper.follow(loop, final_map, steps[-1].target)
         else:
             retrieval.commands = _commands(chosen, final_map)
+        if chosen.drive_root is not None:
+            retrieval.drive_root = final_map.nodes[chosen.drive_root]
     return retrieval
 

@@ -63,6 +63,11 @@ class GroupSourceModel(StrictModel):
     configurations: list[ConfigurationFile] = []
 
 
+_DRIVE_ROOT_HELP = ("The node the behavior is driven from (a joint controller that drives "
+                   "from one node grows its drive from it); default: of the nodes with the "
+                   "most connections, the first by id.")
+
+
 class StepModel(StrictModel):
     configuration: ConfigurationFile
     tree: str | None = Field(None, description="Tree of the target group that executes the "
@@ -75,6 +80,7 @@ class SequenceSourceModel(StrictModel):
     behavior: str | None = Field(None, description="Label the sequence as this behavior.")
     loop: Flag = Field(False, description="The last step returns to the first and repeats.")
     steps: list[StepModel] = Field(min_length=1)
+    drive_root: str | None = Field(None, description=_DRIVE_ROOT_HELP)
 
 
 class CommandSourceModel(StrictModel):
@@ -90,6 +96,7 @@ class MappingBehaviorModel(StrictModel):
     start: str = Field(min_length=1, description="Name of a configuration of these sources.")
     parameters: list[str] = Field(min_length=1)
     commands: list[CommandSourceModel] = Field(min_length=1)
+    drive_root: str | None = Field(None, description=_DRIVE_ROOT_HELP)
 
 
 class LibrarySourceFile(StrictModel):
@@ -141,6 +148,7 @@ class RecordedSequence:
     behavior: str | None = None
     description: str = ""
     origin: str = ""
+    drive_root: str | None = None
 
 
 @dataclass(frozen=True)
@@ -153,6 +161,7 @@ class MappingBehaviorSource:
     commands: tuple[CommandGain, ...]
     description: str = ""
     origin: str = ""
+    drive_root: str | None = None
 
 
 @dataclass(frozen=True)
@@ -186,6 +195,27 @@ def _configuration(model: ConfigurationFile, source: str, field: str, robot: Rob
         inner = f".{exc.field}" if exc.field else ""
         raise LibraryError(exc.message, source=source, field=f"{field}{inner}") from None
     return config
+
+
+def _sequence(model: SequenceSourceModel, source: str, where: str, robot: Robot,
+              origin: str) -> RecordedSequence:
+    """A recorded sequence: every step the same modules, its drive root a node of them."""
+    steps = tuple(SequenceStep(_configuration(st.configuration, source,
+                                              f"{where}.steps[{j}].configuration", robot),
+                               st.tree)
+                  for j, st in enumerate(model.steps))
+    modules = set(steps[0].configuration.modules())
+    for j, step in enumerate(steps):
+        if set(step.configuration.modules()) != modules:
+            raise LibraryError("every step of a sequence needs the same modules (identical "
+                               "module ids, section 6.2)", source=source,
+                               field=f"{where}.steps[{j}]")
+    if model.drive_root is not None and \
+            model.drive_root not in steps[0].configuration.vertices(virtual=False):
+        raise LibraryError(f"no node {model.drive_root!r} in the sequence's first step",
+                           source=source, field=f"{where}.drive_root")
+    return RecordedSequence(model.name, steps, model.loop, model.behavior, model.description,
+                            origin, model.drive_root)
 
 
 def _check_tree(model: TreeSourceModel, reference: Configuration, robot: Robot, source: str,
@@ -286,19 +316,8 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
                     _configuration(c, source, f"{where}.configurations[{j}]", robot)
                     for j, c in enumerate(g.configurations)),
                 origin=path.name))
-        for i, s in enumerate(model.sequences):
-            steps = tuple(SequenceStep(_configuration(st.configuration, source,
-                                                      f"sequences[{i}].steps[{j}].configuration",
-                                                      robot), st.tree)
-                          for j, st in enumerate(s.steps))
-            modules = set(steps[0].configuration.modules())
-            for j, step in enumerate(steps):
-                if set(step.configuration.modules()) != modules:
-                    raise LibraryError("every step of a sequence needs the same modules "
-                                       "(identical module ids, section 6.2)", source=source,
-                                       field=f"sequences[{i}].steps[{j}]")
-            sequences.append(RecordedSequence(s.name, steps, s.loop, s.behavior, s.description,
-                                              path.name))
+        sequences += [_sequence(s, source, f"sequences[{i}]", robot, path.name)
+                      for i, s in enumerate(model.sequences)]
         taken = _commands(robot)
         for i, b in enumerate(model.behaviors):
             for j, c in enumerate(b.commands):
@@ -315,7 +334,7 @@ def load_sources(paths: Iterable[str | os.PathLike[str]], robots: Callable[[str]
             commands = tuple(CommandGain(c.module, c.command, tuple(sorted(c.gains.items())),
                                          c.connector) for c in b.commands)
             behaviors.append(MappingBehaviorSource(b.name, b.start, tuple(b.parameters), commands,
-                                                   b.description, path.name))
+                                                   b.description, path.name, b.drive_root))
     assert robot is not None
     return LibrarySources(robot.name, name or paths[0].stem, tuple(groups), tuple(sequences),
                           tuple(behaviors), tuple(files), description)

@@ -100,6 +100,8 @@ class BehaviorModel(StrictModel):
     loop: Flag = False
     parameters: list[str] = []
     commands: list[CommandSourceModel] = []
+    drive_root: str | None = Field(None, description="The node the behavior is driven from, "
+                                   "in the start's ids (absent: the controller's choice).")
 
 
 class TreeRefModel(StrictModel):
@@ -301,10 +303,14 @@ def _add_behaviors(sub: SubLibrary, model: SubLibraryModel, fail: _Fail,
             if unknown:
                 raise fail(f"{where_c}.gains", f"unknown parameter {unknown[0]!r} (parameters: "
                            f"{', '.join(bm.parameters) or 'none'})")
+        if bm.drive_root is not None and bm.drive_root not in start.vertices(virtual=False):
+            raise fail(f"behaviors[{i}].drive_root", f"no node {bm.drive_root!r} in the start "
+                       f"configuration {bm.start!r}")
         commands = tuple(CommandGain(c.module, c.command, tuple(sorted(c.gains.items())),
                                      c.connector) for c in bm.commands)
         sub.behaviors[bm.name] = Behavior(bm.name, bm.kind, bm.start, tuple(bm.steps), bm.loop,
-                                          tuple(bm.parameters), commands, bm.description)
+                                          tuple(bm.parameters), commands, bm.description,
+                                          bm.drive_root)
 
 
 def command_problem(command: CommandSourceModel, start: Configuration, spec: RobotSpec
@@ -395,7 +401,8 @@ def _sublibrary_to_model(sub: SubLibrary) -> SubLibraryModel:
             name=b.name, kind=b.kind, description=b.description, start=b.start,
             steps=list(b.steps), loop=b.loop, parameters=list(b.parameters),
             commands=[CommandSourceModel(module=c.module, command=c.command, connector=c.connector,
-                                   gains=dict(c.gains)) for c in b.commands])
+                                   gains=dict(c.gains)) for c in b.commands],
+            drive_root=b.drive_root)
             for b in sub.behaviors.values()],
         edges=[EdgeModel(
             source=e.source, target=e.target, action=e.action,

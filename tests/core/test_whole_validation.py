@@ -250,3 +250,16 @@ def test_a_source_behavior_with_an_unknown_command_is_refused(tmp_path: Path) ->
     with pytest.raises(LibraryError, match=r"behaviors\[0\]\.commands\[0\]\.command: unknown "
                                            "command 'warp'"):
         load_sources([tmp_path], plugins.resolve)
+
+
+def test_a_source_sequence_driven_from_no_node_of_it_is_refused(tmp_path: Path) -> None:
+    from msrr.core.library import LibraryError, load_sources
+
+    for source in sorted(SOURCES.glob("*.json")):
+        doc = json.loads(source.read_text())
+        for sequence in doc.get("sequences", []):
+            sequence["drive_root"] = sequence["steps"][0]["configuration"]["connections"][0]["id"]
+        (tmp_path / source.name).write_text(json.dumps(doc))
+    with pytest.raises(LibraryError, match=r"sequences\[0\]\.drive_root: no node 'S\w+' in the "
+                                           "sequence's first step"):
+        load_sources([tmp_path], plugins.resolve)

@@ -366,7 +366,9 @@ def s4n5() -> None:
          "description": "Fig. 19(f)-(j): crawl with the four leaf struts as legs, the rear "
          "and the front pair planted in turn",
          "steps": [step(stand, "K-plant-front"), step(low, "K-plant-rear")]},
-        {"name": "squirm", "behavior": "squirm", "loop": True,
+        # driven from N2, an inner node on the floor: from the raised middle node (N3) the
+        # squirm crabs ~22 deg off its heading, from N4 (N2's mirror) it goes backwards
+        {"name": "squirm", "behavior": "squirm", "loop": True, "drive_root": "N2",
          "description": "Fig. 19(a)-(e): squirm up and down with alternating trees",
          "steps": [step(chain("squirm-up", SQUIRM_HUMP, "middle node raised"), "K-hold-front"),
                    step(chain("squirm-down", 0.0, "flat"), "K-hold-rear")]},
@@ -929,7 +931,8 @@ def s12n6_behaviors() -> list[dict]:
          "description": "Fig. 22(e): the freed bottom chords rolled about their axes on "
          "the floor",
          "commands": roller_commands(nodes, roller_legs())},
-        {"name": "node-wheels", "start": "fig22j",
+        # driven from T3, the node fig22's runs were tuned and swept with (T2 and T3 tie)
+        {"name": "node-wheels", "start": "fig22j", "drive_root": "T3",
          "parameters": ["speed", "yaw_rate", "sideways"],
          "description": "Fig. 22(j): nodes driven as wheels by their ring struts",
          "commands": node_wheel_commands(nodes, ("R1", "R3", "R5"))},

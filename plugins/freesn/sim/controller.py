@@ -131,9 +131,9 @@ def driving_ends(links: Links, root: str | None = None) -> frozenset[tuple[str, 
 
     A strut docked at both ends is two spherical joints; in a loop of rigid struts, if
     every connector held its own target, measurement noise alone would set them against
-    each other. Breadth-first from the root node (each group's
-    :func:`~.recognizer.root_order` first, as the recognizer's), the strut that first
-    reaches a node is driven from the node it comes from; every other end of a strut
+    each other. Breadth-first from ``root`` (a running behavior's drive root), then from
+    each other group's :func:`~.recognizer.root_order` first (the recognizer's root),
+    the strut that first reaches a node is driven from the node it comes from; every other end of a strut
     docked at both ends (the child end, and both ends of a strut that closes a loop)
     follows softly. A strut with one free end is driven from its docked end. This is the
     kinematic tree's choice of which connector is the joint (FreeSN paper, section 3.2).
@@ -169,7 +169,7 @@ def _driving_ends(items: tuple[tuple[tuple[str, str], str], ...], root: str | No
         ends_of.setdefault(strut, {})[end] = node
     driving = {(s, next(iter(e))) for s, e in ends_of.items() if len(e) == 1}
     reached: set[str] = set()
-    for start in ([root] if root else []) + root_order(set(at), links):
+    for start in ([root] if root in at else []) + root_order(set(at), links):
         if start in reached:
             continue
         reached.add(start)
@@ -300,7 +300,8 @@ def lone_wheel_corrections(target: Configuration, current: Configuration,
 def connector_commands(target: Configuration, reports: Mapping[str, NodeReport | StrutReport],
                        *, yaw: float = 0.0, forward: bool = False,
                        struts: set[str] | None = None,
-                       follow_effort: float = FOLLOW_EFFORT) -> dict[str, ModuleCommand]:
+                       follow_effort: float = FOLLOW_EFFORT,
+                       drive_root: str | None = None) -> dict[str, ModuleCommand]:
     """Per-strut commands that drive every docked connector toward ``target``.
 
     Args:
@@ -310,13 +311,15 @@ def connector_commands(target: Configuration, reports: Mapping[str, NodeReport |
         forward: command the strut's forward vector too (needs ``x`` in ``target``).
         struts: only these struts (default: every strut of ``target``).
         follow_effort: torque fraction of the connectors outside :func:`driving_ends`.
+        drive_root: the node :func:`driving_ends` grows from (a behavior's, when it
+            names one); default the recognizer's root.
 
     Raises:
         ExecutionError: ``forward`` and a target strut without ``x``.
     """
     links = links_of(reports)
     heading = node_headings(reports, links)
-    driving = driving_ends(links)
+    driving = driving_ends(links, drive_root)
     turn = rot_z(yaw)
     commands: dict[str, ModuleCommand] = {}
     for edge in target.edges():
@@ -369,8 +372,8 @@ class FreeSNController:
         self._yaw = 0.0
 
     def commands(self, target: Configuration, observation: Observation, *,
-                 yaw: float | None = None, current: Configuration | None = None
-                 ) -> dict[str, ModuleCommand]:
+                 yaw: float | None = None, current: Configuration | None = None,
+                 drive_root: str | None = None) -> dict[str, ModuleCommand]:
         """Commands toward ``target`` (joint vectors, root horizontal frame).
 
         Args:
@@ -378,12 +381,13 @@ class FreeSNController:
                 eq. 8 alignment with ``current`` (recognized from ``observation`` when
                 omitted). Keep it fixed over an action: re-aligning every tick lets a
                 blocked strut turn the whole goal.
+            drive_root: the node the driving tree grows from (:func:`connector_commands`).
         """
         if yaw is None:
             current = current or self._recognizer.recognize(observation.sensors)
             yaw = skeletal_errors(current, target)[2]
         commands = connector_commands(target, observation.sensors, yaw=yaw,
-                                      forward=self.forward)
+                                      forward=self.forward, drive_root=drive_root)
         if self.mode in (PLANTED_MODE, SWING_MODE):
             commands = plant_feet(commands, links_of(observation.sensors),
                                   coast=self.mode == SWING_MODE)
@@ -412,8 +416,9 @@ class FreeSNController:
         current = self._recognizer.recognize(observation.sensors)
         rms, angles, _ = skeletal_errors(current, action.target)
         ids = [e for e in action.target.edge_ids() if e in set(current.edge_ids())]
-        commands = connector_commands(action.target, observation.sensors, yaw=self._yaw,
-                                      forward=self.forward)
+        commands = connector_commands(
+            action.target, observation.sensors, yaw=self._yaw, forward=self.forward,
+            drive_root=action.behavior.drive_root if action.behavior else None)
         errors = {strut: float(a) * self.strut_length for strut, a in zip(ids, angles,
                                                                           strict=True)}
         return Control(commands=commands, errors=errors, reached=rms < self.tolerance)

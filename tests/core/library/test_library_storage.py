@@ -49,6 +49,8 @@ def test_truncated_file_is_refused_with_its_path(stick_lib, tmp_path):
      "sublibraries[0].behaviors[0].start"),
     (lambda d: d["sublibraries"][0]["configurations"][0].update(group="H3R3-7"),
      "sublibraries[0].configurations[0].group"),
+    (lambda d: d["sublibraries"][0]["behaviors"][0].update(drive_root="R3:end"),
+     "sublibraries[0].behaviors[0].drive_root"),
 ])
 def test_invalid_field_is_named(stick_lib, tmp_path, edit, field):
     data = json.loads(dump_library(stick_lib))
