@@ -149,7 +149,6 @@ plane: one lever along the axle (sideways slip), ahead (rolling), ahead and side
 a point one lever ahead (turning about the contact normal)."""
 _STILL_ON = np.radians(0.3)   # a connector this near its target stops, its wheels braked
 _STILL_OFF = np.radians(0.6)  # ... until pushed this far off it
-_UNWIND = 0.5  # a held channel's integral opposed to its strut's other end's decays so [s]
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
 _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
 _HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
@@ -1349,37 +1348,24 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
                        ) -> np.ndarray:
         """Rates (n, 2) [rad/s] (rolling, turning) of connectors ``ks`` for their
         ``channels`` (n, 2) [rad] (:meth:`_steer`): ``k e + k_i int e`` (``position_gain``,
-        ``integral_gain``), zero where ``held``; the integral bounded, and a held channel's
-        part opposed to its strut's other end unwound (:meth:`_unwind`)."""
+        ``integral_gain``), zero where ``held``. The integral is bounded by the
+        connector's effort times the bound (:meth:`_integral_bound`): a loop's soft
+        follower (effort ``FOLLOW_EFFORT``, :func:`~msrr.plugins.freesn.sim.controller.
+        driving_ends`) pushes with its wheels' full torque (:meth:`_drive`), and with a
+        whole integral it held its aim as stiffly as the driving tree; two ends of one loop
+        wound against each other to their bounds and spent them when they moved again:
+        fig20's ``s4`` came off 1-3 s holds at -+1.44 rad/s of roll against a fresh 0.42,
+        and the last move stalled at 31 deg (stops 53-54). The driving tree's integrals,
+        which carry the loads, stay whole."""
         o = self.options
         omega = o.position_gain * channels
         if o.integral_gain > 0.0:
-            integral = self._integral[ks, 1:] + channels * self._every * o.timestep
-            integral = np.clip(integral, -self._integral_bound, self._integral_bound)
-            integral = self._unwind(ks, integral, held)
+            cap = self._integral_bound * self._effort[ks, None]
+            integral = np.clip(self._integral[ks, 1:] + channels * self._every * o.timestep,
+                               -cap, cap)
             self._integral[ks, 1:] = integral
             omega = np.where(held, 0.0, omega + o.integral_gain * integral)
         return omega
-
-    def _unwind(self, ks: np.ndarray, integral: np.ndarray, held: np.ndarray) -> np.ndarray:
-        """The integrals (n, 2) (rolling, turning) [rad s] of connectors ``ks`` with the
-        part by which the two ends of a strut driven at both push against each other
-        (:func:`unwound`) decaying (``_UNWIND`` [s]) in a channel held (braked) at either
-        end. Both channels are in the strut's frame at both ends, so integrals of opposite
-        signs turn the two nodes opposite ways relative to the strut: a fight through
-        it, which a closed loop returns; what they share is the strut's own load. Kept, a
-        fight's integrals were spent in full when the ends moved again: in fig20 ``s4``'s
-        ends came off 1-3 s holds at their bounds (-+1.44 rad/s of roll) against a fresh
-        0.42 rad/s, and the last move stalled at 31 deg (stops 53-54)."""
-        where = np.full(len(self.ends), -1)
-        where[ks] = np.arange(len(ks))
-        partner = where[ks ^ 1]
-        i = np.flatnonzero(partner > np.arange(len(ks)))
-        j = partner[i]
-        keep = np.where(held[i] | held[j],
-                        np.exp(-self._every * self.options.timestep / _UNWIND), 1.0)
-        integral[i], integral[j] = unwound(integral[i], integral[j], keep)
-        return integral
 
     def _twist(self, ks: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The twist corrections (n,) [rad] connectors ``ks`` servo, from their errors'
@@ -1845,16 +1831,6 @@ def magnet_pull(gap: float, tilt: float, strength: float, *, falloff: float = _M
     spread = half_width * np.sin(abs(tilt))
     near = max(gap - spread, 0.0)
     return float(strength * falloff**2 / ((falloff + near) * (falloff + near + 2.0 * spread)))
-
-
-def unwound(a: np.ndarray, b: np.ndarray, keep: np.ndarray | float
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """Integrals ``a`` and ``b`` of the two ends of one strut, same shape, in one frame,
-    with the part they oppose each other by (of opposite signs: the smaller's size, at
-    both) scaled by ``keep`` (in [0, 1]); their sum, and any integral the other end does
-    not oppose, kept."""
-    fight = np.where(a * b < 0.0, np.minimum(np.abs(a), np.abs(b)), 0.0) * (1.0 - keep)
-    return a - np.sign(a) * fight, b - np.sign(b) * fight
 
 
 def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
