@@ -1349,14 +1349,16 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         """Rates (n, 2) [rad/s] (rolling, turning) of connectors ``ks`` for their
         ``channels`` (n, 2) [rad] (:meth:`_steer`): ``k e + k_i int e`` (``position_gain``,
         ``integral_gain``), zero where ``held``. The integral is bounded by the
-        connector's effort times the bound (:meth:`_integral_bound`): a loop's soft
-        follower (effort ``FOLLOW_EFFORT``, :func:`~msrr.plugins.freesn.sim.controller.
-        driving_ends`) pushes with its wheels' full torque (:meth:`_drive`), and with a
-        whole integral it held its aim as stiffly as the driving tree; two ends of one loop
-        wound against each other to their bounds and spent them when they moved again:
-        fig20's ``s4`` came off 1-3 s holds at -+1.44 rad/s of roll against a fresh 0.42,
-        and the last move stalled at 31 deg (stops 53-54). The driving tree's integrals,
-        which carry the loads, stay whole."""
+        connector's effort times the bound (:meth:`_integral_bound`): a soft follower
+        (effort ``FOLLOW_EFFORT``: an end of a strut that closes a loop, or a tree's child
+        end, :func:`~msrr.plugins.freesn.sim.controller.driving_ends`) pushes with its
+        wheels' full torque (:meth:`_drive`), and with a whole integral it held its aim as
+        stiffly as the driving tree: two ends of one loop wound against each other to their
+        bounds and spent them when they moved again (fig20's ``s4`` came off 1-3 s holds
+        at -+1.44 rad/s of roll against a fresh 0.42, and the last move stalled at 31 deg;
+        stops 53-54). The driving tree's integrals stay whole. (The squirm's chain, whose
+        soft ends are all tree children, ends 29 deg off its heading with the cap; capped
+        at loop-closing struts alone, fig22 seed 0 breaks three connections: stop 54.)"""
         o = self.options
         omega = o.position_gain * channels
         if o.integral_gain > 0.0:

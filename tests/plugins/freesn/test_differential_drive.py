@@ -699,9 +699,9 @@ def _strut_between_held_nodes(soft: float) -> tuple[FreeSNWorld, float]:
 
 
 def test_a_loops_soft_follower_winds_its_integral_to_its_effort_share_alone():
-    """A strut's end at a reduced effort (a loop's soft follower, ``driving_ends``) winds
-    its integral at most to its effort's share of the bound, while the driving end keeps
-    the whole bound: at the whole bound both ends of a loop wound against each other and
+    """A strut's end at a reduced effort (a soft follower, ``driving_ends``) winds its
+    integral at most to its effort's share of the bound, while the driving end keeps the
+    whole bound: at the whole bound both ends of a loop wound against each other and
     spent it when they moved again, and fig20's last move stalled at 31 deg (stops
     53-54). Here end b (effort 0.25) is aimed 3 deg off what end a (full effort) holds;
     after 3 s end b's integral is within a quarter of the bound (before: the whole
