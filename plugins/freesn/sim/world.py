@@ -147,6 +147,7 @@ _ANCHORS = ((0.0, _GRIP_LEVER), (_GRIP_LEVER, 0.0), (_GRIP_LEVER, _GRIP_LEVER))
 """Each tendon's node-side anchor, (x, y) in the strut's axes on the contact's tangent
 plane: one lever along the axle (sideways slip), ahead (rolling), ahead and sideways from
 a point one lever ahead (turning about the contact normal)."""
+_HUB = 3   # a node this many docked connectors hold: a soft end there winds a capped integral
 _STILL_ON = np.radians(0.3)   # a connector this near its target stops, its wheels braked
 _STILL_OFF = np.radians(0.6)  # ... until pushed this far off it
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
@@ -1299,7 +1300,7 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         connector rolls ``b cos d`` whatever its heading (it cannot turn toward it). The wheel
         speeds: :meth:`_commands`.
         """
-        p, o = self.phys, self.options
+        p = self.phys
         swing, heading, error = self._way(ks)
         twist, spun = self._twist(ks, error)
         # a connector left with a sideways error alone, which rolling cannot remove, turns
@@ -1340,14 +1341,42 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         # a channel asked for nothing (a stopped connector, a turn in place, a straight roll
         # whose twist is free) brakes its wheels: it holds instead of being servoed
         held = (channels == 0.0) & ~np.column_stack([wheeling, wheeling])
-        omega = o.position_gain * channels
-        if o.integral_gain > 0.0:
-            integral = self._integral[ks, 1:] + channels * self._every * o.timestep
-            integral = np.clip(integral, -self._integral_bound, self._integral_bound)
-            self._integral[ks, 1:] = integral
-            omega = np.where(held, 0.0, omega + o.integral_gain * integral)
+        omega = self._position_loop(ks, channels, held)
         omega[:, 1] = np.where(wheeling, self._wheel[ks] / p.turn_ratio, omega[:, 1])
         return self._commands(ks, omega, ~turning & ~wheeling, wheeling), held
+
+    def _position_loop(self, ks: np.ndarray, channels: np.ndarray, held: np.ndarray
+                       ) -> np.ndarray:
+        """Rates (n, 2) [rad/s] (rolling, turning) of connectors ``ks`` for their
+        ``channels`` (n, 2) [rad] (:meth:`_steer`): ``k e + k_i int e`` (``position_gain``,
+        ``integral_gain``), zero where ``held``. The integral is bounded
+        (:meth:`_integral_bound`), times the connector's effort on a node that ``_HUB`` or
+        more docked connectors hold. A soft follower (effort ``FOLLOW_EFFORT``, an end
+        off the driving tree, :func:`~msrr.plugins.freesn.sim.controller.driving_ends`)
+        pushes with its wheels' full torque (:meth:`_drive`), and with a whole integral it
+        held its aim as stiffly as the tree: on the hubs of fig20's S6N3, the two ends of
+        ``s4`` wound against each other to their bounds and spent them when they moved
+        again (-+1.44 rad/s of roll against a fresh 0.42), and the last move stalled at 31
+        deg (stops 53-54). On a chain's node, held by the strut's end and the next strut's
+        alone, a soft end carries the chain's load: capped there too, the squirm ended 29
+        deg off its heading (stop 54)."""
+        o = self.options
+        omega = o.position_gain * channels
+        if o.integral_gain > 0.0:
+            cap = self._integral_bound * np.where(self._on_hubs(ks), self._effort[ks], 1.0)
+            integral = np.clip(self._integral[ks, 1:] + channels * self._every * o.timestep,
+                               -cap[:, None], cap[:, None])
+            self._integral[ks, 1:] = integral
+            omega = np.where(held, 0.0, omega + o.integral_gain * integral)
+        return omega
+
+    def _on_hubs(self, ks: np.ndarray) -> np.ndarray:
+        """Which connectors ``ks`` (n,) are docked on a node ``_HUB`` or more docked
+        connectors hold (each node counts its own magnets' docks)."""
+        held: dict[str, int] = {}
+        for k in np.flatnonzero(self._eq >= 0):
+            held[self.docked[k]] = held.get(self.docked[k], 0) + 1
+        return np.array([held.get(self.docked[k], 0) >= _HUB for k in ks], dtype=bool)
 
     def _twist(self, ks: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The twist corrections (n,) [rad] connectors ``ks`` servo, from their errors'

@@ -675,3 +675,53 @@ def test_a_swerved_strut_keeps_its_twist_when_its_far_end_is_left_a_small_sidewa
         line = np.cross(np.cross(x0, x1), up)
         off.append(_angle(line, t) if line @ t >= 0 else _angle(-line, t))
     assert max(off) < 3.0, max(off)
+
+
+def _fight(hub: bool) -> tuple[FreeSNWorld, float]:
+    """S0 docked at both ends from N1 to N2, its end b (on N2, full effort) aimed where it
+    is, its end a (on N1, effort 0.25) 3 deg off where it is: a fight (the strut cannot
+    serve both). With ``hub``, S1 and S2 also hold N1 (three docked connectors), their
+    ends aimed where they are at full effort. Every node 1000 kg, gravity off. The world
+    and the bound of an integral."""
+    config = Configuration("freesn")
+    struts = {"S0": np.array([1.0, 0.0, 1.0]), "S1": np.array([-1.0, 1.0, 1.0]),
+              "S2": np.array([-1.0, -1.0, 1.0])}
+    if not hub:
+        struts = {"S0": struts["S0"]}
+    config.add_module("N1", "node")
+    for i, (sid, z) in enumerate(struts.items()):
+        config.add_module(f"N{i + 2}", "node")
+        config.connect("N1", f"N{i + 2}", id=sid, kind="strut", z=z / np.linalg.norm(z),
+                       x=np.cross(z, [0.0, 0.0, 1.0]) / np.linalg.norm(np.cross(z, [0, 0, 1])))
+    world = FreeSNWorld(config, SPEC, SimOptions(connector_drive="differential"))
+    world.model.opt.gravity[:] = 0.0
+    for body in world._node_body:
+        world.model.body_mass[body] = 1000.0
+        world.model.body_inertia[body] = 1000.0
+    mujoco.mj_setConst(world.model, world.data)
+    for sid, z in struts.items():
+        u = z / np.linalg.norm(z)
+        aim = Rotation.from_rotvec(np.radians(3.0) * np.array([0.0, 1.0, 0.0])).apply(u)
+        world.command_target(sid, "a", (aim if sid == "S0" else u, None,
+                                        0.25 if sid == "S0" else 1.0))
+        world.command_target(sid, "b", (-u, None, 1.0))
+    return world, world._integral_bound
+
+
+def test_a_soft_end_on_a_hub_winds_its_integral_to_its_effort_share_alone():
+    """A soft follower (reduced effort, ``driving_ends``) on a node three or more docked
+    connectors hold winds its integral at most to its effort's share of the bound: whole,
+    two ends of fig20's loop wound against each other to their bounds and spent them when
+    they moved again, and its last move stalled at 31 deg (stops 53-54). On a node only
+    its strut holds (a chain's), it keeps the whole bound: it carries a load there, and
+    capped, the squirm ended 29 deg off its heading (stop 54). Here S0's soft end a is
+    aimed 3 deg off what its end b holds; after 3 s on a hub its integral is within a
+    quarter of the bound (before: the whole of it), and beyond it alone on its node."""
+    world, bound = _fight(hub=True)
+    world.step(3.0)
+    soft = np.abs(world._integral[world._end("S0", "a"), 1:]).max() / bound
+    assert 0.2 < soft <= 0.25 + 1e-9, soft   # a fight: it winds to its share
+    world, bound = _fight(hub=False)
+    world.step(3.0)
+    alone = np.abs(world._integral[world._end("S0", "a"), 1:]).max() / bound
+    assert alone > 0.9, alone
