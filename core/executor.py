@@ -517,21 +517,15 @@ def heading_loop(call: BehaviorCall | None, heading: float | None,
     """The heading loop of a mapping behavior that has a ``yaw_rate`` gain or
     :func:`slides`, starting at ``heading`` [rad]; ``None`` when it has neither or the
     heading is not known. A behavior that cannot turn (radial strut wheels) gets a loop
-    bound to no correction: :func:`steered` holds its direction by turning its travel. One
-    that slides and turns (a kiwi drive) is bound by ``max_heading_correction`` alone: it
-    turns on the spot by rolling its wheels against each other, so :func:`turn_bound`,
-    which keeps rollers from scrubbing round, would cap its turn at a fraction of what
-    the floor turns it by (issue 31: fig22(j)'s node wheels under 4 deg of noise, asked
-    0.26 rad/s, turned at about a ninth of that and were yawed 124 deg away)."""
+    bound to no correction: :func:`steered` holds its direction by turning its travel."""
     turns = call is not None and any(p == "yaw_rate" and g for c in call.commands
                                      for p, g in c.gains)
     if call is None or call.kind != "mapping" or heading is None or options.heading_gain == 0 \
             or not (turns or slides(call)):
         return None
-    bound = options.max_heading_correction if slides(call) \
-        else min(options.max_heading_correction, turn_bound(call))
     return HeadingLoop(heading, float(call.parameters.get("yaw_rate", 0.0)),
-                       options.heading_gain, options.heading_integral, bound if turns else 0.0)
+                       options.heading_gain, options.heading_integral,
+                       min(options.max_heading_correction, turn_bound(call)) if turns else 0.0)
 
 
 def gait_loop(call: BehaviorCall | None, heading: float | None, options: ExecutorOptions
@@ -647,18 +641,17 @@ def steered(call: BehaviorCall, loop: HeadingLoop, course: CourseLoop | None, he
             place: np.ndarray | None, elapsed: float, dt: float) -> dict[str, float]:
     """The parameters of mapping behavior ``call`` at ``elapsed`` [s], the body's heading
     estimated at ``heading`` [rad] and its place at ``place`` [m] (shape (2,)): ``yaw_rate``
-    corrected by ``loop``; the offset ``course`` sets turns the heading's reference and,
-    for a call that :func:`slides`, also its travel itself, turned back by as much as the
-    body turned, so it keeps its direction in the world (issue 31: the node wheels turn
-    the body slowly, every wheel scrubbing, while a creep crosses the line; sliding, the
-    travel turns at once, and the body follows it round to where its wheels roll best:
-    asked to slide 40-50 deg off their heading, fig22(j)'s node wheels went 10-13 deg
-    off the line for a whole run; radial strut wheels cannot turn the body at all, and
-    with no place known have no course loop either)."""
+    corrected by ``loop``; the offset ``course`` sets turns the heading's reference, or,
+    for a call that :func:`slides`, its travel itself, turned back by as much as the body
+    turned, so it keeps its direction in the world (issue 31: the node wheels turn the
+    body at a thirtieth of the rate asked, every wheel scrubbing, while a creep crosses
+    the line; sliding, the travel turns at once; radial strut wheels cannot turn the
+    body at all, and with no place known have no course loop either)."""
     offset = 0.0 if course is None or place is None else course.offset(place)
-    correction = loop.correction(heading, elapsed, dt, offset)
     if not slides(call):
-        return {**call.parameters, "yaw_rate": loop.asked + correction}
+        return {**call.parameters,
+                "yaw_rate": loop.asked + loop.correction(heading, elapsed, dt, offset)}
+    correction = loop.correction(heading, elapsed, dt)
     turned = wrap_angle(heading - loop.start - loop.asked * elapsed)
     return {**slid(call.parameters, offset - turned), "yaw_rate": loop.asked + correction}
 

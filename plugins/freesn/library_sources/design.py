@@ -927,10 +927,7 @@ def s12n6_behaviors() -> list[dict]:
     """Fig. 22(e) and (j): the opened octahedron rolling on its struts and on its nodes."""
     nodes = octahedron_nodes()
     return [
-        # driven from T2: from T1 (the default) an unseen start's wheeled move (5404, seed
-        # 16, 4 deg + 10 %) held its heading at the turn bound and covered 19 % (stop 55)
-        {"name": "wheeled-move", "start": "fig22e", "drive_root": "T2",
-         "parameters": ["speed", "yaw_rate"],
+        {"name": "wheeled-move", "start": "fig22e", "parameters": ["speed", "yaw_rate"],
          "description": "Fig. 22(e): the freed bottom chords rolled about their axes on "
          "the floor",
          "commands": roller_commands(nodes, roller_legs())},
