@@ -66,11 +66,29 @@ def test_a_runs_worst_behavior_is_its_least_covered_and_its_largest_heading_erro
     worst = _locomotion(verdicts)
     assert worst["covered_min"] == pytest.approx(0.25)
     assert worst["heading_error_max_deg"] == pytest.approx(12.0)
-    assert all(math.isnan(v) for v in _locomotion(verdicts[2:]).values())
+    assert (worst["covered_min_by"], worst["heading_error_max_by"]) == ("b", "a")
+    none = _locomotion(verdicts[2:])
+    assert math.isnan(none["covered_min"]) and math.isnan(none["heading_error_max_deg"])
+    assert none["covered_min_by"] == none["heading_error_max_by"] == ""
     rows = [replace(_row("", s, True, 0.001, 4.0), **_locomotion(verdicts[:k]))
             for s, k in ((0, 1), (1, 2))]
     covered, heading = summarize(rows)[0][6:8]
-    assert covered.endswith(" / 0.80") and heading == "12.0 / 12.0 / 12.0"
+    assert covered.endswith(" / 0.80 (least: b)") and heading == "12.0 / 12.0 / 12.0 (a)"
+
+
+def test_the_table_names_the_behavior_that_strayed_most():
+    """A run of two behaviors says which one went off (stop 54 put fig22's misses on its
+    wheeled move; they were the node wheels after it, issue 31)."""
+    wheeled = BehaviorVerdict("wheeled-move(speed=0.05)", 3, 1, 60.0, 0.9, 0.88, 3.0,
+                              math.radians(4.0), "", True, "")
+    nodes = BehaviorVerdict("node-wheels(speed=0.03)", 6, 1, 60.0, 0.5, -0.39, 1.8,
+                            math.radians(146.0), "", False, "")
+    row = replace(_row("", 15, False, math.nan, 174.0, "x"), **_locomotion([wheeled, nodes]))
+    assert row.heading_error_max_by == row.covered_min_by == "node-wheels(speed=0.03)"
+    table = list(csv.reader(sweep_csv([row]).splitlines()))
+    assert table[1][table[0].index("heading_error_max_by")] == "node-wheels(speed=0.03)"
+    covered, heading = summarize([row])[0][6:8]
+    assert covered.endswith("(least: node-wheels)") and heading.endswith("(node-wheels)")
 
 
 @pytest.mark.parametrize(("args", "message"), [

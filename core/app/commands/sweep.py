@@ -48,6 +48,8 @@ from ..batch import (
 )
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from ...events import BehaviorVerdict
     from ..journal import Journal
     from ..run import RunRequest
@@ -145,6 +147,8 @@ class SweepRow:
             without a behavior that asks a distance and states a direction.
         heading_error_max_deg: the largest angle between a behavior's travel and its
             commanded direction [deg]; ``nan`` without one.
+        covered_min_by, heading_error_max_by: the behavior (its call, as the judge names
+            it) that covered least and the one that went farthest off; ``""`` without one.
     """
 
     faults: str
@@ -164,6 +168,8 @@ class SweepRow:
     faults_met: int
     covered_min: float = math.nan
     heading_error_max_deg: float = math.nan
+    covered_min_by: str = ""
+    heading_error_max_by: str = ""
 
 
 def _nan(value: float | None, scale: float = 1.0) -> float:
@@ -205,15 +211,18 @@ def sweep_run(task: SweepTask) -> SweepRow:
                     faults_met=len(result.faults), **_locomotion(result.locomotion))
 
 
-def _locomotion(verdicts: list[BehaviorVerdict]) -> dict[str, float]:
-    """A run's worst behavior: the least fraction of its asked distance covered along the
-    commanded direction, and the largest heading error [deg] (``nan`` where none)."""
-    covered = [v.along / v.asked for v in verdicts
+def _locomotion(verdicts: list[BehaviorVerdict]) -> dict[str, float | str]:
+    """A run's worst behaviors: the least fraction of its asked distance covered along the
+    commanded direction, and the largest heading error [deg] (``nan`` where none), each
+    with the behavior it was (a run of two behaviors says which one strayed)."""
+    covered = [(v.along / v.asked, v.name) for v in verdicts
                if v.along is not None and v.asked is not None and v.asked > 0]
-    headings = [v.heading_error for v in verdicts if v.heading_error is not None]
-    return {"covered_min": _nan(min(covered) if covered else None),
-            "heading_error_max_deg": _nan(max(headings) if headings else None,
-                                          180.0 / math.pi)}
+    headings = [(v.heading_error, v.name) for v in verdicts
+                if v.heading_error is not None]
+    least = min(covered, key=lambda c: c[0], default=(None, ""))
+    most = max(headings, key=lambda h: h[0], default=(None, ""))
+    return {"covered_min": _nan(least[0]), "heading_error_max_deg": _nan(most[0], 180.0 / math.pi),
+            "covered_min_by": least[1], "heading_error_max_by": most[1]}
 
 
 def sweep_csv(rows: list[SweepRow]) -> str:
@@ -238,6 +247,16 @@ def _spread(values: list[float], scale: float, digits: int) -> str:
     return f"{median:.{digits}f} / {p90:.{digits}f} / {top:.{digits}f}"
 
 
+def _by(group: list[SweepRow], value: str, by: str, worst: Callable, label: str) -> str:
+    """``" (<label><behavior>)"``: the behavior of the runs' ``worst`` ``value`` (its name
+    without its parameters), ``""`` when none is known."""
+    known = [r for r in group if math.isfinite(getattr(r, value)) and getattr(r, by)]
+    if not known:
+        return ""
+    name = getattr(worst(known, key=lambda r: getattr(r, value)), by).split("(")[0]
+    return f" ({label}{name})"
+
+
 def summarize(rows: list[SweepRow]) -> list[list[object]]:
     """Per fault setting: runs, success rate, final shape errors, simulated times, and the
     behaviors' distance covered (of the asked, worst per run) and heading errors
@@ -253,8 +272,10 @@ def summarize(rows: list[SweepRow]) -> list[list[object]]:
                     _spread([r.position_rms_m for r in group], 1000.0, 2),
                     _spread([r.shape_error_deg for r in group], 1.0, 2),
                     _spread([r.sim_time_s for r in group], 1.0, 1),
-                    _spread([r.covered_min for r in group], 1.0, 2),
-                    _spread([r.heading_error_max_deg for r in group], 1.0, 1),
+                    _spread([r.covered_min for r in group], 1.0, 2)
+                    + _by(group, "covered_min", "covered_min_by", min, "least: "),
+                    _spread([r.heading_error_max_deg for r in group], 1.0, 1)
+                    + _by(group, "heading_error_max_deg", "heading_error_max_by", max, ""),
                     f"{common} ({reasons.count(common)})" if common else ""])
     return out
 
