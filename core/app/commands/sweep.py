@@ -260,7 +260,8 @@ def _by(group: list[SweepRow], value: str, by: str, worst: Callable, label: str)
 def summarize(rows: list[SweepRow]) -> list[list[object]]:
     """Per fault setting: runs, success rate, final shape errors, simulated times, and the
     behaviors' distance covered (of the asked, worst per run) and heading errors
-    (median / p90 / max), and the most common failure."""
+    (median / p90 / max, each naming the behavior of the worst run), and the most common
+    failure."""
     out: list[list[object]] = []
     for setting in dict.fromkeys(r.faults for r in rows):
         group = [r for r in rows if r.faults == setting]
