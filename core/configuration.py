@@ -75,6 +75,14 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     return array
 
 
+def _close(a: tuple | None, b: tuple | None, tolerance: float) -> bool:
+    """Whether two optional number tuples are both absent, or agree within ``tolerance``
+    in every component."""
+    if a is None or b is None:
+        return a is b
+    return a == b or all(abs(u - v) <= tolerance for u, v in zip(a, b, strict=True))
+
+
 def _optional_unit(vector: VectorLike | None, what: str) -> np.ndarray | None:
     """``vector`` checked by :func:`unit`; a read-only unit float64 array is shared as it is."""
     if vector is None:
@@ -469,22 +477,32 @@ class Configuration:
             other.robot, other.name, other.description
         ) and self._canonical() == other._canonical()
 
-    def same_state(self, other: Configuration) -> bool:
+    def same_state(self, other: Configuration, *, tolerance: float = 0.0,
+                   positions: bool = True) -> bool:
         """Whether ``other`` describes the same modules in the same state: the same ids,
         kinds and positions, and the same connections with the same vectors; only what
         labels a connection may differ (its id, and its direction when it carries no
-        vectors). Numbers are compared exactly, so a plan made from one starts from the
-        state the other describes."""
-        def state(config: Configuration) -> tuple:
-            nodes, edges = config._canonical(edge_labels=False)
-            return config.robot, nodes, edges
-        return state(self) == state(other)
+        vectors). Numbers agree within ``tolerance`` (absolute, per component; 0: exactly,
+        so a plan made from one starts from the state the other describes); without
+        ``positions`` the modules' positions are left out (a recognizer that reads
+        connections never sees where the lab put the modules)."""
+        (nodes, edges), (other_nodes, other_edges) = (
+            c._canonical(edge_labels=False, positions=positions) for c in (self, other))
+        if self.robot != other.robot or len(nodes) != len(other_nodes) \
+                or len(edges) != len(other_edges):
+            return False
+        return all(a[:-1] == b[:-1] and _close(a[-1], b[-1], tolerance)
+                   for a, b in zip(nodes, other_nodes, strict=True)) \
+            and all(a[:2] == b[:2] and _close(a[2], b[2], tolerance)
+                    and _close(a[3], b[3], tolerance)
+                    for a, b in zip(edges, other_edges, strict=True))
 
-    def _canonical(self, *, edge_labels: bool = True) -> tuple:
+    def _canonical(self, *, edge_labels: bool = True, positions: bool = True) -> tuple:
         def vec(v: np.ndarray | None) -> tuple | None:
             return None if v is None else tuple(float(c) for c in v)
 
-        nodes = sorted((v, d["kind"], vec(d["position"])) for v, d in self.graph.nodes(data=True))
+        nodes = sorted((v, d["kind"], vec(d["position"]) if positions else None)
+                       for v, d in self.graph.nodes(data=True))
         if edge_labels:
             edges = sorted((e.id, e.source, e.target, e.kind or "", vec(e.z), vec(e.x), e.ports)
                            for e in self.edges())

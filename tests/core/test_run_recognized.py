@@ -9,6 +9,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 from tiny_robot import PointDriver, chain, installed
 
 from msrr.core.app.run import RunRequest, execute_run, prepare_run, write_outputs
@@ -99,3 +100,44 @@ def test_same_state_sets_only_connection_labels_aside():
     assert up.same_state(up.copy()) and not up.same_state(a.with_vectors(
         z={i: (0, 0, -1) for i in ids}))                      # a vector
     assert not up.same_state(up.derive(reverse=ids[:1]))      # a vector's direction
+
+
+def test_same_state_within_a_resolution_and_without_the_labs_positions():
+    a = chain(("a", "b"), ("b", "c"), name="one")
+    ids = [e.id for e in a.edges()]
+    turned = {i: (np.sin(0.0872), np.cos(0.0872), 0.0) for i in ids}
+
+    def laid(z, position=(1.0, 2.0, 0.05)):
+        config = Configuration(a.robot)
+        for m, d in a.graph.nodes(data=True):
+            config.add_module(m, d["kind"], position=position if m == "a" else None)
+        for e in a.edges():
+            config.connect(e.source, e.target, ports=e.ports, z=z[e.id])
+        return config
+    file = laid({i: tuple(round(c, 12) for c in v) for i, v in turned.items()})  # as saved
+    seen = laid(turned, position=None)                   # as reported: no positions
+    assert not seen.same_state(file)                     # exactly: positions and rounding
+    assert seen.same_state(file, tolerance=1e-9, positions=False)
+    assert not seen.same_state(file, tolerance=1e-9)     # positions count by default
+    bent = laid({**turned, ids[0]: (np.sin(0.09), np.cos(0.09), 0.0)}, position=None)
+    assert not bent.same_state(file, tolerance=1e-9, positions=False)   # 0.16 deg off
+    assert not laid(turned, position=(1.0, 2.0 + 1e-6, 0.05)).same_state(
+        file, tolerance=1e-9)
+
+
+def test_the_file_plan_runs_when_only_the_file_says_where_the_modules_lie(tmp_path):
+    with installed():
+        request = _request(tmp_path, chain(("b", "c"), name="bc"))
+        start = chain(("a", "b"), name="ab")
+        laid = Configuration(start.robot, name="ab")
+        for m, d in start.graph.nodes(data=True):
+            laid.add_module(m, d["kind"], position=(0.5, 0.0, 0.0) if m == "a" else None)
+        for e in start.edges():
+            laid.connect(e.source, e.target, ports=e.ports)
+        save_configuration(laid, request.start)
+        prepared = prepare_run(request)
+        made = prepared.run.plan
+        prepared = replace(prepared, planner=Counting(prepared.planner))
+        result = execute_run(prepared)
+    assert result.success, result.reason
+    assert prepared.planner.calls == 0 and prepared.run.plan is made   # the lab's placement
