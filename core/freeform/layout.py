@@ -15,7 +15,7 @@ from ..configuration import Configuration
 from ..errors import ExecutionError
 from ..kinematics.rotations import rotation_between
 
-__all__ = ["DOCK_GAP", "SLIDE_OVERLAP", "WAY_CLEARANCE", "WAY_IN", "lay_out_pieces", "place"]
+__all__ = ["DOCK_GAP", "SLIDE_OVERLAP", "WAY_IN", "lay_out_pieces", "place"]
 
 DOCK_GAP = 0.001
 """Shell-to-shell gap of a docked pair [m] (the world's default ``gap``)."""
@@ -25,10 +25,6 @@ WAY_IN = 0.15
 
 SLIDE_OVERLAP = 0.01
 """How much closer than the spacing a piece sliding in may pass another's shell [m]."""
-
-WAY_CLEARANCE = 0.008
-"""How much farther than the spacing a piece on its way keeps from every other module
-[m] (8 mm more than a docked pair's 1 mm between shells)."""
 
 _EZ = np.array([0.0, 0.0, 1.0])
 

@@ -49,7 +49,7 @@ from scipy.spatial import cKDTree
 
 from ..alignment import rot_z, wrap_angle
 from ..errors import ExecutionError
-from .layout import SLIDE_OVERLAP, WAY_CLEARANCE, WAY_IN
+from .layout import SLIDE_OVERLAP, WAY_IN
 from .travel import Locator, best_turn, piece_goal, straight_line
 
 __all__ = ["Leg", "PieceWay", "normalized", "piece_way", "plan_piece_way", "plan_legs",
@@ -60,7 +60,7 @@ _STEP = 0.03          # a drive of the search [m], for a piece of reach _REACH
 _REACH = 0.16         # a longer piece's cells and drives grow with its reach [m]
 _TURN = np.pi / 8     # a turn of the search [rad]
 _SAMPLE = 0.005       # collision samples along a move, at the farthest module [m]
-_CLEARANCE = WAY_CLEARANCE   # kept between shells, more than docked [m]
+_CLEARANCE = 0.008    # kept between shells [m]
 _STAND = 0.005        # a stand keeps this much more than the way's clearance [m]: the
 #                       search's poses lie on a lattice and its direct way ends in a turn
 #                       at the stand, so a stand free by a hair (the human example's

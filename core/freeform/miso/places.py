@@ -38,7 +38,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ...alignment import best_turn, rot_z
-from ..layout import SLIDE_OVERLAP, WAY_CLEARANCE, WAY_IN
+from ..layout import SLIDE_OVERLAP, WAY_IN
 from .model import FREE, MisoProblem, Step, children_of, pairing_score, rooted, targets
 from .order import Ride
 
@@ -265,8 +265,7 @@ def closed_ways(problem: MisoProblem, pair: Sequence[int], goal_places: np.ndarr
     side and close no way here.
     """
     there = np.asarray(goal_places, dtype=np.float64)[list(pair)][:, :2]
-    ways, spacing = _ways_in(problem, pair, there)
-    gap = spacing - SLIDE_OVERLAP
+    ways, gap = _ways_in(problem, pair, there)
     bodies = _moving_bodies(problem, pair, there)
     out: dict[int, set[int]] = {}
     for i, (body, line, back, carrier) in ways.items():
@@ -281,11 +280,8 @@ def riding_ways(problem: MisoProblem, pair: Sequence[int], start_places: np.ndar
     """Where the riders of each docking piece ride: for each fragment root ``j`` that
     moves, per *rider* ``r`` (a module that hangs, in the start, from a module of ``j``'s
     fragment by a connection it leaves later), the moving pieces (fragment roots) that
-    ``r``'s in-tree comes nearer to than the spacing and ``WAY_CLEARANCE``, where it
-    rides: laid from the start as the plan holds it once ``j`` has docked (:func:`hold`).
-    A rider is no neighbour the goal packs (as :func:`closed_ways`' are, one spacing
-    less ``SLIDE_OVERLAP`` apart), so a way keeps from it the clearance a way keeps from
-    any module on the floor (8 mm more than docked shells). A :class:`~.order.Ride`:
+    ``r``'s in-tree comes nearer than the gap to, where it rides: laid from the start as
+    the plan holds it once ``j`` has docked (:func:`hold`). A :class:`~.order.Ride`:
     ``ways``, the pieces whose way in (as :func:`closed_ways`') or docked body it
     crosses (a lone module's body is its way), and ``bodies``, those whose docked body it
     lies on. The carrier itself, a piece whose target is in the rider, and the rider's
@@ -293,8 +289,7 @@ def riding_ways(problem: MisoProblem, pair: Sequence[int], start_places: np.ndar
     index order, in the start's frame (:func:`goal_in_start_frame`) [m]."""
     here = np.asarray(start_places, dtype=np.float64)
     there = np.asarray(goal_places, dtype=np.float64)[list(pair)]
-    ways, spacing = _ways_in(problem, pair, there[:, :2])
-    gap = spacing + WAY_CLEARANCE
+    ways, gap = _ways_in(problem, pair, there[:, :2])
     final, start = targets(problem, pair), rooted(problem.start)
     kids = children_of(start)
     moving = _moving_bodies(problem, pair, there[:, :2], pieces=True)
@@ -338,8 +333,7 @@ def _ways_in(problem: MisoProblem, pair: Sequence[int], there: np.ndarray
              ) -> tuple[dict[int, tuple[np.ndarray, np.ndarray, float, int | None]], float]:
     """Each moving piece of two or more modules' way in (:func:`closed_ways`), by its
     root: its docked body (k, 2), its unit line, how far back it is swept [m], the root of
-    the piece that holds its target (or ``None``); and the goal's spacing, the median
-    length of its connections [m]."""
+    the piece that holds its target (or ``None``); and the gap that closes a way [m]."""
     final = targets(problem, pair)
     links = [float(np.linalg.norm(there[i] - there[p])) for i, p in enumerate(final)
              if p != FREE]
@@ -357,7 +351,7 @@ def _ways_in(problem: MisoProblem, pair: Sequence[int], there: np.ndarray
             continue
         back = float(np.max(np.linalg.norm(body - body[0], axis=1))) + WAY_IN
         out[j] = (body, line / np.linalg.norm(line), back, holder.get(final[j]))
-    return out, float(np.median(links))
+    return out, float(np.median(links)) - SLIDE_OVERLAP
 
 
 def _swept_distance(body: np.ndarray, line: np.ndarray, back: float, points: np.ndarray
