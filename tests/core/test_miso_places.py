@@ -327,8 +327,11 @@ def test_an_order_that_cannot_keep_a_rider_clear_is_refused_naming_the_step():
     goal = [FREE, FREE, FREE, s, c0, t, u, a0]
     riding = {c0: {r: Ride(ways=frozenset({a0}), bodies=frozenset())}}
     with pytest.raises(PlanningError, match=r"riders clear: at step 2 .* 6 would dock "
-                                            r"across 5, which rides 3"):
+                                            r"across 5, which rides 3") as refused:
         order_steps(start, goal, limits=MisoLimits(max_in=1), riding=riding)
+    names = ["S", "U", "T", "C0", "C1", "R", "A0", "A1"]
+    assert refused.value.describe(names.__getitem__).endswith(   # as the plan says it
+        "first A0 would dock across R, which rides C0 until its own step")
     assert len(order_steps(start, goal, limits=MisoLimits(max_in=1))) == 3   # by depth
 
 
