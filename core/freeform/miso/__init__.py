@@ -60,13 +60,15 @@ from .model import (
     step_is_legal,
     targets,
 )
-from .order import order_steps
+from .order import Ride, RiderClash, order_steps
 from .pairing import heuristic_pairing
 from .places import (
     class_moves,
     closed_ways,
     fragments,
     goal_in_start_frame,
+    heading_turn,
+    hold,
     nearer_pairing,
     riding_ways,
     step_travel,
@@ -90,6 +92,8 @@ __all__ = [
     "MisoPlanner",
     "MisoProblem",
     "MisoSolution",
+    "Ride",
+    "RiderClash",
     "Step",
     "UNLIMITED",
     "brute_force_changes",
@@ -106,7 +110,9 @@ __all__ = [
     "exact_pairing",
     "fragments",
     "goal_in_start_frame",
+    "heading_turn",
     "heuristic_pairing",
+    "hold",
     "im_pairing",
     "is_flow",
     "kept",

@@ -3,17 +3,46 @@ rules, one step per mismatched module whenever the rules allow (:func:`order_ste
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from ...errors import PlanningError
 from .model import FREE, UNLIMITED, MisoLimits, Step, count_flows, cycles, depths
 
-__all__ = ["Riding", "greedy_order", "leaf_order", "order_steps"]
+__all__ = ["Ride", "RiderClash", "Riding", "greedy_order", "leaf_order", "order_steps"]
 
-Riding = Mapping[int, Mapping[int, Collection[int]]]
-"""Per moving module, per rider it carries, the modules whose way that rider closes."""
+
+class Ride(NamedTuple):
+    """Where one rider rides once its carrier has docked (:func:`~.places.riding_ways`)."""
+
+    ways: frozenset[int]
+    """The moving modules (piece roots) whose way in, or docked body, the rider crosses."""
+    bodies: frozenset[int]
+    """Those whose docked body it lies on (a subset of ``ways``)."""
+
+
+Riding = Mapping[int, Mapping[int, Ride]]
+"""Per moving module, per rider it carries, where that rider rides (:class:`Ride`)."""
+
+
+class RiderClash(PlanningError):
+    """No legal move keeps every rider clear: each would dock a piece across a rider or
+    carry a rider onto a docked piece (:func:`order_steps` with ``riding``)."""
+
+    def __init__(self, step: int, module: int, rider: int, piece: int, carried: bool):
+        self.step, self.module, self.rider, self.piece = step, module, rider, piece
+        self.carried = carried
+        super().__init__(self.describe(str))
+
+    def describe(self, name: Callable[[int], str]) -> str:
+        """The one-line refusal, modules named by ``name`` (index -> id)."""
+        m, r, w = name(self.module), name(self.rider), name(self.piece)
+        clash = (f"{m} would carry its rider {r} onto {w}'s docked body" if self.carried
+                 else f"{m} would dock across {r}, which rides {w} until its own step")
+        return (f"no step order keeps the riders clear: at step {self.step} every legal "
+                f"move clashes, first {clash}")
 
 
 class _State:
@@ -135,24 +164,35 @@ def order_steps(start: Sequence[int], goal: Sequence[int],
     ``j`` has docked (:func:`~.places.closed_ways`, from the floor's places). A move
     that would close a pending module's way waits while another legal move does not
     (the next pending module in goal depth, split as it would be); when every legal
-    move would close one, the first is made. ``riding[j][r]``: the modules whose way
-    rider ``r`` closes where it rides once ``j`` has docked carrying it
-    (:func:`~.places.riding_ways`): such a move waits as for ``closes`` while ``r``
-    rides there (it leaves when its own target is placed).
+    move would close one, the first is made. ``riding[j][r]``: where rider ``r`` rides
+    once ``j`` has docked carrying it (:class:`Ride`, :func:`~.places.riding_ways`).
+    A rider never meets a piece (:func:`_clash`): no move docks a piece across a rider
+    that rides there, and no carrier brings a rider onto a piece docked there; so the
+    piece waits until the rider has left, or the carrier until its rider has left
+    first, by its own step. A carrier whose riders would cross a pending piece's way
+    also waits, as a move that would close it (the riders leave first, or that piece
+    docks first).
 
     Under ``limits.carries == "nothing"`` the order is :func:`leaf_order`.
 
     Raises:
+        RiderClash: every legal move clashes with a rider (in both greedy passes).
         PlanningError: no progress (a bug: every release frees a module that was held).
     """
     if goal_depth is None:
         goal_depth = depths(goal)
     if limits.carries == "nothing":
         return leaf_order(start, goal, goal_depth, limits)
-    plain = greedy_order(start, goal, goal_depth, limits, flows_first=False, closes=closes,
-                         riding=riding)
-    flowing = greedy_order(start, goal, goal_depth, limits, flows_first=True, closes=closes,
-                           riding=riding)
+    orders: list[list[Step]] = []
+    for flows_first in (False, True):
+        try:
+            orders.append(greedy_order(start, goal, goal_depth, limits,
+                                       flows_first=flows_first, closes=closes, riding=riding))
+        except RiderClash as clash:
+            refused = clash
+    if not orders:
+        raise refused
+    plain, flowing = orders[0], orders[-1]
     if len(flowing) > len(plain) or (len(flowing) == len(plain) and count_flows(
             start, flowing) < count_flows(start, plain)):
         return plain
@@ -187,8 +227,9 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
             chosen = next((int(k) for k in np.flatnonzero(flows)
                            if state.blocker(pending[k], goal[pending[k]]) is None), None)
         i = None if chosen is None else state.split_first(pending[chosen], goal, waiting)
-        if chosen is None:
-            i = _next_move(state, pending, goal, waiting, closes or {}, riding or {})
+        if i is None or _clash(state, i, waiting, riding or {}) is not None:
+            i = _next_move(state, pending, goal, waiting, closes or {}, riding or {},
+                           len(steps) + 1)
         if i is not None:
             pending.remove(i)
             waiting.discard(i)
@@ -203,22 +244,55 @@ def greedy_order(start: Sequence[int], goal: Sequence[int], goal_depth: Sequence
 
 
 def _next_move(state: _State, pending: list[int], goal: Sequence[int], waiting: set[int],
-               closes: Mapping[int, Collection[int]], riding: Riding) -> int | None:
+               closes: Mapping[int, Collection[int]], riding: Riding, step: int
+               ) -> int | None:
     """The module to move next: the first legal pending module in ``pending``'s order,
-    split as :meth:`_State.split_first` splits it, whose move closes no pending module's
-    way (``closes``) and whose own way no rider closes where it rides now (``riding``),
-    else the first such move; ``None`` when no move is legal."""
-    shut = {w for j, rs in riding.items() if j not in waiting
-            for r, ways in rs.items() if r in waiting and state.carries(j, r) for w in ways}
-    first = None
+    split as :meth:`_State.split_first` splits it, that clashes with no rider
+    (:func:`_clash`) and closes no pending module's way (``closes``, its riders'
+    included), else the first legal one that clashes with no rider; ``None`` when no
+    move is legal.
+
+    Raises:
+        RiderClash: every legal move clashes (``step``: the step it would be)."""
+    first, clash = None, None
     for k in pending:
         if state.blocker(k, goal[k]) is not None:
             continue
         i = state.split_first(k, goal, waiting)
-        if i not in shut and waiting.isdisjoint(closes.get(i, ())):
+        hit = _clash(state, i, waiting, riding)
+        if hit is not None:
+            clash = clash or RiderClash(step, i, *hit)
+            continue
+        riders = riding.get(i, {})
+        if waiting.isdisjoint(closes.get(i, ())) and not any(
+                r in waiting and not waiting.isdisjoint(ride.ways) and state.carries(i, r)
+                for r, ride in riders.items()):
             return i
         first = i if first is None else first
+    if first is None and clash is not None:
+        raise clash
     return first
+
+
+def _clash(state: _State, i: int, waiting: set[int], riding: Riding
+           ) -> tuple[int, int, bool] | None:
+    """Whether moving ``i`` now makes a rider meet a piece, and which: ``(rider, piece,
+    carried)``. A rider rides from its carrier's step (while it still hangs from it) to
+    its own; ``i`` docks across one that rides there (``carried`` false, ``piece`` its
+    carrier), or ``i`` carries one onto a piece docked where it would ride (``carried``
+    true); else ``None``."""
+    for r, ride in riding.get(i, {}).items():
+        if r in waiting and state.carries(i, r):
+            docked = sorted(ride.bodies - waiting)
+            if docked:
+                return r, docked[0], True
+    for j, riders in riding.items():
+        if j in waiting:
+            continue
+        for r, ride in riders.items():
+            if i in ride.ways and r in waiting and state.carries(j, r):
+                return r, j, False
+    return None
 
 
 def _release(state: _State, pending: list[int], goal: Sequence[int]) -> Step:

@@ -40,9 +40,10 @@ from scipy.optimize import linear_sum_assignment
 from ...alignment import best_turn, rot_z
 from ..layout import SLIDE_OVERLAP, WAY_IN
 from .model import FREE, MisoProblem, Step, children_of, pairing_score, rooted, targets
+from .order import Ride
 
 __all__ = ["class_moves", "closed_ways", "fragments", "goal_in_start_frame",
-           "nearer_pairing", "riding_ways", "step_travel", "travel"]
+           "heading_turn", "hold", "nearer_pairing", "riding_ways", "step_travel", "travel"]
 
 
 def fragments(problem: MisoProblem, pair: Sequence[int]) -> list[list[int]]:
@@ -154,11 +155,11 @@ def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step]
                 start_places: np.ndarray, goal_places: np.ndarray
                 ) -> list[tuple[int, float]]:
     """The modules of the piece each step moves, and its straight travel [m]: its
-    centroid's shift plus the arc its turn sweeps at its reach, the piece's modules whose
-    connections up to the stepping module are the goal's laid at their goal places
-    (``goal_places`` (n, 3), goal index order, in the start's frame), the others (riders
-    that leave later) shifted with the module they hang from; ``(1, 0.0)`` for a step to
-    free. Short of a way over the floor: one turn, no detours, no obstacles."""
+    centroid's shift plus the arc its turn sweeps at its reach, the piece laid where the
+    plan holds it once docked (:func:`hold`: at the goal places ``goal_places`` (n, 3),
+    goal index order, in the start's frame, its riders turned with the module they hang
+    from); ``(1, 0.0)`` for a step to free. Short of a way over the floor: one turn, no
+    detours, no obstacles."""
     final = targets(problem, pair)
     there = np.asarray(goal_places, dtype=np.float64)[list(pair)]
     pos = np.array(start_places, dtype=np.float64)
@@ -173,22 +174,58 @@ def step_travel(problem: MisoProblem, pair: Sequence[int], steps: Sequence[Step]
             out.append((1, 0.0))
             continue
         kids[step.new].append(step.module)
-        piece = [step.module]
-        for m in piece:   # top down; a ring closed by the step is walked once
-            piece.extend(c for c in kids[m] if c != step.module)
-        shift = {step.module: there[step.module] - pos[step.module]}
-        placed = {step.module}
-        for m in piece[1:]:
-            if final[m] == parent[m] and parent[m] in placed:
-                shift[m] = there[m] - pos[m]
-                placed.add(m)
-            else:
-                shift[m] = shift[parent[m]]
+        piece, now = hold(pos, parent, kids, final, there, step.module, step.old)
         was = pos[piece].copy()
-        for m in piece:
-            pos[m] += shift[m]
-        out.append((len(piece), _move(was, pos[piece])))
+        pos[piece] = now
+        out.append((len(piece), _move(was, now)))
     return out
+
+
+def heading_turn(before: np.ndarray, after: np.ndarray) -> float:
+    """The turn about the vertical from connection vector ``before`` to ``after`` [rad]
+    (their first two components); 0 when either is (nearly) vertical, where no heading is
+    defined."""
+    if min(float(np.hypot(before[0], before[1])), float(np.hypot(after[0], after[1]))) < 1e-6:
+        return 0.0
+    return float(np.arctan2(after[1], after[0]) - np.arctan2(before[1], before[0]))
+
+
+def hold(pos: np.ndarray, parent: Sequence[int], kids: Sequence[Sequence[int]],
+         final: Sequence[int], there: np.ndarray, module: int, old: int
+         ) -> tuple[list[int], np.ndarray]:
+    """Where the piece ``module`` docks with lies once docked, as the plan holds it
+    (``planner._carry``, on connection vectors): ``module``, and each module hanging
+    from a module so placed by its goal connection, at its goal place; a *rider* (a
+    module hanging by a connection it leaves later) with its in-tree turned rigidly about
+    the module it hangs from by that module's turn (:func:`heading_turn` of its own
+    connection, before to after; for ``module`` that was free, of its first child's
+    connection) and carried with it.
+
+    ``pos`` (n, 3): the places before the step; ``parent``, ``kids``: the pointer array
+    after the step and its children; ``final``: every module's goal parent; ``there``
+    (n, 3): the goal places (start index order); ``old``: ``module``'s parent before.
+    Returns the piece (top down, a ring closed by the step walked once) and its places
+    (k, 3) [m]."""
+    if old != FREE:
+        before = pos[module] - pos[old]
+    else:
+        before = pos[min(kids[module])] - pos[module] if kids[module] else np.zeros(3)
+    turn = {module: heading_turn(before, there[module] - there[parent[module]])}
+    new = {module: there[module]}
+    placed, piece = {module}, [module]
+    for m in piece:
+        for c in sorted(kids[m]):
+            if c in turn:
+                continue
+            if m in placed and final[c] == m:
+                placed.add(c)
+                new[c] = there[c]
+                turn[c] = heading_turn(pos[c] - pos[m], there[c] - there[m])
+            else:
+                turn[c] = turn[m]
+                new[c] = new[m] + rot_z(turn[m]) @ (pos[c] - pos[m])
+            piece.append(c)
+    return piece, np.array([new[m] for m in piece], dtype=np.float64).reshape(-1, 3)
 
 
 def _move(before: np.ndarray, after: np.ndarray) -> float:
@@ -239,44 +276,47 @@ def closed_ways(problem: MisoProblem, pair: Sequence[int], goal_places: np.ndarr
 
 
 def riding_ways(problem: MisoProblem, pair: Sequence[int], start_places: np.ndarray,
-                goal_places: np.ndarray) -> dict[int, dict[int, set[int]]]:
-    """Which ways in the riders of each docking piece close while they ride: for each
-    fragment root ``j`` that moves, per *rider* ``r`` (a module that hangs, in the
-    start, from a module ``p`` of ``j``'s fragment by a connection it leaves later), the
-    fragment roots ``i`` whose way in (as :func:`closed_ways`') ``r``'s in-tree crosses
-    where it rides: its start places turned rigidly about ``p`` with ``p``'s connection
-    and carried to ``p``'s goal place (as the plan holds a rider: its angles to ``p``
-    kept; a free root turns with its first child's connection). The carrier itself, the
-    piece whose target is in the rider, and the rider's own pieces do not count.
-    ``start_places`` (n, 3); ``goal_places`` (n, 3) in goal index order, in the start's
-    frame (:func:`goal_in_start_frame`) [m]."""
-    here = np.asarray(start_places, dtype=np.float64)[:, :2]
-    there = np.asarray(goal_places, dtype=np.float64)[list(pair)][:, :2]
-    ways, gap = _ways_in(problem, pair, there)
+                goal_places: np.ndarray) -> dict[int, dict[int, Ride]]:
+    """Where the riders of each docking piece ride: for each fragment root ``j`` that
+    moves, per *rider* ``r`` (a module that hangs, in the start, from a module of ``j``'s
+    fragment by a connection it leaves later), the moving pieces (fragment roots) that
+    ``r``'s in-tree comes nearer than the gap to, where it rides: laid from the start as
+    the plan holds it once ``j`` has docked (:func:`hold`). A :class:`~.order.Ride`:
+    ``ways``, the pieces whose way in (as :func:`closed_ways`') or docked body it
+    crosses (a lone module's body is its way), and ``bodies``, those whose docked body it
+    lies on. The carrier itself, a piece whose target is in the rider, and the rider's
+    own pieces do not count. ``start_places`` (n, 3); ``goal_places`` (n, 3) in goal
+    index order, in the start's frame (:func:`goal_in_start_frame`) [m]."""
+    here = np.asarray(start_places, dtype=np.float64)
+    there = np.asarray(goal_places, dtype=np.float64)[list(pair)]
+    ways, gap = _ways_in(problem, pair, there[:, :2])
     final, start = targets(problem, pair), rooted(problem.start)
     kids = children_of(start)
-    out: dict[int, dict[int, set[int]]] = {}
-    for f in _moving_bodies(problem, pair, there, pieces=True).values():
+    moving = _moving_bodies(problem, pair, there[:, :2], pieces=True)
+    out: dict[int, dict[int, Ride]] = {}
+    for j, f in moving.items():
         body = set(f)
+        if all(r in body for p in f for r in kids[p]):
+            continue
+        parent = list(start)
+        parent[j] = final[j]
+        piece, places = hold(here, parent, kids, final, there, j, start[j])
+        at = dict(zip(piece, places[:, :2], strict=True))
         for p in f:
-            riders = [r for r in kids[p] if r not in body]
-            if not riders:
-                continue
-            was = here[p] - here[start[p]] if start[p] != FREE else here[kids[p][0]] - here[p]
-            now = there[p] - there[final[p]]
-            turn = float(np.arctan2(now[1], now[0]) - np.arctan2(was[1], was[0])) if min(
-                np.hypot(*was), np.hypot(*now)) > 1e-6 else 0.0   # stacked: no heading
-            rot = rot_z(turn)[:2, :2]
-            for r in riders:
+            for r in (r for r in kids[p] if r not in body):
                 tree = [r]
                 for m in tree:
                     tree.extend(kids[m])
-                ride = (here[tree] - here[p]) @ rot.T + there[p]
-                shut = {i for i, (way, line, back, _) in ways.items() if i != f[0]
-                        and i not in tree and final[i] not in tree
-                        and _swept_distance(way, line, back, ride) < gap}
-                if shut:
-                    out.setdefault(f[0], {})[r] = shut
+                ride = np.array([at[m] for m in tree])
+                others = [i for i in moving if i != j and i not in tree
+                          and final[i] not in tree]
+                lies = {i for i in others if float(np.min(np.linalg.norm(
+                    ride[:, None] - there[moving[i]][None, :, :2], axis=2))) < gap}
+                crosses = {i for i in others if i in ways and _swept_distance(
+                    ways[i][0], ways[i][1], ways[i][2], ride) < gap}
+                if lies or crosses:
+                    out.setdefault(j, {})[r] = Ride(frozenset(lies | crosses),
+                                                    frozenset(lies))
     return out
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from ...alignment import rot_z
 from ...configuration import Configuration
-from ...errors import ExecutionError
+from ...errors import ExecutionError, PlanningError
 from ...plan import Action, ActionType, ConnectionChange, Plan
 from .exact import exact_pairing
 from .model import (
@@ -30,9 +30,16 @@ from .model import (
     step_changes,
     targets,
 )
-from .order import Riding, order_steps
+from .order import RiderClash, Riding, order_steps
 from .pairing import heuristic_pairing
-from .places import class_moves, closed_ways, goal_in_start_frame, riding_ways, step_travel
+from .places import (
+    class_moves,
+    closed_ways,
+    goal_in_start_frame,
+    heading_turn,
+    riding_ways,
+    step_travel,
+)
 
 __all__ = ["Layout", "MisoPlanner", "MisoSolution", "carries_places", "miso_planners",
            "plan_miso", "solve_exact", "solve_heuristic"]
@@ -201,7 +208,10 @@ def _floor_order(solution: MisoSolution, problem: MisoProblem, s: np.ndarray,
     g = goal_in_start_frame(problem, solution.pairing, s, laid)
     closes = closed_ways(problem, solution.pairing, g)
     riding = riding_ways(problem, solution.pairing, s, g)
-    other = _solution(problem, solution.pairing, time.perf_counter(), closes, riding)
+    try:
+        other = _solution(problem, solution.pairing, time.perf_counter(), closes, riding)
+    except RiderClash as clash:
+        raise PlanningError(clash.describe(problem.start_ids.__getitem__)) from None
     best = other if _rank(problem, other) <= _rank(problem, solution) else solution
     stats = {**solution.stats, "closed_ways_topology": float(_closed(solution.steps, closes)),
              "closed_ways": float(_closed(best.steps, closes))}
@@ -326,7 +336,8 @@ def _carry(parent: list[int], module: int, old: int,
     kids = sorted(on.get(module, ()))
     before = vectors.get((module, old)) if old != FREE else (
         vectors.get((kids[0], module)) if kids else None)
-    turn = {module: 0.0 if before is None else _turn(before, vectors[(module, parent[module])])}
+    turn = {module: 0.0 if before is None else heading_turn(before,
+                                                              vectors[(module, parent[module])])}
     placed, todo = {module}, [module]
     while todo:
         m = todo.pop()
@@ -338,19 +349,11 @@ def _carry(parent: list[int], module: int, old: int,
             if m in placed and key in goal_vectors:
                 vectors[key] = goal_vectors[key]
                 placed.add(c)
-                turn[c] = _turn(was, vectors[key])
+                turn[c] = heading_turn(was, vectors[key])
             else:
                 turn[c] = turn[m]
                 vectors[key] = rot_z(turn[m]) @ was
             todo.append(c)
-
-
-def _turn(a: np.ndarray, b: np.ndarray) -> float:
-    """The turn about the vertical from connection vector ``a`` to ``b`` [rad]; 0 when
-    either is (nearly) vertical, where no heading is defined."""
-    if min(np.hypot(a[0], a[1]), np.hypot(b[0], b[1])) < 1e-6:
-        return 0.0
-    return float(np.arctan2(b[1], b[0]) - np.arctan2(a[1], a[0]))
 
 
 def plan_miso(start: Configuration, goal: Configuration, *, exact: bool = False,
