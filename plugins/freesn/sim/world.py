@@ -152,8 +152,9 @@ _STILL_ON = np.radians(0.3)   # a connector this near its target stops, its whee
 _STILL_OFF = np.radians(0.6)  # ... until pushed this far off it
 _TURN_ON = np.radians(5.0)     # a connector this far from its target turns toward it first
 _TURN_OFF = _STILL_ON   # ... and rolls straight (no turning) once this near
-_HEADING_HOLD = np.radians(1.0)  # a turning connector this near its heading stops turning, braked
-_HEADING_GO = np.radians(15.0)  # a connector's way (forwards, backwards) kept until this much better
+_HEADING_OK = np.radians(5.0)  # heading error under which a turning connector rolls fully
+_HEADING_HOLD = np.radians(1.0)  # ... and under which it stops turning, its turn braked
+_HEADING_GO = np.radians(15.0)  # ... and over which it only turns (the firmware's 5 degrees)
 _WAY_KEPT = np.radians(90.0)  # ... turning on a small swing, the way kept until this much better
 _ROLLER_AIM = 0.5  # a wheeling connector's aim takes at most this of a wheel's torque, the spin the rest
 _SPIN_GAIN = 20.0  # a docked wheel pair's speed loop: command per rad of spin lag [1/s]
@@ -1319,12 +1320,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             self._turning[ks], np.abs(swing) > _TURN_OFF,
             (np.abs(swing) > _TURN_ON) | (aside & (np.abs(swing) > _STILL_OFF)))
         turning = self._turning[ks]
-        # turning, a connector rolls as it turns, at the part of its swing along its
-        # heading, none beyond 90 deg (the unicycle law, :func:`unicycle_roll`); a wheeling
-        # connector cannot turn (its wheels' difference is its commanded spin): it rolls out
-        # that part, backwards too, as the spin sweeps its heading round
-        roll = np.where(wheeling, swing * np.cos(heading),
-                        np.where(turning, unicycle_roll(swing, heading), error[:, 1]))
+        gate = np.clip((_HEADING_GO - np.abs(heading)) / (_HEADING_GO - _HEADING_OK), 0.0, 1.0)
+        # a wheeling connector cannot turn (its wheels' difference is its commanded spin):
+        # it rolls out the part of its swing along its heading, which the spin sweeps round
+        roll = np.where(turning | wheeling,
+                        swing * np.cos(heading) * np.where(wheeling, 1.0, gate), error[:, 1])
         # turning, a connector whose heading is within _HEADING_HOLD rolls and asks no turn:
         # its turn is braked and both wheels push the roll; a turn loop on the last degree
         # took one wheel's torque from a loaded roll (fig20's legs; at 5 deg the turn stopped
@@ -1852,21 +1852,6 @@ def _swing(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
     norm = np.linalg.norm(twist, axis=1, keepdims=True)
     twist = np.where(norm > 1e-12, twist / np.maximum(norm, 1e-12), np.array([1.0, 0, 0, 0]))
     return quat_mul(q, quat_conj(twist))
-
-
-def unicycle_roll(swing: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """The rolling error (n,) [rad] a turning connector servoes: its ``swing`` (n,) [rad] to
-    the target times the cosine of its ``heading`` error (n,) [rad], zero beyond 90 deg.
-
-    The unicycle's go-to-goal law ``v = k_rho rho cos(alpha)``, ``omega = k_alpha alpha``
-    (M. Aicardi, G. Casalino, A. Bicchi, A. Balestrino, "Closed loop steering of
-    unicycle-like vehicles via Lyapunov techniques", IEEE Robotics & Automation Magazine
-    2(1), 1995; R. Siegwart, I. Nourbakhsh, D. Scaramuzza, *Introduction to Autonomous
-    Mobile Robots*, 2nd ed., 2011, section 3.6.2.4), on the node's surface: the connector
-    rolls at the part of its way along its heading while it turns toward the rest, so a
-    target off its heading by less than 90 deg is approached at once and one behind its
-    axle is turned to first. Its turn, ``k alpha``, is :meth:`FreeSNWorld._steer`'s."""
-    return swing * np.maximum(np.cos(heading), 0.0)
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
