@@ -1007,3 +1007,21 @@ def test_a_piece_way_is_the_one_planned_before_its_search_was_batched(monkeypatc
 def _rounded(legs) -> list[tuple[str, float, float, float]]:
     return [(leg.kind, round(float(leg.to[0]), 4), round(float(leg.to[1]), 4),
              round(float(leg.heading), 4)) for leg in legs]
+
+
+def test_a_piece_latched_far_off_counts_its_whole_turn_in_the_measure(mujoco_driver):
+    # a piece latched beyond the hold band is moved by its connections, but in the RMS
+    # over the whole robot its few connections weigh little: the human example's action 8
+    # docked a piece of 3 about 60 deg off among 560 connections (4.4 deg RMS) and its
+    # move was reached; the next action found its goal place taken. ``line6`` with F1
+    # latched on F2, the goal turning F1 -> F2 by 40 deg: the measure is that turn, not
+    # its RMS over the five connections (17.9 deg)
+    from msrr.core.freeform.recognition import piece_turn
+
+    driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
+    goal = _turned_from(start, "F1", 40.0)
+    links = {e.source: e.target for e in start.edges()}
+    turn = abs(piece_turn(driver.ground_truth(), goal, links, "F2", ("F1",)))
+    assert np.degrees(turn) > 35.0
+    seen = controller.recognizer.recognize(driver.get_observation().sensors)
+    assert np.degrees(controller.reach_measure(seen, goal)) > 35.0, "diluted in the RMS"
