@@ -15,11 +15,6 @@ reckoning, :mod:`msrr.core.freeform.travel`), and docks on F4 at the other end
 travel over the floor, each as one rigid piece whose every shell rolls, turn a right angle
 and dock across the third (``chains12-tree``): MISO steps that move a module together with
 the modules docked on it.
-
-``human``: Luo and Lam's human example, 568 FreeBOTs in six chains laid near the figure
-(``human/human-chains-near.json``) assembled into it (``human/human.json``): 47 steps, 89
-connection changes (the published IM heuristic's: 91), about 310 m of piece travel --
-hours of simulated and CPU time (docs/freebot.md, *The published human example*).
 """
 
 from __future__ import annotations
@@ -72,9 +67,5 @@ SCENARIOS = (
                       "twenty FreeBOTs: a row of twelve and two rows of four let go of "
                       "each other (a forest of three pieces), then the two rows of four "
                       "each travel as one piece, turn and dock across the row (a tree)"),
-    Scenario(name="human", start=CONFIGS / "human" / "human-chains-near.json",
-             goal=CONFIGS / "human" / "human.json",
-             description="568 FreeBOTs: Luo and Lam's human example, six chains laid near "
-                         "the figure assembled into it by 47 steps (hours of simulation)"),
 )
 """The default first."""
