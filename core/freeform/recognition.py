@@ -447,8 +447,8 @@ class BendMeasure:
         turns = [piece_turn(current, goal, links, target, piece)
                  for target, piece in self.latches.swinging(links).values()]
         # a piece turned _LATCH_HOLD or more is moved by its connections; in their RMS over
-        # the whole robot its few weigh little (the human example's action 8: a piece of 3
-        # latched 60 deg off, 4.4 deg over 560 connections), so its turn counts as it is
+        # a large robot its few weigh little (3 of 560 connections 60 deg off: 4.4 deg), so
+        # its turn counts as it is
         pending = [abs(t) for t in turns if t is not None]
         return max([rms] + [_SWING_WEIGHT * t if t < _LATCH_HOLD else t for t in pending])
 

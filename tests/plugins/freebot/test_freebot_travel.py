@@ -1011,11 +1011,9 @@ def _rounded(legs) -> list[tuple[str, float, float, float]]:
 
 def test_a_piece_latched_far_off_counts_its_whole_turn_in_the_measure(mujoco_driver):
     # a piece latched beyond the hold band is moved by its connections, but in the RMS
-    # over the whole robot its few connections weigh little: the human example's action 8
-    # docked a piece of 3 about 60 deg off among 560 connections (4.4 deg RMS) and its
-    # move was reached; the next action found its goal place taken. ``line6`` with F1
-    # latched on F2, the goal turning F1 -> F2 by 40 deg: the measure is that turn, not
-    # its RMS over the five connections (17.9 deg)
+    # over a large robot its few connections weigh little (3 of 560 connections 60 deg
+    # off: 4.4 deg RMS). ``line6`` with F1 latched on F2, the goal turning F1 -> F2 by 40
+    # deg: the measure is that turn, not its share of the robot's RMS (20 deg before)
     from msrr.core.freeform.recognition import piece_turn
 
     driver, start, controller, _ = _latched(mujoco_driver, "line6", "F1", "F2", ("F1",))
