@@ -1023,3 +1023,41 @@ def test_a_piece_latched_far_off_counts_its_whole_turn_in_the_measure(mujoco_dri
     assert np.degrees(turn) > 35.0
     seen = controller.recognizer.recognize(driver.get_observation().sensors)
     assert np.degrees(controller.reach_measure(seen, goal)) > 35.0, "diluted in the RMS"
+
+
+def test_a_straight_piece_re_aims_a_drive_in_place_and_ends_on_its_line():
+    # a straight piece cannot steer as it drives, so its line points where its last turn
+    # left it: 1.5 deg off over the human example's 3.5 m drive put a piece 50 mm across
+    # its way, and its push latched 19 deg off its goal place (action 5). Told a 0.4 m
+    # drive 2 deg off its line (14 mm across at the end, driven as it points), it turns
+    # in place first and ends on the drive's line, on ground truth
+    from msrr.core.events import Phase
+    from msrr.core.freeform.piece_way import Leg, PieceWay
+    from msrr.core.plan import Action, ActionType
+
+    driver = _row_let_go_across("aim")
+    piece, off = ("F1", "F2", "F3", "F4"), np.radians(2.0)
+    controller = plugin.controllers()[0]
+    controller._locate(driver.get_observation().sensors)
+    centres = np.array([controller.locator.pose(m)[0][:2] for m in piece])
+    middle, heading = centres.mean(axis=0), controller.locator.pose("F4")[1]
+    line = (centres[-1] - centres[0]) / np.linalg.norm(centres[-1] - centres[0])
+    end = middle + 0.4 * rot_z(off)[:2, :2] @ line
+    way = PieceWay(root="F4", target="F5", piece=piece, origin=middle,
+                   shape=centres - middle, heading=heading,
+                   legs=(Leg("drive", end, heading + off),), centre=end + 0.2 * line,
+                   push=line, line=rot_z(-heading)[:2, :2] @ line)
+    controller._pieces = {"F4": (way, 0)}
+    truth = np.array([driver.world.centre(m)[:2] for m in piece])
+    along = rot_z(off)[:2, :2] @ (truth[-1] - truth[0]) / np.linalg.norm(truth[-1] - truth[0])
+    action = Action(ActionType.CONNECTION, Configuration("freebot", name="aim"))
+    for _ in range(400):
+        control = controller.control(action, Phase.APPROACH, driver.get_observation())
+        if control.reached:
+            break
+        driver.send_action(control.commands)
+        driver.step(0.1)
+    assert control.reached
+    moved = np.array([driver.world.centre(m)[:2] for m in piece]).mean(axis=0) - truth.mean(axis=0)
+    assert float(moved @ along) > 0.39
+    assert abs(float(along[0] * moved[1] - along[1] * moved[0])) < 0.003
