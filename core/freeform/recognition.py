@@ -818,8 +818,8 @@ class ContactController:
             # in place, and so are its re-aims (:meth:`_aim`)
             off = self._aim(way.root, leg.to - middle, rot_z(heading)[:2, :2] @ way.line)
             if off is not None:
-                return np.zeros(2), float(np.clip(_YAW_GAIN * off, -1.0, 1.0)), \
-                    left + max(ahead, 0.0) + self.arrive
+                turn = np.sign(off) * max(_AIM_RATE, _YAW_GAIN * abs(off))
+                return np.zeros(2), float(np.clip(turn, -1.0, 1.0)), left + max(ahead, 0.0) + self.arrive
             return velocity, 0.0, left + max(ahead, 0.0) + self.arrive
         steer = float(np.clip(-_STEER_GAIN * across, -_STEER, _STEER))
         velocity = velocity + steer * self.piece_speed * np.array([-direction[1], direction[0]])
@@ -1048,7 +1048,8 @@ _YAW_GAIN = 1.0              # a travelling piece's turn per heading error [1/s]
 _YAW_DONE = np.radians(1.0)  # heading error under which its turn in place is done
 _AIM = np.radians(1.0)       # a straight piece's line this far off its drive's bearing re-aims
 _AIM_DONE = np.radians(0.25)  # ... in place, until within this
-_AIM_NEAR = 0.05             # ... while farther than this from the drive's end [m]
+_AIM_NEAR = 0.1              # ... while farther than this from the drive's end [m]
+_AIM_RATE = 0.03             # its slowest turn [rad/s] (0.17 deg a tick: a re-aim in under a second)
 _STEER_GAIN = 10.0           # a straight piece's steer per metre off its leg's line [rad/m]
 _STEER = 0.2                 # its largest steer [rad]
 
