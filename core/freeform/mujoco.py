@@ -135,6 +135,14 @@ class SensorNoise:
             return rotation
         return Rotation.from_rotvec(self.rng.normal(0.0, self.std, 3)).as_matrix() @ rotation
 
+    def rotations(self, rotations: np.ndarray) -> np.ndarray:
+        """Each of ``rotations`` (n, 3, 3) turned as :meth:`rotation` would, one after
+        another (the same draws, to the bit)."""
+        if not self.std:
+            return rotations
+        draws = self.rng.normal(0.0, self.std, (len(rotations), 3))
+        return Rotation.from_rotvec(draws).as_matrix() @ rotations
+
     def vector(self, vector: np.ndarray) -> np.ndarray:
         """``vector`` (3,) turned by a random small rotation."""
         return self.rotation(np.eye(3)) @ vector

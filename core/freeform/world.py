@@ -64,7 +64,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..alignment import rot_z, wrap_angle
+from ..alignment import rot_z, rot_zs, wrap_angle
 from ..configuration import Configuration
 from ..driver import DriverOption
 from ..errors import ExecutionError
@@ -241,8 +241,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._dofs = np.array([j.dofadr[0] for j in drives])[:, None] + np.arange(3)
         n = len(self.modules)
         self.docked: list[str | None] = [None] * n
-        self._joined: tuple[tuple[str | None, ...], list[frozenset[str]],
-                            dict[str, frozenset[str]]] | None = None   # :meth:`groups`' memo
+        self._joined: _Joined | None = None   # :meth:`groups`' memo
         self._parent = np.full(n, -1)   # index of ``docked`` (-1: free), kept with it
         self.armed: list[str | None] = [None] * n    # dock target ("" = any touching module)
         self.release: list[bool] = [False] * n        # undock waiting for a flow's switch
@@ -791,13 +790,13 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         q = d.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
         bearing[ks] = self._motor(q, goal, feed)
         for k in ks[self._keel[ks]]:    # one unit hangs for the whole piece's weight
-            size = len(self._group_of(self.modules[k]))
+            size = len(self._piece(k))
             bearing[k] = self._hang(k, self._travel_v[k], gain=size * _ROLL_SPEED_GAIN)
-        rows = np.array([r for r, k in enumerate(ks) if self.docked[k] is not None], dtype=int)
+        rows = np.flatnonzero(self._parent[ks] >= 0)
         if not len(rows):
             return
         docked = ks[rows]
-        parents = np.array([self._index[self.docked[k]] for k in docked])  # type: ignore[index]
+        parents = self._parent[docked]
         shell = d.xquat[self._shell[parents]]
         held = quat_mul(quat_conj(shell), d.xquat[self._foot[docked]])            # W
         moving = self._travel[parents]
@@ -818,11 +817,11 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         line, drove 2 deg off the piece's line, and the piece turned 2 deg in 13 s into the
         row it drove out beside, which it pushed 9 cm aside. ``_travel_v[k]`` when the piece
         has no other travelling module."""
-        arms = [j for j in (self._index[m] for m in self._group_of(self.modules[k]))
-                if self._travel[j] and not self._keel[j]]
-        if not arms:
+        piece = self._piece(k)
+        arms = piece[self._travel[piece] & ~self._keel[piece]]
+        if not len(arms):
             return self._travel_v[k]
-        j = min(arms)
+        j = int(arms.min())
         arm = self.data.xpos[self._shell[k]] - self.data.xpos[self._shell[j]]
         return self._travel_v[j] + self._travel_w[j] * np.cross(_EZ, arm)
 
@@ -847,8 +846,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         for k in ks:
             if done[k]:
                 continue
-            piece = [self._index[m] for m in self._group_of(self.modules[k])]
-            g = np.array([j for j in piece if self._travel[j]], dtype=int)
+            piece = self._piece(k)
+            g = piece[self._travel[piece]]
             done[g] = True
             arms = g[~self._keel[g]]    # a keel's unit hangs, it does not turn with the piece
             if not len(arms):
@@ -860,11 +859,12 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._conn_goal[g] = quat_mul(np.tile(mean, (len(g), 1)), self._conn_goal[g])
             self._shell_goal[g] = quat_mul(np.tile(mean, (len(g), 1)), self._shell_goal[g])
 
-    def _group_of(self, module: str) -> frozenset[str]:
-        """The modules joined to ``module`` through docks (itself included)."""
+    def _piece(self, k: int) -> np.ndarray:
+        """Indices of the modules joined to module ``k`` through docks (itself included),
+        in the order of its group's ``frozenset``."""
         self.groups()
         assert self._joined is not None
-        return self._joined[2][module]
+        return self._joined.pieces[k]
 
     def _motor(self, q: np.ndarray, goal: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Torques (n, 3) of ball-joint motors at ``q`` (n, 4) toward the rotations
@@ -963,25 +963,32 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         return heading(quat)
 
     def reports(self) -> dict[str, ModuleReport]:
-        """Every module's report, with the run's noise; events since the previous call."""
+        """Every module's report, with the run's noise; events since the previous call.
+        The noise is drawn module by module, its relative rotation before its tilt, as
+        one module after another would read out."""
         d = self.data
+        n = len(self.modules)
         rot = d.xmat[self._conn].reshape(-1, 3, 3)
-        yaw = self._headings()
-        new = self.new_events()
-        out = {}
-        for k, module in enumerate(self.modules):
-            parent = self.docked[k]
-            relative = None
-            if parent is not None:
-                relative = self.noise.rotation(rot[self._index[parent]].T @ rot[k])
-            turned = self._turned[k] + (self._gyro.normal(0.0, self.noise.std)
-                                        if self.noise.std else 0.0)
-            odometry = np.append(rot_z(-self._heading0[k])[:2, :2] @ self._odometry[k],
-                                 wrap_angle(turned))
-            out[module] = ModuleReport(parent, self.noise.rotation(rot_z(-yaw[k]) @ rot[k]),
-                                       relative, self.sucker[k],
-                                       tuple(e for e in new if e.module == module), odometry)
-        return out
+        docked = self._parent >= 0
+        before = np.cumsum(docked) - docked            # docked modules before each one
+        at = np.arange(n) + before                      # where each one's readings start
+        readings = np.empty((n + int(docked.sum()), 3, 3))
+        readings[at[docked]] = rot[self._parent[docked]].transpose(0, 2, 1) @ rot[docked]
+        tilt_at = at + docked
+        readings[tilt_at] = rot_zs(-self._headings()) @ rot
+        readings = self.noise.rotations(readings)
+        turned = self._turned + (self._gyro.normal(0.0, self.noise.std, n)
+                                 if self.noise.std else 0.0)
+        odometry = np.empty((n, 3))
+        odometry[:, :2] = (rot_zs(-self._heading0)[:, :2, :2] @ self._odometry[:, :, None])[..., 0]
+        odometry[:, 2] = wrap_angle(turned)
+        events: dict[str, list[ConstraintEvent]] = {}
+        for e in self.new_events():
+            events.setdefault(e.module, []).append(e)
+        return {module: ModuleReport(self.docked[k], readings[tilt_at[k]],
+                                     readings[at[k]] if docked[k] else None, self.sucker[k],
+                                     tuple(events.get(module, ())), odometry[k])
+                for k, module in enumerate(self.modules)}
 
     def centre(self, module: str) -> np.ndarray:
         """World position (3,) of ``module``'s centre [m] (ground truth, for tests)."""
@@ -1010,12 +1017,27 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         again only when a dock changed since the last call (the servo loop asks for a
         travelling piece's group every period, and 568 modules cost a graph each time)."""
         docked = tuple(self.docked)
-        if self._joined is None or self._joined[0] != docked:
+        if self._joined is None or self._joined.docked != docked:
             groups = connected_groups(self.modules, ((self.modules[k], target)
                                                      for k, target in enumerate(docked)
                                                      if target is not None))
-            self._joined = (docked, groups, {m: g for g in groups for m in g})
-        return list(self._joined[1])
+            pieces: list[np.ndarray] = [np.empty(0, dtype=int)] * len(self.modules)
+            for g in groups:
+                piece = np.array([self._index[m] for m in g], dtype=int)
+                for k in piece:
+                    pieces[k] = piece
+            self._joined = _Joined(docked, groups, pieces)
+        return list(self._joined.groups)
+
+
+@dataclass(frozen=True)
+class _Joined:
+    """:meth:`FreeformWorld.groups`' memo: the docks it was found for, the groups, and
+    each module's group as module indices (one array per group, in its iteration order)."""
+
+    docked: tuple[str | None, ...]
+    groups: list[frozenset[str]]
+    pieces: list[np.ndarray]
 
 
 def _quat_exp(rotvec: np.ndarray) -> np.ndarray:
