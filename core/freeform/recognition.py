@@ -45,7 +45,7 @@ from ..plan import Action, ActionType
 from ..shape import skeletal_errors
 from .mujoco import yaw_of
 from .piece_way import PieceWay, normalized, plan_piece_way
-from .travel import Locator, floor_path, pursue, twist_velocities
+from .travel import Locator, floor_path, link_vectors, pursue, twist_velocities
 from .world import ModuleReport
 
 __all__ = ["BendMeasure", "ContactController", "ContactRecognizer", "Latches", "anchors",
@@ -174,9 +174,9 @@ class ContactRecognizer:
         config = Configuration(self.robot)
         for module in sorted(observation):
             config.add_module(module, self.kind)
+        vectors = link_vectors(observation, links, heading)
         for i in sorted(links):
-            z = rot_z(heading[i]) @ observation[i].tilt[:, 2]
-            config.connect(i, links[i], z=z / np.linalg.norm(z))
+            config.connect(i, links[i], z=vectors[i])
         return config
 
 

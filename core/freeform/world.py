@@ -657,7 +657,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         if not len(ks):
             return
         if self.design.bearing:
-            v = self.design.radius * np.cross(d.cvel[self._shell[ks], :3], _EZ)
+            v = self.design.radius * _cross(d.cvel[self._shell[ks], :3], _EZ)
         else:
             v = d.qvel[self._free_adr[ks][:, None] + np.arange(3)]
         self._odometry[ks] += duration * v[:, :2]
@@ -823,7 +823,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             return self._travel_v[k]
         j = int(arms.min())
         arm = self.data.xpos[self._shell[k]] - self.data.xpos[self._shell[j]]
-        return self._travel_v[j] + self._travel_w[j] * np.cross(_EZ, arm)
+        return self._travel_v[j] + self._travel_w[j] * _cross(_EZ, arm)
 
     def _anchor_goals(self, ks: np.ndarray) -> None:
         """Turn the travel goals of each travelling piece (modules ``ks``) by the rotation
@@ -943,7 +943,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         tilt = float(np.linalg.norm(lead))
         want = -_EZ * np.cos(tilt) + (lead / tilt * np.sin(tilt) if tilt > 1e-12 else 0.0)
         r_conn = d.xmat[self._conn[k]].reshape(3, 3)
-        error = np.cross(r_conn[:, 2], want)
+        error = _cross(r_conn[:, 2], want)
         omega = d.cvel[self._conn[k], :3]       # world angular velocity of the unit
         torque = _ROLL_KP * error - _ROLL_KD * omega
         size = np.linalg.norm(torque)
@@ -1056,10 +1056,11 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross products of (n, 3) arrays (``np.cross`` without its axis handling)."""
-    return np.column_stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-                            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
+    """Cross products over the last axis of (..., 3) arrays, broadcast: ``np.cross``'s,
+    to the bit, without its axis handling (a third of a small robot's servo)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def _upright(rotation: np.ndarray) -> np.ndarray:
