@@ -680,7 +680,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         if len(ks):
             on_foot = force[self._weld_id[ks]]
             strength[ks] = factor * self.design.strength
-            held = np.array(self.sucker, dtype=bool)[ks]
+            held = np.array(self.sucker, dtype=bool)[ks] if self.design.sucker else ks < 0
             if np.any(held):
                 on_foot[held] += force[[self._suckers.id(self.modules[k]) for k in ks[held]]]
                 strength[ks[held]] += factor * self.design.sucker_strength
