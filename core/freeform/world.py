@@ -708,9 +708,12 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
     def _servo(self) -> None:
         """Drive motors: position loop on the drive joints of docked modules, bounded
-        rate and torque (a DC motor's damping is the joint's own)."""
+        rate and torque (a DC motor's damping is the joint's own). The motors of idle
+        modules (asleep, nothing new to do: :meth:`_activity`) apply nothing whatever they
+        would hold, so their torques are not found (the human run's rows at rest)."""
+        busy, idle = self._activity()
         tau = np.zeros((len(self.modules), 3))
-        ks = np.flatnonzero(self._parent >= 0)
+        ks = np.flatnonzero((self._parent >= 0) & ~idle)
         if len(ks):
             q = self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
             error = quat_log(quat_mul(quat_conj(q), self._target[ks]))
@@ -721,10 +724,11 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             size = np.linalg.norm(torque, axis=1, keepdims=True)
             tau[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
         if self._bearing is not None:
-            bearing = self._roll_torques() + self._brakes()
+            bearing = self._roll_torques() + self._brakes(idle)
             if np.any(self._travel):
                 self._travel_torques(tau, bearing)
-        quiet = self._quiet(tau, bearing if self._bearing is not None else None)
+        quiet = idle | (~busy & self._at_rest(
+            tau, bearing if self._bearing is not None else None))
         if self._bearing is not None:
             bearing[quiet] = 0.0
             self.data.qfrc_applied[self._bearing] = bearing
@@ -734,28 +738,36 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self.data.qfrc_applied[self._dofs] = tau
         self._wake[:] = False
 
-    def _quiet(self, drive: np.ndarray, bearing: np.ndarray | None) -> np.ndarray:
-        """The modules (n,) whose motors apply nothing this servo period (MuJoCo's island
-        sleeping, :class:`FreeformOptions` ``sleep_tolerance``): those given nothing new
-        to do (no new goal, roll, travel or dock since the last period) that are asleep,
-        or at rest -- every DOF of the module slower than the tolerance (scaled by its
-        length) and its motors' torques (``drive``, ``bearing`` (n, 3) [N m]) under
-        ``_REST_TORQUE``. MuJoCo puts a tree to sleep only when no force is applied to
-        it, and a sleeping island does not move, so the holding torques would change
-        nothing; a new goal, a dock, a roll, a contact with a moving module or a weld to
-        one wakes it."""
+    def _activity(self) -> tuple[np.ndarray, np.ndarray]:
+        """Which modules (n,) are busy -- given something new to do since the last servo
+        period: a goal, a roll, a travel or a dock -- and which are idle: not busy and
+        asleep (MuJoCo's island sleeping, :class:`FreeformOptions` ``sleep_tolerance``).
+        Every module is busy when nothing sleeps."""
         n = len(self.modules)
         if self.options.sleep_tolerance <= 0:
-            return np.zeros(n, dtype=bool)
-        m, d = self.model, self.data
+            return np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
         busy = self._wake | self._travel | self._rolling | np.any(self._roll, axis=1) \
             | np.array([a is not None for a in self.armed])
+        return busy, ~busy & (self.data.tree_asleep[self._tree] >= 0)
+
+    def _at_rest(self, drive: np.ndarray, bearing: np.ndarray | None) -> np.ndarray:
+        """The modules (n,) at rest: every DOF of the module slower than the sleep
+        tolerance (scaled by its length) and its motors' torques (``drive``, ``bearing``
+        (n, 3) [N m]) under ``_REST_TORQUE``.
+
+        The quiet modules, whose motors apply nothing this servo period, are the idle
+        ones (:meth:`_activity`) and those not busy at rest. MuJoCo puts a tree to sleep
+        only when no force is applied to it, and a sleeping island does not move, so the
+        holding torques would change nothing; a new goal, a dock, a roll, a contact with a
+        moving module or a weld to one wakes it."""
+        if self.options.sleep_tolerance <= 0:
+            return np.zeros(len(self.modules), dtype=bool)
+        m, d = self.model, self.data
         speed = np.maximum.reduceat(np.abs(d.qvel * m.dof_length), m.tree_dofadr)[self._tree]
         torque = np.linalg.norm(drive, axis=1)
         if bearing is not None:
             torque = np.maximum(torque, np.linalg.norm(bearing, axis=1))
-        rest = (speed < self.options.sleep_tolerance) & (torque < _REST_TORQUE)
-        return ~busy & ((d.tree_asleep[self._tree] >= 0) | rest)
+        return (speed < self.options.sleep_tolerance) & (torque < _REST_TORQUE)
 
     def _travel_torques(self, drive: np.ndarray, bearing: np.ndarray) -> None:
         """Drive and bearing torques (n, 3) of the modules travelling in a piece (written
@@ -900,12 +912,13 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._wrench[k] = np.concatenate([force, torque])
             d.xfrc_applied[body] = self._wrench[k]
 
-    def _brakes(self) -> np.ndarray:
+    def _brakes(self, idle: np.ndarray) -> np.ndarray:
         """Bearing torques (n, 3), connector frames, holding braked shells where they were
         braked: a geared motor holds its position (a damping alone would let the shell
-        creep under the reactions of the modules docked on it)."""
+        creep under the reactions of the modules docked on it); none for the ``idle``
+        modules (n,), whose motors apply nothing."""
         out = np.zeros((len(self.modules), 3))
-        ks = np.flatnonzero(self._braked)
+        ks = np.flatnonzero(self._braked & ~idle)
         if len(ks):
             q = self.data.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
             error = quat_log(quat_mul(quat_conj(q), self._brake_at[ks]))
