@@ -670,7 +670,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         d = self.data
         rows = np.flatnonzero(d.efc_type[:d.nefc] == _EQUALITY)
         ids = d.efc_id[rows]
-        first = rows[np.r_[True, ids[1:] != ids[:-1]]] if len(rows) else rows
+        first = rows[np.concatenate(([True], ids[1:] != ids[:-1]))] if len(rows) else rows
         force = np.zeros((self.model.neq, 3))
         force[d.efc_id[first]] = d.efc_force[first[:, None] + np.arange(3)]
         load = np.zeros(len(self.modules))
@@ -746,8 +746,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         n = len(self.modules)
         if self.options.sleep_tolerance <= 0:
             return np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
-        busy = self._wake | self._travel | self._rolling | np.any(self._roll, axis=1) \
-            | np.array([a is not None for a in self.armed])
+        busy = self._wake | self._travel | self._rolling | np.any(self._roll, axis=1)
+        if self._docking():
+            busy |= np.array([a is not None for a in self.armed])
         return busy, ~busy & (self.data.tree_asleep[self._tree] >= 0)
 
     def _at_rest(self, drive: np.ndarray, bearing: np.ndarray | None) -> np.ndarray:
