@@ -160,6 +160,12 @@ def yaw_of(rotation: np.ndarray) -> float:
     return float(np.arctan2(rotation[1, 0] - rotation[0, 1], rotation[0, 0] + rotation[1, 1]))
 
 
+def yaws_of(rotations: np.ndarray) -> np.ndarray:
+    """:func:`yaw_of` of each of ``rotations`` (n, 3, 3), shape (n,): the same bits."""
+    r = rotations
+    return np.arctan2(r[:, 1, 0] - r[:, 0, 1], r[:, 0, 0] + r[:, 1, 1])
+
+
 _TERMS = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
 """Hamilton product: term ``i`` of component ``c`` is ``a_i b_TERMS[i, c]``, signed by
 ``_SIGNS[i, c]``."""

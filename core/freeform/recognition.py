@@ -43,7 +43,7 @@ from ..events import Phase
 from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
-from .mujoco import yaw_of
+from .mujoco import yaws_of
 from .piece_way import PieceWay, normalized, plan_piece_way
 from .travel import Locator, floor_path, link_vectors, pursue, twist_velocities
 from .world import ModuleReport
@@ -78,12 +78,14 @@ def module_headings(reports: Reports, links: Mapping[str, str] | None = None
     """Heading [rad] of every module's horizontal frame in its group's root frame."""
     links = links_of(reports) if links is None else links
     neighbours: dict[str, list[tuple[str, float]]] = {m: [] for m in reports}
-    for i, j in links.items():
-        ri, rj = reports[i], reports[j]
-        assert ri.relative is not None
-        delta = yaw_of(rj.tilt @ ri.relative @ ri.tilt.T)     # psi_i - psi_j
-        neighbours[j].append((i, delta))
-        neighbours[i].append((j, -delta))
+    if links:          # psi_i - psi_j of every link i -> j, all at once
+        tilts = np.array([reports[i].tilt for i in links])
+        relative = np.array([reports[i].relative for i in links])
+        held = np.array([reports[j].tilt for j in links.values()])
+        deltas = yaws_of(held @ relative @ tilts.transpose(0, 2, 1)).tolist()
+        for (i, j), delta in zip(links.items(), deltas, strict=True):
+            neighbours[j].append((i, delta))
+            neighbours[i].append((j, -delta))
     sinks = sorted(m for m in reports if m not in links)
     heading, _roots = spread_headings(neighbours, [*sinks, *sorted(reports)])
     return heading

@@ -10,7 +10,7 @@ import numpy as np
 
 from msrr.core.alignment import rot_z, rot_zs
 from msrr.core.configuration import Configuration
-from msrr.core.freeform.mujoco import SensorNoise
+from msrr.core.freeform.mujoco import SensorNoise, yaw_of, yaws_of
 from msrr.core.freeform.recognition import link_headings, links_of, module_headings
 from msrr.core.plan import link_layout
 
@@ -60,3 +60,4 @@ def test_batched_rotations_are_each_modules_own_to_the_bit():
     one, many = SensorNoise(0.03, 12), SensorNoise(0.03, 12)
     assert np.array_equal(many.rotations(readings), np.array([one.rotation(r) for r in readings]))
     assert np.array_equal(SensorNoise(0.0, 12).rotations(readings), readings)
+    assert yaws_of(readings).tolist() == [yaw_of(r) for r in readings]
