@@ -58,7 +58,8 @@ def link_vectors(reports: Mapping[str, object], links: Mapping[str, str],
     sources = list(links)
     axes = np.array([reports[i].tilt[:, 2] for i in sources])  # type: ignore[attr-defined]
     z = (rot_zs(np.array([heading[i] for i in sources])) @ axes[:, :, None])[..., 0]
-    return {i: row / np.sqrt(row.dot(row)) for i, row in zip(sources, z, strict=True)}
+    z /= np.sqrt([row.dot(row) for row in z])[:, None]     # each norm as ``norm(row)``
+    return dict(zip(sources, z, strict=True))
 
 
 def _turned(yaw: float | np.ndarray, vectors: np.ndarray) -> np.ndarray:
