@@ -17,8 +17,8 @@ from typing import overload
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-__all__ = ["YawAlignment", "align_yaw", "angles_between", "best_turn", "median_yaw", "rot_z", "rot_zs",
-           "wrap_angle"]
+__all__ = ["YawAlignment", "align_yaw", "angles_between", "best_turn", "median_yaw", "rot_z",
+           "rot_zs", "wrap_angle"]
 
 
 def rot_z(theta: float) -> np.ndarray:
