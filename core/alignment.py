@@ -18,13 +18,23 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 __all__ = ["YawAlignment", "align_yaw", "angles_between", "best_turn", "median_yaw", "rot_z",
-           "wrap_angle"]
+           "rot_zs", "wrap_angle"]
 
 
 def rot_z(theta: float) -> np.ndarray:
     """Rotation matrix about z by ``theta`` [rad], shape (3, 3)."""
     c, s = np.cos(theta), np.sin(theta)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rot_zs(theta: np.ndarray) -> np.ndarray:
+    """Rotation matrices about z by each of ``theta`` (n,) [rad], shape (n, 3, 3): each
+    :func:`rot_z`'s, to the bit."""
+    c, s = np.cos(theta), np.sin(theta)
+    out = np.zeros((len(c), 3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 1, 0], out[:, 1, 1] = c, -s, s, c
+    out[:, 2, 2] = 1.0
+    return out
 
 
 @overload

@@ -131,7 +131,15 @@ from .events import (
     TopologyEvent,
 )
 from .kinematics import GroundModel, KinematicTree
-from .plan import Action, ActionType, BehaviorCall, ConnectionChange, behavior_runs
+from .plan import (
+    Action,
+    ActionType,
+    BehaviorCall,
+    ConnectionChange,
+    LinkLayout,
+    behavior_runs,
+    link_layout,
+)
 from .robot import Robot
 from .shape import skeletal_errors
 
@@ -707,6 +715,7 @@ class Executor:
         self.retries = 0
         self.flows = 0
         self._current: Configuration | None = None
+        self._layout: tuple[Configuration, LinkLayout] | None = None   # of a recognized one
         self._expected: set = set()
         self._tracker: PhaseTracker | None = None
         self._docking: DockCycle | None = None  # a tracked connect phase's press/back cycle
@@ -1254,6 +1263,13 @@ class Executor:
 
     def _detect_changes(self, index: int, configuration: Configuration) -> None:
         assert self._current is not None
+        layout = link_layout(configuration)
+        same = self._layout is not None and self._layout[0] is self._current \
+            and self._layout[1] == layout
+        self._layout = (configuration, layout)
+        if same:             # the same links as the last tick's: nothing made or broken
+            self._current = configuration
+            return
         change = topology_diff(self._current, configuration)
         self._current = configuration
         unexpected: list[TopologyEvent] = []

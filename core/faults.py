@@ -425,14 +425,14 @@ def _finite(value: Any, depth: int = 0) -> bool:
         return True
     if isinstance(value, float):
         return math.isfinite(value)
+    if isinstance(value, np.ndarray):    # before the Mapping check (an ABC's is slow)
+        if value.dtype.kind == "f" and value.size <= 16:  # a pose: plain floats are faster
+            return all(map(math.isfinite, value.ravel().tolist()))
+        return value.dtype.kind not in "fc" or bool(np.isfinite(value).all())
     if isinstance(value, list | tuple):
         return all(_finite(v, depth + 1) for v in value)
     if isinstance(value, dict | Mapping):
         return all(_finite(v, depth + 1) for v in value.values())
-    if isinstance(value, np.ndarray):
-        if value.dtype.kind == "f" and value.size <= 16:  # a pose: plain floats are faster
-            return all(map(math.isfinite, value.ravel().tolist()))
-        return value.dtype.kind not in "fc" or bool(np.isfinite(value).all())
     names = _field_names(type(value))
     return all(_finite(getattr(value, name), depth + 1) for name in names)
 

@@ -163,6 +163,22 @@ def links(config: Configuration, edges: Iterable[Edge] | None = None
     return found
 
 
+LinkLayout = tuple[frozenset[str], tuple[tuple[str, str, str, str | None, tuple[str, str] | None],
+                                         ...]]
+"""What a configuration's links depend on (:func:`link_layout`)."""
+
+
+def link_layout(config: Configuration) -> LinkLayout:
+    """What :func:`links` of ``config`` depends on: its virtual vertices and every edge's
+    ends, id, kind and ports. Two configurations of one layout have the same links, so
+    nothing to make or break between them: a test much cheaper than :func:`links` for a
+    configuration recognized again every tick."""
+    graph = config.graph
+    virtual = frozenset(v for v, kind in graph.nodes(data="kind") if kind == VIRTUAL)
+    return virtual, tuple((u, v, key, data["kind"], data["ports"])
+                          for u, v, key, data in graph.edges(keys=True, data=True))
+
+
 @dataclass(frozen=True)
 class CommandGain:
     """One module command of a mapping behavior: ``value = sum(gains[p] * params[p])``.

@@ -135,6 +135,14 @@ class SensorNoise:
             return rotation
         return Rotation.from_rotvec(self.rng.normal(0.0, self.std, 3)).as_matrix() @ rotation
 
+    def rotations(self, rotations: np.ndarray) -> np.ndarray:
+        """Each of ``rotations`` (n, 3, 3) turned as :meth:`rotation` would, one after
+        another (the same draws, to the bit)."""
+        if not self.std:
+            return rotations
+        draws = self.rng.normal(0.0, self.std, (len(rotations), 3))
+        return Rotation.from_rotvec(draws).as_matrix() @ rotations
+
     def vector(self, vector: np.ndarray) -> np.ndarray:
         """``vector`` (3,) turned by a random small rotation."""
         return self.rotation(np.eye(3)) @ vector
@@ -152,8 +160,34 @@ def yaw_of(rotation: np.ndarray) -> float:
     return float(np.arctan2(rotation[1, 0] - rotation[0, 1], rotation[0, 0] + rotation[1, 1]))
 
 
+def yaws_of(rotations: np.ndarray) -> np.ndarray:
+    """:func:`yaw_of` of each of ``rotations`` (n, 3, 3), shape (n,): the same bits."""
+    r = rotations
+    return np.arctan2(r[:, 1, 0] - r[:, 0, 1], r[:, 0, 0] + r[:, 1, 1])
+
+
+_TERMS = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+"""Hamilton product: term ``i`` of component ``c`` is ``a_i b_TERMS[i, c]``, signed by
+``_SIGNS[i, c]``."""
+_SIGNS = np.array([[1.0, 1.0, 1.0, 1.0], [-1.0, 1.0, -1.0, 1.0], [-1.0, 1.0, 1.0, -1.0],
+                   [-1.0, -1.0, 1.0, 1.0]])
+_FEW = 48
+"""Up to this many products (of one shape), the terms are gathered in one array: fewer
+numpy calls."""
+
+
 def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products of quaternions ``(w, x, y, z)``, shape (n, 4)."""
+    """Hamilton products of quaternions ``(w, x, y, z)``, shape (n, 4). Each component
+    sums its four terms in one order, ``((t0 + t1) + t2) + t3``, whichever way it runs
+    (a sign flip and ``x - y = x + (-y)`` are exact): the same bits."""
+    if a.shape == b.shape and a.ndim == 2 and len(a) <= _FEW:
+        t = np.take(b, _TERMS, axis=1)
+        t *= a[:, :, None]
+        t *= _SIGNS
+        out = t[:, 0] + t[:, 1]
+        out += t[:, 2]
+        out += t[:, 3]
+        return out
     aw, ax, ay, az = a.T
     bw, bx, by, bz = b.T
     return np.column_stack([aw * bw - ax * bx - ay * by - az * bz,

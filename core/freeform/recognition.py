@@ -43,14 +43,14 @@ from ..events import Phase
 from ..kinematics.rotations import canonical_perpendicular
 from ..plan import Action, ActionType
 from ..shape import skeletal_errors
-from .mujoco import yaw_of
+from .mujoco import yaws_of
 from .piece_way import PieceWay, normalized, plan_piece_way
-from .travel import Locator, floor_path, pursue, twist_velocities
+from .travel import Locator, floor_path, link_vectors, pursue, twist_velocities
 from .world import ModuleReport
 
 __all__ = ["BendMeasure", "ContactController", "ContactRecognizer", "Latches", "anchors",
-           "bend_error", "bend_errors", "common_turn", "flow_direction", "goal_side", "links_of",
-           "module_headings", "piece_turn", "spread_headings"]
+           "bend_error", "bend_errors", "common_turn", "flow_direction", "goal_side",
+           "link_headings", "links_of", "module_headings", "piece_turn", "spread_headings"]
 
 Reports = Mapping[str, ModuleReport]
 FLOW_ANGLE = np.pi / 3
@@ -78,15 +78,50 @@ def module_headings(reports: Reports, links: Mapping[str, str] | None = None
     """Heading [rad] of every module's horizontal frame in its group's root frame."""
     links = links_of(reports) if links is None else links
     neighbours: dict[str, list[tuple[str, float]]] = {m: [] for m in reports}
-    for i, j in links.items():
-        ri, rj = reports[i], reports[j]
-        assert ri.relative is not None
-        delta = yaw_of(rj.tilt @ ri.relative @ ri.tilt.T)     # psi_i - psi_j
-        neighbours[j].append((i, delta))
-        neighbours[i].append((j, -delta))
+    if links:          # psi_i - psi_j of every link i -> j, all at once
+        tilts = np.array([reports[i].tilt for i in links])
+        relative = np.array([reports[i].relative for i in links])
+        held = np.array([reports[j].tilt for j in links.values()])
+        deltas = yaws_of(held @ relative @ tilts.transpose(0, 2, 1)).tolist()
+        for (i, j), delta in zip(links.items(), deltas, strict=True):
+            neighbours[j].append((i, delta))
+            neighbours[i].append((j, -delta))
     sinks = sorted(m for m in reports if m not in links)
     heading, _roots = spread_headings(neighbours, [*sinks, *sorted(reports)])
     return heading
+
+
+class _HeadingsMemo:
+    """:func:`link_headings`' one entry: the reports it was found for (their keys and
+    report objects, by identity) and the links and headings."""
+
+    def __init__(self) -> None:
+        self.reports: list[tuple[str, ModuleReport]] = []
+        self.found: tuple[dict[str, str], dict[str, float]] = ({}, {})
+
+    def get(self, reports: Reports) -> tuple[dict[str, str], dict[str, float]] | None:
+        items = self.reports
+        if len(items) != len(reports) or any(
+                report is not r for (_, report), r in zip(items, reports.values(), strict=True)) \
+                or any(m != k for (m, _), k in zip(items, reports, strict=True)):
+            return None
+        return self.found
+
+
+_HEADINGS = _HeadingsMemo()
+
+
+def link_headings(reports: Reports) -> tuple[dict[str, str], dict[str, float]]:
+    """:func:`links_of` and :func:`module_headings` of ``reports``, found once per tick:
+    the executor's recognizer and the controller read the same reports (the same report
+    objects), and 568 modules' headings cost a walk over every link each time. The
+    mappings returned are shared: read them, never change them."""
+    found = _HEADINGS.get(reports)
+    if found is None:
+        links = links_of(reports)
+        found = (links, module_headings(reports, links))
+        _HEADINGS.reports, _HEADINGS.found = list(reports.items()), found
+    return found
 
 
 def spread_headings(neighbours: Mapping[str, Sequence[tuple[str, float]]],
@@ -137,14 +172,13 @@ class ContactRecognizer:
             if not isinstance(report, ModuleReport):
                 raise ConfigurationError(f"module {module!r}: not a freeform module report "
                                          f"({type(report).__name__})")
-        links = links_of(observation)
-        heading = module_headings(observation, links)
+        links, heading = link_headings(observation)
         config = Configuration(self.robot)
         for module in sorted(observation):
             config.add_module(module, self.kind)
+        vectors = link_vectors(observation, links, heading)
         for i in sorted(links):
-            z = rot_z(heading[i]) @ observation[i].tilt[:, 2]
-            config.connect(i, links[i], z=z / np.linalg.norm(z))
+            config.connect(i, links[i], z=vectors[i])
         return config
 
 
@@ -587,8 +621,7 @@ class ContactController:
         current = current or self.recognizer.recognize(reports)
         yaw = (yaw or 0.0)
         yaw += common_turn(current, target.derive(rotation=rot_z(yaw)))
-        links = links_of(reports)
-        heading = module_headings(reports, links)
+        links, heading = link_headings(reports)
         turn = rot_z(yaw)
         turned = target.derive(rotation=turn)
         out: dict[str, ModuleCommand] = {}
@@ -685,8 +718,7 @@ class ContactController:
 
     def _locate(self, reports: Reports) -> None:
         """Give the locator this tick's reports."""
-        links = links_of(reports)
-        self.locator.update(reports, links, module_headings(reports, links))
+        self.locator.update(reports, *link_headings(reports))
 
     def _plan_ways(self, current: Configuration, action: Action, reports: Reports
                    ) -> tuple[dict[str, tuple[str, np.ndarray, np.ndarray]],
@@ -947,7 +979,7 @@ class ContactController:
                                          flow.new_parent))
             u = -np.asarray(current.edge(_edge_id(current, flow.leaf, flow.parent)).z)
             angle = float(np.arccos(np.clip(u @ w, -1.0, 1.0)))
-            heading = module_headings(reports)
+            heading = link_headings(reports)[1]
             command = ModuleCommand(joints=_direction(rot_z(-heading[flow.parent]) @ -w))
             return Control(commands={flow.leaf: command}, errors={flow.leaf: angle},
                            reached=angle < self.flow_tolerance)

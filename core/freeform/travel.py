@@ -32,13 +32,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..alignment import best_turn, rot_z
+from ..alignment import best_turn, rot_z, rot_zs
 from ..errors import ExecutionError
 from .layout import lay_out_pieces
 from .mujoco import yaw_of
 
-__all__ = ["Locator", "best_turn", "floor_path", "piece_goal", "pursue", "straight_line",
-           "twist_velocities"]
+__all__ = ["Locator", "best_turn", "floor_path", "link_vectors", "piece_goal", "pursue",
+           "straight_line", "twist_velocities"]
 
 _CELL = 0.01          # grid of the floor path [m]
 _CLEARANCE = 0.008    # kept between shells on the way [m]
@@ -46,6 +46,27 @@ _BACK_OFF = 0.015     # a module touching others first moves this far away from 
 _GRAZE = 0.003        # kept from a module the start touches, beyond where the start is [m]
 _SPOTS = 72           # directions tried for the docking spot
 _LEVEL = 0.5          # a module is on the floor level within this many spacings in z
+
+
+def link_vectors(reports: Mapping[str, object], links: Mapping[str, str],
+                 heading: Mapping[str, float]) -> dict[str, np.ndarray]:
+    """The unit vector (3,) of each link ``i -> links[i]`` in its group's root frame: the
+    connector's axis (column 2 of ``i``'s reported tilt) turned by ``i``'s heading. All
+    at once, each to the bit as ``rot_z(heading[i]) @ tilt[:, 2]`` normalised alone."""
+    if not links:
+        return {}
+    sources = list(links)
+    axes = np.array([reports[i].tilt[:, 2] for i in sources])  # type: ignore[attr-defined]
+    z = (rot_zs(np.array([heading[i] for i in sources])) @ axes[:, :, None])[..., 0]
+    z /= np.sqrt([row.dot(row) for row in z])[:, None]     # each norm as ``norm(row)``
+    return dict(zip(sources, z, strict=True))
+
+
+def _turned(yaw: float | np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """``vectors`` (n, 3) each turned about ``z`` by ``yaw`` [rad] (one, or (n,)): each
+    to the bit as ``rot_z(yaw) @ vector``."""
+    turns = rot_zs(np.broadcast_to(yaw, len(vectors)))
+    return (turns @ vectors[:, :, None])[..., 0]
 
 
 def centres_of(reports: Mapping[str, object], links: Mapping[str, str],
@@ -58,10 +79,9 @@ def centres_of(reports: Mapping[str, object], links: Mapping[str, str],
     :func:`~msrr.core.freeform.recognition.module_headings`)."""
     heading = dict(heading)
     neighbours: dict[str, list[tuple[str, np.ndarray]]] = {m: [] for m in reports}
+    vectors = link_vectors(reports, links, heading)
     for i, j in links.items():
-        tilt = reports[i].tilt  # type: ignore[attr-defined]
-        z = rot_z(heading[i]) @ tilt[:, 2]
-        z = z / np.linalg.norm(z)
+        z = vectors[i]
         neighbours[i].append((j, z))
         neighbours[j].append((i, -z))
     pieces = lay_out_pieces(neighbours, sorted(reports, key=lambda m: (m in links, m)), spacing)
@@ -153,17 +173,18 @@ class Locator:
             home = [m for m in known if self.island[m] == island]
             yaws = [self.frame[m] + odometry[m][2] - heading[m] for m in home]
             psi = float(np.arctan2(np.mean(np.sin(yaws)), np.mean(np.cos(yaws))))
-            turn = rot_z(psi)
-            t = np.mean([self.position[m] + rot_z(self.frame[m]) @ np.append(
-                odometry[m][:2] - self._odometry[m][:2], 0.0) - turn @ centres[m]
-                for m in home], axis=0)
+            moved = np.zeros((len(home), 3))       # each odometry's travel, its frame
+            moved[:, :2] = np.array([odometry[m][:2] - self._odometry[m][:2] for m in home])
+            t = np.mean(np.array([self.position[m] for m in home])
+                        + _turned(np.array([self.frame[m] for m in home]), moved)
+                        - _turned(psi, np.array([centres[m] for m in home])), axis=0)
             for other in sorted({self.island[m] for m in known} - {island}):
                 m = next(m for m in known if self.island[m] == other)
-                self._join(other, island, m, t + turn @ centres[m],
+                self._join(other, island, m, t + rot_z(psi) @ centres[m],
                            psi + heading[m] - float(odometry[m][2]))
-        turn = rot_z(psi)
-        for m in group:
-            self.position[m] = t + turn @ centres[m]
+        positions = t + _turned(psi, np.array([centres[m] for m in group]))
+        for m, position in zip(group, positions, strict=True):
+            self.position[m] = position
             self.frame[m] = psi + heading[m] - float(odometry[m][2])
             self.island[m] = island
 

@@ -64,7 +64,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..alignment import rot_z, wrap_angle
+from ..alignment import rot_z, rot_zs, wrap_angle
 from ..configuration import Configuration
 from ..driver import DriverOption
 from ..errors import ExecutionError
@@ -241,8 +241,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self._dofs = np.array([j.dofadr[0] for j in drives])[:, None] + np.arange(3)
         n = len(self.modules)
         self.docked: list[str | None] = [None] * n
-        self._joined: tuple[tuple[str | None, ...], list[frozenset[str]],
-                            dict[str, frozenset[str]]] | None = None   # :meth:`groups`' memo
+        self._joined: _Joined | None = None   # :meth:`groups`' memo
         self._parent = np.full(n, -1)   # index of ``docked`` (-1: free), kept with it
         self.armed: list[str | None] = [None] * n    # dock target ("" = any touching module)
         self.release: list[bool] = [False] * n        # undock waiting for a flow's switch
@@ -658,7 +657,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         if not len(ks):
             return
         if self.design.bearing:
-            v = self.design.radius * np.cross(d.cvel[self._shell[ks], :3], _EZ)
+            v = self.design.radius * _cross(d.cvel[self._shell[ks], :3], _EZ)
         else:
             v = d.qvel[self._free_adr[ks][:, None] + np.arange(3)]
         self._odometry[ks] += duration * v[:, :2]
@@ -671,7 +670,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         d = self.data
         rows = np.flatnonzero(d.efc_type[:d.nefc] == _EQUALITY)
         ids = d.efc_id[rows]
-        first = rows[np.r_[True, ids[1:] != ids[:-1]]] if len(rows) else rows
+        first = rows[np.concatenate(([True], ids[1:] != ids[:-1]))] if len(rows) else rows
         force = np.zeros((self.model.neq, 3))
         force[d.efc_id[first]] = d.efc_force[first[:, None] + np.arange(3)]
         load = np.zeros(len(self.modules))
@@ -681,7 +680,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         if len(ks):
             on_foot = force[self._weld_id[ks]]
             strength[ks] = factor * self.design.strength
-            held = np.array(self.sucker, dtype=bool)[ks]
+            held = np.array(self.sucker, dtype=bool)[ks] if self.design.sucker else ks < 0
             if np.any(held):
                 on_foot[held] += force[[self._suckers.id(self.modules[k]) for k in ks[held]]]
                 strength[ks[held]] += factor * self.design.sucker_strength
@@ -709,9 +708,12 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
     def _servo(self) -> None:
         """Drive motors: position loop on the drive joints of docked modules, bounded
-        rate and torque (a DC motor's damping is the joint's own)."""
+        rate and torque (a DC motor's damping is the joint's own). The motors of idle
+        modules (asleep, nothing new to do: :meth:`_activity`) apply nothing whatever they
+        would hold, so their torques are not found (the human run's rows at rest)."""
+        busy, idle = self._activity()
         tau = np.zeros((len(self.modules), 3))
-        ks = np.flatnonzero(self._parent >= 0)
+        ks = np.flatnonzero((self._parent >= 0) & ~idle)
         if len(ks):
             q = self.data.qpos[self._qadr[ks][:, None] + np.arange(4)]
             error = quat_log(quat_mul(quat_conj(q), self._target[ks]))
@@ -722,10 +724,11 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             size = np.linalg.norm(torque, axis=1, keepdims=True)
             tau[ks] = torque * np.minimum(1.0, self.design.max_torque / np.maximum(size, 1e-12))
         if self._bearing is not None:
-            bearing = self._roll_torques() + self._brakes()
+            bearing = self._roll_torques() + self._brakes(idle)
             if np.any(self._travel):
                 self._travel_torques(tau, bearing)
-        quiet = self._quiet(tau, bearing if self._bearing is not None else None)
+        quiet = idle | (~busy & self._at_rest(
+            tau, bearing if self._bearing is not None else None))
         if self._bearing is not None:
             bearing[quiet] = 0.0
             self.data.qfrc_applied[self._bearing] = bearing
@@ -735,28 +738,37 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         self.data.qfrc_applied[self._dofs] = tau
         self._wake[:] = False
 
-    def _quiet(self, drive: np.ndarray, bearing: np.ndarray | None) -> np.ndarray:
-        """The modules (n,) whose motors apply nothing this servo period (MuJoCo's island
-        sleeping, :class:`FreeformOptions` ``sleep_tolerance``): those given nothing new
-        to do (no new goal, roll, travel or dock since the last period) that are asleep,
-        or at rest -- every DOF of the module slower than the tolerance (scaled by its
-        length) and its motors' torques (``drive``, ``bearing`` (n, 3) [N m]) under
-        ``_REST_TORQUE``. MuJoCo puts a tree to sleep only when no force is applied to
-        it, and a sleeping island does not move, so the holding torques would change
-        nothing; a new goal, a dock, a roll, a contact with a moving module or a weld to
-        one wakes it."""
+    def _activity(self) -> tuple[np.ndarray, np.ndarray]:
+        """Which modules (n,) are busy -- given something new to do since the last servo
+        period: a goal, a roll, a travel or a dock -- and which are idle: not busy and
+        asleep (MuJoCo's island sleeping, :class:`FreeformOptions` ``sleep_tolerance``).
+        Every module is busy when nothing sleeps."""
         n = len(self.modules)
         if self.options.sleep_tolerance <= 0:
-            return np.zeros(n, dtype=bool)
+            return np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
+        busy = self._wake | self._travel | self._rolling | np.any(self._roll, axis=1)
+        if self._docking():
+            busy |= np.array([a is not None for a in self.armed])
+        return busy, ~busy & (self.data.tree_asleep[self._tree] >= 0)
+
+    def _at_rest(self, drive: np.ndarray, bearing: np.ndarray | None) -> np.ndarray:
+        """The modules (n,) at rest: every DOF of the module slower than the sleep
+        tolerance (scaled by its length) and its motors' torques (``drive``, ``bearing``
+        (n, 3) [N m]) under ``_REST_TORQUE``.
+
+        The quiet modules, whose motors apply nothing this servo period, are the idle
+        ones (:meth:`_activity`) and those not busy at rest. MuJoCo puts a tree to sleep
+        only when no force is applied to it, and a sleeping island does not move, so the
+        holding torques would change nothing; a new goal, a dock, a roll, a contact with a
+        moving module or a weld to one wakes it."""
+        if self.options.sleep_tolerance <= 0:
+            return np.zeros(len(self.modules), dtype=bool)
         m, d = self.model, self.data
-        busy = self._wake | self._travel | self._rolling | np.any(self._roll, axis=1) \
-            | np.array([a is not None for a in self.armed])
         speed = np.maximum.reduceat(np.abs(d.qvel * m.dof_length), m.tree_dofadr)[self._tree]
         torque = np.linalg.norm(drive, axis=1)
         if bearing is not None:
             torque = np.maximum(torque, np.linalg.norm(bearing, axis=1))
-        rest = (speed < self.options.sleep_tolerance) & (torque < _REST_TORQUE)
-        return ~busy & ((d.tree_asleep[self._tree] >= 0) | rest)
+        return (speed < self.options.sleep_tolerance) & (torque < _REST_TORQUE)
 
     def _travel_torques(self, drive: np.ndarray, bearing: np.ndarray) -> None:
         """Drive and bearing torques (n, 3) of the modules travelling in a piece (written
@@ -791,13 +803,13 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         q = d.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
         bearing[ks] = self._motor(q, goal, feed)
         for k in ks[self._keel[ks]]:    # one unit hangs for the whole piece's weight
-            size = len(self._group_of(self.modules[k]))
+            size = len(self._piece(k))
             bearing[k] = self._hang(k, self._travel_v[k], gain=size * _ROLL_SPEED_GAIN)
-        rows = np.array([r for r, k in enumerate(ks) if self.docked[k] is not None], dtype=int)
+        rows = np.flatnonzero(self._parent[ks] >= 0)
         if not len(rows):
             return
         docked = ks[rows]
-        parents = np.array([self._index[self.docked[k]] for k in docked])  # type: ignore[index]
+        parents = self._parent[docked]
         shell = d.xquat[self._shell[parents]]
         held = quat_mul(quat_conj(shell), d.xquat[self._foot[docked]])            # W
         moving = self._travel[parents]
@@ -818,13 +830,13 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         line, drove 2 deg off the piece's line, and the piece turned 2 deg in 13 s into the
         row it drove out beside, which it pushed 9 cm aside. ``_travel_v[k]`` when the piece
         has no other travelling module."""
-        arms = [j for j in (self._index[m] for m in self._group_of(self.modules[k]))
-                if self._travel[j] and not self._keel[j]]
-        if not arms:
+        piece = self._piece(k)
+        arms = piece[self._travel[piece] & ~self._keel[piece]]
+        if not len(arms):
             return self._travel_v[k]
-        j = min(arms)
+        j = int(arms.min())
         arm = self.data.xpos[self._shell[k]] - self.data.xpos[self._shell[j]]
-        return self._travel_v[j] + self._travel_w[j] * np.cross(_EZ, arm)
+        return self._travel_v[j] + self._travel_w[j] * _cross(_EZ, arm)
 
     def _anchor_goals(self, ks: np.ndarray) -> None:
         """Turn the travel goals of each travelling piece (modules ``ks``) by the rotation
@@ -847,8 +859,8 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         for k in ks:
             if done[k]:
                 continue
-            piece = [self._index[m] for m in self._group_of(self.modules[k])]
-            g = np.array([j for j in piece if self._travel[j]], dtype=int)
+            piece = self._piece(k)
+            g = piece[self._travel[piece]]
             done[g] = True
             arms = g[~self._keel[g]]    # a keel's unit hangs, it does not turn with the piece
             if not len(arms):
@@ -860,11 +872,12 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._conn_goal[g] = quat_mul(np.tile(mean, (len(g), 1)), self._conn_goal[g])
             self._shell_goal[g] = quat_mul(np.tile(mean, (len(g), 1)), self._shell_goal[g])
 
-    def _group_of(self, module: str) -> frozenset[str]:
-        """The modules joined to ``module`` through docks (itself included)."""
+    def _piece(self, k: int) -> np.ndarray:
+        """Indices of the modules joined to module ``k`` through docks (itself included),
+        in the order of its group's ``frozenset``."""
         self.groups()
         assert self._joined is not None
-        return self._joined[2][module]
+        return self._joined.pieces[k]
 
     def _motor(self, q: np.ndarray, goal: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Torques (n, 3) of ball-joint motors at ``q`` (n, 4) toward the rotations
@@ -900,12 +913,13 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
             self._wrench[k] = np.concatenate([force, torque])
             d.xfrc_applied[body] = self._wrench[k]
 
-    def _brakes(self) -> np.ndarray:
+    def _brakes(self, idle: np.ndarray) -> np.ndarray:
         """Bearing torques (n, 3), connector frames, holding braked shells where they were
         braked: a geared motor holds its position (a damping alone would let the shell
-        creep under the reactions of the modules docked on it)."""
+        creep under the reactions of the modules docked on it); none for the ``idle``
+        modules (n,), whose motors apply nothing."""
         out = np.zeros((len(self.modules), 3))
-        ks = np.flatnonzero(self._braked)
+        ks = np.flatnonzero(self._braked & ~idle)
         if len(ks):
             q = self.data.qpos[self._bearing_q[ks][:, None] + np.arange(4)]
             error = quat_log(quat_mul(quat_conj(q), self._brake_at[ks]))
@@ -943,7 +957,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         tilt = float(np.linalg.norm(lead))
         want = -_EZ * np.cos(tilt) + (lead / tilt * np.sin(tilt) if tilt > 1e-12 else 0.0)
         r_conn = d.xmat[self._conn[k]].reshape(3, 3)
-        error = np.cross(r_conn[:, 2], want)
+        error = _cross(r_conn[:, 2], want)
         omega = d.cvel[self._conn[k], :3]       # world angular velocity of the unit
         torque = _ROLL_KP * error - _ROLL_KD * omega
         size = np.linalg.norm(torque)
@@ -963,25 +977,32 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         return heading(quat)
 
     def reports(self) -> dict[str, ModuleReport]:
-        """Every module's report, with the run's noise; events since the previous call."""
+        """Every module's report, with the run's noise; events since the previous call.
+        The noise is drawn module by module, its relative rotation before its tilt, as
+        one module after another would read out."""
         d = self.data
+        n = len(self.modules)
         rot = d.xmat[self._conn].reshape(-1, 3, 3)
-        yaw = self._headings()
-        new = self.new_events()
-        out = {}
-        for k, module in enumerate(self.modules):
-            parent = self.docked[k]
-            relative = None
-            if parent is not None:
-                relative = self.noise.rotation(rot[self._index[parent]].T @ rot[k])
-            turned = self._turned[k] + (self._gyro.normal(0.0, self.noise.std)
-                                        if self.noise.std else 0.0)
-            odometry = np.append(rot_z(-self._heading0[k])[:2, :2] @ self._odometry[k],
-                                 wrap_angle(turned))
-            out[module] = ModuleReport(parent, self.noise.rotation(rot_z(-yaw[k]) @ rot[k]),
-                                       relative, self.sucker[k],
-                                       tuple(e for e in new if e.module == module), odometry)
-        return out
+        docked = self._parent >= 0
+        before = np.cumsum(docked) - docked            # docked modules before each one
+        at = np.arange(n) + before                      # where each one's readings start
+        readings = np.empty((n + int(docked.sum()), 3, 3))
+        readings[at[docked]] = rot[self._parent[docked]].transpose(0, 2, 1) @ rot[docked]
+        tilt_at = at + docked
+        readings[tilt_at] = rot_zs(-self._headings()) @ rot
+        readings = self.noise.rotations(readings)
+        turned = self._turned + (self._gyro.normal(0.0, self.noise.std, n)
+                                 if self.noise.std else 0.0)
+        odometry = np.empty((n, 3))
+        odometry[:, :2] = (rot_zs(-self._heading0)[:, :2, :2] @ self._odometry[:, :, None])[..., 0]
+        odometry[:, 2] = wrap_angle(turned)
+        events: dict[str, list[ConstraintEvent]] = {}
+        for e in self.new_events():
+            events.setdefault(e.module, []).append(e)
+        return {module: ModuleReport(self.docked[k], readings[tilt_at[k]],
+                                     readings[at[k]] if docked[k] else None, self.sucker[k],
+                                     tuple(events.get(module, ())), odometry[k])
+                for k, module in enumerate(self.modules)}
 
     def centre(self, module: str) -> np.ndarray:
         """World position (3,) of ``module``'s centre [m] (ground truth, for tests)."""
@@ -1010,12 +1031,27 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
         again only when a dock changed since the last call (the servo loop asks for a
         travelling piece's group every period, and 568 modules cost a graph each time)."""
         docked = tuple(self.docked)
-        if self._joined is None or self._joined[0] != docked:
+        if self._joined is None or self._joined.docked != docked:
             groups = connected_groups(self.modules, ((self.modules[k], target)
                                                      for k, target in enumerate(docked)
                                                      if target is not None))
-            self._joined = (docked, groups, {m: g for g in groups for m in g})
-        return list(self._joined[1])
+            pieces: list[np.ndarray] = [np.empty(0, dtype=int)] * len(self.modules)
+            for g in groups:
+                piece = np.array([self._index[m] for m in g], dtype=int)
+                for k in piece:
+                    pieces[k] = piece
+            self._joined = _Joined(docked, groups, pieces)
+        return list(self._joined.groups)
+
+
+@dataclass(frozen=True)
+class _Joined:
+    """:meth:`FreeformWorld.groups`' memo: the docks it was found for, the groups, and
+    each module's group as module indices (one array per group, in its iteration order)."""
+
+    docked: tuple[str | None, ...]
+    groups: list[frozenset[str]]
+    pieces: list[np.ndarray]
 
 
 def _quat_exp(rotvec: np.ndarray) -> np.ndarray:
@@ -1034,10 +1070,11 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross products of (n, 3) arrays (``np.cross`` without its axis handling)."""
-    return np.column_stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-                            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
+    """Cross products over the last axis of (..., 3) arrays, broadcast: ``np.cross``'s,
+    to the bit, without its axis handling (a third of a small robot's servo)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def _upright(rotation: np.ndarray) -> np.ndarray:
