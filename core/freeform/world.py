@@ -874,7 +874,9 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 
     def _piece(self, k: int) -> np.ndarray:
         """Indices of the modules joined to module ``k`` through docks (itself included),
-        in the order of its group's ``frozenset``."""
+        ascending: a piece's sums over its modules (the travel goals' mean turn) come out
+        the same under any ``PYTHONHASHSEED`` (in its ``frozenset``'s order, chains-to-tree
+        ended in other bits under seeds 0 and 1)."""
         self.groups()
         assert self._joined is not None
         return self._joined.pieces[k]
@@ -1037,7 +1039,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
                                                      if target is not None))
             pieces: list[np.ndarray] = [np.empty(0, dtype=int)] * len(self.modules)
             for g in groups:
-                piece = np.array([self._index[m] for m in g], dtype=int)
+                piece = np.array(sorted(self._index[m] for m in g), dtype=int)
                 for k in piece:
                     pieces[k] = piece
             self._joined = _Joined(docked, groups, pieces)
@@ -1047,7 +1049,7 @@ class FreeformWorld(MujocoWorld[str, ConstraintEvent]):
 @dataclass(frozen=True)
 class _Joined:
     """:meth:`FreeformWorld.groups`' memo: the docks it was found for, the groups, and
-    each module's group as module indices (one array per group, in its iteration order)."""
+    each module's group as module indices (one ascending array per group)."""
 
     docked: tuple[str | None, ...]
     groups: list[frozenset[str]]
