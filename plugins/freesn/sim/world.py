@@ -760,17 +760,16 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         horizontal frame, the frame every command is in, is singular (the twist about the
         vertical, :func:`~msrr.core.freeform.mujoco.heading`): fig18's hub rolled over in
         16-60 s at 4 deg of noise, its frame spun under the commands and a hub connection
-        broke. A non-root node's frame would cancel out of its commands (they turn by its
-        heading relative to the root's) if that heading followed its shell, but the report
-        filter leaves a node tilted past its upright bound (120 deg) to its gyro: fig22(j)'s
-        ``n4``, upside down for 25 s, was commanded 5-8 deg off about the vertical, its
-        connectors saturated and the top sagged (issue 31, stop 57). So the connectors of
-        any node that holds three or more of them and spins on none (not a foot, not a
-        wheel: rolling its shell would move it) aim as if its
+        broke. A non-root node's frame cancels out of its commands (they turn by its
+        measured heading relative to the root's). So the connectors of a root that holds
+        three or more of them and spins on none (not a foot, not a wheel: rolling its
+        shell would move it) aim as if its
         shell were ``_LEVEL_GAIN`` of its tilt past ``_LEVEL_FROM`` nearer upright (at
         most ``_LEVEL_STEP`` a command): the shell turns back, the struts stay where the
         rest of the structure holds them. Past 100 deg only: fig20's and fig21's nodes
-        tilt up to 91 and 76 deg in exact runs, which this leaves to the bit (:meth:`_levelled`)."""
+        tilt up to 91 and 76 deg in exact runs, which this leaves to the bit; levelling
+        every held node moved fig22's exact node wheels (0.560 -> 0.526 m, 0.4 -> 6.1
+        deg)."""
         if i not in self._imu:
             body = self._node_body[i]
             tilt = rot_z(-float(heading(self.data.xquat[body])))
@@ -822,11 +821,9 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _levelled(self, i: int, attitude: np.ndarray) -> np.ndarray:
         """The turn (3, 3) toward upright that node ``i``'s connectors take its estimated
         ``attitude`` (3, 3) through (:meth:`_node_tilt`): the identity unless it is held by
-        ``_LEVEL_HOLDS`` or more connectors, none spinning it, and is tilted past
-        ``_LEVEL_FROM``, whether or not it is its group's root (stop 43 levelled the root
-        alone; issue 31, stop 57: a non-root top node of fig22(j) upside down had its
-        heading left to its gyro and its commands turned. fig22's exact node wheels: 0.575 m
-        at 0.7 deg with the root's rule, 0.586 m at 3.2 deg with this one). Not a chain's node (two connectors: the squirm's root ``n0``, by
+        ``_LEVEL_HOLDS`` or more connectors, none spinning it, is its group's root (most
+        connectors docked, then the first id: :func:`.recognizer.root_order`) and is tilted
+        past ``_LEVEL_FROM``. Not a chain's node (two connectors: the squirm's root ``n0``, by
         id), which lies on the floor and rolls as the chain moves, past 100 deg half the
         time: levelled, the hump strut its connector drives swung sideways in the steps it
         was tilted past the bound, the hump bent 10-24 deg at the raised node under 2 deg
