@@ -836,6 +836,10 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         ks = [k for k, n in enumerate(self.docked) if n == node]
         if len(ks) < _LEVEL_HOLDS or any(self._wheel[k] for k in ks):
             return np.eye(3)
+        group = next(g for g in self.groups() if node in g)
+        degree = {n: self.docked.count(n) for n in self.nodes if n in group}
+        if node != min(degree, key=lambda n: (-degree[n], n)):   # not its group's root
+            return np.eye(3)
         rotvec = Rotation.from_matrix(_minimal(up, _EZ)).as_rotvec()
         step = min(_LEVEL_GAIN * excess, _LEVEL_STEP)
         return Rotation.from_rotvec(rotvec * step / np.linalg.norm(rotvec)).as_matrix()
