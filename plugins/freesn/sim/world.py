@@ -162,6 +162,7 @@ _LEVEL_FROM = np.radians(100.0)  # a held node's shell tilted past this is level
 _LEVEL_GAIN = 0.5               # ... by this fraction of the excess at each command ...
 _LEVEL_STEP = np.radians(5.0)   # ... and at most this much (issue 31, fig18's hub)
 _LEVEL_HOLDS = 3                # ... if it holds this many connectors (a chain node, two, is not)
+_LEVEL_BELOW = -np.sin(np.radians(10.0))  # ... and, not a root, a strut commanded this far down
 _AZIMUTH_FROM = np.sin(np.radians(10.0))  # a leg nearer the vertical has no level axle
 _AXLE_LEVEL = np.sin(np.radians(10.0))  # a free wheel pair's axle built this near level is
 # held level (the ride a pair is built for, :meth:`FreeSNWorld._ride_of`)
@@ -761,9 +762,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
         vertical, :func:`~msrr.core.freeform.mujoco.heading`): fig18's hub rolled over in
         16-60 s at 4 deg of noise, its frame spun under the commands and a hub connection
         broke. A non-root node's frame cancels out of its commands (they turn by its
-        measured heading relative to the root's). So the connectors of a root that holds
-        three or more of them and spins on none (not a foot, not a wheel: rolling its
-        shell would move it) aim as if its
+        measured heading relative to the root's) only while the report filter follows its
+        heading, which it does not past its upright bound (issue 31, stop 57). So the
+        connectors of a root, or of a node its struts hold up, that holds three or more of
+        them and spins on none (not a foot, not a wheel: rolling its shell would move it)
+        aim as if its
         shell were ``_LEVEL_GAIN`` of its tilt past ``_LEVEL_FROM`` nearer upright (at
         most ``_LEVEL_STEP`` a command): the shell turns back, the struts stay where the
         rest of the structure holds them. Past 100 deg only: fig20's and fig21's nodes
@@ -821,9 +824,17 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
     def _levelled(self, i: int, attitude: np.ndarray) -> np.ndarray:
         """The turn (3, 3) toward upright that node ``i``'s connectors take its estimated
         ``attitude`` (3, 3) through (:meth:`_node_tilt`): the identity unless it is held by
-        ``_LEVEL_HOLDS`` or more connectors, none spinning it, is its group's root (most
-        connectors docked, then the first id: :func:`.recognizer.root_order`) and is tilted
-        past ``_LEVEL_FROM``. Not a chain's node (two connectors: the squirm's root ``n0``, by
+        ``_LEVEL_HOLDS`` or more connectors, none spinning it, is tilted past ``_LEVEL_FROM``
+        and is its group's root (most connectors docked, then the first id:
+        :func:`.recognizer.root_order`) or a node its struts hold up (one commanded at least
+        ``_LEVEL_BELOW`` down from it, the last command's aim). The root alone was levelled
+        until issue 31, stop 57: past the report filter's upright bound (120 deg) a node's
+        heading runs on its gyro, so a non-root node's frame no longer cancels out of its
+        commands, and fig22(j)'s top node ``n4``, upside down for 25 s, was commanded 5-8 deg
+        off, its connectors saturated and the top sagged. Not a node standing on the floor
+        under its struts: its shell rolls on the floor when turned (levelling every held node
+        stalled fig22's move after R6's undock, floor nodes ``n2``, ``n3`` turned 5 deg a
+        command). Not a chain's node (two connectors: the squirm's root ``n0``, by
         id), which lies on the floor and rolls as the chain moves, past 100 deg half the
         time: levelled, the hump strut its connector drives swung sideways in the steps it
         was tilted past the bound, the hump bent 10-24 deg at the raised node under 2 deg
@@ -838,7 +849,11 @@ class FreeSNWorld(MujocoWorld[tuple[str, str, str], DockEvent]):
             return np.eye(3)
         group = next(g for g in self.groups() if node in g)
         degree = {n: self.docked.count(n) for n in self.nodes if n in group}
-        if node != min(degree, key=lambda n: (-degree[n], n)):   # not its group's root
+        root = node == min(degree, key=lambda n: (-degree[n], n))
+        # another node only if its struts hold it up (one commanded below the horizontal):
+        # a node standing on the floor rolls on it when its shell turns (issue 31, stop 57)
+        if not root and not any(self._has_target[k] and self._aim[k][2] < _LEVEL_BELOW
+                                for k in ks):
             return np.eye(3)
         rotvec = Rotation.from_matrix(_minimal(up, _EZ)).as_rotvec()
         step = min(_LEVEL_GAIN * excess, _LEVEL_STEP)

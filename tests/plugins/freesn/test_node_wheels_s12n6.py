@@ -7,14 +7,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from freesn_held import held_commands
 from scipy.spatial.transform import Rotation
 
 from msrr.core.io import load_configuration
 from msrr.core.library import load_library
-from msrr.plugins.freesn.robot import STRUT
-from msrr.plugins.freesn.sim import FreeSNMujocoDriver
+from msrr.plugins.freesn.robot import SPEC, STRUT
+from msrr.plugins.freesn.sim import FreeSNMujocoDriver, FreeSNWorld, SimOptions
 from msrr.plugins.freesn.sim.controller import FreeSNController
+from msrr.plugins.freesn.sim.world import _LEVEL_STEP
 
 FREESN = Path(__file__).resolve().parents[3] / "plugins" / "freesn"
 WHEELS = (("B1", "R1"), ("B2", "R3"), ("B3", "R5"))
@@ -114,3 +116,54 @@ def test_fig22j_held_at_4_degrees_of_noise_keeps_its_top_up():
             driver.step(0.1)
             tops.append(world.data.xpos[top, 2].min())
     assert min(tops) > 0.19
+
+
+def test_a_held_top_node_that_is_not_the_root_is_kept_off_upside_down():
+    """fig22(j) held still by the controller (filtered reports, as the executor's), the
+    attitude estimate of its top node ``T3`` 2.9 deg off about x at every command (noise
+    itself negligible): its shell, free under its four connectors, takes the error for
+    good and rolls over, and past the report filter's upright bound (120 deg) its heading
+    is left to its gyro, so every command to it is turned by that drift (issue 31, stop
+    57: fig22 from unseen start 5404, seed 22, ``n4`` at 165-172 deg, its heading 3-8 deg
+    off for 25 s, its connectors saturated and the top sagged). ``T3`` is not the group's
+    root (``T2``: four connectors, the first id), and the levelling was the root's alone:
+    it reached 179 deg in 10 s; levelled as a node its struts hold up, it stays under 105
+    deg."""
+    start = load_configuration(FREESN / "configs" / "library" / "S12N6-5.1.json")
+    controller = FreeSNController()
+    tilts = []
+    with FreeSNMujocoDriver(noise=1e-6, seed=10) as driver:
+        driver.reset(start)
+        world = driver.world
+        node = world._node_index["T3"]
+        body = world._node_body[node]
+        reports = controller._recognizer.report_filter()
+        yaw = None
+        for tick in range(100):
+            observation = reports.update(driver.get_observation())
+            commands, yaw = held_commands(controller, start, observation, {}, tick, yaw)
+            world._attitude[node] = [np.radians(2.9), 0.0, 0.0]
+            driver.send_action(commands)
+            driver.step(0.1)
+            tilts.append(np.degrees(np.arccos(np.clip(world.data.xmat[body][8], -1.0, 1.0))))
+    assert max(tilts) < 115.0
+
+
+def test_a_node_standing_on_the_floor_is_not_levelled_but_one_held_up_is():
+    """Past 100 deg a node that is not its group's root is levelled only if one of its
+    struts is commanded down from it (its struts hold it up): fig22(j)'s floor node ``B1``
+    (three struts, all commanded upward) tilted 150 deg keeps its frame, since its shell
+    rolls on the floor when turned (levelling every held node stalled fig22's move after
+    R6's undock from unseen start 5404, seeds 17 and 18: the floor nodes turned 5 deg a
+    command; issue 31, stop 57); the top node ``T3`` is turned ``_LEVEL_STEP`` toward
+    upright. Both were left alone when the root alone was levelled."""
+    start = load_configuration(FREESN / "configs" / "library" / "S12N6-5.1.json")
+    world = FreeSNWorld(start, SPEC, SimOptions())
+    for strut, end in world.ends:
+        if world.docked[world._end_index[(strut, end)]] is not None:
+            z = start.edge(strut).z * (1.0 if end == "a" else -1.0)
+            world.command_target(strut, end, (np.asarray(z, dtype=float), None, 1.0))
+    tilted = Rotation.from_rotvec([np.radians(150.0), 0.0, 0.0]).as_matrix()
+    assert np.allclose(world._levelled(world._node_index["B1"], tilted), np.eye(3))
+    up = (world._levelled(world._node_index["T3"], tilted) @ tilted)[:, 2]
+    assert np.degrees(np.arccos(up[2])) == pytest.approx(150.0 - np.degrees(_LEVEL_STEP))
