@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from pathlib import Path
+from types import ModuleType
 
 import networkx as nx
 
@@ -11,6 +14,16 @@ from msrr.core.actions import classify
 from msrr.core.plan import ActionType
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_script(path: Path, name: str) -> ModuleType:
+    """The script at ``path`` (a benchmark, a generator) run as module ``name``, kept in
+    ``sys.modules`` (dataclasses it defines resolve their own module)."""
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    module = sys.modules.setdefault(name, importlib.util.module_from_spec(spec))
+    spec.loader.exec_module(module)
+    return module
 
 
 BUILTIN_ROBOTS = ("freebot", "freesn", "mmrp", "snailbot")

@@ -43,7 +43,7 @@ from msrr.core.freeform.miso.pairing import improve_by_swaps
 from msrr.core.io import load_configuration
 from msrr.core.plan import ActionType
 
-from msrr_test_support import ROOT
+from msrr_test_support import ROOT, load_script
 
 FREEBOT_RULES = MisoLimits(max_in=6, no_docking_onto="child")
 KINDS = ("tree", "forest", "cyclic")
@@ -456,14 +456,7 @@ def test_the_same_input_gives_the_same_plan_file_under_any_hash_seed(tmp_path, p
 
 
 def _benchmark():
-    import importlib.util
-    from pathlib import Path
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "miso_planner.py"
-    spec = importlib.util.spec_from_file_location("miso_planner_benchmark", path)
-    module = sys.modules.setdefault("miso_planner_benchmark",
-                                    importlib.util.module_from_spec(spec))
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "benchmarks" / "miso_planner.py", "miso_planner_benchmark")
 
 
 _FAKE_MATRIX2TREE = '''

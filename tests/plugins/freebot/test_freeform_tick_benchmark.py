@@ -3,20 +3,13 @@ counting a nested part twice, and its fingerprint of a run is the same run after
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import time
 
-from msrr_test_support import ROOT
+from msrr_test_support import ROOT, load_script
 
 
 def _benchmark():
-    path = ROOT / "benchmarks" / "freeform_tick.py"
-    spec = importlib.util.spec_from_file_location("freeform_tick_benchmark", path)
-    module = sys.modules.setdefault("freeform_tick_benchmark",
-                                    importlib.util.module_from_spec(spec))
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "benchmarks" / "freeform_tick.py", "freeform_tick_benchmark")
 
 
 def _spin(seconds: float) -> None:

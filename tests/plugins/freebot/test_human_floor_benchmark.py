@@ -3,24 +3,17 @@ action does to a piece it docks: kinematically, no physics."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from types import SimpleNamespace
 
 import numpy as np
 
 from msrr.core.configuration import Configuration
 
-from msrr_test_support import ROOT
+from msrr_test_support import ROOT, load_script
 
 
 def _benchmark():
-    path = ROOT / "benchmarks" / "human_floor.py"
-    spec = importlib.util.spec_from_file_location("human_floor_benchmark", path)
-    module = sys.modules.setdefault("human_floor_benchmark",
-                                    importlib.util.module_from_spec(spec))
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "benchmarks" / "human_floor.py", "human_floor_benchmark")
 
 
 def _config(bent: bool) -> Configuration:
