@@ -26,6 +26,19 @@ def load_script(path: Path, name: str) -> ModuleType:
     return module
 
 
+def control_until_reached(controller, action, phase, driver, ticks: int, dt: float = 0.1):
+    """Tick ``controller``'s ``phase`` of ``action`` on ``driver`` (its commands sent, ``dt``
+    [s] a tick) until it is reached or ``ticks`` have passed; the last
+    :class:`~msrr.core.control.Control`."""
+    for _ in range(ticks):
+        control = controller.control(action, phase, driver.get_observation())
+        if control.reached:
+            break
+        driver.send_action(control.commands)
+        driver.step(dt)
+    return control
+
+
 BUILTIN_ROBOTS = ("freebot", "freesn", "mmrp", "snailbot")
 """The robots this repository ships; each ships at least one configuration file."""
 

@@ -18,7 +18,7 @@ from msrr.core.plan import Action, ActionType
 from msrr.core.shape import skeletal_error
 from msrr.plugins.freebot.plugin import plugin
 
-from msrr_test_support import ROOT
+from msrr_test_support import ROOT, control_until_reached
 
 CONFIGS = ROOT / "plugins" / "freebot" / "configs"
 
@@ -87,13 +87,7 @@ def test_a_flow_rolls_the_leaf_and_switches_its_magnet_in_one_step(mujoco_driver
     action = Action(ActionType.FLOW, goal, changes=topology_diff(
         load_configuration(CONFIGS / "line6.json"), goal).changes())
     controller = plugin.controllers()[0]
-    for _ in range(80):
-        control = controller.control(action, Phase.FLOW, driver.get_observation())
-        if control.reached:
-            break
-        driver.send_action(control.commands)
-        driver.step(0.1)
-    assert control.reached
+    assert control_until_reached(controller, action, Phase.FLOW, driver, 80).reached
     driver.send_action(controller.control(action, Phase.HANDOVER,
                                           driver.get_observation()).commands)
     driver.step(0.1)

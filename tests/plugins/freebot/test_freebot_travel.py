@@ -16,7 +16,7 @@ from msrr.core.io import load_configuration
 from msrr.core.shape import skeletal_error
 from msrr.plugins.freebot.plugin import plugin
 
-from msrr_test_support import ROOT
+from msrr_test_support import ROOT, control_until_reached
 
 SPEED = 0.02        # [m/s], under a shell's rolling bound r * max_speed = 0.025
 
@@ -1051,13 +1051,7 @@ def test_a_straight_piece_re_aims_a_drive_in_place_and_ends_on_its_line():
     truth = np.array([driver.world.centre(m)[:2] for m in piece])
     along = rot_z(off)[:2, :2] @ (truth[-1] - truth[0]) / np.linalg.norm(truth[-1] - truth[0])
     action = Action(ActionType.CONNECTION, Configuration("freebot", name="aim"))
-    for _ in range(400):
-        control = controller.control(action, Phase.APPROACH, driver.get_observation())
-        if control.reached:
-            break
-        driver.send_action(control.commands)
-        driver.step(0.1)
-    assert control.reached
+    assert control_until_reached(controller, action, Phase.APPROACH, driver, 400).reached
     moved = np.array([driver.world.centre(m)[:2] for m in piece]).mean(axis=0) - truth.mean(axis=0)
     assert float(moved @ along) > 0.39
     assert abs(float(along[0] * moved[1] - along[1] * moved[0])) < 0.003
