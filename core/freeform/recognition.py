@@ -93,19 +93,20 @@ def module_headings(reports: Reports, links: Mapping[str, str] | None = None
 
 class _HeadingsMemo:
     """:func:`link_headings`' one entry: the reports it was found for (their keys and
-    report objects, by identity) and the links and headings."""
+    report objects, by identity) and the links and headings, replaced as one pair (a
+    reader never pairs one tick's reports with another's headings)."""
 
     def __init__(self) -> None:
-        self.reports: list[tuple[str, ModuleReport]] = []
-        self.found: tuple[dict[str, str], dict[str, float]] = ({}, {})
+        self.entry: tuple[list[tuple[str, ModuleReport]],
+                          tuple[dict[str, str], dict[str, float]]] = ([], ({}, {}))
 
     def get(self, reports: Reports) -> tuple[dict[str, str], dict[str, float]] | None:
-        items = self.reports
+        items, found = self.entry
         if len(items) != len(reports) or any(
                 report is not r for (_, report), r in zip(items, reports.values(), strict=True)) \
                 or any(m != k for (m, _), k in zip(items, reports, strict=True)):
             return None
-        return self.found
+        return found
 
 
 _HEADINGS = _HeadingsMemo()
@@ -120,7 +121,7 @@ def link_headings(reports: Reports) -> tuple[dict[str, str], dict[str, float]]:
     if found is None:
         links = links_of(reports)
         found = (links, module_headings(reports, links))
-        _HEADINGS.reports, _HEADINGS.found = list(reports.items()), found
+        _HEADINGS.entry = (list(reports.items()), found)
     return found
 
 
